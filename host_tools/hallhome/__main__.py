@@ -1,0 +1,3 @@
+from hallhome.cli import main
+
+main()

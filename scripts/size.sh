@@ -1,0 +1,17 @@
+#!/usr/bin/env bash
+# Flash and static RAM of a firmware ELF against the ATmega2560, failing above
+# the project's budget: 64 KB flash, 4 KB static RAM (half the chip, the rest
+# is stack).
+set -euo pipefail
+elf=$1
+flash_cap=262144 ram_cap=8192
+flash_max=65536 ram_max=4096
+read -r text data bss noinit < <(avr-size -A "$elf" | awk '
+    $1==".text"{t=$2} $1==".data"{d=$2} $1==".bss"{b=$2} $1==".noinit"{n=$2}
+    END{print t+0, d+0, b+0, n+0}')
+flash=$((text + data))
+ram=$((data + bss + noinit))
+printf 'flash: %6d bytes (%4.1f %% of %d, budget %d)\n' $flash "$(awk "BEGIN{print 100*$flash/$flash_cap}")" $flash_cap $flash_max
+printf 'ram:   %6d bytes (%4.1f %% of %d, budget %d) data %d bss %d noinit %d\n' $ram "$(awk "BEGIN{print 100*$ram/$ram_cap}")" $ram_cap $ram_max $data $bss $noinit
+if ((flash > flash_max)); then echo "size: flash over budget" >&2; exit 1; fi
+if ((ram > ram_max)); then echo "size: static RAM over budget" >&2; exit 1; fi
