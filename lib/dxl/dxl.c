@@ -1,0 +1,748 @@
+#include "dxl/dxl.h"
+
+#include <stddef.h>
+
+#include "dxl/dxl_xl430_reg.h"
+
+enum { DXL_PH_IDLE, DXL_PH_SEND, DXL_PH_WAIT_TX, DXL_PH_RECV };
+
+#define DXL_PENDING     1 /* reply[].result while the reply is awaited */
+#define DXL_READ_CHUNK  16u
+#define DXL_READ_ROUNDS 8u /* chunks per poll: bounds the time one poll takes */
+
+static uint8_t dxl_time_reached(uint32_t now, uint32_t t)
+{
+    return (int32_t)(now - t) >= 0;
+}
+
+static uint32_t dxl_now(const dxl_master *m)
+{
+    return m->port.now_us(m->port.ctx);
+}
+
+void dxl_config_default(dxl_config *cfg, uint32_t baud, uint8_t bits_per_byte)
+{
+    cfg->retries = 2;
+    cfg->byte_us = (uint16_t)((1000000UL * bits_per_byte + baud - 1u) / baud);
+    cfg->timeout_us = 1500;
+    cfg->tx_slack_us = 2000;
+}
+
+void dxl_master_init(dxl_master *m, const dxl_port *port, const dxl_config *cfg)
+{
+    m->port = *port;
+    m->cfg = *cfg;
+    dxl_parser_init(&m->parser, m->rx, DXL_RX_CAP);
+    m->stats = (dxl_master_stats){0, 0, 0, 0, 0, 0};
+    m->n_reply = 0;
+    m->expect = 0;
+    m->got = 0;
+    m->phase = DXL_PH_IDLE;
+    m->result = 0;
+}
+
+uint8_t dxl_busy(const dxl_master *m)
+{
+    return m->phase != DXL_PH_IDLE;
+}
+
+/* Late replies to an abandoned request would otherwise be taken for the
+ * answer to the next one. */
+static void dxl_drain(dxl_master *m)
+{
+    uint8_t chunk[DXL_READ_CHUNK];
+    for (uint8_t round = 0; round < DXL_READ_ROUNDS; round++) {
+        uint16_t got = m->port.read(m->port.ctx, chunk, DXL_READ_CHUNK);
+        if (got == 0) {
+            break;
+        }
+        m->stats.stale = (uint16_t)(m->stats.stale + got);
+    }
+}
+
+static void dxl_begin_attempt(dxl_master *m)
+{
+    dxl_drain(m);
+    dxl_parser_reset(&m->parser);
+    dxl_parser_set_raw(&m->parser, m->inst == DXL_INST_FAST_SYNC_READ);
+    m->attempt_err = 0;
+    m->got = 0;
+    for (uint8_t i = 0; i < m->n_reply; i++) {
+        if (m->reply[i].result != DXL_PENDING) {
+            m->got++;
+        }
+    }
+    m->tx_sent = 0;
+    m->stats.requests++;
+    m->port.set_dir(m->port.ctx, DXL_DIR_TX);
+    m->phase = DXL_PH_SEND;
+}
+
+static void dxl_finish(dxl_master *m, int8_t err)
+{
+    m->result = 0;
+    for (uint8_t i = 0; i < m->n_reply; i++) {
+        if (m->reply[i].result == DXL_PENDING) {
+            m->reply[i].result = err;
+            m->reply[i].len = 0;
+        }
+        if (m->result == 0 && m->reply[i].result != 0) {
+            m->result = m->reply[i].result;
+        }
+    }
+    if (m->n_reply == 0 && err != 0) {
+        m->result = err;
+    }
+    m->phase = DXL_PH_IDLE;
+    m->port.set_dir(m->port.ctx, DXL_DIR_RX);
+}
+
+static void dxl_end_attempt(dxl_master *m, int8_t err)
+{
+    if (err == -DXL_E_TIMEOUT) {
+        m->stats.timeouts++;
+        if (m->attempt_err != 0) {
+            err = m->attempt_err;
+        }
+    }
+    if (m->attempt < m->cfg.retries) {
+        m->attempt++;
+        m->stats.retries++;
+        dxl_begin_attempt(m);
+        return;
+    }
+    dxl_finish(m, err);
+}
+
+static void dxl_note(dxl_master *m, int8_t err)
+{
+    if (m->attempt_err == 0) {
+        m->attempt_err = err;
+    }
+}
+
+static dxl_reply *dxl_pending_for(dxl_master *m, uint8_t id)
+{
+    for (uint8_t i = 0; i < m->n_reply; i++) {
+        if (m->reply[i].id == id && m->reply[i].result == DXL_PENDING) {
+            return &m->reply[i];
+        }
+    }
+    return NULL;
+}
+
+/* The error number makes the data meaningless; the alert bit alone only says
+ * that Hardware Error Status is nonzero, the data is still the servo's. */
+static void dxl_settle(dxl_master *m, dxl_reply *r, uint8_t err, const uint8_t *data, uint16_t n)
+{
+    r->err = err;
+    r->len = (uint8_t)n;
+    for (uint16_t i = 0; i < n; i++) {
+        r->data[i] = data[i];
+    }
+    if ((err & DXL_ERR_NUMBER_MASK) != 0) {
+        r->result = -DXL_E_SERVO;
+    } else if ((err & DXL_ERR_ALERT) != 0) {
+        r->result = -DXL_E_ALERT;
+    } else {
+        r->result = 0;
+    }
+    m->got++;
+}
+
+/* Combined reply: 0x55, then per servo ERR ID DATA and a CRC, the last CRC
+ * being the packet's own (e-manual, "Fast Sync Read"). The packet CRC covers
+ * all of it, so the partial CRCs are not checked again. */
+static void dxl_on_fast(dxl_master *m, const dxl_status *st)
+{
+    uint16_t per = (uint16_t)(m->n + 4u);
+    const uint8_t *p = st->params - 1; /* ERR of the first servo */
+    uint8_t count = m->n_reply;
+    /* from the first ERR to the end, the packet CRC included */
+    if (st->id != DXL_BROADCAST_ID || st->n + 3u != (uint16_t)(count * per)) {
+        m->stats.malformed++;
+        dxl_note(m, -DXL_E_MALFORMED);
+        return;
+    }
+    for (uint8_t i = 0; i < count; i++) {
+        const uint8_t *chunk = p + (uint16_t)(i * per);
+        dxl_reply *r = dxl_pending_for(m, chunk[1]);
+        if (r == NULL || r != &m->reply[i]) {
+            m->stats.wrong_id++;
+            dxl_note(m, -DXL_E_WRONG_ID);
+            continue;
+        }
+        dxl_settle(m, r, chunk[0], chunk + 2, m->n);
+    }
+}
+
+static void dxl_on_packet(dxl_master *m)
+{
+    dxl_status st;
+    if (dxl_parser_status(&m->parser, &st) != 0) {
+        return; /* an instruction packet (our own echo on an unbuffered bus) */
+    }
+    if (m->inst == DXL_INST_FAST_SYNC_READ) {
+        dxl_on_fast(m, &st);
+        return;
+    }
+    dxl_reply *r = dxl_pending_for(m, st.id);
+    if (r == NULL) {
+        m->stats.wrong_id++;
+        dxl_note(m, -DXL_E_WRONG_ID);
+        return;
+    }
+    uint16_t want = r->len;
+    if (st.n != want && !((st.err & DXL_ERR_NUMBER_MASK) != 0 && st.n == 0)) {
+        m->stats.malformed++;
+        dxl_note(m, -DXL_E_MALFORMED);
+        return;
+    }
+    dxl_settle(m, r, st.err, st.params, st.n);
+}
+
+static uint16_t dxl_reply_bytes(const dxl_master *m)
+{
+    if (m->inst == DXL_INST_FAST_SYNC_READ) {
+        return (uint16_t)(8u + m->n_reply * (m->n + 4u));
+    }
+    uint16_t most = 0;
+    for (uint8_t i = 0; i < m->n_reply; i++) {
+        most = (uint16_t)(most + 11u + m->reply[i].len);
+    }
+    return most;
+}
+
+static void dxl_recv(dxl_master *m)
+{
+    uint8_t chunk[DXL_READ_CHUNK];
+    for (uint8_t round = 0; round < DXL_READ_ROUNDS && m->got < m->expect; round++) {
+        uint16_t n = m->port.read(m->port.ctx, chunk, DXL_READ_CHUNK);
+        if (n == 0) {
+            break;
+        }
+        for (uint16_t i = 0; i < n; i++) {
+            int8_t rc = dxl_parser_feed(&m->parser, chunk[i]);
+            if (rc == 0) {
+                dxl_on_packet(m);
+            } else if (rc < 0) {
+                dxl_note(m, rc == -DXL_E_CRC ? -DXL_E_CRC : -DXL_E_MALFORMED);
+                if (m->expect == 1u) {
+                    /* the one reply is spoilt and the bus is free: retry now */
+                    dxl_end_attempt(m, m->attempt_err);
+                    return;
+                }
+            }
+        }
+    }
+    if (m->got >= m->expect) {
+        dxl_finish(m, 0);
+    } else if (dxl_time_reached(dxl_now(m), m->deadline)) {
+        dxl_end_attempt(m, -DXL_E_TIMEOUT);
+    }
+}
+
+int8_t dxl_poll(dxl_master *m)
+{
+    switch (m->phase) {
+    case DXL_PH_SEND: {
+        uint16_t n =
+            m->port.write(m->port.ctx, m->tx + m->tx_sent, (uint16_t)(m->tx_len - m->tx_sent));
+        m->tx_sent = (uint16_t)(m->tx_sent + n);
+        if (m->tx_sent >= m->tx_len) {
+            m->deadline = dxl_now(m) + (uint32_t)m->tx_len * m->cfg.byte_us + m->cfg.tx_slack_us;
+            m->phase = DXL_PH_WAIT_TX;
+        }
+        return 1;
+    }
+    case DXL_PH_WAIT_TX:
+        if (m->port.tx_done(m->port.ctx)) {
+            if (m->expect == 0) {
+                dxl_finish(m, 0);
+                return m->result;
+            }
+            uint32_t allow = (uint32_t)m->expect * m->cfg.timeout_us +
+                             (uint32_t)dxl_reply_bytes(m) * m->cfg.byte_us;
+            m->deadline = dxl_now(m) + allow;
+            m->phase = DXL_PH_RECV;
+            dxl_recv(m);
+        } else if (dxl_time_reached(dxl_now(m), m->deadline)) {
+            dxl_finish(m, -DXL_E_PORT);
+        }
+        return m->phase == DXL_PH_IDLE ? m->result : 1;
+    case DXL_PH_RECV:
+        dxl_recv(m);
+        return m->phase == DXL_PH_IDLE ? m->result : 1;
+    default:
+        return m->result;
+    }
+}
+
+void dxl_abort(dxl_master *m)
+{
+    if (m->phase != DXL_PH_IDLE) {
+        dxl_finish(m, -DXL_E_TIMEOUT);
+    }
+}
+
+const dxl_reply *dxl_reply_for(const dxl_master *m, uint8_t id)
+{
+    for (uint8_t i = 0; i < m->n_reply; i++) {
+        if (m->reply[i].id == id) {
+            return &m->reply[i];
+        }
+    }
+    return NULL;
+}
+
+int32_t dxl_reply_value(const dxl_reply *r, uint8_t size)
+{
+    if (r == NULL || r->len < size || (size != 1u && size != 2u && size != 4u)) {
+        return 0;
+    }
+    uint32_t v = dxl_get_le(r->data, size);
+    if (size == 1u) {
+        return (int8_t)v;
+    }
+    if (size == 2u) {
+        return (int16_t)v;
+    }
+    return (int32_t)v;
+}
+
+/* --- starting transactions --------------------------------------------------------- */
+
+static int8_t dxl_prepare(dxl_master *m, uint8_t inst, uint16_t addr, uint16_t n)
+{
+    if (m->phase != DXL_PH_IDLE) {
+        return -DXL_E_BUSY;
+    }
+    m->inst = inst;
+    m->addr = addr;
+    m->n = n;
+    m->n_reply = 0;
+    m->expect = 0;
+    m->attempt = 0;
+    return 0;
+}
+
+static void dxl_expect(dxl_master *m, uint8_t id, uint16_t n)
+{
+    dxl_reply *r = &m->reply[m->n_reply++];
+    r->id = id;
+    r->result = DXL_PENDING;
+    r->err = 0;
+    r->len = (uint8_t)n;
+    m->expect++;
+}
+
+static int8_t dxl_launch(dxl_master *m, int8_t built)
+{
+    if (built != 0) {
+        m->n_reply = 0;
+        m->expect = 0;
+        return built;
+    }
+    dxl_begin_attempt(m);
+    return 1;
+}
+
+/* A unicast request expects one status packet carrying `n` data bytes; a
+ * broadcast one expects nothing. */
+static int8_t dxl_simple(dxl_master *m, uint8_t id, uint16_t n, int8_t built)
+{
+    if (built == 0 && id != DXL_BROADCAST_ID) {
+        dxl_expect(m, id, n);
+    }
+    return dxl_launch(m, built);
+}
+
+int8_t dxl_ping(dxl_master *m, uint8_t id)
+{
+    int8_t rc = dxl_prepare(m, DXL_INST_PING, 0, 3);
+    if (rc != 0) {
+        return rc;
+    }
+    if (id > DXL_MAX_ID) {
+        return -DXL_E_ARG;
+    }
+    return dxl_simple(m, id, 3, dxl_build_ping(m->tx, DXL_TX_CAP, id, &m->tx_len));
+}
+
+int8_t dxl_read(dxl_master *m, uint8_t id, uint16_t addr, uint16_t n)
+{
+    int8_t rc = dxl_prepare(m, DXL_INST_READ, addr, n);
+    if (rc != 0) {
+        return rc;
+    }
+    if (n > DXL_REPLY_DATA) {
+        return -DXL_E_ARG;
+    }
+    return dxl_simple(m, id, n, dxl_build_read(m->tx, DXL_TX_CAP, id, addr, n, &m->tx_len));
+}
+
+int8_t dxl_write(dxl_master *m, uint8_t id, uint16_t addr, const uint8_t *data, uint16_t n)
+{
+    int8_t rc = dxl_prepare(m, DXL_INST_WRITE, addr, 0);
+    if (rc != 0) {
+        return rc;
+    }
+    return dxl_simple(m, id, 0, dxl_build_write(m->tx, DXL_TX_CAP, id, addr, data, n, &m->tx_len));
+}
+
+int8_t dxl_write_value(dxl_master *m, uint8_t id, uint16_t addr, uint32_t value, uint8_t size)
+{
+    uint8_t data[4];
+    if (size != 1u && size != 2u && size != 4u) {
+        return -DXL_E_ARG;
+    }
+    dxl_put_le(data, value, size);
+    return dxl_write(m, id, addr, data, size);
+}
+
+int8_t dxl_reg_write(dxl_master *m, uint8_t id, uint16_t addr, const uint8_t *data, uint16_t n)
+{
+    int8_t rc = dxl_prepare(m, DXL_INST_REG_WRITE, addr, 0);
+    if (rc != 0) {
+        return rc;
+    }
+    return dxl_simple(m, id, 0,
+                      dxl_build_reg_write(m->tx, DXL_TX_CAP, id, addr, data, n, &m->tx_len));
+}
+
+int8_t dxl_action(dxl_master *m, uint8_t id)
+{
+    int8_t rc = dxl_prepare(m, DXL_INST_ACTION, 0, 0);
+    if (rc != 0) {
+        return rc;
+    }
+    return dxl_simple(m, id, 0, dxl_build_action(m->tx, DXL_TX_CAP, id, &m->tx_len));
+}
+
+int8_t dxl_reboot(dxl_master *m, uint8_t id)
+{
+    int8_t rc = dxl_prepare(m, DXL_INST_REBOOT, 0, 0);
+    if (rc != 0) {
+        return rc;
+    }
+    return dxl_simple(m, id, 0, dxl_build_reboot(m->tx, DXL_TX_CAP, id, &m->tx_len));
+}
+
+int8_t dxl_factory_reset(dxl_master *m, uint8_t id, uint8_t mode, uint32_t guard)
+{
+    int8_t rc = dxl_prepare(m, DXL_INST_FACTORY_RESET, 0, 0);
+    if (rc != 0) {
+        return rc;
+    }
+    return dxl_simple(m, id, 0,
+                      dxl_build_factory_reset(m->tx, DXL_TX_CAP, id, mode, guard, &m->tx_len));
+}
+
+int8_t dxl_clear_multiturn(dxl_master *m, uint8_t id)
+{
+    int8_t rc = dxl_prepare(m, DXL_INST_CLEAR, 0, 0);
+    if (rc != 0) {
+        return rc;
+    }
+    return dxl_simple(m, id, 0, dxl_build_clear_multiturn(m->tx, DXL_TX_CAP, id, &m->tx_len));
+}
+
+static int8_t dxl_group_read(dxl_master *m, uint8_t inst, uint16_t addr, uint16_t n,
+                             const uint8_t *ids, uint8_t count)
+{
+    int8_t rc = dxl_prepare(m, inst, addr, n);
+    if (rc != 0) {
+        return rc;
+    }
+    if (ids == NULL || count == 0 || count > DXL_MAX_IDS || n == 0 || n > DXL_REPLY_DATA) {
+        return -DXL_E_ARG;
+    }
+    int8_t built =
+        inst == DXL_INST_SYNC_READ
+            ? dxl_build_sync_read(m->tx, DXL_TX_CAP, addr, n, ids, count, &m->tx_len)
+            : dxl_build_fast_sync_read(m->tx, DXL_TX_CAP, addr, n, ids, count, &m->tx_len);
+    if (built == 0) {
+        for (uint8_t i = 0; i < count; i++) {
+            dxl_expect(m, ids[i], n);
+        }
+    }
+    return dxl_launch(m, built);
+}
+
+int8_t dxl_sync_read(dxl_master *m, uint16_t addr, uint16_t n, const uint8_t *ids, uint8_t count)
+{
+    return dxl_group_read(m, DXL_INST_SYNC_READ, addr, n, ids, count);
+}
+
+int8_t dxl_fast_sync_read(dxl_master *m, uint16_t addr, uint16_t n, const uint8_t *ids,
+                          uint8_t count)
+{
+    return dxl_group_read(m, DXL_INST_FAST_SYNC_READ, addr, n, ids, count);
+}
+
+int8_t dxl_sync_write(dxl_master *m, uint16_t addr, uint16_t n, const uint8_t *ids,
+                      const uint8_t *data, uint8_t count)
+{
+    int8_t rc = dxl_prepare(m, DXL_INST_SYNC_WRITE, addr, n);
+    if (rc != 0) {
+        return rc;
+    }
+    return dxl_launch(
+        m, dxl_build_sync_write(m->tx, DXL_TX_CAP, addr, n, ids, data, count, &m->tx_len));
+}
+
+int8_t dxl_bulk_read(dxl_master *m, const dxl_bulk_item *items, uint8_t count)
+{
+    int8_t rc = dxl_prepare(m, DXL_INST_BULK_READ, 0, 0);
+    if (rc != 0) {
+        return rc;
+    }
+    if (items == NULL || count == 0 || count > DXL_MAX_IDS) {
+        return -DXL_E_ARG;
+    }
+    for (uint8_t i = 0; i < count; i++) {
+        if (items[i].n > DXL_REPLY_DATA) {
+            return -DXL_E_ARG;
+        }
+    }
+    int8_t built = dxl_build_bulk_read(m->tx, DXL_TX_CAP, items, count, &m->tx_len);
+    if (built == 0) {
+        for (uint8_t i = 0; i < count; i++) {
+            dxl_expect(m, items[i].id, items[i].n);
+        }
+    }
+    return dxl_launch(m, built);
+}
+
+int8_t dxl_bulk_write(dxl_master *m, const dxl_bulk_item *items, uint8_t count)
+{
+    int8_t rc = dxl_prepare(m, DXL_INST_BULK_WRITE, 0, 0);
+    if (rc != 0) {
+        return rc;
+    }
+    return dxl_launch(m, dxl_build_bulk_write(m->tx, DXL_TX_CAP, items, count, &m->tx_len));
+}
+
+/* --- bring-up ------------------------------------------------------------------------ */
+
+enum {
+    DXL_BU_PING,
+    DXL_BU_HW_READ,
+    DXL_BU_REBOOT,
+    DXL_BU_REBOOT_WAIT,
+    DXL_BU_REPING,
+    DXL_BU_CONFIG,
+    DXL_BU_POSITIONS,
+    DXL_BU_DONE
+};
+
+#define DXL_BU_WRITES 6u
+
+int8_t dxl_bringup_start(dxl_bringup *b, dxl_master *m, const uint8_t *ids, uint8_t count,
+                         const dxl_bringup_config *cfg)
+{
+    if (ids == NULL || count == 0 || count > DXL_MAX_IDS) {
+        return -DXL_E_ARG;
+    }
+    if (dxl_busy(m)) {
+        return -DXL_E_BUSY;
+    }
+    for (uint8_t i = 0; i < count; i++) {
+        if (ids[i] > DXL_MAX_ID) {
+            return -DXL_E_ARG;
+        }
+        b->servo[i] = (dxl_servo_info){ids[i], 0, 0, 0, 0, 0, 0, 0, 0};
+    }
+    b->m = m;
+    b->cfg = *cfg;
+    b->n = count;
+    b->n_missing = 0;
+    b->n_wrong_model = 0;
+    b->step = DXL_BU_PING;
+    b->index = 0;
+    b->sub = 0;
+    b->result = 1;
+    return 1;
+}
+
+static int8_t dxl_bu_done(dxl_bringup *b, int8_t result)
+{
+    b->step = DXL_BU_DONE;
+    b->result = result;
+    return result;
+}
+
+/* Records a ping reply; returns nonzero when the servo answered. */
+static uint8_t dxl_bu_pinged(dxl_bringup *b, dxl_servo_info *s, int8_t rc)
+{
+    const dxl_reply *r = dxl_reply_for(b->m, s->id);
+    if ((rc != 0 && rc != -DXL_E_ALERT) || r == NULL || r->len < 3u) {
+        s->present = 0;
+        return 0;
+    }
+    s->present = 1;
+    s->alert = (uint8_t)(rc == -DXL_E_ALERT);
+    s->model = (uint16_t)dxl_get_le(r->data, 2);
+    s->firmware = r->data[2];
+    s->model_ok = (uint8_t)(s->model == DXL_XL430_MODEL_NUMBER);
+    return 1;
+}
+
+static int8_t dxl_bu_config_write(dxl_bringup *b, uint8_t id)
+{
+    static const uint16_t addr[DXL_BU_WRITES] = {
+        DXL_XL430_TORQUE_ENABLE_ADDR,    DXL_XL430_RETURN_DELAY_ADDR,
+        DXL_XL430_OPERATING_MODE_ADDR,   DXL_XL430_PROFILE_ACCELERATION_ADDR,
+        DXL_XL430_PROFILE_VELOCITY_ADDR, DXL_XL430_TORQUE_ENABLE_ADDR,
+    };
+    static const uint8_t size[DXL_BU_WRITES] = {1, 1, 1, 4, 4, 1};
+    uint32_t value[DXL_BU_WRITES] = {
+        0, 0, DXL_XL430_MODE_EXTENDED, b->cfg.profile_acceleration, b->cfg.profile_velocity, 1};
+    return dxl_write_value(b->m, id, addr[b->sub], value[b->sub], size[b->sub]);
+}
+
+/* Starts the transaction the current step needs; each step's result is
+ * handled in dxl_bringup_poll() when the master is idle again. */
+static int8_t dxl_bu_issue(dxl_bringup *b)
+{
+    dxl_servo_info *s = &b->servo[b->index];
+    switch (b->step) {
+    case DXL_BU_PING:
+    case DXL_BU_REPING:
+        return dxl_ping(b->m, s->id);
+    case DXL_BU_HW_READ:
+        return dxl_read(b->m, s->id, DXL_XL430_HW_ERROR_ADDR, DXL_XL430_HW_ERROR_SIZE);
+    case DXL_BU_REBOOT:
+        return dxl_reboot(b->m, s->id);
+    case DXL_BU_CONFIG:
+        return dxl_bu_config_write(b, s->id);
+    case DXL_BU_POSITIONS: {
+        uint8_t ids[DXL_MAX_IDS];
+        for (uint8_t i = 0; i < b->n; i++) {
+            ids[i] = b->servo[i].id;
+        }
+        return dxl_sync_read(b->m, DXL_XL430_PRESENT_POSITION_ADDR, DXL_XL430_PRESENT_POSITION_SIZE,
+                             ids, b->n);
+    }
+    default:
+        return 0;
+    }
+}
+
+/* Moves to the next servo that needs the hardware check, or on to configuration. */
+static void dxl_bu_next_alert(dxl_bringup *b, uint8_t from)
+{
+    for (b->index = from; b->index < b->n; b->index++) {
+        if (b->servo[b->index].alert) {
+            b->step = DXL_BU_HW_READ;
+            return;
+        }
+    }
+    b->index = 0;
+    b->sub = 0;
+    b->step = DXL_BU_CONFIG;
+}
+
+static int8_t dxl_bu_after(dxl_bringup *b, int8_t rc)
+{
+    dxl_servo_info *s = &b->servo[b->index];
+    switch (b->step) {
+    case DXL_BU_PING:
+        if (!dxl_bu_pinged(b, s, rc)) {
+            b->missing[b->n_missing++] = s->id;
+        } else if (!s->model_ok) {
+            b->n_wrong_model++;
+        }
+        if (++b->index < b->n) {
+            return 1;
+        }
+        if (b->n_missing > 0) {
+            return dxl_bu_done(b, -DXL_E_MISSING);
+        }
+        dxl_bu_next_alert(b, 0);
+        return 1;
+    case DXL_BU_HW_READ: {
+        const dxl_reply *r = dxl_reply_for(b->m, s->id);
+        if ((rc != 0 && rc != -DXL_E_ALERT) || r == NULL || r->len < 1u) {
+            return dxl_bu_done(b, rc != 0 ? rc : -DXL_E_MALFORMED);
+        }
+        s->hw_error = r->data[0];
+        if (s->hw_error == 0) {
+            s->alert = 0;
+            dxl_bu_next_alert(b, (uint8_t)(b->index + 1u));
+        } else if (b->cfg.reboot_on_hw_error && !s->rebooted) {
+            b->step = DXL_BU_REBOOT;
+        } else {
+            return dxl_bu_done(b, -DXL_E_HW_ERROR);
+        }
+        return 1;
+    }
+    case DXL_BU_REBOOT:
+        if (rc != 0 && rc != -DXL_E_ALERT) {
+            return dxl_bu_done(b, rc);
+        }
+        s->rebooted = 1;
+        b->wait_until = b->m->port.now_us(b->m->port.ctx) + b->cfg.reboot_wait_us;
+        b->step = DXL_BU_REBOOT_WAIT;
+        return 1;
+    case DXL_BU_REPING:
+        if (!dxl_bu_pinged(b, s, rc)) {
+            b->missing[b->n_missing++] = s->id;
+            return dxl_bu_done(b, -DXL_E_MISSING);
+        }
+        if (s->alert) {
+            b->step = DXL_BU_HW_READ;
+        } else {
+            s->hw_error = 0;
+            dxl_bu_next_alert(b, (uint8_t)(b->index + 1u));
+        }
+        return 1;
+    case DXL_BU_CONFIG:
+        if (rc != 0) {
+            return dxl_bu_done(b, rc);
+        }
+        if (++b->sub < DXL_BU_WRITES) {
+            return 1;
+        }
+        b->sub = 0;
+        if (++b->index >= b->n) {
+            b->index = 0;
+            b->step = DXL_BU_POSITIONS;
+        }
+        return 1;
+    case DXL_BU_POSITIONS:
+        if (rc != 0) {
+            return dxl_bu_done(b, rc);
+        }
+        for (uint8_t i = 0; i < b->n; i++) {
+            b->servo[i].position = dxl_reply_value(dxl_reply_for(b->m, b->servo[i].id), 4);
+        }
+        return dxl_bu_done(b, 0);
+    default:
+        return b->result;
+    }
+}
+
+int8_t dxl_bringup_poll(dxl_bringup *b)
+{
+    if (b->step == DXL_BU_DONE) {
+        return b->result;
+    }
+    if (b->step == DXL_BU_REBOOT_WAIT) {
+        if (!dxl_time_reached(b->m->port.now_us(b->m->port.ctx), b->wait_until)) {
+            return 1;
+        }
+        b->step = DXL_BU_REPING;
+    }
+    if (!dxl_busy(b->m)) {
+        int8_t rc = dxl_bu_issue(b);
+        if (rc < 0) {
+            return dxl_bu_done(b, rc);
+        }
+    }
+    int8_t rc = dxl_poll(b->m);
+    if (rc > 0) {
+        return 1;
+    }
+    return dxl_bu_after(b, rc);
+}
