@@ -1,0 +1,530 @@
+#include "store/store.h"
+
+#include <string.h>
+
+#define ST_IDLE   0u
+#define ST_WRITE  1u
+#define ST_VERIFY 2u
+
+/* Writes skipped because the EEPROM already holds the byte cost nothing, so
+ * one poll may pass this many of them before returning. */
+#define STORE_SKIP_BUDGET 32u
+
+#define STORE_NO_HEAD 0xFFu
+
+/* ---- layout checks (compile time; C99 has no _Static_assert) ------------- */
+
+#define STORE_ASSERT(name, cond) typedef char store_assert_##name[(cond) ? 1 : -1]
+
+STORE_ASSERT(homes_size, sizeof(store_homes_t) == 160u);
+STORE_ASSERT(learned_size, sizeof(store_learned_t) == 56u);
+STORE_ASSERT(hist_size, sizeof(store_hist_t) == 64u);
+STORE_ASSERT(settings_fit, STORE_SETTING_COUNT <= STORE_SETTING_MAX &&
+                               STORE_SLOT_LEN(4u * STORE_SETTING_MAX) <= STORE_SETTINGS_STRIDE);
+STORE_ASSERT(homes_fit, STORE_SLOT_LEN(sizeof(store_homes_t)) <= STORE_HOMES_STRIDE);
+STORE_ASSERT(learned_fit, STORE_SLOT_LEN(sizeof(store_learned_t)) <= STORE_LEARNED_STRIDE);
+STORE_ASSERT(hist_fit, STORE_SLOT_LEN(sizeof(store_hist_t)) <= STORE_HIST_STRIDE);
+STORE_ASSERT(order1, STORE_ADDR_SETTINGS + 2u * STORE_SETTINGS_STRIDE <= STORE_ADDR_HOMES);
+STORE_ASSERT(order2, STORE_ADDR_HOMES + 2u * STORE_HOMES_STRIDE <= STORE_ADDR_LEARNED);
+STORE_ASSERT(order3,
+             STORE_ADDR_LEARNED + 2u * STORE_MAX_TENDONS * STORE_LEARNED_STRIDE <= STORE_ADDR_HIST);
+STORE_ASSERT(order4, STORE_ADDR_END <= STORE_EEPROM_SIZE);
+STORE_ASSERT(hist_min, STORE_HIST_N >= 16u && STORE_HIST_N < STORE_NO_HEAD);
+STORE_ASSERT(tendon_mask, STORE_MAX_TENDONS <= 16u && TBL_MAX_GRID <= 16u);
+
+/* ---- settings declaration -------------------------------------------------- */
+
+#define STORE_TMIN_U8  0
+#define STORE_TMAX_U8  255
+#define STORE_TMIN_U16 0
+#define STORE_TMAX_U16 65535L
+#define STORE_TMIN_U32 0
+#define STORE_TMAX_U32 2147483647L /* stored as int32_t */
+#define STORE_TMIN_I32 (-2147483647L - 1)
+#define STORE_TMAX_I32 2147483647L
+
+/* Every declared range must fit its type and hold its default. */
+#define STORE_SETTING(id, name, type, min, max, def, unit, help)                                   \
+    STORE_ASSERT(decl_##id, (min) >= STORE_TMIN_##type && (max) <= STORE_TMAX_##type &&            \
+                                (min) <= (def) && (def) <= (max));
+#include "store/store_settings.def"
+#undef STORE_SETTING
+
+static const store_setting_info_t store_decl[STORE_SETTING_COUNT] STORE_FLASH = {
+#define STORE_SETTING(id, name, type, min, max, def, unit, help)                                   \
+    {(int32_t)(min), (int32_t)(max), (int32_t)(def), STORE_T_##type},
+#include "store/store_settings.def"
+#undef STORE_SETTING
+};
+
+/* name, unit and help of every setting, in declaration order, NUL-separated:
+ * one flash string instead of 3 * N pointers. */
+static const char store_text[] STORE_FLASH =
+#define STORE_SETTING(id, name, type, min, max, def, unit, help) name "\0" unit "\0" help "\0"
+#include "store/store_settings.def"
+#undef STORE_SETTING
+    ;
+
+/* ---- CRC ---------------------------------------------------------------------- */
+
+static uint16_t crc_byte(uint16_t crc, uint8_t b)
+{
+    uint8_t i;
+    crc ^= (uint16_t)((uint16_t)b << 8);
+    for (i = 0; i < 8u; i++) {
+        crc = (crc & 0x8000u) ? (uint16_t)((crc << 1) ^ 0x1021u) : (uint16_t)(crc << 1);
+    }
+    return crc;
+}
+
+uint16_t store_crc16(uint16_t crc, const void *data, size_t n)
+{
+    const uint8_t *p = (const uint8_t *)data;
+    while (n--) {
+        crc = crc_byte(crc, *p++);
+    }
+    return crc;
+}
+
+/* ---- slots -------------------------------------------------------------------- */
+
+/* A slot is valid when kind and version match and the CRC over header and
+ * body agrees; its sequence number goes to *seq. */
+static uint8_t slot_valid(const store_t *st, uint16_t addr, uint8_t kind, uint8_t ver, uint16_t len,
+                          uint16_t *seq)
+{
+    const store_eeprom_t *ee = st->ee;
+    uint16_t crc = 0xFFFFu;
+    uint16_t i, stored;
+    uint8_t b;
+    if (ee->read_byte(ee->ctx, addr) != kind ||
+        ee->read_byte(ee->ctx, (uint16_t)(addr + 1u)) != ver) {
+        return 0;
+    }
+    for (i = 0; i < STORE_HDR_LEN + len; i++) {
+        b = ee->read_byte(ee->ctx, (uint16_t)(addr + i));
+        crc = crc_byte(crc, b);
+    }
+    stored = (uint16_t)(ee->read_byte(ee->ctx, (uint16_t)(addr + i)) |
+                        ((uint16_t)ee->read_byte(ee->ctx, (uint16_t)(addr + i + 1u)) << 8));
+    if (stored != crc) {
+        return 0;
+    }
+    *seq = (uint16_t)(ee->read_byte(ee->ctx, (uint16_t)(addr + 2u)) |
+                      ((uint16_t)ee->read_byte(ee->ctx, (uint16_t)(addr + 3u)) << 8));
+    return 1;
+}
+
+/* a is newer than b in serial-number arithmetic (the counter wraps). */
+static uint8_t seq_newer(uint16_t a, uint16_t b)
+{
+    return (int16_t)(uint16_t)(a - b) > 0;
+}
+
+/* Index (0 = A at base, 1 = B at base + stride) of the newest valid copy of a
+ * two-slot record, or -1; its sequence number goes to *seq. */
+static int8_t pair_pick(const store_t *st, uint16_t base, uint16_t stride, uint8_t kind,
+                        uint8_t ver, uint16_t len, uint16_t *seq)
+{
+    uint16_t sa = 0, sb = 0;
+    uint8_t va = slot_valid(st, base, kind, ver, len, &sa);
+    uint8_t vb = slot_valid(st, (uint16_t)(base + stride), kind, ver, len, &sb);
+    if (va && (!vb || !seq_newer(sb, sa))) {
+        *seq = sa;
+        return 0;
+    }
+    if (vb) {
+        *seq = sb;
+        return 1;
+    }
+    return -1;
+}
+
+static int8_t pair_load(store_t *st, uint16_t base, uint16_t stride, uint8_t kind, uint8_t ver,
+                        void *body, uint16_t len)
+{
+    uint16_t seq;
+    int8_t which = pair_pick(st, base, stride, kind, ver, len, &seq);
+    if (which < 0) {
+        return STORE_E_EMPTY;
+    }
+    st->ee->read_block(st->ee->ctx, body, (uint16_t)(base + (which ? stride : 0u) + STORE_HDR_LEN),
+                       len);
+    return 0;
+}
+
+static int8_t save_begin(store_t *st, uint16_t addr, uint8_t kind, uint8_t ver, uint16_t seq,
+                         const void *body, uint16_t len)
+{
+    st->addr = addr;
+    st->len = len;
+    st->body = (const uint8_t *)body;
+    st->pos = 0;
+    st->crc = 0xFFFFu;
+    st->hdr[0] = kind;
+    st->hdr[1] = ver;
+    st->hdr[2] = (uint8_t)seq;
+    st->hdr[3] = (uint8_t)(seq >> 8);
+    st->state = ST_WRITE;
+    return 1;
+}
+
+/* Saves a two-slot record into the slot that does not hold the newest valid
+ * copy, so that copy survives whatever happens to this write. */
+static int8_t pair_save(store_t *st, uint16_t base, uint16_t stride, uint8_t kind, uint8_t ver,
+                        const void *body, uint16_t len)
+{
+    uint16_t seq = 0;
+    int8_t which;
+    if (st->state != ST_IDLE) {
+        return STORE_E_BUSY;
+    }
+    which = pair_pick(st, base, stride, kind, ver, len, &seq);
+    return save_begin(st, (uint16_t)(base + (which == 0 ? stride : 0u)), kind, ver,
+                      (uint16_t)(seq + 1u), body, len);
+}
+
+/* Byte `pos` of the slot being written; the CRC goes last. */
+static uint8_t slot_byte(const store_t *st, uint16_t pos)
+{
+    if (pos < STORE_HDR_LEN) {
+        return st->hdr[pos];
+    }
+    pos = (uint16_t)(pos - STORE_HDR_LEN);
+    if (pos < st->len) {
+        return st->body[pos];
+    }
+    return (pos == st->len) ? (uint8_t)st->crc : (uint8_t)(st->crc >> 8);
+}
+
+static uint8_t hist_slot_valid(const store_t *st, uint8_t i, uint16_t *seq)
+{
+    return slot_valid(st, (uint16_t)(STORE_ADDR_HIST + i * STORE_HIST_STRIDE), STORE_KIND_HIST,
+                      STORE_HIST_VERSION, (uint16_t)sizeof(store_hist_t), seq);
+}
+
+static void hist_scan(store_t *st)
+{
+    uint8_t i;
+    uint16_t seq;
+    st->hist_head = STORE_NO_HEAD;
+    for (i = 0; i < STORE_HIST_N; i++) {
+        if (hist_slot_valid(st, i, &seq) &&
+            (st->hist_head == STORE_NO_HEAD || seq_newer(seq, st->hist_seq))) {
+            st->hist_head = i;
+            st->hist_seq = seq;
+        }
+    }
+}
+
+/* ---- public --------------------------------------------------------------------- */
+
+int8_t store_init(store_t *st, const store_eeprom_t *ee, store_copy_fn copy)
+{
+    memset(st, 0, sizeof(*st));
+    st->ee = ee;
+    st->copy = copy;
+    st->state = ST_IDLE;
+    hist_scan(st);
+    return 0;
+}
+
+uint8_t store_busy(const store_t *st)
+{
+    return st->state != ST_IDLE;
+}
+
+int8_t store_poll(store_t *st, uint8_t may_write)
+{
+    const store_eeprom_t *ee = st->ee;
+    uint16_t total = (uint16_t)(STORE_HDR_LEN + st->len + STORE_CRC_LEN);
+    uint16_t seq, i;
+    uint8_t n, b, ok;
+    if (st->state == ST_IDLE) {
+        return STORE_E_IDLE;
+    }
+    if (!may_write || !ee->ready(ee->ctx)) {
+        return 1;
+    }
+    if (st->state == ST_WRITE) {
+        for (n = 0; n < STORE_SKIP_BUDGET && st->pos < total; n++) {
+            uint16_t a = (uint16_t)(st->addr + st->pos);
+            b = slot_byte(st, st->pos);
+            if (st->pos < STORE_HDR_LEN + st->len) {
+                st->crc = crc_byte(st->crc, b);
+            }
+            st->pos++;
+            if (ee->read_byte(ee->ctx, a) != b) {
+                ee->write_byte(ee->ctx, a, b);
+                return 1;
+            }
+        }
+        if (st->pos == total) {
+            st->state = ST_VERIFY;
+        }
+        return 1;
+    }
+    /* ST_VERIFY: the last write has finished; read the whole slot back. */
+    st->state = ST_IDLE;
+    ok = slot_valid(st, st->addr, st->hdr[0], st->hdr[1], st->len, &seq) &&
+         seq == (uint16_t)(st->hdr[2] | ((uint16_t)st->hdr[3] << 8));
+    for (i = 0; ok && i < st->len; i++) {
+        ok = ee->read_byte(ee->ctx, (uint16_t)(st->addr + STORE_HDR_LEN + i)) == st->body[i];
+    }
+    if (!ok) {
+        return STORE_E_VERIFY;
+    }
+    if (st->hdr[0] == STORE_KIND_HIST) {
+        st->hist_head = st->hist_slot;
+        st->hist_seq = seq;
+    }
+    return 0;
+}
+
+/* ---- settings --------------------------------------------------------------------- */
+
+int8_t store_setting_info(const store_t *st, uint8_t id, store_setting_info_t *info)
+{
+    if (id >= STORE_SETTING_COUNT) {
+        return STORE_E_ARG;
+    }
+    st->copy(info, &store_decl[id], sizeof(*info));
+    return 0;
+}
+
+void store_settings_defaults(const store_t *st, store_settings_t *s)
+{
+    store_setting_info_t info;
+    uint8_t i;
+    for (i = 0; i < STORE_SETTING_COUNT; i++) {
+        (void)store_setting_info(st, i, &info);
+        s->v[i] = info.def;
+    }
+}
+
+int8_t store_setting_set(const store_t *st, store_settings_t *s, uint8_t id, int32_t value)
+{
+    store_setting_info_t info;
+    if (store_setting_info(st, id, &info) < 0) {
+        return STORE_E_ARG;
+    }
+    if (value < info.min || value > info.max) {
+        return STORE_E_RANGE;
+    }
+    s->v[id] = value;
+    return 0;
+}
+
+int8_t store_settings_load(store_t *st, store_settings_t *s)
+{
+    store_setting_info_t info;
+    int8_t rc;
+    uint8_t i;
+    rc = pair_load(st, STORE_ADDR_SETTINGS, STORE_SETTINGS_STRIDE, STORE_KIND_SETTINGS,
+                   STORE_SETTINGS_VERSION, s, (uint16_t)sizeof(*s));
+    if (rc < 0) {
+        store_settings_defaults(st, s);
+        return STORE_E_DEFAULTS;
+    }
+    for (i = 0; i < STORE_SETTING_COUNT; i++) {
+        (void)store_setting_info(st, i, &info);
+        if (s->v[i] < info.min || s->v[i] > info.max) {
+            s->v[i] = info.def;
+            rc = STORE_E_DEFAULTS;
+        }
+    }
+    return rc;
+}
+
+int8_t store_save_settings(store_t *st, const store_settings_t *s)
+{
+    return pair_save(st, STORE_ADDR_SETTINGS, STORE_SETTINGS_STRIDE, STORE_KIND_SETTINGS,
+                     STORE_SETTINGS_VERSION, s, (uint16_t)sizeof(*s));
+}
+
+int16_t store_setting_text(const store_t *st, uint8_t id, uint8_t which, char *buf, uint8_t cap)
+{
+    uint16_t skip, i = 0, n = 0;
+    char c;
+    if (id >= STORE_SETTING_COUNT || which > 2u || cap == 0u) {
+        return STORE_E_ARG;
+    }
+    /* Walk past 3 * id + which NUL-terminated strings. */
+    for (skip = (uint16_t)(3u * id + which); skip > 0; i++) {
+        st->copy(&c, &store_text[i], 1);
+        if (c == '\0') {
+            skip--;
+        }
+    }
+    for (;; i++, n++) {
+        st->copy(&c, &store_text[i], 1);
+        if (c == '\0') {
+            break;
+        }
+        if (n + 1u < cap) {
+            buf[n] = c;
+        }
+    }
+    buf[(n < cap) ? n : (uint16_t)(cap - 1u)] = '\0';
+    return (int16_t)n;
+}
+
+int8_t store_setting_find(const store_t *st, const char *name, uint8_t len)
+{
+    char buf[24];
+    uint8_t i;
+    int16_t n;
+    for (i = 0; i < STORE_SETTING_COUNT; i++) {
+        n = store_setting_text(st, i, 0, buf, sizeof(buf));
+        if (n == (int16_t)len && len < sizeof(buf) && memcmp(buf, name, len) == 0) {
+            return (int8_t)i;
+        }
+    }
+    return STORE_E_NAME;
+}
+
+/* ---- homes ------------------------------------------------------------------------- */
+
+static uint16_t turn_of(int32_t ticks)
+{
+    /* floor modulo 4096, also for negative positions */
+    return (uint16_t)((uint32_t)ticks & (uint32_t)(STORE_TICKS_PER_TURN - 1));
+}
+
+void store_home_set(store_home_t *e, int32_t home_ticks, int32_t rest_ticks)
+{
+    e->home_ticks = home_ticks;
+    e->rest_ticks = rest_ticks;
+    e->home_turn = turn_of(home_ticks);
+    e->rest_turn = turn_of(rest_ticks);
+}
+
+int8_t store_homes_load(store_t *st, uint32_t table_id, store_homes_t *h)
+{
+    int8_t rc = pair_load(st, STORE_ADDR_HOMES, STORE_HOMES_STRIDE, STORE_KIND_HOMES,
+                          STORE_HOMES_VERSION, h, (uint16_t)sizeof(*h));
+    if (rc == 0 && h->table_id != table_id) {
+        rc = STORE_E_OTHER_TABLE;
+    }
+    return rc;
+}
+
+int8_t store_save_homes(store_t *st, const store_homes_t *h)
+{
+    if (h->n_tendons > STORE_MAX_TENDONS) {
+        return STORE_E_ARG;
+    }
+    return pair_save(st, STORE_ADDR_HOMES, STORE_HOMES_STRIDE, STORE_KIND_HOMES,
+                     STORE_HOMES_VERSION, h, (uint16_t)sizeof(*h));
+}
+
+int8_t store_recover_position(const store_home_t *e, int32_t present, uint16_t tol, int32_t *pos)
+{
+    int16_t d;
+    if (tol >= (uint16_t)(STORE_TICKS_PER_TURN / 2) || e->home_turn != turn_of(e->home_ticks) ||
+        e->rest_turn != turn_of(e->rest_ticks)) {
+        return STORE_E_ARG;
+    }
+    d = (int16_t)turn_of((int32_t)turn_of(present) - (int32_t)e->rest_turn);
+    if (d >= (int16_t)(STORE_TICKS_PER_TURN / 2)) {
+        d = (int16_t)(d - (int16_t)STORE_TICKS_PER_TURN);
+    }
+    if (d > (int16_t)tol || d < -(int16_t)tol) {
+        return STORE_E_MOVED;
+    }
+    *pos = e->rest_ticks + d;
+    return 0;
+}
+
+/* ---- learned ------------------------------------------------------------------------ */
+
+static uint16_t learned_base(uint8_t tendon)
+{
+    return (uint16_t)(STORE_ADDR_LEARNED + 2u * tendon * STORE_LEARNED_STRIDE);
+}
+
+int8_t store_learned_load(store_t *st, uint8_t tendon, uint32_t table_id, store_learned_t *l)
+{
+    store_learned_t tmp;
+    int8_t rc;
+    if (tendon >= STORE_MAX_TENDONS) {
+        return STORE_E_ARG;
+    }
+    rc = pair_load(st, learned_base(tendon), STORE_LEARNED_STRIDE, STORE_KIND_LEARNED,
+                   STORE_LEARNED_VERSION, &tmp, (uint16_t)sizeof(tmp));
+    if (rc < 0) {
+        return rc;
+    }
+    if (tmp.tendon != tendon || tmp.n_grid > TBL_MAX_GRID) {
+        return STORE_E_EMPTY; /* valid CRC but not this tendon's record: never trust it */
+    }
+    *l = tmp;
+    return (tmp.table_id == table_id) ? 0 : STORE_E_OTHER_TABLE;
+}
+
+int8_t store_save_learned(store_t *st, const store_learned_t *l)
+{
+    if (l->tendon >= STORE_MAX_TENDONS || l->n_grid > TBL_MAX_GRID) {
+        return STORE_E_ARG;
+    }
+    return pair_save(st, learned_base(l->tendon), STORE_LEARNED_STRIDE, STORE_KIND_LEARNED,
+                     STORE_LEARNED_VERSION, l, (uint16_t)sizeof(*l));
+}
+
+/* ---- history -------------------------------------------------------------------------- */
+
+int8_t store_hist_get(store_t *st, uint8_t age, store_hist_t *e)
+{
+    uint8_t i;
+    uint16_t seq;
+    if (age >= STORE_HIST_N) {
+        return STORE_E_ARG;
+    }
+    if (st->hist_head == STORE_NO_HEAD) {
+        return STORE_E_EMPTY;
+    }
+    i = (st->hist_head >= age) ? (uint8_t)(st->hist_head - age)
+                               : (uint8_t)(st->hist_head + STORE_HIST_N - age);
+    /* An entry lost to a cut write breaks the chain: older ones are still
+     * there but the sequence check keeps the answer honest. */
+    if (!hist_slot_valid(st, i, &seq) || seq != (uint16_t)(st->hist_seq - age)) {
+        return STORE_E_EMPTY;
+    }
+    st->ee->read_block(st->ee->ctx, e,
+                       (uint16_t)(STORE_ADDR_HIST + i * STORE_HIST_STRIDE + STORE_HDR_LEN),
+                       (uint16_t)sizeof(*e));
+    return 0;
+}
+
+uint8_t store_hist_count(store_t *st)
+{
+    store_hist_t e;
+    uint8_t n = 0;
+    while (n < STORE_HIST_N && store_hist_get(st, n, &e) == 0) {
+        n++;
+    }
+    return n;
+}
+
+int8_t store_save_hist(store_t *st, const store_hist_t *e)
+{
+    uint8_t i;
+    if (st->state != ST_IDLE) {
+        return STORE_E_BUSY;
+    }
+    if (e->n_tendons > STORE_MAX_TENDONS) {
+        return STORE_E_ARG;
+    }
+    if (st->hist_head == STORE_NO_HEAD) {
+        st->hist_slot = 0;
+        return save_begin(st, STORE_ADDR_HIST, STORE_KIND_HIST, STORE_HIST_VERSION, 1u, e,
+                          (uint16_t)sizeof(*e));
+    }
+    i = (uint8_t)(st->hist_head + 1u);
+    if (i >= STORE_HIST_N) {
+        i = 0;
+    }
+    st->hist_slot = i;
+    return save_begin(st, (uint16_t)(STORE_ADDR_HIST + i * STORE_HIST_STRIDE), STORE_KIND_HIST,
+                      STORE_HIST_VERSION, (uint16_t)(st->hist_seq + 1u), e, (uint16_t)sizeof(*e));
+}
