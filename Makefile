@@ -34,7 +34,7 @@ AVR_CFLAGS := -mmcu=$(MCU) -DF_CPU=$(F_CPU) -std=c99 -Os -g -Wall -Wextra -Werro
 	-DHH_ROBOT=$(ROBOT) -MMD -MP
 AVR_LDFLAGS := -mmcu=$(MCU) -Wl,--gc-sections -Wl,-Map,$(BUILD)/firmware/hallhome.map
 
-.PHONY: all firmware size flash help bootstrap test unit avr-lib fuzz fuzz-smoke host-test lint \
+.PHONY: all firmware size flash help bootstrap test native-build unit avr-lib fuzz fuzz-smoke host-test lint \
 	format clean
 all: firmware
 
@@ -91,9 +91,11 @@ flash: $(FW_HEX)
 
 # --- native tests (CMake + ctest + cmocka, ASan + UBSan) ---------------------
 NATIVE := $(BUILD)/native
-unit: $(STAMP)
+native-build: $(STAMP)
 	cmake -S . -B $(NATIVE) -DCMAKE_BUILD_TYPE=Debug >/dev/null
 	cmake --build $(NATIVE) -j$(JOBS)
+
+unit: native-build
 	cd $(NATIVE) && ctest --output-on-failure -j$(JOBS)
 
 # --- fuzzing (clang + libFuzzer) ----------------------------------------------
@@ -111,7 +113,7 @@ fuzz: fuzz-build
 	@bash scripts/fuzz.sh $(FUZZ_DIR) -max_total_time=$(FUZZ_SECONDS)
 
 # --- host tests (pytest in the project venv) ---------------------------------
-host-test: $(STAMP) unit
+host-test: $(STAMP) native-build
 	$(VENV)/bin/pytest -q tests/host
 
 # --- lint -----------------------------------------------------------------------

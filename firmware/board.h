@@ -23,13 +23,13 @@
 
 /* Sensors: TWI, SDA = PD1 (pin 20), SCL = PD0 (pin 21), 400 kHz, behind a
  * TCA9548A at 0x70. */
-#define BOARD_TWI_HZ       400000UL
-#define BOARD_TWI_PORT     PORTD
-#define BOARD_TWI_DDR      DDRD
-#define BOARD_TWI_PIN      PIND
-#define BOARD_TWI_SDA_BIT  PD1
-#define BOARD_TWI_SCL_BIT  PD0
-#define BOARD_MUX_ADDR     0x70
+#define BOARD_TWI_HZ      400000UL
+#define BOARD_TWI_PORT    PORTD
+#define BOARD_TWI_DDR     DDRD
+#define BOARD_TWI_PIN     PIND
+#define BOARD_TWI_SDA_BIT PD1
+#define BOARD_TWI_SCL_BIT PD0
+#define BOARD_MUX_ADDR    0x70
 
 /* Button: momentary switch to GND, internal pull-up, PE5 (pin 3). */
 #define BOARD_BTN_DDR  DDRE
