@@ -1,0 +1,640 @@
+/*
+ * plant: statics, kinematics, magnet field and sensors of the robot model
+ * (see plant.h for the model).
+ */
+#include "plant/plant.h"
+
+#include <math.h>
+#include <string.h>
+
+#define PLANT_PI      3.14159265358979323846
+#define PLANT_MU0_4PI 1e-7
+#define PLANT_G       9.81
+
+/* ---- tendon geometry ------------------------------------------------------- */
+
+static void tendon_dir(const plant_cfg_t *c, uint8_t i, double d[2])
+{
+    double a = c->tendon[i].angle_deg * PLANT_PI / 180.0;
+    d[0] = cos(a);
+    d[1] = sin(a);
+}
+
+/* Path compliance between tendons i and m: how far tendon i's path shortens
+ * per newton at the tip of tendon m (m/N), from the segments both span. */
+static double compliance(const plant_cfg_t *c, uint8_t i, uint8_t m)
+{
+    double di[2];
+    double dm[2];
+    double len = 0.0;
+    uint8_t j;
+    uint8_t top =
+        c->tendon[i].segment < c->tendon[m].segment ? c->tendon[i].segment : c->tendon[m].segment;
+    tendon_dir(c, i, di);
+    tendon_dir(c, m, dm);
+    for (j = 0; j < top; j++) {
+        len += c->seg_len_mm[j] * 1e-3;
+    }
+    return len * c->tendon[i].radius_mm * 1e-3 * c->tendon[m].radius_mm * 1e-3 *
+           (di[0] * dm[0] + di[1] * dm[1]) / c->ei_Nm2;
+}
+
+/* Gravity curvature of segment j (1/m, body-frame vector, small-deflection):
+ * the tip mass's lateral weight times the lever from the segment's middle. */
+static void gravity_curv(const plant_cfg_t *c, uint8_t j, double k[2])
+{
+    double total = 0.0;
+    double mid = 0.0;
+    double w = c->tip_mass_g * 1e-3 * PLANT_G;
+    uint8_t s;
+    for (s = 0; s < c->n_segments; s++) {
+        if (s < j) {
+            mid += c->seg_len_mm[s];
+        }
+        total += c->seg_len_mm[s];
+    }
+    mid += 0.5 * c->seg_len_mm[j];
+    /* a lateral force F bends towards F: curvature along F */
+    k[0] = w * c->gravity_dir[0] * (total - mid) * 1e-3 / c->ei_Nm2;
+    k[1] = w * c->gravity_dir[1] * (total - mid) * 1e-3 / c->ei_Nm2;
+}
+
+/* ---- kinematics ------------------------------------------------------------ */
+
+static void mat_mul(double out[3][3], const double a[3][3], const double b[3][3])
+{
+    double r[3][3];
+    int i;
+    int j;
+    for (i = 0; i < 3; i++) {
+        for (j = 0; j < 3; j++) {
+            r[i][j] = a[i][0] * b[0][j] + a[i][1] * b[1][j] + a[i][2] * b[2][j];
+        }
+    }
+    memcpy(out, r, sizeof r);
+}
+
+/* Constant-curvature arc of length len (m) with curvature vector k (1/m) in
+ * its base frame: bending towards k. Writes the end frame's rotation and
+ * position relative to the base. */
+static void arc(const double k[2], double len, double rot[3][3], double pos[3])
+{
+    double kap = sqrt(k[0] * k[0] + k[1] * k[1]);
+    double th = kap * len;
+    double c = kap > 0.0 ? k[0] / kap : 1.0;
+    double s = kap > 0.0 ? k[1] / kap : 0.0;
+    double ct = cos(th);
+    double st = sin(th);
+    double r;
+    double z;
+    /* rotation by th about the axis (-s, c, 0) */
+    double ax[3];
+    double v = 1.0 - ct;
+    int i;
+    int j;
+    if (th < 1e-6) {
+        r = kap * len * len / 2.0;
+        z = len;
+    } else {
+        r = (1.0 - ct) / kap;
+        z = st / kap;
+    }
+    pos[0] = r * c;
+    pos[1] = r * s;
+    pos[2] = z;
+    ax[0] = -s;
+    ax[1] = c;
+    ax[2] = 0.0;
+    for (i = 0; i < 3; i++) {
+        for (j = 0; j < 3; j++) {
+            rot[i][j] = v * ax[i] * ax[j] + (i == j ? ct : 0.0);
+        }
+    }
+    rot[0][1] -= st * ax[2];
+    rot[0][2] += st * ax[1];
+    rot[1][0] += st * ax[2];
+    rot[1][2] -= st * ax[0];
+    rot[2][0] -= st * ax[1];
+    rot[2][1] += st * ax[0];
+}
+
+static void forward_kinematics(plant_t *p)
+{
+    double rot[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+    double pos[3] = {0, 0, 0};
+    uint8_t j;
+    int a;
+    for (j = 0; j < p->cfg.n_segments; j++) {
+        double r[3][3];
+        double d[3];
+        arc(p->curv[j], p->cfg.seg_len_mm[j] * 1e-3, r, d);
+        for (a = 0; a < 3; a++) {
+            pos[a] += rot[a][0] * d[0] + rot[a][1] * d[1] + rot[a][2] * d[2];
+        }
+        mat_mul(rot, rot, r);
+    }
+    for (a = 0; a < 3; a++) {
+        p->tip.pos_mm[a] = pos[a] * 1e3;
+    }
+    memcpy(p->tip.rot, rot, sizeof rot);
+}
+
+/* ---- statics --------------------------------------------------------------- */
+
+/* Tendon i's tensions given its elongation budget e (m: spool take-up minus
+ * slack minus the path shortening caused by the other tendons and gravity),
+ * its own path compliance cii, stiffness k and friction; prev is the tip-side
+ * tension of the previous equilibrium (the friction play's memory). */
+static void tendon_solve(const plant_tendon_cfg_t *t, double e, double cii, double k, double prev,
+                         double *ts, double *tt)
+{
+    double mu = t->friction_mu;
+    double f0 = t->friction_mN * 1e-3;
+    double T;
+    if (e <= 0.0) {
+        *ts = 0.0;
+        *tt = 0.0;
+        return;
+    }
+    /* stuck: the tip keeps its tension */
+    T = k * (e - cii * prev);
+    if (T < 0.0) {
+        T = 0.0;
+    }
+    if (prev >= T * (1.0 - mu) - f0 && prev <= T * (1.0 + mu) + f0 && T > 0.0) {
+        *ts = T;
+        *tt = prev;
+        return;
+    }
+    if (prev < T * (1.0 - mu) - f0) { /* pulling: friction opposes, tip lags */
+        T = k * (e + cii * f0) / (1.0 + k * cii * (1.0 - mu));
+        *ts = T;
+        *tt = T * (1.0 - mu) - f0 > 0.0 ? T * (1.0 - mu) - f0 : 0.0;
+        return;
+    }
+    /* releasing: friction holds tension at the tip */
+    T = k * (e - cii * f0) / (1.0 + k * cii * (1.0 + mu));
+    if (T > 0.0) {
+        *ts = T;
+        *tt = T * (1.0 + mu) + f0;
+        return;
+    }
+    *ts = 0.0;
+    *tt = e / cii;
+    if (*tt > f0) {
+        *tt = f0;
+    }
+    if (*tt > prev) {
+        *tt = prev;
+    }
+}
+
+static void backlash_update(plant_t *p, uint8_t i)
+{
+    double half = 0.5 * p->cfg.tendon[i].backlash_um;
+    if (p->motor_um[i] - half > p->spool_um[i]) {
+        p->spool_um[i] = p->motor_um[i] - half;
+    } else if (p->motor_um[i] + half < p->spool_um[i]) {
+        p->spool_um[i] = p->motor_um[i] + half;
+    }
+}
+
+int plant_solve(plant_t *p)
+{
+    const plant_cfg_t *c;
+    double prev[PLANT_MAX_TENDONS];
+    double cmat[PLANT_MAX_TENDONS][PLANT_MAX_TENDONS];
+    double gshort[PLANT_MAX_TENDONS];
+    double gk[PLANT_MAX_SEGMENTS][2];
+    uint8_t i;
+    uint8_t m;
+    uint8_t j;
+    uint32_t it;
+
+    if (p == NULL) {
+        return PLANT_E_ARG;
+    }
+    c = &p->cfg;
+    for (j = 0; j < c->n_segments; j++) {
+        gravity_curv(c, j, gk[j]);
+    }
+    for (i = 0; i < c->n_tendons; i++) {
+        double d[2];
+        backlash_update(p, i);
+        prev[i] = p->tip_tension_N[i];
+        tendon_dir(c, i, d);
+        gshort[i] = 0.0;
+        for (j = 0; j < c->tendon[i].segment; j++) {
+            gshort[i] += c->seg_len_mm[j] * 1e-3 * c->tendon[i].radius_mm * 1e-3 *
+                         (d[0] * gk[j][0] + d[1] * gk[j][1]);
+        }
+        for (m = 0; m < c->n_tendons; m++) {
+            cmat[i][m] = compliance(c, i, m);
+        }
+    }
+    /* projected Gauss-Seidel: each tendon in turn given the others' tip
+     * tensions; the system matrix I + kC is symmetric positive definite up to
+     * scaling, so the sweeps converge */
+    for (it = 0; it < 400u; it++) {
+        double change = 0.0;
+        for (i = 0; i < c->n_tendons; i++) {
+            const plant_tendon_cfg_t *t = &c->tendon[i];
+            double k = t->ea_N / (t->free_len_mm * 1e-3);
+            double e = (p->spool_um[i] - t->slack_um) * 1e-6 - gshort[i];
+            double ts;
+            double tt;
+            for (m = 0; m < c->n_tendons; m++) {
+                if (m != i) {
+                    e -= cmat[i][m] * p->tip_tension_N[m];
+                }
+            }
+            tendon_solve(t, e, cmat[i][i], k, prev[i], &ts, &tt);
+            change += fabs(tt - p->tip_tension_N[i]) + fabs(ts - p->tension_N[i]);
+            p->tension_N[i] = ts;
+            p->tip_tension_N[i] = tt;
+        }
+        if (change < 1e-9) {
+            break;
+        }
+    }
+    p->iterations = it + 1u;
+    for (j = 0; j < c->n_segments; j++) {
+        p->curv[j][0] = gk[j][0];
+        p->curv[j][1] = gk[j][1];
+    }
+    for (i = 0; i < c->n_tendons; i++) {
+        double d[2];
+        double mom = p->tip_tension_N[i] * c->tendon[i].radius_mm * 1e-3 / c->ei_Nm2;
+        tendon_dir(c, i, d);
+        for (j = 0; j < c->tendon[i].segment; j++) {
+            p->curv[j][0] += mom * d[0];
+            p->curv[j][1] += mom * d[1];
+        }
+    }
+    forward_kinematics(p);
+    return 0;
+}
+
+/* ---- field and sensors ----------------------------------------------------- */
+
+void plant_dipole_uT(const plant_cfg_t *cfg, const plant_pose_t *tip, const double q_mm[3],
+                     double b_uT[3])
+{
+    double m[3];
+    double r[3];
+    double d2 = 0.0;
+    double d;
+    double mr = 0.0;
+    int a;
+    for (a = 0; a < 3; a++) {
+        double mag = (tip->pos_mm[a] + tip->rot[a][2] * cfg->magnet_offset_mm) * 1e-3;
+        m[a] = tip->rot[a][2] * cfg->magnet_moment_Am2;
+        r[a] = q_mm[a] * 1e-3 - mag;
+        d2 += r[a] * r[a];
+    }
+    d = sqrt(d2);
+    if (d < 1e-4) {
+        d = 1e-4;
+    }
+    for (a = 0; a < 3; a++) {
+        r[a] /= d;
+        mr += m[a] * r[a];
+    }
+    for (a = 0; a < 3; a++) {
+        b_uT[a] = PLANT_MU0_4PI * (3.0 * mr * r[a] - m[a]) / (d * d * d) * 1e6;
+    }
+}
+
+void plant_field_true(const plant_t *p, uint8_t k, double b_uT[3])
+{
+    int a;
+    if (p == NULL || k >= p->cfg.n_sensors) {
+        b_uT[0] = b_uT[1] = b_uT[2] = 0.0;
+        return;
+    }
+    plant_dipole_uT(&p->cfg, &p->tip, p->cfg.sensor[k].pos_mm, b_uT);
+    for (a = 0; a < 3; a++) {
+        b_uT[a] += p->cfg.sensor[k].ambient_uT[a] + p->extra_uT[k][a];
+    }
+}
+
+static uint64_t plant_rand(plant_t *p)
+{
+    uint64_t z = (p->rng += 0x9E3779B97F4A7C15ull);
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+    return z ^ (z >> 31);
+}
+
+static double plant_gauss(plant_t *p)
+{
+    double u1 = ((double)(plant_rand(p) >> 11) + 0.5) / 9007199254740992.0;
+    double u2 = (double)(plant_rand(p) >> 11) / 9007199254740992.0;
+    return sqrt(-2.0 * log(u1)) * cos(2.0 * PLANT_PI * u2);
+}
+
+int plant_read_sensor(plant_t *p, uint8_t k, int32_t out_cuT[3])
+{
+    double b[3];
+    int a;
+    int ovf = 0;
+    if (p == NULL || out_cuT == NULL || k >= p->cfg.n_sensors) {
+        return PLANT_E_ARG;
+    }
+    plant_field_true(p, k, b);
+    for (a = 0; a < 3; a++) {
+        double lsb = floor((b[a] + p->cfg.noise_uT * plant_gauss(p)) / 0.15 + 0.5);
+        if (lsb > PLANT_LSB_MAX) {
+            lsb = PLANT_LSB_MAX;
+            ovf = 1;
+        } else if (lsb < -PLANT_LSB_MAX) {
+            lsb = -PLANT_LSB_MAX;
+            ovf = 1;
+        }
+        out_cuT[a] = (int32_t)lsb * PLANT_LSB_CUT;
+    }
+    return ovf;
+}
+
+/* ---- set-up and motors ----------------------------------------------------- */
+
+int plant_init(plant_t *p, const plant_cfg_t *cfg, uint32_t seed)
+{
+    uint8_t i;
+    if (p == NULL || cfg == NULL) {
+        return PLANT_E_ARG;
+    }
+    if (plant_cfg_check(cfg) != 0) {
+        return PLANT_E_RANGE;
+    }
+    memset(p, 0, sizeof *p);
+    p->cfg = *cfg;
+    p->rng = 0xC0FFEEull ^ ((uint64_t)seed << 20) ^ seed;
+    for (i = 0; i < cfg->n_tendons; i++) {
+        p->spool_um[i] = 0.5 * cfg->tendon[i].backlash_um; /* against the release side */
+    }
+    return plant_solve(p);
+}
+
+int plant_set_motor(plant_t *p, uint8_t i, double ticks)
+{
+    if (p == NULL || i >= p->cfg.n_tendons) {
+        return PLANT_E_ARG;
+    }
+    p->motor_um[i] = (double)p->cfg.tendon[i].pull_dir * ticks * p->cfg.nm_per_tick * 1e-3;
+    return 0;
+}
+
+double plant_motor_ticks(const plant_t *p, uint8_t i)
+{
+    if (p == NULL || i >= p->cfg.n_tendons) {
+        return 0.0;
+    }
+    return p->motor_um[i] / (p->cfg.nm_per_tick * 1e-3) * (double)p->cfg.tendon[i].pull_dir;
+}
+
+/* ---- ground truth searches -------------------------------------------------- */
+
+/* Tendon i pulled from deep slack to `ticks`, the others far slack; returns
+ * the spool-side (tip when tip != 0) tension. */
+static double pull_from_slack(const plant_cfg_t *cfg, uint8_t i, double ticks, int tip, plant_t *p)
+{
+    uint8_t m;
+    if (plant_init(p, cfg, 0) != 0) {
+        return -1.0;
+    }
+    for (m = 0; m < cfg->n_tendons; m++) {
+        /* the others 20 mm slack; this one starts just slack then jumps */
+        double slack_ticks = (cfg->tendon[m].slack_um - 20000.0) / (cfg->nm_per_tick * 1e-3);
+        (void)plant_set_motor(p, m, (double)cfg->tendon[m].pull_dir * slack_ticks);
+    }
+    (void)plant_solve(p);
+    (void)plant_set_motor(p, i, ticks);
+    (void)plant_solve(p);
+    return tip ? p->tip_tension_N[i] : p->tension_N[i];
+}
+
+double plant_tension_at(const plant_cfg_t *cfg, uint8_t i, double ticks)
+{
+    plant_t p;
+    if (cfg == NULL || i >= cfg->n_tendons) {
+        return 0.0;
+    }
+    return pull_from_slack(cfg, i, ticks, 0, &p);
+}
+
+/* Bisection on the pull position (in pull-direction ticks) for the point where
+ * the chosen tension first exceeds level. */
+static int search_pull(const plant_cfg_t *cfg, uint8_t i, double level, int tip, double *ticks)
+{
+    plant_t p;
+    double dir;
+    double lo;
+    double hi;
+    int n;
+    if (cfg == NULL || ticks == NULL || i >= cfg->n_tendons || plant_cfg_check(cfg) != 0) {
+        return PLANT_E_ARG;
+    }
+    dir = (double)cfg->tendon[i].pull_dir;
+    lo = (cfg->tendon[i].slack_um - 5000.0) / (cfg->nm_per_tick * 1e-3);
+    hi = lo + 1000.0;
+    for (n = 0; n < 40 && pull_from_slack(cfg, i, dir * hi, tip, &p) <= level; n++) {
+        hi += 1000.0;
+    }
+    if (n == 40 || pull_from_slack(cfg, i, dir * lo, tip, &p) > level) {
+        return PLANT_E_SOLVE;
+    }
+    for (n = 0; n < 60; n++) {
+        double mid = 0.5 * (lo + hi);
+        if (pull_from_slack(cfg, i, dir * mid, tip, &p) > level) {
+            hi = mid;
+        } else {
+            lo = mid;
+        }
+    }
+    *ticks = dir * 0.5 * (lo + hi);
+    return 0;
+}
+
+int plant_true_home(const plant_cfg_t *cfg, uint8_t i, uint16_t tension_mN, double *ticks)
+{
+    if (tension_mN == 0u) {
+        return PLANT_E_ARG;
+    }
+    return search_pull(cfg, i, tension_mN * 1e-3, 0, ticks);
+}
+
+int plant_true_engagement(const plant_cfg_t *cfg, uint8_t i, double *ticks)
+{
+    return search_pull(cfg, i, 1e-9, 1, ticks);
+}
+
+/* ---- table ------------------------------------------------------------------ */
+
+static uint32_t fnv_update(uint32_t h, const void *data, size_t n)
+{
+    const unsigned char *b = (const unsigned char *)data;
+    size_t k;
+    for (k = 0; k < n; k++) {
+        h = (h ^ b[k]) * 16777619u;
+    }
+    return h;
+}
+
+static uint32_t round_u32(double v)
+{
+    return v <= 0.0 ? 0u : (uint32_t)(v + 0.5);
+}
+
+int plant_make_table(const plant_cfg_t *cfg, tbl_table_t *t)
+{
+    plant_t p;
+    double b0[PLANT_MAX_SENSORS][3];
+    uint8_t i;
+    uint8_t k;
+    uint8_t g;
+    int a;
+
+    if (cfg == NULL || t == NULL) {
+        return PLANT_E_ARG;
+    }
+    if (plant_cfg_check(cfg) != 0) {
+        return PLANT_E_RANGE;
+    }
+    memset(t, 0, sizeof *t);
+    t->magic = TBL_MAGIC;
+    t->format_version = TBL_FORMAT_VERSION;
+    memcpy(t->name, cfg->name, TBL_NAME_LEN);
+    t->name[TBL_NAME_LEN - 1u] = '\0';
+    t->n_tendons = cfg->n_tendons;
+    t->n_sensors = cfg->n_sensors;
+    t->n_grid = cfg->n_grid;
+    t->mode = TBL_MODE_DELTA;
+    memcpy(t->grid_mN, cfg->grid_mN, sizeof t->grid_mN);
+    t->default_mN = cfg->default_mN;
+    t->noise_cuT = (uint16_t)round_u32(cfg->noise_uT * 100.0);
+
+    /* straight pose: every tendon far slack */
+    (void)pull_from_slack(cfg, 0,
+                          (double)cfg->tendon[0].pull_dir * (cfg->tendon[0].slack_um - 20000.0) /
+                              (cfg->nm_per_tick * 1e-3),
+                          0, &p);
+    for (k = 0; k < cfg->n_sensors; k++) {
+        double bm[3];
+        plant_field_true(&p, k, b0[k]);
+        plant_dipole_uT(cfg, &p.tip, cfg->sensor[k].pos_mm, bm);
+        t->sensors[k].mux_channel = cfg->sensor[k].mux_channel;
+        t->sensors[k].i2c_addr = cfg->sensor[k].i2c_addr;
+        for (a = 0; a < 3; a++) {
+            t->sensors[k].b_straight_cuT[a] = (int32_t)floor(bm[a] * 100.0 + 0.5);
+        }
+    }
+
+    for (i = 0; i < cfg->n_tendons; i++) {
+        const plant_tendon_cfg_t *tc = &cfg->tendon[i];
+        tbl_tendon_t *row = &t->tendons[i];
+        double eng;
+        double dtarget[PLANT_MAX_SENSORS][TBL_MAX_GRID];
+        double abst[PLANT_MAX_SENSORS][TBL_MAX_GRID];
+        double travel[TBL_MAX_GRID];
+        int best = -1;
+        double best_val = 0.0;
+        int rc = plant_true_engagement(cfg, i, &eng);
+        if (rc != 0) {
+            return rc;
+        }
+        row->servo_id = tc->servo_id;
+        row->pull_dir = tc->pull_dir;
+        row->segment = tc->segment;
+        row->nm_per_tick = round_u32(cfg->nm_per_tick);
+        for (g = 0; g < cfg->n_grid; g++) {
+            double home;
+            rc = plant_true_home(cfg, i, cfg->grid_mN[g], &home);
+            if (rc != 0) {
+                return rc;
+            }
+            travel[g] = (home - eng) * (double)tc->pull_dir * cfg->nm_per_tick * 1e-3;
+            (void)pull_from_slack(cfg, i, home, 0, &p);
+            for (k = 0; k < cfg->n_sensors; k++) {
+                double b[3];
+                double bm[3];
+                double s = 0.0;
+                double sm = 0.0;
+                plant_field_true(&p, k, b);
+                plant_dipole_uT(cfg, &p.tip, cfg->sensor[k].pos_mm, bm);
+                for (a = 0; a < 3; a++) {
+                    s += (b[a] - b0[k][a]) * (b[a] - b0[k][a]);
+                    sm += bm[a] * bm[a];
+                }
+                dtarget[k][g] = sqrt(s) * 100.0;
+                abst[k][g] = sqrt(sm) * 100.0;
+            }
+        }
+        for (k = 0; k < cfg->n_sensors; k++) {
+            int rising = 1;
+            for (g = 1; g < cfg->n_grid; g++) {
+                if (dtarget[k][g] <= dtarget[k][g - 1u]) {
+                    rising = 0;
+                }
+            }
+            if (rising && dtarget[k][0] > best_val) {
+                best_val = dtarget[k][0];
+                best = k;
+            }
+        }
+        if (tc->sensor >= 0) {
+            best = tc->sensor;
+        }
+        if (best < 0) {
+            return PLANT_E_SOLVE;
+        }
+        row->sensor = (uint8_t)best;
+        for (g = 0; g < cfg->n_grid; g++) {
+            row->target_cuT[g] = round_u32(dtarget[best][g]);
+            row->abs_target_cuT[g] = round_u32(abst[best][g]);
+            row->travel_um[g] = round_u32(travel[g]);
+        }
+        row->travel_limit_um = round_u32(travel[cfg->n_grid - 1u] * cfg->travel_limit_factor +
+                                         cfg->travel_limit_margin_um);
+    }
+    t->table_id = fnv_update(2166136261u, t->tendons, sizeof t->tendons);
+    return 0;
+}
+
+/* ---- simple servo ----------------------------------------------------------- */
+
+void plant_servo_init(plant_servo_t *s, double pos, double tau_ms)
+{
+    s->pos = pos;
+    s->goal = (int32_t)floor(pos + 0.5);
+    s->vel_units = 0;
+    s->tau_ms = tau_ms;
+    s->torque = 1;
+}
+
+void plant_servo_step(plant_servo_t *s, double dt_ms)
+{
+    double vmax;
+    double v;
+    if (!s->torque) {
+        return;
+    }
+    vmax = (double)(s->vel_units == 0u ? 265u : s->vel_units) * PLANT_TPS_PER_VEL_UNIT * 1e-3;
+    v = ((double)s->goal - s->pos) / s->tau_ms; /* ticks per ms */
+    if (v > vmax) {
+        v = vmax;
+    } else if (v < -vmax) {
+        v = -vmax;
+    }
+    /* an exact first-order step when not speed-limited, so large dt stays stable */
+    if (fabs(v) < vmax) {
+        s->pos = (double)s->goal + (s->pos - (double)s->goal) * exp(-dt_ms / s->tau_ms);
+    } else {
+        s->pos += v * dt_ms;
+    }
+}
+
+int32_t plant_servo_present(const plant_servo_t *s)
+{
+    return (int32_t)floor(s->pos + 0.5);
+}
