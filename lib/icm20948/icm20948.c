@@ -1,0 +1,500 @@
+#include "icm20948/icm20948.h"
+
+#include <stddef.h>
+#include <string.h>
+
+#include "icm20948/icm20948_reg.h"
+#include "icm20948/tca9548a.h"
+
+enum { ICM_ST_IDLE, ICM_ST_INIT, ICM_ST_RUN, ICM_ST_FAIL };
+
+#define ICM_BANK_UNKNOWN 0xFFu
+
+/* Init steps, in order; the retry steps loop back to IS_AK_SRST. */
+enum {
+    IS_BANK0,
+    IS_WHO,
+    IS_RESET,
+    IS_RESET_WAIT,
+    IS_WAKE,
+    IS_WAKE_WAIT,
+    IS_WHO2,
+    IS_MST_EN,
+    IS_MST_CTRL,
+    IS_MST_RST,
+    IS_MST_RST_WAIT,
+    IS_AK_SRST,
+    IS_AK_SRST_DONE,
+    IS_AK_SRST_WAIT,
+    IS_WIA,
+    IS_WIA_DONE,
+    IS_WIA_DI,
+    IS_RETRY_RST,
+    IS_RETRY_WAIT,
+    IS_MODE,
+    IS_MODE_DONE,
+    IS_SLV0,
+    IS_BANK_BACK
+};
+
+int8_t icm_bus_error(int8_t bus_rc)
+{
+    switch (bus_rc) {
+    case ICM_BUS_OK:
+        return 0;
+    case ICM_BUS_E_ADDR_NACK:
+        return ICM_E_ABSENT;
+    case ICM_BUS_E_DATA_NACK:
+        return ICM_E_NACK;
+    case ICM_BUS_E_TIMEOUT:
+        return ICM_E_TIMEOUT;
+    default:
+        return ICM_E_BUS;
+    }
+}
+
+/* A failed transfer leaves the bank and mux state unknown; a stuck or timed
+ * out bus gets one recovery attempt before the error is reported. */
+static int8_t icm_fail_xfer(icm_dev_t *dev, int8_t bus_rc)
+{
+    dev->bank = ICM_BANK_UNKNOWN;
+    if (dev->mux != NULL) {
+        tca_invalidate(dev->mux);
+    }
+    if ((bus_rc == ICM_BUS_E_TIMEOUT || bus_rc == ICM_BUS_E_BUS) && dev->bus->recover != NULL) {
+        (void)dev->bus->recover(dev->bus->ctx);
+    }
+    return icm_bus_error(bus_rc);
+}
+
+static int8_t icm_write(icm_dev_t *dev, const uint8_t *data, uint8_t len)
+{
+    int8_t rc = dev->bus->write(dev->bus->ctx, dev->addr, data, len);
+    return rc == ICM_BUS_OK ? 0 : icm_fail_xfer(dev, rc);
+}
+
+static int8_t icm_bank(icm_dev_t *dev, uint8_t bank)
+{
+    uint8_t cmd[2];
+    int8_t rc;
+    if (dev->bank == bank) {
+        return 0;
+    }
+    cmd[0] = ICM_REG_BANK_SEL;
+    cmd[1] = (uint8_t)(bank << ICM_REG_BANK_SHIFT);
+    rc = icm_write(dev, cmd, 2);
+    if (rc == 0) {
+        dev->bank = bank;
+    }
+    return rc;
+}
+
+/* Writes up to three consecutive registers of one bank in one transfer. */
+static int8_t icm_wr(icm_dev_t *dev, uint8_t bank, uint8_t reg, const uint8_t *val, uint8_t n)
+{
+    uint8_t cmd[4];
+    int8_t rc = icm_bank(dev, bank);
+    if (rc != 0) {
+        return rc;
+    }
+    cmd[0] = reg;
+    memcpy(&cmd[1], val, n);
+    return icm_write(dev, cmd, (uint8_t)(n + 1u));
+}
+
+static int8_t icm_wr1(icm_dev_t *dev, uint8_t bank, uint8_t reg, uint8_t val)
+{
+    return icm_wr(dev, bank, reg, &val, 1);
+}
+
+static int8_t icm_rd(icm_dev_t *dev, uint8_t bank, uint8_t reg, uint8_t *buf, uint8_t n)
+{
+    int8_t rc = icm_bank(dev, bank);
+    if (rc != 0) {
+        return rc;
+    }
+    rc = dev->bus->write_read(dev->bus->ctx, dev->addr, &reg, 1, buf, n);
+    return rc == ICM_BUS_OK ? 0 : icm_fail_xfer(dev, rc);
+}
+
+static int8_t icm_select(icm_dev_t *dev)
+{
+    if (dev->mux == NULL) {
+        return 0;
+    }
+    if (tca_select(dev->mux, dev->channel) != 0) {
+        dev->bank = ICM_BANK_UNKNOWN;
+        return ICM_E_MUX;
+    }
+    return 0;
+}
+
+int8_t icm_setup(icm_dev_t *dev, const icm_bus_t *bus, struct tca *mux, uint8_t channel,
+                 uint8_t addr)
+{
+    if (dev == NULL || bus == NULL || bus->write == NULL || bus->write_read == NULL) {
+        return ICM_E_ARG;
+    }
+    if (addr != ICM_REG_ADDR_AD0_LOW && addr != ICM_REG_ADDR_AD0_HIGH) {
+        return ICM_E_ARG;
+    }
+    if ((mux != NULL && channel >= TCA_CHANNELS) || (mux == NULL && channel != ICM_NO_MUX)) {
+        return ICM_E_ARG;
+    }
+    memset(dev, 0, sizeof(*dev));
+    dev->bus = bus;
+    dev->mux = mux;
+    dev->channel = channel;
+    dev->addr = addr;
+    dev->bank = ICM_BANK_UNKNOWN;
+    dev->state = ICM_ST_IDLE;
+    dev->stale_us = ICM_STALE_US_DEFAULT;
+    return 0;
+}
+
+int8_t icm_set_stale_us(icm_dev_t *dev, uint32_t stale_us)
+{
+    if (dev == NULL || stale_us == 0u) {
+        return ICM_E_ARG;
+    }
+    dev->stale_us = stale_us;
+    return 0;
+}
+
+int8_t icm_init_start(icm_dev_t *dev, uint32_t now_us)
+{
+    if (dev == NULL || dev->bus == NULL) {
+        return ICM_E_ARG;
+    }
+    dev->state = ICM_ST_INIT;
+    dev->step = IS_BANK0;
+    dev->bank = ICM_BANK_UNKNOWN;
+    dev->tries = 0;
+    dev->mag_fail = 0;
+    dev->have = 0;
+    dev->err = 0;
+    dev->wait_from_us = now_us;
+    dev->wait_us = 0;
+    return 0;
+}
+
+uint8_t icm_ready(const icm_dev_t *dev)
+{
+    return (uint8_t)(dev != NULL && dev->state == ICM_ST_RUN);
+}
+
+static void icm_wait(icm_dev_t *dev, uint32_t now_us, uint32_t us, uint8_t next)
+{
+    dev->wait_from_us = now_us;
+    dev->wait_us = us;
+    dev->step = next;
+}
+
+static uint8_t icm_waited(const icm_dev_t *dev, uint32_t now_us)
+{
+    return (uint8_t)((uint32_t)(now_us - dev->wait_from_us) >= dev->wait_us);
+}
+
+/* Queues one SLV4 transaction with the AK09916: DO first, then address and
+ * register, and the enable bit last so the master never starts on a
+ * half-written setup. */
+static int8_t icm_slv4_begin(icm_dev_t *dev, uint8_t read, uint8_t reg, uint8_t value)
+{
+    uint8_t ar[2];
+    int8_t rc = 0;
+    if (!read) {
+        rc = icm_wr1(dev, 3, ICM_REG_I2C_SLV4_DO, value);
+    }
+    if (rc == 0) {
+        ar[0] = (uint8_t)(AK_REG_ADDR | (read ? ICM_REG_SLV_ADDR_READ : 0u));
+        ar[1] = reg;
+        rc = icm_wr(dev, 3, ICM_REG_I2C_SLV4_ADDR, ar, 2);
+    }
+    if (rc == 0) {
+        rc = icm_wr1(dev, 3, ICM_REG_I2C_SLV4_CTRL, ICM_REG_SLV_CTRL_EN);
+    }
+    return rc;
+}
+
+/* Polls I2C_MST_STATUS: ICM_BUSY until SLV4_DONE, 0 when the AK09916 acked,
+ * ICM_E_MAG_ABSENT on SLV4_NACK or when the master never finishes. */
+static int8_t icm_slv4_poll(icm_dev_t *dev, uint32_t now_us)
+{
+    uint8_t st = 0;
+    int8_t rc = icm_rd(dev, 0, ICM_REG_I2C_MST_STATUS, &st, 1);
+    if (rc != 0) {
+        return rc;
+    }
+    if (st & ICM_REG_MST_SLV4_DONE) {
+        return (st & ICM_REG_MST_SLV4_NACK) ? ICM_E_MAG_ABSENT : 0;
+    }
+    if (icm_waited(dev, now_us)) {
+        return ICM_E_MAG_ABSENT;
+    }
+    return ICM_BUSY;
+}
+
+/* One failed AK09916 attempt: reset the I2C master and retry, or give up. */
+static int8_t icm_mag_failed(icm_dev_t *dev, int8_t why)
+{
+    dev->mag_fail = why;
+    dev->tries++;
+    if (dev->tries >= ICM_MAG_TRIES) {
+        return why;
+    }
+    dev->step = IS_RETRY_RST;
+    return ICM_BUSY;
+}
+
+static int8_t icm_init_step(icm_dev_t *dev, uint32_t now_us)
+{
+    uint8_t v = 0;
+    uint8_t slv0[3];
+    int8_t rc;
+
+    switch (dev->step) {
+    case IS_BANK0:
+        rc = icm_bank(dev, 0);
+        if (rc == 0) {
+            dev->step = IS_WHO;
+        }
+        return rc;
+    case IS_WHO:
+    case IS_WHO2:
+        rc = icm_rd(dev, 0, ICM_REG_WHO_AM_I, &v, 1);
+        if (rc != 0) {
+            return rc;
+        }
+        dev->who_am_i = v;
+        if (v != ICM_REG_WHO_AM_I_V) {
+            return ICM_E_WHOAMI;
+        }
+        dev->step = (dev->step == IS_WHO) ? IS_RESET : IS_MST_EN;
+        return 0;
+    case IS_RESET:
+        rc = icm_wr1(dev, 0, ICM_REG_PWR_MGMT_1, ICM_REG_PWR_DEVICE_RST);
+        if (rc == 0) {
+            dev->bank = ICM_BANK_UNKNOWN;
+            icm_wait(dev, now_us, ICM_RESET_WAIT_US, IS_WAKE);
+        }
+        return rc;
+    case IS_WAKE:
+        rc = icm_wr1(dev, 0, ICM_REG_PWR_MGMT_1, ICM_REG_PWR_CLKSEL_AUTO);
+        if (rc == 0) {
+            icm_wait(dev, now_us, ICM_WAKE_WAIT_US, IS_WHO2);
+        }
+        return rc;
+    case IS_MST_EN:
+        rc = icm_wr1(dev, 0, ICM_REG_USER_CTRL, ICM_REG_USER_I2C_MST_EN);
+        if (rc == 0) {
+            dev->step = IS_MST_CTRL;
+        }
+        return rc;
+    case IS_MST_CTRL:
+        rc = icm_wr1(dev, 3, ICM_REG_I2C_MST_CTRL, ICM_REG_MST_P_NSR | ICM_REG_MST_CLK_345KHZ);
+        if (rc == 0) {
+            dev->step = IS_MST_RST;
+        }
+        return rc;
+    case IS_MST_RST:
+    case IS_RETRY_RST:
+        rc = icm_wr1(dev, 0, ICM_REG_USER_CTRL, ICM_REG_USER_I2C_MST_EN | ICM_REG_USER_I2C_MST_RST);
+        if (rc == 0) {
+            icm_wait(dev, now_us, ICM_WAKE_WAIT_US, IS_AK_SRST);
+        }
+        return rc;
+    case IS_AK_SRST:
+        rc = icm_slv4_begin(dev, 0, AK_REG_CNTL3, AK_REG_CNTL3_SRST);
+        if (rc == 0) {
+            icm_wait(dev, now_us, ICM_SLV4_TIMEOUT_US, IS_AK_SRST_DONE);
+        }
+        return rc;
+    case IS_AK_SRST_DONE:
+        rc = icm_slv4_poll(dev, now_us);
+        if (rc == ICM_E_MAG_ABSENT) {
+            return icm_mag_failed(dev, rc);
+        }
+        if (rc == 0) {
+            icm_wait(dev, now_us, ICM_AK_RESET_WAIT_US, IS_WIA);
+        }
+        return rc;
+    case IS_WIA:
+        rc = icm_slv4_begin(dev, 1, AK_REG_WIA2, 0);
+        if (rc == 0) {
+            icm_wait(dev, now_us, ICM_SLV4_TIMEOUT_US, IS_WIA_DONE);
+        }
+        return rc;
+    case IS_WIA_DONE:
+        rc = icm_slv4_poll(dev, now_us);
+        if (rc == ICM_E_MAG_ABSENT) {
+            return icm_mag_failed(dev, rc);
+        }
+        if (rc == 0) {
+            dev->step = IS_WIA_DI;
+        }
+        return rc;
+    case IS_WIA_DI:
+        rc = icm_rd(dev, 3, ICM_REG_I2C_SLV4_DI, &v, 1);
+        if (rc != 0) {
+            return rc;
+        }
+        dev->mag_id = v;
+        if (v != AK_REG_WIA2_V) {
+            return icm_mag_failed(dev, ICM_E_MAG_ID);
+        }
+        dev->mag_fail = 0;
+        dev->step = IS_MODE;
+        return 0;
+    case IS_MODE:
+        rc = icm_slv4_begin(dev, 0, AK_REG_CNTL2, AK_REG_MODE_CONT_100HZ);
+        if (rc == 0) {
+            icm_wait(dev, now_us, ICM_SLV4_TIMEOUT_US, IS_MODE_DONE);
+        }
+        return rc;
+    case IS_MODE_DONE:
+        rc = icm_slv4_poll(dev, now_us);
+        if (rc == 0) {
+            dev->step = IS_SLV0;
+        }
+        return rc;
+    case IS_SLV0:
+        slv0[0] = (uint8_t)(AK_REG_ADDR | ICM_REG_SLV_ADDR_READ);
+        slv0[1] = AK_REG_ST1;
+        slv0[2] = (uint8_t)(ICM_REG_SLV_CTRL_EN | AK_REG_BLOCK_LEN);
+        rc = icm_wr(dev, 3, ICM_REG_I2C_SLV0_ADDR, slv0, 3);
+        if (rc == 0) {
+            dev->step = IS_BANK_BACK;
+        }
+        return rc;
+    case IS_BANK_BACK:
+        rc = icm_bank(dev, 0);
+        if (rc == 0) {
+            dev->state = ICM_ST_RUN;
+            dev->last_new_us = now_us;
+            memset(dev->last, 0, sizeof(dev->last));
+        }
+        return rc;
+    default:
+        return ICM_E_STATE;
+    }
+}
+
+int8_t icm_init_poll(icm_dev_t *dev, uint32_t now_us)
+{
+    int8_t rc;
+    if (dev == NULL) {
+        return ICM_E_ARG;
+    }
+    if (dev->state == ICM_ST_RUN) {
+        return 0;
+    }
+    if (dev->state != ICM_ST_INIT) {
+        return ICM_E_STATE;
+    }
+    if (!icm_waited(dev, now_us)) {
+        switch (dev->step) {
+        case IS_AK_SRST_DONE:
+        case IS_WIA_DONE:
+        case IS_MODE_DONE:
+            break; /* these poll the status until their deadline */
+        default:
+            return ICM_BUSY;
+        }
+    }
+    rc = icm_select(dev);
+    if (rc == 0) {
+        rc = icm_init_step(dev, now_us);
+    }
+    if (rc < 0) {
+        dev->state = ICM_ST_FAIL;
+        dev->err = rc;
+        dev->error_count++;
+        return rc;
+    }
+    return dev->state == ICM_ST_RUN ? 0 : ICM_BUSY;
+}
+
+static int8_t icm_read_failed(icm_dev_t *dev, int8_t rc)
+{
+    dev->err = rc;
+    dev->error_count++;
+    if (rc != ICM_E_STALE) {
+        dev->state = ICM_ST_FAIL;
+    }
+    return rc;
+}
+
+int8_t icm_read_start(icm_dev_t *dev, uint32_t now_us)
+{
+    int8_t rc;
+    (void)now_us;
+    if (dev == NULL) {
+        return ICM_E_ARG;
+    }
+    if (dev->state != ICM_ST_RUN) {
+        return ICM_E_STATE;
+    }
+    rc = icm_select(dev);
+    if (rc == 0) {
+        rc = icm_bank(dev, 0);
+    }
+    return rc == 0 ? 0 : icm_read_failed(dev, rc);
+}
+
+static int16_t icm_le16(const uint8_t *p)
+{
+    return (int16_t)(uint16_t)((uint16_t)p[0] | ((uint16_t)p[1] << 8));
+}
+
+int8_t icm_read_fetch(icm_dev_t *dev, uint32_t now_us, icm_sample_t *out)
+{
+    uint8_t blk[AK_REG_BLOCK_LEN];
+    uint8_t fresh;
+    uint8_t i;
+    int8_t rc;
+    if (dev == NULL || out == NULL) {
+        return ICM_E_ARG;
+    }
+    if (dev->state != ICM_ST_RUN) {
+        return ICM_E_STATE;
+    }
+    rc = icm_rd(dev, 0, ICM_REG_EXT_SLV_SENS_DATA_00, blk, AK_REG_BLOCK_LEN);
+    if (rc != 0) {
+        return icm_read_failed(dev, rc);
+    }
+    fresh = (uint8_t)(memcmp(&blk[1], &dev->last[1], AK_REG_BLOCK_LEN - 1u) != 0);
+    if (!fresh && (blk[0] & AK_REG_ST1_DRDY) &&
+        (uint32_t)(now_us - dev->last_new_us) >= ICM_NEW_GAP_US) {
+        fresh = 1;
+    }
+    for (i = 0; i < 3u; i++) {
+        out->raw[i] = icm_le16(&blk[1u + 2u * i]);
+    }
+    out->st1 = blk[0];
+    out->st2 = blk[8];
+    out->t_us = now_us;
+    out->flags = 0;
+    if (blk[8] & AK_REG_ST2_HOFL) {
+        out->flags |= ICM_SAMPLE_OVERFLOW;
+    }
+    if (fresh) {
+        out->flags |= ICM_SAMPLE_NEW;
+        if (blk[0] & AK_REG_ST1_DOR) {
+            out->flags |= ICM_SAMPLE_OVERRUN;
+            dev->overrun_count++;
+        }
+        if (blk[8] & AK_REG_ST2_HOFL) {
+            dev->overflow_count++;
+        }
+        dev->new_count++;
+        dev->last_new_us = now_us;
+        dev->have = 1;
+        memcpy(dev->last, blk, sizeof(blk));
+        dev->err = 0;
+        return 0;
+    }
+    if ((uint32_t)(now_us - dev->last_new_us) > dev->stale_us) {
+        return icm_read_failed(dev, ICM_E_STALE);
+    }
+    return 0;
+}

@@ -1,0 +1,75 @@
+#include "icm20948/tca9548a.h"
+
+#include <stddef.h>
+
+static int8_t tca_map(int8_t bus_rc)
+{
+    switch (bus_rc) {
+    case ICM_BUS_OK:
+        return 0;
+    case ICM_BUS_E_ADDR_NACK:
+        return TCA_E_ABSENT;
+    case ICM_BUS_E_DATA_NACK:
+        return TCA_E_NACK;
+    case ICM_BUS_E_TIMEOUT:
+        return TCA_E_TIMEOUT;
+    default:
+        return TCA_E_BUS;
+    }
+}
+
+int8_t tca_setup(tca_t *mux, const icm_bus_t *bus, uint8_t addr)
+{
+    if (mux == NULL || bus == NULL || bus->write == NULL || addr < 0x70u || addr > 0x77u) {
+        return TCA_E_ARG;
+    }
+    mux->bus = bus;
+    mux->addr = addr;
+    mux->ctrl = 0;
+    mux->valid = 0;
+    mux->writes = 0;
+    mux->errors = 0;
+    return 0;
+}
+
+static int8_t tca_write_ctrl(tca_t *mux, uint8_t ctrl)
+{
+    int8_t rc = mux->bus->write(mux->bus->ctx, mux->addr, &ctrl, 1);
+    mux->writes++;
+    if (rc != ICM_BUS_OK) {
+        mux->valid = 0;
+        mux->errors++;
+        return tca_map(rc);
+    }
+    mux->ctrl = ctrl;
+    mux->valid = 1;
+    return 0;
+}
+
+int8_t tca_select(tca_t *mux, uint8_t channel)
+{
+    uint8_t ctrl;
+    if (mux == NULL || channel >= TCA_CHANNELS) {
+        return TCA_E_ARG;
+    }
+    ctrl = (uint8_t)(1u << channel);
+    if (mux->valid && mux->ctrl == ctrl) {
+        return 0;
+    }
+    return tca_write_ctrl(mux, ctrl);
+}
+
+int8_t tca_disable_all(tca_t *mux)
+{
+    if (mux == NULL) {
+        return TCA_E_ARG;
+    }
+    return tca_write_ctrl(mux, 0);
+}
+
+void tca_invalidate(tca_t *mux)
+{
+    if (mux != NULL) {
+        mux->valid = 0;
+    }
+}
