@@ -416,10 +416,38 @@ static int8_t dxl_parser_body(dxl_parser *p, uint8_t byte)
         p->buf[p->body_len++] = byte;
     }
     p->crc = dxl_crc16_byte(p->crc, byte);
+    p->tail[0] = p->tail[1];
+    p->tail[1] = p->tail[2];
+    p->tail[2] = p->tail[3];
+    p->tail[3] = byte;
+    if (p->tail_n < 4u) {
+        p->tail_n++;
+    }
     if (--p->remaining == 0) {
         p->state = DXL_PS_CRC_L;
     }
     return 1;
+}
+
+/* A packet cut short near its end leaves the next header in the last body
+ * bytes and the CRC field: look for it there. At most six bytes are fed
+ * again and a packet is at least ten, so this never recurses further. The
+ * bytes were already counted as part of the bad packet, not as garbage. */
+static void dxl_parser_rescan(dxl_parser *p)
+{
+    uint8_t again[6];
+    uint8_t n = 0;
+    for (uint8_t i = (uint8_t)(4u - p->tail_n); i < 4u; i++) {
+        again[n++] = p->tail[i];
+    }
+    again[n++] = (uint8_t)p->rx_crc;
+    again[n++] = (uint8_t)(p->rx_crc >> 8);
+    uint16_t garbage = p->stats.garbage;
+    p->state = DXL_PS_H1;
+    for (uint8_t i = 0; i < n; i++) {
+        (void)dxl_parser_feed(p, again[i]);
+    }
+    p->stats.garbage = garbage;
 }
 
 int8_t dxl_parser_feed(dxl_parser *p, uint8_t byte)
@@ -490,6 +518,7 @@ int8_t dxl_parser_feed(dxl_parser *p, uint8_t byte)
         p->remaining = (uint16_t)(field - 2u);
         p->body_len = 0;
         p->run = 0;
+        p->tail_n = 0;
         p->state = DXL_PS_BODY;
         return 1;
     }
@@ -504,6 +533,7 @@ int8_t dxl_parser_feed(dxl_parser *p, uint8_t byte)
         p->state = DXL_PS_H1;
         if (p->rx_crc != p->crc) {
             p->stats.crc++;
+            dxl_parser_rescan(p);
             return -DXL_E_CRC;
         }
         p->stats.packets++;

@@ -178,7 +178,9 @@ int8_t dxl_build_status(uint8_t *buf, uint16_t cap, uint8_t id, uint8_t err, con
  * checks the reserved byte, LEN and CRC, removes stuffing and stores INST and
  * the parameters in the caller's buffer. A header inside a packet (FF FF FD
  * not followed by the stuffing FD) ends that packet as truncated and starts
- * the new one, so a cut-off reply never swallows the next packet. */
+ * the new one, so a cut-off reply never swallows the next packet; when the
+ * cut falls so close to the end that the new header overlaps the CRC, the
+ * CRC error is reported and the last raw bytes are searched again for it. */
 typedef struct {
     uint16_t garbage;   /* bytes skipped while looking for a header */
     uint16_t crc;       /* packets dropped for a CRC mismatch */
@@ -197,8 +199,10 @@ typedef struct {
     uint16_t rx_crc;
     uint8_t id;
     uint8_t state;
-    uint8_t run; /* FF FF FD pattern progress inside the body */
-    uint8_t raw; /* nonzero: no unstuffing (fast sync read replies) */
+    uint8_t run;     /* FF FF FD pattern progress inside the body */
+    uint8_t raw;     /* nonzero: no unstuffing (fast sync read replies) */
+    uint8_t tail[4]; /* last raw body bytes, searched again after a CRC error */
+    uint8_t tail_n;
     dxl_parse_stats stats;
 } dxl_parser;
 
