@@ -1,0 +1,192 @@
+/*
+ * console: hallhome's line console (UART0, 115200 8N1), protocol side only.
+ *
+ * The protocol (docs/console.md is the reference):
+ *   - a command is one line of printable ASCII ended by CR, LF or CRLF (one
+ *     terminator); every line gets exactly one final reply, `ok` or
+ *     `error:<code> <text>` (codes in con_errors.def);
+ *   - an empty line (or only spaces) gets `ok`, so a host can synchronise;
+ *   - the whole line is read, tokenised and checked against the command's
+ *     synopsis (con_commands.def) before its handler runs: an unknown
+ *     command, bad number, out-of-range value, missing or extra argument,
+ *     a line longer than CON_LINE_MAX (discarded up to its end, one error) or
+ *     a line with a control or non-ASCII byte (NUL included) gets its error
+ *     and changes nothing;
+ *   - backspace (0x08) and DEL (0x7F) erase the previous character, TAB is a
+ *     space;
+ *   - asynchronous reports are whole lines `<kind key=value ...>`; a value
+ *     with spaces is double-quoted;
+ *   - `!` is a realtime stop: it is taken out of the byte stream wherever it
+ *     appears (mid-line too; the rest of the line still counts) and only
+ *     raises a flag. The UART RX interrupt calls con_rt_byte() for every byte
+ *     so the stop is seen on receipt even while the console is not reading.
+ *
+ * What this module does not do: any behaviour. The application supplies one
+ * handler per command (a table indexed by con_cmd_t) and performs the
+ * command; the module depends on no other hallhome module.
+ *
+ * Handlers and the one-reply guarantee. A handler returns
+ *   0            done: the console replies `ok`;
+ *   CON_E_*      failed: the console replies `error:<code> <text>`;
+ *   CON_PENDING  accepted but not finished (e.g. needs bus time): no reply
+ *                yet; the console reads no further input until the
+ *                application calls con_complete() once with the result.
+ * A handler may emit reports (con_report_*) before it returns or while
+ * pending; it never writes `ok`/`error` itself. Commands that start long
+ * work (cal) reply `ok` when accepted and report progress and results later.
+ * The built-in `help` is emitted one line per con_poll() call, then `ok`.
+ *
+ * Flash strings: the declarations (command names, synopses, help, error
+ * texts) and every `kind` and `key` argument of the report functions are
+ * read through the copy function given to con_init() (memcpy on the host,
+ * memcpy_P on the AVR, where CON_FLASH places the declarations in program
+ * memory and the application passes PSTR("...") keys).
+ *
+ * Error convention: 0 = done, negative = CON_E_*, positive = in progress.
+ */
+#ifndef HALLHOME_CONSOLE_H
+#define HALLHOME_CONSOLE_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#ifndef CON_FLASH
+#ifdef TBL_FLASH
+#define CON_FLASH TBL_FLASH
+#else
+#define CON_FLASH
+#endif
+#endif
+
+/* Commands, in con_commands.def order. */
+typedef enum {
+#define CON_CMD(id, name, synopsis, help) CON_CMD_##id,
+#include "console/con_commands.def"
+#undef CON_CMD
+    CON_CMD_COUNT
+} con_cmd_t;
+
+/* Errors: CON_E_<ID> = -code of con_errors.def; these go on the wire. */
+enum {
+#define CON_ERR(code, id, text) CON_E_##id = -(code),
+#include "console/con_errors.def"
+#undef CON_ERR
+    /* API misuse, never sent: con_complete() with no command pending, or a
+     * non-final result. */
+    CON_E_NOT_PENDING = -100
+};
+
+#define CON_PENDING  1  /* handler result: reply comes later via con_complete() */
+#define CON_LINE_MAX 48 /* characters in a command line, terminator excluded */
+#define CON_MAX_ARGS 3  /* arguments after the command name */
+
+typedef void (*con_copy_fn)(void *dst, const void *src, size_t n);
+
+/* Byte I/O. read() returns the next received byte (0..255) or -1 when none
+ * is waiting; write() queues n bytes for transmission. */
+typedef struct {
+    void *ctx;
+    int16_t (*read)(void *ctx);
+    void (*write)(void *ctx, const char *buf, uint8_t n);
+} con_io_t;
+
+/* Realtime stop state, shared by the RX interrupt and the main loop. The
+ * interrupt only increments `count`, the main loop only writes `seen`, so no
+ * locking is needed. */
+typedef struct {
+    volatile uint8_t count;
+    uint8_t seen;
+} con_rt_t;
+
+/* Validated arguments of the current line. Argument a (0-based, in synopsis
+ * order) was given when bit a of `given` is set; v[a] is its value (integer,
+ * thousandths for decimals, word index for choices); s[a] points to its text
+ * (NUL-terminated, inside the console's line buffer, valid until the final
+ * reply). Absent arguments have v = 0, s = NULL. */
+typedef struct {
+    int32_t v[CON_MAX_ARGS];
+    const char *s[CON_MAX_ARGS];
+    uint8_t given;
+} con_args_t;
+
+struct con_s;
+
+/* Command handler: see the file comment for the result contract. */
+typedef int8_t (*con_handler_fn)(struct con_s *con, const con_args_t *args, void *app);
+
+/* Caller-owned console state (about 90 bytes on the AVR). Treat as opaque. */
+typedef struct con_s {
+    const con_io_t *io;
+    const con_handler_fn *handlers; /* CON_CMD_COUNT entries, read via copy; NULL entry:
+                                       error:NOT_AVAILABLE */
+    void *app;                      /* passed to every handler */
+    con_copy_fn copy;
+    con_rt_t *rt;
+    con_args_t args;
+    char line[CON_LINE_MAX + 1];
+    uint8_t len;
+    uint8_t flags;
+    uint8_t state; /* reading, pending, help */
+    uint8_t help_i;
+} con_t;
+
+/* Binds the console. handlers must hold CON_CMD_COUNT entries (the HELP
+ * entry is not used: help is built in); rt may be shared with the RX
+ * interrupt's hook. Returns 0. */
+int8_t con_init(con_t *con, const con_io_t *io, const con_handler_fn *handlers, void *app,
+                con_copy_fn copy, con_rt_t *rt);
+
+/* Main-loop step: reads and handles up to 16 input bytes (stopping at the
+ * first completed line), or emits one help line. Reads nothing while a
+ * command is pending. Returns 0 when waiting for input, 1 while a command
+ * is pending or help is being written. */
+int8_t con_poll(con_t *con);
+
+/* Finishes the pending command with result rc (0 -> `ok`, CON_E_* ->
+ * `error:...`; any other negative value -> error:INTERNAL). Returns 0, or
+ * CON_E_NOT_PENDING (nothing written) when no command is pending or rc is
+ * positive. */
+int8_t con_complete(con_t *con, int8_t rc);
+
+/* Nonzero while a command waits for con_complete(). */
+uint8_t con_pending(const con_t *con);
+
+/* RX-interrupt hook: counts `!` and returns 1 (byte consumed); returns 0 for
+ * every other byte. Wrap it in a function of the uart0 hook type. */
+uint8_t con_rt_byte(con_rt_t *rt, uint8_t byte);
+
+/* Returns 1 once per burst of `!` received since the last call, else 0. */
+uint8_t con_rt_take(con_rt_t *rt);
+
+/* Reports: con_report_begin() writes `<kind`, each field ` key=value`,
+ * con_report_end() writes `>` and CRLF. kind and key are flash strings.
+ * con_report_fixed() prints v / 10^decimals with exactly `decimals`
+ * fractional digits (800, 3 -> 0.800; -5, 1 -> -0.5); decimals above 9 are
+ * taken as 9. con_report_str() writes a RAM string, in double quotes when it
+ * is empty or holds a space, '>' or '='; con_report_flash() the same for a
+ * flash string. */
+void con_report_begin(con_t *con, const char *kind);
+void con_report_int(con_t *con, const char *key, int32_t v);
+void con_report_fixed(con_t *con, const char *key, int32_t v, uint8_t decimals);
+void con_report_str(con_t *con, const char *key, const char *s);
+void con_report_flash(con_t *con, const char *key, const char *s);
+void con_report_end(con_t *con);
+
+/* Formats v / 10^decimals into buf (capacity cap, NUL-terminated; 13 bytes
+ * hold any value). Returns the length, or -1 (buf = "") when cap is too
+ * small. Used by the report functions; exposed for handlers and tests. */
+int8_t con_format_fixed(char *buf, uint8_t cap, int32_t v, uint8_t decimals);
+
+/* Parses text (len characters) as a number with up to `decimals` fractional
+ * digits into *v scaled by 10^decimals ("0.8", 3 -> 800; "-12", 0 -> -12).
+ * Grammar: [+-] digits [. digits] with at least one digit; magnitude at
+ * most 2147483647 after scaling. Returns 0, or CON_E_BAD_NUMBER (*v
+ * untouched). */
+int8_t con_parse_fixed(const char *text, uint8_t len, uint8_t decimals, int32_t *v);
+
+/* Copies the name of command cmd into buf (capacity cap, truncated,
+ * NUL-terminated). Returns the name's length, or CON_E_INTERNAL for a bad
+ * cmd or cap 0. */
+int8_t con_cmd_name(const con_t *con, uint8_t cmd, char *buf, uint8_t cap);
+
+#endif /* HALLHOME_CONSOLE_H */
