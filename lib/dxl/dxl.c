@@ -187,6 +187,9 @@ static void dxl_on_packet(dxl_master *m)
         return;
     }
     dxl_reply *r = dxl_pending_for(m, st.id);
+    if (r == NULL && dxl_reply_for(m, st.id) != NULL) {
+        return; /* answered already: a retried group request asks everyone again */
+    }
     if (r == NULL) {
         m->stats.wrong_id++;
         dxl_note(m, -DXL_E_WRONG_ID);
