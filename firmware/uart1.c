@@ -1,0 +1,198 @@
+#include "uart1.h"
+
+#include <avr/interrupt.h>
+#include <avr/io.h>
+#include <stddef.h>
+
+#include "board.h"
+#include "tick.h"
+
+static volatile uint8_t rx_buf[UART1_RX_SIZE];
+static volatile uint8_t rx_head, rx_tail;
+static volatile uint16_t rx_overruns, rx_errors;
+static volatile uint8_t tx_buf[UART1_TX_SIZE];
+static volatile uint8_t tx_head, tx_tail;
+static volatile uint8_t tx_active; /* direction is transmit until TXC after the last byte */
+
+static void uart1_dir_tx(void)
+{
+    UCSR1B &= (uint8_t) ~(_BV(RXEN1) | _BV(RXCIE1));
+    BOARD_DXL_DIR_PORT |= _BV(BOARD_DXL_DIR_BIT);
+}
+
+static void uart1_dir_rx(void)
+{
+    BOARD_DXL_DIR_PORT &= (uint8_t)~_BV(BOARD_DXL_DIR_BIT);
+    UCSR1B |= _BV(RXEN1) | _BV(RXCIE1);
+}
+
+ISR(USART1_RX_vect)
+{
+    uint8_t status = UCSR1A;
+    uint8_t byte = UDR1;
+    if (status & (_BV(FE1) | _BV(DOR1))) {
+        rx_errors++;
+        if (status & _BV(FE1)) {
+            return; /* a broken frame; the parser's CRC would drop it anyway */
+        }
+    }
+    uint8_t next = (uint8_t)((rx_head + 1u) & (UART1_RX_SIZE - 1u));
+    if (next == rx_tail) {
+        rx_overruns++;
+        return;
+    }
+    rx_buf[rx_head] = byte;
+    rx_head = next;
+}
+
+/* The last byte goes into UDR here; the bus may only turn round once it has
+ * been shifted out, which TXC tells. */
+ISR(USART1_UDRE_vect)
+{
+    if (tx_head == tx_tail) {
+        UCSR1B &= (uint8_t)~_BV(UDRIE1);
+        UCSR1B |= _BV(TXCIE1);
+        return;
+    }
+    UCSR1A = (uint8_t)(_BV(U2X1) | _BV(TXC1)); /* clear TXC: it must mean this byte */
+    UDR1 = tx_buf[tx_tail];
+    tx_tail = (uint8_t)((tx_tail + 1u) & (UART1_TX_SIZE - 1u));
+}
+
+/* More bytes may have been queued after UDRE gave up; then keep transmitting. */
+ISR(USART1_TX_vect)
+{
+    if (tx_head != tx_tail) {
+        UCSR1B &= (uint8_t)~_BV(TXCIE1);
+        UCSR1B |= _BV(UDRIE1);
+        return;
+    }
+    UCSR1B &= (uint8_t)~_BV(TXCIE1);
+    uart1_dir_rx();
+    tx_active = 0;
+}
+
+void uart1_init(uint32_t baud)
+{
+    uint16_t ubrr = (uint16_t)((F_CPU / 8u + baud / 2u) / baud - 1u);
+    BOARD_DXL_DIR_DDR |= _BV(BOARD_DXL_DIR_BIT);
+    BOARD_DXL_DIR_PORT &= (uint8_t)~_BV(BOARD_DXL_DIR_BIT);
+    UBRR1H = (uint8_t)(ubrr >> 8);
+    UBRR1L = (uint8_t)ubrr;
+    UCSR1A = _BV(U2X1);
+    UCSR1C = _BV(UCSZ11) | _BV(UCSZ10);
+    UCSR1B = _BV(RXEN1) | _BV(TXEN1) | _BV(RXCIE1);
+    rx_head = rx_tail = 0;
+    tx_head = tx_tail = 0;
+    tx_active = 0;
+}
+
+uint16_t uart1_write(const uint8_t *data, uint16_t n)
+{
+    uint16_t taken = 0;
+    while (taken < n) {
+        uint8_t next = (uint8_t)((tx_head + 1u) & (UART1_TX_SIZE - 1u));
+        if (next == tx_tail) {
+            break;
+        }
+        tx_buf[tx_head] = data[taken++];
+        tx_head = next;
+    }
+    if (taken > 0) {
+        uint8_t sreg = SREG;
+        cli();
+        if (!tx_active) {
+            tx_active = 1;
+            uart1_dir_tx();
+        }
+        UCSR1B &= (uint8_t)~_BV(TXCIE1);
+        UCSR1B |= _BV(UDRIE1);
+        SREG = sreg;
+    }
+    return taken;
+}
+
+uint16_t uart1_read(uint8_t *out, uint16_t cap)
+{
+    uint16_t n = 0;
+    while (n < cap && rx_tail != rx_head) {
+        out[n++] = rx_buf[rx_tail];
+        rx_tail = (uint8_t)((rx_tail + 1u) & (UART1_RX_SIZE - 1u));
+    }
+    return n;
+}
+
+void uart1_set_dir(uint8_t dir)
+{
+    uint8_t sreg = SREG;
+    cli();
+    if (dir == DXL_DIR_TX) {
+        tx_active = 1;
+        uart1_dir_tx();
+    } else if (tx_head == tx_tail && !(UCSR1B & (_BV(UDRIE1) | _BV(TXCIE1)))) {
+        tx_active = 0;
+        uart1_dir_rx();
+    }
+    SREG = sreg;
+}
+
+uint8_t uart1_tx_done(void)
+{
+    return (uint8_t)(!tx_active && tx_head == tx_tail);
+}
+
+uint16_t uart1_rx_overruns(void)
+{
+    uint8_t sreg = SREG;
+    cli();
+    uint16_t n = rx_overruns;
+    SREG = sreg;
+    return n;
+}
+
+uint16_t uart1_rx_errors(void)
+{
+    uint8_t sreg = SREG;
+    cli();
+    uint16_t n = rx_errors;
+    SREG = sreg;
+    return n;
+}
+
+static uint16_t uart1_port_write(void *ctx, const uint8_t *data, uint16_t n)
+{
+    (void)ctx;
+    return uart1_write(data, n);
+}
+
+static uint16_t uart1_port_read(void *ctx, uint8_t *out, uint16_t cap)
+{
+    (void)ctx;
+    return uart1_read(out, cap);
+}
+
+static void uart1_port_set_dir(void *ctx, uint8_t dir)
+{
+    (void)ctx;
+    uart1_set_dir(dir);
+}
+
+static uint8_t uart1_port_tx_done(void *ctx)
+{
+    (void)ctx;
+    return uart1_tx_done();
+}
+
+static uint32_t uart1_port_now(void *ctx)
+{
+    (void)ctx;
+    return tick_us();
+}
+
+dxl_port uart1_port(void)
+{
+    dxl_port p = {
+        NULL,          uart1_port_write, uart1_port_read, uart1_port_set_dir, uart1_port_tx_done,
+        uart1_port_now};
+    return p;
+}

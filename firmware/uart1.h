@@ -1,0 +1,51 @@
+/*
+ * uart1: the servo bus, UART1 (TX1 PD3, RX1 PD2) through a half-duplex
+ * buffer whose direction pin is BOARD_DXL_DIR_* (high = transmit).
+ *
+ * Interrupt-driven in both directions. Writing queues bytes and turns the bus
+ * to transmit; the direction goes back to receive in the transmit-complete
+ * interrupt, i.e. only after the last stop bit has left the shift register
+ * (switching on the data-register-empty interrupt would cut the last byte).
+ * The receiver is off while transmitting, so an echo of our own bytes is
+ * never read back. Nothing here blocks.
+ *
+ * uart1_port() gives the dxl_port (lib/dxl/dxl.h) the servo master uses.
+ */
+#ifndef HALLHOME_UART1_H
+#define HALLHOME_UART1_H
+
+#include <stdint.h>
+
+#include "dxl/dxl.h"
+
+#define UART1_RX_SIZE 128u /* power of two; 1.28 ms of bytes at 1 Mbps */
+#define UART1_TX_SIZE 128u /* power of two; a whole request fits */
+
+/* Configures UART1 at `baud` (8N1, U2X: 1 Mbps and 2 Mbps are exact at
+ * 16 MHz, 57600 is -0.8 %), the direction pin as an output in receive, and
+ * enables the receive interrupt. Interrupts must be enabled by the caller. */
+void uart1_init(uint32_t baud);
+
+/* Queues up to n bytes and starts sending; returns how many fit in the ring. */
+uint16_t uart1_write(const uint8_t *data, uint16_t n);
+
+/* Copies up to cap received bytes into out; returns how many. */
+uint16_t uart1_read(uint8_t *out, uint16_t cap);
+
+/* Drives the direction pin. Transmit also disables the receiver; receive is
+ * refused (ignored) while bytes are still being sent, so a caller can never
+ * cut a frame. */
+void uart1_set_dir(uint8_t dir);
+
+/* Nonzero when nothing is queued or being shifted out and the bus is in receive. */
+uint8_t uart1_tx_done(void);
+
+/* Bytes dropped because the receive ring was full, and frames received with
+ * a framing or data-overrun error, since init. */
+uint16_t uart1_rx_overruns(void);
+uint16_t uart1_rx_errors(void);
+
+/* The dxl_port on UART1 and tick_us(); the returned struct may be copied. */
+dxl_port uart1_port(void);
+
+#endif /* HALLHOME_UART1_H */
