@@ -119,11 +119,16 @@ static int8_t icm_rd(icm_dev_t *dev, uint8_t bank, uint8_t reg, uint8_t *buf, ui
 
 static int8_t icm_select(icm_dev_t *dev)
 {
+    int8_t rc;
     if (dev->mux == NULL) {
         return 0;
     }
-    if (tca_select(dev->mux, dev->channel) != 0) {
+    rc = tca_select(dev->mux, dev->channel);
+    if (rc != 0) {
         dev->bank = ICM_BANK_UNKNOWN;
+        if ((rc == TCA_E_BUS || rc == TCA_E_TIMEOUT) && dev->bus->recover != NULL) {
+            (void)dev->bus->recover(dev->bus->ctx);
+        }
         return ICM_E_MUX;
     }
     return 0;
@@ -414,11 +419,13 @@ int8_t icm_init_poll(icm_dev_t *dev, uint32_t now_us)
     return dev->state == ICM_ST_RUN ? 0 : ICM_BUSY;
 }
 
+/* Only a missing sensor ends the run: a NACK, timeout or bus error may be a
+ * glitch, and the caller decides after how many to re-initialise. */
 static int8_t icm_read_failed(icm_dev_t *dev, int8_t rc)
 {
     dev->err = rc;
     dev->error_count++;
-    if (rc != ICM_E_STALE) {
+    if (rc == ICM_E_ABSENT) {
         dev->state = ICM_ST_FAIL;
     }
     return rc;

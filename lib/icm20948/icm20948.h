@@ -147,7 +147,8 @@ uint8_t icm_ready(const icm_dev_t *dev);
 
 /* First half of a read: selects the mux channel (cached) and register bank 0
  * (cached). Returns 0, ICM_E_STATE when not ready, ICM_E_MUX, or a bus error
- * code (ICM_E_ABSENT, ICM_E_NACK, ICM_E_TIMEOUT, ICM_E_BUS). */
+ * code (ICM_E_ABSENT, ICM_E_NACK, ICM_E_TIMEOUT, ICM_E_BUS) with the same
+ * effect on icm_ready() as in icm_read_fetch(). */
 int8_t icm_read_start(icm_dev_t *dev, uint32_t now_us);
 
 /* Second half: reads ST1..ST2 from EXT_SLV_SENS_DATA and decodes it into
@@ -155,10 +156,11 @@ int8_t icm_read_start(icm_dev_t *dev, uint32_t now_us);
  * before the first sample, the register contents after init), or DRDY is
  * set at least ICM_NEW_GAP_US after the last new sample; otherwise it is a
  * repeat (flags without ICM_SAMPLE_NEW). Returns 0 with *out filled,
- * ICM_E_STALE with *out filled (a repeat older than the stale limit; the
- * device stays ready so the caller decides), ICM_E_STATE when not ready, or a
- * bus error code (ICM_E_ABSENT when the sensor has disappeared). Bus errors
- * leave *out alone and clear icm_ready() until the next successful init. */
+ * ICM_E_STALE with *out filled (a repeat older than the stale limit),
+ * ICM_E_STATE when not ready, or a bus error code. Bus errors leave *out
+ * alone. ICM_E_ABSENT (the sensor has disappeared) clears icm_ready() until
+ * the next successful init; after the other errors the device stays ready
+ * and the caller decides when to re-initialise. */
 int8_t icm_read_fetch(icm_dev_t *dev, uint32_t now_us, icm_sample_t *out);
 
 /* Maps a bus result to an ICM_E_* code (0 stays 0). */

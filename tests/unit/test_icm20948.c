@@ -303,8 +303,9 @@ static void test_nack_mid_transfer(void **state)
     memset(&s, 0x5A, sizeof(s));
     assert_int_equal(read_once(&d.dev, &d.fb, &s), ICM_E_NACK);
     assert_int_equal(s.raw[0], 0x5A5A); /* untouched */
-    assert_false(icm_ready(&d.dev));
+    assert_true(icm_ready(&d.dev));     /* a glitch: the next read works */
     assert_int_equal(d.dev.error_count, 1);
+    assert_int_equal(read_new(&d.dev, &d.fb, &s), 0);
     /* NACK during init, in the middle of the reset write */
     direct_setup(&d);
     assert_int_equal(icm_init_start(&d.dev, 0), 0);

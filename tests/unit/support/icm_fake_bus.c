@@ -106,6 +106,7 @@ static int8_t fb_write(void *ctx, uint8_t addr, const uint8_t *data, uint8_t len
     if (rc == ICM_BUS_OK) {
         fb_stop(fb);
     }
+    fb->nack_at_byte = -1;
     return rc;
 }
 
@@ -120,6 +121,11 @@ static int8_t fb_write_read(void *ctx, uint8_t addr, const uint8_t *wdata, uint8
         return rc;
     }
     rc = fb_write_phase(fb, addr, wdata, wlen, &index);
+    if (rc == ICM_BUS_OK && fb_injected_nack(fb, index)) {
+        fb_stop(fb); /* the repeated START's address byte */
+        rc = ICM_BUS_E_ADDR_NACK;
+    }
+    fb->nack_at_byte = -1;
     if (rc != ICM_BUS_OK) {
         return rc;
     }

@@ -24,7 +24,7 @@ typedef struct {
     uint64_t now_ns;     /* simulated clock */
     uint32_t hz;         /* SCL frequency, 400000 by default */
     /* fault injection */
-    int16_t nack_at_byte;      /* >= 0: NACK byte n (0 = address) of the next transfer */
+    int16_t nack_at_byte;      /* >= 0: NACK byte n (0 = address) of the next transfer, once */
     uint8_t stuck_sda;         /* SDA held low: every transfer fails with ICM_BUS_E_BUS */
     uint8_t stuck_recoverable; /* recover() releases a stuck SDA */
     uint8_t timeouts;          /* this many next transfers time out */
