@@ -176,7 +176,7 @@ int8_t fld_filter_push(fld_filter_t *f, const int16_t raw[3], uint8_t overflow)
 /* Insertion sort of at most FLD_MAX_K values: bounded and small. */
 static int32_t fld_median_axis(const fld_filter_t *f, uint8_t axis)
 {
-    int16_t v[FLD_MAX_K];
+    int16_t v[FLD_MAX_K] = {0};
     uint8_t i, j;
     for (i = 0; i < f->count; i++) {
         int16_t x = f->raw[i][axis];
