@@ -61,7 +61,7 @@ static void gravity_curv(const plant_cfg_t *c, uint8_t j, double k[2])
 
 /* ---- kinematics ------------------------------------------------------------ */
 
-static void mat_mul(double out[3][3], const double a[3][3], const double b[3][3])
+static void mat_mul(double out[3][3], double a[3][3], double b[3][3])
 {
     double r[3][3];
     int i;

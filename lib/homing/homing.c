@@ -1,0 +1,1005 @@
+/*
+ * homing: the calibration state machine (see homing.h and docs/homing.md).
+ */
+#include "homing/homing.h"
+
+#include <string.h>
+
+enum {
+    ST_IDLE = 0,
+    ST_PREFLIGHT,
+    ST_RELEASE_ALL, /* moving every tendon to its release goal */
+    ST_SLACK_AVG,   /* settle, then average every sensor */
+    ST_TENDON_START,
+    ST_TAKEUP,   /* fast (then moderate) search for engagement */
+    ST_MODERATE, /* engagement to near the target */
+    ST_FINE_MOVE,
+    ST_FINE_AVG,
+    ST_BACKOFF, /* overshot on the first fine point: back to slack, re-approach */
+    ST_TENDON_RELEASE,
+    ST_FINAL,
+    ST_DONE,
+    ST_FAULT
+};
+
+#define HOM_MAX_AVG 16u
+
+void hom_config_default(hom_config_t *cfg)
+{
+    /* Speeds in XL430 units (0.229 rpm = 15.63 ticks/s = 96 um/s on a
+     * 6.1 um tick). Fast take-up: 120 units = 11.5 mm/s, 19 ticks between two
+     * 100 Hz samples, only while the tendon is slack. Moderate: 40 units,
+     * 6 ticks per sample, so stopping at 80 % of the target leaves margin for
+     * a sample of latency. Fine steps are short moves, speed hardly matters.
+     * Release: 200 units = 3.1 ticks/ms, a 1 mm release in 52 ms (< 100 ms). */
+    memset(cfg, 0, sizeof *cfg);
+    cfg->v_fast = 120;
+    cfg->v_moderate = 40;
+    cfg->v_fine = 20;
+    cfg->v_release = 200;
+    cfg->v_final = 60;
+    cfg->acc = 0;
+    cfg->slack_margin_um = 600; /* > the path shortening another tendon causes at 1 N */
+    cfg->slack_step_um = 300;
+    cfg->slack_max_steps = 6;
+    cfg->baseline_samples = 8;
+    cfg->avg_samples = 2;
+    cfg->fine_max_steps = 16;
+    cfg->near_permille = 800;
+    cfg->settle_ms = 20;
+    cfg->preflight_ms = 200;
+    cfg->sensor_timeout_ms = 100;
+    cfg->servo_timeout_ms = 50;
+    cfg->move_timeout_ms = 3000;
+    cfg->tendon_timeout_ms = 4000;
+    cfg->engage_min_cuT = 300;
+    cfg->rate_limit_cuT = 250000; /* 2.5 mT per sample: 3x the fastest take-up seen */
+    cfg->sat_cuT = 490000;        /* 4900 uT of the AK09916's 4912 uT */
+    cfg->max_takeup_um = 8000;
+    cfg->initial_release_um = 0;
+}
+
+void hom_init(hom_t *h, const hom_config_t *cfg)
+{
+    memset(h, 0, sizeof *h);
+    if (cfg != NULL) {
+        h->cfg = *cfg;
+    } else {
+        hom_config_default(&h->cfg);
+    }
+    h->state = ST_IDLE;
+}
+
+uint32_t hom_norm3(const int32_t v[3])
+{
+    uint64_t s = 0;
+    uint64_t r = 0;
+    uint64_t bit = (uint64_t)1 << 62;
+    int a;
+    for (a = 0; a < 3; a++) {
+        int64_t x = v[a];
+        s += (uint64_t)(x * x);
+    }
+    while (bit > s) {
+        bit >>= 2;
+    }
+    while (bit != 0u) {
+        if (s >= r + bit) {
+            s -= r + bit;
+            r = (r >> 1) + bit;
+        } else {
+            r >>= 1;
+        }
+        bit >>= 2;
+    }
+    return (uint32_t)r;
+}
+
+const char *hom_fault_name(int fault)
+{
+    static const char *const names[HOM_F_COUNT] = {
+        "none",         "aborted",        "preflight",    "sensor_timeout",
+        "sensor_error", "saturated",      "field_rate",   "servo_timeout",
+        "servo_error",  "servo_stall",    "travel_limit", "no_engagement",
+        "no_progress",  "tendon_timeout", "slack",        "magnet_missing",
+    };
+    if (fault < 0 || fault >= (int)HOM_F_COUNT) {
+        return "unknown";
+    }
+    return names[fault];
+}
+
+static void push_event(hom_t *h, uint32_t t, uint8_t type, uint8_t code, uint8_t index, int32_t a,
+                       int32_t b)
+{
+    hom_event_t *e;
+    if (h->ev_count >= HOM_EV_CAP) {
+        if (h->ev_dropped < 255u) {
+            h->ev_dropped++;
+        }
+        return;
+    }
+    e = &h->ev[(h->ev_head + h->ev_count) % HOM_EV_CAP];
+    e->t_ms = t;
+    e->type = type;
+    e->code = code;
+    e->index = index;
+    e->a = a;
+    e->b = b;
+    h->ev_count++;
+}
+
+int hom_event_pop(hom_t *h, hom_event_t *ev)
+{
+    if (h == NULL || ev == NULL || h->ev_count == 0u) {
+        return 0;
+    }
+    *ev = h->ev[h->ev_head];
+    h->ev_head = (uint8_t)((h->ev_head + 1u) % HOM_EV_CAP);
+    h->ev_count--;
+    return 1;
+}
+
+int hom_home(const hom_t *h, uint8_t i, int32_t *ticks)
+{
+    if (h == NULL || ticks == NULL || i >= h->n_tendons || !h->tendon[i].have_home) {
+        return HOM_E_ARG;
+    }
+    *ticks = h->tendon[i].home;
+    return 0;
+}
+
+/* um to ticks, rounded up so margins are never smaller than asked */
+static int32_t um_to_ticks(uint32_t um, uint32_t nm_per_tick)
+{
+    return (int32_t)(((uint64_t)um * 1000u + nm_per_tick - 1u) / nm_per_tick);
+}
+
+/* A stored home moved into this power cycle's frame: the XL430 keeps the angle
+ * within one turn but not the turn count, and the spool does not turn half a
+ * revolution while unpowered. */
+static int32_t unwrap_home(int32_t stored, int32_t present)
+{
+    int32_t d = (int32_t)((uint32_t)(stored - present) & 4095u);
+    if (d >= 2048) {
+        d -= 4096;
+    }
+    return present + d;
+}
+
+/* The table's local slope of |dB| over travel around the tension (a 100 mN
+ * window clipped to the grid), cuT per tick with 8 fractional bits: the
+ * first fine step's estimate before two points of its own exist. */
+static int32_t table_slope(const tbl_src_t *table, uint8_t i, uint16_t tension,
+                           const tbl_info_t *info, uint32_t nm_per_tick)
+{
+    tbl_point_t lo;
+    tbl_point_t hi;
+    uint16_t t0 = tension;
+    uint16_t t1 = tension;
+    int64_t dticks;
+    int64_t s;
+    t0 = (uint16_t)(t0 >= info->grid_mN[0] + 50u ? t0 - 50u : info->grid_mN[0]);
+    t1 =
+        (uint16_t)(t1 + 50u <= info->grid_mN[info->n_grid - 1u] ? t1 + 50u
+                                                                : info->grid_mN[info->n_grid - 1u]);
+    (void)tbl_target(table, i, t0, &lo);
+    (void)tbl_target(table, i, t1, &hi);
+    dticks = ((int64_t)hi.travel_um - (int64_t)lo.travel_um) * 1000 / (int64_t)nm_per_tick;
+    if (dticks <= 0 || hi.target_cuT <= lo.target_cuT) {
+        dticks = (int64_t)hi.travel_um * 1000 / (int64_t)nm_per_tick;
+        s = dticks > 0 ? ((int64_t)hi.target_cuT << 8) / dticks : 256;
+    } else {
+        s = ((int64_t)(hi.target_cuT - lo.target_cuT) << 8) / dticks;
+    }
+    return (int32_t)(s < 1 ? 1 : (s > 0x7FFFFFFF ? 0x7FFFFFFF : s));
+}
+
+int hom_start(hom_t *h, const tbl_src_t *table, const hom_cmd_t *cmd)
+{
+    tbl_info_t info;
+    uint16_t tension;
+    uint8_t i;
+    uint32_t rel_um = 0;
+
+    if (h == NULL || table == NULL || cmd == NULL || (unsigned)cmd->mode > HOM_MODE_DRY) {
+        return HOM_E_ARG;
+    }
+    if (h->state != ST_IDLE && h->state != ST_DONE && h->state != ST_FAULT) {
+        return HOM_E_BUSY;
+    }
+    if (tbl_check(table) != 0) {
+        return HOM_E_TABLE;
+    }
+    (void)tbl_info(table, &info);
+    if (cmd->mode == HOM_MODE_SINGLE && cmd->tendon >= info.n_tendons) {
+        return HOM_E_ARG;
+    }
+    if (cmd->mode == HOM_MODE_QUICK &&
+        (cmd->stored_mask & ((1u << info.n_tendons) - 1u)) != ((1u << info.n_tendons) - 1u)) {
+        return HOM_E_HOMES;
+    }
+    tension = cmd->tension_mN != 0u ? cmd->tension_mN : info.default_mN;
+    if (tension < info.grid_mN[0] || tension > info.grid_mN[info.n_grid - 1u]) {
+        return HOM_E_TENSION;
+    }
+    for (i = 0; i < info.n_tendons; i++) {
+        tbl_tendon_t row;
+        tbl_point_t pt;
+        hom_tendon_t *t = &h->tendon[i];
+        (void)tbl_tendon(table, i, &row);
+        if (tbl_target(table, i, tension, &pt) != 0) {
+            return HOM_E_TENSION;
+        }
+        memset(t, 0, sizeof *t);
+        t->slope_q8 = table_slope(table, i, tension, &info, row.nm_per_tick);
+        t->dir = row.pull_dir < 0 ? -1 : 1;
+        t->nm_per_tick = row.nm_per_tick;
+        t->sensor = row.sensor;
+        t->target_cuT = pt.target_cuT;
+        t->travel_ticks = um_to_ticks(pt.travel_um, row.nm_per_tick);
+        t->limit_ticks = (int32_t)(((uint64_t)row.travel_limit_um * 1000u) / row.nm_per_tick);
+        t->margin_ticks = um_to_ticks(h->cfg.slack_margin_um, row.nm_per_tick);
+        if ((cmd->stored_mask >> i) & 1u) {
+            t->est_home = cmd->stored_home[i]; /* unwrapped once positions are known */
+            t->have_home = 2;                  /* 2: stored, not yet measured */
+        }
+        /* The initial release must free a tendon left anywhere up to the top of
+         * the grid: one and a half times that travel plus the margin. */
+        {
+            uint32_t r = row.travel_um[info.n_grid - 1u] + row.travel_um[info.n_grid - 1u] / 2u +
+                         h->cfg.slack_margin_um;
+            if (r > rel_um) {
+                rel_um = r;
+            }
+        }
+    }
+    {
+        hom_config_t keep = h->cfg;
+        hom_tendon_t tk[TBL_MAX_TENDONS];
+        memcpy(tk, h->tendon, sizeof tk);
+        hom_init(h, &keep);
+        memcpy(h->tendon, tk, sizeof tk);
+    }
+    if (h->cfg.initial_release_um != 0u) {
+        rel_um = h->cfg.initial_release_um;
+    }
+    for (i = 0; i < info.n_tendons; i++) {
+        h->tendon[i].release_ticks = um_to_ticks(rel_um, h->tendon[i].nm_per_tick);
+    }
+    h->mode = (uint8_t)cmd->mode;
+    h->single = cmd->tendon;
+    h->n_tendons = info.n_tendons;
+    h->n_sensors = info.n_sensors;
+    h->tension_mN = tension;
+    h->noise_cuT = info.noise_cuT;
+    h->engage_cuT = h->cfg.engage_min_cuT;
+    if (8u * (uint32_t)info.noise_cuT > h->engage_cuT) {
+        h->engage_cuT = 8u * (uint32_t)info.noise_cuT;
+    }
+    for (i = 0; i < info.n_tendons; i++) {
+        if (h->tendon[i].target_cuT / 4u < h->engage_cuT) {
+            h->engage_cuT = h->tendon[i].target_cuT / 4u;
+        }
+    }
+    for (i = 0; i < info.n_sensors; i++) {
+        tbl_sensor_t s;
+        (void)tbl_sensor(table, i, &s);
+        h->b_pred[i] = hom_norm3(s.b_straight_cuT); /* predicted, for the magnet check */
+    }
+    h->state = ST_PREFLIGHT;
+    h->t_phase = 0;
+    h->fault = HOM_F_NONE;
+    return 0;
+}
+
+void hom_abort(hom_t *h)
+{
+    if (h != NULL && h->state != ST_IDLE && h->state != ST_DONE && h->state != ST_FAULT) {
+        h->abort_req = 1;
+    }
+}
+
+/* ---- helpers ------------------------------------------------------------------ */
+
+static void set_goal(hom_t *h, uint8_t i, int32_t goal, uint16_t vel)
+{
+    h->out.goal[i] = goal;
+    h->out.vel[i] = vel;
+    h->out.acc[i] = h->cfg.acc;
+    h->out.torque[i] = 1;
+    h->out.changed |= (uint16_t)(1u << i);
+    h->moved = 1;
+}
+
+static int reached(const hom_t *h, uint8_t i)
+{
+    int32_t d = h->present[i] - h->out.goal[i];
+    return d >= -1 && d <= 1;
+}
+
+/* Every tendon whose goal was set in this run has reached it. */
+static int all_reached(const hom_t *h)
+{
+    uint8_t i;
+    for (i = 0; i < h->n_tendons; i++) {
+        if (!reached(h, i)) {
+            return 0;
+        }
+    }
+    return 1;
+}
+
+static uint32_t elapsed(uint32_t now, uint32_t since)
+{
+    return (uint32_t)(now - since);
+}
+
+static void start_avg(hom_t *h)
+{
+    uint8_t k;
+    for (k = 0; k < h->n_sensors; k++) {
+        memset(h->sensor[k].acc, 0, sizeof h->sensor[k].acc);
+        h->sensor[k].n_acc = 0;
+    }
+}
+
+static void avg_of(const hom_t *h, uint8_t k, int32_t out[3])
+{
+    int a;
+    int32_t n = h->sensor[k].n_acc ? h->sensor[k].n_acc : 1;
+    for (a = 0; a < 3; a++) {
+        int32_t s = h->sensor[k].acc[a];
+        out[a] = (s >= 0 ? s + n / 2 : s - n / 2) / n;
+    }
+}
+
+static uint32_t delta_of(const hom_t *h, uint8_t k, const int32_t b[3])
+{
+    int32_t d[3];
+    int a;
+    for (a = 0; a < 3; a++) {
+        d[a] = b[a] - h->sensor[k].b0[a];
+    }
+    return hom_norm3(d);
+}
+
+static int32_t floor_div256(int32_t q8)
+{
+    return q8 >= 0 ? (q8 + 128) / 256 : -((-q8 + 127) / 256);
+}
+
+/* Ends the run in a fault: the release goals go out in this very step. A
+ * tendon that engaged goes back to the margin beyond its engagement; any
+ * other goes back the margin from where it is (or keeps a release already
+ * under way if that is further). Nothing moves if nothing had moved. */
+static void fail(hom_t *h, uint32_t now, hom_fault_t f, uint8_t dev, uint8_t index, int32_t detail)
+{
+    uint8_t i;
+    h->fault = (uint8_t)f;
+    h->fault_dev = dev;
+    h->fault_index = index;
+    push_event(h, now, HOM_EV_FAULT, (uint8_t)f, index, dev, detail);
+    if (h->moved) {
+        for (i = 0; i < h->n_tendons; i++) {
+            const hom_tendon_t *t = &h->tendon[i];
+            int32_t g = h->present[i] - t->dir * t->margin_ticks;
+            if (t->engaged && t->dir * (t->engage - t->margin_ticks * t->dir - g) < 0) {
+                g = t->engage - t->dir * t->margin_ticks;
+            }
+            if (t->dir * (h->out.goal[i] - g) < 0) {
+                g = h->out.goal[i]; /* a release already going further */
+            }
+            set_goal(h, i, g, h->cfg.v_release);
+        }
+        push_event(h, now, HOM_EV_RELEASED, 0, 0, (int32_t)f, 0);
+    }
+    h->state = ST_FAULT;
+}
+
+/* Sensor bookkeeping and health checks of one step. Returns 1 if it failed. */
+static int check_sensors(hom_t *h, const hom_in_t *in)
+{
+    uint8_t k;
+    int a;
+    for (k = 0; k < h->n_sensors; k++) {
+        const hom_sensor_in_t *s = &in->sensor[k];
+        hom_sensor_t *st = &h->sensor[k];
+        if (s->status == HOM_SENS_OVERFLOW) {
+            fail(h, in->now_ms, HOM_F_SATURATED, HOM_DEV_SENSOR, k, 0);
+            return 1;
+        }
+        if (s->status == HOM_SENS_ERROR || s->status == HOM_SENS_ABSENT) {
+            if (++st->err_run >= 3u) {
+                fail(h, in->now_ms, HOM_F_SENSOR_ERROR, HOM_DEV_SENSOR, k, s->status);
+                return 1;
+            }
+        } else if (s->status == HOM_SENS_NEW) {
+            st->err_run = 0;
+            for (a = 0; a < 3; a++) {
+                int32_t v = s->b_cuT[a];
+                if (v >= (int32_t)h->cfg.sat_cuT || v <= -(int32_t)h->cfg.sat_cuT) {
+                    fail(h, in->now_ms, HOM_F_SATURATED, HOM_DEV_SENSOR, k, v);
+                    return 1;
+                }
+                if (st->have_last) {
+                    int32_t d = v - st->last[a];
+                    if (d > (int32_t)h->cfg.rate_limit_cuT || d < -(int32_t)h->cfg.rate_limit_cuT) {
+                        fail(h, in->now_ms, HOM_F_FIELD_RATE, HOM_DEV_SENSOR, k, d);
+                        return 1;
+                    }
+                }
+            }
+            memcpy(st->last, s->b_cuT, sizeof st->last);
+            st->have_last = 1;
+            st->last_ms = in->now_ms;
+            if (st->n_acc < HOM_MAX_AVG) {
+                for (a = 0; a < 3; a++) {
+                    st->acc[a] += s->b_cuT[a];
+                }
+                st->n_acc++;
+            }
+        }
+        if (elapsed(in->now_ms, st->last_ms) > h->cfg.sensor_timeout_ms) {
+            fail(h, in->now_ms, HOM_F_SENSOR_TIMEOUT, HOM_DEV_SENSOR, k,
+                 (int32_t)elapsed(in->now_ms, st->last_ms));
+            return 1;
+        }
+    }
+    return 0;
+}
+
+static int check_servos(hom_t *h, const hom_in_t *in)
+{
+    uint8_t i;
+    for (i = 0; i < h->n_tendons; i++) {
+        const hom_servo_in_t *s = &in->servo[i];
+        if (s->status == HOM_SERVO_OK) {
+            if (s->hw_error != 0u) {
+                fail(h, in->now_ms, HOM_F_SERVO_ERROR, HOM_DEV_SERVO, i, s->hw_error);
+                return 1;
+            }
+            h->present[i] = s->pos;
+            h->servo_ok_ms[i] = in->now_ms;
+        } else if (elapsed(in->now_ms, h->servo_ok_ms[i]) > h->cfg.servo_timeout_ms) {
+            fail(h, in->now_ms, HOM_F_SERVO_TIMEOUT, HOM_DEV_SERVO, i,
+                 (int32_t)elapsed(in->now_ms, h->servo_ok_ms[i]));
+            return 1;
+        }
+    }
+    return 0;
+}
+
+/* ---- phases ------------------------------------------------------------------- */
+
+/* Preflight: every device must answer within preflight_ms; each one that does
+ * not, or reports an error, is named before the refusal. */
+static void do_preflight(hom_t *h, const hom_in_t *in)
+{
+    uint8_t i;
+    int missing = 0;
+    int all = 1;
+    if (h->t_phase == 0u) {
+        h->t_phase = in->now_ms | 1u;
+        h->t_start = in->now_ms;
+        push_event(h, in->now_ms, HOM_EV_START, h->mode, 0, h->tension_mN, 0);
+        push_event(h, in->now_ms, HOM_EV_PHASE, HOM_PH_PREFLIGHT, 0, 0, 0);
+        memset(h->seen, 0, sizeof h->seen);
+        for (i = 0; i < h->n_tendons; i++) {
+            h->servo_ok_ms[i] = 0xFFFFFFFFu; /* not yet answered */
+        }
+    }
+    for (i = 0; i < h->n_sensors; i++) {
+        uint8_t st = in->sensor[i].status;
+        if (st == HOM_SENS_NEW) {
+            h->seen[i] |= 1u;
+            memcpy(h->sensor[i].last, in->sensor[i].b_cuT, sizeof h->sensor[i].last);
+            h->sensor[i].have_last = 1;
+        } else if (st == HOM_SENS_ERROR || st == HOM_SENS_OVERFLOW || st == HOM_SENS_ABSENT) {
+            h->seen[i] |= (uint8_t)(st == HOM_SENS_ABSENT ? 2u : 4u);
+        }
+        if ((h->seen[i] & 1u) == 0u) {
+            all = 0;
+        }
+    }
+    for (i = 0; i < h->n_tendons; i++) {
+        const hom_servo_in_t *s = &in->servo[i];
+        if (s->status == HOM_SERVO_OK && s->hw_error == 0u) {
+            h->servo_ok_ms[i] = in->now_ms;
+            h->present[i] = s->pos;
+        } else if (s->status == HOM_SERVO_OK || s->status == HOM_SERVO_ABSENT) {
+            h->servo_ok_ms[i] = 0xFFFFFFFEu; /* faulty: hardware error or absent */
+        }
+        if (h->servo_ok_ms[i] >= 0xFFFFFFFEu) {
+            all = 0;
+        }
+    }
+    if (all) {
+        for (i = 0; i < h->n_sensors; i++) {
+            if (h->seen[i] != 1u) {
+                all = 0; /* an error reported earlier still counts */
+            }
+        }
+    }
+    if (all) {
+        for (i = 0; i < h->n_sensors; i++) {
+            h->sensor[i].last_ms = in->now_ms;
+        }
+        for (i = 0; i < h->n_tendons; i++) {
+            h->tendon[i].est_home = unwrap_home(h->tendon[i].est_home, h->present[i]);
+        }
+        push_event(h, in->now_ms, HOM_EV_PHASE, HOM_PH_RELEASE, 0, 0, 0);
+        if (h->mode == HOM_MODE_DRY) {
+            h->state = ST_SLACK_AVG;
+            h->t_phase = in->now_ms;
+            h->t_settled = 0;
+            h->steps = 0;
+            return;
+        }
+        for (i = 0; i < h->n_tendons; i++) {
+            hom_tendon_t *t = &h->tendon[i];
+            int32_t g;
+            if (h->mode == HOM_MODE_QUICK) {
+                g = t->est_home - t->dir * (t->travel_ticks + t->margin_ticks);
+            } else {
+                g = h->present[i] - t->dir * t->release_ticks;
+            }
+            set_goal(h, i, g, h->cfg.v_release);
+        }
+        h->state = ST_RELEASE_ALL;
+        h->t_phase = in->now_ms;
+        h->steps = 0;
+        return;
+    }
+    if (elapsed(in->now_ms, h->t_phase) < h->cfg.preflight_ms) {
+        return;
+    }
+    for (i = 0; i < h->n_sensors; i++) {
+        if (h->seen[i] != 1u) {
+            int32_t why = (h->seen[i] & 2u) ? 1 : ((h->seen[i] & 4u) ? 3 : 2);
+            push_event(h, in->now_ms, HOM_EV_MISSING, HOM_DEV_SENSOR, i, why, 0);
+            missing++;
+        }
+    }
+    for (i = 0; i < h->n_tendons; i++) {
+        if (h->servo_ok_ms[i] >= 0xFFFFFFFEu) {
+            const hom_servo_in_t *s = &in->servo[i];
+            int32_t why = s->status == HOM_SERVO_ABSENT ? 1 : (s->hw_error != 0u ? 4 : 2);
+            push_event(h, in->now_ms, HOM_EV_MISSING, HOM_DEV_SERVO, i, why, s->hw_error);
+            missing++;
+        }
+    }
+    fail(h, in->now_ms, HOM_F_PREFLIGHT, HOM_DEV_NONE, 0, missing);
+}
+
+static int32_t um_ticks_cur(const hom_t *h, uint8_t i, uint32_t um)
+{
+    return um_to_ticks(um, h->tendon[i].nm_per_tick);
+}
+
+/* The next tendon to calibrate at or after `from`, or n_tendons when none. */
+static uint8_t next_tendon(const hom_t *h, uint8_t from)
+{
+    if (h->mode == HOM_MODE_SINGLE) {
+        return from <= h->single ? h->single : h->n_tendons;
+    }
+    return from;
+}
+
+static void begin_final(hom_t *h, uint32_t now)
+{
+    uint8_t i;
+    int32_t dmax = 1;
+    int32_t goal[TBL_MAX_TENDONS];
+    push_event(h, now, HOM_EV_PHASE, HOM_PH_FINAL, 0, 0, 0);
+    for (i = 0; i < h->n_tendons; i++) {
+        const hom_tendon_t *t = &h->tendon[i];
+        int32_t d;
+        goal[i] =
+            t->have_home == 1u ? t->home : (t->have_home == 2u ? t->est_home : h->out.goal[i]);
+        d = goal[i] - h->present[i];
+        d = d < 0 ? -d : d;
+        if (d > dmax) {
+            dmax = d;
+        }
+    }
+    /* the same profile shape for all, velocities in proportion to distance,
+     * so every tendon arrives at the same moment */
+    for (i = 0; i < h->n_tendons; i++) {
+        if (h->tendon[i].have_home != 0u) {
+            int32_t d = goal[i] - h->present[i];
+            uint32_t v;
+            d = d < 0 ? -d : d;
+            v = ((uint32_t)h->cfg.v_final * (uint32_t)d + (uint32_t)dmax - 1u) / (uint32_t)dmax;
+            set_goal(h, i, goal[i], (uint16_t)(v == 0u ? 1u : v));
+        }
+    }
+    h->state = ST_FINAL;
+    h->t_phase = now;
+}
+
+static void begin_tendon(hom_t *h, uint32_t now, uint8_t i)
+{
+    hom_tendon_t *t;
+    int32_t g;
+    if (i >= h->n_tendons) {
+        begin_final(h, now);
+        return;
+    }
+    t = &h->tendon[i];
+    h->cur = i;
+    h->t_tendon = now;
+    h->have_prev = 0;
+    h->steps = 0;
+    h->slope_q8 = h->tendon[i].slope_q8;
+    h->pos_at_sample = h->present[i];
+    t->engaged = 0;
+    t->retries = 0;
+    push_event(h, now, HOM_EV_PHASE, HOM_PH_TENDON, i, 0, 0);
+    h->quick_leg = 0;
+    if (h->mode == HOM_MODE_QUICK) {
+        g = t->est_home - t->dir * (t->travel_ticks + t->margin_ticks / 4);
+        if (t->dir * (g - h->present[i]) > 0) {
+            h->quick_leg = 1;
+            set_goal(h, i, g, h->cfg.v_fast);
+            h->state = ST_TAKEUP;
+            return;
+        }
+    }
+    g = h->present[i] + t->dir * um_ticks_cur(h, i, h->cfg.max_takeup_um);
+    set_goal(h, i, g, h->mode == HOM_MODE_QUICK ? h->cfg.v_moderate : h->cfg.v_fast);
+    h->state = ST_TAKEUP;
+}
+
+/* A goal in the pull direction, refused beyond the travel limit. */
+static int pull_to(hom_t *h, uint32_t now, int32_t g, uint16_t v)
+{
+    hom_tendon_t *t = &h->tendon[h->cur];
+    if (t->engaged && t->dir * (g - t->engage) > t->limit_ticks) {
+        fail(h, now, HOM_F_TRAVEL_LIMIT, HOM_DEV_TENDON, h->cur, t->dir * (g - t->engage));
+        return -1;
+    }
+    set_goal(h, h->cur, g, v);
+    return 0;
+}
+
+static void begin_moderate(hom_t *h, uint32_t now)
+{
+    hom_tendon_t *t = &h->tendon[h->cur];
+    int32_t g;
+    if (t->retries != 0u) {
+        g = h->mod_goal;
+    } else {
+        g = t->engage +
+            t->dir * (int32_t)(((int64_t)t->travel_ticks * h->cfg.near_permille) / 1000);
+    }
+    if (t->dir * (g - t->engage) > t->limit_ticks) {
+        g = t->engage + t->dir * t->limit_ticks;
+    }
+    if (t->dir * (g - h->present[h->cur]) < 2) {
+        g = h->present[h->cur] + t->dir * 2;
+    }
+    if (pull_to(h, now, g, h->cfg.v_moderate) == 0) {
+        h->state = ST_MODERATE;
+    }
+}
+
+static void begin_fine_move(hom_t *h, uint32_t now)
+{
+    h->state = ST_FINE_MOVE;
+    h->t_phase = now;
+}
+
+static void finish_tendon(hom_t *h, uint32_t now, int32_t home_q8)
+{
+    hom_tendon_t *t = &h->tendon[h->cur];
+    t->home_q8 = home_q8;
+    t->home = floor_div256(home_q8);
+    t->have_home = 1;
+    push_event(h, now, HOM_EV_HOME, 0, h->cur, t->home, home_q8 - t->home * 256);
+    set_goal(h, h->cur, t->engage - t->dir * t->margin_ticks, h->cfg.v_release);
+    h->state = ST_TENDON_RELEASE;
+    h->t_phase = now;
+}
+
+/* One averaged fine point at the present position. Finishes by interpolation
+ * when the target is bracketed by two points at most 3 ticks apart, or by
+ * extrapolation with the local slope when it is less than a tick away.
+ * Otherwise it steps towards the target: the whole predicted distance when it
+ * is 3 ticks or less (rounded down), three quarters of it beyond, so the
+ * approach stays on the slack side of the target. A wide overshoot backs off
+ * to slack and comes again to the last point known to be short of it. */
+static void fine_point(hom_t *h, uint32_t now)
+{
+    hom_tendon_t *t = &h->tendon[h->cur];
+    int32_t avg[3];
+    int32_t p = h->present[h->cur];
+    uint32_t b;
+    int64_t s_q8;
+    int64_t r_q8;
+    int64_t step;
+    int32_t dp;
+
+    avg_of(h, t->sensor, avg);
+    b = delta_of(h, t->sensor, avg);
+    dp = h->have_prev ? t->dir * (p - h->p_prev) : 0;
+    if (b >= t->target_cuT) {
+        if (h->have_prev && b > h->b_prev && dp >= 1 && dp <= 3) {
+            int64_t num = (int64_t)(t->target_cuT - h->b_prev) * (int64_t)(p - h->p_prev) * 256;
+            finish_tendon(h, now, h->p_prev * 256 + (int32_t)(num / (int64_t)(b - h->b_prev)));
+            return;
+        }
+        if (++t->retries > 2u) {
+            fail(h, now, HOM_F_NO_PROGRESS, HOM_DEV_TENDON, h->cur, (int32_t)b);
+            return;
+        }
+        if (h->have_prev) {
+            /* the secant across the crossing is the slope to come back with */
+            if (dp > 0 && b > h->b_prev) {
+                h->slope_q8 = (int32_t)(((int64_t)(b - h->b_prev) << 8) / dp);
+            }
+            h->mod_goal = h->p_prev;
+        } else {
+            h->mod_goal =
+                t->engage + (int32_t)(((int64_t)(p - t->engage) * h->cfg.near_permille) / 1000);
+        }
+        h->have_prev = 0;
+        set_goal(h, h->cur, t->engage - t->dir * t->margin_ticks, h->cfg.v_release);
+        h->state = ST_BACKOFF;
+        return;
+    }
+    /* a slope measured over 3 ticks or more replaces the estimate; one over
+     * fewer ticks is too noisy and the last good one is kept */
+    if (h->have_prev && dp >= 3 && b > h->b_prev) {
+        h->slope_q8 = (int32_t)(((int64_t)(b - h->b_prev) << 8) / dp);
+    }
+    s_q8 = h->slope_q8;
+    if (s_q8 < 1) {
+        s_q8 = 1;
+    }
+    r_q8 = ((int64_t)(t->target_cuT - b) << 16) / s_q8;
+    if (r_q8 < 256) {
+        finish_tendon(h, now, p * 256 + t->dir * (int32_t)r_q8);
+        return;
+    }
+    if (++h->steps > h->cfg.fine_max_steps) {
+        fail(h, now, HOM_F_NO_PROGRESS, HOM_DEV_TENDON, h->cur, (int32_t)b);
+        return;
+    }
+    step = r_q8 <= 3 * 256 ? r_q8 >> 8 : (r_q8 * 3 / 4) >> 8;
+    if (step > (int64_t)t->limit_ticks + 1) {
+        step = (int64_t)t->limit_ticks + 1; /* refused below as beyond the limit */
+    }
+    h->p_prev = p;
+    h->b_prev = b;
+    h->have_prev = 1;
+    if (pull_to(h, now, p + t->dir * (int32_t)step, h->cfg.v_fine) == 0) {
+        begin_fine_move(h, now);
+    }
+}
+
+static void slack_done(hom_t *h, uint32_t now)
+{
+    uint8_t k;
+    uint8_t i;
+    for (k = 0; k < h->n_sensors; k++) {
+        memcpy(h->sensor[k].b0, h->slack_ref[k], sizeof h->sensor[k].b0);
+    }
+    for (k = 0; k < h->n_sensors; k++) {
+        if (h->b_pred[k] >= 10000u && hom_norm3(h->sensor[k].b0) < h->b_pred[k] / 2u) {
+            fail(h, now, HOM_F_MAGNET_MISSING, HOM_DEV_SENSOR, k,
+                 (int32_t)hom_norm3(h->sensor[k].b0));
+            return;
+        }
+    }
+    push_event(h, now, HOM_EV_PHASE, HOM_PH_BASELINE, 0, 0, 0);
+    if (h->mode == HOM_MODE_DRY) {
+        for (i = 0; i < h->n_tendons; i++) {
+            push_event(
+                h, now, HOM_EV_TARGET, 0, i, (int32_t)h->tendon[i].target_cuT,
+                (int32_t)(((int64_t)h->tendon[i].travel_ticks * h->tendon[i].nm_per_tick) / 1000));
+        }
+        push_event(h, now, HOM_EV_DONE, 0, 0, (int32_t)elapsed(now, h->t_start), 0);
+        h->state = ST_DONE;
+        return;
+    }
+    begin_tendon(h, now, next_tendon(h, 0));
+}
+
+/* Averages every sensor after a settle time; compares with the previous
+ * average; releases further until nothing changes. */
+static void do_slack_avg(hom_t *h, uint32_t now)
+{
+    uint8_t k;
+    uint8_t i;
+    uint32_t worst = 0;
+    if (!h->settled) {
+        if (elapsed(now, h->t_phase) < h->cfg.settle_ms) {
+            return;
+        }
+        start_avg(h);
+        h->settled = 1;
+        return;
+    }
+    for (k = 0; k < h->n_sensors; k++) {
+        if (h->sensor[k].n_acc < h->cfg.baseline_samples) {
+            return;
+        }
+    }
+    h->settled = 0;
+    for (k = 0; k < h->n_sensors; k++) {
+        int32_t avg[3];
+        int32_t d[3];
+        int a;
+        avg_of(h, k, avg);
+        for (a = 0; a < 3; a++) {
+            d[a] = avg[a] - h->slack_ref[k][a];
+        }
+        if (hom_norm3(d) > worst) {
+            worst = hom_norm3(d);
+        }
+        memcpy(h->slack_ref[k], avg, sizeof avg);
+    }
+    if (h->mode == HOM_MODE_DRY || (h->steps > 0u && worst <= h->engage_cuT)) {
+        slack_done(h, now);
+        return;
+    }
+    if (h->steps >= h->cfg.slack_max_steps) {
+        fail(h, now, HOM_F_SLACK, HOM_DEV_NONE, 0, (int32_t)worst);
+        return;
+    }
+    h->steps++;
+    for (i = 0; i < h->n_tendons; i++) {
+        hom_tendon_t *t = &h->tendon[i];
+        set_goal(h, i, h->out.goal[i] - t->dir * um_ticks_cur(h, i, h->cfg.slack_step_um),
+                 h->cfg.v_release);
+    }
+    h->state = ST_RELEASE_ALL;
+    h->t_phase = now;
+}
+
+static void do_tendon(hom_t *h, const hom_in_t *in)
+{
+    uint32_t now = in->now_ms;
+    hom_tendon_t *t = &h->tendon[h->cur];
+    uint8_t sel = t->sensor;
+    int fresh = in->sensor[sel].status == HOM_SENS_NEW;
+    uint32_t b = fresh ? delta_of(h, sel, in->sensor[sel].b_cuT) : 0u;
+    int32_t p = h->present[h->cur];
+
+    if (elapsed(now, h->t_tendon) > h->cfg.tendon_timeout_ms) {
+        fail(h, now, HOM_F_TENDON_TIMEOUT, HOM_DEV_TENDON, h->cur,
+             (int32_t)elapsed(now, h->t_tendon));
+        return;
+    }
+    if (t->engaged && t->dir * (p - t->engage) > t->limit_ticks) {
+        fail(h, now, HOM_F_TRAVEL_LIMIT, HOM_DEV_TENDON, h->cur, t->dir * (p - t->engage));
+        return;
+    }
+    switch (h->state) {
+    case ST_TAKEUP:
+        if (fresh && b >= h->engage_cuT) {
+            t->engaged = 1;
+            t->engage = h->pos_at_sample; /* the last position seen slack */
+            push_event(h, now, HOM_EV_ENGAGED, 0, h->cur, t->engage, (int32_t)b);
+            begin_moderate(h, now);
+        } else if (fresh) {
+            h->pos_at_sample = p;
+        } else if (reached(h, h->cur)) {
+            if (h->quick_leg) {
+                h->quick_leg = 0;
+                set_goal(h, h->cur, p + t->dir * um_ticks_cur(h, h->cur, h->cfg.max_takeup_um),
+                         h->cfg.v_moderate);
+            } else {
+                fail(h, now, HOM_F_NO_ENGAGEMENT, HOM_DEV_TENDON, h->cur,
+                     t->dir * (p - h->pos_at_sample));
+            }
+        }
+        break;
+    case ST_MODERATE:
+        if (fresh && (uint64_t)b * 1000u >= (uint64_t)t->target_cuT * h->cfg.near_permille) {
+            int32_t g = p + t->dir * 2;
+            if (t->dir * (h->out.goal[h->cur] - g) > 0) {
+                (void)pull_to(h, now, g, h->cfg.v_moderate);
+            }
+            if (h->state == ST_MODERATE) {
+                begin_fine_move(h, now);
+            }
+        } else if (reached(h, h->cur)) {
+            begin_fine_move(h, now);
+        }
+        break;
+    case ST_FINE_MOVE: {
+        int32_t err = p - h->out.goal[h->cur];
+        if (elapsed(now, h->t_phase) >= h->cfg.settle_ms && err >= -1 && err <= 1 &&
+            elapsed(now, h->t_moved) >= h->cfg.settle_ms / 2u) {
+            start_avg(h);
+            h->state = ST_FINE_AVG;
+        } else if (elapsed(now, h->t_phase) > h->cfg.move_timeout_ms) {
+            fail(h, now, HOM_F_SERVO_STALL, HOM_DEV_SERVO, h->cur, err);
+        }
+        break;
+    }
+    case ST_FINE_AVG:
+        if (h->sensor[sel].n_acc >= h->cfg.avg_samples) {
+            fine_point(h, now);
+        }
+        break;
+    case ST_BACKOFF:
+        if (reached(h, h->cur)) {
+            begin_moderate(h, now);
+        }
+        break;
+    default:
+        break;
+    }
+}
+
+int hom_step(hom_t *h, const hom_in_t *in, hom_out_t *out)
+{
+    uint8_t i;
+    if (h == NULL || in == NULL || out == NULL) {
+        return HOM_E_ARG;
+    }
+    h->out.changed = 0;
+    if (h->state == ST_IDLE || h->state == ST_DONE || h->state == ST_FAULT) {
+        *out = h->out;
+        return h->state == ST_FAULT ? -(int)h->fault : 0;
+    }
+    if (h->abort_req) {
+        h->abort_req = 0;
+        for (i = 0; i < h->n_tendons; i++) {
+            if (in->servo[i].status == HOM_SERVO_OK) {
+                h->present[i] = in->servo[i].pos;
+            }
+        }
+        fail(h, in->now_ms, HOM_F_ABORTED, HOM_DEV_NONE, 0, 0);
+    } else if (h->state == ST_PREFLIGHT) {
+        do_preflight(h, in);
+    } else {
+        int32_t before = h->present[h->cur];
+        if (check_servos(h, in) == 0 && check_sensors(h, in) == 0) {
+            if (h->present[h->cur] != before) {
+                h->t_moved = in->now_ms;
+            }
+            switch (h->state) {
+            case ST_RELEASE_ALL:
+                if (all_reached(h)) {
+                    h->state = ST_SLACK_AVG;
+                    h->settled = 0;
+                    h->t_phase = in->now_ms;
+                } else if (elapsed(in->now_ms, h->t_phase) > h->cfg.move_timeout_ms) {
+                    fail(h, in->now_ms, HOM_F_SERVO_STALL, HOM_DEV_NONE, 0, 0);
+                }
+                break;
+            case ST_SLACK_AVG:
+                do_slack_avg(h, in->now_ms);
+                break;
+            case ST_TENDON_RELEASE:
+                if (reached(h, h->cur)) {
+                    begin_tendon(h, in->now_ms, next_tendon(h, (uint8_t)(h->cur + 1u)));
+                } else if (elapsed(in->now_ms, h->t_phase) > h->cfg.move_timeout_ms) {
+                    fail(h, in->now_ms, HOM_F_SERVO_STALL, HOM_DEV_SERVO, h->cur, 0);
+                }
+                break;
+            case ST_FINAL:
+                if (all_reached(h)) {
+                    push_event(h, in->now_ms, HOM_EV_DONE, 0, 0,
+                               (int32_t)elapsed(in->now_ms, h->t_start), 0);
+                    h->state = ST_DONE;
+                } else if (elapsed(in->now_ms, h->t_phase) > h->cfg.move_timeout_ms) {
+                    fail(h, in->now_ms, HOM_F_SERVO_STALL, HOM_DEV_NONE, 0, 0);
+                }
+                break;
+            default:
+                do_tendon(h, in);
+                break;
+            }
+        }
+    }
+    *out = h->out;
+    if (h->state == ST_FAULT) {
+        return -(int)h->fault;
+    }
+    return h->state == ST_DONE ? 0 : HOM_RUNNING;
+}

@@ -1,0 +1,346 @@
+/*
+ * homing: the tension calibration as a non-blocking state machine.
+ *
+ * Pure logic: it never calls a driver. Each main-loop pass the application
+ * fills a hom_in_t (time, every sensor's newest raw sample, every servo's
+ * present position and health), calls hom_step(), writes the goals the
+ * returned hom_out_t marks as changed to the servos, and drains events with
+ * hom_event_pop() for the console. The same code runs on the AVR, in native
+ * tests against the plant model and in the virtual bench.
+ *
+ * Field interface (decided here): the application passes RAW 3-axis samples
+ * per sensor in cuT (int32, one AK09916 LSB = 15 cuT) with a status saying
+ * whether the sample is new. The machine captures its own straight-pose
+ * baseline B0 (an average of samples with every tendon slack) and computes
+ * |B - B0| with integer arithmetic. It needs nothing from lib/field.
+ *
+ * Sequence (full calibration; docs/homing.md has the state diagram):
+ *   1. preflight: every servo and sensor of the table must answer and be
+ *      healthy before any motion; otherwise one HOM_EV_MISSING per faulty
+ *      device, then HOM_F_PREFLIGHT, and nothing moves.
+ *   2. release every tendon, then confirm slack: release further in steps
+ *      until no sensor's field changes (bounded, HOM_F_SLACK).
+ *   3. capture each sensor's baseline B0 (and check the magnet is there when
+ *      the table predicts its straight-pose field: HOM_F_MAGNET_MISSING).
+ *   4. per tendon, the others slack: fast take-up until |B - B0| on its
+ *      selected sensor rises above the engagement threshold; moderate speed
+ *      to a fraction of the expected travel; fine steps that stop, settle,
+ *      average, and use the locally measured slope to predict the target;
+ *      always moving in the pull direction so backlash and friction sit on
+ *      the same side every time; the home is interpolated between measured
+ *      points (sub-tick, then rounded); release the tendon.
+ *   5. move every tendon to its home together, profile velocities scaled by
+ *      distance so they arrive together; HOM_EV_DONE.
+ * Modes: HOM_MODE_FULL; HOM_MODE_QUICK after a power cycle, from stored homes
+ * (small release, fast take-up to just before the expected engagement);
+ * HOM_MODE_SINGLE (one tendon); HOM_MODE_DRY (preflight, baseline, targets
+ * reported, no motion).
+ *
+ * Release (decided here): a release is a position move of the servo to a
+ * point a known slack margin beyond the tendon's engagement in the release
+ * direction, at the release velocity, torque kept on: the tendon is slack,
+ * the shaft stays where it was put, and the next take-up starts from a known
+ * place. Torque off would also slacken the tendon on an XL430, but leaves the
+ * spool free to drift.
+ *
+ * Safety: a travel limit counted from engagement (goals are never set beyond
+ * it; being beyond it aborts), a time limit per tendon, a field-rate check and
+ * sensor saturation abort, as do a sensor that stops answering and a servo
+ * that times out or reports a hardware error. Every abort (hom_abort() or a
+ * fault) writes release goals for every tendon in the very step call that
+ * detects it, so the application sends them within one main-loop pass.
+ *
+ * Return convention: hom_step() returns HOM_RUNNING (positive) while a
+ * calibration runs, 0 when idle or finished, and -(hom_fault_t) once a run
+ * has ended in a fault (until the next hom_start()). hom_start() returns 0 or
+ * a negative HOM_E_* code.
+ *
+ * Integer arithmetic only (the AVR has no FPU); per step the work is bounded
+ * by the number of tendons and sensors. One 64-bit integer square root per
+ * new sample of the selected sensor.
+ */
+#ifndef HALLHOME_HOMING_H
+#define HALLHOME_HOMING_H
+
+#include <stdint.h>
+
+#include "table/table.h"
+
+#define HOM_RUNNING 1
+#define HOM_EV_CAP  12u /* event queue capacity */
+
+/* hom_start() errors (numbered apart from the -(hom_fault_t) that hom_step()
+ * returns, so the two never collide) */
+enum {
+    HOM_E_ARG = -101,     /* NULL pointer, unknown mode, tendon index beyond the table */
+    HOM_E_TABLE = -102,   /* the table fails tbl_check() */
+    HOM_E_TENSION = -103, /* tension outside the table's grid */
+    HOM_E_BUSY = -104,    /* a calibration is running: abort it first */
+    HOM_E_HOMES = -105    /* quick re-home without a stored home for every tendon */
+};
+
+typedef enum {
+    HOM_MODE_FULL = 0,
+    HOM_MODE_QUICK = 1,
+    HOM_MODE_SINGLE = 2,
+    HOM_MODE_DRY = 3
+} hom_mode_t;
+
+/* Why a run ended in a fault. hom_fault_name() gives the console word. */
+typedef enum {
+    HOM_F_NONE = 0,
+    HOM_F_ABORTED,        /* hom_abort(): button long press, '!' */
+    HOM_F_PREFLIGHT,      /* devices missing or faulty before motion (see HOM_EV_MISSING) */
+    HOM_F_SENSOR_TIMEOUT, /* a sensor delivered no sample for sensor_timeout_ms */
+    HOM_F_SENSOR_ERROR,   /* a sensor reported read errors 3 times in a row */
+    HOM_F_SATURATED,      /* a sensor overflowed (HOFL) or read beyond sat_cuT */
+    HOM_F_FIELD_RATE,     /* a sensor's field jumped more than rate_limit_cuT between samples */
+    HOM_F_SERVO_TIMEOUT,  /* a servo did not answer for servo_timeout_ms */
+    HOM_F_SERVO_ERROR,    /* a servo reported a hardware error */
+    HOM_F_SERVO_STALL,    /* a servo did not reach its goal in time */
+    HOM_F_TRAVEL_LIMIT,   /* the target lies beyond the travel limit past engagement */
+    HOM_F_NO_ENGAGEMENT,  /* no field change within max_takeup_um (tendon, magnet) */
+    HOM_F_NO_PROGRESS,    /* the field does not rise towards the target (unreachable) */
+    HOM_F_TENDON_TIMEOUT, /* one tendon took longer than tendon_timeout_ms */
+    HOM_F_SLACK,          /* the field kept changing while releasing: slack not confirmed */
+    HOM_F_MAGNET_MISSING, /* baseline field far below the table's straight-pose prediction */
+    HOM_F_COUNT
+} hom_fault_t;
+
+/* Device kinds named in events. */
+enum { HOM_DEV_NONE = 0, HOM_DEV_SENSOR = 1, HOM_DEV_SERVO = 2, HOM_DEV_TENDON = 3 };
+
+/* Phases reported by HOM_EV_PHASE (code). */
+enum {
+    HOM_PH_PREFLIGHT = 1,
+    HOM_PH_RELEASE,
+    HOM_PH_BASELINE,
+    HOM_PH_TENDON, /* index = tendon */
+    HOM_PH_FINAL
+};
+
+/* Event types. Fields: index = tendon, sensor or servo (tendon index) as the
+ * type says; a and b carry numbers. */
+enum {
+    HOM_EV_START = 1, /* code = mode, a = tension mN */
+    HOM_EV_PHASE,     /* code = HOM_PH_*, index = tendon for HOM_PH_TENDON */
+    HOM_EV_MISSING,   /* code = HOM_DEV_*, index = sensor or tendon, a = 1 absent / 2 no
+                         answer / 3 error or overflow / 4 servo hardware error, b = error bits */
+    HOM_EV_ENGAGED,   /* index = tendon, a = engagement position (ticks) */
+    HOM_EV_HOME,      /* index = tendon, a = home (ticks), b = interpolated home in 1/256 tick
+                         minus a * 256 (sub-tick residue) */
+    HOM_EV_TARGET,    /* dry run: index = tendon, a = target cuT, b = travel um */
+    HOM_EV_DONE,      /* a = run time ms */
+    HOM_EV_FAULT,     /* code = hom_fault_t, index = device index, a = HOM_DEV_*, b = detail */
+    HOM_EV_RELEASED   /* release goals sent to every tendon after a fault, a = fault */
+};
+
+typedef struct {
+    uint32_t t_ms;
+    uint8_t type;
+    uint8_t code;
+    uint8_t index;
+    int32_t a;
+    int32_t b;
+} hom_event_t;
+
+/* Sensor status for one step. */
+enum {
+    HOM_SENS_NONE = 0, /* no new sample since the last step */
+    HOM_SENS_NEW,      /* b_cuT holds a new sample */
+    HOM_SENS_ERROR,    /* the read failed (no answer, bus error) */
+    HOM_SENS_OVERFLOW, /* new sample with the HOFL flag: saturated */
+    HOM_SENS_ABSENT    /* not found by the application's probe (WHO_AM_I) */
+};
+
+/* Servo status for one step. */
+enum {
+    HOM_SERVO_OK = 0,  /* answered this step; pos and hw_error are fresh */
+    HOM_SERVO_NOREPLY, /* no answer this step */
+    HOM_SERVO_ABSENT   /* not found by the application's probe (ping) */
+};
+
+typedef struct {
+    uint8_t status;   /* HOM_SENS_* */
+    int32_t b_cuT[3]; /* raw field, cuT, sensor frame */
+} hom_sensor_in_t;
+
+typedef struct {
+    uint8_t status;   /* HOM_SERVO_* */
+    uint8_t hw_error; /* XL430 Hardware Error Status (address 70); nonzero = fault */
+    int32_t pos;      /* Present Position, ticks */
+} hom_servo_in_t;
+
+/* Inputs of one step, indexed like the table's tendons and sensors. */
+typedef struct {
+    uint32_t now_ms;
+    hom_sensor_in_t sensor[TBL_MAX_SENSORS];
+    hom_servo_in_t servo[TBL_MAX_TENDONS];
+} hom_in_t;
+
+/* Outputs: the commanded state of every tendon's servo. The application
+ * writes goal, profile velocity/acceleration and torque of tendon i when bit i
+ * of `changed` is set (it may write all of them every step). */
+typedef struct {
+    int32_t goal[TBL_MAX_TENDONS];   /* Goal Position, ticks */
+    uint16_t vel[TBL_MAX_TENDONS];   /* Profile Velocity, 0.229 rpm units */
+    uint16_t acc[TBL_MAX_TENDONS];   /* Profile Acceleration, 214.577 rev/min^2 units */
+    uint8_t torque[TBL_MAX_TENDONS]; /* Torque Enable */
+    uint16_t changed;                /* bit i: tendon i changed in this step */
+} hom_out_t;
+
+/* Tunables. hom_config_default() explains the defaults (docs/homing.md). */
+typedef struct {
+    uint16_t v_fast;            /* take-up before engagement, 0.229 rpm units */
+    uint16_t v_moderate;        /* engagement to near the target */
+    uint16_t v_fine;            /* fine steps */
+    uint16_t v_release;         /* releases and aborts */
+    uint16_t v_final;           /* final move to the homes (the longest move) */
+    uint16_t acc;               /* profile acceleration for every move (0 = the servo's maximum) */
+    uint16_t slack_margin_um;   /* release this far beyond engagement */
+    uint16_t slack_step_um;     /* slack check: further release per step */
+    uint8_t slack_max_steps;    /* slack check: steps before HOM_F_SLACK */
+    uint8_t baseline_samples;   /* samples averaged for B0 (<= 16) */
+    uint8_t avg_samples;        /* samples averaged per fine point (<= 16) */
+    uint8_t fine_max_steps;     /* fine points before HOM_F_NO_PROGRESS */
+    uint16_t near_permille;     /* moderate approach stops at this fraction of the target */
+    uint16_t settle_ms;         /* wait after a fine move before sampling */
+    uint16_t preflight_ms;      /* time for every device to answer */
+    uint16_t sensor_timeout_ms; /* no sample for this long: HOM_F_SENSOR_TIMEOUT */
+    uint16_t servo_timeout_ms;  /* no answer for this long: HOM_F_SERVO_TIMEOUT */
+    uint16_t move_timeout_ms;   /* a release / final move longer than this: HOM_F_SERVO_STALL */
+    uint16_t
+        tendon_timeout_ms;   /* one tendon's calibration longer than this: HOM_F_TENDON_TIMEOUT */
+    uint32_t engage_min_cuT; /* engagement threshold floor (raised to 8x table noise) */
+    uint32_t rate_limit_cuT; /* largest plausible change of one axis between two samples */
+    uint32_t sat_cuT;        /* an axis at or beyond this reads as saturated */
+    uint32_t max_takeup_um;  /* search distance for engagement */
+    uint32_t initial_release_um; /* first release when positions are unknown (0 = from table) */
+} hom_config_t;
+
+typedef struct {
+    int8_t dir;            /* table pull_dir */
+    uint8_t sensor;        /* selected sensor */
+    uint8_t engaged;       /* engage is valid */
+    uint8_t have_home;     /* home is valid (this run or stored, for the final move) */
+    uint8_t retries;       /* re-approaches after overshooting the target */
+    uint32_t target_cuT;   /* |B - B0| target at the requested tension */
+    int32_t travel_ticks;  /* expected take-up from engagement */
+    int32_t limit_ticks;   /* travel limit from engagement */
+    int32_t margin_ticks;  /* slack margin */
+    int32_t release_ticks; /* initial release */
+    int32_t slope_q8;      /* table's local d|dB|/dtick at the tension, cuT per tick * 256 */
+    uint32_t nm_per_tick;  /* table spool factor */
+    int32_t engage;        /* engagement position, ticks */
+    int32_t home;          /* home, ticks */
+    int32_t home_q8;       /* interpolated home, 1/256 tick */
+    int32_t est_home;      /* quick mode: stored home in this power cycle's frame */
+} hom_tendon_t;
+
+typedef struct {
+    int32_t b0[3];    /* straight-pose baseline, cuT */
+    int32_t last[3];  /* newest sample */
+    int32_t acc[3];   /* running sum for averages */
+    uint32_t last_ms; /* time of the newest sample */
+    uint8_t n_acc;    /* samples in acc */
+    uint8_t have_last;
+    uint8_t err_run; /* consecutive read errors */
+} hom_sensor_t;
+
+/* Caller-owned state. Read-only for the application except through the
+ * functions below; tendon[i].home / have_home hold the results. */
+typedef struct {
+    hom_config_t cfg;
+    uint8_t state;
+    uint8_t mode;
+    uint8_t n_tendons;
+    uint8_t n_sensors;
+    uint8_t single; /* HOM_MODE_SINGLE: the tendon */
+    uint8_t cur;    /* tendon being calibrated */
+    uint8_t moved;  /* motion has been commanded in this run */
+    uint8_t abort_req;
+    uint8_t fault; /* hom_fault_t of the last run */
+    uint8_t fault_index;
+    uint8_t fault_dev;
+    uint8_t steps;     /* slack-check steps or fine points so far */
+    uint8_t have_prev; /* fine: a previous point below the target exists */
+    uint8_t ev_head;
+    uint8_t ev_count;
+    uint8_t ev_dropped;
+    uint16_t tension_mN;
+    uint16_t noise_cuT;
+    uint32_t engage_cuT; /* engagement threshold */
+    uint32_t t_start;    /* run start */
+    uint32_t t_phase;    /* start of the current wait */
+    uint32_t t_tendon;   /* start of the current tendon */
+    uint32_t t_settled;  /* fine: time the servo reached its goal (0 = not yet) */
+    uint32_t servo_ok_ms[TBL_MAX_TENDONS];
+    int32_t present[TBL_MAX_TENDONS];
+    int32_t pos_at_sample; /* active tendon's position at the previous selected-sensor sample */
+    int32_t p_prev;        /* fine: previous point (position, |dB|) */
+    uint32_t b_prev;
+    int32_t p_eng_b;                       /* fine: slope reference |dB| at engagement */
+    uint32_t b_pred[TBL_MAX_SENSORS];      /* table's straight-pose |B| (magnet check) */
+    int32_t slack_ref[TBL_MAX_SENSORS][3]; /* slack check: previous averaged field */
+    int32_t mod_goal;                      /* re-approach: moderate goal after an overshoot */
+    int32_t slope_q8;                      /* fine: current slope estimate, cuT per tick * 256 */
+    uint32_t t_moved;                      /* last change of the active tendon's present position */
+    uint8_t settled;                       /* slack average: settle time over, averaging */
+    uint8_t quick_leg;             /* quick mode: fast leg to just before the expected engagement */
+    uint8_t seen[TBL_MAX_SENSORS]; /* preflight: sample received */
+    hom_tendon_t tendon[TBL_MAX_TENDONS];
+    hom_sensor_t sensor[TBL_MAX_SENSORS];
+    hom_out_t out;
+    hom_event_t ev[HOM_EV_CAP];
+} hom_t;
+
+/* Start request. */
+typedef struct {
+    hom_mode_t mode;
+    uint16_t tension_mN;                  /* 0 = the table's default */
+    uint8_t tendon;                       /* HOM_MODE_SINGLE: the tendon to calibrate */
+    uint16_t stored_mask;                 /* bit i: stored_home[i] is valid */
+    int32_t stored_home[TBL_MAX_TENDONS]; /* homes from the last run (EEPROM), previous frame */
+} hom_cmd_t;
+
+/* Fills *cfg with the defaults: speeds designed for a 6.1 um tick, a sensor
+ * at 100 Hz and a 1-2 ms bus cycle (docs/homing.md). */
+void hom_config_default(hom_config_t *cfg);
+
+/* Initialises *h idle with the given config (NULL = defaults), no homes. */
+void hom_init(hom_t *h, const hom_config_t *cfg);
+
+/* Starts a run: validates the table, interpolates every tendon's target at
+ * the tension, resets the events and results of the previous run (stored homes
+ * from cmd are kept for the final move and quick mode). Returns 0, HOM_E_ARG,
+ * HOM_E_TABLE, HOM_E_TENSION, HOM_E_BUSY or HOM_E_HOMES. Nothing moves until
+ * hom_step(). */
+int hom_start(hom_t *h, const tbl_src_t *table, const hom_cmd_t *cmd);
+
+/* Requests an abort: the next hom_step() ends the run with HOM_F_ABORTED and
+ * releases every tendon. No effect when idle. */
+void hom_abort(hom_t *h);
+
+/* Runs the machine once on the inputs; writes the commanded servo state to
+ * *out (the `changed` bits say what to send). Returns HOM_RUNNING, 0 (idle or
+ * done), -(hom_fault_t) after a fault, or HOM_E_ARG for a NULL argument.
+ * Bounded work, never waits. */
+int hom_step(hom_t *h, const hom_in_t *in, hom_out_t *out);
+
+/* Takes the oldest event into *ev. Returns 1 when one was taken, 0 when the
+ * queue is empty. Events beyond HOM_EV_CAP are dropped and counted in
+ * h->ev_dropped (the fault itself stays readable in h->fault). */
+int hom_event_pop(hom_t *h, hom_event_t *ev);
+
+/* Console word of a fault reason ("aborted", "travel_limit", ...); "unknown"
+ * for values outside the enum. */
+const char *hom_fault_name(int fault);
+
+/* Tendon i's home from the last run. Returns 0 and writes *ticks, or
+ * HOM_E_ARG when i is out of range or has no home. */
+int hom_home(const hom_t *h, uint8_t i, int32_t *ticks);
+
+/* |v| for a 3-axis integer vector (64-bit integer square root). */
+uint32_t hom_norm3(const int32_t v[3]);
+
+#endif /* HALLHOME_HOMING_H */

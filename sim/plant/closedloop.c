@@ -1,0 +1,256 @@
+/*
+ * closedloop: homing state machine + plant + simple servos (closedloop.h).
+ */
+#include "plant/closedloop.h"
+
+#include <math.h>
+#include <string.h>
+
+void plant_run_defaults(plant_run_cfg_t *rc, const plant_cfg_t *plant, const tbl_table_t *table)
+{
+    memset(rc, 0, sizeof *rc);
+    rc->plant = plant;
+    rc->table = table;
+    rc->cmd.mode = HOM_MODE_FULL;
+    rc->start_min_um = -2000.0;
+    rc->start_max_um = 300.0;
+}
+
+static uint64_t run_rand(uint64_t *s)
+{
+    uint64_t z = (*s += 0x9E3779B97F4A7C15ull);
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+    return z ^ (z >> 31);
+}
+
+static double run_uniform(uint64_t *s)
+{
+    return (double)(run_rand(s) >> 11) / 9007199254740992.0;
+}
+
+static void fill_ground_truth(const plant_run_cfg_t *rc, const plant_t *p, const hom_t *h,
+                              plant_run_result_t *res)
+{
+    uint8_t i;
+    uint16_t tension = h->tension_mN;
+    for (i = 0; i < res->n_tendons; i++) {
+        res->final_tension_N[i] = p->tension_N[i];
+        res->limit_ticks[i] = h->tendon[i].limit_ticks;
+        if (plant_true_home(rc->plant, i, tension, &res->true_home[i]) != 0) {
+            res->true_home[i] = NAN;
+        }
+        if (h->tendon[i].have_home == 1u) {
+            res->have_home[i] = 1;
+            res->home[i] = h->tendon[i].home;
+            res->home_plant[i] = (double)h->tendon[i].home + (double)rc->frame_offset;
+            res->err_ticks[i] = res->home_plant[i] - res->true_home[i];
+            res->tension_at_home_N[i] = plant_tension_at(rc->plant, i, res->home_plant[i]);
+        }
+    }
+    memcpy(res->tip_mm, p->tip.pos_mm, sizeof res->tip_mm);
+}
+
+int plant_run(const plant_run_cfg_t *rc, plant_run_result_t *res)
+{
+    plant_t plant;
+    plant_cfg_t pcfg;
+    plant_servo_t servo[TBL_MAX_TENDONS];
+    double last_motor[TBL_MAX_TENDONS];
+    hom_t h;
+    hom_in_t in;
+    hom_out_t out;
+    tbl_src_t src;
+    uint64_t rng;
+    uint32_t t;
+    uint32_t t_fault = 0;
+    uint32_t max_ms;
+    uint8_t i;
+    uint8_t k;
+    int ended = 0;
+    int step_rc = HOM_RUNNING;
+    int32_t engage[TBL_MAX_TENDONS];
+    uint8_t engaged[TBL_MAX_TENDONS];
+
+    if (rc == NULL || res == NULL || rc->plant == NULL || rc->table == NULL ||
+        rc->plant->n_tendons != rc->table->n_tendons ||
+        rc->plant->n_sensors != rc->table->n_sensors) {
+        return PLANT_E_ARG;
+    }
+    memset(res, 0, sizeof *res);
+    res->n_tendons = rc->plant->n_tendons;
+    pcfg = *rc->plant;
+    if (rc->fault == PLANT_FI_MAGNET_MISSING) {
+        pcfg.magnet_moment_Am2 = 0.0;
+    }
+    if (plant_init(&plant, &pcfg, rc->seed) != 0) {
+        return PLANT_E_ARG;
+    }
+    rng = 0xABCDEF01ull ^ ((uint64_t)rc->seed << 24);
+    for (i = 0; i < res->n_tendons; i++) {
+        double start;
+        if (rc->start_ticks != NULL) {
+            start = rc->start_ticks[i];
+        } else {
+            double eng;
+            double um =
+                rc->start_min_um + (rc->start_max_um - rc->start_min_um) * run_uniform(&rng);
+            if (plant_true_engagement(rc->plant, i, &eng) != 0) {
+                return PLANT_E_ARG;
+            }
+            start =
+                eng + (double)rc->plant->tendon[i].pull_dir * um / (rc->plant->nm_per_tick * 1e-3);
+            start = floor(start + 0.5);
+        }
+        plant_servo_init(&servo[i], start, pcfg.servo_tau_ms);
+        (void)plant_set_motor(&plant, i, start);
+        last_motor[i] = start;
+        engaged[i] = 0;
+        engage[i] = 0;
+    }
+    (void)plant_solve(&plant);
+
+    hom_init(&h, rc->hom);
+    src.table = rc->table;
+    src.copy = tbl_copy_ram;
+    step_rc = hom_start(&h, &src, &rc->cmd);
+    if (step_rc != 0) {
+        res->rc = step_rc;
+        return PLANT_E_RANGE;
+    }
+    memset(&in, 0, sizeof in);
+    max_ms = rc->max_ms != 0u ? rc->max_ms : 60000u;
+
+    for (t = 1; t <= max_ms; t++) {
+        int moved = 0;
+        int faulting = rc->fault != PLANT_FI_NONE && t >= rc->fault_ms;
+        hom_event_t ev;
+
+        for (i = 0; i < res->n_tendons; i++) {
+            plant_servo_step(&servo[i], 1.0);
+            if (servo[i].pos != last_motor[i]) {
+                (void)plant_set_motor(&plant, i, servo[i].pos);
+                last_motor[i] = servo[i].pos;
+                moved = 1;
+            }
+        }
+        if (faulting && (rc->fault == PLANT_FI_SATURATE || rc->fault == PLANT_FI_FIELD_JUMP)) {
+            if (rc->fault == PLANT_FI_SATURATE) {
+                plant.extra_uT[rc->fault_index][2] = 6000.0;
+            } else {
+                plant.extra_uT[rc->fault_index][0] = 3000.0;
+            }
+        }
+        if (moved) {
+            (void)plant_solve(&plant);
+        }
+        in.now_ms = t;
+        for (k = 0; k < TBL_MAX_SENSORS; k++) {
+            hom_sensor_in_t *s = &in.sensor[k];
+            s->status = HOM_SENS_NONE;
+            if (k >= plant.cfg.n_sensors || (t + 3u * k) % 10u != 0u) {
+                continue;
+            }
+            if (rc->fault_index == k && ((rc->fault == PLANT_FI_SENSOR_SILENT && faulting) ||
+                                         rc->fault == PLANT_FI_SENSOR_ABSENT)) {
+                s->status = rc->fault == PLANT_FI_SENSOR_ABSENT ? HOM_SENS_ABSENT : HOM_SENS_NONE;
+                continue;
+            }
+            if (rc->fault == PLANT_FI_SENSOR_ERROR && faulting && rc->fault_index == k) {
+                s->status = HOM_SENS_ERROR;
+                continue;
+            }
+            s->status =
+                plant_read_sensor(&plant, k, s->b_cuT) == 1 ? HOM_SENS_OVERFLOW : HOM_SENS_NEW;
+        }
+        for (i = 0; i < TBL_MAX_TENDONS; i++) {
+            hom_servo_in_t *s = &in.servo[i];
+            s->status = HOM_SERVO_OK;
+            s->hw_error = 0;
+            if (i >= res->n_tendons) {
+                continue;
+            }
+            s->pos = plant_servo_present(&servo[i]) - rc->frame_offset;
+            if (rc->fault_index == i) {
+                if (rc->fault == PLANT_FI_SERVO_ABSENT) {
+                    s->status = HOM_SERVO_ABSENT;
+                } else if (rc->fault == PLANT_FI_SERVO_SILENT && faulting) {
+                    s->status = HOM_SERVO_NOREPLY;
+                } else if (rc->fault == PLANT_FI_SERVO_HWERR && faulting) {
+                    s->hw_error = 0x20; /* overload */
+                }
+            }
+        }
+        if (rc->fault == PLANT_FI_ABORT && t == rc->fault_ms) {
+            hom_abort(&h);
+        }
+        if (!ended) {
+            step_rc = hom_step(&h, &in, &out);
+            for (i = 0; i < res->n_tendons; i++) {
+                if ((out.changed >> i) & 1u) {
+                    /* a servo that stopped answering still obeys broadcast
+                     * writes in this model only if it is alive: the silent one
+                     * keeps its last goal */
+                    if (!(rc->fault == PLANT_FI_SERVO_SILENT && faulting && rc->fault_index == i)) {
+                        servo[i].goal = out.goal[i] + rc->frame_offset;
+                        servo[i].vel_units = out.vel[i];
+                        servo[i].torque = out.torque[i];
+                    }
+                }
+            }
+            while (hom_event_pop(&h, &ev)) {
+                if (ev.type == HOM_EV_ENGAGED && ev.index < TBL_MAX_TENDONS) {
+                    engaged[ev.index] = 1;
+                    engage[ev.index] = ev.a;
+                }
+                if (res->n_events < PLANT_RUN_MAX_EVENTS) {
+                    res->events[res->n_events++] = ev;
+                }
+            }
+        }
+        for (i = 0; i < res->n_tendons; i++) {
+            if (plant.tension_N[i] > res->max_tension_N[i]) {
+                res->max_tension_N[i] = plant.tension_N[i];
+            }
+            if (engaged[i]) {
+                double past = (double)rc->table->tendons[i].pull_dir *
+                              ((double)in.servo[i].pos - (double)engage[i]);
+                if (past > res->max_past_engage_ticks[i]) {
+                    res->max_past_engage_ticks[i] = past;
+                }
+            }
+        }
+        if (!ended && step_rc <= 0) {
+            ended = 1;
+            res->end_ms = t;
+            t_fault = t;
+            if (step_rc == 0) {
+                break;
+            }
+        }
+        if (ended) {
+            int all_slack = 1;
+            for (i = 0; i < res->n_tendons; i++) {
+                if (plant.tension_N[i] >= 1e-3) {
+                    all_slack = 0;
+                }
+            }
+            if (all_slack && !res->released) {
+                res->released = 1;
+                res->release_ms = t - t_fault;
+            }
+            if (t - t_fault >= 300u) {
+                break;
+            }
+        }
+    }
+    res->rc = step_rc;
+    res->fault = h.fault;
+    res->fault_index = h.fault_index;
+    res->fault_dev = h.fault_dev;
+    fill_ground_truth(rc, &plant, &h, res);
+    if (!ended) {
+        return PLANT_E_SOLVE;
+    }
+    return 0;
+}
