@@ -3,13 +3,16 @@
 #include <stddef.h>
 #include <string.h>
 
-int8_t icm_set_setup(icm_set_t *set, const icm_bus_t *bus, uint8_t mux_addr)
+int8_t icm_set_setup(icm_set_t *set, const icm_bus_t *bus, uint8_t mux_addr, icm_set_slot_t *slots,
+                     uint8_t cap)
 {
-    if (set == NULL || bus == NULL) {
+    if (set == NULL || bus == NULL || slots == NULL || cap == 0u || cap > ICM_SET_MAX) {
         return ICM_E_ARG;
     }
     memset(set, 0, sizeof(*set));
     set->bus = bus;
+    set->slot = slots;
+    set->cap = cap;
     set->period_us = ICM_SET_PERIOD_US_DEFAULT;
     set->active = ICM_SET_NONE;
     if (mux_addr != ICM_NO_MUX) {
@@ -25,7 +28,7 @@ int8_t icm_set_add(icm_set_t *set, uint8_t channel, uint8_t addr)
 {
     uint8_t i;
     icm_set_slot_t *s;
-    if (set == NULL || set->begun || set->n >= ICM_SET_MAX) {
+    if (set == NULL || set->begun || set->n >= set->cap) {
         return ICM_E_ARG;
     }
     for (i = 0; i < set->n; i++) {

@@ -61,8 +61,9 @@ typedef struct {
     uint8_t active; /* slot between start and fetch, or ICM_SET_NONE */
     uint8_t begun;
     uint32_t period_us;
+    uint8_t cap; /* slots available */
     const icm_bus_t *bus;
-    icm_set_slot_t slot[ICM_SET_MAX];
+    icm_set_slot_t *slot; /* caller-owned, cap entries */
 } icm_set_t;
 
 /* Console diagnostics of one sensor. */
@@ -84,14 +85,17 @@ typedef struct {
     uint16_t reinits;
 } icm_diag_t;
 
-/* Prepares an empty set on bus; mux_addr is the TCA9548A address
- * (0x70..0x77) or ICM_NO_MUX for sensors wired directly. Returns 0 or
- * ICM_E_ARG. */
-int8_t icm_set_setup(icm_set_t *set, const icm_bus_t *bus, uint8_t mux_addr);
+/* Prepares an empty set on bus with room for cap sensors in the caller's
+ * slots array (83 bytes each on the AVR, so a 3-sensor frame does not pay
+ * for 16); mux_addr is the TCA9548A address (0x70..0x77) or ICM_NO_MUX for
+ * sensors wired directly. Returns 0 or ICM_E_ARG (NULL, cap 0 or above
+ * ICM_SET_MAX, bad mux address). */
+int8_t icm_set_setup(icm_set_t *set, const icm_bus_t *bus, uint8_t mux_addr, icm_set_slot_t *slots,
+                     uint8_t cap);
 
 /* Adds a sensor at (channel, addr); channel must be ICM_NO_MUX without a
- * mux, 0..7 with one. Returns the sensor's index (0..15), or ICM_E_ARG (set
- * full, duplicate, bad channel or address, or called after begin). */
+ * mux, 0..7 with one. Returns the sensor's index (0..cap-1), or ICM_E_ARG
+ * (set full, duplicate, bad channel or address, or called after begin). */
 int8_t icm_set_add(icm_set_t *set, uint8_t channel, uint8_t addr);
 
 /* Read period per sensor (1000..100000 us). Returns 0 or ICM_E_ARG. */

@@ -24,6 +24,7 @@ typedef struct {
     icmm_t icm[MAXS];
     icm_fake_bus_t fb;
     icm_set_t set;
+    icm_set_slot_t slots[MAXS];
     uint8_t n;
     uint64_t busy_ns; /* bus time spent inside icm_set_poll */
 } bench_t;
@@ -42,7 +43,7 @@ static void bench_setup(bench_t *b, uint8_t n)
         assert_int_equal(tcam_attach(&b->mux, (uint8_t)(i % 8u), icmm_slave(&b->icm[i])), 0);
     }
     icm_fake_bus_setup(&b->fb, tcam_slave(&b->mux));
-    assert_int_equal(icm_set_setup(&b->set, &b->fb.bus, 0x70), 0);
+    assert_int_equal(icm_set_setup(&b->set, &b->fb.bus, 0x70, b->slots, MAXS), 0);
     for (i = 0; i < n; i++) {
         assert_int_equal(icm_set_add(&b->set, (uint8_t)(i % 8u), i < 8u ? 0x69 : 0x68), i);
     }
@@ -64,13 +65,17 @@ static void bench_run(bench_t *b, uint32_t us)
 static void test_set_args(void **state)
 {
     icm_set_t set;
+    icm_set_slot_t slots[2];
     icm_bus_t bus = {0};
     icm_sample_t s;
     icm_diag_t d;
     (void)state;
-    assert_int_equal(icm_set_setup(NULL, &bus, 0x70), ICM_E_ARG);
-    assert_int_equal(icm_set_setup(&set, &bus, 0x60), ICM_E_ARG);
-    assert_int_equal(icm_set_setup(&set, &bus, ICM_NO_MUX), 0);
+    assert_int_equal(icm_set_setup(NULL, &bus, 0x70, slots, 2), ICM_E_ARG);
+    assert_int_equal(icm_set_setup(&set, &bus, 0x60, slots, 2), ICM_E_ARG);
+    assert_int_equal(icm_set_setup(&set, &bus, 0x70, NULL, 2), ICM_E_ARG);
+    assert_int_equal(icm_set_setup(&set, &bus, 0x70, slots, 0), ICM_E_ARG);
+    assert_int_equal(icm_set_setup(&set, &bus, 0x70, slots, ICM_SET_MAX + 1u), ICM_E_ARG);
+    assert_int_equal(icm_set_setup(&set, &bus, ICM_NO_MUX, slots, 2), 0);
     assert_int_equal(icm_set_begin(&set, 0), ICM_E_ARG); /* empty */
     assert_int_equal(icm_set_poll(&set, 0), ICM_E_STATE);
     assert_int_equal(icm_set_take(&set, 0, &s), ICM_E_ARG);
@@ -94,6 +99,15 @@ static void test_add_rules(void **state)
     assert_int_equal(icm_set_add(&b.set, 0, 0x69), ICM_E_ARG); /* full (and duplicate) */
     b.set.n = 15;
     assert_int_equal(icm_set_add(&b.set, 0, 0x69), ICM_E_ARG); /* duplicate */
+    /* a small set is full at its capacity */
+    {
+        icm_set_t small;
+        icm_set_slot_t two[2];
+        assert_int_equal(icm_set_setup(&small, &b.fb.bus, 0x70, two, 2), 0);
+        assert_int_equal(icm_set_add(&small, 0, 0x69), 0);
+        assert_int_equal(icm_set_add(&small, 1, 0x69), 1);
+        assert_int_equal(icm_set_add(&small, 2, 0x69), ICM_E_ARG);
+    }
 }
 
 static void test_three_sensors_at_100hz(void **state)
