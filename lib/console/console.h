@@ -42,6 +42,15 @@
  * memcpy_P on the AVR, where CON_FLASH places the declarations in program
  * memory and the application passes PSTR("...") keys).
  *
+ * Wiring on the board (the application does this, e.g. in firmware/main.c):
+ *
+ *     static con_rt_t con_rt;
+ *     static uint8_t con_rt_hook(uint8_t b) { return con_rt_byte(&con_rt, b); }
+ *     ...
+ *     uart0_set_rt_hook(con_rt_hook);
+ *     con_init(&con, &io, handlers, &app, copy_P, &con_rt);  // io wraps uart0_read/_write
+ *     for (;;) { con_poll(&con); if (con_rt_take(&con_rt)) abort_and_release(); ... }
+ *
  * Error convention: 0 = done, negative = CON_E_*, positive = in progress.
  */
 #ifndef HALLHOME_CONSOLE_H
@@ -114,7 +123,7 @@ struct con_s;
 /* Command handler: see the file comment for the result contract. */
 typedef int8_t (*con_handler_fn)(struct con_s *con, const con_args_t *args, void *app);
 
-/* Caller-owned console state (about 90 bytes on the AVR). Treat as opaque. */
+/* Caller-owned console state (82 bytes on the AVR). Treat as opaque. */
 typedef struct con_s {
     const con_io_t *io;
     const con_handler_fn *handlers; /* CON_CMD_COUNT entries, read via copy; NULL entry:
@@ -164,7 +173,8 @@ uint8_t con_rt_take(con_rt_t *rt);
  * fractional digits (800, 3 -> 0.800; -5, 1 -> -0.5); decimals above 9 are
  * taken as 9. con_report_str() writes a RAM string, in double quotes when it
  * is empty or holds a space, '>' or '='; con_report_flash() the same for a
- * flash string. */
+ * flash string. Keys and values must not contain '"', CR or LF (the host
+ * parser could not split them); kind and keys are single words. */
 void con_report_begin(con_t *con, const char *kind);
 void con_report_int(con_t *con, const char *key, int32_t v);
 void con_report_fixed(con_t *con, const char *key, int32_t v, uint8_t decimals);
