@@ -42,8 +42,7 @@ enum dxl_err {
     DXL_E_BUSY = 13,     /* a transaction is already running */
     DXL_E_PORT = 14,     /* the port did not finish sending before its deadline */
     DXL_E_MISSING = 15,  /* bring-up: at least one ID did not answer */
-    DXL_E_HW_ERROR = 16, /* bring-up: hardware error status nonzero */
-    DXL_E_MODEL = 17     /* bring-up: a reply was too short to hold a model number */
+    DXL_E_HW_ERROR = 16  /* bring-up: hardware error status nonzero */
 };
 
 /* Instructions (e-manual, "Instruction Details"). */
