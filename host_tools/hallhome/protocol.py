@@ -31,8 +31,21 @@ ERRORS_DEF = LIB_DIR / "console" / "con_errors.def"
 SETTINGS_DEF = LIB_DIR / "store" / "store_settings.def"
 CONSOLE_DOC = PROJECT_ROOT / "docs" / "console.md"
 
-LINE_MAX = 48          # CON_LINE_MAX in lib/console/console.h
-MAX_ARGS = 3           # CON_MAX_ARGS
+CONSOLE_H = LIB_DIR / "console" / "console.h"
+CONSOLE_C = LIB_DIR / "console" / "console.c"
+
+
+def _c_define(path: Path, name: str) -> int:
+    """Integer value of `#define name <int>` in a C file."""
+    m = re.search(r"^#define\s+" + name + r"\s+(\d+)[uUlL]*\b", path.read_text(encoding="ascii"), re.M)
+    if not m:
+        raise RuntimeError(f"{name} not found in {path}")
+    return int(m.group(1))
+
+
+LINE_MAX = _c_define(CONSOLE_H, "CON_LINE_MAX")  # characters per command line
+MAX_ARGS = _c_define(CONSOLE_H, "CON_MAX_ARGS")  # arguments after the command name
+SYN_MAX = _c_define(CONSOLE_C, "CON_SYN_MAX")    # synopsis buffer, terminator included
 MAG_MAX = 2147483647   # largest magnitude a number may have after scaling
 DECIMALS = {"i": 0, "d": 3}
 
@@ -222,6 +235,8 @@ def parse_synopsis(synopsis: str) -> Tuple[Arg, ...]:
         args.append(Arg(name, kind, required, lo, hi, choices))
     if len(args) > MAX_ARGS:
         raise ProtocolError(f"more than {MAX_ARGS} arguments in {synopsis!r}")
+    if len(synopsis) >= SYN_MAX:
+        raise ProtocolError(f"synopsis longer than {SYN_MAX - 1} characters: {synopsis!r}")
     return tuple(args)
 
 

@@ -29,7 +29,10 @@
  * writes at most one byte per call, when the EEPROM is ready and the caller
  * says the robot is idle (writes only when idle; a save started before a
  * calibration simply pauses). Loads read synchronously: EEPROM reads take no
- * time and every record is at most STORE_SLOT_MAX bytes.
+ * time and every record is at most STORE_SLOT_MAX bytes. A load during a save
+ * is allowed and returns the previous copy (the slot being written is not
+ * valid yet); on the AVR its first read may wait for the byte write in flight
+ * (at most 3.4 ms).
  *
  * Error convention: 0 = done, negative = STORE_E_*, positive = in progress.
  *

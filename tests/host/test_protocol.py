@@ -72,7 +72,7 @@ def test_declarations_are_well_formed():
     for c in protocol.COMMANDS:
         assert c.name == c.name.lower() and " " not in c.name
         assert '"' not in c.help
-        assert len(c.synopsis) < 64  # CON_SYN_MAX in console.c
+        assert len(c.synopsis) < protocol.SYN_MAX
         for a in c.args:
             if a.min is not None:
                 assert a.min <= a.max
@@ -94,6 +94,9 @@ def test_synopsis_parser():
         protocol.parse_synopsis("<a:i]")
     with pytest.raises(ProtocolError):
         protocol.parse_synopsis("<a:i> <b:i> <c:i> <d:i>")
+    with pytest.raises(ProtocolError):
+        protocol.parse_synopsis("<" + "a" * protocol.SYN_MAX + ":i>")
+    assert (protocol.LINE_MAX, protocol.MAX_ARGS) == (48, 3)
 
 
 def test_def_parser_rejects_broken_files(tmp_path):
@@ -149,7 +152,7 @@ def test_check_command():
     assert check_command("set filter_k -5")[1] == ["filter_k", -5]
     cases = {"nope": "UNKNOWN_COMMAND", "cal x": "BAD_NUMBER", "cal 0": "OUT_OF_RANGE",
              "learn 1": "MISSING_ARG", "status 1": "TOO_MANY_ARGS", "servos foo": "BAD_WORD",
-             "x" * 49: "LINE_TOO_LONG", "st\x00atus": "BAD_CHAR", "st\u00e4tus": "BAD_CHAR"}
+             "x" * (protocol.LINE_MAX + 1): "LINE_TOO_LONG", "st\x00atus": "BAD_CHAR", "st\u00e4tus": "BAD_CHAR"}
     for line, name in cases.items():
         with pytest.raises(CommandError) as ei:
             check_command(line)
@@ -226,7 +229,7 @@ LINES = ["cal", "cal 0.8", "cal 0.8 3", "cal .01 11", "cal 10.001", "cal 1.2345"
          "servos scan", "servos pos", "servos err", "servos foo", "get", "get cal_tension",
          "set filter_k 4", "set filter_k", "set x 1.5", "set x 2147483648", "reboot 252",
          "reboot 253", "reboot -1", "reboot 0x1", "status", "status 1", "STATUS", "help 1",
-         "nope", "x" * 48, "x" * 49, "cal\t0.5", "version", "rehome", "home", "release",
+         "nope", "x" * protocol.LINE_MAX, "x" * (protocol.LINE_MAX + 1), "cal\t0.5", "version", "rehome", "home", "release",
          "table", "history", "save", "sensors"]
 
 
@@ -266,6 +269,7 @@ def test_console_doc_matches_declarations():
             f"docs/console.md section {name} is stale: run "
             "`.venv/bin/python -m hallhome.protocol --update-docs`")
     assert protocol.update_doc(text) == text
+    assert f"At most {protocol.LINE_MAX} characters per line" in text
 
 
 def test_markdown_cli(capsys):
