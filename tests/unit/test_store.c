@@ -731,6 +731,40 @@ static void test_recover_position(void **state)
     assert_int_equal(store_recover_position(&e, 0, 100, &pos), STORE_E_ARG);
 }
 
+static void test_load_during_save_sees_old_copy(void **state)
+{
+    store_homes_t h, r;
+    store_hist_t e;
+    int i;
+    (void)state;
+    fresh(0xFF);
+    make_homes(&h, 1, 0);
+    save_homes_ok(&h);
+    make_hist(&e, 1);
+    assert_int_equal(store_save_hist(&st, &e), 1);
+    assert_int_equal(store_fake_run(&st, POLLS), 0);
+    make_homes(&h, 2, 999);
+    assert_int_equal(store_save_homes(&st, &h), 1);
+    for (i = 0; i < 60; i++) {
+        assert_int_equal(store_poll(&st, 1), 1);
+        assert_int_equal(store_homes_load(&st, TABLE_ID, &r), 0);
+        assert_int_equal(r.cal_count, 1);
+    }
+    assert_int_equal(store_fake_run(&st, POLLS), 0);
+    assert_int_equal(store_homes_load(&st, TABLE_ID, &r), 0);
+    assert_int_equal(r.cal_count, 2);
+    make_hist(&e, 2);
+    assert_int_equal(store_save_hist(&st, &e), 1);
+    for (i = 0; i < 30; i++) {
+        assert_int_equal(store_poll(&st, 1), 1);
+        assert_int_equal(store_hist_count(&st), 1);
+        assert_int_equal(store_hist_get(&st, 0, &e), 0);
+        assert_int_equal(e.cal_count, 1);
+    }
+    assert_int_equal(store_fake_run(&st, POLLS), 0);
+    assert_int_equal(store_hist_count(&st), 2);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -748,6 +782,7 @@ int main(void)
         cmocka_unit_test(test_sequence_wraps),
         cmocka_unit_test(test_wrong_version_or_kind_ignored),
         cmocka_unit_test(test_verify_failure_keeps_old),
+        cmocka_unit_test(test_load_during_save_sees_old_copy),
         cmocka_unit_test(test_cut_homes),
         cmocka_unit_test(test_cut_settings),
         cmocka_unit_test(test_cut_learned),
