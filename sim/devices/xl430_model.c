@@ -11,6 +11,7 @@ enum { XL430_RO, XL430_EEPROM, XL430_RAM };
 #define XL430_TICKS_PER_S_PER_VEL  (DXL_XL430_VELOCITY_UNIT_RPM * 4096.0 / 60.0)
 #define XL430_TICKS_PER_S2_PER_ACC (DXL_XL430_ACCEL_UNIT_RPM2 * 4096.0 / 3600.0)
 #define XL430_MAX_STEP_US          1000u
+#define XL430_FAST_GAP_US          1000u /* idle bus (plus 3 bytes) that ends a fast sync read chain */
 
 static uint8_t xl430_reached(uint32_t now, uint32_t t)
 {
@@ -704,6 +705,13 @@ void xl430_rx(xl430 *m, uint8_t byte, uint32_t t_us)
     if (m->booting) {
         return;
     }
+    uint32_t gap = t_us - m->last_rx;
+    m->last_rx = t_us;
+    uint32_t gap_limit =
+        XL430_FAST_GAP_US + (uint32_t)(3000000ULL * m->cfg.bits_per_byte / xl430_baud(m));
+    if (m->wait == XL430_WAIT_FAST && gap > gap_limit) {
+        m->wait = XL430_WAIT_NONE; /* the chain of chunks broke off: give up */
+    }
     if (m->wait == XL430_WAIT_FAST) {
         m->fast_crc = dxl_crc16_byte(m->fast_crc, byte);
         if (++m->fast_seen == m->fast_need) {
@@ -723,5 +731,6 @@ void xl430_rx(xl430 *m, uint8_t byte, uint32_t t_us)
         }
         return;
     }
+    m->wait = XL430_WAIT_NONE; /* any new instruction ends an unfinished group read */
     xl430_instruction(m, m->rx.id, m->rx.buf, m->rx.body_len, t_us);
 }

@@ -27,7 +27,10 @@
  *    after the previous ID's status packet, so a silent servo silences the
  *    ones after it. Fast sync read chunks follow each other with no gap; the
  *    partial CRC of each chunk covers the packet up to that chunk and the
- *    last one is the packet CRC. The model does not stuff fast replies.
+ *    last one is the packet CRC. The model does not stuff fast replies. A
+ *    servo waiting for its turn gives up when the bus stays idle for 1 ms
+ *    plus three byte times,
+ *    and any new instruction packet ends a group read still waiting.
  *  - Bus Watchdog: with torque on and no instruction for the set time, the
  *    servo stops, the field reads 0xFF and goal writes get Data Range Error
  *    until 0 is written.
@@ -86,6 +89,7 @@ typedef struct {
     double target; /* shaft ticks the profile heads for */
     double base;   /* shaft ticks where the multi-turn count is zero */
     uint32_t now;
+    uint32_t last_rx;
     uint32_t last_inst;
     uint32_t boot_until;
     uint8_t booting;

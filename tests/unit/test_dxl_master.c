@@ -349,6 +349,73 @@ static void test_abort(void **state)
     assert_int_equal(dxl_poll(&R.m), -DXL_E_TIMEOUT);
 }
 
+static void test_bulk_write_and_signed_values(void **state)
+{
+    (void)state;
+    rig_init(&R, 2, 0);
+    const uint8_t led[1] = {1};
+    const uint8_t vel[4] = {0x2C, 0x01, 0x00, 0x00}; /* 300 */
+    const dxl_bulk_item items[2] = {{1, DXL_XL430_LED_ADDR, 1, led},
+                                    {2, DXL_XL430_PROFILE_VELOCITY_ADDR, 4, vel}};
+    assert_int_equal(dxl_bulk_write(&R.m, items, 2), 1);
+    assert_int_equal(run(), 0);
+    assert_int_equal(xl430_get(&R.servo[0], DXL_XL430_LED_ADDR, 1), 1);
+    assert_int_equal(xl430_get(&R.servo[1], DXL_XL430_PROFILE_VELOCITY_ADDR, 4), 300);
+    assert_int_equal(xl430_get(&R.servo[1], DXL_XL430_LED_ADDR, 1), 0);
+
+    dxl_reply r = {1, 0, 0, 4, {0xFE, 0xFF, 0xFF, 0xFF}};
+    assert_int_equal(dxl_reply_value(&r, 4), -2);
+    assert_int_equal(dxl_reply_value(&r, 2), -2);
+    assert_int_equal(dxl_reply_value(&r, 1), -2);
+    assert_int_equal(dxl_reply_value(&r, 3), 0);
+    r.len = 2;
+    assert_int_equal(dxl_reply_value(&r, 4), 0);
+    assert_int_equal(dxl_reply_value(NULL, 4), 0);
+    assert_int_equal(dxl_write_value(&R.m, 1, DXL_XL430_LED_ADDR, 0, 3), -DXL_E_ARG);
+    assert_int_equal(dxl_busy(&R.m), 0);
+}
+
+static void test_fast_sync_read_with_silent_servo_times_out(void **state)
+{
+    (void)state;
+    rig_init(&R, 2, 0);
+    const uint8_t ids[3] = {1, 9, 2};
+    assert_int_equal(dxl_fast_sync_read(&R.m, DXL_XL430_PRESENT_POSITION_ADDR, 4, ids, 3), 1);
+    assert_int_equal(run(), -DXL_E_TIMEOUT);
+    for (uint8_t i = 0; i < 3; i++) {
+        assert_int_equal(dxl_reply_for(&R.m, ids[i])->result, -DXL_E_TIMEOUT);
+    }
+    assert_int_equal(R.m.stats.retries, 2);
+    assert_int_equal(R.bus.collisions, 0);
+}
+
+static void test_57600_baud(void **state)
+{
+    (void)state;
+    dxl_config cfg;
+    dxl_config_default(&cfg, 57600, 10);
+    assert_int_equal(cfg.byte_us, 174);
+    dxl_config_default(&cfg, 1000000, 11);
+    assert_int_equal(cfg.byte_us, 11);
+
+    dxl_fakebus_init(&R.bus, 57600, 10);
+    xl430_config c;
+    xl430_config_default(&c, 3);
+    c.baud_index = DXL_XL430_BAUD_57600;
+    xl430_init(&R.servo[0], &c, 0);
+    dxl_fakebus_add(&R.bus, &R.servo[0]);
+    dxl_fakebus_port(&R.bus, &R.port);
+    dxl_config_default(&cfg, 57600, 10);
+    dxl_master_init(&R.m, &R.port, &cfg);
+    assert_int_equal(dxl_read(&R.m, 3, DXL_XL430_PRESENT_TEMPERATURE_ADDR, 1), 1);
+    uint32_t t0 = R.bus.now;
+    assert_int_equal(run(), 0);
+    assert_int_equal(dxl_reply_for(&R.m, 3)->data[0], 30);
+    /* 14 + 12 bytes at 173.6 us plus the 500 us return delay */
+    assert_true(R.bus.last_rx_us - t0 >= 26u * 173u + 500u);
+    assert_int_equal(R.m.stats.retries, 0);
+}
+
 /* --- bring-up -------------------------------------------------------------------- */
 
 static dxl_bringup B;
@@ -533,6 +600,9 @@ int main(void)
         cmocka_unit_test(test_port_that_takes_few_bytes_per_write),
         cmocka_unit_test(test_port_never_finishing_is_an_error),
         cmocka_unit_test(test_abort),
+        cmocka_unit_test(test_bulk_write_and_signed_values),
+        cmocka_unit_test(test_fast_sync_read_with_silent_servo_times_out),
+        cmocka_unit_test(test_57600_baud),
         cmocka_unit_test(test_bringup_configures_every_servo),
         cmocka_unit_test(test_bringup_reports_missing_ids_by_number),
         cmocka_unit_test(test_bringup_warns_on_other_model),
