@@ -22,7 +22,8 @@ enum {
     ST_FAULT
 };
 
-#define HOM_MAX_AVG 16u
+#define HOM_MAX_AVG             16u
+#define HOM_QUICK_STOP_PERMILLE 975u /* quick leg: stop when the field is this close */
 
 void hom_config_default(hom_config_t *cfg)
 {
@@ -35,9 +36,9 @@ void hom_config_default(hom_config_t *cfg)
     memset(cfg, 0, sizeof *cfg);
     cfg->v_fast = 120;
     cfg->v_moderate = 40;
-    cfg->v_fine = 20;
+    cfg->v_fine = 60;
     cfg->v_release = 200;
-    cfg->v_final = 60;
+    cfg->v_final = 120;
     cfg->acc = 0;
     cfg->slack_margin_um = 600; /* > the path shortening another tendon causes at 1 N */
     cfg->slack_step_um = 300;
@@ -55,7 +56,7 @@ void hom_config_default(hom_config_t *cfg)
     cfg->engage_min_cuT = 300;
     cfg->rate_limit_cuT = 250000; /* 2.5 mT per sample: 3x the fastest take-up seen */
     cfg->sat_cuT = 490000;        /* 4900 uT of the AK09916's 4912 uT */
-    cfg->max_takeup_um = 8000;
+    cfg->max_takeup_um = 4000;
     cfg->initial_release_um = 0;
 }
 
@@ -387,6 +388,9 @@ static void fail(hom_t *h, uint32_t now, hom_fault_t f, uint8_t dev, uint8_t ind
             if (t->engaged && t->dir * (t->engage - t->margin_ticks * t->dir - g) < 0) {
                 g = t->engage - t->dir * t->margin_ticks;
             }
+            if (t->have_slack && t->dir * (t->slack_pos - g) < 0) {
+                g = t->slack_pos; /* a tendon pulled without engaging: back to slack */
+            }
             if (t->dir * (h->out.goal[i] - g) < 0) {
                 g = h->out.goal[i]; /* a release already going further */
             }
@@ -527,6 +531,7 @@ static void do_preflight(hom_t *h, const hom_in_t *in)
         }
         for (i = 0; i < h->n_tendons; i++) {
             h->tendon[i].est_home = unwrap_home(h->tendon[i].est_home, h->present[i]);
+            h->tendon[i].start_pos = h->present[i];
         }
         push_event(h, in->now_ms, HOM_EV_PHASE, HOM_PH_RELEASE, 0, 0, 0);
         if (h->mode == HOM_MODE_DRY) {
@@ -586,6 +591,15 @@ static uint8_t next_tendon(const hom_t *h, uint8_t from)
     return from;
 }
 
+/* How far the take-up may search for engagement from the present position:
+ * what this run released the tendon by, plus the most slack it may have
+ * started with. */
+static int32_t search_ticks(const hom_t *h, uint8_t i)
+{
+    int32_t released = h->tendon[i].dir * (h->tendon[i].start_pos - h->present[i]);
+    return (released > 0 ? released : 0) + um_ticks_cur(h, i, h->cfg.max_takeup_um);
+}
+
 static void begin_final(hom_t *h, uint32_t now)
 {
     uint8_t i;
@@ -638,7 +652,10 @@ static void begin_tendon(hom_t *h, uint32_t now, uint8_t i)
     push_event(h, now, HOM_EV_PHASE, HOM_PH_TENDON, i, 0, 0);
     h->quick_leg = 0;
     if (h->mode == HOM_MODE_QUICK) {
-        g = t->est_home - t->dir * (t->travel_ticks + t->margin_ticks / 4);
+        /* straight to just short of the stored home: a tenth of the expected
+         * travel (at least 3 ticks) leaves room for the fine steps */
+        int32_t guard = t->travel_ticks / 10 < 3 ? 3 : t->travel_ticks / 10;
+        g = t->est_home - t->dir * guard;
         if (t->dir * (g - h->present[i]) > 0) {
             h->quick_leg = 1;
             set_goal(h, i, g, h->cfg.v_fast);
@@ -646,7 +663,7 @@ static void begin_tendon(hom_t *h, uint32_t now, uint8_t i)
             return;
         }
     }
-    g = h->present[i] + t->dir * um_ticks_cur(h, i, h->cfg.max_takeup_um);
+    g = h->present[i] + t->dir * search_ticks(h, i);
     set_goal(h, i, g, h->mode == HOM_MODE_QUICK ? h->cfg.v_moderate : h->cfg.v_fast);
     h->state = ST_TAKEUP;
 }
@@ -698,6 +715,7 @@ static void finish_tendon(hom_t *h, uint32_t now, int32_t home_q8)
     t->have_home = 1;
     push_event(h, now, HOM_EV_HOME, 0, h->cur, t->home, home_q8 - t->home * 256);
     set_goal(h, h->cur, t->engage - t->dir * t->margin_ticks, h->cfg.v_release);
+    t->slack_pos = t->engage - t->dir * t->margin_ticks;
     h->state = ST_TENDON_RELEASE;
     h->t_phase = now;
 }
@@ -782,6 +800,12 @@ static void slack_done(hom_t *h, uint32_t now)
 {
     uint8_t k;
     uint8_t i;
+    if (h->mode != HOM_MODE_DRY) {
+        for (i = 0; i < h->n_tendons; i++) {
+            h->tendon[i].slack_pos = h->present[i];
+            h->tendon[i].have_slack = 1;
+        }
+    }
     for (k = 0; k < h->n_sensors; k++) {
         memcpy(h->sensor[k].b0, h->slack_ref[k], sizeof h->sensor[k].b0);
     }
@@ -878,18 +902,35 @@ static void do_tendon(hom_t *h, const hom_in_t *in)
     }
     switch (h->state) {
     case ST_TAKEUP:
-        if (fresh && b >= h->engage_cuT) {
+        if (fresh && !t->engaged && b >= h->engage_cuT) {
             t->engaged = 1;
             t->engage = h->pos_at_sample; /* the last position seen slack */
             push_event(h, now, HOM_EV_ENGAGED, 0, h->cur, t->engage, (int32_t)b);
-            begin_moderate(h, now);
-        } else if (fresh) {
+            if (!h->quick_leg) {
+                begin_moderate(h, now);
+                break;
+            }
+        }
+        if (fresh && !t->engaged) {
             h->pos_at_sample = p;
+        }
+        if (h->quick_leg && t->engaged && fresh &&
+            (uint64_t)b * 1000u >= (uint64_t)t->target_cuT * HOM_QUICK_STOP_PERMILLE) {
+            /* the stored home is further than the field says: stop short */
+            int32_t g = p + t->dir * 2;
+            if (t->dir * (h->out.goal[h->cur] - g) > 0) {
+                (void)pull_to(h, now, g, h->cfg.v_moderate);
+            }
+            if (h->state == ST_TAKEUP) {
+                begin_fine_move(h, now);
+            }
         } else if (reached(h, h->cur)) {
-            if (h->quick_leg) {
+            if (h->quick_leg && t->engaged) {
+                begin_fine_move(h, now);
+            } else if (h->quick_leg) {
+                /* no engagement where the stored home put it: search as usual */
                 h->quick_leg = 0;
-                set_goal(h, h->cur, p + t->dir * um_ticks_cur(h, h->cur, h->cfg.max_takeup_um),
-                         h->cfg.v_moderate);
+                set_goal(h, h->cur, p + t->dir * search_ticks(h, h->cur), h->cfg.v_moderate);
             } else {
                 fail(h, now, HOM_F_NO_ENGAGEMENT, HOM_DEV_TENDON, h->cur,
                      t->dir * (p - h->pos_at_sample));

@@ -235,6 +235,9 @@ typedef struct {
     int32_t home;          /* home, ticks */
     int32_t home_q8;       /* interpolated home, 1/256 tick */
     int32_t est_home;      /* quick mode: stored home in this power cycle's frame */
+    int32_t slack_pos;     /* last position known slack (after the slack check, a release) */
+    uint8_t have_slack;    /* slack_pos is valid */
+    int32_t start_pos;     /* position when the run started */
 } hom_tendon_t;
 
 typedef struct {

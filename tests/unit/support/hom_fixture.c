@@ -1,0 +1,35 @@
+/* Fixtures for the homing and plant tests (hom_fixture.h). */
+#include "hom_fixture.h"
+
+#include <stdio.h>
+#include <string.h>
+
+const char *hom_fix_path(const char *rel, char *buf, size_t n)
+{
+    const char *self = __FILE__;
+    const char *cut = strstr(self, "tests/unit/support/");
+    size_t root = cut != NULL ? (size_t)(cut - self) : 0u;
+    if (root + strlen(rel) + 1u > n) {
+        buf[0] = '\0';
+        return buf;
+    }
+    memcpy(buf, self, root);
+    strcpy(buf + root, rel);
+    return buf;
+}
+
+int hom_fix_paper(plant_cfg_t *cfg, tbl_table_t *t)
+{
+    char path[512];
+    int line = 0;
+    int rc = plant_cfg_load(
+        cfg, hom_fix_path("sim/plant/configs/paper_2seg.cfg", path, sizeof path), &line);
+    if (rc != 0) {
+        fprintf(stderr, "hom_fixture: %s: error %d at line %d\n", path, rc, line);
+        return rc;
+    }
+    if (t != NULL) {
+        rc = plant_make_table(cfg, t);
+    }
+    return rc;
+}
