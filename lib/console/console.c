@@ -553,6 +553,7 @@ static void execute(con_t *c)
     rc = h(c, &c->args, c->app);
     if (rc > 0) {
         c->state = ST_PENDING;
+        c->t_pending = c->now;
         return;
     }
     c->state = ST_READ;
@@ -630,13 +631,29 @@ int8_t con_init(con_t *con, const con_io_t *io, const con_handler_fn *handlers, 
     con->copy = copy;
     con->rt = rt;
     con->state = ST_READ;
+    con->pending_ms = CON_PENDING_MS;
     return 0;
 }
 
-int8_t con_poll(con_t *con)
+void con_set_timeout(con_t *con, uint16_t ms)
+{
+    con->pending_ms = ms;
+}
+
+int8_t con_poll(con_t *con, uint16_t now_ms)
 {
     uint8_t n;
-    if (con->state == ST_PENDING || con->state == ST_CALL) {
+    con->now = now_ms;
+    if (con->state == ST_PENDING) {
+        if (con->pending_ms == 0u || (uint16_t)(now_ms - con->t_pending) < con->pending_ms) {
+            return 1;
+        }
+        /* the application lost the command: the line still gets its reply */
+        con->state = ST_READ;
+        reply(con, CON_E_TIMEOUT);
+        return 0;
+    }
+    if (con->state == ST_CALL) {
         return 1;
     }
     if (con->state == ST_HELP) {

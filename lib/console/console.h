@@ -30,7 +30,11 @@
  *   CON_E_*      failed: the console replies `error:<code> <text>`;
  *   CON_PENDING  accepted but not finished (e.g. needs bus time): no reply
  *                yet; the console reads no further input until the
- *                application calls con_complete() once with the result.
+ *                application calls con_complete() once with the result, or
+ *                until the pending deadline (con_set_timeout(), default
+ *                CON_PENDING_MS) passes: then the console itself replies
+ *                `error:21 timed out` and a late con_complete() is refused
+ *                with CON_E_NOT_PENDING, so the line still gets one reply.
  * A handler may emit reports (con_report_*) before it returns or while
  * pending; it never writes `ok`/`error` itself. Commands that start long
  * work (cal) reply `ok` when accepted and report progress and results later.
@@ -49,7 +53,7 @@
  *     ...
  *     uart0_set_rt_hook(con_rt_hook);
  *     con_init(&con, &io, handlers, &app, copy_P, &con_rt);  // io wraps uart0_read/_write
- *     for (;;) { con_poll(&con); if (con_rt_take(&con_rt)) abort_and_release(); ... }
+ *     for (;;) { con_poll(&con, tick_ms()); if (con_rt_take(&con_rt)) abort_all(); ... }
  *
  * Error convention: 0 = done, negative = CON_E_*, positive = in progress.
  */
@@ -85,9 +89,10 @@ enum {
     CON_E_NOT_PENDING = -100
 };
 
-#define CON_PENDING  1  /* handler result: reply comes later via con_complete() */
-#define CON_LINE_MAX 48 /* characters in a command line, terminator excluded */
-#define CON_MAX_ARGS 3  /* arguments after the command name */
+#define CON_PENDING    1     /* handler result: reply comes later via con_complete() */
+#define CON_LINE_MAX   48    /* characters in a command line, terminator excluded */
+#define CON_MAX_ARGS   3     /* arguments after the command name */
+#define CON_PENDING_MS 3000u /* default deadline of a pending command */
 
 typedef void (*con_copy_fn)(void *dst, const void *src, size_t n);
 
@@ -123,7 +128,7 @@ struct con_s;
 /* Command handler: see the file comment for the result contract. */
 typedef int8_t (*con_handler_fn)(struct con_s *con, const con_args_t *args, void *app);
 
-/* Caller-owned console state (82 bytes on the AVR). Treat as opaque. */
+/* Caller-owned console state (88 bytes on the AVR). Treat as opaque. */
 typedef struct con_s {
     const con_io_t *io;
     const con_handler_fn *handlers; /* CON_CMD_COUNT entries, read via copy; NULL entry:
@@ -133,6 +138,9 @@ typedef struct con_s {
     con_rt_t *rt;
     con_args_t args;
     char line[CON_LINE_MAX + 1];
+    uint16_t now;        /* ms, from the last con_poll() */
+    uint16_t t_pending;  /* ms when the pending command was accepted */
+    uint16_t pending_ms; /* deadline of a pending command; 0 = none */
     uint8_t len;
     uint8_t flags;
     uint8_t state; /* reading, pending, help */
@@ -145,11 +153,17 @@ typedef struct con_s {
 int8_t con_init(con_t *con, const con_io_t *io, const con_handler_fn *handlers, void *app,
                 con_copy_fn copy, con_rt_t *rt);
 
-/* Main-loop step: reads and handles up to 16 input bytes (stopping at the
- * first completed line), or emits one help line. Reads nothing while a
- * command is pending. Returns 0 when waiting for input, 1 while a command
- * is pending or help is being written. */
-int8_t con_poll(con_t *con);
+/* Main-loop step at time now_ms (a free-running millisecond clock; only
+ * differences are used, so it may wrap): reads and handles up to 16 input
+ * bytes (stopping at the first completed line), or emits one help line.
+ * Reads nothing while a command is pending; a pending command older than
+ * the deadline is answered `error:21 timed out`. Returns 0 when waiting for
+ * input, 1 while a command is pending or help is being written. */
+int8_t con_poll(con_t *con, uint16_t now_ms);
+
+/* Sets the deadline of pending commands in ms (1..65535; 0 = wait forever,
+ * only for tests). con_init() sets CON_PENDING_MS. */
+void con_set_timeout(con_t *con, uint16_t ms);
 
 /* Finishes the pending command with result rc (0 -> `ok`, CON_E_* ->
  * `error:...`; any other negative value -> error:INTERNAL). Returns 0, or

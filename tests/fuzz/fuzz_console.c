@@ -174,6 +174,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     con_t con;
     size_t split;
     uint8_t pending_polls = 0;
+    uint16_t now = 0;
     uint8_t i;
     if (size < 1u) {
         return 0;
@@ -197,9 +198,10 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     handlers[CON_CMD_SERVOS] = h_servos;
     handlers[CON_CMD_SET] = h_set;
     con_init(&con, &io, handlers, (void *)(uintptr_t)0, fz_copy, &rt);
+    con_set_timeout(&con, (uint16_t)(data[0] >> 4)); /* 0 (none) .. 15 ms: deadlines fire too */
     /* every pending command is completed within 8 polls, so this ends */
     for (;;) {
-        int8_t rc = con_poll(&con);
+        int8_t rc = con_poll(&con, now++);
         if (con_pending(&con)) {
             if ((script_byte() & 1u) || ++pending_polls >= 8u) {
                 pending_polls = 0;

@@ -194,7 +194,7 @@ ECHO_C = textwrap.dedent(r"""
         con_t con;
         for (int i = 0; i < CON_CMD_COUNT; i++) hs[i] = h;
         con_init(&con, &io, hs, NULL, cp, &rt);
-        for (int i = 0; i < 200000; i++) con_poll(&con);
+        for (int i = 0; i < 200000; i++) con_poll(&con, 0);
         return 0;
     }
 """)

@@ -28,6 +28,7 @@ static con_fake_t fake;
 static con_t con;
 static con_rt_t rt;
 static app_t app;
+static uint16_t clock_ms; /* advances 1 ms per poll */
 
 static int8_t record(uint8_t cmd, con_t *c, const con_args_t *a, void *ctx)
 {
@@ -89,7 +90,7 @@ static const char *run_bytes(const void *in, size_t n)
     int i;
     con_fake_feed(&fake, in, n);
     for (i = 0; i < 100000; i++) {
-        int8_t rc = con_poll(&con);
+        int8_t rc = con_poll(&con, clock_ms++);
         if (con_pending(&con)) {
             break;
         }
@@ -291,7 +292,7 @@ static void test_pending_defers_input(void **state)
     assert_int_equal(app.total, 1);
     /* the next line stays unread however long the command takes */
     for (int i = 0; i < 50; i++) {
-        assert_int_equal(con_poll(&con), 1);
+        assert_int_equal(con_poll(&con, clock_ms++), 1);
     }
     assert_int_equal(con_fake_unread(&fake), strlen("status\n"));
     assert_int_equal(app.total, 1);
@@ -313,6 +314,44 @@ static void test_pending_defers_input(void **state)
     assert_string_equal(run("servos\n"), "");
     assert_int_equal(con_complete(&con, 1), CON_E_NOT_PENDING);
     assert_true(con_pending(&con));
+    assert_int_equal(con_complete(&con, 0), 0);
+    assert_string_equal(run(""), "ok\r\n");
+}
+
+static void test_pending_deadline(void **state)
+{
+    int i;
+    (void)state;
+    clock_ms = 65000; /* the deadline works across the clock's wrap */
+    app.result = CON_PENDING;
+    assert_string_equal(run("servos scan\nstatus\n"), "");
+    assert_true(con_pending(&con));
+    for (i = 1; i < (int)CON_PENDING_MS; i++) {
+        assert_int_equal(con_poll(&con, (uint16_t)(65000 + i)), 1);
+    }
+    assert_string_equal(fake.out + fake.out_taken, "");
+    assert_int_equal(con_poll(&con, (uint16_t)(65000 + CON_PENDING_MS)), 0);
+    assert_false(con_pending(&con));
+    assert_string_equal(fake.out + fake.out_taken, "error:21 timed out\r\n");
+    fake.out_taken = fake.out_len;
+    /* the late completion writes nothing; the next line runs */
+    assert_int_equal(con_complete(&con, 0), CON_E_NOT_PENDING);
+    app.result = 0;
+    clock_ms = 100;
+    assert_string_equal(run(""), "ok\r\n");
+    assert_int_equal(app.calls[CON_CMD_STATUS], 1);
+    /* a shorter deadline, and none at all */
+    con_set_timeout(&con, 5);
+    app.result = CON_PENDING;
+    assert_string_equal(run("home\n"), "");
+    for (i = 0; i < 4; i++) {
+        assert_int_equal(con_poll(&con, (uint16_t)(clock_ms + i)), 1);
+    }
+    assert_int_equal(con_poll(&con, (uint16_t)(clock_ms + 5)), 0);
+    assert_string_equal(run(""), "error:21 timed out\r\n");
+    con_set_timeout(&con, 0);
+    assert_string_equal(run("home\n"), "");
+    assert_int_equal(con_poll(&con, (uint16_t)(clock_ms + 60000)), 1);
     assert_int_equal(con_complete(&con, 0), 0);
     assert_string_equal(run(""), "ok\r\n");
 }
@@ -472,12 +511,12 @@ static void test_help_generated(void **state)
     con_fake_puts(&fake, "help\nstatus\n");
     /* one help line per poll; the next command waits */
     for (int i = 0; i < 1000 && con_fake_unread(&fake) > 0u; i++) {
-        (void)con_poll(&con);
+        (void)con_poll(&con, clock_ms++);
         if (app.total == 0) {
             assert_true(fake.out_len < 200u * (size_t)(i + 1));
         }
     }
-    while (con_poll(&con) != 0) {
+    while (con_poll(&con, clock_ms++) != 0) {
     }
     while (con_fake_line(&fake, line, sizeof(line))) {
         if (n < CON_CMD_COUNT) {
@@ -663,7 +702,7 @@ static void test_one_reply_per_line_random(void **state)
         }
         con_fake_feed(&fake, in, n);
         for (i = 0; i < 200000; i++) {
-            int8_t rc = con_poll(&con);
+            int8_t rc = con_poll(&con, clock_ms++);
             if (con_pending(&con) && rng() % 4u == 0u) {
                 int8_t r = (rng() & 1u) ? 0 : CON_E_TIMEOUT;
                 assert_int_equal(con_complete(&con, r), 0);
@@ -687,6 +726,7 @@ int main(void)
         cmocka_unit_test_setup(test_bad_arguments_change_nothing, setup),
         cmocka_unit_test_setup(test_handler_results, setup),
         cmocka_unit_test_setup(test_pending_defers_input, setup),
+        cmocka_unit_test_setup(test_pending_deadline, setup),
         cmocka_unit_test_setup(test_complete_inside_handler_is_refused, setup),
         cmocka_unit_test_setup(test_terminators_and_empty_lines, setup),
         cmocka_unit_test_setup(test_overlong_line, setup),
