@@ -45,7 +45,7 @@ static const char s_help_args[] CON_FLASH = " args=\"";
 static const char s_help_text[] CON_FLASH = "\" text=\"";
 static const char s_help_end[] CON_FLASH = "\">\r\n";
 
-/* ---- flash access ------------------------------------------------------------ */
+/* ---- flash access ------------------------------------------------ */
 
 static char fl_char(const con_t *c, const char *p)
 {
@@ -65,7 +65,7 @@ static const char *fl_skip(const con_t *c, const char *p, uint16_t n)
     return p;
 }
 
-/* ---- output -------------------------------------------------------------------- */
+/* ---- output ------------------------------------------------------ */
 
 static void out(con_t *c, const char *s, uint8_t n)
 {
@@ -211,7 +211,7 @@ static void reply(con_t *c, int8_t rc)
     out_flash(c, s_crlf);
 }
 
-/* ---- reports ---------------------------------------------------------------------- */
+/* ---- reports ----------------------------------------------------- */
 
 void con_report_begin(con_t *con, const char *kind)
 {
@@ -262,7 +262,7 @@ void con_report_end(con_t *con)
     out_flash(con, s_rep_end);
 }
 
-/* ---- numbers -------------------------------------------------------------------------- */
+/* ---- numbers ----------------------------------------------------- */
 
 int8_t con_parse_fixed(const char *text, uint8_t len, uint8_t decimals, int32_t *v)
 {
@@ -303,7 +303,7 @@ int8_t con_parse_fixed(const char *text, uint8_t len, uint8_t decimals, int32_t 
     return 0;
 }
 
-/* ---- commands ---------------------------------------------------------------------------- */
+/* ---- commands ---------------------------------------------------- */
 
 int8_t con_cmd_name(const con_t *con, uint8_t cmd, char *buf, uint8_t cap)
 {
@@ -464,8 +464,7 @@ static int8_t check_args(con_t *c, uint8_t cmd, char **tok, uint8_t ntok)
     return (ntok > a) ? CON_E_TOO_MANY_ARGS : 0;
 }
 
-/* ---- help -------------------------------------------------------------------------------------
- */
+/* ---- help -------------------------------------------------------- */
 
 /* Writes `<help cmd=NAME args="..." text="...">` for command i, the args
  * shown as names (choices for words) in their brackets. */
@@ -494,8 +493,7 @@ static void help_line(con_t *c, uint8_t i)
     out_flash(c, s_help_end);
 }
 
-/* ---- line handling -----------------------------------------------------------------------------
- */
+/* ---- line handling ----------------------------------------------- */
 
 static void execute(con_t *c)
 {
@@ -618,8 +616,7 @@ static uint8_t take_byte(con_t *c, uint8_t b)
     return 0;
 }
 
-/* ---- public -------------------------------------------------------------------------------------
- */
+/* ---- public ------------------------------------------------------ */
 
 int8_t con_init(con_t *con, const con_io_t *io, const con_handler_fn *handlers, void *app,
                 con_copy_fn copy, con_rt_t *rt)

@@ -12,7 +12,7 @@
 
 #define STORE_NO_HEAD 0xFFu
 
-/* ---- layout checks (compile time; C99 has no _Static_assert) ------------- */
+/* ---- layout checks (compile time; C99 has no _Static_assert) ----- */
 
 #define STORE_ASSERT(name, cond) typedef char store_assert_##name[(cond) ? 1 : -1]
 
@@ -32,7 +32,7 @@ STORE_ASSERT(order4, STORE_ADDR_END <= STORE_EEPROM_SIZE);
 STORE_ASSERT(hist_min, STORE_HIST_N >= 16u && STORE_HIST_N < STORE_NO_HEAD);
 STORE_ASSERT(tendon_mask, STORE_MAX_TENDONS <= 16u && TBL_MAX_GRID <= 16u);
 
-/* ---- settings declaration -------------------------------------------------- */
+/* ---- settings declaration ---------------------------------------- */
 
 #define STORE_TMIN_U8  0
 #define STORE_TMAX_U8  255
@@ -65,7 +65,7 @@ static const char store_text[] STORE_FLASH =
 #undef STORE_SETTING
     ;
 
-/* ---- CRC ---------------------------------------------------------------------- */
+/* ---- CRC --------------------------------------------------------- */
 
 static uint16_t crc_byte(uint16_t crc, uint8_t b)
 {
@@ -86,7 +86,7 @@ uint16_t store_crc16(uint16_t crc, const void *data, size_t n)
     return crc;
 }
 
-/* ---- slots -------------------------------------------------------------------- */
+/* ---- slots ------------------------------------------------------- */
 
 /* A slot is valid when kind and version match and the CRC over header and
  * body agrees; its sequence number goes to *seq. */
@@ -217,7 +217,7 @@ static void hist_scan(store_t *st)
     }
 }
 
-/* ---- public --------------------------------------------------------------------- */
+/* ---- public ------------------------------------------------------ */
 
 int8_t store_init(store_t *st, const store_eeprom_t *ee, store_copy_fn copy)
 {
@@ -281,7 +281,7 @@ int8_t store_poll(store_t *st, uint8_t may_write)
     return 0;
 }
 
-/* ---- settings --------------------------------------------------------------------- */
+/* ---- settings ---------------------------------------------------- */
 
 int8_t store_setting_info(const store_t *st, uint8_t id, store_setting_info_t *info)
 {
@@ -383,7 +383,7 @@ int8_t store_setting_find(const store_t *st, const char *name, uint8_t len)
     return STORE_E_NAME;
 }
 
-/* ---- homes ------------------------------------------------------------------------- */
+/* ---- homes ------------------------------------------------------- */
 
 static uint16_t turn_of(int32_t ticks)
 {
@@ -436,7 +436,7 @@ int8_t store_recover_position(const store_home_t *e, int32_t present, uint16_t t
     return 0;
 }
 
-/* ---- learned ------------------------------------------------------------------------ */
+/* ---- learned ----------------------------------------------------- */
 
 static uint16_t learned_base(uint8_t tendon)
 {
@@ -471,7 +471,7 @@ int8_t store_save_learned(store_t *st, const store_learned_t *l)
                      STORE_LEARNED_VERSION, l, (uint16_t)sizeof(*l));
 }
 
-/* ---- history -------------------------------------------------------------------------- */
+/* ---- history ----------------------------------------------------- */
 
 int8_t store_hist_get(store_t *st, uint8_t age, store_hist_t *e)
 {

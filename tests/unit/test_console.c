@@ -107,7 +107,7 @@ static const char *run(const char *in)
     return run_bytes(in, strlen(in));
 }
 
-/* ---- dispatch ------------------------------------------------------------------- */
+/* ---- dispatch ---------------------------------------------------- */
 
 static void test_every_command_dispatches(void **state)
 {
@@ -370,7 +370,7 @@ static void test_complete_inside_handler_is_refused(void **state)
     assert_string_equal(run(""), "error:20 aborted\r\n");
 }
 
-/* ---- line assembly --------------------------------------------------------------- */
+/* ---- line assembly ----------------------------------------------- */
 
 static void test_terminators_and_empty_lines(void **state)
 {
@@ -500,7 +500,7 @@ static void test_realtime_stop(void **state)
     assert_string_equal(run("stat!us\n"), "ok\r\n");
 }
 
-/* ---- help --------------------------------------------------------------------------- */
+/* ---- help -------------------------------------------------------- */
 
 static void test_help_generated(void **state)
 {
@@ -563,7 +563,7 @@ static void test_cmd_name(void **state)
     assert_int_equal(con_cmd_name(&con, 0, buf, 0), CON_E_INTERNAL);
 }
 
-/* ---- reports and numbers -------------------------------------------------------------- */
+/* ---- reports and numbers ----------------------------------------- */
 
 static void test_reports(void **state)
 {
@@ -649,7 +649,7 @@ static void test_parse_fixed(void **state)
     assert_int_equal(v, 99);
 }
 
-/* ---- one final reply per line, under random input and handler outcomes -------------- */
+/* ---- one final reply per line, under random input and handler outcomes --- */
 
 static uint32_t rng_state = 12345u;
 static uint32_t rng(void)

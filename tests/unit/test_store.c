@@ -75,7 +75,7 @@ static void save_homes_ok(const store_homes_t *h)
     assert_int_equal(store_fake_run(&st, POLLS), 0);
 }
 
-/* ---- basics ---------------------------------------------------------------------- */
+/* ---- basics ------------------------------------------------------ */
 
 static void test_crc_vector(void **state)
 {
@@ -265,7 +265,7 @@ static void test_argument_errors(void **state)
     assert_int_equal(fake.writes, 0);
 }
 
-/* ---- two copies --------------------------------------------------------------------- */
+/* ---- two copies -------------------------------------------------- */
 
 static void test_newest_copy_wins_and_alternates(void **state)
 {
@@ -375,7 +375,7 @@ static void test_verify_failure_keeps_old(void **state)
     assert_int_equal(r.cal_count, 1);
 }
 
-/* ---- power cut at every byte ------------------------------------------------------------ */
+/* ---- power cut at every byte ------------------------------------- */
 
 typedef int8_t (*start_fn)(uint32_t version);
 typedef uint32_t (*probe_fn)(void); /* version found after the cut, 0 = none */
@@ -530,7 +530,7 @@ static void test_cut_history(void **state)
     cut_everywhere(start_hist, probe_hist);
 }
 
-/* ---- history ring ---------------------------------------------------------------------- */
+/* ---- history ring ------------------------------------------------ */
 
 static void test_history_ring(void **state)
 {
@@ -592,7 +592,7 @@ static void test_history_gap_stops_count(void **state)
     assert_int_equal(store_hist_get(&st, 5, &e), STORE_E_EMPTY);
 }
 
-/* ---- settings ------------------------------------------------------------------------ */
+/* ---- settings ---------------------------------------------------- */
 
 static void test_settings_declaration(void **state)
 {
@@ -677,7 +677,7 @@ static void test_settings_invalid_restored(void **state)
     assert_memory_equal(&r, &d, sizeof(r));
 }
 
-/* ---- multi-turn recovery --------------------------------------------------------------- */
+/* ---- multi-turn recovery ----------------------------------------- */
 
 static void test_home_set_turns(void **state)
 {
