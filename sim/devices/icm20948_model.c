@@ -317,6 +317,12 @@ uint8_t icmm_peek(const icmm_t *m, uint8_t bank, uint8_t reg)
     return m->regs[bank & 3u][reg & 0x7Fu];
 }
 
+static uint8_t icmm_is_ext(uint8_t bank, uint8_t reg)
+{
+    return (uint8_t)(bank == 0u && reg >= ICM_REG_EXT_SLV_SENS_DATA_00 &&
+                     reg < ICM_REG_EXT_SLV_SENS_DATA_00 + ICM_REG_EXT_SLV_SENS_LEN);
+}
+
 static void icmm_reg_write(icmm_t *m, uint8_t reg, uint8_t v)
 {
     uint8_t b = m->bank;
@@ -347,8 +353,7 @@ static void icmm_reg_write(icmm_t *m, uint8_t reg, uint8_t v)
             }
             break;
         default:
-            if (reg >= ICM_REG_EXT_SLV_SENS_DATA_00 &&
-                reg < ICM_REG_EXT_SLV_SENS_DATA_00 + ICM_REG_EXT_SLV_SENS_LEN) {
+            if (icmm_is_ext(0, reg)) {
                 return;
             }
             break;
@@ -371,7 +376,8 @@ static void icmm_reg_write(icmm_t *m, uint8_t reg, uint8_t v)
 
 static uint8_t icmm_reg_read(icmm_t *m, uint8_t reg)
 {
-    uint8_t v = icmm_peek(m, m->bank, reg);
+    uint8_t v = icmm_is_ext(m->bank, reg) ? m->ext_view[reg - ICM_REG_EXT_SLV_SENS_DATA_00]
+                                          : icmm_peek(m, m->bank, reg);
     if (m->bank == 0u && reg == ICM_REG_I2C_MST_STATUS) {
         m->regs[0][ICM_REG_I2C_MST_STATUS] = 0;
     }
@@ -390,6 +396,8 @@ static uint8_t icmm_start(void *ctx, uint8_t addr_byte)
     m->nread = 0;
     if (!m->reading) {
         m->have_ptr = 0;
+    } else {
+        memcpy(m->ext_view, &m->regs[0][ICM_REG_EXT_SLV_SENS_DATA_00], sizeof(m->ext_view));
     }
     return 1;
 }

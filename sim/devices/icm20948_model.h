@@ -9,7 +9,10 @@
  * not acknowledge for ICMM_RESET_US), SLEEP, USER_CTRL I2C master enable and
  * reset, I2C_MST_STATUS (clear on read), SLV4 single transfers (done after
  * ICMM_SLV4_US, SLV4_NACK when the AK09916 does not answer), SLV0 block reads
- * into EXT_SLV_SENS_DATA once per master period, and the master hanging
+ * into EXT_SLV_SENS_DATA once per master period (a host burst read sees the
+ * registers as they were at its START, never half old and half new, as the
+ * datasheet's user-facing copy of the sensor registers guarantees), and the
+ * master hanging
  * after a reset until I2C_MST_RST (a reported quirk).
  *
  * The AK09916: WIA1/WIA2, soft reset, power-down/single/continuous modes
@@ -63,7 +66,8 @@ typedef struct {
     uint8_t reading;
     uint8_t have_ptr;
     uint8_t ptr;
-    uint8_t nread; /* bytes read since the last START */
+    uint8_t nread;        /* bytes read since the last START */
+    uint8_t ext_view[24]; /* EXT_SLV_SENS_DATA as of the read START */
     /* time */
     uint64_t now_us;
     uint64_t reset_until_us;
