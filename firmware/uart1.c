@@ -45,13 +45,13 @@ ISR(USART1_RX_vect)
     rx_head = next;
 }
 
-/* The last byte goes into UDR here; the bus may only turn round once it has
- * been shifted out, which TXC tells. */
+/* Data-register-empty: feed the next byte. When the ring is empty the
+ * interrupt switches itself off; the transmit-complete interrupt, enabled for
+ * the whole transmission, then turns the bus round. */
 ISR(USART1_UDRE_vect)
 {
     if (tx_head == tx_tail) {
         UCSR1B &= (uint8_t)~_BV(UDRIE1);
-        UCSR1B |= _BV(TXCIE1);
         return;
     }
     UCSR1A = (uint8_t)(_BV(U2X1) | _BV(TXC1)); /* clear TXC: it must mean this byte */
@@ -59,12 +59,12 @@ ISR(USART1_UDRE_vect)
     tx_tail = (uint8_t)((tx_tail + 1u) & (UART1_TX_SIZE - 1u));
 }
 
-/* More bytes may have been queued after UDRE gave up; then keep transmitting. */
+/* TXC sets when the shift register is empty and UDR holds nothing: after the
+ * last stop bit, or in a gap while bytes are still queued (then UDRE is still
+ * enabled and the bus must stay in transmit). */
 ISR(USART1_TX_vect)
 {
-    if (tx_head != tx_tail) {
-        UCSR1B &= (uint8_t)~_BV(TXCIE1);
-        UCSR1B |= _BV(UDRIE1);
+    if (tx_head != tx_tail || (UCSR1B & _BV(UDRIE1))) {
         return;
     }
     UCSR1B &= (uint8_t)~_BV(TXCIE1);
@@ -77,9 +77,9 @@ void uart1_init(uint32_t baud)
     uint16_t ubrr = (uint16_t)((F_CPU / 8u + baud / 2u) / baud - 1u);
     BOARD_DXL_DIR_DDR |= _BV(BOARD_DXL_DIR_BIT);
     BOARD_DXL_DIR_PORT &= (uint8_t)~_BV(BOARD_DXL_DIR_BIT);
+    UCSR1A = _BV(U2X1); /* before UBRR: a simulator may derive the rate on the UBRR write */
     UBRR1H = (uint8_t)(ubrr >> 8);
     UBRR1L = (uint8_t)ubrr;
-    UCSR1A = _BV(U2X1);
     UCSR1C = _BV(UCSZ11) | _BV(UCSZ10);
     UCSR1B = _BV(RXEN1) | _BV(TXEN1) | _BV(RXCIE1);
     rx_head = rx_tail = 0;
@@ -105,8 +105,7 @@ uint16_t uart1_write(const uint8_t *data, uint16_t n)
             tx_active = 1;
             uart1_dir_tx();
         }
-        UCSR1B &= (uint8_t)~_BV(TXCIE1);
-        UCSR1B |= _BV(UDRIE1);
+        UCSR1B |= _BV(UDRIE1) | _BV(TXCIE1);
         SREG = sreg;
     }
     return taken;
