@@ -176,6 +176,8 @@ int8_t icm_init_start(icm_dev_t *dev, uint32_t now_us)
     dev->bank = ICM_BANK_UNKNOWN;
     dev->tries = 0;
     dev->mag_fail = 0;
+    dev->who_am_i = 0;
+    dev->mag_id = 0;
     dev->have = 0;
     dev->err = 0;
     dev->wait_from_us = now_us;

@@ -128,8 +128,8 @@ int8_t icm_setup(icm_dev_t *dev, const icm_bus_t *bus, struct tca *mux, uint8_t 
  * returns ICM_E_STALE. Returns 0, or ICM_E_ARG for NULL or 0. */
 int8_t icm_set_stale_us(icm_dev_t *dev, uint32_t stale_us);
 
-/* Begins (or restarts) initialisation; counters are kept. Returns 0, or
- * ICM_E_ARG. */
+/* Begins (or restarts) initialisation; counters are kept, the WHO_AM_I and
+ * WIA2 values read are forgotten. Returns 0, or ICM_E_ARG. */
 int8_t icm_init_start(icm_dev_t *dev, uint32_t now_us);
 
 /* Advances initialisation by one step: bank 0, WHO_AM_I (no ACK ->

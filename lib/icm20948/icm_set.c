@@ -71,6 +71,7 @@ static void icm_set_start_init(icm_set_slot_t *s, uint32_t now_us)
     s->state = ICM_SET_S_INIT;
     s->consec_err = 0;
     s->fresh = 0;
+    s->rate_dhz = 0;
 }
 
 int8_t icm_set_begin(icm_set_t *set, uint32_t now_us)

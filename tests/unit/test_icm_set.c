@@ -244,6 +244,8 @@ static void test_sensor_lost_and_back(void **state)
     assert_int_equal(icm_set_diag(&b.set, 0, &d), 0);
     assert_int_equal(d.state, ICM_SET_S_FAIL);
     assert_int_equal(d.last_err, ICM_E_ABSENT);
+    assert_false(d.present);
+    assert_int_equal(d.rate_dhz, 0);
     assert_true(d.error_count >= 2u); /* the failed read and the failed re-init */
     assert_true(icm_set_take(&b.set, 0, &s) < 0);
     assert_int_equal(icm_set_ready_count(&b.set), 2);
