@@ -36,7 +36,8 @@ static int32_t xl430_get_s32(const xl430 *m, uint16_t addr)
     return (int32_t)xl430_get(m, addr, 4);
 }
 
-/* Access class of one control table byte (e-manual XL430-W250-T, 2.1/2.2). */
+/* Access class of one control table byte (e-manual XL430-W250, "Control Table of EEPROM/RAM Area",
+ * Access column). */
 static uint8_t xl430_access(uint16_t addr)
 {
     if (addr < 64u) {
