@@ -10,27 +10,24 @@ enum { ICM_ST_IDLE, ICM_ST_INIT, ICM_ST_RUN, ICM_ST_FAIL };
 
 #define ICM_BANK_UNKNOWN 0xFFu
 
-/* Init steps, in order; the retry steps loop back to IS_AK_SRST. */
+/* Init steps, in order; a failed AK09916 attempt goes to IS_RETRY_RST, which
+ * loops back to IS_AK_SRST. A wait before a step is dev->wait_us from
+ * dev->wait_from_us, set by icm_wait(). */
 enum {
     IS_BANK0,
     IS_WHO,
     IS_RESET,
-    IS_RESET_WAIT,
     IS_WAKE,
-    IS_WAKE_WAIT,
     IS_WHO2,
     IS_MST_EN,
     IS_MST_CTRL,
     IS_MST_RST,
-    IS_MST_RST_WAIT,
     IS_AK_SRST,
     IS_AK_SRST_DONE,
-    IS_AK_SRST_WAIT,
     IS_WIA,
     IS_WIA_DONE,
     IS_WIA_DI,
     IS_RETRY_RST,
-    IS_RETRY_WAIT,
     IS_MODE,
     IS_MODE_DONE,
     IS_SLV0,
@@ -202,14 +199,16 @@ static uint8_t icm_waited(const icm_dev_t *dev, uint32_t now_us)
     return (uint8_t)((uint32_t)(now_us - dev->wait_from_us) >= dev->wait_us);
 }
 
-/* Queues one SLV4 transaction with the AK09916: DO first, then address and
- * register, and the enable bit last so the master never starts on a
- * half-written setup. */
+/* Queues one SLV4 transaction with the AK09916: I2C_MST_STATUS is read
+ * first (clear on read) so a late SLV4_DONE from an abandoned transfer is not
+ * taken for this one; then DO, address and register, and the enable bit last
+ * so the master never starts on a half-written setup. */
 static int8_t icm_slv4_begin(icm_dev_t *dev, uint8_t read, uint8_t reg, uint8_t value)
 {
     uint8_t ar[2];
-    int8_t rc = 0;
-    if (!read) {
+    uint8_t st;
+    int8_t rc = icm_rd(dev, 0, ICM_REG_I2C_MST_STATUS, &st, 1);
+    if (rc == 0 && !read) {
         rc = icm_wr1(dev, 3, ICM_REG_I2C_SLV4_DO, value);
     }
     if (rc == 0) {
