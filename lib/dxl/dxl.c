@@ -576,15 +576,15 @@ static int8_t dxl_bu_done(dxl_bringup *b, int8_t result)
 }
 
 /* Records a ping reply; returns nonzero when the servo answered. */
-static uint8_t dxl_bu_pinged(dxl_bringup *b, dxl_servo_info *s, int8_t rc)
+static uint8_t dxl_bu_pinged(dxl_bringup *b, dxl_servo_info *s)
 {
     const dxl_reply *r = dxl_reply_for(b->m, s->id);
-    if ((rc != 0 && rc != -DXL_E_ALERT) || r == NULL || r->len < 3u) {
-        s->present = 0;
+    if (r == NULL || r->len < 3u) {
+        s->present = 0; /* transport errors leave no data; a servo error with data is an answer */
         return 0;
     }
     s->present = 1;
-    s->alert = (uint8_t)(rc == -DXL_E_ALERT);
+    s->alert = (uint8_t)((r->err & DXL_ERR_ALERT) != 0);
     s->model = (uint16_t)dxl_get_le(r->data, 2);
     s->firmware = r->data[2];
     s->model_ok = (uint8_t)(s->model == DXL_XL430_MODEL_NUMBER);
@@ -651,7 +651,7 @@ static int8_t dxl_bu_after(dxl_bringup *b, int8_t rc)
     dxl_servo_info *s = &b->servo[b->index];
     switch (b->step) {
     case DXL_BU_PING:
-        if (!dxl_bu_pinged(b, s, rc)) {
+        if (!dxl_bu_pinged(b, s)) {
             b->missing[b->n_missing++] = s->id;
         } else if (!s->model_ok) {
             b->n_wrong_model++;
@@ -689,7 +689,7 @@ static int8_t dxl_bu_after(dxl_bringup *b, int8_t rc)
         b->step = DXL_BU_REBOOT_WAIT;
         return 1;
     case DXL_BU_REPING:
-        if (!dxl_bu_pinged(b, s, rc)) {
+        if (!dxl_bu_pinged(b, s)) {
             b->missing[b->n_missing++] = s->id;
             return dxl_bu_done(b, -DXL_E_MISSING);
         }

@@ -426,6 +426,34 @@ static void test_other_instructions_layout(void **state)
     assert_int_equal(len, 17);
 }
 
+static void test_raw_mode_keeps_bytes_as_sent(void **state)
+{
+    (void)state;
+    /* a fast sync read reply whose data holds FF FF FD 00 unstuffed */
+    uint8_t pkt[32] = {0xFF, 0xFF, 0xFD, 0x00, 0xFE, 0x00, 0x00,
+                       0x55, 0x00, 0x01, 0xFF, 0xFF, 0xFD, 0x00};
+    uint16_t n = 14;
+    pkt[5] = (uint8_t)(n - 7u + 2u);
+    uint16_t crc = dxl_crc16(0, pkt, n);
+    pkt[n++] = (uint8_t)crc;
+    pkt[n++] = (uint8_t)(crc >> 8);
+    parse_fixture f;
+    fixture_init(&f);
+    dxl_parser_set_raw(&f.p, 1);
+    dxl_status st;
+    assert_int_equal(feed_all(&f, pkt, n, &st, NULL), 1);
+    assert_int_equal(st.id, DXL_BROADCAST_ID);
+    assert_int_equal(st.n, 5);
+    const uint8_t expect[5] = {0x01, 0xFF, 0xFF, 0xFD, 0x00};
+    assert_memory_equal(st.params, expect, 5);
+    /* the same bytes in stuffed mode look like a header inside the body */
+    dxl_parser_set_raw(&f.p, 0);
+    int errors = 0;
+    assert_int_equal(feed_all(&f, pkt, n, NULL, &errors), 0);
+    assert_true(errors >= 1);
+    assert_int_equal(f.p.stats.truncated, 1);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -443,6 +471,7 @@ int main(void)
         cmocka_unit_test(test_builder_capacity_and_arguments),
         cmocka_unit_test(test_factory_reset_needs_guard),
         cmocka_unit_test(test_other_instructions_layout),
+        cmocka_unit_test(test_raw_mode_keeps_bytes_as_sent),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
