@@ -119,7 +119,9 @@ uint8_t icm_set_settled(const icm_set_t *set);
 
 /* Takes the newest unread sample of sensor idx. Returns 1 with *out filled
  * (a new sample, consumed), 0 when none arrived since the last take, the
- * sensor's last error (negative) when it is not running, or ICM_E_ARG. */
+ * sensor's last error when it is not running (ICM_E_STATE while its first
+ * init is still under way), or ICM_E_ARG. Samples overwritten before being
+ * taken are counted in the slot's `missed`. */
 int8_t icm_set_take(icm_set_t *set, uint8_t idx, icm_sample_t *out);
 
 /* Fills *d for sensor idx. Returns 0 or ICM_E_ARG. */
