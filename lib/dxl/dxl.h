@@ -124,25 +124,38 @@ void dxl_master_init(dxl_master *m, const dxl_port *port, const dxl_config *cfg)
  * lengths (more than DXL_MAX_IDS servos, more than DXL_REPLY_DATA bytes to
  * read), or -DXL_E_NOSPACE when the request does not fit DXL_TX_CAP. Requests
  * to the broadcast ID and sync/bulk writes expect no reply. */
+/* Ping one servo (not broadcast); reply data: model number (2 bytes), firmware. */
 int8_t dxl_ping(dxl_master *m, uint8_t id);
+/* Read n bytes at addr of one servo (not broadcast). */
 int8_t dxl_read(dxl_master *m, uint8_t id, uint16_t addr, uint16_t n);
+/* Write n bytes to addr; reply without data (none for broadcast). */
 int8_t dxl_write(dxl_master *m, uint8_t id, uint16_t addr, const uint8_t *data, uint16_t n);
-/* Write of a 1, 2 or 4 byte value, little-endian. */
+/* Write of a 1, 2 or 4 byte value, little-endian (other sizes: -DXL_E_ARG). */
 int8_t dxl_write_value(dxl_master *m, uint8_t id, uint16_t addr, uint32_t value, uint8_t size);
+/* Write held back until an action instruction. */
 int8_t dxl_reg_write(dxl_master *m, uint8_t id, uint16_t addr, const uint8_t *data, uint16_t n);
+/* Execute registered writes (broadcast allowed). */
 int8_t dxl_action(dxl_master *m, uint8_t id);
+/* Restart the servo; it answers first, then is away for its boot time. */
 int8_t dxl_reboot(dxl_master *m, uint8_t id);
-/* Needs guard == DXL_FACTORY_RESET_GUARD, else -DXL_E_GUARD and nothing is sent. */
+/* Needs guard == DXL_FACTORY_RESET_GUARD, else -DXL_E_GUARD and nothing is
+ * sent; mode is DXL_RESET_*. */
 int8_t dxl_factory_reset(dxl_master *m, uint8_t id, uint8_t mode, uint32_t guard);
+/* Reset the multi-turn count (Present Position back within one turn). */
 int8_t dxl_clear_multiturn(dxl_master *m, uint8_t id);
+/* Read n bytes at addr from each of ids[0..count): one status packet each, in
+ * list order. */
 int8_t dxl_sync_read(dxl_master *m, uint16_t addr, uint16_t n, const uint8_t *ids, uint8_t count);
-/* Fast sync read: one combined reply (needs servo firmware that has it). */
+/* Fast sync read: one combined reply (needs servo firmware that has it); any
+ * corruption or a silent servo costs the whole reply. */
 int8_t dxl_fast_sync_read(dxl_master *m, uint16_t addr, uint16_t n, const uint8_t *ids,
                           uint8_t count);
-/* ids[i] gets data[i*n .. i*n+n). */
+/* Write n bytes at addr of each servo: ids[i] gets data[i*n .. i*n+n). No reply. */
 int8_t dxl_sync_write(dxl_master *m, uint16_t addr, uint16_t n, const uint8_t *ids,
                       const uint8_t *data, uint8_t count);
+/* Read items[i].n bytes at items[i].addr of servo items[i].id, in list order. */
 int8_t dxl_bulk_read(dxl_master *m, const dxl_bulk_item *items, uint8_t count);
+/* Write items[i].data to each servo's own address. No reply. */
 int8_t dxl_bulk_write(dxl_master *m, const dxl_bulk_item *items, uint8_t count);
 
 /* Advances the running transaction. Returns 1 while it runs; 0 when it is
