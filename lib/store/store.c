@@ -160,7 +160,7 @@ static int8_t save_begin(store_t *st, uint16_t addr, uint8_t kind, uint8_t ver, 
     st->len = len;
     st->body = (const uint8_t *)body;
     st->pos = 0;
-    st->crc = 0xFFFFu;
+    st->crc = crc_byte(0xFFFFu, kind); /* the kind byte is written last but checked first */
     st->hdr[0] = kind;
     st->hdr[1] = ver;
     st->hdr[2] = (uint8_t)seq;
@@ -184,7 +184,8 @@ static int8_t pair_save(store_t *st, uint16_t base, uint16_t stride, uint8_t kin
                       (uint16_t)(seq + 1u), body, len);
 }
 
-/* Byte `pos` of the slot being written; the CRC goes last. */
+/* Byte `pos` (1..total-1) of the slot being written; the CRC goes after the
+ * body. Byte 0, the kind, is handled by store_poll(). */
 static uint8_t slot_byte(const store_t *st, uint16_t pos)
 {
     if (pos < STORE_HDR_LEN) {
@@ -247,11 +248,25 @@ int8_t store_poll(store_t *st, uint8_t may_write)
         return 1;
     }
     if (st->state == ST_WRITE) {
-        for (n = 0; n < STORE_SKIP_BUDGET && st->pos < total; n++) {
+        /* Step 0 marks the slot invalid (kind byte 0x00) unless it already is,
+         * steps 1..total-1 write version, sequence, body and CRC, step total
+         * writes the kind byte: until that last byte the slot is invalid
+         * whatever its CRC says, so a torn slot is never taken for a record. */
+        for (n = 0; n < STORE_SKIP_BUDGET && st->pos <= total; n++) {
             uint16_t a = (uint16_t)(st->addr + st->pos);
-            b = slot_byte(st, st->pos);
-            if (st->pos < STORE_HDR_LEN + st->len) {
-                st->crc = crc_byte(st->crc, b);
+            if (st->pos == 0u) {
+                b = ee->read_byte(ee->ctx, a);
+                if (b == st->hdr[0]) {
+                    b = STORE_KIND_NONE; /* still looks like a record of this kind */
+                }
+            } else if (st->pos == total) {
+                a = st->addr;
+                b = st->hdr[0];
+            } else {
+                b = slot_byte(st, st->pos);
+                if (st->pos < STORE_HDR_LEN + st->len) {
+                    st->crc = crc_byte(st->crc, b);
+                }
             }
             st->pos++;
             if (ee->read_byte(ee->ctx, a) != b) {
@@ -259,7 +274,7 @@ int8_t store_poll(store_t *st, uint8_t may_write)
                 return 1;
             }
         }
-        if (st->pos == total) {
+        if (st->pos > total) {
             st->state = ST_VERIFY;
         }
         return 1;

@@ -14,12 +14,14 @@
  *     kind u8 | version u8 | seq u16 | body | crc u16      (little-endian)
  *
  * with a CRC-16/CCITT-FALSE over kind..body. A save always overwrites the
- * slot that does NOT hold the newest valid copy and writes the CRC last, so
- * a power loss at any byte leaves the newest valid copy untouched; a load
- * takes the valid slot with the newer sequence number (serial arithmetic, so
- * the counter may wrap). History entries are single-slot records in a ring: a
- * save overwrites the oldest entry only, so a cut write loses at most the
- * entry it was replacing, never the newest one.
+ * slot that does NOT hold the newest valid copy, so a power loss at any byte
+ * leaves the newest valid copy untouched. It first sets the slot's kind byte
+ * to STORE_KIND_NONE, then writes version, sequence, body and CRC, and the
+ * kind byte last: a torn slot is invalid by its kind, not only (with
+ * probability 1 - 2^-16) by its CRC. A load takes the valid slot with the newer sequence number
+ * (serial arithmetic, so the counter may wrap). History entries are single-slot records in a ring:
+ * a save overwrites the oldest entry only, so a cut write loses at most the entry it was replacing,
+ * never the newest one.
  *
  * EEPROM access goes through store_eeprom_t (read byte, read block, ready,
  * write byte), so the AVR adapter (firmware/eeprom_port.c) is thin and the
@@ -89,6 +91,7 @@ enum {
 #define STORE_KIND_HOMES       0x48u /* 'H' */
 #define STORE_KIND_LEARNED     0x4Cu /* 'L' */
 #define STORE_KIND_HIST        0x52u /* 'R' */
+#define STORE_KIND_NONE        0x00u /* slot being rewritten */
 #define STORE_SETTINGS_VERSION 1u    /* raise when store_settings.def changes meaning/order */
 #define STORE_HOMES_VERSION    1u
 #define STORE_LEARNED_VERSION  1u

@@ -182,9 +182,9 @@ static void test_unchanged_bytes_not_rewritten(void **state)
     save_homes_ok(&h); /* slot A, seq 1 */
     save_homes_ok(&h); /* slot B, seq 2 */
     w = fake.writes;
-    save_homes_ok(&h); /* slot A again: only seq and CRC change */
-    assert_true(fake.writes - w <= 4u);
-    assert_true(fake.writes - w >= 1u);
+    save_homes_ok(&h); /* slot A again: only kind (invalidate, restore), seq and CRC change */
+    assert_true(fake.writes - w <= 6u);
+    assert_true(fake.writes - w >= 3u);
 }
 
 static void test_roundtrip_all_records(void **state)
@@ -357,6 +357,38 @@ static void test_wrong_version_or_kind_ignored(void **state)
     fake.mem[STORE_ADDR_HOMES + 1u] = STORE_HOMES_VERSION;
     fake.mem[STORE_ADDR_HOMES] = STORE_KIND_HIST;
     assert_int_equal(store_homes_load(&st, TABLE_ID, &r), STORE_E_EMPTY);
+}
+
+/* Until its last write the slot being saved carries no valid kind, so a
+ * torn slot cannot pass for a record even if its CRC happened to match. */
+static void test_torn_slot_marked_invalid(void **state)
+{
+    store_homes_t h;
+    uint32_t k, needed, base;
+    (void)state;
+    fresh(0xFF);
+    make_homes(&h, 1, 0);
+    save_homes_ok(&h); /* A */
+    make_homes(&h, 2, 0);
+    save_homes_ok(&h); /* B */
+    base = fake.writes;
+    make_homes(&h, 3, 5000);
+    save_homes_ok(&h); /* A again */
+    needed = fake.writes - base;
+    assert_int_equal(fake.mem[STORE_ADDR_HOMES], STORE_KIND_HOMES);
+    for (k = 1; k + 1u < needed; k++) {
+        fresh(0xFF);
+        make_homes(&h, 1, 0);
+        save_homes_ok(&h);
+        make_homes(&h, 2, 0);
+        save_homes_ok(&h);
+        fake.cut_at = (int32_t)(fake.writes + k);
+        fake.torn = STORE_FAKE_TORN_GARBAGE;
+        make_homes(&h, 3, 5000);
+        assert_int_equal(store_save_homes(&st, &h), 1);
+        (void)store_fake_run(&st, POLLS);
+        assert_int_equal(fake.mem[STORE_ADDR_HOMES], STORE_KIND_NONE);
+    }
 }
 
 static void test_verify_failure_keeps_old(void **state)
@@ -782,6 +814,7 @@ int main(void)
         cmocka_unit_test(test_sequence_wraps),
         cmocka_unit_test(test_wrong_version_or_kind_ignored),
         cmocka_unit_test(test_verify_failure_keeps_old),
+        cmocka_unit_test(test_torn_slot_marked_invalid),
         cmocka_unit_test(test_load_during_save_sees_old_copy),
         cmocka_unit_test(test_cut_homes),
         cmocka_unit_test(test_cut_settings),
