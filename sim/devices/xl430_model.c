@@ -627,7 +627,6 @@ static void xl430_instruction(xl430 *m, uint8_t id, const uint8_t *body, uint16_
             if ((uint32_t)8u + count * (m->wait_n + 4u) > XL430_TX_CAP) {
                 break;
             }
-            m->fast_last = (uint8_t)(k == (int16_t)(count - 1u));
             if (k == 0) {
                 xl430_fast_chunk(m, 0, 1, (uint8_t)count, t + xl430_delay_us(m));
             } else {

@@ -78,7 +78,6 @@ typedef struct {
     uint16_t fast_seen;
     uint16_t fast_need;
     uint16_t fast_crc;
-    uint8_t fast_last;
     /* registered write */
     uint16_t reg_addr;
     uint8_t reg_n;
