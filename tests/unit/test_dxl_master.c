@@ -583,6 +583,21 @@ static void test_model_status_return_level(void **state)
     assert_int_equal(run(), 0);
 }
 
+static void test_model_reports_collisions_of_duplicate_ids(void **state)
+{
+    (void)state;
+    rig_init(&R, 2, 0);
+    R.servo[1].ct[DXL_XL430_ID_ADDR] = 1; /* two servos answer to ID 1 */
+    assert_int_equal(xl430_transmitting(&R.servo[0], R.bus.now), 0);
+    R.m.cfg.retries = 0;
+    assert_int_equal(dxl_ping(&R.m, 1), 1);
+    dxl_fakebus_run(&R.bus, &R.m, 160); /* request sent, replies starting */
+    assert_int_equal(xl430_transmitting(&R.servo[0], R.bus.now + 20u), 1);
+    assert_int_equal(xl430_transmitting(&R.servo[1], R.bus.now + 20u), 1);
+    run();
+    assert_true(R.bus.collisions > 0);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -611,6 +626,7 @@ int main(void)
         cmocka_unit_test(test_model_multiturn_lost_at_power_cycle),
         cmocka_unit_test(test_model_bus_watchdog),
         cmocka_unit_test(test_model_status_return_level),
+        cmocka_unit_test(test_model_reports_collisions_of_duplicate_ids),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
