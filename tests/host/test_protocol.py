@@ -8,6 +8,7 @@ a drift between the host's validation and the firmware's fails too.
 """
 
 import ast
+import re
 import shutil
 import subprocess
 import textwrap
@@ -66,6 +67,10 @@ def test_required_commands_and_settings_declared():
     for s in protocol.SETTINGS:
         assert s.min <= s.default <= s.max
         assert s.type in ("U8", "U16", "U32", "I32")
+        assert re.fullmatch(r"[a-z][a-z0-9_]{0,22}", s.name)  # store_setting_find's buffer
+        assert '"' not in s.help and '"' not in s.unit
+    assert len(protocol.SETTINGS) <= 24  # STORE_SETTING_MAX: room in the EEPROM layout
+    assert len({s.name for s in protocol.SETTINGS}) == len(protocol.SETTINGS)
 
 
 def test_declarations_are_well_formed():
