@@ -16,13 +16,12 @@ void fld_vec_cuT(const int16_t raw[3], int32_t out_cuT[3])
     }
 }
 
-/* Bit-by-bit square root: 32 iterations of shifts and adds, no division, so
- * it costs the same bounded time on the AVR for every input. */
-uint32_t fld_isqrt64(uint64_t v)
+/* Bit-by-bit square root in 32 bits: 16 iterations of shifts and adds. */
+static uint32_t fld_isqrt32(uint32_t v)
 {
-    uint64_t rem = v;
-    uint64_t root = 0;
-    uint64_t bit = (uint64_t)1 << 62;
+    uint32_t rem = v;
+    uint32_t root = 0;
+    uint32_t bit = (uint32_t)1 << 30;
     while (bit > rem) {
         bit >>= 2;
     }
@@ -35,7 +34,35 @@ uint32_t fld_isqrt64(uint64_t v)
         }
         bit >>= 2;
     }
-    return (uint32_t)root;
+    return root;
+}
+
+/* 64-bit arithmetic is slow on the AVR (library loops for every shift and
+ * compare), so the root is found in 32 bits from v scaled down by 4^k and
+ * only its k low bits are settled against v, with one widening multiply
+ * each: k <= 5 for any sum of squares of AK09916 fields. */
+uint32_t fld_isqrt64(uint64_t v)
+{
+    uint32_t hi = (uint32_t)(v >> 32);
+    uint32_t r;
+    uint32_t bit;
+    uint8_t k = 0;
+    if (hi == 0u) {
+        return fld_isqrt32((uint32_t)v);
+    }
+    while (hi != 0u) {
+        hi >>= 1;
+        k++;
+    }
+    k = (uint8_t)((k + 1u) / 2u);
+    r = fld_isqrt32((uint32_t)(v >> (2u * k))) << k;
+    for (bit = (uint32_t)1 << (k - 1u); bit != 0u; bit >>= 1) {
+        uint32_t c = r | bit;
+        if ((uint64_t)c * c <= v) {
+            r = c;
+        }
+    }
+    return r;
 }
 
 /* Rounds to nearest: r = floor(sqrt(s)) rounds up when s > r^2 + r, i.e.
@@ -54,8 +81,8 @@ uint32_t fld_norm_cuT(const int32_t v_cuT[3])
     uint64_t s = 0;
     uint8_t i;
     for (i = 0; i < 3u; i++) {
-        int64_t c = v_cuT[i];
-        s += (uint64_t)(c * c);
+        uint32_t a = v_cuT[i] < 0 ? (uint32_t)0 - (uint32_t)v_cuT[i] : (uint32_t)v_cuT[i];
+        s += (uint64_t)a * a;
     }
     return fld_sqrt_round(s);
 }

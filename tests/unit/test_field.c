@@ -53,6 +53,44 @@ static void test_isqrt_and_norm(void **state)
     assert_int_equal(fld_norm_cuT(v), 850922);
 }
 
+/* floor(sqrt(v)) is the r with r^2 <= v < (r + 1)^2. */
+static void check_isqrt(uint64_t v)
+{
+    uint64_t r = fld_isqrt64(v);
+    assert_true(r * r <= v);
+    if (r < 0xFFFFFFFFull) {
+        assert_true((r + 1u) * (r + 1u) > v);
+    }
+}
+
+static void test_isqrt_property(void **state)
+{
+    uint64_t x = 88172645463325252ull;
+    uint32_t n;
+    unsigned k;
+    (void)state;
+    for (k = 0; k < 64u; k++) {
+        uint64_t p = (uint64_t)1 << k;
+        check_isqrt(p);
+        check_isqrt(p - 1u);
+        check_isqrt(p + 1u);
+    }
+    for (n = 1; n < 2000000u; n = n * 3u + 1u) {
+        uint64_t sq = (uint64_t)n * n;
+        check_isqrt(sq - 1u);
+        check_isqrt(sq);
+        check_isqrt(sq + 1u);
+    }
+    check_isqrt(UINT64_MAX);
+    check_isqrt((uint64_t)0xFFFFFFFFu * 0xFFFFFFFFu);
+    for (n = 0; n < 200000u; n++) {
+        x ^= x << 13;
+        x ^= x >> 7;
+        x ^= x << 17;
+        check_isqrt(x >> (n % 64u));
+    }
+}
+
 static void test_baseline_by_hand(void **state)
 {
     fld_base_t b;
@@ -321,6 +359,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_raw_to_cuT),
         cmocka_unit_test(test_isqrt_and_norm),
+        cmocka_unit_test(test_isqrt_property),
         cmocka_unit_test(test_baseline_by_hand),
         cmocka_unit_test(test_baseline_rounds_negative_mean),
         cmocka_unit_test(test_baseline_overflow_restarts),
