@@ -268,6 +268,7 @@ int hom_start(hom_t *h, const tbl_src_t *table, const hom_cmd_t *cmd)
     for (i = 0; i < info.n_tendons; i++) {
         h->tendon[i].release_ticks = um_to_ticks(rel_um, h->tendon[i].nm_per_tick);
     }
+    h->table = *table;
     h->mode = (uint8_t)cmd->mode;
     h->single = cmd->tendon;
     h->n_tendons = info.n_tendons;
@@ -644,6 +645,7 @@ static void begin_tendon(hom_t *h, uint32_t now, uint8_t i)
     h->cur = i;
     h->t_tendon = now;
     h->have_prev = 0;
+    h->near = 0;
     h->steps = 0;
     h->slope_q8 = h->tendon[i].slope_q8;
     h->pos_at_sample = h->present[i];
@@ -720,13 +722,54 @@ static void finish_tendon(hom_t *h, uint32_t now, int32_t home_q8)
     h->t_phase = now;
 }
 
+/* Remaining travel from a field b to the target along the table's own
+ * field-travel curve (inverse interpolation over the grid, engagement as the
+ * origin), 1/256 tick; 0 when the table cannot say. The field is not linear
+ * in travel (it flattens as the tip moves away), so from a point well short of
+ * the target this beats any one slope. */
+static int32_t table_remaining_q8(const hom_t *h, uint32_t b)
+{
+    tbl_tendon_t row;
+    tbl_info_t info;
+    const hom_tendon_t *t = &h->tendon[h->cur];
+    uint32_t x0 = 0;
+    uint32_t y0 = 0;
+    int64_t travel_b = -1;
+    int64_t travel_t;
+    uint8_t g;
+    if (tbl_tendon(&h->table, h->cur, &row) != 0 || tbl_info(&h->table, &info) != 0) {
+        return 0;
+    }
+    for (g = 0; g < info.n_grid && travel_b < 0; g++) {
+        uint32_t x1 = row.travel_um[g];
+        uint32_t y1 = row.target_cuT[g];
+        if (b < y1 && y1 > y0) {
+            travel_b =
+                (int64_t)x0 * 256 + ((int64_t)(b - y0) * (int64_t)(x1 - x0) * 256) / (y1 - y0);
+        }
+        x0 = x1;
+        y0 = y1;
+    }
+    if (travel_b < 0) {
+        return 0;
+    }
+    travel_t = ((int64_t)t->travel_ticks * t->nm_per_tick * 256) / 1000; /* um * 256 */
+    if (travel_t <= travel_b) {
+        return 0;
+    }
+    return (int32_t)(((travel_t - travel_b) * 1000) / t->nm_per_tick);
+}
+
 /* One averaged fine point at the present position. Finishes by interpolation
  * when the target is bracketed by two points at most 3 ticks apart, or by
- * extrapolation with the local slope when it is less than a tick away.
- * Otherwise it steps towards the target: the whole predicted distance when it
- * is 3 ticks or less (rounded down), three quarters of it beyond, so the
- * approach stays on the slack side of the target. A wide overshoot backs off
- * to slack and comes again to the last point known to be short of it. */
+ * extrapolation with the local slope when it is less than half a tick away
+ * and the point was averaged with the doubled sample count (a slope measured
+ * over a wider step overstates the local one, so longer extrapolations are
+ * replaced by a one-tick step and a bracket). Otherwise it steps towards the
+ * target: the whole predicted distance when it is 3 ticks or less (rounded
+ * down, at least one), three quarters of it beyond, so the approach stays on
+ * the slack side of the target. A wide overshoot backs off to slack and comes
+ * again to the last point known to be short of it. */
 static void fine_point(hom_t *h, uint32_t now)
 {
     hom_tendon_t *t = &h->tendon[h->cur];
@@ -776,7 +819,14 @@ static void fine_point(hom_t *h, uint32_t now)
         s_q8 = 1;
     }
     r_q8 = ((int64_t)(t->target_cuT - b) << 16) / s_q8;
-    if (r_q8 < 256) {
+    if (!h->have_prev && t->retries == 0u) {
+        /* first point: the table's own curve says how far the target is */
+        int32_t rt = table_remaining_q8(h, b);
+        if (rt > 0) {
+            r_q8 = rt;
+        }
+    }
+    if (r_q8 < 128 && h->near) {
         finish_tendon(h, now, p * 256 + t->dir * (int32_t)r_q8);
         return;
     }
@@ -785,6 +835,10 @@ static void fine_point(hom_t *h, uint32_t now)
         return;
     }
     step = r_q8 <= 3 * 256 ? r_q8 >> 8 : (r_q8 * 3 / 4) >> 8;
+    if (r_q8 >= 128 && step < 1) {
+        step = 1; /* half a tick or more: bracket it rather than extrapolate */
+    }
+    h->near = (uint8_t)(r_q8 <= 4 * 256);
     if (step > (int64_t)t->limit_ticks + 1) {
         step = (int64_t)t->limit_ticks + 1; /* refused below as beyond the limit */
     }
@@ -962,7 +1016,8 @@ static void do_tendon(hom_t *h, const hom_in_t *in)
         break;
     }
     case ST_FINE_AVG:
-        if (h->sensor[sel].n_acc >= h->cfg.avg_samples) {
+        /* points within 3 ticks of the target decide the home: twice the samples */
+        if (h->sensor[sel].n_acc >= (h->near ? 2u * h->cfg.avg_samples : h->cfg.avg_samples)) {
             fine_point(h, now);
         }
         break;

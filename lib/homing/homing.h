@@ -191,21 +191,21 @@ typedef struct {
 
 /* Tunables. hom_config_default() explains the defaults (docs/homing.md). */
 typedef struct {
-    uint16_t v_fast;            /* take-up before engagement, 0.229 rpm units */
-    uint16_t v_moderate;        /* engagement to near the target */
-    uint16_t v_fine;            /* fine steps */
-    uint16_t v_release;         /* releases and aborts */
-    uint16_t v_final;           /* final move to the homes (the longest move) */
-    uint16_t acc;               /* profile acceleration for every move (0 = the servo's maximum) */
-    uint16_t slack_margin_um;   /* release this far beyond engagement */
-    uint16_t slack_step_um;     /* slack check: further release per step */
-    uint8_t slack_max_steps;    /* slack check: steps before HOM_F_SLACK */
-    uint8_t baseline_samples;   /* samples averaged for B0 (<= 16) */
-    uint8_t avg_samples;        /* samples averaged per fine point (<= 16) */
-    uint8_t fine_max_steps;     /* fine points before HOM_F_NO_PROGRESS */
-    uint16_t near_permille;     /* moderate approach stops at this fraction of the target */
-    uint16_t settle_ms;         /* wait after a fine move before sampling */
-    uint16_t preflight_ms;      /* time for every device to answer */
+    uint16_t v_fast;          /* take-up before engagement, 0.229 rpm units */
+    uint16_t v_moderate;      /* engagement to near the target */
+    uint16_t v_fine;          /* fine steps */
+    uint16_t v_release;       /* releases and aborts */
+    uint16_t v_final;         /* final move to the homes (the longest move) */
+    uint16_t acc;             /* profile acceleration for every move (0 = the servo's maximum) */
+    uint16_t slack_margin_um; /* release this far beyond engagement */
+    uint16_t slack_step_um;   /* slack check: further release per step */
+    uint8_t slack_max_steps;  /* slack check: steps before HOM_F_SLACK */
+    uint8_t baseline_samples; /* samples averaged for B0 (<= 16) */
+    uint8_t avg_samples;    /* samples averaged per fine point, twice that near the target (<= 8) */
+    uint8_t fine_max_steps; /* fine points before HOM_F_NO_PROGRESS */
+    uint16_t near_permille; /* moderate approach stops at this fraction of the target */
+    uint16_t settle_ms;     /* wait after a fine move before sampling */
+    uint16_t preflight_ms;  /* time for every device to answer */
     uint16_t sensor_timeout_ms; /* no sample for this long: HOM_F_SENSOR_TIMEOUT */
     uint16_t servo_timeout_ms;  /* no answer for this long: HOM_F_SERVO_TIMEOUT */
     uint16_t move_timeout_ms;   /* a release / final move longer than this: HOM_F_SERVO_STALL */
@@ -254,6 +254,7 @@ typedef struct {
  * functions below; tendon[i].home / have_home hold the results. */
 typedef struct {
     hom_config_t cfg;
+    tbl_src_t table; /* the run's table: it must stay readable until the run ends */
     uint8_t state;
     uint8_t mode;
     uint8_t n_tendons;
@@ -290,6 +291,7 @@ typedef struct {
     uint32_t t_moved;                      /* last change of the active tendon's present position */
     uint8_t settled;                       /* slack average: settle time over, averaging */
     uint8_t quick_leg;             /* quick mode: fast leg to just before the expected engagement */
+    uint8_t near;                  /* fine: the next point is within a few ticks of the target */
     uint8_t seen[TBL_MAX_SENSORS]; /* preflight: sample received */
     hom_tendon_t tendon[TBL_MAX_TENDONS];
     hom_sensor_t sensor[TBL_MAX_SENSORS];
@@ -314,8 +316,9 @@ void hom_config_default(hom_config_t *cfg);
 void hom_init(hom_t *h, const hom_config_t *cfg);
 
 /* Starts a run: validates the table, interpolates every tendon's target at
- * the tension, resets the events and results of the previous run (stored homes
- * from cmd are kept for the final move and quick mode). Returns 0, HOM_E_ARG,
+ * the tension (the table stays in use for the fine approach: keep it and its
+ * copy function valid until the run ends), resets the events and results of the previous run
+ * (stored homes from cmd are kept for the final move and quick mode). Returns 0, HOM_E_ARG,
  * HOM_E_TABLE, HOM_E_TENSION, HOM_E_BUSY or HOM_E_HOMES. Nothing moves until
  * hom_step(). */
 int hom_start(hom_t *h, const tbl_src_t *table, const hom_cmd_t *cmd);
