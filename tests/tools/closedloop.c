@@ -3,8 +3,10 @@
  * plant model and prints per-tendon results and machine-readable CSV lines.
  *
  *   hh_closedloop CONFIG [-t mN] [-s seed] [-p perturb] [-n runs]
- *                 [-m full|quick|single|dry] [-i tendon] [-q]
+ *                 [-m full|quick|single|dry] [-i tendon] [-f fault:index:ms] [-q]
  *
+ * -f injects a fault (plant_fault_t number, see sim/plant/closedloop.h) into
+ * every run; the summary then reports the slowest release to slack.
  * The table comes from the nominal plant (plant_make_table); each run uses the
  * plant perturbed with seed+run and `perturb` (0 = nominal), so model error is
  * real when perturb > 0. Quick mode first runs a full calibration, then power
@@ -24,8 +26,10 @@
 
 static void usage(void)
 {
-    fprintf(stderr, "usage: hh_closedloop CONFIG [-t mN] [-s seed] [-p perturb] [-n runs]\n"
-                    "                     [-m full|quick|single|dry] [-i tendon] [-q]\n");
+    fprintf(stderr,
+            "usage: hh_closedloop CONFIG [-t mN] [-s seed] [-p perturb] [-n runs]\n"
+            "                     [-m full|quick|single|dry] [-i tendon] [-f fault:index:ms]"
+            " [-q]\n");
 }
 
 static int parse_mode(const char *s, hom_mode_t *m)
@@ -60,6 +64,10 @@ int main(int argc, char **argv)
     unsigned tendon = 0;
     int quiet = 0;
     hom_mode_t mode = HOM_MODE_FULL;
+    unsigned fault = 0;
+    unsigned fault_index = 0;
+    unsigned fault_ms = 0;
+    unsigned max_release_ms = 0;
     int err_line = 0;
     int a;
     unsigned r;
@@ -100,6 +108,11 @@ int main(int argc, char **argv)
             runs = (unsigned)strtoul(v, NULL, 10);
         } else if (strcmp(argv[a], "-i") == 0) {
             tendon = (unsigned)strtoul(v, NULL, 10);
+        } else if (strcmp(argv[a], "-f") == 0) {
+            if (sscanf(v, "%u:%u:%u", &fault, &fault_index, &fault_ms) != 3) {
+                usage();
+                return 2;
+            }
         } else if (strcmp(argv[a], "-m") == 0) {
             if (parse_mode(v, &mode) != 0) {
                 usage();
@@ -132,6 +145,9 @@ int main(int argc, char **argv)
         rc.cmd.mode = mode == HOM_MODE_QUICK ? HOM_MODE_FULL : mode;
         rc.cmd.tension_mN = (uint16_t)tension;
         rc.cmd.tendon = (uint8_t)tendon;
+        rc.fault = (plant_fault_t)fault;
+        rc.fault_index = (uint8_t)fault_index;
+        rc.fault_ms = fault_ms;
         if (plant_run(&rc, &res) != 0) {
             fprintf(stderr, "hh_closedloop: run %u did not finish (rc %d)\n", r, res.rc);
             return 1;
@@ -155,7 +171,16 @@ int main(int argc, char **argv)
             }
         }
         if (res.rc != 0) {
+            int sent = 0;
+            unsigned e;
+            for (e = 0; e < res.n_events; e++) {
+                sent |= res.events[e].type == HOM_EV_RELEASED;
+            }
             faults++;
+            /* a fault before any motion (preflight) commands nothing */
+            if (sent && (res.release_ms > max_release_ms || !res.released)) {
+                max_release_ms = res.released ? res.release_ms : 9999u;
+            }
         }
         sum_ms += res.end_ms;
         if (!quiet) {
@@ -216,10 +241,11 @@ int main(int argc, char **argv)
         sd_ticks = n_sd ? sd_ticks / n_sd : 0.0;
         printf("summary,runs=%u,faults=%u,tension_mN=%u,perturb=%.3f,max_abs_err_ticks=%.3f,"
                "mean_home_sd_ticks=%.3f,mean_home_sd_um=%.4f,tension_err_mean_N=%.4f,"
-               "tension_err_sd_N=%.4f,mean_sim_ms=%.0f,wall_s=%.3f,runs_per_min=%.0f\n",
+               "tension_err_sd_N=%.4f,mean_sim_ms=%.0f,wall_s=%.3f,runs_per_min=%.0f,"
+               "max_release_ms=%u\n",
                runs, faults, tension, perturb, max_abs_ticks, sd_ticks,
                sd_ticks * nominal.nm_per_tick * 1e-3, mean, sd, runs ? sum_ms / runs : 0.0, wall,
-               wall > 0.0 ? runs * 60.0 / wall : 0.0);
+               wall > 0.0 ? runs * 60.0 / wall : 0.0, max_release_ms);
     }
-    return faults == 0u ? 0 : 3;
+    return (faults == 0u || fault != 0u) ? 0 : 3;
 }
