@@ -225,8 +225,8 @@ int main(int argc, char **argv)
     wall = (double)(clock() - c0) / CLOCKS_PER_SEC;
     {
         double mean = n_tension ? sum_e / n_tension : 0.0;
-        double sd =
-            n_tension > 1 ? sqrt((sum_e2 - n_tension * mean * mean) / (n_tension - 1)) : 0.0;
+        double var = n_tension > 1 ? (sum_e2 - n_tension * mean * mean) / (n_tension - 1) : 0.0;
+        double sd = var > 0.0 ? sqrt(var) : 0.0;
         double sd_ticks = 0.0;
         unsigned i;
         unsigned n_sd = 0;
