@@ -1,6 +1,10 @@
 """The `hallhome` command. Each subcommand lives in its own module and is
 registered here with `main.add_command`."""
 
+import sys
+import time
+from pathlib import Path
+
 import click
 
 from hallhome import __version__
@@ -15,3 +19,204 @@ def main() -> None:
     magnetic models, the lookup-table generator and the serial client for the
     Arduino Mega firmware.
     """
+
+
+def _load(path):
+    from hallhome.robot import RobotError, load_robot
+    try:
+        return load_robot(path)
+    except RobotError as exc:
+        raise click.ClickException("invalid robot description:\n" + str(exc)) from None
+
+
+@main.command("check")
+@click.argument("robots", nargs=-1, required=True, type=click.Path(exists=True, dir_okay=False))
+def check_cmd(robots):
+    """Validate robot descriptions (TOML) and print a summary of each."""
+    for path in robots:
+        r = _load(path)
+        seg = ", ".join(f"{s.length * 1e3:g} mm" for s in r.segments)
+        click.echo(f"{r.name}: {len(r.segments)} segments ({seg}), {len(r.tendons)} tendons, "
+                   f"{len(r.sensors)} sensors, gravity "
+                   f"{'none' if r.gravity is None else [round(g, 3) for g in r.gravity]}")
+
+
+@main.command("tables")
+@click.argument("robots", nargs=-1, type=click.Path(exists=True, dir_okay=False))
+@click.option("--all", "all_robots", is_flag=True,
+              help="Every robot in lookup_tables/robots/.")
+@click.option("--out-dir", type=click.Path(file_okay=False), default=None,
+              help="Where to write <robot>.c and <robot>.json "
+                   "(default lookup_tables/generated).")
+@click.option("--quiet", "-q", is_flag=True, help="Print only warnings and errors.")
+def tables_cmd(robots, all_robots, out_dir, quiet):
+    """Generate the C lookup table and its JSON twin for each robot TOML.
+
+    For every tendon alone, the Cosserat model gives the tip pose at each grid
+    tension and the magnet model the field at every sensor; the table holds
+    the target |B(p_T) - B(p_0)| of the most sensitive sensor, the absolute
+    targets, and the expected take-up travel. Output is byte-identical on
+    every run.
+    """
+    from rich.console import Console
+    from rich.progress import Progress
+
+    from hallhome.paths import GENERATED_DIR
+    from hallhome.robot import RobotError, robot_files
+    from hallhome.tablegen import TableError, generate
+
+    paths = [Path(p) for p in robots]
+    if all_robots:
+        paths += robot_files()
+    if not paths:
+        raise click.UsageError("name at least one robot TOML, or --all")
+    out = Path(out_dir) if out_dir else GENERATED_DIR
+    err = Console(stderr=True, highlight=False)
+    for path in paths:
+        t0 = time.perf_counter()
+        try:
+            with Progress(console=err, transient=True, disable=quiet) as prog:
+                task = prog.add_task(f"{path.stem}", total=None)
+
+                def step(n, _task=task):
+                    prog.update(_task, completed=n)
+                gen = generate(path, out, progress=step)
+        except RobotError as exc:
+            raise click.ClickException("invalid robot description:\n" + str(exc)) from None
+        except TableError as exc:
+            raise click.ClickException(str(exc)) from None
+        for w in gen.result.warnings:
+            err.print(f"[yellow]warning:[/yellow] {gen.robot.name}: {w}")
+        if not quiet:
+            click.echo(f"{gen.robot.name}: wrote {gen.c_path} and {gen.json_path.name} "
+                       f"(table_id 0x{gen.table['table_id']:08X}, "
+                       f"{time.perf_counter() - t0:.2f} s)")
+
+
+@main.command("solve")
+@click.argument("robot", type=click.Path(exists=True, dir_okay=False))
+@click.argument("tensions", nargs=-1, type=float, required=True)
+@click.option("--model", type=click.Choice(["cosserat", "cc"]), default="cosserat",
+              show_default=True, help="Cosserat rod or constant curvature.")
+@click.option("--no-gravity", is_flag=True, help="Ignore the robot's gravity entry.")
+def solve_cmd(robot, tensions, model, no_gravity):
+    """Solve the static model for TENSIONS (N, one per tendon, in file order):
+    print the tip position, orientation and tendon displacements."""
+    import numpy as np
+
+    from hallhome.model import ConstantCurvatureModel, CosseratModel, ModelError
+
+    r = _load(robot)
+    if len(tensions) != len(r.tendons):
+        raise click.UsageError(f"{r.name} has {len(r.tendons)} tendons, got {len(tensions)} "
+                               f"tensions")
+    m = (ConstantCurvatureModel(r) if model == "cc"
+         else CosseratModel(r, gravity=not no_gravity))
+    try:
+        sol = m.solve(np.array(tensions))
+    except (ModelError, ValueError) as exc:
+        raise click.ClickException(str(exc)) from None
+    p = sol.tip_position * 1e3
+    z = sol.tip_rotation[:, 2]
+    click.echo(f"tip position mm: {p[0]:.4f} {p[1]:.4f} {p[2]:.4f}")
+    click.echo(f"tip z axis:      {z[0]:.6f} {z[1]:.6f} {z[2]:.6f}")
+    click.echo("tendon displacement mm (geometric, + = shorter): "
+               + " ".join(f"{d * 1e3:.4f}" for d in sol.displacements))
+
+
+@main.command("characterize")
+@click.argument("data", type=click.Path(exists=True, dir_okay=False))
+@click.option("--plot", "plot_path", type=click.Path(dir_okay=False), default=None,
+              help="PNG to write (default: <data>_fit.png beside the data).")
+@click.option("--robot", type=click.Path(exists=True, dir_okay=False), default=None,
+              help="Also fit the magnetization of this robot's magnet model to the data.")
+@click.option("--axis", type=click.Choice(["equatorial", "axial"]), default="equatorial",
+              show_default=True,
+              help="Where the sensor sat relative to the magnet during the measurement.")
+def characterize_cmd(data, plot_path, robot, axis):
+    """Fit Field = a * distance^b to measured (distance, field) pairs (the
+    paper's Fig. 1), print a, b and R^2 and save a plot. The CSV header names
+    the units, e.g. 'distance_cm,field_uT'; '#' lines are comments."""
+    from hallhome.field import fit_magnetization, fit_power_law, read_field_csv
+    from hallhome.plots import plot_characterization
+
+    try:
+        d = read_field_csv(data)
+        fit = fit_power_law(d.distance, d.field)
+    except ValueError as exc:
+        raise click.ClickException(str(exc)) from None
+    click.echo(f"power law: field_{d.field_unit} = a * distance_{d.distance_unit}^b")
+    click.echo(f"a = {fit.a:.2f}")
+    click.echo(f"b = {fit.b:.4f}")
+    click.echo(f"R^2 = {fit.r2:.5f} ({fit.n} points)")
+    mfit = None
+    if robot:
+        r = _load(robot)
+        mfit = fit_magnetization(r.magnet, d.distance_m, d.field_T, axis=axis)
+        click.echo(f"magnet model ({r.magnet.shape}, {axis}): polarization |J| = "
+                   f"{mfit.polarization:.4f} T, distance offset {mfit.offset * 1e3:+.2f} mm, "
+                   f"rms error {mfit.rms_rel * 100:.1f} %")
+    out = Path(plot_path) if plot_path else Path(data).with_name(Path(data).stem + "_fit.png")
+    plot_characterization(d, fit, out, magnet=(r.magnet if robot else None), magnet_fit=mfit,
+                          axis=axis)
+    click.echo(f"plot: {out}")
+
+
+@main.command("plot")
+@click.argument("robot", type=click.Path(exists=True, dir_okay=False))
+@click.option("--out-dir", type=click.Path(file_okay=False), default=".", show_default=True,
+              help="Directory for the PNG files.")
+def plot_cmd(robot, out_dir):
+    """Plot tip paths with the sensors, |dB| against tension and tendon
+    displacement against tension for every tendon (PNG, headless)."""
+    from hallhome.plots import plot_robot
+    from hallhome.tablegen import TableError, compute
+
+    r = _load(robot)
+    try:
+        res = compute(r)
+    except TableError as exc:
+        raise click.ClickException(str(exc)) from None
+    for path in plot_robot(res, Path(out_dir)):
+        click.echo(f"wrote {path}")
+
+
+@main.command("bench")
+@click.argument("robot", type=click.Path(exists=True, dir_okay=False),
+                required=False)
+@click.option("--repeat", default=5, show_default=True, help="Solves to time.")
+@click.option("--check", is_flag=True,
+              help="Exit 1 if a solve exceeds 50 ms or table generation 5 s.")
+def bench_cmd(robot, repeat, check):
+    """Time one Cosserat solve and a full table generation (default robot:
+    paper_2seg)."""
+    import tempfile
+
+    import numpy as np
+
+    from hallhome.model import CosseratModel
+    from hallhome.paths import ROBOTS_DIR
+    from hallhome.tablegen import generate
+
+    path = Path(robot) if robot else ROBOTS_DIR / "paper_2seg.toml"
+    r = _load(path)
+    m = CosseratModel(r, steps_per_segment=8)
+    tau = np.zeros(len(r.tendons))
+    tau[-1] = r.default_tension
+    m.solve(tau)
+    times = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        m.solve(tau)
+        times.append(time.perf_counter() - t0)
+    solve_ms = min(times) * 1e3
+    with tempfile.TemporaryDirectory() as tmp:
+        t0 = time.perf_counter()
+        generate(path, tmp)
+        table_s = time.perf_counter() - t0
+    click.echo(f"{r.name}: Cosserat solve {solve_ms:.1f} ms (best of {repeat}, median "
+               f"{sorted(times)[len(times) // 2] * 1e3:.1f} ms); table generation "
+               f"{table_s:.2f} s")
+    if check and (solve_ms > 50 or table_s > 5):
+        click.echo("over budget (50 ms per solve, 5 s per table)", err=True)
+        sys.exit(1)

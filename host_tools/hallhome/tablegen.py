@@ -1,0 +1,534 @@
+"""Lookup-table generator: robot TOML -> lookup_tables/generated/<robot>.c
+and its JSON twin <robot>.json (docs/tables.md).
+
+The C layout is declared once, in lib/table/table.h. This module parses that
+header for the constants (TBL_MAGIC, TBL_MAX_*, ...) and the struct fields,
+fills every field by name and refuses to write a table when the header has a
+field it does not know. The output is deterministic: the same robot gives the
+same bytes on every run (no time stamps, no absolute paths, fixed rounding).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+import struct
+import zlib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from hallhome.field import field_at_sensors, magnet_poses
+from hallhome.model import CosseratModel, Solution
+from hallhome.paths import LIB_DIR, PROJECT_ROOT
+from hallhome.robot import SENSOR_SATURATION_T, Robot, load_robot
+
+TABLE_HEADER = LIB_DIR / "table" / "table.h"
+SENSITIVITY_STEP_N = 0.01  # central difference for d|dB|/dT at the default tension
+NOISE_FACTOR = 10.0  # warn when a target change is below this many sigma of sensor noise
+MODEL_STEPS = 8  # integration steps per segment (docs/model.md: < 1 um at the tip)
+
+_CTYPES = {"uint8_t": ("B", 0, 0xFF), "int8_t": ("b", -0x80, 0x7F),
+           "uint16_t": ("H", 0, 0xFFFF), "int16_t": ("h", -0x8000, 0x7FFF),
+           "uint32_t": ("I", 0, 0xFFFFFFFF), "int32_t": ("i", -0x80000000, 0x7FFFFFFF),
+           "char": ("c", 0, 0x7F)}
+
+
+class TableError(RuntimeError):
+    """The table cannot be generated (message names the robot and the cause)."""
+
+
+# --- the C contract ---------------------------------------------------------------
+
+@dataclass(frozen=True)
+class CField:
+    ctype: str
+    name: str
+    count: int | None  # array length, None for a scalar
+
+
+@dataclass(frozen=True)
+class TableSpec:
+    """What lib/table/table.h declares: integer constants and struct fields."""
+
+    constants: dict[str, int]
+    structs: dict[str, tuple[CField, ...]]
+
+    def __getitem__(self, name: str) -> int:
+        return self.constants[name]
+
+
+def parse_table_header(path: Path = TABLE_HEADER) -> TableSpec:
+    """Parse the #define constants and the typedef'd structs of table.h."""
+    text = path.read_text(encoding="utf-8")
+    text = re.sub(r"/\*.*?\*/", "", text, flags=re.S)
+    text = re.sub(r"//[^\n]*", "", text)
+    consts: dict[str, int] = {}
+    for name, value in re.findall(r"#define\s+(TBL_\w+)\s+(0[xX][0-9A-Fa-f]+|\d+)[uUlL]*\b",
+                                  text):
+        consts[name] = int(value, 0)
+    structs: dict[str, tuple[CField, ...]] = {}
+    for body, sname in re.findall(r"typedef\s+struct\s*\{(.*?)\}\s*(\w+)\s*;", text, flags=re.S):
+        fields = []
+        for decl in body.split(";"):
+            decl = " ".join(decl.split())
+            if not decl:
+                continue
+            m = re.fullmatch(r"(?:const\s+)?(\w+)\s+(\w+)(?:\s*\[\s*(\w+)\s*\])?", decl)
+            if m is None:
+                fields = None  # pointers, function types: not table data
+                break
+            ctype, name, dim = m.groups()
+            count = None if dim is None else (consts[dim] if dim in consts else int(dim, 0))
+            fields.append(CField(ctype, name, count))
+        if fields is not None:
+            structs[sname] = tuple(fields)
+    for needed in ("TBL_MAGIC", "TBL_FORMAT_VERSION", "TBL_MAX_GRID", "TBL_MAX_TENDONS",
+                   "TBL_MAX_SENSORS", "TBL_NAME_LEN", "TBL_NO_MUX", "TBL_MODE_DELTA",
+                   "TBL_MODE_ABSOLUTE"):
+        if needed not in consts:
+            raise TableError(f"{path}: constant {needed} not found")
+    if "tbl_table_t" not in structs:
+        raise TableError(f"{path}: struct tbl_table_t not found")
+    return TableSpec(consts, structs)
+
+
+# --- computation --------------------------------------------------------------------
+
+@dataclass
+class TendonResult:
+    """Model results of one tendon swept over the tension grid (SI units)."""
+
+    solutions: list[Solution]  # one per grid tension
+    field: np.ndarray  # (n_grid, n_sensors, 3) magnet field in sensor frames, T
+    delta: np.ndarray  # (n_grid, n_sensors) |B(p_T) - B(p_0)|, T
+    sensitivity: np.ndarray  # (n_sensors,) d|dB|/dT at the default tension, T/N
+    geometric: np.ndarray  # (n_grid,) path shortening from engagement, m
+    stretch: np.ndarray  # (n_grid,) elastic stretch, m
+    selected: int  # sensor with the largest sensitivity
+    closest: int  # sensor closest to the magnet at the default tension
+    closest_distance: float  # m
+
+    @property
+    def travel(self) -> np.ndarray:
+        return self.geometric + self.stretch
+
+
+@dataclass
+class RobotResult:
+    robot: Robot
+    straight: Solution
+    b_straight: np.ndarray  # (n_sensors, 3), T, sensor frames
+    tendons: list[TendonResult]
+    warnings: list[str] = field(default_factory=list)
+
+
+def _pick(values: np.ndarray, largest: bool) -> int:
+    """Index of the largest (smallest) value; near-ties (1e-9 relative) go to
+    the lowest index so symmetric layouts pick the same sensor everywhere."""
+    v = np.asarray(values, float)
+    best = v.max() if largest else v.min()
+    tol = 1e-9 * max(abs(best), 1e-30)  # float noise only; real asymmetries count
+    return int(np.nonzero(np.abs(v - best) <= tol)[0][0])
+
+
+def compute(robot: Robot, steps: int = MODEL_STEPS, progress=None) -> RobotResult:
+    """Sweep every tendon alone over the tension grid with the Cosserat model
+    and the field model. ``progress(n)`` is called after each tendon."""
+    model = CosseratModel(robot, steps_per_segment=steps)
+    nt = len(robot.tendons)
+    straight = model.solve(np.zeros(nt))
+    b0 = field_at_sensors(robot, straight.tip_position, straight.tip_rotation)[0]
+    grid = np.array(robot.tension_grid)
+    td = robot.default_tension
+    sensor_pos = np.array([s.position for s in robot.sensors])
+    out = RobotResult(robot, straight, b0, [])
+    for i, tendon in enumerate(robot.tendons):
+        sols = []
+        guess = None
+        for T in grid:
+            tau = np.zeros(nt)
+            tau[i] = T
+            sol = model.solve(tau, base_moment_guess=guess)
+            guess = sol.base_moment
+            sols.append(sol)
+        extra = []
+        for T in (td - SENSITIVITY_STEP_N, td + SENSITIVITY_STEP_N):
+            tau = np.zeros(nt)
+            tau[i] = T
+            extra.append(model.solve(tau, base_moment_guess=guess))
+        allsol = sols + extra
+        B = field_at_sensors(robot, np.array([s.tip_position for s in allsol]),
+                             np.array([s.tip_rotation for s in allsol]))
+        delta = np.linalg.norm(B - b0[None], axis=-1)
+        sens = (delta[-1] - delta[-2]) / (2 * SENSITIVITY_STEP_N)
+        # the magnet at the default tension, for the paper's closest-sensor rule
+        tau = np.zeros(nt)
+        tau[i] = td
+        dsol = model.solve(tau, base_moment_guess=guess)
+        mpos, _ = magnet_poses(robot, dsol.tip_position, dsol.tip_rotation)
+        dist = np.linalg.norm(sensor_pos - mpos[0], axis=1)
+        geometric = np.array([straight.path_lengths[i] - s.path_lengths[i] for s in sols])
+        stretch = np.array([robot.tendon_stretch(tendon, T, s.path_lengths[i])
+                            for T, s in zip(grid, sols)])
+        out.tendons.append(TendonResult(sols, B[:-2], delta[:-2], sens, geometric, stretch,
+                                        _pick(sens, True), _pick(dist, False),
+                                        float(dist[_pick(dist, False)])))
+        if progress is not None:
+            progress(i + 1)
+    out.warnings = _warnings(out)
+    return out
+
+
+def _tendon_name(robot: Robot, i: int) -> str:
+    t = robot.tendons[i]
+    return f"tendon {i} (servo {t.servo_id}, segment {t.segment})"
+
+
+def _warnings(res: RobotResult) -> list[str]:
+    robot = res.robot
+    w = []
+    floor = NOISE_FACTOR * robot.noise
+    for i, tr in enumerate(res.tendons):
+        name = _tendon_name(robot, i)
+        sel = tr.selected
+        if tr.selected != tr.closest:
+            w.append(f"{name}: sensor {tr.selected} has the largest sensitivity "
+                     f"({tr.sensitivity[tr.selected] * 1e6:.1f} uT/N), the closest sensor "
+                     f"{tr.closest} has {tr.sensitivity[tr.closest] * 1e6:.1f} uT/N; "
+                     f"using sensor {tr.selected}")
+        for T, d in zip(robot.tension_grid, tr.delta[:, sel]):
+            if d < floor:
+                w.append(f"{name}: target change {d * 1e6:.2f} uT at {T:g} N on sensor {sel} is "
+                         f"below {NOISE_FACTOR:g}x the sensor noise ({floor * 1e6:.2f} uT)")
+        steps = np.diff(tr.delta[:, sel])
+        if np.any(steps <= 0):
+            k = int(np.nonzero(steps <= 0)[0][0])
+            w.append(f"{name}: target on sensor {sel} does not grow between "
+                     f"{robot.tension_grid[k]:g} N and {robot.tension_grid[k + 1]:g} N")
+        for T, tv in zip(robot.tension_grid, tr.travel):
+            if tv > robot.travel_limit:
+                w.append(f"{name}: expected travel {tv * 1e3:.3f} mm at {T:g} N exceeds the "
+                         f"travel limit {robot.travel_limit * 1e3:.3f} mm")
+                break
+    poses = [("the straight pose", res.b_straight[None])]
+    for i, tr in enumerate(res.tendons):
+        poses.append((_tendon_name(robot, i), tr.field))
+    for what, B in poses:
+        over = np.abs(B) > SENSOR_SATURATION_T
+        if np.any(over):
+            k, s, _ = np.argwhere(over)[0]
+            at = "" if B.shape[0] == 1 else f" at {robot.tension_grid[k]:g} N"
+            w.append(f"sensor {s} saturates ({np.abs(B[k, s]).max() * 1e6:.0f} uT > "
+                     f"{SENSOR_SATURATION_T * 1e6:.0f} uT per axis) for {what}{at}")
+    return w
+
+
+# --- integer table ------------------------------------------------------------------
+
+def _cuT(x: float) -> int:
+    return int(round(x * 1e8))  # T -> centi-microtesla (10 nT)
+
+
+def _um(x: float) -> int:
+    return int(round(x * 1e6))
+
+
+def build_table(res: RobotResult, spec: TableSpec) -> dict:
+    """The table content as a nested dict keyed by table.h field names, with
+    integer values (arrays hold only the used entries)."""
+    robot = res.robot
+    c = spec.constants
+    nt, ns, ng = len(robot.tendons), len(robot.sensors), len(robot.tension_grid)
+    limits = [("tendons", nt, "TBL_MAX_TENDONS"), ("sensors", ns, "TBL_MAX_SENSORS"),
+              ("tension grid points", ng, "TBL_MAX_GRID")]
+    for what, n, cname in limits:
+        if n > c[cname]:
+            raise TableError(f"{robot.path.name}: {n} {what}, the table holds at most "
+                             f"{c[cname]} ({cname} in lib/table/table.h)")
+    if len(robot.name) >= c["TBL_NAME_LEN"]:
+        raise TableError(f"{robot.path.name}: robot name {robot.name!r} is longer than "
+                         f"{c['TBL_NAME_LEN'] - 1} characters (TBL_NAME_LEN)")
+    grid_mN = [int(round(T * 1e3)) for T in robot.tension_grid]
+    if any(b <= a for a, b in zip(grid_mN, grid_mN[1:])):
+        raise TableError(f"{robot.path.name}: tension grid is not strictly increasing in mN: "
+                         f"{grid_mN}")
+    default_mN = int(round(robot.default_tension * 1e3))
+    for i, tr in enumerate(res.tendons):
+        t_def = float(np.interp(robot.default_tension, robot.tension_grid, tr.travel))
+        if t_def > robot.travel_limit:
+            raise TableError(f"{robot.path.name}: {_tendon_name(robot, i)}: expected travel "
+                             f"{t_def * 1e3:.3f} mm at the default tension exceeds "
+                             f"travel_limit_mm = {robot.travel_limit * 1e3:.3f}")
+    sensors = []
+    for s, b in zip(robot.sensors, res.b_straight):
+        sensors.append({"mux_channel": c["TBL_NO_MUX"] if s.mux_channel is None
+                        else s.mux_channel,
+                        "i2c_addr": s.i2c_address,
+                        "b_straight_cuT": [_cuT(x) for x in b]})
+    tendons = []
+    for t, tr in zip(robot.tendons, res.tendons):
+        sel = tr.selected
+        tendons.append({
+            "servo_id": t.servo_id,
+            "pull_dir": t.pull_dir,
+            "segment": t.segment,
+            "sensor": sel,
+            "nm_per_tick": int(round(t.metres_per_tick * 1e9)),
+            "travel_limit_um": _um(robot.travel_limit),
+            "target_cuT": [_cuT(x) for x in tr.delta[:, sel]],
+            "abs_target_cuT": [_cuT(x) for x in np.linalg.norm(tr.field[:, sel], axis=-1)],
+            "travel_um": [_um(x) for x in tr.travel],
+        })
+    table = {
+        "magic": c["TBL_MAGIC"],
+        "format_version": c["TBL_FORMAT_VERSION"],
+        "reserved": 0,
+        "table_id": 0,
+        "name": robot.name,
+        "n_tendons": nt,
+        "n_sensors": ns,
+        "n_grid": ng,
+        "mode": c["TBL_MODE_DELTA"] if robot.mode == "delta" else c["TBL_MODE_ABSOLUTE"],
+        "grid_mN": grid_mN,
+        "default_mN": default_mN,
+        "noise_cuT": _cuT(robot.noise),
+        "sensors": sensors,
+        "tendons": tendons,
+    }
+    _check_fields(table, "tbl_table_t", spec)
+    table["table_id"] = zlib.crc32(canonical_bytes(table, spec))
+    return table
+
+
+def _check_fields(value: dict, sname: str, spec: TableSpec) -> None:
+    """Every header field filled, nothing else, every integer in range."""
+    fields = spec.structs[sname]
+    names = [f.name for f in fields]
+    if set(value) != set(names):
+        missing = sorted(set(names) - set(value))
+        extra = sorted(set(value) - set(names))
+        raise TableError(f"lib/table/table.h {sname}: generator and header disagree "
+                         f"(header fields not filled: {missing}, unknown to header: {extra})")
+    for f in fields:
+        v = value[f.name]
+        items = v if f.count is not None else [v]
+        if f.count is not None and len(items) > f.count:
+            raise TableError(f"{sname}.{f.name}: {len(items)} entries, header allows {f.count}")
+        for x in items:
+            if f.ctype in spec.structs:
+                _check_fields(x, f.ctype, spec)
+            elif f.ctype == "char":
+                if not isinstance(v, str) or len(v) >= f.count:
+                    raise TableError(f"{sname}.{f.name}: string {v!r} too long")
+                break
+            else:
+                _, lo, hi = _CTYPES[f.ctype]
+                if not lo <= x <= hi:
+                    raise TableError(f"{sname}.{f.name}: value {x} outside {f.ctype}")
+
+
+def canonical_bytes(table: dict, spec: TableSpec, sname: str = "tbl_table_t") -> bytes:
+    """The canonical serialisation the table_id CRC-32 covers: every field of
+    the header's structs in declaration order, little-endian, no padding,
+    arrays zero-filled to their declared size, char arrays NUL-filled, and
+    table_id itself as 0."""
+    out = bytearray()
+    for f in spec.structs[sname]:
+        v = 0 if f.name == "table_id" and sname == "tbl_table_t" else table[f.name]
+        if f.ctype == "char":
+            raw = v.encode("ascii")
+            out += raw + b"\0" * (f.count - len(raw))
+            continue
+        items = v if f.count is not None else [v]
+        n = f.count if f.count is not None else 1
+        for k in range(n):
+            if f.ctype in spec.structs:
+                if k < len(items):
+                    out += canonical_bytes(items[k], spec, f.ctype)
+                else:
+                    out += _zero_struct(spec, f.ctype)
+            else:
+                out += struct.pack("<" + _CTYPES[f.ctype][0], items[k] if k < len(items) else 0)
+    return bytes(out)
+
+
+def _zero_struct(spec: TableSpec, sname: str) -> bytes:
+    size = 0
+    for f in spec.structs[sname]:
+        n = f.count or 1
+        if f.ctype in spec.structs:
+            size += n * len(_zero_struct(spec, f.ctype))
+        else:
+            size += n * struct.calcsize("<" + _CTYPES[f.ctype][0])
+    return b"\0" * size
+
+
+# --- rendering ----------------------------------------------------------------------
+
+_SYMBOLS = {("tbl_table_t", "magic"): "TBL_MAGIC",
+            ("tbl_table_t", "format_version"): "TBL_FORMAT_VERSION"}
+
+
+def _c_int(ctype: str, v: int) -> str:
+    if ctype.startswith("u"):
+        return f"{v}u" if v <= 0xFFFF else f"{v}UL"
+    return str(v) if -0x8000 < v <= 0x7FFF else f"{v}L"
+
+
+def _c_value(spec: TableSpec, sname: str, f: CField, v, indent: str) -> str:
+    c = spec.constants
+    sym = _SYMBOLS.get((sname, f.name))
+    if sym is not None and c[sym] == v:
+        return sym
+    if sname == "tbl_table_t" and f.name == "table_id":
+        return f"0x{v:08X}UL"
+    if sname == "tbl_table_t" and f.name == "mode":
+        return "TBL_MODE_DELTA" if v == c["TBL_MODE_DELTA"] else "TBL_MODE_ABSOLUTE"
+    if sname == "tbl_sensor_t" and f.name == "mux_channel" and v == c["TBL_NO_MUX"]:
+        return "TBL_NO_MUX"
+    if sname == "tbl_sensor_t" and f.name == "i2c_addr":
+        return f"0x{v:02X}u"
+    if f.ctype == "char":
+        return json.dumps(v)
+    if f.ctype in spec.structs:
+        inner = indent + "    "
+        if f.count is None:
+            return _c_struct(spec, f.ctype, v, inner)
+        parts = [f"{inner}[{k}] = {_c_struct(spec, f.ctype, x, inner)}" for k, x in enumerate(v)]
+        return "{\n" + ",\n".join(parts) + f",\n{indent}}}"
+    if f.count is not None:
+        return "{" + ", ".join(_c_int(f.ctype, x) for x in v) + "}"
+    return _c_int(f.ctype, v)
+
+
+def _c_struct(spec: TableSpec, sname: str, value: dict, indent: str) -> str:
+    inner = indent + "    "
+    lines = [f"{inner}.{f.name} = {_c_value(spec, sname, f, value[f.name], inner)},"
+             for f in spec.structs[sname]]
+    return "{\n" + "\n".join(lines) + f"\n{indent}}}"
+
+
+def render_c(table: dict, spec: TableSpec, robot: Robot) -> str:
+    """The generated C source defining tbl_table_<robot>."""
+    src = _relpath(robot.path)
+    var = f"tbl_table_{robot.name}"
+    body = _c_struct(spec, "tbl_table_t", table, "")
+    return (f"/* generated by hallhome tables, do not edit: {src} */\n"
+            f"#include \"table/table.h\"\n\n"
+            f"extern const tbl_table_t {var} TBL_FLASH;\n\n"
+            f"const tbl_table_t {var} TBL_FLASH = {body};\n")
+
+
+def _relpath(p: Path) -> str:
+    try:
+        return p.resolve().relative_to(PROJECT_ROOT).as_posix()
+    except ValueError:
+        return p.name
+
+
+def _r(x, nd):
+    """Round for the JSON twin; -0.0 becomes 0.0 so output is stable."""
+    if isinstance(x, (list, tuple, np.ndarray)):
+        return [_r(y, nd) for y in x]
+    v = round(float(x), nd)
+    return 0.0 if v == 0 else v
+
+
+def render_json(res: RobotResult, table: dict, spec: TableSpec) -> str:
+    """The JSON twin (format in docs/tables.md)."""
+    robot = res.robot
+    grid = list(robot.tension_grid)
+    sensor_pos = np.array([s.position for s in robot.sensors])
+    tendons = []
+    for t, tr in zip(robot.tendons, res.tendons):
+        mpos, _ = magnet_poses(robot, np.array([s.tip_position for s in tr.solutions]),
+                               np.array([s.tip_rotation for s in tr.solutions]))
+        tendons.append({
+            "index": t.index,
+            "servo_id": t.servo_id,
+            "segment": t.segment,
+            "selected_sensor": tr.selected,
+            "closest_sensor": tr.closest,
+            "selection_differs": tr.selected != tr.closest,
+            "sensitivity_uT_per_N": _r(tr.sensitivity * 1e6, 3),
+            "closest_distance_mm": _r(tr.closest_distance * 1e3, 4),
+            "target_uT": _r(tr.delta[:, tr.selected] * 1e6, 3),
+            "delta_uT_all_sensors": _r(tr.delta * 1e6, 3),
+            "abs_target_uT": _r(np.linalg.norm(tr.field[:, tr.selected], axis=-1) * 1e6, 3),
+            "travel_mm": _r(tr.travel * 1e3, 5),
+            "geometric_mm": _r(tr.geometric * 1e3, 5),
+            "stretch_mm": _r(tr.stretch * 1e3, 5),
+            "tip_mm": _r(np.array([s.tip_position for s in tr.solutions]) * 1e3, 4),
+            "magnet_mm": _r(mpos * 1e3, 4),
+            "distance_to_sensors_mm": _r(np.linalg.norm(mpos[:, None] - sensor_pos[None],
+                                                         axis=-1) * 1e3, 4),
+            "nm_per_tick": table["tendons"][t.index]["nm_per_tick"],
+        })
+    doc = {
+        "format": "hallhome-table",
+        "format_version": spec["TBL_FORMAT_VERSION"],
+        "generated_by": "hallhome tables",
+        "source": _relpath(robot.path),
+        "robot": robot.name,
+        "table_id": f"0x{table['table_id']:08X}",
+        "table": table,
+        "human": {
+            "grid_N": _r(grid, 4),
+            "default_N": _r(robot.default_tension, 4),
+            "noise_uT": _r(robot.noise * 1e6, 3),
+            "travel_limit_mm": _r(robot.travel_limit * 1e3, 4),
+            "mode": robot.mode,
+            "straight_tip_mm": _r(res.straight.tip_position * 1e3, 4),
+            "sensors": [{"index": s.index, "position_mm": _r(np.array(s.position) * 1e3, 4),
+                         "mux_channel": s.mux_channel, "i2c_address": s.i2c_address,
+                         "b_straight_uT": _r(b * 1e6, 3)}
+                        for s, b in zip(robot.sensors, res.b_straight)],
+            "tendons": tendons,
+        },
+        "selection_report": [
+            {"tendon": k, "selected": tr.selected, "closest": tr.closest,
+             "differs": tr.selected != tr.closest} for k, tr in enumerate(res.tendons)],
+        "warnings": res.warnings,
+    }
+    text = json.dumps(doc, indent=1, ensure_ascii=True)
+    # Keep innermost arrays of numbers on one line: the twin stays readable.
+    text = re.sub(r"\[\s*([-0-9.eE,\s]+?)\s*\]",
+                  lambda m: "[" + ", ".join(x.strip() for x in m.group(1).split(",")) + "]", text)
+    return text + "\n"
+
+
+@dataclass
+class Generated:
+    robot: Robot
+    result: RobotResult
+    table: dict
+    c_path: Path
+    json_path: Path
+
+
+def generate(robot_path: str | Path, out_dir: str | Path, progress=None,
+             steps: int = MODEL_STEPS) -> Generated:
+    """Load, compute and write <out_dir>/<robot>.c and .json. Files are only
+    rewritten when their content changes."""
+    spec = parse_table_header()
+    robot = load_robot(robot_path)
+    res = compute(robot, steps=steps, progress=progress)
+    table = build_table(res, spec)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    c_path, json_path = out / f"{robot.name}.c", out / f"{robot.name}.json"
+    _write_if_changed(c_path, render_c(table, spec, robot))
+    _write_if_changed(json_path, render_json(res, table, spec))
+    return Generated(robot, res, table, c_path, json_path)
+
+
+def _write_if_changed(path: Path, text: str) -> None:
+    if path.exists() and path.read_text(encoding="utf-8") == text:
+        return
+    tmp = path.with_suffix(path.suffix + ".tmp")
+    tmp.write_text(text, encoding="utf-8", newline="\n")
+    tmp.replace(path)
+

@@ -1,0 +1,38 @@
+# Lookup tables: lookup_tables/robots/*.toml -> lookup_tables/generated/*.{c,json}
+# by `hallhome tables` (host_tools/hallhome/tablegen.py).
+
+ROBOT_TOMLS := $(sort $(wildcard lookup_tables/robots/*.toml))
+TABLES_CHECK_DIR := $(BUILD)/tables-check
+
+.PHONY: tables tables-check
+
+tables: $(STAMP)
+	$(VENV)/bin/hallhome tables --quiet $(ROBOT_TOMLS)
+	@echo "tables: regenerated $(words $(ROBOT_TOMLS)) robot(s) into lookup_tables/generated"
+
+# Regenerates every table into a scratch directory and compares it with the
+# committed files: fails when a TOML, the model or table.h changed without
+# `make tables`.
+tables-check: $(STAMP)
+	@rm -rf $(TABLES_CHECK_DIR) && mkdir -p $(TABLES_CHECK_DIR)
+	@$(VENV)/bin/hallhome tables --quiet --out-dir $(TABLES_CHECK_DIR) $(ROBOT_TOMLS) 2>/dev/null
+	@status=0; \
+	for f in $(TABLES_CHECK_DIR)/*; do \
+		g=lookup_tables/generated/$$(basename $$f); \
+		if ! cmp -s $$f $$g; then \
+			echo "tables-check: $$g is out of date (or missing); run 'make tables' and commit it:"; \
+			diff -u $$g $$f 2>&1 | head -20; status=1; \
+		fi; \
+	done; \
+	for g in lookup_tables/generated/*.c lookup_tables/generated/*.json; do \
+		[ -e "$$g" ] || continue; \
+		if [ ! -e $(TABLES_CHECK_DIR)/$$(basename $$g) ]; then \
+			echo "tables-check: $$g has no robot TOML in lookup_tables/robots"; status=1; \
+		fi; \
+	done; \
+	if [ $$status -ne 0 ]; then exit 1; fi
+	@echo "tables-check: $(words $(ROBOT_TOMLS)) generated table(s) up to date"
+
+TEST_TARGETS += tables-check
+EXTRA_HELP += "make tables     regenerate lookup_tables/generated from the robot TOMLs"
+EXTRA_HELP += "make tables-check   fail when the committed tables are out of date"
