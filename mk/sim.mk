@@ -1,0 +1,74 @@
+# Virtual bench: the firmware ELF on simavr with simulated servos, sensors and
+# robot (sim/README.md, docs/bench.md).
+#
+#   make sim        full calibration run of $(ROBOT) (see sim/README.md for
+#                   what the current firmware gets through)
+#   make sim-test   builds the bench and its test firmware, runs the pytest suite
+#
+# Variables of `make sim`: ROBOT, TENSION (N), SEED, FAULT (scenario name in
+# sim/bench/scenarios), INTERACTIVE=1 (console on a pty), SIM_LIMIT, SIM_ARGS.
+
+SIM_DIR     := $(BUILD)/sim
+BENCH       := $(SIM_DIR)/hh_bench
+BENCH_CC    ?= gcc
+BENCH_CFLAGS := -std=c99 -O2 -g -Wall -Wextra -Werror -Wshadow -Wstrict-prototypes \
+	-Wmissing-prototypes -Ilib -Isim -Isim/bench -MMD -MP
+BENCH_SRCS  := $(wildcard sim/bench/*.c) $(wildcard sim/devices/*.c) \
+	$(filter-out sim/plant/closedloop.c,$(wildcard sim/plant/*.c)) \
+	lib/dxl/dxl_proto.c lib/table/table.c
+BENCH_OBJS  := $(patsubst %.c,$(SIM_DIR)/obj/%.o,$(BENCH_SRCS))
+
+# Test fixtures: small AVR programs that exercise the bench's peripherals
+# through the real board-support drivers before the application uses them.
+TESTFW_SRCS := $(wildcard sim/bench/testfw/*.c)
+TESTFW_ELFS := $(patsubst sim/bench/testfw/%.c,$(SIM_DIR)/testfw/%.elf,$(TESTFW_SRCS))
+TESTFW_DRIVERS := firmware/tick.c firmware/uart0.c firmware/uart1.c firmware/twi.c firmware/reset.c
+
+SIM_SEED    ?= $(shell od -An -N4 -tu4 /dev/urandom | tr -d ' ')
+SEED        ?= $(SIM_SEED)
+TENSION     ?=
+FAULT       ?=
+SIM_LIMIT   ?= 120s
+SIM_PLANT   := sim/plant/configs/$(ROBOT).cfg
+SIM_STATE   := $(SIM_DIR)/$(ROBOT).eeprom
+SIM_UNTIL   ?= ^<cal .*state=done
+SIM_FAIL    ?= ^<fault
+SIM_TOL     ?= 10
+SIM_ARGS    ?=
+
+.PHONY: bench sim sim-test
+EXTRA_HELP += "make sim [ROBOT= TENSION= SEED= FAULT= INTERACTIVE=1]   firmware on the virtual bench" \
+	"make sim-test   virtual bench tests"
+
+bench: $(BENCH) $(TESTFW_ELFS)
+
+$(SIM_DIR)/obj/%.o: %.c | $(STAMP)
+	@mkdir -p $(@D)
+	$(BENCH_CC) $(BENCH_CFLAGS) $$(pkg-config --cflags simavr) -c $< -o $@
+
+$(BENCH): $(BENCH_OBJS)
+	$(BENCH_CC) $^ -o $@ $$(pkg-config --libs simavr) -lelf -lm
+
+$(SIM_DIR)/testfw/%.elf: sim/bench/testfw/%.c $(TESTFW_DRIVERS) $(AVR_DIR)/version.h | $(STAMP)
+	@mkdir -p $(@D)
+	$(AVR_CC) -mmcu=$(MCU) -DF_CPU=$(F_CPU) -std=c99 -Os -g -Wall -Wextra -Werror \
+		-Ilib -Ifirmware -I$(AVR_DIR) $< $(TESTFW_DRIVERS) -o $@
+
+sim: $(BENCH) firmware
+	@test -f $(SIM_PLANT) || { echo "make sim: no plant config $(SIM_PLANT)"; exit 2; }
+	@echo "make sim: ROBOT=$(ROBOT) SEED=$(SEED) TENSION=$(or $(TENSION),default) FAULT=$(or $(FAULT),none)"
+	$(BENCH) $(FW_ELF) --plant $(SIM_PLANT) --seed $(SEED) --eeprom $(SIM_STATE) \
+		--summary $(SIM_DIR)/summary.json --timestamps --table \
+		$(if $(TENSION),--tension $(TENSION) --at "0.3s send set cal_tension $(shell awk 'BEGIN{printf "%d", $(TENSION)*1000}')") \
+		$(if $(FAULT),--scenario sim/bench/scenarios/$(FAULT).scn) \
+		$(if $(INTERACTIVE),--interactive --realtime --pty-link $(SIM_DIR)/console, \
+			--limit $(SIM_LIMIT) --at "0.5s press" --until '$(SIM_UNTIL)' --fail-on '$(SIM_FAIL)' \
+			--check-tension $(SIM_TOL)) \
+		$(SIM_ARGS)
+
+sim-test: $(BENCH) $(TESTFW_ELFS) firmware
+	$(VENV)/bin/pytest -q tests/host/test_bench*.py
+
+TEST_TARGETS += sim-test
+
+-include $(BENCH_OBJS:.o=.d)

@@ -1,0 +1,312 @@
+/*
+ * bench: the virtual bench. The unmodified firmware ELF runs on simavr
+ * (ATmega2560, 16 MHz) and this host program wires simulated hardware to its
+ * pins: the console on UART0, the servo bus on UART1 (half-duplex, direction
+ * pin PE4), the sensors on the TWI, the button (PE5), the LED (PB7), the
+ * EEPROM and the watchdog. The device models (sim/devices) and the robot
+ * plant (sim/plant) are portable C shared with the unit tests; this program
+ * only moves bytes and pin levels between them and the simulated MCU.
+ *
+ * Every part below keeps its state in the one bench_t; nothing is global
+ * except the pointer the signal handler uses.
+ */
+#ifndef HALLHOME_BENCH_H
+#define HALLHOME_BENCH_H
+
+#include <regex.h>
+#include <stdint.h>
+#include <stdio.h>
+
+#include <sim_avr.h>
+#include <sim_io.h>
+#include <sim_irq.h>
+
+#include "devices/icm20948_model.h"
+#include "devices/tca9548a_model.h"
+#include "devices/xl430_model.h"
+#include "plant/plant.h"
+
+#define BENCH_F_CPU       16000000u
+#define BENCH_EEPROM_SIZE 4096u
+#define BENCH_MAX_SERVOS  PLANT_MAX_TENDONS
+#define BENCH_MAX_SENSORS PLANT_MAX_SENSORS
+#define BENCH_MAX_EVENTS  256u
+#define BENCH_MAX_PATTERN 8u
+#define BENCH_LED_LOG     4096u
+#define BENCH_LINE_MAX    512u
+
+/* ATmega2560 I/O addresses (data space) the bench touches directly
+ * (datasheet 2549Q, "Register Summary"). */
+#define BENCH_MCUSR    0x54u
+#define BENCH_DDRD     0x2Au
+#define BENCH_EECR     0x3Fu
+#define BENCH_TWSR     0xB9u
+#define BENCH_TWCR     0xBCu
+#define BENCH_UCSR1A   0xC8u
+#define BENCH_UCSR1B   0xC9u
+#define BENCH_UDR1     0xCEu
+#define BENCH_RAMSTART 0x200u
+#define BENCH_RAMEND   0x21FFu
+
+/* Process exit codes (docs/bench.md). */
+enum {
+    BENCH_EXIT_OK = 0,      /* --until matched, or the run ended as asked */
+    BENCH_EXIT_FAIL = 1,    /* a --fail-on pattern matched or the final check failed */
+    BENCH_EXIT_USAGE = 2,   /* bad option, scenario, ELF or plant config */
+    BENCH_EXIT_TIMEOUT = 3, /* the time limit passed before --until matched */
+    BENCH_EXIT_CRASHED = 4, /* the firmware stopped (cli+sleep, crash) before --until */
+    BENCH_EXIT_SIGNAL = 5   /* interrupted (SIGINT/SIGTERM) */
+};
+
+/* Timed scenario events (sim/README.md lists the script syntax). */
+typedef enum {
+    EV_PRESS,         /* button down; arg0 = hold ms (0 = until release) */
+    EV_RELEASE,       /* button up */
+    EV_SEND,          /* console line (text), CR LF appended */
+    EV_SEND_RAW,      /* console bytes (text) as given */
+    EV_POWER_CYCLE,   /* power off and on: EEPROM kept, servos lose multi-turn */
+    EV_POWER_LOSS,    /* stop the run here, EEPROM saved as it is */
+    EV_WDT_RESET,     /* a watchdog reset (MCUSR = WDRF, SRAM kept) */
+    EV_EXT_RESET,     /* reset pin pulse (MCUSR = EXTRF), e.g. a serial DTR */
+    EV_SENSOR_UNPLUG, /* sensor arg0 stops acknowledging */
+    EV_SENSOR_PLUG,   /* sensor arg0 is back (powered up fresh) */
+    EV_MUX_UNPLUG,    /* the TCA9548A stops acknowledging */
+    EV_MUX_PLUG,      /* ... and comes back */
+    EV_I2C_STUCK,     /* a slave holds SDA low; arg0 = SCL clocks it needs to let go */
+    EV_SERVO_SILENT,  /* servo of tendon arg0 stops answering */
+    EV_SERVO_ANSWER,  /* ... and answers again */
+    EV_SERVO_HWERR,   /* servo of tendon arg0 raises hardware error bits arg1 */
+    EV_BUS_NOISE,     /* corrupt bytes on the servo bus with probability farg */
+    EV_MAGNET_REMOVE, /* the tip magnet falls off */
+    EV_FIELD,         /* extra field farg3[0..2] uT at sensor arg0 (ambient change) */
+    EV_SATURATE,      /* 6 mT at sensor arg0 */
+    EV_QUIT           /* end the run (exit code as if the time limit passed) */
+} bench_ev_kind_t;
+
+typedef struct {
+    uint64_t at_us;
+    bench_ev_kind_t kind;
+    int32_t arg0, arg1;
+    double farg[3];
+    char text[128];
+} bench_event_t;
+
+typedef struct {
+    uint64_t t_us;
+    uint8_t on;
+} bench_led_t;
+
+typedef struct bench_t bench_t;
+
+/* ---- UART1 half-duplex servo bus (bus.c) ---------------------------------- */
+
+#define BUS_HIST 16u
+
+typedef struct {
+    uint64_t start_us, end_us;
+    int8_t src; /* -1 = MCU, else servo index */
+} bus_window_t;
+
+typedef struct {
+    avr_irq_t *rx_irq; /* UART1 INPUT */
+    uint8_t dir_tx;    /* PE4 level: 1 = MCU drives the bus */
+    uint8_t xoff;      /* simavr's RX FIFO is full */
+    uint32_t byte_us;  /* 11 bit times at 1 Mbps */
+    /* MCU bytes in flight: delivered to the servos at the end of their frame */
+    uint8_t mcu_q[256];
+    uint64_t mcu_start[256];
+    uint8_t mcu_head, mcu_tail;
+    uint64_t mcu_busy_until; /* end of the last MCU frame on the wire */
+    /* bytes waiting for room in simavr's RX FIFO */
+    uint8_t rx_q[256];
+    uint8_t rx_head, rx_tail;
+    bus_window_t hist[BUS_HIST];
+    uint8_t hist_pos;
+    double noise_rate;
+    uint64_t rng;
+    /* servants */
+    xl430 servo[BENCH_MAX_SERVOS];
+    uint8_t n_servos;
+    uint8_t silent[BENCH_MAX_SERVOS];
+    /* counters */
+    uint64_t mcu_bytes;        /* bytes the MCU put on the bus */
+    uint64_t mcu_bytes_no_dir; /* bytes written with the direction pin in receive */
+    uint64_t truncated;        /* frames cut by turning the direction round too early */
+    uint64_t servo_bytes;      /* bytes the servos put on the bus */
+    uint64_t delivered_rx;     /* bytes raised into UART1 RX */
+    uint64_t lost_rx_disabled; /* servo bytes that arrived while RXEN1 = 0 or dir = TX */
+    uint64_t collisions;       /* frames that overlapped another frame */
+    uint64_t corrupted;        /* bytes corrupted (collision, truncation, noise) */
+    uint64_t noise_hits;       /* of which by injected noise */
+    uint64_t xoff_events;
+} bench_bus_t;
+
+void bus_init(bench_t *b);
+void bus_attach_irqs(bench_t *b);
+/* Next cycle the bus needs service at (0 = nothing pending). */
+uint64_t bus_next_us(bench_t *b);
+/* Does everything due at or before now_us. */
+void bus_service(bench_t *b, uint64_t now_us);
+void bus_power_cycle(bench_t *b, uint64_t now_us);
+
+/* ---- TWI (i2c.c) ------------------------------------------------------------ */
+
+typedef struct {
+    avr_irq_t *in_irq;
+    uint8_t addr_phase; /* a write address byte was sent: fix its status code */
+    int8_t cur;         /* index of the addressed top-level slave, -1 none */
+    uint8_t cur_addr;
+    simi2c_slave_t top[2];
+    uint8_t top_addr[2];
+    uint8_t n_top;
+    tcam_t mux;
+    icmm_t icm[BENCH_MAX_SENSORS];
+    uint8_t n_icm;
+    uint8_t icm_present[BENCH_MAX_SENSORS];
+    /* stuck bus */
+    uint8_t stuck;
+    int32_t stuck_clocks; /* SCL rising edges still needed */
+    uint8_t scl_low;
+    uint8_t ext_d_mask, ext_d_value;
+    /* counters */
+    uint64_t starts, addr_acks, addr_nacks, writes, reads, stops;
+    uint64_t stuck_refused; /* bus operations refused while SDA was held low */
+    uint64_t stuck_events, scl_clocks, recoveries;
+    uint64_t status_fixes;
+} bench_twi_t;
+
+void twi_bench_init(bench_t *b, uint32_t seed);
+void twi_bench_attach(bench_t *b);
+void twi_bench_advance(bench_t *b, uint64_t now_us);
+void twi_bench_power_cycle(bench_t *b);
+void twi_bench_stick(bench_t *b, int32_t clocks);
+
+/* ---- console (console.c) ---------------------------------------------------- */
+
+typedef struct {
+    avr_irq_t *rx_irq;
+    uint8_t xoff;
+    uint8_t *in; /* bytes waiting to go into UART0 RX */
+    size_t in_len, in_cap, in_pos;
+    char line[BENCH_LINE_MAX];
+    size_t line_len;
+    int pty_fd; /* master side in interactive mode, else -1 */
+    int stdin_fd;
+    uint8_t timestamps;
+    uint8_t echo; /* stream console lines to stdout */
+    uint64_t bytes_out, bytes_in, lines;
+} bench_con_t;
+
+void con_bench_attach(bench_t *b);
+void con_bench_queue(bench_t *b, const char *data, size_t n);
+void con_bench_pump(bench_t *b);
+int con_bench_open_pty(bench_t *b, const char *link);
+void con_bench_poll_fds(bench_t *b);
+void con_bench_flush(bench_t *b);
+
+/* ---- the bench ---------------------------------------------------------------- */
+
+#define BENCH_RESET_LOG 32u
+
+typedef struct {
+    uint64_t t_us;
+    uint8_t mcusr;
+} bench_reset_t;
+
+typedef struct {
+    avr_io_t io; /* first: simavr hands back this pointer */
+    bench_t *b;
+} bench_reset_io_t;
+
+struct bench_t {
+    avr_t *avr;
+    bench_reset_io_t reset_io;
+    bench_reset_t reset_log[BENCH_RESET_LOG];
+    uint32_t n_reset_log;
+    uint8_t in_service;
+    uint8_t interactive;
+    const char *pty_link;
+    const char *input_path;
+    /* options */
+    const char *elf_path;
+    const char *eeprom_path;
+    const char *summary_path;
+    const char *plant_path;
+    const char *table_path; /* --table: per-tendon table on stdout at exit */
+    uint64_t limit_us;      /* 0 = none */
+    uint32_t seed;
+    double perturb;
+    double tension_N;
+    double start_slack_min_mm, start_slack_max_mm;
+    uint8_t realtime;
+    uint8_t quiet_stats;
+    regex_t until_re[BENCH_MAX_PATTERN];
+    uint8_t n_until;
+    regex_t fail_re[BENCH_MAX_PATTERN];
+    uint8_t n_fail;
+    char fail_text[BENCH_MAX_PATTERN][128];
+    uint64_t eewrite_stop; /* stop after this many EEPROM byte writes (0 = never) */
+    /* state */
+    bench_con_t con;
+    bench_bus_t bus;
+    bench_twi_t twi;
+    plant_t plant;
+    uint8_t have_plant;
+    double shaft0[BENCH_MAX_SERVOS]; /* plant motor ticks at shaft angle 0 */
+    int32_t target_mN;
+    uint8_t magnet_removed;
+    bench_event_t ev[BENCH_MAX_EVENTS];
+    uint16_t n_ev, next_ev;
+    uint64_t cal_start_us; /* first button press or cal command */
+    uint64_t until_at_us;
+    char until_line[BENCH_LINE_MAX];
+    bench_led_t led[BENCH_LED_LOG];
+    uint32_t n_led;
+    uint64_t led_changes;
+    uint8_t led_on;
+    uint8_t ext_e_mask, ext_e_value;
+    uint8_t button_down;
+    uint64_t button_release_us; /* pending release of a timed press (0 = none) */
+    uint64_t presses;
+    uint64_t ee_writes;
+    uint8_t ee_image[BENCH_EEPROM_SIZE];
+    uint8_t pending_reset; /* 0 none, else an EV_* reset kind to perform */
+    uint8_t reset_seen;
+    uint64_t resets, wdt_resets, power_cycles;
+    uint64_t next_world_us;
+    uint64_t timer_at; /* absolute us of the armed service timer */
+    /* end of run */
+    int stop;
+    int exit_code;
+    const char *reason;
+    char reason_buf[160];
+    double wall_start;
+};
+
+extern bench_t *bench_signal_target;
+
+static inline uint64_t bench_now_us(const bench_t *b)
+{
+    return b->avr->cycle / (BENCH_F_CPU / 1000000u);
+}
+
+void bench_finish(bench_t *b, int code, const char *reason);
+void bench_console_line(bench_t *b, const char *line);
+void bench_rearm(bench_t *b);
+
+/* scenario.c */
+int scen_parse_time(const char *s, uint64_t *us);
+int scen_load_file(bench_t *b, const char *path);
+int scen_add_spec(bench_t *b, const char *spec);
+void scen_sort(bench_t *b);
+void scen_run_due(bench_t *b, uint64_t now_us);
+/* Drives the button pin: down = 1 pulls PE5 low. */
+void bench_button(bench_t *b, uint8_t down);
+
+/* world.c: the plant and the models behind the pins */
+int world_init(bench_t *b);
+void world_tick(bench_t *b, uint64_t now_us);
+void world_power_cycle(bench_t *b, uint64_t now_us);
+void world_report(bench_t *b, FILE *json, FILE *table);
+
+#endif /* HALLHOME_BENCH_H */

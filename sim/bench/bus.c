@@ -1,0 +1,365 @@
+/*
+ * bus: UART1 as the half-duplex servo bus of the board (74LVC2G241-style
+ * buffer, direction pin PE4 high = the MCU drives the bus).
+ *
+ * Every byte on the wire has a window [start, end] of 11 bit times (simavr
+ * sends 11 bits per frame). An MCU byte starts when the firmware writes UDR1
+ * (or when the previous frame ends) and reaches the servos at the end of its
+ * stop bit; a servo byte reaches the MCU and the other servos at the time the
+ * model gives for its stop bit. Two frames whose windows overlap collide and
+ * both arrive corrupted. Turning the direction pin to receive while an MCU
+ * frame is still being shifted out cuts it: the bits not yet sent read as
+ * idle (1). Bytes for the MCU go through simavr's 63-byte RX FIFO under its
+ * XON/XOFF flow control, and are lost while the buffer faces the other way
+ * or the receiver is disabled. Injected noise flips one bit of a byte with a
+ * given probability.
+ */
+#define _POSIX_C_SOURCE 200809L
+#include <string.h>
+
+#include <avr_ioport.h>
+#include <avr_uart.h>
+#include <sim_io.h>
+
+#include "bench.h"
+
+#define BUS_MCU_BAUD 1000000u
+
+static uint64_t bus_rand(bench_bus_t *s)
+{
+    /* xorshift64* */
+    s->rng ^= s->rng >> 12;
+    s->rng ^= s->rng << 25;
+    s->rng ^= s->rng >> 27;
+    return s->rng * 2685821657736338717ull;
+}
+
+static uint8_t bus_corrupt(bench_bus_t *s, uint8_t byte)
+{
+    s->corrupted++;
+    return (uint8_t)(byte ^ (uint8_t)(1u + bus_rand(s) % 255u));
+}
+
+static uint8_t bus_noise(bench_bus_t *s, uint8_t byte)
+{
+    if (s->noise_rate > 0.0 &&
+        (double)(bus_rand(s) >> 11) * (1.0 / 9007199254740992.0) < s->noise_rate) {
+        s->noise_hits++;
+        s->corrupted++;
+        return (uint8_t)(byte ^ (uint8_t)(1u << (bus_rand(s) & 7u)));
+    }
+    return byte;
+}
+
+static uint32_t servo_byte_us(const xl430 *m)
+{
+    uint32_t baud = xl430_baud(m);
+    return (uint32_t)(((uint64_t)m->cfg.bits_per_byte * 1000000u + baud - 1u) / baud);
+}
+
+static void hist_add(bench_bus_t *s, uint64_t start, uint64_t end, int8_t src)
+{
+    s->hist[s->hist_pos].start_us = start;
+    s->hist[s->hist_pos].end_us = end;
+    s->hist[s->hist_pos].src = src;
+    s->hist_pos = (uint8_t)((s->hist_pos + 1u) % BUS_HIST);
+}
+
+static uint64_t servo_due(const bench_bus_t *s, uint8_t i, uint64_t ref)
+{
+    uint8_t byte;
+    uint32_t due;
+    if (!xl430_tx_peek(&s->servo[i], &byte, &due)) {
+        return 0;
+    }
+    uint64_t d = (ref & ~0xFFFFFFFFull) | due;
+    if (d + 0x80000000ull < ref) {
+        d += 0x100000000ull;
+    } else if (d > ref + 0x80000000ull) {
+        d -= 0x100000000ull;
+    }
+    return d;
+}
+
+/* Nonzero when a frame of another source overlaps [start, end]. */
+static int overlaps(const bench_bus_t *s, uint64_t start, uint64_t end, int8_t src)
+{
+    for (unsigned i = 0; i < BUS_HIST; i++) {
+        const bus_window_t *w = &s->hist[i];
+        if (w->end_us == 0 || w->src == src) {
+            continue;
+        }
+        if (w->start_us < end && start < w->end_us) {
+            return 1;
+        }
+    }
+    if (src >= 0) {
+        for (uint8_t q = s->mcu_tail; q != s->mcu_head; q++) {
+            uint64_t ms = s->mcu_start[q];
+            if (ms < end && start < ms + s->byte_us) {
+                return 1;
+            }
+        }
+    }
+    for (uint8_t i = 0; i < s->n_servos; i++) {
+        if ((int8_t)i == src || s->silent[i]) {
+            continue;
+        }
+        uint64_t se = servo_due(s, i, end);
+        if (se == 0) {
+            continue;
+        }
+        uint64_t ss = se - servo_byte_us(&s->servo[i]);
+        if (ss < end && start < se) {
+            return 1;
+        }
+    }
+    return 0;
+}
+
+static void rx_push(bench_t *b, uint8_t byte)
+{
+    bench_bus_t *s = &b->bus;
+    uint8_t ucsrb = b->avr->data[BENCH_UCSR1B];
+    if (s->dir_tx || !(ucsrb & 0x10u)) { /* RXEN1 */
+        s->lost_rx_disabled++;
+        return;
+    }
+    if (!s->xoff && s->rx_head == s->rx_tail) {
+        s->delivered_rx++;
+        avr_raise_irq(s->rx_irq, byte);
+        return;
+    }
+    if ((uint8_t)(s->rx_head + 1u) == s->rx_tail) {
+        s->lost_rx_disabled++;
+        return;
+    }
+    s->rx_q[s->rx_head++] = byte;
+}
+
+static void bus_xon(avr_irq_t *irq, uint32_t value, void *param)
+{
+    bench_t *b = param;
+    bench_bus_t *s = &b->bus;
+    (void)irq;
+    (void)value;
+    s->xoff = 0;
+    while (!s->xoff && s->rx_tail != s->rx_head) {
+        s->delivered_rx++;
+        avr_raise_irq(s->rx_irq, s->rx_q[s->rx_tail++]);
+    }
+}
+
+static void bus_xoff(avr_irq_t *irq, uint32_t value, void *param)
+{
+    bench_t *b = param;
+    (void)irq;
+    (void)value;
+    if (!b->bus.xoff) {
+        b->bus.xoff_events++;
+    }
+    b->bus.xoff = 1;
+}
+
+static void bus_mcu_byte(avr_irq_t *irq, uint32_t value, void *param)
+{
+    bench_t *b = param;
+    bench_bus_t *s = &b->bus;
+    uint64_t now = bench_now_us(b);
+    uint64_t start = now > s->mcu_busy_until ? now : s->mcu_busy_until;
+    (void)irq;
+    s->mcu_busy_until = start + s->byte_us;
+    if (!s->dir_tx) {
+        s->mcu_bytes_no_dir++;
+        return;
+    }
+    if ((uint8_t)(s->mcu_head + 1u) == s->mcu_tail) {
+        s->mcu_bytes_no_dir++; /* cannot happen at 1 Mbps; counted, not crashed */
+        return;
+    }
+    s->mcu_bytes++;
+    s->mcu_q[s->mcu_head] = (uint8_t)value;
+    s->mcu_start[s->mcu_head] = start;
+    s->mcu_head++;
+    bench_rearm(b);
+}
+
+/* Direction pin. Receive while a frame is still being shifted out cuts it;
+ * frames not yet started never reach the bus. */
+static void bus_dir(avr_irq_t *irq, uint32_t value, void *param)
+{
+    bench_t *b = param;
+    bench_bus_t *s = &b->bus;
+    uint64_t now = bench_now_us(b);
+    (void)irq;
+    if (value && !s->dir_tx) {
+        s->dir_tx = 1;
+        return;
+    }
+    if (value || !s->dir_tx) {
+        return;
+    }
+    s->dir_tx = 0;
+    uint8_t keep = s->mcu_tail;
+    for (uint8_t q = s->mcu_tail; q != s->mcu_head; q++) {
+        uint64_t st = s->mcu_start[q];
+        if (st >= now) {
+            s->mcu_bytes_no_dir++;
+            continue;
+        }
+        if (st + s->byte_us > now) {
+            uint64_t bits = now - st; /* 1 us per bit: start bit first */
+            unsigned sent = bits > 1u ? (unsigned)(bits - 1u) : 0u;
+            if (sent < 8u) {
+                s->mcu_q[q] |= (uint8_t)(0xFFu << sent);
+            }
+            s->truncated++;
+            s->corrupted++;
+        }
+        s->mcu_q[keep] = s->mcu_q[q];
+        s->mcu_start[keep] = st;
+        keep++;
+    }
+    s->mcu_head = keep;
+    if (s->mcu_busy_until > now) {
+        s->mcu_busy_until = now;
+    }
+}
+
+/* simavr sets TXC1 for every byte as soon as UDR1 is written; clearing it here
+ * makes TXC1 mean "the last frame has left" (its own timer sets it again). */
+static void bus_udr1_write(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param)
+{
+    (void)addr;
+    (void)v;
+    (void)param;
+    avr->data[BENCH_UCSR1A] &= (uint8_t)~0x40u;
+}
+
+void bus_init(bench_t *b)
+{
+    bench_bus_t *s = &b->bus;
+    s->byte_us = 11u * 1000000u / BUS_MCU_BAUD;
+    s->rng = 0x9E3779B97F4A7C15ull ^ ((uint64_t)b->seed << 17) ^ b->seed;
+    if (s->rng == 0) {
+        s->rng = 1;
+    }
+}
+
+void bus_attach_irqs(bench_t *b)
+{
+    bench_bus_t *s = &b->bus;
+    avr_t *avr = b->avr;
+    s->rx_irq = avr_io_getirq(avr, AVR_IOCTL_UART_GETIRQ('1'), UART_IRQ_INPUT);
+    avr_irq_register_notify(avr_io_getirq(avr, AVR_IOCTL_UART_GETIRQ('1'), UART_IRQ_OUTPUT),
+                            bus_mcu_byte, b);
+    avr_irq_register_notify(avr_io_getirq(avr, AVR_IOCTL_UART_GETIRQ('1'), UART_IRQ_OUT_XON),
+                            bus_xon, b);
+    avr_irq_register_notify(avr_io_getirq(avr, AVR_IOCTL_UART_GETIRQ('1'), UART_IRQ_OUT_XOFF),
+                            bus_xoff, b);
+    avr_irq_register_notify(avr_io_getirq(avr, AVR_IOCTL_IOPORT_GETIRQ('E'), 4), bus_dir, b);
+    avr_register_io_write(avr, BENCH_UDR1, bus_udr1_write, b);
+}
+
+uint64_t bus_next_us(bench_t *b)
+{
+    bench_bus_t *s = &b->bus;
+    uint64_t now = bench_now_us(b);
+    uint64_t next = 0;
+    if (s->mcu_tail != s->mcu_head) {
+        next = s->mcu_start[s->mcu_tail] + s->byte_us;
+    }
+    for (uint8_t i = 0; i < s->n_servos; i++) {
+        uint64_t d = servo_due(s, i, now);
+        if (d != 0 && (next == 0 || d < next)) {
+            next = d;
+        }
+    }
+    return next;
+}
+
+static void deliver_mcu_byte(bench_t *b)
+{
+    bench_bus_t *s = &b->bus;
+    uint8_t byte = s->mcu_q[s->mcu_tail];
+    uint64_t start = s->mcu_start[s->mcu_tail];
+    uint64_t end = start + s->byte_us;
+    s->mcu_tail++;
+    if (overlaps(s, start, end, -1)) {
+        s->collisions++;
+        byte = bus_corrupt(s, byte);
+    }
+    byte = bus_noise(s, byte);
+    hist_add(s, start, end, -1);
+    for (uint8_t i = 0; i < s->n_servos; i++) {
+        if (!s->silent[i]) {
+            xl430_rx(&s->servo[i], byte, (uint32_t)end);
+        }
+    }
+}
+
+static void deliver_servo_byte(bench_t *b, uint8_t i, uint64_t due)
+{
+    bench_bus_t *s = &b->bus;
+    uint8_t byte;
+    uint32_t due32;
+    xl430_tx_peek(&s->servo[i], &byte, &due32);
+    xl430_tx_pop(&s->servo[i]);
+    if (s->silent[i]) {
+        return;
+    }
+    s->servo_bytes++;
+    uint64_t start = due - servo_byte_us(&s->servo[i]);
+    if (overlaps(s, start, due, (int8_t)i)) {
+        s->collisions++;
+        byte = bus_corrupt(s, byte);
+    }
+    byte = bus_noise(s, byte);
+    hist_add(s, start, due, (int8_t)i);
+    for (uint8_t k = 0; k < s->n_servos; k++) {
+        if (k != i && !s->silent[k]) {
+            xl430_rx(&s->servo[k], byte, due32);
+        }
+    }
+    rx_push(b, byte);
+}
+
+void bus_service(bench_t *b, uint64_t now)
+{
+    bench_bus_t *s = &b->bus;
+    for (;;) {
+        uint64_t best = 0;
+        int who = -2;
+        if (s->mcu_tail != s->mcu_head) {
+            best = s->mcu_start[s->mcu_tail] + s->byte_us;
+            who = -1;
+        }
+        for (uint8_t i = 0; i < s->n_servos; i++) {
+            uint64_t d = servo_due(s, i, now);
+            if (d != 0 && (who == -2 || d < best)) {
+                best = d;
+                who = i;
+            }
+        }
+        if (who == -2 || best > now) {
+            return;
+        }
+        if (who == -1) {
+            deliver_mcu_byte(b);
+        } else {
+            deliver_servo_byte(b, (uint8_t)who, best);
+        }
+    }
+}
+
+void bus_power_cycle(bench_t *b, uint64_t now_us)
+{
+    bench_bus_t *s = &b->bus;
+    for (uint8_t i = 0; i < s->n_servos; i++) {
+        xl430_power_cycle(&s->servo[i], (uint32_t)now_us);
+    }
+    s->mcu_head = s->mcu_tail = 0;
+    s->rx_head = s->rx_tail = 0;
+    s->mcu_busy_until = now_us;
+    s->dir_tx = 0;
+}

@@ -1,0 +1,751 @@
+/*
+ * hh_bench: runs the firmware ELF on simavr with the simulated board around
+ * it. Command line, run loop, resets, EEPROM image and the run summary;
+ * docs/bench.md is the reference for options, events, output and exit codes.
+ */
+#define _POSIX_C_SOURCE 200809L
+#include <errno.h>
+#include <math.h>
+#include <signal.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+#include <unistd.h>
+
+#include <avr_eeprom.h>
+#include <avr_ioport.h>
+#include <avr_uart.h>
+#include <sim_elf.h>
+#include <sim_io.h>
+
+#include "bench.h"
+
+bench_t *bench_signal_target;
+static volatile sig_atomic_t bench_signalled;
+static bench_t bench; /* large (device models): kept out of the stack */
+
+static double wall_now(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + (double)ts.tv_nsec * 1e-9;
+}
+
+static void on_signal(int sig)
+{
+    (void)sig;
+    bench_signalled = 1;
+}
+
+/* The default callback sleeps in wall time; a sleeping firmware must not
+ * hold the simulation back (pacing, when asked for, is done in the loop). */
+static void no_sleep(avr_t *avr, avr_cycle_count_t how_long)
+{
+    (void)avr;
+    (void)how_long;
+}
+
+void bench_finish(bench_t *b, int code, const char *reason)
+{
+    if (b->stop) {
+        return;
+    }
+    b->stop = 1;
+    b->exit_code = code;
+    b->reason = reason;
+}
+
+void bench_console_line(bench_t *b, const char *line)
+{
+    if (b->con.echo) {
+        if (b->con.timestamps) {
+            double t = (double)bench_now_us(b) * 1e-6;
+            printf("[%10.6f] %s\n", t, line);
+        } else {
+            printf("%s\n", line);
+        }
+        fflush(stdout);
+    }
+    if (b->stop) {
+        return;
+    }
+    for (uint8_t i = 0; i < b->n_fail; i++) {
+        if (regexec(&b->fail_re[i], line, 0, NULL, 0) == 0) {
+            snprintf(b->until_line, sizeof b->until_line, "%s", line);
+            b->until_at_us = bench_now_us(b);
+            snprintf(b->reason_buf, sizeof b->reason_buf, "fail-on matched: %s", b->fail_text[i]);
+            bench_finish(b, BENCH_EXIT_FAIL, b->reason_buf);
+            return;
+        }
+    }
+    for (uint8_t i = 0; i < b->n_until; i++) {
+        if (regexec(&b->until_re[i], line, 0, NULL, 0) == 0) {
+            snprintf(b->until_line, sizeof b->until_line, "%s", line);
+            b->until_at_us = bench_now_us(b);
+            bench_finish(b, BENCH_EXIT_OK, "until matched");
+            return;
+        }
+    }
+}
+
+/* ---- the one service timer: bus bytes, world ticks, scenario events --------- */
+
+static uint64_t next_event_us(bench_t *b)
+{
+    uint64_t next = bus_next_us(b);
+    uint64_t cand[3] = {b->have_plant ? b->next_world_us : 0,
+                        b->next_ev < b->n_ev ? b->ev[b->next_ev].at_us : 0, b->button_release_us};
+    if (b->next_ev < b->n_ev && cand[1] == 0) {
+        cand[1] = 1; /* an event at t = 0 runs right away */
+    }
+    for (int i = 0; i < 3; i++) {
+        if (cand[i] != 0 && (next == 0 || cand[i] < next)) {
+            next = cand[i];
+        }
+    }
+    return next;
+}
+
+static avr_cycle_count_t service(avr_t *avr, avr_cycle_count_t when, void *param)
+{
+    bench_t *b = param;
+    uint64_t now = when / (BENCH_F_CPU / 1000000u);
+    (void)avr;
+    b->in_service = 1;
+    bus_service(b, now);
+    if (b->have_plant && b->next_world_us <= now) {
+        world_tick(b, now);
+    }
+    if (!b->pending_reset) {
+        scen_run_due(b, now);
+    }
+    bus_service(b, now);
+    b->in_service = 0;
+    uint64_t next = next_event_us(b);
+    if (next == 0 || b->pending_reset) {
+        b->timer_at = 0;
+        return 0;
+    }
+    if (next <= now) {
+        next = now + 1u;
+    }
+    b->timer_at = next;
+    return (avr_cycle_count_t)next * (BENCH_F_CPU / 1000000u);
+}
+
+void bench_rearm(bench_t *b)
+{
+    if (b->in_service) {
+        return;
+    }
+    uint64_t now = bench_now_us(b);
+    uint64_t next = next_event_us(b);
+    if (next == 0 || (b->timer_at != 0 && b->timer_at <= next)) {
+        return;
+    }
+    if (next <= now) {
+        next = now + 1u;
+    }
+    avr_cycle_timer_cancel(b->avr, service, b);
+    avr_cycle_timer_register(b->avr, (next - now) * (BENCH_F_CPU / 1000000u), service, b);
+    b->timer_at = next;
+}
+
+/* ---- pins, EEPROM, resets ------------------------------------------------------ */
+
+static void led_pin(avr_irq_t *irq, uint32_t value, void *param)
+{
+    bench_t *b = param;
+    (void)irq;
+    uint8_t on = value ? 1u : 0u;
+    if (on == b->led_on && b->led_changes > 0) {
+        return;
+    }
+    b->led_on = on;
+    b->led_changes++;
+    if (b->n_led < BENCH_LED_LOG) {
+        b->led[b->n_led].t_us = bench_now_us(b);
+        b->led[b->n_led].on = on;
+        b->n_led++;
+    }
+}
+
+static void eecr_write(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param)
+{
+    bench_t *b = param;
+    (void)avr;
+    (void)addr;
+    if (v & 0x02u) { /* EEPE: simavr has written the byte */
+        b->ee_writes++;
+        if (b->eewrite_stop != 0 && b->ee_writes >= b->eewrite_stop) {
+            bench_finish(b, BENCH_EXIT_OK, "power-loss after EEPROM write");
+        }
+    }
+}
+
+static void reset_hook(avr_io_t *io)
+{
+    bench_t *b = ((bench_reset_io_t *)(void *)io)->b;
+    b->reset_seen = 1;
+}
+
+static void ee_get(bench_t *b, uint8_t *img)
+{
+    avr_eeprom_desc_t d = {img, 0, BENCH_EEPROM_SIZE};
+    avr_ioctl(b->avr, AVR_IOCTL_EEPROM_GET, &d); /* returns -1 even on success */
+}
+
+static void ee_set(bench_t *b, uint8_t *img)
+{
+    avr_eeprom_desc_t d = {img, 0, BENCH_EEPROM_SIZE};
+    avr_ioctl(b->avr, AVR_IOCTL_EEPROM_SET, &d);
+}
+
+static int ee_load(bench_t *b)
+{
+    FILE *f;
+    memset(b->ee_image, 0xFF, sizeof b->ee_image);
+    if (b->eeprom_path == NULL) {
+        return 0;
+    }
+    f = fopen(b->eeprom_path, "rb");
+    if (f == NULL) {
+        if (errno == ENOENT) {
+            ee_set(b, b->ee_image); /* a new board: erased */
+            return 0;
+        }
+        perror(b->eeprom_path);
+        return -1;
+    }
+    size_t n = fread(b->ee_image, 1, sizeof b->ee_image, f);
+    fclose(f);
+    if (n != sizeof b->ee_image) {
+        fprintf(stderr, "hh_bench: %s: %zu bytes, expected %u\n", b->eeprom_path, n,
+                BENCH_EEPROM_SIZE);
+        return -1;
+    }
+    ee_set(b, b->ee_image);
+    return 0;
+}
+
+static int ee_save(bench_t *b)
+{
+    char tmp[4096];
+    FILE *f;
+    if (b->eeprom_path == NULL) {
+        return 0;
+    }
+    ee_get(b, b->ee_image);
+    snprintf(tmp, sizeof tmp, "%s.tmp", b->eeprom_path);
+    f = fopen(tmp, "wb");
+    if (f == NULL || fwrite(b->ee_image, 1, sizeof b->ee_image, f) != sizeof b->ee_image) {
+        perror(tmp);
+        if (f) {
+            fclose(f);
+        }
+        return -1;
+    }
+    if (fclose(f) != 0 || rename(tmp, b->eeprom_path) != 0) {
+        perror(b->eeprom_path);
+        return -1;
+    }
+    return 0;
+}
+
+/* After any reset (ours or the firmware's watchdog): simavr dropped every
+ * host timer and cleared the I/O registers; put back what the board's
+ * hardware holds there. */
+static void after_reset(bench_t *b)
+{
+    uint64_t now = bench_now_us(b);
+    b->resets++;
+    if (b->n_reset_log < BENCH_RESET_LOG) {
+        b->reset_log[b->n_reset_log].t_us = now;
+        b->reset_log[b->n_reset_log].mcusr = b->avr->data[BENCH_MCUSR];
+        b->n_reset_log++;
+    }
+    if (b->avr->data[BENCH_MCUSR] & 0x08u) {
+        b->wdt_resets++;
+    }
+    b->timer_at = 0;
+    b->bus.dir_tx = 0;
+    b->bus.mcu_head = b->bus.mcu_tail = 0;
+    b->bus.xoff = 0;
+    b->con.xoff = 0;
+    led_pin(NULL, 0, b);
+    bench_button(b, b->button_down);
+    if (b->button_down) {
+        b->presses--; /* re-applied, not pressed again */
+    }
+    twi_bench_advance(b, now);
+    b->twi.cur = -1;
+    b->twi.addr_phase = 0;
+    /* lines_apply via a DDRD-neutral path: stick state unchanged */
+    {
+        avr_ioport_external_t ext = {'D', b->twi.ext_d_mask, b->twi.ext_d_value};
+        avr_ioctl(b->avr, AVR_IOCTL_IOPORT_SET_EXTERNAL('D'), &ext);
+        avr_raise_irq(avr_io_getirq(b->avr, AVR_IOCTL_IOPORT_GETIRQ('D'), 0), 1);
+        avr_raise_irq(avr_io_getirq(b->avr, AVR_IOCTL_IOPORT_GETIRQ('D'), 1),
+                      (b->twi.ext_d_value & 0x02u) ? 1u : 0u);
+    }
+    bench_rearm(b);
+}
+
+static uint64_t sram_rng(uint64_t *s)
+{
+    *s ^= *s << 13;
+    *s ^= *s >> 7;
+    *s ^= *s << 17;
+    return *s;
+}
+
+static void do_reset(bench_t *b, uint8_t kind)
+{
+    uint64_t now = bench_now_us(b);
+    ee_get(b, b->ee_image);
+    avr_reset(b->avr);
+    ee_set(b, b->ee_image);
+    b->reset_seen = 0;
+    if (kind == EV_POWER_CYCLE) {
+        /* SRAM content is undefined after power-up: no .noinit survives */
+        uint64_t s =
+            0x2545F4914F6CDD1Dull ^ (b->power_cycles + 1u) * 0x9E3779B97F4A7C15ull ^ b->seed;
+        for (unsigned a = BENCH_RAMSTART; a <= BENCH_RAMEND; a++) {
+            b->avr->data[a] = (uint8_t)sram_rng(&s);
+        }
+        b->avr->data[BENCH_MCUSR] = 0x01u; /* PORF */
+        b->power_cycles++;
+        world_power_cycle(b, now);
+    } else if (kind == EV_WDT_RESET) {
+        b->avr->data[BENCH_MCUSR] = 0x08u; /* WDRF */
+    } else {
+        b->avr->data[BENCH_MCUSR] = 0x02u; /* EXTRF */
+    }
+    after_reset(b);
+}
+
+/* ---- summary --------------------------------------------------------------------- */
+
+static void json_str(FILE *f, const char *s)
+{
+    fputc('"', f);
+    for (; *s; s++) {
+        unsigned char c = (unsigned char)*s;
+        if (c == '"' || c == '\\') {
+            fprintf(f, "\\%c", c);
+        } else if (c < 0x20 || c >= 0x7F) {
+            fprintf(f, "\\u%04x", c);
+        } else {
+            fputc(c, f);
+        }
+    }
+    fputc('"', f);
+}
+
+static const char *cause_name(uint8_t mcusr)
+{
+    if (mcusr & 0x08u) {
+        return "watchdog";
+    }
+    if (mcusr & 0x04u) {
+        return "brown-out";
+    }
+    if (mcusr & 0x01u) {
+        return "power";
+    }
+    if (mcusr & 0x02u) {
+        return "external";
+    }
+    return "software";
+}
+
+static void write_summary(bench_t *b, double wall)
+{
+    FILE *f = fopen(b->summary_path, "w");
+    double sim = (double)bench_now_us(b) * 1e-6;
+    const bench_bus_t *s = &b->bus;
+    const bench_twi_t *t = &b->twi;
+    if (f == NULL) {
+        perror(b->summary_path);
+        return;
+    }
+    fprintf(f, "{\n  \"elf\": ");
+    json_str(f, b->elf_path);
+    fprintf(f, ",\n  \"exit_code\": %d,\n  \"reason\": ", b->exit_code);
+    json_str(f, b->reason ? b->reason : "");
+    fprintf(f,
+            ",\n  \"sim_s\": %.6f,\n  \"wall_s\": %.3f,\n  \"speed\": %.2f,\n  \"cycles\": %llu,\n",
+            sim, wall, wall > 0 ? sim / wall : 0.0, (unsigned long long)b->avr->cycle);
+    fprintf(f, "  \"seed\": %u,\n  \"until\": {\"matched\": %s, \"t_s\": %.6f, \"line\": ", b->seed,
+            b->until_line[0] ? "true" : "false", (double)b->until_at_us * 1e-6);
+    json_str(f, b->until_line);
+    fprintf(f, "},\n  \"cal_time_s\": %.6f,\n",
+            b->cal_start_us && b->until_at_us > b->cal_start_us
+                ? (double)(b->until_at_us - b->cal_start_us) * 1e-6
+                : 0.0);
+    fprintf(f,
+            "  \"console\": {\"bytes_out\": %llu, \"bytes_in\": %llu, \"input_pending\": %llu, "
+            "\"lines\": %llu},\n",
+            (unsigned long long)b->con.bytes_out, (unsigned long long)b->con.bytes_in,
+            (unsigned long long)(b->con.in_len - b->con.in_pos), (unsigned long long)b->con.lines);
+    fprintf(f, "  \"led\": {\"on\": %u, \"changes\": %llu, \"log\": [", b->led_on,
+            (unsigned long long)b->led_changes);
+    for (uint32_t i = 0; i < b->n_led; i++) {
+        fprintf(f, "%s[%.6f, %u]", i ? ", " : "", (double)b->led[i].t_us * 1e-6, b->led[i].on);
+    }
+    fprintf(f, "]},\n  \"button\": {\"presses\": %llu, \"down\": %u},\n",
+            (unsigned long long)b->presses, b->button_down);
+    fprintf(
+        f, "  \"resets\": {\"count\": %llu, \"watchdog\": %llu, \"power_cycles\": %llu, \"log\": [",
+        (unsigned long long)b->resets, (unsigned long long)b->wdt_resets,
+        (unsigned long long)b->power_cycles);
+    for (uint32_t i = 0; i < b->n_reset_log; i++) {
+        fprintf(f, "%s{\"t_s\": %.6f, \"cause\": \"%s\"}", i ? ", " : "",
+                (double)b->reset_log[i].t_us * 1e-6, cause_name(b->reset_log[i].mcusr));
+    }
+    fprintf(f, "]},\n  \"eeprom\": {\"path\": ");
+    json_str(f, b->eeprom_path ? b->eeprom_path : "");
+    fprintf(f, ", \"writes\": %llu},\n", (unsigned long long)b->ee_writes);
+    fprintf(
+        f,
+        "  \"bus\": {\"mcu_bytes\": %llu, \"mcu_bytes_no_dir\": %llu, \"truncated\": %llu, "
+        "\"servo_bytes\": %llu, \"rx_delivered\": %llu, \"rx_lost\": %llu, \"collisions\": %llu, "
+        "\"corrupted\": %llu, \"noise_hits\": %llu, \"xoff\": %llu, \"noise_rate\": %g, "
+        "\"servos\": [",
+        (unsigned long long)s->mcu_bytes, (unsigned long long)s->mcu_bytes_no_dir,
+        (unsigned long long)s->truncated, (unsigned long long)s->servo_bytes,
+        (unsigned long long)s->delivered_rx, (unsigned long long)s->lost_rx_disabled,
+        (unsigned long long)s->collisions, (unsigned long long)s->corrupted,
+        (unsigned long long)s->noise_hits, (unsigned long long)s->xoff_events, s->noise_rate);
+    for (uint8_t i = 0; i < s->n_servos; i++) {
+        fprintf(f, "%s{\"id\": %u, \"instructions\": %u, \"replies\": %u, \"silent\": %u}",
+                i ? ", " : "", s->servo[i].cfg.id, s->servo[i].instructions, s->servo[i].replies,
+                s->silent[i]);
+    }
+    fprintf(f,
+            "]},\n  \"twi\": {\"starts\": %llu, \"addr_acks\": %llu, \"addr_nacks\": %llu, "
+            "\"writes\": %llu, "
+            "\"reads\": %llu, \"stops\": %llu, \"status_fixes\": %llu, \"stuck\": %u, "
+            "\"stuck_events\": %llu, \"stuck_refused\": %llu, \"scl_clocks\": %llu, "
+            "\"recoveries\": %llu, \"mux_ctrl_writes\": %u, \"sensors\": [",
+            (unsigned long long)t->starts, (unsigned long long)t->addr_acks,
+            (unsigned long long)t->addr_nacks, (unsigned long long)t->writes,
+            (unsigned long long)t->reads, (unsigned long long)t->stops,
+            (unsigned long long)t->status_fixes, t->stuck, (unsigned long long)t->stuck_events,
+            (unsigned long long)t->stuck_refused, (unsigned long long)t->scl_clocks,
+            (unsigned long long)t->recoveries, t->mux.ctrl_writes);
+    for (uint8_t k = 0; k < t->n_icm; k++) {
+        fprintf(f, "%s{\"present\": %u, \"samples\": %u, \"ext_reads\": %u, \"resets\": %u}",
+                k ? ", " : "", t->icm[k].present, t->icm[k].ak.samples, t->icm[k].ext_reads,
+                t->icm[k].resets);
+    }
+    fprintf(f, "]},\n");
+    world_report(b, f, NULL);
+    fprintf(f, "\n}\n");
+    fclose(f);
+}
+
+/* ---- command line ------------------------------------------------------------------ */
+
+static void usage(FILE *f)
+{
+    fprintf(
+        f,
+        "usage: hh_bench [options] FIRMWARE.elf\n"
+        "  --limit TIME          stop after this simulated time (e.g. 30s, 500ms)\n"
+        "  --until REGEX         end with exit 0 when a console line matches (repeatable)\n"
+        "  --fail-on REGEX       end with exit 1 when a console line matches (repeatable)\n"
+        "  --at 'TIME EVENT ...' a timed event (repeatable); --scenario FILE: a script of them\n"
+        "  --input FILE          console input queued at power-up; --stdin: forward stdin\n"
+        "  --interactive         console on a pty (path printed; --pty-link PATH adds a symlink)\n"
+        "  --realtime            pace simulated time to the wall clock\n"
+        "  --timestamps          prefix console lines with the simulated time; --quiet: no "
+        "console\n"
+        "  --eeprom FILE         EEPROM image (4096 bytes), loaded if it exists, saved at exit\n"
+        "  --power-loss-after-eewrites N  stop right after the Nth EEPROM byte write\n"
+        "  --summary FILE        JSON summary at exit\n"
+        "  --plant FILE          robot plant config (sim/plant); servos and sensors from it\n"
+        "  --seed N              seed of the perturbation, the start state and all noise\n"
+        "  --perturb FRAC        relative perturbation of the robot's parameters (0.05)\n"
+        "  --slack MIN:MAX       start slack before engagement in mm (0.3:2)\n"
+        "  --tension N           calibration tension for the truth table (plant default)\n"
+        "  --table               print the per-tendon table at exit\n"
+        "  --check-tension PCT   exit 1 unless every tendon's true tension at home is within "
+        "PCT%%\n"
+        "exit: 0 ok, 1 fail-on/check, 2 usage, 3 time limit before --until, 4 firmware stopped, "
+        "5 signal\n");
+}
+
+static int add_re(regex_t *re, uint8_t *n, const char *pat, char (*text)[128])
+{
+    if (*n >= BENCH_MAX_PATTERN || regcomp(&re[*n], pat, REG_EXTENDED | REG_NOSUB) != 0) {
+        fprintf(stderr, "hh_bench: bad or too many patterns: %s\n", pat);
+        return -1;
+    }
+    if (text != NULL) {
+        snprintf(text[*n], sizeof text[*n], "%s", pat);
+    }
+    (*n)++;
+    return 0;
+}
+
+int main(int argc, char **argv)
+{
+    bench_t *b = &bench;
+    elf_firmware_t fw;
+    double check_pct = -1.0;
+    uint8_t table = 0, use_stdin = 0;
+
+    b->seed = 1;
+    b->perturb = 0.05;
+    b->start_slack_min_mm = 0.3;
+    b->start_slack_max_mm = 2.0;
+    b->con.echo = 1;
+    b->con.pty_fd = -1;
+    b->con.stdin_fd = -1;
+    for (int i = 1; i < argc; i++) {
+        const char *a = argv[i];
+        const char *v = i + 1 < argc ? argv[i + 1] : NULL;
+#define NEEDV()                                                                                    \
+    do {                                                                                           \
+        if (v == NULL) {                                                                           \
+            fprintf(stderr, "hh_bench: %s needs a value\n", a);                                    \
+            return BENCH_EXIT_USAGE;                                                               \
+        }                                                                                          \
+        i++;                                                                                       \
+    } while (0)
+        if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) {
+            usage(stdout);
+            return 0;
+        } else if (strcmp(a, "--limit") == 0) {
+            NEEDV();
+            if (scen_parse_time(v, &b->limit_us) != 0) {
+                fprintf(stderr, "hh_bench: bad time %s\n", v);
+                return BENCH_EXIT_USAGE;
+            }
+        } else if (strcmp(a, "--until") == 0) {
+            NEEDV();
+            if (add_re(b->until_re, &b->n_until, v, NULL) != 0) {
+                return BENCH_EXIT_USAGE;
+            }
+        } else if (strcmp(a, "--fail-on") == 0) {
+            NEEDV();
+            if (add_re(b->fail_re, &b->n_fail, v, b->fail_text) != 0) {
+                return BENCH_EXIT_USAGE;
+            }
+        } else if (strcmp(a, "--at") == 0) {
+            NEEDV();
+            if (scen_add_spec(b, v) != 0) {
+                fprintf(stderr, "hh_bench: bad event: %s\n", v);
+                return BENCH_EXIT_USAGE;
+            }
+        } else if (strcmp(a, "--scenario") == 0) {
+            NEEDV();
+            if (scen_load_file(b, v) != 0) {
+                return BENCH_EXIT_USAGE;
+            }
+        } else if (strcmp(a, "--input") == 0) {
+            NEEDV();
+            b->input_path = v;
+        } else if (strcmp(a, "--stdin") == 0) {
+            use_stdin = 1;
+        } else if (strcmp(a, "--interactive") == 0) {
+            b->interactive = 1;
+        } else if (strcmp(a, "--pty-link") == 0) {
+            NEEDV();
+            b->pty_link = v;
+        } else if (strcmp(a, "--realtime") == 0) {
+            b->realtime = 1;
+        } else if (strcmp(a, "--timestamps") == 0) {
+            b->con.timestamps = 1;
+        } else if (strcmp(a, "--quiet") == 0) {
+            b->con.echo = 0;
+        } else if (strcmp(a, "--eeprom") == 0) {
+            NEEDV();
+            b->eeprom_path = v;
+        } else if (strcmp(a, "--power-loss-after-eewrites") == 0) {
+            NEEDV();
+            b->eewrite_stop = strtoull(v, NULL, 10);
+        } else if (strcmp(a, "--summary") == 0) {
+            NEEDV();
+            b->summary_path = v;
+        } else if (strcmp(a, "--plant") == 0) {
+            NEEDV();
+            b->plant_path = v;
+        } else if (strcmp(a, "--seed") == 0) {
+            NEEDV();
+            b->seed = (uint32_t)strtoul(v, NULL, 0);
+        } else if (strcmp(a, "--perturb") == 0) {
+            NEEDV();
+            b->perturb = strtod(v, NULL);
+        } else if (strcmp(a, "--slack") == 0) {
+            NEEDV();
+            if (sscanf(v, "%lf:%lf", &b->start_slack_min_mm, &b->start_slack_max_mm) != 2 ||
+                b->start_slack_min_mm < 0 || b->start_slack_max_mm < b->start_slack_min_mm) {
+                fprintf(stderr, "hh_bench: bad --slack %s\n", v);
+                return BENCH_EXIT_USAGE;
+            }
+        } else if (strcmp(a, "--tension") == 0) {
+            NEEDV();
+            b->tension_N = strtod(v, NULL);
+        } else if (strcmp(a, "--table") == 0) {
+            table = 1;
+        } else if (strcmp(a, "--check-tension") == 0) {
+            NEEDV();
+            check_pct = strtod(v, NULL);
+        } else if (a[0] == '-') {
+            fprintf(stderr, "hh_bench: unknown option %s\n", a);
+            usage(stderr);
+            return BENCH_EXIT_USAGE;
+        } else {
+            b->elf_path = a;
+        }
+#undef NEEDV
+    }
+    if (b->elf_path == NULL) {
+        usage(stderr);
+        return BENCH_EXIT_USAGE;
+    }
+
+    memset(&fw, 0, sizeof fw);
+    if (elf_read_firmware(b->elf_path, &fw) != 0) {
+        fprintf(stderr, "hh_bench: cannot read %s\n", b->elf_path);
+        return BENCH_EXIT_USAGE;
+    }
+    fw.frequency = BENCH_F_CPU;
+    snprintf(fw.mmcu, sizeof fw.mmcu, "%s", "atmega2560");
+    b->avr = avr_make_mcu_by_name("atmega2560");
+    if (b->avr == NULL) {
+        fprintf(stderr, "hh_bench: simavr has no atmega2560\n");
+        return BENCH_EXIT_USAGE;
+    }
+    avr_init(b->avr);
+    b->avr->log = LOG_WARNING;
+    avr_load_firmware(b->avr, &fw);
+    b->avr->frequency = BENCH_F_CPU;
+    b->avr->sleep = no_sleep;
+    for (char u = '0'; u <= '3'; u++) {
+        uint32_t flags = 0;
+        avr_ioctl(b->avr, AVR_IOCTL_UART_SET_FLAGS(u), &flags);
+    }
+
+    b->reset_io.b = b;
+    b->reset_io.io.kind = "hh_bench";
+    b->reset_io.io.reset = reset_hook;
+    avr_register_io(b->avr, &b->reset_io.io);
+
+    con_bench_attach(b);
+    bus_init(b);
+    bus_attach_irqs(b);
+    twi_bench_init(b, b->seed);
+    avr_irq_register_notify(avr_io_getirq(b->avr, AVR_IOCTL_IOPORT_GETIRQ('B'), 7), led_pin, b);
+    avr_register_io_write(b->avr, BENCH_EECR, eecr_write, b);
+    if (ee_load(b) != 0 || world_init(b) != 0) {
+        return BENCH_EXIT_USAGE;
+    }
+    twi_bench_attach(b);
+    b->avr->data[BENCH_MCUSR] = 0x01u; /* PORF: this run is a power-up */
+    bench_button(b, 0);
+    scen_sort(b);
+    if (b->interactive && con_bench_open_pty(b, b->pty_link) != 0) {
+        return BENCH_EXIT_USAGE;
+    }
+    if (use_stdin) {
+        b->con.stdin_fd = 0;
+    }
+    if (b->input_path != NULL) {
+        FILE *f = fopen(b->input_path, "rb");
+        char buf[1024];
+        size_t n;
+        if (f == NULL) {
+            perror(b->input_path);
+            return BENCH_EXIT_USAGE;
+        }
+        while ((n = fread(buf, 1, sizeof buf, f)) > 0) {
+            con_bench_queue(b, buf, n);
+        }
+        fclose(f);
+    }
+    bench_rearm(b);
+
+    bench_signal_target = b;
+    signal(SIGINT, on_signal);
+    signal(SIGTERM, on_signal);
+    signal(SIGPIPE, SIG_IGN);
+
+    b->wall_start = wall_now();
+    uint64_t limit_cycles = b->limit_us * (BENCH_F_CPU / 1000000u);
+    uint32_t spin = 0;
+    while (!b->stop) {
+        int st = avr_run(b->avr);
+        if (st == cpu_Done || st == cpu_Crashed) {
+            snprintf(b->reason_buf, sizeof b->reason_buf, "firmware %s",
+                     st == cpu_Done ? "stopped (sleep with interrupts off)" : "crashed");
+            bench_finish(b, b->n_until ? BENCH_EXIT_CRASHED : BENCH_EXIT_OK, b->reason_buf);
+            if (b->n_until == 0 && st == cpu_Crashed) {
+                b->exit_code = BENCH_EXIT_CRASHED;
+            }
+            break;
+        }
+        if (b->reset_seen) {
+            b->reset_seen = 0;
+            after_reset(b);
+        }
+        if (b->pending_reset) {
+            uint8_t k = b->pending_reset;
+            b->pending_reset = 0;
+            do_reset(b, k);
+        }
+        if (limit_cycles != 0 && b->avr->cycle >= limit_cycles) {
+            bench_finish(b, b->n_until ? BENCH_EXIT_TIMEOUT : BENCH_EXIT_OK, "time limit");
+        }
+        if ((++spin & 0x3FFFu) == 0) {
+            if (bench_signalled) {
+                bench_finish(b, BENCH_EXIT_SIGNAL, "signal");
+            }
+            con_bench_poll_fds(b);
+            if (b->realtime) {
+                double ahead = (double)bench_now_us(b) * 1e-6 - (wall_now() - b->wall_start);
+                if (ahead > 0.002) {
+                    struct timespec ts = {0, (long)((ahead > 0.05 ? 0.05 : ahead) * 1e9)};
+                    nanosleep(&ts, NULL);
+                }
+            }
+        }
+    }
+    double wall = wall_now() - b->wall_start;
+    con_bench_flush(b);
+
+    if (check_pct >= 0.0 && b->have_plant && b->exit_code == BENCH_EXIT_OK) {
+        for (uint8_t i = 0; i < b->bus.n_servos; i++) {
+            double t =
+                plant_tension_at(&b->plant.cfg, i, xl430_shaft_ticks(&b->bus.servo[i])) * 1000.0;
+            if (fabs(t - (double)b->target_mN) > check_pct * 0.01 * (double)b->target_mN) {
+                snprintf(b->reason_buf, sizeof b->reason_buf,
+                         "tendon %u: true tension %.0f mN at home, target %d mN", i, t,
+                         (int)b->target_mN);
+                b->reason = b->reason_buf;
+                b->exit_code = BENCH_EXIT_FAIL;
+                break;
+            }
+        }
+    }
+    if (ee_save(b) != 0 && b->exit_code == BENCH_EXIT_OK) {
+        b->exit_code = BENCH_EXIT_FAIL;
+    }
+    if (table) {
+        world_report(b, NULL, stdout);
+        if (b->cal_start_us != 0 && b->until_at_us > b->cal_start_us) {
+            printf("calibration time %.3f s simulated\n",
+                   (double)(b->until_at_us - b->cal_start_us) * 1e-6);
+        }
+    }
+    if (b->summary_path != NULL) {
+        write_summary(b, wall);
+    }
+    fprintf(stderr, "hh_bench: %s after %.3f s simulated in %.3f s wall (%.1fx), exit %d\n",
+            b->reason ? b->reason : "stopped", (double)bench_now_us(b) * 1e-6, wall,
+            wall > 0 ? (double)bench_now_us(b) * 1e-6 / wall : 0.0, b->exit_code);
+    fflush(stdout);
+    return b->exit_code;
+}

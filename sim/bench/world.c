@@ -1,0 +1,188 @@
+/*
+ * world: the robot plant (sim/plant) behind the servo and sensor models.
+ *
+ * Once per simulated millisecond every XL430 model advances its profile, the
+ * plant takes the servos' physical shaft angles as its motor angles, finds
+ * its equilibrium when a motor moved, and each ICM-20948 model receives the
+ * true field at its sensor (the model adds its own noise, 0.15 uT
+ * quantization, saturation and data-ready timing). The servos' Present Load
+ * follows the spool tension (an estimate, as on the real XL430).
+ *
+ * The start is a seeded random slack state: each tendon's shaft powers up
+ * between the given slack margins before its true engagement.
+ */
+#define _POSIX_C_SOURCE 200809L
+#include <math.h>
+#include <string.h>
+
+#include "bench.h"
+
+#define WORLD_TICK_US 1000u
+/* XL430-W250-T stall torque at 12 V (e-manual): 1.5 N m; spool radius 4 mm. */
+#define WORLD_STALL_NM 1.5
+#define WORLD_SPOOL_M  0.004
+
+static double world_rand01(uint64_t *s)
+{
+    *s ^= *s >> 12;
+    *s ^= *s << 25;
+    *s ^= *s >> 27;
+    return (double)((*s * 2685821657736338717ull) >> 11) * (1.0 / 9007199254740992.0);
+}
+
+int world_init(bench_t *b)
+{
+    bench_bus_t *s = &b->bus;
+    bench_twi_t *t = &b->twi;
+    plant_cfg_t cfg;
+    int line = 0;
+    int rc;
+    if (b->plant_path == NULL) {
+        return 0;
+    }
+    rc = plant_cfg_load(&cfg, b->plant_path, &line);
+    if (rc == 0) {
+        rc = plant_cfg_check(&cfg);
+    }
+    if (rc != 0) {
+        fprintf(stderr, "hh_bench: plant config %s: error %d at line %d\n", b->plant_path, rc,
+                line);
+        return -1;
+    }
+    if (plant_cfg_perturb(&cfg, b->seed, b->perturb) != 0 ||
+        plant_init(&b->plant, &cfg, b->seed) != 0) {
+        fprintf(stderr, "hh_bench: plant config %s refused\n", b->plant_path);
+        return -1;
+    }
+    b->have_plant = 1;
+    b->target_mN = b->tension_N > 0.0 ? (int32_t)lround(b->tension_N * 1000.0) : cfg.default_mN;
+    uint64_t rng = 0x243F6A8885A308D3ull ^ ((uint64_t)b->seed * 0x9E3779B97F4A7C15ull);
+    if (rng == 0) {
+        rng = 1;
+    }
+    s->n_servos = cfg.n_tendons;
+    for (uint8_t i = 0; i < cfg.n_tendons; i++) {
+        xl430_config xc;
+        double eng = 0.0;
+        if (plant_true_engagement(&b->plant.cfg, i, &eng) != 0) {
+            fprintf(stderr, "hh_bench: tendon %u has no engagement point\n", i);
+            return -1;
+        }
+        double mm = b->start_slack_min_mm +
+                    (b->start_slack_max_mm - b->start_slack_min_mm) * world_rand01(&rng);
+        double slack_ticks = mm * 1e6 / cfg.nm_per_tick;
+        xl430_config_default(&xc, cfg.tendon[i].servo_id);
+        xc.bits_per_byte = 11; /* simavr's frame */
+        xc.shaft_ticks = eng - (double)cfg.tendon[i].pull_dir * slack_ticks;
+        xl430_init(&s->servo[i], &xc, 0);
+        xl430_set_sensed(&s->servo[i], 0, 120, 32);
+        plant_set_motor(&b->plant, i, xc.shaft_ticks);
+    }
+    plant_solve(&b->plant);
+    t->n_icm = cfg.n_sensors;
+    for (uint8_t k = 0; k < cfg.n_sensors; k++) {
+        icmm_t *m = &t->icm[k];
+        icmm_init(m, cfg.sensor[k].i2c_addr, b->seed + 101u * k);
+        icmm_set_noise(m, (uint32_t)lround(cfg.noise_uT * 100.0), b->seed + 7u * k + 1u);
+        if (tcam_attach(&t->mux, cfg.sensor[k].mux_channel, icmm_slave(m)) != 0) {
+            fprintf(stderr, "hh_bench: sensor %u: mux channel %u refused\n", k,
+                    cfg.sensor[k].mux_channel);
+            return -1;
+        }
+    }
+    b->next_world_us = 0;
+    world_tick(b, 0);
+    return 0;
+}
+
+void world_tick(bench_t *b, uint64_t now)
+{
+    bench_bus_t *s = &b->bus;
+    uint8_t moved = 0;
+    if (!b->have_plant) {
+        return;
+    }
+    for (uint8_t i = 0; i < s->n_servos; i++) {
+        xl430_step(&s->servo[i], (uint32_t)now);
+        double sh = xl430_shaft_ticks(&s->servo[i]);
+        if (fabs(sh - plant_motor_ticks(&b->plant, i)) > 1e-3) {
+            plant_set_motor(&b->plant, i, sh);
+            moved = 1;
+        }
+    }
+    if (moved) {
+        plant_solve(&b->plant);
+        for (uint8_t i = 0; i < s->n_servos; i++) {
+            double load = b->plant.tension_N[i] * WORLD_SPOOL_M / WORLD_STALL_NM * 1000.0;
+            xl430_set_sensed(&s->servo[i], (int16_t)lround(load > 1000.0 ? 1000.0 : load), 120, 32);
+        }
+    }
+    for (uint8_t k = 0; k < b->twi.n_icm; k++) {
+        double f[3];
+        plant_field_true(&b->plant, k, f);
+        icmm_set_field_cuT(&b->twi.icm[k], (int32_t)lround(f[0] * 100.0),
+                           (int32_t)lround(f[1] * 100.0), (int32_t)lround(f[2] * 100.0));
+    }
+    twi_bench_advance(b, now);
+    b->next_world_us = now + WORLD_TICK_US;
+}
+
+void world_power_cycle(bench_t *b, uint64_t now)
+{
+    bus_power_cycle(b, now);
+    twi_bench_power_cycle(b);
+}
+
+/* Per tendon: the firmware's home (the servo's goal, encoder frame), its
+ * take-up past the true engagement, and the plant's truth there. */
+void world_report(bench_t *b, FILE *json, FILE *table)
+{
+    const plant_cfg_t *cfg = &b->plant.cfg;
+    if (!b->have_plant) {
+        if (json) {
+            fprintf(json, "  \"tendons\": []");
+        }
+        return;
+    }
+    if (table) {
+        fprintf(table,
+                "\ntendon  id  home_ticks  home_mm  true_home  err_ticks  T_home_mN  target_mN  "
+                "err_mN   err_%%\n");
+    }
+    if (json) {
+        fprintf(json, "  \"target_mN\": %d,\n  \"tendons\": [", (int)b->target_mN);
+    }
+    for (uint8_t i = 0; i < b->bus.n_servos; i++) {
+        const xl430 *m = &b->bus.servo[i];
+        double shaft = xl430_shaft_ticks(m);
+        double eng = 0.0, home = NAN;
+        (void)plant_true_engagement(cfg, i, &eng);
+        (void)plant_true_home(cfg, i, (uint16_t)b->target_mN, &home);
+        double t_home = plant_tension_at(cfg, i, shaft) * 1000.0;
+        double take_mm = (shaft - eng) * (double)cfg->tendon[i].pull_dir * cfg->nm_per_tick / 1e6;
+        int32_t goal = (int32_t)xl430_get(m, DXL_XL430_GOAL_POSITION_ADDR, 4);
+        int32_t present = xl430_present_position(m);
+        double err_mN = t_home - (double)b->target_mN;
+        if (table) {
+            fprintf(table, "%6u %3u %11d %8.3f %10.1f %10.1f %10.1f %10d %8.1f %7.1f\n", i,
+                    m->cfg.id, (int)goal, take_mm, home, shaft - home, t_home, (int)b->target_mN,
+                    err_mN, 100.0 * err_mN / (double)b->target_mN);
+        }
+        if (json) {
+            fprintf(
+                json,
+                "%s\n    {\"tendon\": %u, \"id\": %u, \"goal_ticks\": %d, \"present_ticks\": %d, "
+                "\"torque\": %u, \"hw_error\": %u, \"shaft_ticks\": %.2f, \"take_up_mm\": %.4f, "
+                "\"true_engagement_ticks\": %.2f, \"true_home_ticks\": %.2f, \"err_ticks\": %.2f, "
+                "\"tension_at_home_mN\": %.1f, \"tension_now_mN\": %.1f, \"err_mN\": %.1f}",
+                i ? "," : "", i, m->cfg.id, (int)goal, (int)present,
+                (unsigned)xl430_get(m, DXL_XL430_TORQUE_ENABLE_ADDR, 1),
+                (unsigned)xl430_get(m, DXL_XL430_HW_ERROR_ADDR, 1), shaft, take_mm, eng,
+                isnan(home) ? -1.0 : home, isnan(home) ? 0.0 : shaft - home, t_home,
+                b->plant.tension_N[i] * 1000.0, err_mN);
+        }
+    }
+    if (json) {
+        fprintf(json, "\n  ]");
+    }
+}
