@@ -333,15 +333,27 @@ static double plant_gauss(plant_t *p)
     return sqrt(-2.0 * log(u1)) * cos(2.0 * PLANT_PI * u2);
 }
 
+/* World-frame field into sensor k's frame: R^T b. */
+static void to_sensor(const plant_cfg_t *c, uint8_t k, const double w[3], double s[3])
+{
+    const double *r = c->sensor[k].rot;
+    int a;
+    for (a = 0; a < 3; a++) {
+        s[a] = r[0 * 3 + a] * w[0] + r[1 * 3 + a] * w[1] + r[2 * 3 + a] * w[2];
+    }
+}
+
 int plant_read_sensor(plant_t *p, uint8_t k, int32_t out_cuT[3])
 {
+    double w[3];
     double b[3];
     int a;
     int ovf = 0;
     if (p == NULL || out_cuT == NULL || k >= p->cfg.n_sensors) {
         return PLANT_E_ARG;
     }
-    plant_field_true(p, k, b);
+    plant_field_true(p, k, w);
+    to_sensor(&p->cfg, k, w, b);
     for (a = 0; a < 3; a++) {
         double lsb = floor((b[a] + p->cfg.noise_uT * plant_gauss(p)) / 0.15 + 0.5);
         if (lsb > PLANT_LSB_MAX) {
@@ -520,9 +532,11 @@ int plant_make_table(const plant_cfg_t *cfg, tbl_table_t *t)
                               (cfg->nm_per_tick * 1e-3),
                           0, &p);
     for (k = 0; k < cfg->n_sensors; k++) {
+        double bw[3];
         double bm[3];
         plant_field_true(&p, k, b0[k]);
-        plant_dipole_uT(cfg, &p.tip, cfg->sensor[k].pos_mm, bm);
+        plant_dipole_uT(cfg, &p.tip, cfg->sensor[k].pos_mm, bw);
+        to_sensor(cfg, k, bw, bm);
         t->sensors[k].mux_channel = cfg->sensor[k].mux_channel;
         t->sensors[k].i2c_addr = cfg->sensor[k].i2c_addr;
         for (a = 0; a < 3; a++) {
@@ -596,6 +610,9 @@ int plant_make_table(const plant_cfg_t *cfg, tbl_table_t *t)
         }
         row->travel_limit_um = round_u32(travel[cfg->n_grid - 1u] * cfg->travel_limit_factor +
                                          cfg->travel_limit_margin_um);
+        if (cfg->travel_limit_um > 0.0) {
+            row->travel_limit_um = round_u32(cfg->travel_limit_um);
+        }
     }
     t->table_id = fnv_update(2166136261u, t->tendons, sizeof t->tendons);
     return 0;

@@ -75,7 +75,8 @@ typedef struct {
 
 typedef struct {
     double pos_mm[3];     /* world frame: base at origin, robot along +z */
-    double ambient_uT[3]; /* ambient field (earth, iron) at the sensor, sensor frame = world */
+    double ambient_uT[3]; /* ambient field (earth, iron) at the sensor, world frame */
+    double rot[9];        /* sensor axes in the world frame, row-major R: reading = R^T b */
     uint8_t mux_channel;
     uint8_t i2c_addr;
 } plant_sensor_cfg_t;
@@ -97,6 +98,7 @@ typedef struct {
     double servo_tau_ms;        /* first-order servo time constant */
     double travel_limit_factor; /* table travel limit = factor * travel at the top grid tension */
     double travel_limit_margin_um; /* ... plus this margin */
+    double travel_limit_um;        /* if > 0: the table's travel limit, as given */
     uint16_t grid_mN[TBL_MAX_GRID];
     uint16_t default_mN;
     plant_tendon_cfg_t tendon[PLANT_MAX_TENDONS];
@@ -166,16 +168,18 @@ double plant_motor_ticks(const plant_t *p, uint8_t i);
 int plant_solve(plant_t *p);
 
 /* Noise-free field at sensor k from the last solve (ambient + magnet +
- * injected disturbance), in uT, world frame. */
+ * injected disturbance), in uT, world frame (plant_read_sensor() turns it
+ * into the sensor frame). */
 void plant_field_true(const plant_t *p, uint8_t k, double b_uT[3]);
 
 /* Magnet-only field at world point q (mm) for a given tip pose, in uT. */
 void plant_dipole_uT(const plant_cfg_t *cfg, const plant_pose_t *tip, const double q_mm[3],
                      double b_uT[3]);
 
-/* One magnetometer reading of sensor k as the AK09916 delivers it: field plus
- * Gaussian noise, quantised to 15 cuT, clipped at the range. Writes cuT to
- * out[3]. Returns 0, 1 when the reading overflowed (HOFL set), PLANT_E_ARG. */
+/* One magnetometer reading of sensor k as the AK09916 delivers it: the field
+ * in the sensor's frame plus Gaussian noise, quantised to 15 cuT, clipped at
+ * the range. Writes cuT to out[3]. Returns 0, 1 when the reading overflowed (HOFL set),
+ * PLANT_E_ARG. */
 int plant_read_sensor(plant_t *p, uint8_t k, int32_t out_cuT[3]);
 
 /* Tendon i's spool-side tension after a quasi-static pull from slack to motor

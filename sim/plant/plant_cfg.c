@@ -41,6 +41,7 @@ int plant_cfg_defaults(plant_cfg_t *cfg)
     for (i = 0; i < PLANT_MAX_SENSORS; i++) {
         cfg->sensor[i].mux_channel = i;
         cfg->sensor[i].i2c_addr = 0x69;
+        cfg->sensor[i].rot[0] = cfg->sensor[i].rot[4] = cfg->sensor[i].rot[8] = 1.0;
     }
     return 0;
 }
@@ -132,6 +133,7 @@ static const plant_key_t plant_top_keys[] = {
     PK("servo_tau_ms", plant_cfg_t, servo_tau_ms, 1, 'd'),
     PK("travel_limit_factor", plant_cfg_t, travel_limit_factor, 1, 'd'),
     PK("travel_limit_margin_um", plant_cfg_t, travel_limit_margin_um, 1, 'd'),
+    PK("travel_limit_um", plant_cfg_t, travel_limit_um, 1, 'd'),
     PK("default_mN", plant_cfg_t, default_mN, 1, 'w'),
 };
 
@@ -153,6 +155,7 @@ static const plant_key_t plant_tendon_keys[] = {
 static const plant_key_t plant_sensor_keys[] = {
     PK("pos_mm", plant_sensor_cfg_t, pos_mm, 3, 'd'),
     PK("ambient_uT", plant_sensor_cfg_t, ambient_uT, 3, 'd'),
+    PK("rot", plant_sensor_cfg_t, rot, 9, 'd'),
     PK("mux", plant_sensor_cfg_t, mux_channel, 1, '8'),
     PK("addr", plant_sensor_cfg_t, i2c_addr, 1, '8'),
 };

@@ -281,6 +281,26 @@ static void test_sensor_quantisation_noise_saturation(void **state)
     assert_true(truth[0] == 20.0 && truth[1] == 0.0 && truth[2] == 0.0);
 }
 
+static void test_sensor_frame_rotation(void **state)
+{
+    /* a chip facing down (180 deg about x) reads y and z reversed */
+    int32_t up[3];
+    int32_t down[3];
+    int line = 0;
+    (void)state;
+    load_min(&g_cfg);
+    g_cfg.noise_uT = 0.0;
+    assert_int_equal(plant_init(&g_p, &g_cfg, 1), 0);
+    assert_int_equal(plant_read_sensor(&g_p, 0, up), 0);
+    assert_int_equal(plant_cfg_parse(&g_cfg, "sensor.0.rot = 1 0 0  0 -1 0  0 0 -1\n", &line), 0);
+    assert_int_equal(plant_init(&g_p, &g_cfg, 1), 0);
+    assert_int_equal(plant_read_sensor(&g_p, 0, down), 0);
+    assert_int_equal(down[0], up[0]);
+    assert_int_equal(down[1], -up[1]);
+    assert_int_equal(down[2], -up[2]);
+    assert_true(up[2] != 0);
+}
+
 static void test_dipole_on_axis(void **state)
 {
     /* on the dipole axis B = mu0/(4 pi) * 2 m / r^3 */
@@ -362,6 +382,7 @@ int main(void)
         cmocka_unit_test(test_friction_and_backlash_hysteresis),
         cmocka_unit_test(test_gravity_optional),
         cmocka_unit_test(test_sensor_quantisation_noise_saturation),
+        cmocka_unit_test(test_sensor_frame_rotation),
         cmocka_unit_test(test_dipole_on_axis),
         cmocka_unit_test(test_servo_model),
         cmocka_unit_test(test_table_from_plant),
