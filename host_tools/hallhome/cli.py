@@ -156,6 +156,10 @@ def characterize_cmd(data, plot_path, robot, axis):
         click.echo(f"magnet model ({r.magnet.shape}, {axis}): polarization |J| = "
                    f"{mfit.polarization:.4f} T, distance offset {mfit.offset * 1e3:+.2f} mm, "
                    f"rms error {mfit.rms_rel * 100:.1f} %")
+        if mfit.at_bound or mfit.rms_rel > 0.10:
+            click.echo("warning: the magnet model does not explain these data (polarization at "
+                       "its physical limit or rms error above 10 %); check the magnet's "
+                       "dimensions, the distance reference and the units", err=True)
     out = Path(plot_path) if plot_path else Path(data).with_name(Path(data).stem + "_fit.png")
     plot_characterization(d, fit, out, magnet=(r.magnet if robot else None), magnet_fit=mfit,
                           axis=axis)

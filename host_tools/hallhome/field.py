@@ -21,6 +21,9 @@ from hallhome.robot import Magnet, Robot
 # The paper's Fig. 1 fit, averaged over its three sensors: Field = A * d^B.
 # The paper gives no units; with d in cm and the field in uT the curve matches
 # a 3.5 mm magnet's near field (about 2900 uT at 1 cm), so those are assumed.
+# No permanent magnet exceeds this polarization (NdFeB Br is at most ~1.5 T).
+J_MAX = 2.0
+
 PAPER_POWER_LAW = ((2920.5 + 2923.9 + 2927.2) / 3.0, -1.583)
 
 
@@ -120,6 +123,7 @@ class MagnetFit:
     polarization: float
     offset: float
     rms_rel: float
+    at_bound: bool = False  # |J| hit the physical limit J_MAX: the model cannot explain the data
 
 
 def fit_magnetization(magnet: Magnet, distances_m, field_T, axis: str = "equatorial",
@@ -143,12 +147,13 @@ def fit_magnetization(magnet: Magnet, distances_m, field_T, axis: str = "equator
 
     lo_off = -0.9 * float(d.min())
     x0 = [j0, 0.0] if fit_offset else [j0]
-    bounds = ([1e-4, lo_off], [3.0, 0.05]) if fit_offset else ([1e-4], [3.0])
+    bounds = ([1e-3, lo_off], [J_MAX, 0.05]) if fit_offset else ([1e-3], [J_MAX])
     sol = optimize.least_squares(resid, x0, bounds=bounds, x_scale=[1.0, 1e-3][: len(x0)])
     r = resid(sol.x)
     return MagnetFit(polarization=float(sol.x[0]),
                      offset=float(sol.x[1]) if fit_offset else 0.0,
-                     rms_rel=float(np.sqrt(np.mean(np.expm1(r) ** 2))))
+                     rms_rel=float(np.sqrt(np.mean(np.expm1(r) ** 2))),
+                     at_bound=bool(sol.x[0] >= J_MAX * 0.999))
 
 
 _DIST_UNITS = {"distance_mm": 1e-3, "distance_cm": 1e-2, "distance_m": 1.0}
