@@ -191,7 +191,7 @@ class CosseratModel:
         """Solve the local constitutive + tendon equations for (u, v), batched
         over B shots, by Newton's method from the guess (u, v)."""
         mb = (M[:, None, :] @ R)[:, 0]  # R^T M
-        nb = (Nw @ R) if Nw is not None else 0.0
+        nb = (Nw @ R) if Nw is not None else np.zeros_like(mb)
         if tau.size == 0:
             return mb / kbt, E3 + nb / kse
         scale = np.concatenate([1.0 / np.sqrt(kbt), 1.0 / np.sqrt(kse)])
