@@ -39,6 +39,7 @@
  * (datasheet 2549Q, "Register Summary"). */
 #define BENCH_MCUSR    0x54u
 #define BENCH_DDRD     0x2Au
+#define BENCH_PINE     0x2Cu
 #define BENCH_EECR     0x3Fu
 #define BENCH_TWSR     0xB9u
 #define BENCH_TWCR     0xBCu
@@ -139,6 +140,7 @@ typedef struct {
     uint64_t corrupted;        /* bytes corrupted (collision, truncation, noise) */
     uint64_t noise_hits;       /* of which by injected noise */
     uint64_t xoff_events;
+    uint8_t trace; /* --trace bus: every byte and direction change on stderr */
 } bench_bus_t;
 
 void bus_init(bench_t *b);
@@ -148,6 +150,7 @@ uint64_t bus_next_us(bench_t *b);
 /* Does everything due at or before now_us. */
 void bus_service(bench_t *b, uint64_t now_us);
 void bus_power_cycle(bench_t *b, uint64_t now_us);
+void bus_pin_high(bench_t *b);
 
 /* ---- TWI (i2c.c) ------------------------------------------------------------ */
 
@@ -180,6 +183,8 @@ void twi_bench_attach(bench_t *b);
 void twi_bench_advance(bench_t *b, uint64_t now_us);
 void twi_bench_power_cycle(bench_t *b);
 void twi_bench_stick(bench_t *b, int32_t clocks);
+/* Applies the SCL/SDA (and idle RXD1/TXD1) levels the bus pull-ups give. */
+void twi_bench_lines(bench_t *b);
 
 /* ---- console (console.c) ---------------------------------------------------- */
 

@@ -168,6 +168,10 @@ static void bus_mcu_byte(avr_irq_t *irq, uint32_t value, void *param)
     uint64_t now = bench_now_us(b);
     uint64_t start = now > s->mcu_busy_until ? now : s->mcu_busy_until;
     (void)irq;
+    if (s->trace) {
+        fprintf(stderr, "bus %10llu us mcu %02X start %llu dir %u\n", (unsigned long long)now,
+                (unsigned)value & 0xFFu, (unsigned long long)start, s->dir_tx);
+    }
     s->mcu_busy_until = start + s->byte_us;
     if (!s->dir_tx) {
         s->mcu_bytes_no_dir++;
@@ -184,6 +188,24 @@ static void bus_mcu_byte(avr_irq_t *irq, uint32_t value, void *param)
     bench_rearm(b);
 }
 
+/* PE4 is also INT4. simavr 1.6 polls a level-triggered external interrupt
+ * every cycle while its pin bit reads low, enabled or not (EICRB = 0 is
+ * level mode), which slows the simulation fifty-fold whenever the bus is in
+ * receive. The pin is an output, so the firmware reads PORTE there and never
+ * this bit: keeping the input bit high stops the polling at its first look. */
+void bus_pin_high(bench_t *b)
+{
+    b->avr->data[BENCH_PINE] |= 0x10u;
+}
+
+static void porte_write(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param)
+{
+    (void)avr;
+    (void)addr;
+    (void)v;
+    bus_pin_high(param);
+}
+
 /* Direction pin. Receive while a frame is still being shifted out cuts it;
  * frames not yet started never reach the bus. */
 static void bus_dir(avr_irq_t *irq, uint32_t value, void *param)
@@ -192,6 +214,10 @@ static void bus_dir(avr_irq_t *irq, uint32_t value, void *param)
     bench_bus_t *s = &b->bus;
     uint64_t now = bench_now_us(b);
     (void)irq;
+    if (s->trace) {
+        fprintf(stderr, "bus %10llu us dir %u\n", (unsigned long long)now, (unsigned)value);
+    }
+    bus_pin_high(b);
     if (value && !s->dir_tx) {
         s->dir_tx = 1;
         return;
@@ -259,6 +285,7 @@ void bus_attach_irqs(bench_t *b)
                             bus_xoff, b);
     avr_irq_register_notify(avr_io_getirq(avr, AVR_IOCTL_IOPORT_GETIRQ('E'), 4), bus_dir, b);
     avr_register_io_write(avr, BENCH_UDR1, bus_udr1_write, b);
+    avr_register_io_write(avr, BENCH_PINE + 2u, porte_write, b); /* PORTE */
 }
 
 uint64_t bus_next_us(bench_t *b)
@@ -316,6 +343,10 @@ static void deliver_servo_byte(bench_t *b, uint8_t i, uint64_t due)
     }
     byte = bus_noise(s, byte);
     hist_add(s, start, due, (int8_t)i);
+    if (s->trace) {
+        fprintf(stderr, "bus %10llu us servo %u %02X start %llu\n", (unsigned long long)due, i,
+                byte, (unsigned long long)start);
+    }
     for (uint8_t k = 0; k < s->n_servos; k++) {
         if (k != i && !s->silent[k]) {
             xl430_rx(&s->servo[k], byte, due32);

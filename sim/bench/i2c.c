@@ -33,17 +33,21 @@ static void twi_reply(bench_t *b, uint8_t msg, uint8_t addr, uint8_t data)
     avr_raise_irq(b->twi.in_irq, avr_twi_irq_msg(msg, addr, data));
 }
 
-static void lines_apply(bench_t *b)
+void twi_bench_lines(bench_t *b)
 {
     bench_twi_t *t = &b->twi;
     uint8_t ddr = b->avr->data[BENCH_DDRD];
     avr_ioport_external_t ext;
-    t->ext_d_mask = SCL_BIT | SDA_BIT;
-    t->ext_d_value = (uint8_t)(SCL_BIT | (t->stuck ? 0u : SDA_BIT));
+    /* PD2/PD3 are RXD1/TXD1: an idle UART line is high. They are also INT2
+     * and INT3, which simavr 1.6 polls every cycle while they read low. */
+    t->ext_d_mask = SCL_BIT | SDA_BIT | 0x0Cu;
+    t->ext_d_value = (uint8_t)(SCL_BIT | 0x0Cu | (t->stuck ? 0u : SDA_BIT));
     ext.name = 'D';
     ext.mask = t->ext_d_mask;
     ext.value = t->ext_d_value;
     avr_ioctl(b->avr, AVR_IOCTL_IOPORT_SET_EXTERNAL('D'), &ext);
+    avr_raise_irq(avr_io_getirq(b->avr, AVR_IOCTL_IOPORT_GETIRQ('D'), 2), 1);
+    avr_raise_irq(avr_io_getirq(b->avr, AVR_IOCTL_IOPORT_GETIRQ('D'), 3), 1);
     if (!(ddr & SCL_BIT)) {
         avr_raise_irq(avr_io_getirq(b->avr, AVR_IOCTL_IOPORT_GETIRQ('D'), 0), 1);
     }
@@ -160,13 +164,12 @@ static uint8_t twcr_read(avr_t *avr, avr_io_addr_t addr, void *param)
 }
 
 /* SCL and SDA as open-drain GPIO during bus recovery. */
-static void ddrd_write(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param)
+static void ddrd_write(avr_irq_t *irq, uint32_t v, void *param)
 {
     bench_t *b = param;
     bench_twi_t *t = &b->twi;
     uint8_t low = (uint8_t)(v & SCL_BIT);
-    (void)avr;
-    (void)addr;
+    (void)irq;
     if (t->scl_low && !low) {
         t->scl_clocks++;
         if (t->stuck && --t->stuck_clocks <= 0) {
@@ -175,7 +178,7 @@ static void ddrd_write(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param)
         }
     }
     t->scl_low = low;
-    lines_apply(b);
+    twi_bench_lines(b);
 }
 
 void twi_bench_init(bench_t *b, uint32_t seed)
@@ -199,8 +202,11 @@ void twi_bench_attach(bench_t *b)
                             b);
     avr_register_io_write(avr, BENCH_TWCR, twcr_write, b);
     avr_register_io_read(avr, BENCH_TWCR, twcr_read, b);
-    avr_register_io_write(avr, BENCH_DDRD, ddrd_write, b);
-    lines_apply(b);
+    /* DDRD changes come as an IRQ: simavr 1.6 allows only four shared
+     * register write hooks and the bench needs them elsewhere. */
+    avr_irq_register_notify(
+        avr_io_getirq(avr, AVR_IOCTL_IOPORT_GETIRQ('D'), IOPORT_IRQ_DIRECTION_ALL), ddrd_write, b);
+    twi_bench_lines(b);
 }
 
 void twi_bench_advance(bench_t *b, uint64_t now_us)
@@ -234,7 +240,7 @@ void twi_bench_power_cycle(bench_t *b)
     t->stuck = 0;
     t->cur = -1;
     t->addr_phase = 0;
-    lines_apply(b);
+    twi_bench_lines(b);
 }
 
 void twi_bench_stick(bench_t *b, int32_t clocks)
@@ -243,5 +249,5 @@ void twi_bench_stick(bench_t *b, int32_t clocks)
     t->stuck = 1;
     t->stuck_clocks = clocks > 0 ? clocks : 1;
     t->stuck_events++;
-    lines_apply(b);
+    twi_bench_lines(b);
 }

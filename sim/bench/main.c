@@ -273,6 +273,8 @@ static void after_reset(bench_t *b)
     b->bus.xoff = 0;
     b->con.xoff = 0;
     led_pin(NULL, 0, b);
+    avr_raise_irq(avr_io_getirq(b->avr, AVR_IOCTL_IOPORT_GETIRQ('E'), 4), 0);
+    bus_pin_high(b);
     bench_button(b, b->button_down);
     if (b->button_down) {
         b->presses--; /* re-applied, not pressed again */
@@ -280,14 +282,7 @@ static void after_reset(bench_t *b)
     twi_bench_advance(b, now);
     b->twi.cur = -1;
     b->twi.addr_phase = 0;
-    /* lines_apply via a DDRD-neutral path: stick state unchanged */
-    {
-        avr_ioport_external_t ext = {'D', b->twi.ext_d_mask, b->twi.ext_d_value};
-        avr_ioctl(b->avr, AVR_IOCTL_IOPORT_SET_EXTERNAL('D'), &ext);
-        avr_raise_irq(avr_io_getirq(b->avr, AVR_IOCTL_IOPORT_GETIRQ('D'), 0), 1);
-        avr_raise_irq(avr_io_getirq(b->avr, AVR_IOCTL_IOPORT_GETIRQ('D'), 1),
-                      (b->twi.ext_d_value & 0x02u) ? 1u : 0u);
-    }
+    twi_bench_lines(b);
     bench_rearm(b);
 }
 
@@ -588,6 +583,8 @@ int main(int argc, char **argv)
         } else if (strcmp(a, "--tension") == 0) {
             NEEDV();
             b->tension_N = strtod(v, NULL);
+        } else if (strcmp(a, "--trace-bus") == 0) {
+            b->bus.trace = 1;
         } else if (strcmp(a, "--table") == 0) {
             table = 1;
         } else if (strcmp(a, "--check-tension") == 0) {

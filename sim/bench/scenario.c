@@ -378,7 +378,9 @@ void scen_run_due(bench_t *b, uint64_t now)
     }
 }
 
-/* PE5: switch to ground with the pull-up; the bench drives the pin level. */
+/* PE5: switch to ground with the pull-up; the bench drives the pin level.
+ * PE6/PE7 are unconnected; they read high here because simavr 1.6 polls
+ * INT6/INT7 every cycle while their pins read low (a fifty-fold slowdown). */
 void bench_button(bench_t *b, uint8_t down)
 {
     avr_ioport_external_t ext;
@@ -386,11 +388,13 @@ void bench_button(bench_t *b, uint8_t down)
     if (down) {
         b->presses++;
     }
-    b->ext_e_mask = 0x20u;
-    b->ext_e_value = down ? 0u : 0x20u;
+    b->ext_e_mask = 0xE0u;
+    b->ext_e_value = down ? 0xC0u : 0xE0u;
     ext.name = 'E';
     ext.mask = b->ext_e_mask;
     ext.value = b->ext_e_value;
     avr_ioctl(b->avr, AVR_IOCTL_IOPORT_SET_EXTERNAL('E'), &ext);
     avr_raise_irq(avr_io_getirq(b->avr, AVR_IOCTL_IOPORT_GETIRQ('E'), 5), down ? 0u : 1u);
+    avr_raise_irq(avr_io_getirq(b->avr, AVR_IOCTL_IOPORT_GETIRQ('E'), 6), 1);
+    avr_raise_irq(avr_io_getirq(b->avr, AVR_IOCTL_IOPORT_GETIRQ('E'), 7), 1);
 }
