@@ -224,3 +224,7 @@ def bench_cmd(robot, repeat, check):
     if check and (solve_ms > 50 or table_s > 5):
         click.echo("over budget (50 ms per solve, 5 s per table)", err=True)
         sys.exit(1)
+
+
+from hallhome.operator import register as _register_operator  # noqa: E402
+_register_operator(main)

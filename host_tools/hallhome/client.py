@@ -242,8 +242,10 @@ class Client:
 
     def __init__(self, port: str, *, baud: int = BAUD, timeout: float = DEFAULT_TIMEOUT,
                  sync: bool = True, sync_timeout: float = SYNC_TIMEOUT,
-                 on_report: Optional[Callable[[Report], None]] = None):
+                 on_report: Optional[Callable[[Report], None]] = None,
+                 ends_motion: Optional[Callable[[Report], bool]] = None):
         self.port = port
+        self.ends_motion = ends_motion  # a report that says the motion ended
         self.timeout = timeout
         self.on_report = on_report
         self.garbled = 0                 # lines that were not protocol
@@ -348,6 +350,8 @@ class Client:
                 msg["report"] = rep
                 if rep.kind == "boot":
                     self._on_boot(rep)
+                elif self.motion is not None and self.ends_motion is not None and self.ends_motion(rep):
+                    self.motion = None
                 if self.on_report is not None:
                     self.on_report(rep)
             return msg
