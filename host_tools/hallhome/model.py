@@ -283,6 +283,14 @@ class CosseratModel:
         rec = (np.array(rec_s), np.array(rec_p), np.array(rec_R)) if record else None
         return res, lengths, rec
 
+    def _straight_moment(self) -> np.ndarray:
+        """Moment of the weights about the base for the straight robot: the
+        first guess of the shooting unknown M(0)."""
+        lever = sum(lam * (b * b - a * a) / 2.0 for lam, a, b in
+                    zip(self.lam, self.seg_start[:-1], self.seg_start[1:]))
+        lever += self.m_tip * (self.L + self.tip_offset[2])
+        return np.cross(E3, self.g) * lever
+
     # --- public -----------------------------------------------------------------
     def solve(self, tensions, base_moment_guess=None) -> Solution:
         """Equilibrium under ``tensions`` (N, one per tendon, >= 0).
@@ -297,8 +305,10 @@ class CosseratModel:
                              f"got {tensions!r}")
         plan = self._plan(tau)
         x = np.zeros(3)
-        if self.g is not None and base_moment_guess is not None:
-            x = np.asarray(base_moment_guess, float) / self.m_scale
+        if self.g is not None:
+            guess = (self._straight_moment() if base_moment_guess is None
+                     else np.asarray(base_moment_guess, float))
+            x = guess / self.m_scale
         shots = 0
 
         def shoot(xs, jac):

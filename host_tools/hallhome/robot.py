@@ -17,7 +17,7 @@ from __future__ import annotations
 import math
 import re
 import tomllib
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -224,7 +224,6 @@ class Robot:
     noise: float
     travel_limit: float
     mode: str
-    extras: dict = field(default_factory=dict, compare=False, repr=False)
 
     @property
     def length(self) -> float:
