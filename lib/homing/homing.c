@@ -22,8 +22,9 @@ enum {
     ST_FAULT
 };
 
-#define HOM_MAX_AVG             16u
+#define HOM_MAX_AVG             32u
 #define HOM_QUICK_STOP_PERMILLE 975u /* quick leg: stop when the field is this close */
+#define HOM_FIT_POINTS          4u   /* near points kept for the final fit (hom_t.pts) */
 
 void hom_config_default(hom_config_t *cfg)
 {
@@ -43,7 +44,7 @@ void hom_config_default(hom_config_t *cfg)
     cfg->slack_margin_um = 600; /* > the path shortening another tendon causes at 1 N */
     cfg->slack_step_um = 300;
     cfg->slack_max_steps = 6;
-    cfg->baseline_samples = 8;
+    cfg->baseline_samples = 16;
     cfg->avg_samples = 2;
     cfg->fine_max_steps = 16;
     cfg->near_permille = 800;
@@ -646,6 +647,7 @@ static void begin_tendon(hom_t *h, uint32_t now, uint8_t i)
     h->t_tendon = now;
     h->have_prev = 0;
     h->near = 0;
+    h->n_pts = 0;
     h->steps = 0;
     h->slope_q8 = h->tendon[i].slope_q8;
     h->pos_at_sample = h->present[i];
@@ -722,6 +724,88 @@ static void finish_tendon(hom_t *h, uint32_t now, int32_t home_q8)
     h->t_phase = now;
 }
 
+/* Samples to average at a point near the target: enough that the noise of
+ * the average (table noise per axis / sqrt n) is at most a fifth of the
+ * field change of one tick; at least twice avg_samples, at most HOM_MAX_AVG.
+ * A weak field (sensors far from the magnet, a high tension where |dB|
+ * flattens) needs many; a strong one needs the minimum. */
+static uint8_t near_samples(const hom_t *h, int64_t s_q8)
+{
+    int64_t q = ((int64_t)h->noise_cuT * 5 * 256 + s_q8 - 1) / s_q8; /* ceil(5 noise / slope) */
+    int64_t n = q * q;
+    int64_t lo = 2 * (int64_t)h->cfg.avg_samples;
+    if (n < lo) {
+        n = lo;
+    }
+    return (uint8_t)(n > (int64_t)HOM_MAX_AVG ? HOM_MAX_AVG : n);
+}
+
+/* Keeps a point averaged near the target for the final fit (the newest
+ * HOM_FIT_POINTS). */
+static void keep_point(hom_t *h, int32_t p, uint32_t b, uint8_t n)
+{
+    uint8_t k;
+    if (h->n_pts == HOM_FIT_POINTS) {
+        for (k = 1; k < HOM_FIT_POINTS; k++) {
+            h->pts[k - 1u] = h->pts[k];
+        }
+        h->n_pts--;
+    }
+    h->pts[h->n_pts].p = p;
+    h->pts[h->n_pts].b = b;
+    h->pts[h->n_pts].n = n;
+    h->n_pts++;
+}
+
+/* The home from a weighted least-squares line through the near points within
+ * 4 ticks of p (weights: samples averaged): every sample taken near the
+ * target counts, not only the last two points', which matters where one
+ * tick is worth little more than the sensor noise. Returns the fitted
+ * crossing in 1/256 tick, or `fallback` when fewer than two positions, a
+ * non-rising line, or a crossing more than a tick outside the points. */
+static int32_t fit_or(const hom_t *h, int32_t p, int32_t fallback)
+{
+    const hom_tendon_t *t = &h->tendon[h->cur];
+    int64_t sn = 0;
+    int64_t sx = 0;
+    int64_t sy = 0;
+    int64_t sxx = 0;
+    int64_t sxy = 0;
+    int64_t snum;
+    int64_t d;
+    int64_t x_q8;
+    int32_t lo = 0;
+    int32_t hi = 0;
+    uint8_t k;
+    for (k = 0; k < h->n_pts; k++) {
+        int32_t x = t->dir * (h->pts[k].p - p); /* pull-direction ticks from p */
+        int64_t y = (int64_t)h->pts[k].b - (int64_t)t->target_cuT;
+        int64_t n = h->pts[k].n;
+        if (x < -4 || x > 4) {
+            continue;
+        }
+        lo = x < lo ? x : lo;
+        hi = x > hi ? x : hi;
+        sn += n;
+        sx += n * x;
+        sy += n * y;
+        sxx += n * x * x;
+        sxy += n * x * y;
+    }
+    d = sn * sxx - sx * sx;
+    snum = sn * sxy - sx * sy;
+    if (hi == lo || d <= 0 || snum <= 0) {
+        return fallback;
+    }
+    /* y = a + s x with s = snum / d; the crossing y = 0 lies at
+     * x = (snum sx - sy d) / (sn snum) */
+    x_q8 = ((snum * sx - sy * d) * 256) / (sn * snum);
+    if (x_q8 < ((int64_t)lo - 1) * 256 || x_q8 > ((int64_t)hi + 1) * 256) {
+        return fallback;
+    }
+    return p * 256 + t->dir * (int32_t)x_q8;
+}
+
 /* Remaining travel from a field b to the target along the table's own
  * field-travel curve (inverse interpolation over the grid, engagement as the
  * origin), 1/256 tick; 0 when the table cannot say. The field is not linear
@@ -784,10 +868,20 @@ static void fine_point(hom_t *h, uint32_t now)
     avg_of(h, t->sensor, avg);
     b = delta_of(h, t->sensor, avg);
     dp = h->have_prev ? t->dir * (p - h->p_prev) : 0;
+    if (h->near) {
+        keep_point(h, p, b, h->sensor[t->sensor].n_acc);
+    }
     if (b >= t->target_cuT) {
+        if (h->have_prev && dp == 0) {
+            /* the same position averaged again now reads at or past the
+             * target: the target is here, within the noise */
+            finish_tendon(h, now, fit_or(h, p, p * 256));
+            return;
+        }
         if (h->have_prev && b > h->b_prev && dp >= 1 && dp <= 3) {
             int64_t num = (int64_t)(t->target_cuT - h->b_prev) * (int64_t)(p - h->p_prev) * 256;
-            finish_tendon(h, now, h->p_prev * 256 + (int32_t)(num / (int64_t)(b - h->b_prev)));
+            finish_tendon(
+                h, now, fit_or(h, p, h->p_prev * 256 + (int32_t)(num / (int64_t)(b - h->b_prev))));
             return;
         }
         if (++t->retries > 2u) {
@@ -805,6 +899,7 @@ static void fine_point(hom_t *h, uint32_t now)
                 t->engage + (int32_t)(((int64_t)(p - t->engage) * h->cfg.near_permille) / 1000);
         }
         h->have_prev = 0;
+        h->n_pts = 0;
         set_goal(h, h->cur, t->engage - t->dir * t->margin_ticks, h->cfg.v_release);
         h->state = ST_BACKOFF;
         return;
@@ -827,7 +922,7 @@ static void fine_point(hom_t *h, uint32_t now)
         }
     }
     if (r_q8 < 128 && h->near) {
-        finish_tendon(h, now, p * 256 + t->dir * (int32_t)r_q8);
+        finish_tendon(h, now, fit_or(h, p, p * 256 + t->dir * (int32_t)r_q8));
         return;
     }
     if (++h->steps > h->cfg.fine_max_steps) {
@@ -839,6 +934,7 @@ static void fine_point(hom_t *h, uint32_t now)
         step = 1; /* half a tick or more: bracket it rather than extrapolate */
     }
     h->near = (uint8_t)(r_q8 <= 4 * 256);
+    h->n_near = near_samples(h, s_q8);
     if (step > (int64_t)t->limit_ticks + 1) {
         step = (int64_t)t->limit_ticks + 1; /* refused below as beyond the limit */
     }
@@ -859,9 +955,6 @@ static void slack_done(hom_t *h, uint32_t now)
             h->tendon[i].slack_pos = h->present[i];
             h->tendon[i].have_slack = 1;
         }
-    }
-    for (k = 0; k < h->n_sensors; k++) {
-        memcpy(h->sensor[k].b0, h->slack_ref[k], sizeof h->sensor[k].b0);
     }
     for (k = 0; k < h->n_sensors; k++) {
         if (h->b_pred[k] >= 10000u && hom_norm3(h->sensor[k].b0) < h->b_pred[k] / 2u) {
@@ -912,6 +1005,9 @@ static void do_slack_avg(hom_t *h, uint32_t now)
         avg_of(h, k, avg);
         for (a = 0; a < 3; a++) {
             d[a] = avg[a] - h->slack_ref[k][a];
+            /* the baseline if this average confirms the slack: both averages
+             * then saw the same straight pose, so it takes both */
+            h->sensor[k].b0[a] = h->steps > 0u ? avg[a] - d[a] / 2 : avg[a];
         }
         if (hom_norm3(d) > worst) {
             worst = hom_norm3(d);
@@ -1016,8 +1112,8 @@ static void do_tendon(hom_t *h, const hom_in_t *in)
         break;
     }
     case ST_FINE_AVG:
-        /* points within 3 ticks of the target decide the home: twice the samples */
-        if (h->sensor[sel].n_acc >= (h->near ? 2u * h->cfg.avg_samples : h->cfg.avg_samples)) {
+        /* points within a few ticks of the target decide the home: more samples */
+        if (h->sensor[sel].n_acc >= (h->near ? h->n_near : h->cfg.avg_samples)) {
             fine_point(h, now);
         }
         break;

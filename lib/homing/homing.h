@@ -200,12 +200,12 @@ typedef struct {
     uint16_t slack_margin_um; /* release this far beyond engagement */
     uint16_t slack_step_um;   /* slack check: further release per step */
     uint8_t slack_max_steps;  /* slack check: steps before HOM_F_SLACK */
-    uint8_t baseline_samples; /* samples averaged for B0 (<= 16) */
-    uint8_t avg_samples;    /* samples averaged per fine point, twice that near the target (<= 8) */
-    uint8_t fine_max_steps; /* fine points before HOM_F_NO_PROGRESS */
-    uint16_t near_permille; /* moderate approach stops at this fraction of the target */
-    uint16_t settle_ms;     /* wait after a fine move before sampling */
-    uint16_t preflight_ms;  /* time for every device to answer */
+    uint8_t baseline_samples; /* per slack-check average; B0 takes two (<= 32) */
+    uint8_t avg_samples; /* samples averaged per fine point; near the target more, by the noise */
+    uint8_t fine_max_steps;     /* fine points before HOM_F_NO_PROGRESS */
+    uint16_t near_permille;     /* moderate approach stops at this fraction of the target */
+    uint16_t settle_ms;         /* wait after a fine move before sampling */
+    uint16_t preflight_ms;      /* time for every device to answer */
     uint16_t sensor_timeout_ms; /* no sample for this long: HOM_F_SENSOR_TIMEOUT */
     uint16_t servo_timeout_ms;  /* no answer for this long: HOM_F_SERVO_TIMEOUT */
     uint16_t move_timeout_ms;   /* a release / final move longer than this: HOM_F_SERVO_STALL */
@@ -290,8 +290,15 @@ typedef struct {
     int32_t slope_q8;                      /* fine: current slope estimate, cuT per tick * 256 */
     uint32_t t_moved;                      /* last change of the active tendon's present position */
     uint8_t settled;                       /* slack average: settle time over, averaging */
-    uint8_t quick_leg;             /* quick mode: fast leg to just before the expected engagement */
-    uint8_t near;                  /* fine: the next point is within a few ticks of the target */
+    uint8_t quick_leg; /* quick mode: fast leg to just before the expected engagement */
+    uint8_t near;      /* fine: the next point is within a few ticks of the target */
+    uint8_t n_near;    /* fine: samples to average at a near point */
+    uint8_t n_pts;     /* fine: near points kept */
+    struct {
+        int32_t p;                 /* position, ticks */
+        uint32_t b;                /* averaged |B - B0|, cuT */
+        uint8_t n;                 /* samples averaged */
+    } pts[4];                      /* fine: near points for the final fit */
     uint8_t seen[TBL_MAX_SENSORS]; /* preflight: sample received */
     hom_tendon_t tendon[TBL_MAX_TENDONS];
     hom_sensor_t sensor[TBL_MAX_SENSORS];

@@ -98,8 +98,8 @@ int plant_run(const plant_run_cfg_t *rc, plant_run_result_t *res)
             if (plant_true_engagement(rc->plant, i, &eng) != 0) {
                 return PLANT_E_ARG;
             }
-            start =
-                eng + (double)rc->plant->tendon[i].pull_dir * um / (rc->plant->nm_per_tick * 1e-3);
+            start = eng + (double)rc->plant->tendon[i].pull_dir * um /
+                              (plant_nm_per_tick(rc->plant, i) * 1e-3);
             start = floor(start + 0.5);
         }
         plant_servo_init(&servo[i], start, pcfg.servo_tau_ms);

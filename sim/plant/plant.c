@@ -20,6 +20,12 @@ static void tendon_dir(const plant_cfg_t *c, uint8_t i, double d[2])
     d[1] = sin(a);
 }
 
+/* Bending stiffness of segment j: its own when given, else the backbone's. */
+static double seg_ei(const plant_cfg_t *c, uint8_t j)
+{
+    return c->seg_ei_Nm2[j] > 0.0 ? c->seg_ei_Nm2[j] : c->ei_Nm2;
+}
+
 /* Path compliance between tendons i and m: how far tendon i's path shortens
  * per newton at the tip of tendon m (m/N), from the segments both span. */
 static double compliance(const plant_cfg_t *c, uint8_t i, uint8_t m)
@@ -33,10 +39,10 @@ static double compliance(const plant_cfg_t *c, uint8_t i, uint8_t m)
     tendon_dir(c, i, di);
     tendon_dir(c, m, dm);
     for (j = 0; j < top; j++) {
-        len += c->seg_len_mm[j] * 1e-3;
+        len += c->seg_len_mm[j] * 1e-3 / seg_ei(c, j);
     }
     return len * c->tendon[i].radius_mm * 1e-3 * c->tendon[m].radius_mm * 1e-3 *
-           (di[0] * dm[0] + di[1] * dm[1]) / c->ei_Nm2;
+           (di[0] * dm[0] + di[1] * dm[1]);
 }
 
 /* Gravity curvature of segment j (1/m, body-frame vector, small-deflection):
@@ -55,8 +61,8 @@ static void gravity_curv(const plant_cfg_t *c, uint8_t j, double k[2])
     }
     mid += 0.5 * c->seg_len_mm[j];
     /* a lateral force F bends towards F: curvature along F */
-    k[0] = w * c->gravity_dir[0] * (total - mid) * 1e-3 / c->ei_Nm2;
-    k[1] = w * c->gravity_dir[1] * (total - mid) * 1e-3 / c->ei_Nm2;
+    k[0] = w * c->gravity_dir[0] * (total - mid) * 1e-3 / seg_ei(c, j);
+    k[1] = w * c->gravity_dir[1] * (total - mid) * 1e-3 / seg_ei(c, j);
 }
 
 /* ---- kinematics ------------------------------------------------------------ */
@@ -264,11 +270,11 @@ int plant_solve(plant_t *p)
     }
     for (i = 0; i < c->n_tendons; i++) {
         double d[2];
-        double mom = p->tip_tension_N[i] * c->tendon[i].radius_mm * 1e-3 / c->ei_Nm2;
+        double mom = p->tip_tension_N[i] * c->tendon[i].radius_mm * 1e-3;
         tendon_dir(c, i, d);
         for (j = 0; j < c->tendon[i].segment; j++) {
-            p->curv[j][0] += mom * d[0];
-            p->curv[j][1] += mom * d[1];
+            p->curv[j][0] += mom * d[0] / seg_ei(c, j);
+            p->curv[j][1] += mom * d[1] / seg_ei(c, j);
         }
     }
     forward_kinematics(p);
@@ -370,6 +376,11 @@ int plant_read_sensor(plant_t *p, uint8_t k, int32_t out_cuT[3])
 
 /* ---- set-up and motors ----------------------------------------------------- */
 
+double plant_nm_per_tick(const plant_cfg_t *cfg, uint8_t i)
+{
+    return cfg->tendon[i].nm_per_tick > 0.0 ? cfg->tendon[i].nm_per_tick : cfg->nm_per_tick;
+}
+
 int plant_init(plant_t *p, const plant_cfg_t *cfg, uint32_t seed)
 {
     uint8_t i;
@@ -393,7 +404,8 @@ int plant_set_motor(plant_t *p, uint8_t i, double ticks)
     if (p == NULL || i >= p->cfg.n_tendons) {
         return PLANT_E_ARG;
     }
-    p->motor_um[i] = (double)p->cfg.tendon[i].pull_dir * ticks * p->cfg.nm_per_tick * 1e-3;
+    p->motor_um[i] =
+        (double)p->cfg.tendon[i].pull_dir * ticks * plant_nm_per_tick(&p->cfg, i) * 1e-3;
     return 0;
 }
 
@@ -402,7 +414,8 @@ double plant_motor_ticks(const plant_t *p, uint8_t i)
     if (p == NULL || i >= p->cfg.n_tendons) {
         return 0.0;
     }
-    return p->motor_um[i] / (p->cfg.nm_per_tick * 1e-3) * (double)p->cfg.tendon[i].pull_dir;
+    return p->motor_um[i] / (plant_nm_per_tick(&p->cfg, i) * 1e-3) *
+           (double)p->cfg.tendon[i].pull_dir;
 }
 
 /* ---- ground truth searches -------------------------------------------------- */
@@ -417,7 +430,8 @@ static double pull_from_slack(const plant_cfg_t *cfg, uint8_t i, double ticks, i
     }
     for (m = 0; m < cfg->n_tendons; m++) {
         /* the others 20 mm slack; this one starts just slack then jumps */
-        double slack_ticks = (cfg->tendon[m].slack_um - 20000.0) / (cfg->nm_per_tick * 1e-3);
+        double slack_ticks =
+            (cfg->tendon[m].slack_um - 20000.0) / (plant_nm_per_tick(cfg, m) * 1e-3);
         (void)plant_set_motor(p, m, (double)cfg->tendon[m].pull_dir * slack_ticks);
     }
     (void)plant_solve(p);
@@ -448,7 +462,7 @@ static int search_pull(const plant_cfg_t *cfg, uint8_t i, double level, int tip,
         return PLANT_E_ARG;
     }
     dir = (double)cfg->tendon[i].pull_dir;
-    lo = (cfg->tendon[i].slack_um - 5000.0) / (cfg->nm_per_tick * 1e-3);
+    lo = (cfg->tendon[i].slack_um - 5000.0) / (plant_nm_per_tick(cfg, i) * 1e-3);
     hi = lo + 1000.0;
     for (n = 0; n < 40 && pull_from_slack(cfg, i, dir * hi, tip, &p) <= level; n++) {
         hi += 1000.0;
@@ -529,7 +543,7 @@ int plant_make_table(const plant_cfg_t *cfg, tbl_table_t *t)
     /* straight pose: every tendon far slack */
     (void)pull_from_slack(cfg, 0,
                           (double)cfg->tendon[0].pull_dir * (cfg->tendon[0].slack_um - 20000.0) /
-                              (cfg->nm_per_tick * 1e-3),
+                              (plant_nm_per_tick(cfg, 0) * 1e-3),
                           0, &p);
     for (k = 0; k < cfg->n_sensors; k++) {
         double bw[3];
@@ -560,14 +574,14 @@ int plant_make_table(const plant_cfg_t *cfg, tbl_table_t *t)
         row->servo_id = tc->servo_id;
         row->pull_dir = tc->pull_dir;
         row->segment = tc->segment;
-        row->nm_per_tick = round_u32(cfg->nm_per_tick);
+        row->nm_per_tick = round_u32(plant_nm_per_tick(cfg, i));
         for (g = 0; g < cfg->n_grid; g++) {
             double home;
             rc = plant_true_home(cfg, i, cfg->grid_mN[g], &home);
             if (rc != 0) {
                 return rc;
             }
-            travel[g] = (home - eng) * (double)tc->pull_dir * cfg->nm_per_tick * 1e-3;
+            travel[g] = (home - eng) * (double)tc->pull_dir * plant_nm_per_tick(cfg, i) * 1e-3;
             (void)pull_from_slack(cfg, i, home, 0, &p);
             for (k = 0; k < cfg->n_sensors; k++) {
                 double b[3];

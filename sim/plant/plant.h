@@ -71,6 +71,7 @@ typedef struct {
     double friction_mN; /* dead band f0 of the friction play operator */
     double friction_mu; /* tension-proportional part of the dead band */
     double backlash_um; /* spool backlash (full play) */
+    double nm_per_tick; /* this tendon's spool factor, when > 0 (else the robot's) */
 } plant_tendon_cfg_t;
 
 typedef struct {
@@ -88,8 +89,9 @@ typedef struct {
     uint8_t n_sensors;
     uint8_t n_grid;
     double seg_len_mm[PLANT_MAX_SEGMENTS];
-    double ei_Nm2;              /* backbone bending stiffness */
-    double nm_per_tick;         /* spool take-up per encoder tick */
+    double ei_Nm2;                         /* backbone bending stiffness */
+    double seg_ei_Nm2[PLANT_MAX_SEGMENTS]; /* per segment, when > 0 (else ei_Nm2) */
+    double nm_per_tick;                    /* spool take-up per encoder tick */
     double magnet_moment_Am2;   /* dipole moment along the tip's z axis (0 = magnet missing) */
     double magnet_offset_mm;    /* magnet centre beyond the tip along tip z */
     double tip_mass_g;          /* gravity: lumped mass at the tip */
@@ -155,6 +157,9 @@ int plant_cfg_perturb(plant_cfg_t *cfg, uint32_t seed, double frac);
  * with the spool against the release side of its backlash, solves. Returns 0,
  * PLANT_E_ARG or PLANT_E_RANGE (cfg fails plant_cfg_check()). */
 int plant_init(plant_t *p, const plant_cfg_t *cfg, uint32_t seed);
+
+/* Tendon i's take-up per encoder tick, nm (its own or the robot's). */
+double plant_nm_per_tick(const plant_cfg_t *cfg, uint8_t i);
 
 /* Sets tendon i's motor angle in (fractional) encoder ticks; takes effect at
  * the next plant_solve(). Returns 0 or PLANT_E_ARG. */

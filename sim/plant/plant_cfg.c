@@ -150,6 +150,7 @@ static const plant_key_t plant_tendon_keys[] = {
     PK("friction_mN", plant_tendon_cfg_t, friction_mN, 1, 'd'),
     PK("friction_mu", plant_tendon_cfg_t, friction_mu, 1, 'd'),
     PK("backlash_um", plant_tendon_cfg_t, backlash_um, 1, 'd'),
+    PK("nm_per_tick", plant_tendon_cfg_t, nm_per_tick, 1, 'd'),
 };
 
 static const plant_key_t plant_sensor_keys[] = {
@@ -331,6 +332,18 @@ static int parse_line(plant_cfg_t *cfg, char *line)
         cfg->n_segments = (uint8_t)n;
         return 0;
     }
+    if (strcmp(key, "segment_ei_Nm2") == 0) {
+        if (n > (int)PLANT_MAX_SEGMENTS) {
+            return PLANT_E_RANGE;
+        }
+        for (i = 0; i < n; i++) {
+            if (v[i] <= 0.0) {
+                return PLANT_E_RANGE;
+            }
+            cfg->seg_ei_Nm2[i] = v[i];
+        }
+        return 0;
+    }
     if (strcmp(key, "grid_mN") == 0) {
         for (i = 0; i < n; i++) {
             if (v[i] <= 0.0 || v[i] > 65535.0) {
@@ -447,6 +460,9 @@ int plant_cfg_perturb(plant_cfg_t *cfg, uint32_t seed, double frac)
         return 0;
     }
     cfg->ei_Nm2 *= 1.0 + frac * perturb_u(&s);
+    for (i = 0; i < cfg->n_segments; i++) {
+        cfg->seg_ei_Nm2[i] *= 1.0 + frac * perturb_u(&s);
+    }
     cfg->magnet_moment_Am2 *= 1.0 + frac * perturb_u(&s);
     for (i = 0; i < cfg->n_segments; i++) {
         cfg->seg_len_mm[i] *= 1.0 + 0.2 * frac * perturb_u(&s);

@@ -1,0 +1,144 @@
+"""Plant configs for the C robot model (sim/plant) from a robot description.
+
+``write_plant_config(robot, path, seed=None, perturb=0.0)`` writes the
+line-oriented ``key = value`` file that ``plant_cfg_load()`` parses
+(sim/plant/README.md describes every key). The plant is a piecewise constant
+curvature model, deliberately different from the host's Cosserat model, so a
+closed-loop run with a generated table against this plant carries real model
+error.
+
+What the robot TOML does not describe is set from keyword arguments: initial
+slack, friction along the tendon path, spool backlash, ambient field, the
+simple servo's time constant. With ``perturb > 0`` the physical values are
+perturbed with a seeded generator the same way ``plant_cfg_perturb()`` does in
+C (every stiffness (each segment's EI), free length, friction, backlash and the magnet moment
+times ``1 + perturb * u``, radii and segment lengths ``1 + 0.2 perturb u``,
+angles ``+- 5 deg * perturb``, sensor positions ``+- 1 mm * perturb``, slack
+``+- 500 um * perturb``; ``u`` uniform in [-1, 1]), so the file describes "the
+real robot" while the table describes the nominal one.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from hallhome.robot import Robot
+
+MU0 = 4e-7 * math.pi
+TBL_NO_MUX = 0xFF
+EARTH_FIELD_UT = (18.0, 2.0, -44.0)  # a typical ambient, world frame
+
+
+class PlantConfigError(ValueError):
+    """The robot uses a feature the plant model does not have."""
+
+
+def _fmt(x: float) -> str:
+    return f"{x:.9g}"
+
+
+def _vec(v) -> str:
+    return " ".join(_fmt(float(x)) for x in v)
+
+
+def plant_lines(robot: Robot, seed: int | None = None, perturb: float = 0.0, *,
+                slack_um: float = 1000.0, friction_mN: float = 10.0, friction_mu: float = 0.02,
+                backlash_um: float = 30.0, ambient_uT=EARTH_FIELD_UT,
+                servo_tau_ms: float = 4.0) -> list[str]:
+    """The plant config as a list of lines (see ``write_plant_config``)."""
+    if perturb < 0.0:
+        raise PlantConfigError(f"perturb: expected >= 0, got {perturb}")
+    rng = np.random.default_rng(seed)
+
+    def u() -> float:
+        return float(rng.uniform(-1.0, 1.0)) if perturb > 0.0 else 0.0
+
+    eis = [s.bending_stiffness for s in robot.segments]
+    if len(robot.segments) > 4:
+        raise PlantConfigError(f"segments: the plant has at most 4, got {len(robot.segments)}")
+    for t in robot.tendons:
+        if t.twist != 0.0:
+            raise PlantConfigError(f"tendons[{t.index}].twist: the plant routes tendons straight")
+    m = robot.magnet
+    rot = np.asarray(m.rotation, dtype=float)
+    pol = rot @ np.asarray(m.polarization, dtype=float)
+    if abs(pol[0]) > 1e-9 or abs(pol[1]) > 1e-9 or abs(m.offset[0]) > 1e-12 or abs(m.offset[1]) > 1e-12:
+        raise PlantConfigError("magnet: the plant's dipole sits on the tip axis, moment along it")
+    moment = float(pol[2]) * m.volume / MU0
+    tip_mass = m.mass + robot.segments[-1].disk_mass
+
+    lines = [
+        f"# plant config written by hallhome from {robot.path.name}",
+        f"# seed = {seed}, perturb = {perturb}",
+        f"name = {robot.name}",
+        "segment_len_mm = " + " ".join(
+            _fmt(s.length * 1e3 * (1.0 + 0.2 * perturb * u())) for s in robot.segments),
+        f"backbone_ei_Nm2 = {_fmt(eis[0])}",
+        "segment_ei_Nm2 = " + " ".join(_fmt(e * (1.0 + perturb * u())) for e in eis),
+        f"nm_per_tick = {_fmt(robot.tendons[0].metres_per_tick * 1e9)}",
+        f"magnet_moment_Am2 = {_fmt(moment * (1.0 + perturb * u()))}",
+        f"magnet_offset_mm = {_fmt(m.offset[2] * 1e3)}",
+    ]
+    if robot.gravity is not None and any(robot.gravity):
+        g = np.asarray(robot.gravity, dtype=float)
+        lines += [f"tip_mass_g = {_fmt(tip_mass * 1e3)}",
+                  f"gravity_dir = {_vec(g / np.linalg.norm(g))}"]
+    else:
+        lines += ["tip_mass_g = 0"]
+    lines += [
+        f"noise_uT = {_fmt(robot.noise * 1e6)}",
+        f"servo_tau_ms = {_fmt(servo_tau_ms)}",
+        "grid_mN = " + " ".join(str(round(t * 1e3)) for t in robot.tension_grid),
+        f"default_mN = {round(robot.default_tension * 1e3)}",
+        f"travel_limit_um = {_fmt(robot.travel_limit * 1e6)}",
+    ]
+    for t in robot.tendons:
+        # the plant stretches the free length only: add the path inside the robot
+        free = t.free_length + robot.segment_end(t.segment)
+        p = f"tendon.{t.index}."
+        lines += [
+            p + f"angle_deg = {_fmt(math.degrees(t.routing_angle) + 5.0 * perturb * u())}",
+            p + f"radius_mm = {_fmt(t.routing_radius * 1e3 * (1.0 + 0.2 * perturb * u()))}",
+            p + f"segment = {t.segment}",
+            p + f"servo_id = {t.servo_id}",
+            p + f"pull_dir = {t.pull_dir}",
+            p + f"nm_per_tick = {_fmt(t.metres_per_tick * 1e9)}",
+            p + f"ea_N = {_fmt(t.stiffness_ea * (1.0 + perturb * u()))}",
+            p + f"free_len_mm = {_fmt(free * 1e3 * (1.0 + perturb * u()))}",
+            p + f"slack_um = {_fmt(slack_um + 500.0 * perturb * u())}",
+            p + f"friction_mN = {_fmt(friction_mN * (1.0 + perturb * u()))}",
+            p + f"friction_mu = {_fmt(friction_mu * (1.0 + perturb * u()))}",
+            p + f"backlash_um = {_fmt(backlash_um * (1.0 + perturb * u()))}",
+        ]
+    for s in robot.sensors:
+        p = f"sensor.{s.index}."
+        pos = [x * 1e3 + perturb * u() for x in s.position]
+        r = np.asarray(s.rotation, dtype=float)
+        lines += [
+            p + f"pos_mm = {_vec(pos)}",
+            p + f"rot = {_vec(r.reshape(9))}",
+            p + f"ambient_uT = {_vec(ambient_uT)}",
+            p + f"mux = {TBL_NO_MUX if s.mux_channel is None else s.mux_channel}",
+            p + f"addr = {s.i2c_address:#04x}",
+        ]
+    return lines
+
+
+def write_plant_config(robot: Robot, path: str | Path, seed: int | None = None,
+                       perturb: float = 0.0, **kwargs) -> Path:
+    """Write the plant config of ``robot`` to ``path`` and return the path.
+
+    ``seed`` and ``perturb`` (a fraction, 0 = the nominal robot) perturb the
+    physical parameters reproducibly; other keyword arguments
+    (``slack_um``, ``friction_mN``, ``friction_mu``, ``backlash_um``,
+    ``ambient_uT``, ``servo_tau_ms``) set what the robot TOML does not
+    describe. Raises ``PlantConfigError`` for robots the plant cannot model
+    (more than 4 segments, twisted routing, an off-axis magnet).
+    """
+    path = Path(path)
+    path.write_text("\n".join(plant_lines(robot, seed, perturb, **kwargs)) + "\n",
+                    encoding="ascii")
+    return path
