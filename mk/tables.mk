@@ -15,7 +15,7 @@ tables: $(STAMP)
 # `make tables`.
 tables-check: $(STAMP)
 	@rm -rf $(TABLES_CHECK_DIR) && mkdir -p $(TABLES_CHECK_DIR)
-	@$(VENV)/bin/hallhome tables --quiet --out-dir $(TABLES_CHECK_DIR) $(ROBOT_TOMLS) 2>/dev/null
+	@$(VENV)/bin/hallhome tables --quiet --out-dir $(TABLES_CHECK_DIR) $(ROBOT_TOMLS)
 	@status=0; \
 	for f in $(TABLES_CHECK_DIR)/*; do \
 		g=lookup_tables/generated/$$(basename $$f); \

@@ -208,6 +208,11 @@ def _warnings(res: RobotResult) -> list[str]:
             k = int(np.nonzero(steps <= 0)[0][0])
             w.append(f"{name}: target on sensor {sel} does not grow between "
                      f"{robot.tension_grid[k]:g} N and {robot.tension_grid[k + 1]:g} N")
+        abs_t = np.linalg.norm(tr.field[:, sel], axis=-1)
+        if robot.mode == "absolute" and np.any(np.diff(abs_t) <= 0):
+            k = int(np.nonzero(np.diff(abs_t) <= 0)[0][0])
+            w.append(f"{name}: absolute target on sensor {sel} does not grow between "
+                     f"{robot.tension_grid[k]:g} N and {robot.tension_grid[k + 1]:g} N")
         for T, tv in zip(robot.tension_grid, tr.travel):
             if tv > robot.travel_limit:
                 w.append(f"{name}: expected travel {tv * 1e3:.3f} mm at {T:g} N exceeds the "
@@ -437,6 +442,11 @@ def _r(x, nd):
     return 0.0 if v == 0 else v
 
 
+def _slope(x, y, at: float) -> float:
+    """dy/dx of sampled data at ``at`` (central differences on the grid)."""
+    return float(np.interp(at, x, np.gradient(np.asarray(y), np.asarray(x))))
+
+
 def render_json(res: RobotResult, table: dict, spec: TableSpec) -> str:
     """The JSON twin (format in docs/tables.md)."""
     robot = res.robot
@@ -466,6 +476,12 @@ def render_json(res: RobotResult, table: dict, spec: TableSpec) -> str:
             "distance_to_sensors_mm": _r(np.linalg.norm(mpos[:, None] - sensor_pos[None],
                                                          axis=-1) * 1e3, 4),
             "nm_per_tick": table["tendons"][t.index]["nm_per_tick"],
+            # tension resolution at the default tension: sensor noise over the
+            # selected sensor's sensitivity, and one encoder tick over the
+            # take-up slope dtravel/dT
+            "noise_resolution_N": _r(robot.noise / tr.sensitivity[tr.selected], 5),
+            "tick_resolution_N": _r(t.metres_per_tick / _slope(grid, tr.travel,
+                                                                robot.default_tension), 5),
         })
     doc = {
         "format": "hallhome-table",
