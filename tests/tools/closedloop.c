@@ -3,11 +3,15 @@
  * plant model and prints per-tendon results and machine-readable CSV lines.
  *
  *   hh_closedloop CONFIG [-t mN] [-s seed] [-p perturb] [-n runs]
- *                 [-m full|quick|single|dry] [-i tendon] [-f fault:index:ms] [-q]
+ *                 [-m full|quick|single|dry] [-i tendon] [-f fault:index:ms]
+ *                 [-g generated_table] [-q]
  *
  * -f injects a fault (plant_fault_t number, see sim/plant/closedloop.h) into
  * every run; the summary then reports the slowest release to slack.
- * The table comes from the nominal plant (plant_make_table); each run uses the
+ * The table comes from the nominal plant (plant_make_table), or with -g from
+ * a generated table linked into the program (lookup_tables/generated: the
+ * host's Cosserat model against this plant, model error included); each run
+ * uses the
  * plant perturbed with seed+run and `perturb` (0 = nominal), so model error is
  * real when perturb > 0. Quick mode first runs a full calibration, then power
  * cycles (the encoder loses whole turns) with the robot left at its homes and
@@ -23,6 +27,21 @@
 #include <time.h>
 
 #include "plant/closedloop.h"
+
+/* Generated tables, when linked (weak: the tool still builds without them). */
+extern const tbl_table_t tbl_table_paper_2seg __attribute__((weak));
+extern const tbl_table_t tbl_table_trio_3seg __attribute__((weak));
+
+static const tbl_table_t *generated(const char *name)
+{
+    if (strcmp(name, "paper_2seg") == 0) {
+        return &tbl_table_paper_2seg;
+    }
+    if (strcmp(name, "trio_3seg") == 0) {
+        return &tbl_table_trio_3seg;
+    }
+    return NULL;
+}
 
 static void usage(void)
 {
@@ -68,6 +87,7 @@ int main(int argc, char **argv)
     unsigned fault_index = 0;
     unsigned fault_ms = 0;
     unsigned max_release_ms = 0;
+    const char *gen = NULL;
     int err_line = 0;
     int a;
     unsigned r;
@@ -108,6 +128,8 @@ int main(int argc, char **argv)
             runs = (unsigned)strtoul(v, NULL, 10);
         } else if (strcmp(argv[a], "-i") == 0) {
             tendon = (unsigned)strtoul(v, NULL, 10);
+        } else if (strcmp(argv[a], "-g") == 0) {
+            gen = v;
         } else if (strcmp(argv[a], "-f") == 0) {
             if (sscanf(v, "%u:%u:%u", &fault, &fault_index, &fault_ms) != 3) {
                 usage();
@@ -128,7 +150,14 @@ int main(int argc, char **argv)
         fprintf(stderr, "hh_closedloop: %s: bad config (line %d)\n", path, err_line);
         return 1;
     }
-    if (plant_make_table(&nominal, &table) != 0) {
+    if (gen != NULL) {
+        const tbl_table_t *g = generated(gen);
+        if (g == NULL) {
+            fprintf(stderr, "hh_closedloop: generated table %s not linked\n", gen);
+            return 1;
+        }
+        table = *g;
+    } else if (plant_make_table(&nominal, &table) != 0) {
         fprintf(stderr, "hh_closedloop: cannot build the table from %s\n", path);
         return 1;
     }
