@@ -1,30 +1,139 @@
 /*
- * hallhome firmware entry point: board bring-up, boot banner, superloop.
+ * hallhome firmware entry point: board bring-up, then the application's
+ * superloop (lib/app). Everything that decides anything is in lib/app; this
+ * file only binds the board's drivers to the app's interfaces.
  */
 #include <avr/interrupt.h>
 #include <avr/pgmspace.h>
+#include <string.h>
 
+#include "app/app.h"
 #include "board.h"
+#include "board_io.h"
+#include "eeprom_port.h"
 #include "reset.h"
 #include "tick.h"
+#include "twi.h"
 #include "uart0.h"
+#include "uart1.h"
 #include "version.h"
 
-static void banner(void)
+/* The generated table of ROBOT= (lookup_tables/generated/<robot>.c). A weak
+ * reference: when no table was generated the address is NULL and the app
+ * reports "no valid lookup table" instead of calibrating with a made-up one. */
+#define HH_CAT2(a, b) a##b
+#define HH_CAT(a, b)  HH_CAT2(a, b)
+#define HH_TABLE      HH_CAT(tbl_table_, HH_ROBOT)
+extern const tbl_table_t HH_TABLE __attribute__((weak));
+
+#define STR2(x) #x
+#define STR(x)  STR2(x)
+
+static app_t app;
+static con_rt_t con_rt;
+
+static uint8_t rt_hook(uint8_t b)
 {
-    uart0_puts_P(PSTR("<boot name=hallhome version=" HH_VERSION " board="));
-    uart0_puts_P(PSTR(BOARD_NAME));
-    uart0_puts_P(PSTR(" reset="));
-    uart0_puts_P(reset_cause_P());
-    uart0_puts_P(PSTR(">\r\n"));
+    return con_rt_byte(&con_rt, b);
 }
+
+static void copy_P(void *dst, const void *src, size_t n)
+{
+    memcpy_P(dst, src, n);
+}
+
+/* tbl_copy_fn has no context: bind the learned-target copy to the one app. */
+static void copy_learned(void *dst, const void *src, size_t n)
+{
+    app_table_copy(&app, dst, src, n);
+}
+
+static uint32_t b_now_ms(void *ctx)
+{
+    (void)ctx;
+    return tick_ms();
+}
+
+static uint32_t b_now_us(void *ctx)
+{
+    (void)ctx;
+    return tick_us();
+}
+
+static uint8_t b_button(void *ctx)
+{
+    (void)ctx;
+    return board_io_button();
+}
+
+static void b_led(void *ctx, uint8_t on)
+{
+    (void)ctx;
+    board_io_led(on);
+}
+
+static void b_kick(void *ctx)
+{
+    (void)ctx;
+    board_io_wdt_kick();
+}
+
+static void b_reboot(void *ctx)
+{
+    (void)ctx;
+    uart0_flush();
+    board_io_reboot();
+}
+
+static int16_t c_read(void *ctx)
+{
+    (void)ctx;
+    return uart0_read();
+}
+
+static void c_write(void *ctx, const char *buf, uint8_t n)
+{
+    uint8_t i;
+    (void)ctx;
+    for (i = 0; i < n; i++) {
+        uart0_write((uint8_t)buf[i]);
+    }
+}
+
+static const app_board_t board = {NULL, b_now_ms, b_now_us, b_button, b_led, b_kick, b_reboot};
+static const con_io_t con_io = {NULL, c_read, c_write};
 
 int main(void)
 {
+    app_io_t io;
     tick_init();
     uart0_init(BOARD_CONSOLE_BAUD);
+    uart0_set_rt_hook(rt_hook);
+    twi_init();
+    board_io_init();
     sei();
-    banner();
+
+    memset(&io, 0, sizeof io);
+    io.board = &board;
+    io.servo_port = uart1_port();
+    io.servo_bits = 10;
+    io.sensor_bus = twi_bus();
+    io.mux_addr = BOARD_MUX_ADDR;
+    io.eeprom = &eeprom_port;
+    io.store_copy = copy_P;
+    io.console = &con_io;
+    io.con_copy = copy_P;
+    io.rt = &con_rt;
+    io.table = &HH_TABLE;
+    io.table_copy = copy_P;
+    io.table_copy_learned = copy_learned;
+    io.version_f = PSTR(HH_VERSION);
+    io.board_f = PSTR(BOARD_NAME);
+    io.reset_f = reset_cause_P();
+    (void)app_init(&app, &io);
+    uart1_init(app_bus_baud(&app));
+    board_io_wdt_start();
     for (;;) {
+        (void)app_poll(&app);
     }
 }

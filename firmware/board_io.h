@@ -1,0 +1,28 @@
+/*
+ * board_io: the button, the status LED and the watchdog of the Mega, as the
+ * application's board interface needs them (pins in board.h).
+ */
+#ifndef HALLHOME_BOARD_IO_H
+#define HALLHOME_BOARD_IO_H
+
+#include <stdint.h>
+
+#define BOARD_IO_WDT_MS 500u /* watchdog period: well above the longest loop pass */
+
+/* Button as an input with pull-up, LED as an output (off). */
+void board_io_init(void);
+
+/* Nonzero while the button is pressed (the pin reads low). */
+uint8_t board_io_button(void);
+
+/* Drives the LED. */
+void board_io_led(uint8_t on);
+
+/* Starts the watchdog (BOARD_IO_WDT_MS); board_io_wdt_kick() restarts its count. */
+void board_io_wdt_start(void);
+void board_io_wdt_kick(void);
+
+/* Resets the board through the watchdog (15 ms); does not return. */
+void board_io_reboot(void);
+
+#endif /* HALLHOME_BOARD_IO_H */

@@ -1,0 +1,1872 @@
+/*
+ * app: the superloop that turns the modules into the product (app.h).
+ */
+#include "app/app.h"
+
+#include <stddef.h>
+#include <string.h>
+
+#include "dxl/dxl_xl430_reg.h"
+
+/* A string in console-flash memory (program memory on the AVR, where
+ * CON_FLASH is __progmem__; ordinary const data on the host). */
+#define S(s)                                                                                       \
+    (__extension__({                                                                               \
+        static const char app_s_[] CON_FLASH = (s);                                                \
+        &app_s_[0];                                                                                \
+    }))
+
+/* Bus transactions. */
+enum { TX_NONE = 0, TX_POS, TX_HWERR, TX_GOAL, TX_TORQUE, TX_REBOOT };
+
+/* Records waiting for the EEPROM. */
+enum { SAVE_HOMES = 1, SAVE_HIST = 2, SAVE_LEARNED = 4, SAVE_SETTINGS = 8 };
+
+/* App-driven moves. */
+enum { MOVE_HOME = 1, MOVE_RELEASE = 2 };
+
+#define LEARN_BASELINE 0xFFu /* learn_tendon: capturing the straight-pose baseline */
+#define GOALS_PER_TXN  6u    /* 12-byte entries of one sync write that fit DXL_TX_CAP */
+#define REST_DELAY_MS  1000u
+#define LEARN_WAIT_MS  1000u
+#define SETTLE_MS      300u
+
+static uint32_t now_ms(const app_t *a)
+{
+    return a->io.board->now_ms(a->io.board->ctx);
+}
+
+static uint32_t now_us(const app_t *a)
+{
+    return a->io.board->now_us(a->io.board->ctx);
+}
+
+static uint16_t bit16(uint8_t i)
+{
+    return (uint16_t)(1u << i);
+}
+
+static uint16_t all_mask(const app_t *a)
+{
+    return (uint16_t)((1u << a->info.n_tendons) - 1u);
+}
+
+/* ---- reports ------------------------------------------------------------- */
+
+static void rep_begin(app_t *a, const char *kind)
+{
+    con_report_begin(&a->con, kind);
+}
+
+static void rep_int(app_t *a, const char *key, int32_t v)
+{
+    con_report_int(&a->con, key, v);
+}
+
+static void rep_end(app_t *a)
+{
+    con_report_end(&a->con);
+}
+
+/* Hex words (table_id) without a printf. */
+static void rep_hex(app_t *a, const char *key, uint32_t v)
+{
+    char buf[11];
+    uint8_t i;
+    buf[0] = '0';
+    buf[1] = 'x';
+    for (i = 0; i < 8u; i++) {
+        uint8_t d = (uint8_t)((v >> (28u - 4u * i)) & 0xFu);
+        buf[2u + i] = (char)(d < 10u ? (char)('0' + d) : (char)('a' + d - 10u));
+    }
+    buf[10] = '\0';
+    con_report_str(&a->con, key, buf);
+}
+
+/* Appends the decimal v and a separator to buf at *pos (capacity cap). */
+static void list_add(char *buf, uint8_t cap, uint8_t *pos, int32_t v, char mark)
+{
+    char tmp[13];
+    int8_t n = con_format_fixed(tmp, sizeof tmp, v, 0);
+    if (n < 0 || (uint16_t)*pos + (uint16_t)n + 3u > cap) {
+        return;
+    }
+    if (*pos > 0u) {
+        buf[(*pos)++] = ',';
+    }
+    memcpy(&buf[*pos], tmp, (size_t)n);
+    *pos = (uint8_t)(*pos + (uint8_t)n);
+    if (mark != '\0') {
+        buf[(*pos)++] = mark;
+    }
+    buf[*pos] = '\0';
+}
+
+static const char *mode_word(uint8_t mode)
+{
+    switch (mode) {
+    case HOM_MODE_QUICK:
+        return S("quick");
+    case HOM_MODE_SINGLE:
+        return S("single");
+    case HOM_MODE_DRY:
+        return S("dry");
+    default:
+        return S("full");
+    }
+}
+
+static const char *state_word(uint8_t st)
+{
+    switch (st) {
+    case APP_ST_BOOT:
+        return S("boot");
+    case APP_ST_CAL:
+        return S("cal");
+    case APP_ST_MOVE:
+        return S("move");
+    case APP_ST_LEARN:
+        return S("learn");
+    case APP_ST_FAULT:
+        return S("fault");
+    default:
+        return S("idle");
+    }
+}
+
+static const char *dev_word(uint8_t dev)
+{
+    switch (dev) {
+    case HOM_DEV_SENSOR:
+        return S("sensor");
+    case HOM_DEV_SERVO:
+        return S("servo");
+    case HOM_DEV_TENDON:
+        return S("tendon");
+    default:
+        return S("none");
+    }
+}
+
+/* A fault the app itself detects (moves, learn, EEPROM), in the same shape
+ * as the homing's: reason word, console error code, device. */
+static void rep_app_fault(app_t *a, const char *reason_f, int8_t err, uint8_t dev, uint8_t index)
+{
+    rep_begin(a, S("fault"));
+    con_report_flash(&a->con, S("reason"), reason_f);
+    rep_int(a, S("error"), -err);
+    con_report_flash(&a->con, S("dev"), dev_word(dev));
+    rep_int(a, S("index"), index);
+    rep_end(a);
+}
+
+/* ---- table ------------------------------------------------------------------- */
+
+void app_table_copy(app_t *app, void *dst, const void *src, size_t n)
+{
+    uint8_t t;
+    app->io.table_copy(dst, src, n);
+    if (app->io.table == NULL || app->learned_mask == 0u) {
+        return;
+    }
+    for (t = 0; t < TBL_MAX_TENDONS; t++) {
+        uintptr_t lo, s0 = (uintptr_t)src, s1 = (uintptr_t)src + n;
+        store_learned_t l;
+        uint8_t g;
+        if (((app->learned_mask >> t) & 1u) == 0u) {
+            continue;
+        }
+        lo = (uintptr_t)&app->io.table->tendons[t].target_cuT[0];
+        if (lo >= s1 || lo + sizeof(uint32_t) * TBL_MAX_GRID <= s0) {
+            continue;
+        }
+        if (store_learned_load(&app->store, t, app->info.table_id, &l) != 0) {
+            continue;
+        }
+        for (g = 0; g < l.n_grid && g < TBL_MAX_GRID; g++) {
+            uintptr_t w = lo + sizeof(uint32_t) * g;
+            if (((l.grid_mask >> g) & 1u) != 0u && w >= s0 && w + sizeof(uint32_t) <= s1) {
+                memcpy((uint8_t *)dst + (w - s0), &l.target_cuT[g], sizeof(uint32_t));
+            }
+        }
+    }
+}
+
+static void load_table(app_t *a)
+{
+    uint8_t i;
+    a->tab.table = a->io.table;
+    a->tab.copy = a->io.table_copy;
+    a->htab.table = a->io.table;
+    a->htab.copy = a->io.table_copy_learned != NULL ? a->io.table_copy_learned : a->io.table_copy;
+    a->table_ok = 0;
+    memset(&a->info, 0, sizeof a->info);
+    if (a->io.table == NULL || tbl_check(&a->tab) != 0 || tbl_info(&a->tab, &a->info) != 0 ||
+        a->info.n_sensors > APP_MAX_SENSORS) {
+        memset(&a->info, 0, sizeof a->info);
+        return;
+    }
+    for (i = 0; i < a->info.n_tendons; i++) {
+        tbl_tendon_t row;
+        (void)tbl_tendon(&a->tab, i, &row);
+        a->ids[i] = row.servo_id;
+        a->sensor_of[i] = row.sensor;
+        a->dir[i] = row.pull_dir < 0 ? -1 : 1;
+        a->nm_per_tick[i] = row.nm_per_tick;
+    }
+    a->table_ok = 1;
+}
+
+/* um of tendon travel in encoder ticks of tendon i (rounded). */
+static int32_t um_ticks(const app_t *a, uint8_t i, uint32_t um)
+{
+    uint32_t npt = a->nm_per_tick[i] != 0u ? a->nm_per_tick[i] : 1u;
+    return (int32_t)(((uint64_t)um * 1000u + npt / 2u) / npt);
+}
+
+static int32_t ticks_um(const app_t *a, uint8_t i, int32_t ticks)
+{
+    return (int32_t)(((int64_t)ticks * (int64_t)a->nm_per_tick[i]) / 1000);
+}
+
+static int32_t home_cur(const app_t *a, uint8_t i)
+{
+    return a->homes.t[i].home_ticks - a->offset[i];
+}
+
+/* ---- init ---------------------------------------------------------------- */
+
+int8_t app_init(app_t *app, const app_io_t *io)
+{
+    dxl_config dc;
+    uint8_t t;
+    if (app == NULL || io == NULL || io->board == NULL || io->board->now_ms == NULL ||
+        io->board->now_us == NULL || io->board->button == NULL || io->board->led == NULL ||
+        io->board->wdt_kick == NULL || io->sensor_bus == NULL || io->eeprom == NULL ||
+        io->console == NULL || io->con_copy == NULL || io->store_copy == NULL || io->rt == NULL ||
+        io->table_copy == NULL) {
+        return APP_E_ARG;
+    }
+    memset(app, 0, sizeof *app);
+    app->io = *io;
+    (void)con_init(&app->con, io->console, app_handlers, app, io->con_copy, io->rt);
+    (void)store_init(&app->store, io->eeprom, io->store_copy);
+    (void)store_settings_load(&app->store, &app->set);
+    load_table(app);
+    hom_init(&app->hom, NULL);
+    dxl_config_default(&dc, app_bus_baud(app), io->servo_bits != 0u ? io->servo_bits : 10u);
+    dxl_master_init(&app->dxl, &io->servo_port, &dc);
+    app->homes_rc = STORE_E_EMPTY;
+    if (app->table_ok) {
+        app->homes_rc = store_homes_load(&app->store, app->info.table_id, &app->homes);
+        if (app->homes_rc != 0 || app->homes.n_tendons != app->info.n_tendons) {
+            memset(&app->homes, 0, sizeof app->homes);
+        }
+        for (t = 0; t < app->info.n_tendons; t++) {
+            store_learned_t l;
+            if (store_learned_load(&app->store, t, app->info.table_id, &l) == 0 &&
+                l.grid_mask != 0u) {
+                app->learned_mask |= bit16(t);
+            }
+        }
+    }
+    app->state = APP_ST_BOOT;
+    app->t_boot = now_ms(app);
+    app->btn_raw = 0;
+    app->led = APP_LED_BOOT;
+    rep_begin(app, S("boot"));
+    con_report_flash(&app->con, S("name"), S("hallhome"));
+    if (io->version_f != NULL) {
+        con_report_flash(&app->con, S("version"), io->version_f);
+    }
+    if (io->board_f != NULL) {
+        con_report_flash(&app->con, S("board"), io->board_f);
+    }
+    if (io->reset_f != NULL) {
+        con_report_flash(&app->con, S("reset"), io->reset_f);
+    }
+    rep_end(app);
+    return 0;
+}
+
+uint32_t app_bus_baud(const app_t *app)
+{
+    return (uint32_t)app->set.v[STORE_SET_BUS_BAUD];
+}
+
+/* ---- boot preflight ------------------------------------------------------- */
+
+static void boot_start(app_t *a)
+{
+    uint8_t k;
+    dxl_bringup_config bc;
+    a->state = APP_ST_BOOT;
+    a->boot_step = 0;
+    a->t_boot = now_ms(a);
+    if (!a->table_ok) {
+        return;
+    }
+    if (a->sens.n == 0u) {
+        (void)icm_set_setup(&a->sens, a->io.sensor_bus, a->io.mux_addr, a->slot, APP_MAX_SENSORS);
+        for (k = 0; k < a->info.n_sensors; k++) {
+            tbl_sensor_t s;
+            (void)tbl_sensor(&a->tab, k, &s);
+            (void)icm_set_add(&a->sens, a->io.mux_addr == ICM_NO_MUX ? ICM_NO_MUX : s.mux_channel,
+                              s.i2c_addr);
+        }
+        (void)icm_set_begin(&a->sens, now_us(a));
+    }
+    memset(&bc, 0, sizeof bc);
+    bc.profile_velocity = 0;
+    bc.profile_acceleration = 0;
+    bc.reboot_on_hw_error = 0;
+    bc.reboot_wait_us = 500000u;
+    dxl_abort(&a->dxl);
+    a->sv_txn = TX_NONE;
+    a->servo_absent = 0;
+    (void)dxl_bringup_start(&a->bring, &a->dxl, a->ids, a->info.n_tendons, &bc);
+    a->boot_step = 1;
+}
+
+/* Maps the stored homes into this power cycle's servo frames. */
+static void recover_homes(app_t *a)
+{
+    uint8_t i;
+    a->home_now = 0;
+    a->recover_rc = 0;
+    if (a->homes_rc != 0) {
+        return;
+    }
+    for (i = 0; i < a->info.n_tendons; i++) {
+        int32_t pos;
+        int8_t rc;
+        if (((a->homes.valid_mask >> i) & 1u) == 0u || ((a->servo_seen >> i) & 1u) == 0u) {
+            continue;
+        }
+        rc = store_recover_position(&a->homes.t[i], a->present[i],
+                                    (uint16_t)a->set.v[STORE_SET_REST_TOL], &pos);
+        if (rc == 0) {
+            a->offset[i] = pos - a->present[i];
+            a->home_now |= bit16(i);
+        } else if (a->recover_rc == 0) {
+            a->recover_rc = rc;
+        }
+    }
+}
+
+/* The bring-up's entry for servo id, or NULL. */
+static const dxl_servo_info *bring_info(const app_t *a, uint8_t id)
+{
+    uint8_t j;
+    for (j = 0; j < a->bring.n; j++) {
+        if (a->bring.servo[j].id == id) {
+            return &a->bring.servo[j];
+        }
+    }
+    return NULL;
+}
+
+static void boot_finish(app_t *a)
+{
+    uint8_t i, k;
+    a->n_servo_found = 0;
+    a->servo_seen = 0;
+    for (i = 0; i < a->info.n_tendons; i++) {
+        const dxl_servo_info *s = bring_info(a, a->ids[i]);
+        if (((a->servo_absent >> i) & 1u) == 0u && s != NULL && s->present) {
+            a->n_servo_found++;
+            a->hw_err[i] = s->hw_error;
+            if (a->bring.result == 0) {
+                a->present[i] = s->position;
+                a->servo_seen |= bit16(i);
+            }
+        } else {
+            a->servo_absent |= bit16(i);
+        }
+    }
+    a->goal_due = 0;
+    a->torque_due = 0;
+    a->n_sens_found = icm_set_ready_count(&a->sens);
+    for (k = 0; k < a->info.n_sensors; k++) {
+        icm_diag_t d;
+        (void)icm_set_diag(&a->sens, k, &d);
+        a->sens_err[k] = d.error_count;
+        if (d.state != ICM_SET_S_RUN) {
+            rep_begin(a, S("missing"));
+            con_report_flash(&a->con, S("dev"), S("sensor"));
+            rep_int(a, S("index"), k);
+            rep_int(a, S("ch"), d.channel);
+            rep_int(a, S("addr"), d.addr);
+            rep_int(a, S("err"), d.last_err);
+            rep_end(a);
+        }
+    }
+    for (i = 0; i < a->info.n_tendons; i++) {
+        if ((a->servo_absent >> i) & 1u) {
+            rep_begin(a, S("missing"));
+            con_report_flash(&a->con, S("dev"), S("servo"));
+            rep_int(a, S("index"), i);
+            rep_int(a, S("id"), a->ids[i]);
+            rep_end(a);
+        } else if (a->hw_err[i] != 0u) {
+            rep_begin(a, S("missing"));
+            con_report_flash(&a->con, S("dev"), S("servo"));
+            rep_int(a, S("index"), i);
+            rep_int(a, S("id"), a->ids[i]);
+            rep_int(a, S("hw_error"), a->hw_err[i]);
+            rep_end(a);
+        }
+    }
+    /* Positions not read by the bring-up (it stopped on a missing servo)
+     * arrive with the first cycles; homes are recovered once they have. */
+    a->boot_step = 2;
+}
+
+/* One `<servo ...>` line per tendon: what the bus knows of its servo. */
+static void servo_lines(app_t *a)
+{
+    uint8_t i;
+    for (i = 0; i < a->info.n_tendons; i++) {
+        rep_begin(a, S("servo"));
+        rep_int(a, S("tendon"), i);
+        rep_int(a, S("id"), a->ids[i]);
+        rep_int(a, S("found"), ((a->servo_absent >> i) & 1u) == 0u);
+        if (bring_info(a, a->ids[i]) != NULL) {
+            rep_int(a, S("model"), bring_info(a, a->ids[i])->model);
+            rep_int(a, S("fw"), bring_info(a, a->ids[i])->firmware);
+        }
+        rep_int(a, S("pos"), a->present[i]);
+        rep_int(a, S("cal_pos"), a->present[i] + a->offset[i]);
+        rep_int(a, S("hw_error"), a->hw_err[i]);
+        rep_end(a);
+    }
+}
+
+static void boot_ready(app_t *a)
+{
+    recover_homes(a);
+    a->offer_quick = (uint8_t)(a->table_ok && a->home_now != 0u && a->home_now == all_mask(a) &&
+                               a->servo_absent == 0u);
+    rep_begin(a, S("ready"));
+    if (a->table_ok) {
+        con_report_str(&a->con, S("table"), a->info.name);
+        rep_hex(a, S("table_id"), a->info.table_id);
+    } else {
+        con_report_flash(&a->con, S("table"), S("none"));
+    }
+    rep_int(a, S("sensors"), a->n_sens_found);
+    rep_int(a, S("sensors_expected"), a->info.n_sensors);
+    rep_int(a, S("servos"), a->n_servo_found);
+    rep_int(a, S("servos_expected"), a->info.n_tendons);
+    if (a->homes_rc == 0) {
+        con_report_flash(&a->con, S("homes"),
+                         a->recover_rc == STORE_E_MOVED ? S("moved") : S("stored"));
+        rep_int(a, S("count"), (int32_t)a->homes.cal_count);
+    } else {
+        con_report_flash(&a->con, S("homes"),
+                         a->homes_rc == STORE_E_OTHER_TABLE ? S("other_table") : S("none"));
+    }
+    rep_int(a, S("rehome"), a->offer_quick);
+    rep_end(a);
+    a->state = APP_ST_IDLE;
+    a->boot_step = 3;
+    if (a->boot_con && con_pending(&a->con)) {
+        servo_lines(a);
+        (void)con_complete(&a->con, 0);
+    }
+    a->boot_con = 0;
+    a->reboot_id = 0;
+}
+
+static void boot_poll(app_t *a)
+{
+    uint32_t t = now_ms(a);
+    if (a->boot_step == 0u) {
+        if (a->reboot_id != 0u && t - a->t_reboot < APP_SERVO_REBOOT_MS) {
+            return;
+        }
+        boot_start(a);
+        if (!a->table_ok) {
+            boot_ready(a);
+        }
+        return;
+    }
+    if (a->boot_step == 1u) {
+        int8_t rc = dxl_bringup_poll(&a->bring);
+        if (rc == -DXL_E_MISSING && a->servo_absent == 0u) {
+            /* set up the servos that answered; the missing ones stay named */
+            uint8_t ids[TBL_MAX_TENDONS], i, n = 0;
+            for (i = 0; i < a->info.n_tendons; i++) {
+                if (i < a->bring.n && a->bring.servo[i].present) {
+                    ids[n++] = a->ids[i];
+                } else {
+                    a->servo_absent |= bit16(i);
+                }
+            }
+            if (n > 0u && dxl_bringup_start(&a->bring, &a->dxl, ids, n, &a->bring.cfg) > 0) {
+                return;
+            }
+        }
+        if (rc > 0 && t - a->t_boot < APP_PREFLIGHT_MS) {
+            return;
+        }
+        if (rc > 0) {
+            dxl_abort(&a->dxl);
+        }
+        if (!icm_set_settled(&a->sens) && t - a->t_boot < APP_PREFLIGHT_MS) {
+            return;
+        }
+        boot_finish(a);
+        return;
+    }
+    /* step 2: every found servo's position, then ready */
+    if ((a->servo_seen | a->servo_absent) != all_mask(a) && t - a->t_boot < APP_PREFLIGHT_MS) {
+        return;
+    }
+    boot_ready(a);
+}
+
+/* ---- servo bus ------------------------------------------------------------ */
+
+static uint8_t present_ids(const app_t *a, uint8_t *ids, uint16_t *mask)
+{
+    uint8_t i, n = 0;
+    *mask = 0;
+    for (i = 0; i < a->info.n_tendons; i++) {
+        if (((a->servo_absent >> i) & 1u) == 0u) {
+            ids[n++] = a->ids[i];
+            *mask |= bit16(i);
+        }
+    }
+    return n;
+}
+
+static void put32(uint8_t *p, uint32_t v)
+{
+    p[0] = (uint8_t)v;
+    p[1] = (uint8_t)(v >> 8);
+    p[2] = (uint8_t)(v >> 16);
+    p[3] = (uint8_t)(v >> 24);
+}
+
+static void servo_done(app_t *a, int8_t rc)
+{
+    uint8_t i;
+    if (a->sv_txn == TX_POS || a->sv_txn == TX_HWERR) {
+        for (i = 0; i < a->info.n_tendons; i++) {
+            const dxl_reply *r;
+            if (((a->txn_mask >> i) & 1u) == 0u) {
+                continue;
+            }
+            r = dxl_reply_for(&a->dxl, a->ids[i]);
+            if (r == NULL || (r->result != 0 && r->result != -DXL_E_ALERT)) {
+                continue;
+            }
+            if (a->sv_txn == TX_POS && r->len >= 4u) {
+                a->present[i] = dxl_reply_value(r, 4);
+                a->servo_fresh |= bit16(i);
+                a->servo_seen |= bit16(i);
+            } else if (a->sv_txn == TX_HWERR && r->len >= 1u) {
+                a->hw_err[i] = r->data[0];
+            }
+            if (r->result == -DXL_E_ALERT && a->sv_txn == TX_POS) {
+                a->hwerr_due = 1;
+            }
+        }
+    } else if (a->sv_txn == TX_REBOOT) {
+        if (rc != 0 && rc != -DXL_E_ALERT) {
+            if (con_pending(&a->con)) {
+                (void)con_complete(&a->con, CON_E_SERVO_FAULT);
+            }
+            a->reboot_id = 0;
+        } else {
+            /* the servo lost its multi-turn count: bring the bus up again
+             * and recover the homes as after a power cycle */
+            a->t_reboot = now_ms(a);
+            a->boot_con = 1;
+            a->boot_step = 0;
+            a->state = APP_ST_BOOT;
+        }
+    }
+    a->sv_txn = TX_NONE;
+}
+
+static void servo_next(app_t *a)
+{
+    uint8_t ids[TBL_MAX_TENDONS];
+    uint8_t i, n = 0;
+    uint16_t mask;
+    if (a->reboot_req) {
+        a->reboot_req = 0;
+        if (dxl_reboot(&a->dxl, a->reboot_id) > 0) {
+            a->sv_txn = TX_REBOOT;
+        } else if (con_pending(&a->con)) {
+            (void)con_complete(&a->con, CON_E_INTERNAL);
+        }
+        return;
+    }
+    if (a->torque_due != 0u) {
+        for (i = 0; ((a->torque_due >> i) & 1u) == 0u; i++) {
+        }
+        a->torque_due &= (uint16_t)~bit16(i);
+        if (dxl_write_value(&a->dxl, a->ids[i], DXL_XL430_TORQUE_ENABLE_ADDR, a->torque[i], 1) >
+            0) {
+            a->sv_txn = TX_TORQUE;
+            a->txn_mask = bit16(i);
+        }
+        return;
+    }
+    if (a->goal_due != 0u) {
+        uint8_t data[GOALS_PER_TXN * 12u];
+        for (i = 0; i < a->info.n_tendons && n < GOALS_PER_TXN; i++) {
+            if (((a->goal_due >> i) & 1u) == 0u) {
+                continue;
+            }
+            a->goal_due &= (uint16_t)~bit16(i);
+            if ((a->servo_absent >> i) & 1u) {
+                continue;
+            }
+            ids[n] = a->ids[i];
+            put32(&data[n * 12u], a->acc[i]);
+            put32(&data[n * 12u + 4u], a->vel[i]);
+            put32(&data[n * 12u + 8u], (uint32_t)a->goal[i]);
+            n++;
+        }
+        if (n > 0u &&
+            dxl_sync_write(&a->dxl, DXL_XL430_PROFILE_ACCELERATION_ADDR, 12u, ids, data, n) > 0) {
+            a->sv_txn = TX_GOAL;
+        }
+        return;
+    }
+    n = present_ids(a, ids, &mask);
+    if (n == 0u) {
+        return;
+    }
+    a->txn_mask = mask;
+    a->sv_cycle++;
+    if (a->hwerr_due || (a->sv_cycle % APP_HWERR_EVERY) == 0u) {
+        a->hwerr_due = 0;
+        if (dxl_sync_read(&a->dxl, DXL_XL430_HW_ERROR_ADDR, 1u, ids, n) > 0) {
+            a->sv_txn = TX_HWERR;
+        }
+        return;
+    }
+    if (dxl_sync_read(&a->dxl, DXL_XL430_PRESENT_POSITION_ADDR, 4u, ids, n) > 0) {
+        a->sv_txn = TX_POS;
+    }
+}
+
+static void servo_poll(app_t *a)
+{
+    if (a->state == APP_ST_BOOT && a->boot_step != 2u) {
+        return; /* the bring-up owns the bus */
+    }
+    if (dxl_busy(&a->dxl)) {
+        int8_t rc = dxl_poll(&a->dxl);
+        if (rc > 0) {
+            return;
+        }
+        servo_done(a, rc);
+    } else if (a->sv_txn != TX_NONE) {
+        servo_done(a, dxl_poll(&a->dxl));
+    }
+    if (a->state != APP_ST_BOOT || a->boot_step == 2u) {
+        servo_next(a);
+    }
+}
+
+/* Queues a goal for tendon i. */
+static void set_goal(app_t *a, uint8_t i, int32_t goal, uint16_t vel, uint16_t acc)
+{
+    a->goal[i] = goal;
+    a->vel[i] = vel;
+    a->acc[i] = acc;
+    a->goal_due |= bit16(i);
+    if (a->torque[i] != 1u) {
+        a->torque[i] = 1;
+        a->torque_due |= bit16(i);
+    }
+}
+
+/* ---- sensors -------------------------------------------------------------- */
+
+/* Takes this pass's samples into in->sensor[] (and the learn accumulator). */
+static void sensors_take(app_t *a, hom_in_t *in)
+{
+    uint8_t k;
+    for (k = 0; k < a->info.n_sensors && a->sens.n > 0u; k++) {
+        icm_sample_t s;
+        hom_sensor_in_t *o = &in->sensor[k];
+        int8_t rc = icm_set_take(&a->sens, k, &s);
+        icm_diag_t d;
+        (void)icm_set_diag(&a->sens, k, &d);
+        if (rc == 1) {
+            o->status = (s.flags & ICM_SAMPLE_OVERFLOW) ? HOM_SENS_OVERFLOW : HOM_SENS_NEW;
+            o->b_cuT[0] = (int32_t)s.raw[0] * 15;
+            o->b_cuT[1] = (int32_t)s.raw[1] * 15;
+            o->b_cuT[2] = (int32_t)s.raw[2] * 15;
+        } else if (d.state == ICM_SET_S_FAIL && !d.present) {
+            o->status = HOM_SENS_ABSENT;
+        } else if (d.error_count != a->sens_err[k]) {
+            o->status = HOM_SENS_ERROR;
+        } else {
+            o->status = HOM_SENS_NONE;
+        }
+        a->sens_err[k] = d.error_count;
+    }
+}
+
+/* ---- runs ------------------------------------------------------------------- */
+
+static void save_queue(app_t *a, uint8_t what)
+{
+    a->save_due |= what;
+}
+
+static void rep_event(app_t *a, const hom_event_t *ev)
+{
+    uint8_t i = ev->index;
+    switch (ev->type) {
+    case HOM_EV_START:
+        rep_begin(a, S("progress"));
+        con_report_flash(&a->con, S("state"), S("start"));
+        con_report_flash(&a->con, S("mode"), mode_word(ev->code));
+        rep_int(a, S("tension_mN"), ev->a);
+        rep_end(a);
+        break;
+    case HOM_EV_PHASE: {
+        static const char *const ph[] = {"", "preflight", "release", "baseline", "tendon", "final"};
+        rep_begin(a, S("progress"));
+        con_report_str(&a->con, S("state"), ev->code <= HOM_PH_FINAL ? ph[ev->code] : "");
+        if (ev->code == HOM_PH_TENDON && i < TBL_MAX_TENDONS) {
+            a->t_tendon[i] = ev->t_ms;
+            rep_int(a, S("tendon"), i);
+            rep_int(a, S("id"), a->ids[i]);
+        }
+        rep_end(a);
+        break;
+    }
+    case HOM_EV_MISSING:
+        rep_begin(a, S("missing"));
+        con_report_flash(&a->con, S("dev"), dev_word(ev->code));
+        rep_int(a, S("index"), i);
+        if (ev->code == HOM_DEV_SERVO && i < TBL_MAX_TENDONS) {
+            rep_int(a, S("id"), a->ids[i]);
+        }
+        rep_int(a, S("why"), ev->a);
+        rep_int(a, S("bits"), ev->b);
+        rep_end(a);
+        break;
+    case HOM_EV_ENGAGED:
+        if (i < TBL_MAX_TENDONS) {
+            a->engage[i] = ev->a;
+        }
+        rep_begin(a, S("progress"));
+        con_report_flash(&a->con, S("state"), S("engaged"));
+        rep_int(a, S("tendon"), i);
+        rep_int(a, S("pos"), ev->a);
+        rep_end(a);
+        break;
+    case HOM_EV_HOME:
+        if (i < a->info.n_tendons) {
+            const hom_tendon_t *t = &a->hom.tendon[i];
+            const hom_sensor_t *s = &a->hom.sensor[t->sensor];
+            int32_t d[3];
+            uint8_t k;
+            for (k = 0; k < 3u; k++) {
+                d[k] = s->last[k] - s->b0[k];
+            }
+            rep_begin(a, S("result"));
+            rep_int(a, S("tendon"), i);
+            rep_int(a, S("id"), a->ids[i]);
+            rep_int(a, S("home"), ev->a);
+            rep_int(a, S("home_um"), ticks_um(a, i, ev->a));
+            con_report_fixed(&a->con, S("dB_uT"), (int32_t)hom_norm3(d), 2);
+            con_report_fixed(&a->con, S("target_uT"), (int32_t)t->target_cuT, 2);
+            rep_int(a, S("travel_um"), ticks_um(a, i, (ev->a - t->engage) * t->dir));
+            rep_int(a, S("time_ms"), (int32_t)(ev->t_ms - a->t_tendon[i]));
+            rep_end(a);
+        }
+        break;
+    case HOM_EV_TARGET:
+        rep_begin(a, S("target"));
+        rep_int(a, S("tendon"), i);
+        con_report_fixed(&a->con, S("target_uT"), ev->a, 2);
+        rep_int(a, S("travel_um"), ev->b);
+        rep_end(a);
+        break;
+    case HOM_EV_DONE:
+        break; /* reported by run_done() with the count */
+    case HOM_EV_FAULT:
+        a->last_fault = ev->code;
+        a->last_fault_index = i;
+        a->last_fault_dev = (uint8_t)ev->a;
+        rep_begin(a, S("fault"));
+        con_report_str(&a->con, S("reason"), hom_fault_name(ev->code));
+        rep_int(a, S("code"), ev->code);
+        con_report_flash(&a->con, S("dev"), dev_word((uint8_t)ev->a));
+        rep_int(a, S("index"), i);
+        if ((ev->a == HOM_DEV_SERVO || ev->a == HOM_DEV_TENDON) && i < TBL_MAX_TENDONS) {
+            rep_int(a, S("id"), a->ids[i]);
+        }
+        rep_int(a, S("detail"), ev->b);
+        rep_end(a);
+        break;
+    case HOM_EV_RELEASED:
+        rep_begin(a, S("released"));
+        con_report_str(&a->con, S("reason"), hom_fault_name((int)ev->a));
+        rep_end(a);
+        break;
+    default:
+        break;
+    }
+}
+
+/* A run finished: keep its homes (calibration frame = this power cycle's
+ * frame, so the offsets become 0), count it and queue the records. */
+static void run_done(app_t *a)
+{
+    uint8_t i, k;
+    uint32_t t = now_ms(a);
+    a->homes.table_id = a->info.table_id;
+    a->homes.n_tendons = a->info.n_tendons;
+    a->homes.tension_mN = a->run_tension;
+    a->homes.cal_count++;
+    for (i = 0; i < a->info.n_tendons; i++) {
+        int32_t h;
+        if (((a->run_mask >> i) & 1u) && hom_home(&a->hom, i, &h) == 0) {
+            store_home_set(&a->homes.t[i], h, h);
+            a->offset[i] = 0;
+            a->homes.valid_mask |= bit16(i);
+            a->home_now |= bit16(i);
+        }
+    }
+    memset(&a->rec.hist, 0, sizeof a->rec.hist);
+    a->rec.hist.cal_count = a->homes.cal_count;
+    a->rec.hist.table_id = a->homes.table_id;
+    a->rec.hist.tension_mN = a->homes.tension_mN;
+    a->rec.hist.valid_mask = a->homes.valid_mask;
+    a->rec.hist.n_tendons = a->homes.n_tendons;
+    for (i = 0; i < a->info.n_tendons; i++) {
+        a->rec.hist.home_ticks[i] = a->homes.t[i].home_ticks;
+    }
+    a->homes_rc = 0;
+    a->recover_rc = 0;
+    save_queue(a, SAVE_HOMES | SAVE_HIST);
+    /* the run's baseline is the learn baseline until the next release */
+    for (k = 0; k < a->info.n_sensors; k++) {
+        memcpy(a->b0[k], a->hom.sensor[k].b0, sizeof a->b0[k]);
+    }
+    a->have_b0 = 1;
+    a->offer_quick = 0;
+    a->released = 0;
+    a->runs_ok++;
+    rep_begin(a, S("done"));
+    con_report_flash(&a->con, S("mode"), mode_word(a->run_mode));
+    rep_int(a, S("time_ms"), (int32_t)(t - a->t_run));
+    rep_int(a, S("tension_mN"), a->run_tension);
+    rep_int(a, S("count"), (int32_t)a->homes.cal_count);
+    rep_end(a);
+    a->led = APP_LED_DONE;
+    a->state = APP_ST_IDLE;
+}
+
+static int8_t check_devices(app_t *a)
+{
+    uint8_t k;
+    if (a->state == APP_ST_BOOT) {
+        return CON_E_BUSY;
+    }
+    if (!a->table_ok) {
+        return CON_E_NO_TABLE;
+    }
+    for (k = 0; k < a->info.n_sensors; k++) {
+        icm_diag_t d;
+        (void)icm_set_diag(&a->sens, k, &d);
+        if (d.state != ICM_SET_S_RUN) {
+            rep_begin(a, S("missing"));
+            con_report_flash(&a->con, S("dev"), S("sensor"));
+            rep_int(a, S("index"), k);
+            rep_int(a, S("err"), d.last_err);
+            rep_end(a);
+            return CON_E_SENSOR_FAULT;
+        }
+    }
+    for (k = 0; k < a->info.n_tendons; k++) {
+        if (((a->servo_absent >> k) & 1u) || a->hw_err[k] != 0u) {
+            rep_begin(a, S("missing"));
+            con_report_flash(&a->con, S("dev"), S("servo"));
+            rep_int(a, S("index"), k);
+            rep_int(a, S("id"), a->ids[k]);
+            rep_int(a, S("hw_error"), a->hw_err[k]);
+            rep_end(a);
+            return CON_E_SERVO_FAULT;
+        }
+    }
+    return 0;
+}
+
+static uint8_t idle_state(const app_t *a)
+{
+    return (uint8_t)(a->state == APP_ST_IDLE || a->state == APP_ST_FAULT);
+}
+
+/* Starts a homing run. Returns 0 or a CON_E_* code (nothing moves then). */
+static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon)
+{
+    hom_config_t cfg;
+    hom_cmd_t cmd;
+    int rc;
+    uint8_t i;
+    int8_t e;
+    if (!idle_state(a)) {
+        return CON_E_BUSY;
+    }
+    e = check_devices(a);
+    if (e != 0) {
+        return e;
+    }
+    if (a->set.v[STORE_SET_TARGET_MODE] != 0) {
+        return CON_E_NOT_AVAILABLE; /* the homing compares |B - B0| only */
+    }
+    if (mode == HOM_MODE_SINGLE && tendon >= a->info.n_tendons) {
+        return CON_E_BAD_TENDON;
+    }
+    if (tension == 0u) {
+        tension = (uint16_t)a->set.v[STORE_SET_CAL_TENSION];
+    }
+    if (tension < a->info.grid_mN[0] || tension > a->info.grid_mN[a->info.n_grid - 1u]) {
+        return CON_E_TENSION_RANGE;
+    }
+    if (mode == HOM_MODE_QUICK) {
+        if (a->homes_rc != 0 || a->homes.valid_mask != all_mask(a)) {
+            return CON_E_NOT_HOMED;
+        }
+        if (a->home_now != all_mask(a)) {
+            return CON_E_MOVED;
+        }
+        tension = a->homes.tension_mN;
+    }
+    if (store_busy(&a->store)) {
+        return CON_E_BUSY; /* finishes within a few hundred ms */
+    }
+    memset(&cmd, 0, sizeof cmd);
+    cmd.mode = (hom_mode_t)mode;
+    cmd.tension_mN = tension;
+    cmd.tendon = tendon;
+    for (i = 0; i < a->info.n_tendons; i++) {
+        if ((a->home_now >> i) & 1u) {
+            cmd.stored_home[i] = home_cur(a, i);
+            cmd.stored_mask |= bit16(i);
+        }
+    }
+    hom_config_default(&cfg);
+    cfg.v_fast = (uint16_t)a->set.v[STORE_SET_APPROACH_FAST];
+    hom_init(&a->hom, &cfg);
+    rc = hom_start(&a->hom, &a->htab, &cmd);
+    if (rc == HOM_E_TENSION) {
+        return CON_E_TENSION_RANGE;
+    }
+    if (rc == HOM_E_HOMES) {
+        return CON_E_NOT_HOMED;
+    }
+    if (rc != 0) {
+        return CON_E_INTERNAL;
+    }
+    a->run_mode = mode;
+    a->run_tension = tension;
+    a->run_mask = mode == HOM_MODE_SINGLE ? bit16(tendon) : all_mask(a);
+    a->t_run = now_ms(a);
+    a->servo_fresh = 0;
+    a->state = APP_ST_CAL;
+    a->led = APP_LED_RUN;
+    a->rest_due = 0;
+    return 0;
+}
+
+static void cal_step(app_t *a, hom_in_t *in)
+{
+    hom_out_t out;
+    hom_event_t ev;
+    uint8_t i;
+    int rc;
+    in->now_ms = now_ms(a);
+    for (i = 0; i < a->info.n_tendons; i++) {
+        hom_servo_in_t *s = &in->servo[i];
+        if ((a->servo_absent >> i) & 1u) {
+            s->status = HOM_SERVO_ABSENT;
+        } else {
+            s->status = ((a->servo_fresh >> i) & 1u) ? HOM_SERVO_OK : HOM_SERVO_NOREPLY;
+        }
+        s->hw_error = a->hw_err[i];
+        s->pos = a->present[i];
+    }
+    a->servo_fresh = 0;
+    rc = hom_step(&a->hom, in, &out);
+    for (i = 0; i < a->info.n_tendons; i++) {
+        if ((out.changed >> i) & 1u) {
+            a->goal[i] = out.goal[i];
+            a->vel[i] = out.vel[i];
+            a->acc[i] = out.acc[i];
+            a->goal_due |= bit16(i);
+            if (out.torque[i] != a->torque[i]) {
+                a->torque[i] = out.torque[i];
+                a->torque_due |= bit16(i);
+            }
+        }
+    }
+    while (hom_event_pop(&a->hom, &ev)) {
+        rep_event(a, &ev);
+    }
+    if (rc == 0) {
+        run_done(a);
+    } else if (rc < 0) {
+        a->state = APP_ST_FAULT;
+        a->led = APP_LED_FAULT;
+        a->rest_due = 1;
+        a->t_rest = in->now_ms;
+        a->released = 1;
+    }
+}
+
+/* ---- app moves: home, release, baseline, learn ------------------------------ */
+
+static void move_start(app_t *a, uint8_t kind)
+{
+    a->move_kind = kind;
+    a->t_move = now_ms(a);
+    a->servo_fresh = 0;
+    a->state = APP_ST_MOVE;
+    a->led = APP_LED_RUN;
+}
+
+/* Release goals computed by the app when no run is active: a slack margin
+ * behind the home at the stored tension, or, with no home, the homing's
+ * initial release from where the servo stands (once: a second release
+ * without a pull in between does not unwind further). Never pulls. */
+static uint8_t release_goals(app_t *a)
+{
+    hom_config_t cfg;
+    uint8_t i, moved = 0;
+    hom_config_default(&cfg);
+    for (i = 0; i < a->info.n_tendons; i++) {
+        tbl_point_t pt;
+        tbl_tendon_t row;
+        int32_t g;
+        if ((a->servo_absent >> i) & 1u) {
+            continue;
+        }
+        if ((a->home_now >> i) & 1u) {
+            uint32_t trav = 0;
+            if (tbl_target(&a->tab, i, a->homes.tension_mN, &pt) == 0) {
+                trav = pt.travel_um;
+            }
+            g = home_cur(a, i) - a->dir[i] * um_ticks(a, i, trav + cfg.slack_margin_um);
+        } else if (!a->released) {
+            (void)tbl_tendon(&a->tab, i, &row);
+            g = a->present[i] - a->dir[i] * um_ticks(a, i,
+                                                     row.travel_um[a->info.n_grid - 1u] * 3u / 2u +
+                                                         cfg.slack_margin_um);
+        } else {
+            g = a->present[i];
+        }
+        if (a->dir[i] * (g - a->present[i]) > 0) {
+            g = a->present[i]; /* already slacker than the release point */
+        }
+        set_goal(a, i, g, cfg.v_release, cfg.acc);
+        moved = 1;
+    }
+    a->released = 1;
+    return moved;
+}
+
+void app_abort(app_t *app)
+{
+    if (app == NULL || app->state == APP_ST_BOOT) {
+        return;
+    }
+    if (app->req_start && app->req_con && con_pending(&app->con)) {
+        (void)con_complete(&app->con, CON_E_ABORTED);
+    }
+    app->req_start = 0;
+    if (app->state == APP_ST_CAL) {
+        hom_abort(&app->hom);
+        return;
+    }
+    if (app->state == APP_ST_LEARN && app->learn_tendon != LEARN_BASELINE &&
+        con_pending(&app->con)) {
+        (void)con_complete(&app->con, CON_E_ABORTED);
+    }
+    if (!app->table_ok) {
+        return;
+    }
+    (void)release_goals(app);
+    rep_begin(app, S("released"));
+    con_report_flash(&app->con, S("reason"), S("aborted"));
+    rep_end(app);
+    move_start(app, MOVE_RELEASE);
+}
+
+static void learn_begin(app_t *a, uint8_t tendon)
+{
+    a->learn_tendon = tendon;
+    a->learn_n = 0;
+    memset(a->learn_acc, 0, sizeof a->learn_acc);
+    memset(a->learn_cnt, 0, sizeof a->learn_cnt);
+    a->t_learn = now_ms(a);
+    a->state = APP_ST_LEARN;
+}
+
+static void move_step(app_t *a)
+{
+    uint8_t i, arrived = 1;
+    uint32_t t = now_ms(a);
+    for (i = 0; i < a->info.n_tendons; i++) {
+        int32_t d = a->present[i] - a->goal[i];
+        if ((a->servo_absent >> i) & 1u) {
+            continue;
+        }
+        if (((a->servo_fresh >> i) & 1u) == 0u || a->goal_due != 0u || d > APP_MOVE_TOL_TICKS ||
+            d < -APP_MOVE_TOL_TICKS) {
+            arrived = 0;
+        }
+    }
+    if (!arrived) {
+        if (t - a->t_move > APP_MOVE_TIMEOUT_MS) {
+            rep_app_fault(a, S("servo_stall"), CON_E_TIMEOUT, HOM_DEV_SERVO, 0);
+            a->state = APP_ST_FAULT;
+            a->led = APP_LED_FAULT;
+            a->rest_due = 1;
+            a->t_rest = t;
+            if (a->move_kind == MOVE_HOME) {
+                (void)release_goals(a);
+            }
+        }
+        return;
+    }
+    a->rest_due = 1;
+    a->t_rest = t;
+    if (a->move_kind == MOVE_RELEASE) {
+        learn_begin(a, LEARN_BASELINE); /* the robot stands straight: capture B0 */
+        return;
+    }
+    rep_begin(a, S("done"));
+    con_report_flash(&a->con, S("mode"), S("home"));
+    rep_int(a, S("time_ms"), (int32_t)(t - a->t_move));
+    rep_end(a);
+    a->released = 0;
+    a->state = APP_ST_IDLE;
+    a->led = APP_LED_IDLE;
+}
+
+static void learn_step(app_t *a, const hom_in_t *in)
+{
+    uint8_t k, first, last;
+    uint32_t t = now_ms(a);
+    int8_t rc = 0;
+    if (a->learn_tendon == LEARN_BASELINE) {
+        first = 0;
+        last = a->info.n_sensors;
+        if (t - a->t_learn < SETTLE_MS) {
+            return;
+        }
+    } else {
+        first = a->sensor_of[a->learn_tendon];
+        last = (uint8_t)(first + 1u);
+    }
+    for (k = first; k < last; k++) {
+        if (in->sensor[k].status == HOM_SENS_OVERFLOW) {
+            rc = CON_E_SENSOR_FAULT;
+        }
+    }
+    if (rc == 0) {
+        uint8_t least = APP_LEARN_SAMPLES;
+        for (k = first; k < last; k++) {
+            if (in->sensor[k].status == HOM_SENS_NEW && a->learn_cnt[k] < APP_LEARN_SAMPLES) {
+                a->learn_acc[k][0] += in->sensor[k].b_cuT[0];
+                a->learn_acc[k][1] += in->sensor[k].b_cuT[1];
+                a->learn_acc[k][2] += in->sensor[k].b_cuT[2];
+                a->learn_cnt[k]++;
+            }
+            if (a->learn_cnt[k] < least) {
+                least = a->learn_cnt[k];
+            }
+        }
+        a->learn_n = least;
+        if (least < APP_LEARN_SAMPLES && t - a->t_learn > LEARN_WAIT_MS + SETTLE_MS) {
+            rc = CON_E_TIMEOUT;
+        }
+    }
+    if (rc == 0 && a->learn_n < APP_LEARN_SAMPLES) {
+        return;
+    }
+    if (a->learn_tendon == LEARN_BASELINE) {
+        if (rc == 0) {
+            for (k = 0; k < a->info.n_sensors; k++) {
+                a->b0[k][0] = a->learn_acc[k][0] / (int32_t)APP_LEARN_SAMPLES;
+                a->b0[k][1] = a->learn_acc[k][1] / (int32_t)APP_LEARN_SAMPLES;
+                a->b0[k][2] = a->learn_acc[k][2] / (int32_t)APP_LEARN_SAMPLES;
+            }
+            a->have_b0 = 1;
+        }
+        rep_begin(a, S("done"));
+        con_report_flash(&a->con, S("mode"), S("release"));
+        rep_int(a, S("time_ms"), (int32_t)(t - a->t_move));
+        rep_int(a, S("baseline"), rc == 0);
+        rep_end(a);
+        a->state = APP_ST_IDLE;
+        a->led = APP_LED_IDLE;
+        return;
+    }
+    if (rc == 0) {
+        int32_t d[3];
+        uint32_t v;
+        uint8_t s = first, tdn = a->learn_tendon;
+        for (k = 0; k < 3u; k++) {
+            d[k] = a->learn_acc[s][k] / (int32_t)APP_LEARN_SAMPLES - a->b0[s][k];
+        }
+        v = hom_norm3(d);
+        if (store_learned_load(&a->store, tdn, a->info.table_id, &a->rec.learned) != 0) {
+            memset(&a->rec.learned, 0, sizeof a->rec.learned);
+        }
+        a->rec.learned.table_id = a->info.table_id;
+        a->rec.learned.tendon = tdn;
+        a->rec.learned.n_grid = a->info.n_grid;
+        a->rec.learned.target_cuT[a->learn_grid] = v;
+        a->rec.learned.grid_mask |= bit16(a->learn_grid);
+        save_queue(a, SAVE_LEARNED);
+        rep_begin(a, S("learned"));
+        rep_int(a, S("tendon"), tdn);
+        rep_int(a, S("tension_mN"), a->info.grid_mN[a->learn_grid]);
+        rep_int(a, S("grid"), a->learn_grid);
+        rep_int(a, S("sensor"), s);
+        con_report_fixed(&a->con, S("dB_uT"), (int32_t)v, 2);
+        rep_end(a);
+    }
+    if (con_pending(&a->con)) {
+        (void)con_complete(&a->con, rc);
+    }
+    a->state = APP_ST_IDLE;
+}
+
+/* ---- store ------------------------------------------------------------------- */
+
+/* Records the rest positions once the servos have stopped after a release or
+ * a fault, so a power cycle can find the multi-turn position again. */
+static void rest_poll(app_t *a)
+{
+    uint8_t i, changed = 0;
+    if (!a->rest_due || !idle_state(a) || now_ms(a) - a->t_rest < REST_DELAY_MS ||
+        (a->save_due & SAVE_HOMES) || a->save_now == SAVE_HOMES) {
+        return;
+    }
+    a->rest_due = 0;
+    for (i = 0; i < a->info.n_tendons; i++) {
+        int32_t rest, d;
+        if (((a->home_now >> i) & 1u) == 0u || ((a->servo_seen >> i) & 1u) == 0u) {
+            continue;
+        }
+        rest = a->present[i] + a->offset[i];
+        d = rest - a->homes.t[i].rest_ticks;
+        if (d > 2 || d < -2) {
+            store_home_set(&a->homes.t[i], a->homes.t[i].home_ticks, rest);
+            changed = 1;
+        }
+    }
+    if (changed) {
+        save_queue(a, SAVE_HOMES);
+    }
+}
+
+static void store_task(app_t *a)
+{
+    uint8_t idle = idle_state(a);
+    if (store_busy(&a->store)) {
+        int8_t rc = store_poll(&a->store, idle);
+        if (rc <= 0) {
+            if (a->save_now == SAVE_SETTINGS && con_pending(&a->con)) {
+                (void)con_complete(&a->con, rc == 0 ? 0 : CON_E_EEPROM);
+            } else if (rc < 0) {
+                rep_app_fault(a, S("eeprom"), CON_E_EEPROM, HOM_DEV_NONE, a->save_now);
+            }
+            a->save_now = 0;
+        }
+        return;
+    }
+    if (!idle || a->save_due == 0u) {
+        return;
+    }
+    if (a->save_due & SAVE_HOMES) {
+        a->save_now = SAVE_HOMES;
+        (void)store_save_homes(&a->store, &a->homes);
+    } else if (a->save_due & SAVE_HIST) {
+        a->save_now = SAVE_HIST;
+        (void)store_save_hist(&a->store, &a->rec.hist);
+    } else if (a->save_due & SAVE_LEARNED) {
+        a->save_now = SAVE_LEARNED;
+        a->learned_mask |= bit16(a->rec.learned.tendon);
+        (void)store_save_learned(&a->store, &a->rec.learned);
+    } else {
+        a->save_now = SAVE_SETTINGS;
+        (void)store_save_settings(&a->store, &a->set);
+    }
+    a->save_due &= (uint8_t)~a->save_now;
+}
+
+/* ---- button and LED ----------------------------------------------------------- */
+
+static void short_press(app_t *a)
+{
+    int8_t rc;
+    if (!idle_state(a)) {
+        return; /* a long press aborts */
+    }
+    a->led = APP_LED_IDLE;
+    if (store_busy(&a->store)) {
+        a->req_start = 1; /* starts once the EEPROM write in flight is done */
+        a->req_con = 0;
+        a->req_mode = a->offer_quick ? HOM_MODE_QUICK : HOM_MODE_FULL;
+        a->req_tension = 0;
+        a->req_tendon = 0;
+        return;
+    }
+    rc = run_start(a, a->offer_quick ? HOM_MODE_QUICK : HOM_MODE_FULL, 0, 0);
+    if (rc != 0) {
+        rep_app_fault(a, S("refused"), rc, HOM_DEV_NONE, 0);
+        a->led = APP_LED_FAULT;
+    }
+}
+
+static void button_poll(app_t *a, uint32_t t)
+{
+    uint8_t raw = a->io.board->button(a->io.board->ctx) ? 1u : 0u;
+    if (raw != a->btn_raw) {
+        a->btn_raw = raw;
+        a->t_btn_change = t;
+    }
+    if (t - a->t_btn_change >= APP_DEBOUNCE_MS && a->btn_state != a->btn_raw) {
+        a->btn_state = a->btn_raw;
+        if (a->btn_state) {
+            a->t_btn_down = t;
+            a->btn_long_done = 0;
+        } else if (!a->btn_long_done) {
+            short_press(a);
+        }
+    }
+    if (a->btn_state && !a->btn_long_done && t - a->t_btn_down >= APP_LONG_PRESS_MS) {
+        a->btn_long_done = 1;
+        app_abort(a);
+    }
+}
+
+uint8_t app_led_pattern(const app_t *app)
+{
+    switch (app->state) {
+    case APP_ST_BOOT:
+        return APP_LED_BOOT;
+    case APP_ST_CAL:
+    case APP_ST_MOVE:
+    case APP_ST_LEARN:
+        return APP_LED_RUN;
+    case APP_ST_FAULT:
+        return APP_LED_FAULT;
+    default:
+        return app->led == APP_LED_DONE || app->led == APP_LED_FAULT ? app->led : APP_LED_IDLE;
+    }
+}
+
+static void led_poll(app_t *a, uint32_t t)
+{
+    uint8_t on;
+    uint32_t p;
+    switch (app_led_pattern(a)) {
+    case APP_LED_BOOT:
+        on = (uint8_t)((t / 100u) & 1u);
+        break;
+    case APP_LED_RUN:
+        on = (uint8_t)((t / 125u) & 1u);
+        break;
+    case APP_LED_DONE:
+        on = 1;
+        break;
+    case APP_LED_FAULT:
+        p = t % 1000u;
+        on = (uint8_t)(p < 300u && ((p / 50u) & 1u) == 0u);
+        break;
+    default:
+        p = t % 2000u;
+        on = (uint8_t)(p < 50u || (a->offer_quick && p >= 200u && p < 250u));
+        break;
+    }
+    if (on != a->led_on || a->loops == 0u) {
+        a->led_on = on;
+        a->io.board->led(a->io.board->ctx, on);
+    }
+}
+
+/* ---- superloop ------------------------------------------------------------------ */
+
+int8_t app_poll(app_t *app)
+{
+    app_t *a = app;
+    hom_in_t in;
+    uint32_t t0 = now_us(a), t = now_ms(a), dt;
+    a->io.board->wdt_kick(a->io.board->ctx);
+    if (con_rt_take(a->io.rt)) {
+        app_abort(a);
+    }
+    button_poll(a, t);
+    memset(&in, 0, sizeof in);
+    if (a->sens.n > 0u) {
+        (void)icm_set_poll(&a->sens, t0);
+        sensors_take(a, &in);
+    }
+    if (a->state == APP_ST_BOOT) {
+        boot_poll(a);
+    }
+    servo_poll(a);
+    if (a->req_start && store_busy(&a->store) == 0u) {
+        int8_t rc;
+        a->req_start = 0;
+        rc = run_start(a, a->req_mode, a->req_tension, a->req_tendon);
+        if (a->req_con && con_pending(&a->con)) {
+            (void)con_complete(&a->con, rc);
+        } else if (rc != 0) {
+            rep_app_fault(a, S("refused"), rc, HOM_DEV_NONE, 0);
+        }
+    }
+    switch (a->state) {
+    case APP_ST_CAL:
+        cal_step(a, &in);
+        break;
+    case APP_ST_MOVE:
+        move_step(a);
+        break;
+    case APP_ST_LEARN:
+        learn_step(a, &in);
+        break;
+    default:
+        break;
+    }
+    (void)con_poll(&a->con, (uint16_t)now_ms(a));
+    rest_poll(a);
+    store_task(a);
+    led_poll(a, t);
+    a->loops++;
+    dt = now_us(a) - t0;
+    if (dt > a->loop_max_us) {
+        a->loop_max_us = dt;
+    }
+    return (int8_t)a->state;
+}
+
+/* ---- console handlers ------------------------------------------------------------ */
+
+static int8_t h_version(con_t *con, const con_args_t *args, void *ctx)
+{
+    app_t *a = ctx;
+    (void)con;
+    (void)args;
+    rep_begin(a, S("version"));
+    con_report_flash(&a->con, S("name"), S("hallhome"));
+    if (a->io.version_f != NULL) {
+        con_report_flash(&a->con, S("version"), a->io.version_f);
+    }
+    if (a->io.board_f != NULL) {
+        con_report_flash(&a->con, S("board"), a->io.board_f);
+    }
+    if (a->table_ok) {
+        con_report_str(&a->con, S("table"), a->info.name);
+        rep_hex(a, S("table_id"), a->info.table_id);
+        rep_int(a, S("tendons"), a->info.n_tendons);
+        rep_int(a, S("sensors"), a->info.n_sensors);
+    } else {
+        con_report_flash(&a->con, S("table"), S("none"));
+    }
+    rep_end(a);
+    return 0;
+}
+
+static int8_t h_status(con_t *con, const con_args_t *args, void *ctx)
+{
+    app_t *a = ctx;
+    uint8_t i;
+    (void)con;
+    (void)args;
+    rep_begin(a, S("status"));
+    con_report_flash(&a->con, S("state"), state_word(a->state));
+    if (a->table_ok) {
+        con_report_str(&a->con, S("table"), a->info.name);
+    } else {
+        con_report_flash(&a->con, S("table"), S("none"));
+    }
+    rep_int(a, S("sensors"), icm_set_ready_count(&a->sens));
+    rep_int(a, S("servos"), a->n_servo_found);
+    rep_hex(a, S("homes"), a->homes.valid_mask);
+    rep_hex(a, S("homes_now"), a->home_now);
+    rep_int(a, S("rehome"), a->offer_quick);
+    rep_int(a, S("tension_mN"), a->homes.tension_mN);
+    rep_int(a, S("count"), (int32_t)a->homes.cal_count);
+    con_report_str(&a->con, S("fault"), hom_fault_name(a->last_fault));
+    rep_int(a, S("learned"), a->learned_mask);
+    rep_int(a, S("baseline"), a->have_b0);
+    rep_int(a, S("saving"), store_busy(&a->store) || a->save_due != 0u);
+    rep_int(a, S("loop_max_us"), (int32_t)a->loop_max_us);
+    rep_int(a, S("loops"), (int32_t)a->loops);
+    rep_end(a);
+    for (i = 0; i < a->info.n_tendons; i++) {
+        if (((a->homes.valid_mask >> i) & 1u) == 0u) {
+            continue;
+        }
+        rep_begin(a, S("home"));
+        rep_int(a, S("tendon"), i);
+        rep_int(a, S("home"), a->homes.t[i].home_ticks);
+        rep_int(a, S("rest"), a->homes.t[i].rest_ticks);
+        rep_int(a, S("usable"), (a->home_now >> i) & 1u);
+        if ((a->home_now >> i) & 1u) {
+            rep_int(a, S("now"), home_cur(a, i));
+        }
+        rep_end(a);
+    }
+    return 0;
+}
+
+static int8_t h_sensors(con_t *con, const con_args_t *args, void *ctx)
+{
+    app_t *a = ctx;
+    uint8_t k;
+    (void)con;
+    (void)args;
+    if (!a->table_ok) {
+        return CON_E_NO_TABLE;
+    }
+    for (k = 0; k < a->info.n_sensors; k++) {
+        icm_diag_t d;
+        (void)icm_set_diag(&a->sens, k, &d);
+        rep_begin(a, S("sensor"));
+        rep_int(a, S("index"), k);
+        rep_int(a, S("ch"), d.channel);
+        rep_int(a, S("addr"), d.addr);
+        rep_int(a, S("ok"), d.state == ICM_SET_S_RUN);
+        rep_int(a, S("who"), d.who_am_i);
+        rep_int(a, S("mag"), d.mag_ready);
+        con_report_fixed(&a->con, S("rate_Hz"), d.rate_dhz, 1);
+        con_report_fixed(&a->con, S("bx_uT"), d.field_cuT[0], 2);
+        con_report_fixed(&a->con, S("by_uT"), d.field_cuT[1], 2);
+        con_report_fixed(&a->con, S("bz_uT"), d.field_cuT[2], 2);
+        rep_int(a, S("ovf"), d.overflow_count);
+        rep_int(a, S("err"), d.error_count);
+        rep_int(a, S("last_err"), d.last_err);
+        rep_int(a, S("reinits"), d.reinits);
+        rep_end(a);
+    }
+    return 0;
+}
+
+static int8_t h_servos(con_t *con, const con_args_t *args, void *ctx)
+{
+    app_t *a = ctx;
+    (void)con;
+    if (!a->table_ok) {
+        return CON_E_NO_TABLE;
+    }
+    if ((args->given & 1u) && args->v[0] != 0) {
+        servo_lines(a); /* pos, err: the live cycle keeps both fresh */
+        return 0;
+    }
+    if (!idle_state(a)) {
+        return CON_E_BUSY;
+    }
+    a->boot_con = 1;
+    a->boot_step = 0;
+    a->state = APP_ST_BOOT;
+    return CON_PENDING;
+}
+
+static int8_t start_or_defer(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon)
+{
+    if (idle_state(a) && store_busy(&a->store)) {
+        a->req_start = 1;
+        a->req_con = 1;
+        a->req_mode = mode;
+        a->req_tension = tension;
+        a->req_tendon = tendon;
+        return CON_PENDING;
+    }
+    return run_start(a, mode, tension, tendon);
+}
+
+static int8_t h_cal(con_t *con, const con_args_t *args, void *ctx)
+{
+    app_t *a = ctx;
+    uint16_t tension = (args->given & 1u) ? (uint16_t)args->v[0] : 0u;
+    (void)con;
+    if (args->given & 2u) {
+        if (a->table_ok && args->v[1] >= a->info.n_tendons) {
+            return CON_E_BAD_TENDON;
+        }
+        return start_or_defer(a, HOM_MODE_SINGLE, tension, (uint8_t)args->v[1]);
+    }
+    return start_or_defer(a, HOM_MODE_FULL, tension, 0);
+}
+
+static int8_t h_rehome(con_t *con, const con_args_t *args, void *ctx)
+{
+    (void)con;
+    (void)args;
+    return start_or_defer(ctx, HOM_MODE_QUICK, 0, 0);
+}
+
+static int8_t h_home(con_t *con, const con_args_t *args, void *ctx)
+{
+    app_t *a = ctx;
+    hom_config_t cfg;
+    uint8_t i;
+    int8_t e;
+    (void)con;
+    (void)args;
+    if (!idle_state(a)) {
+        return CON_E_BUSY;
+    }
+    e = check_devices(a);
+    if (e != 0) {
+        return e;
+    }
+    if (a->homes.valid_mask != all_mask(a) || a->homes_rc != 0) {
+        return CON_E_NOT_HOMED;
+    }
+    if (a->home_now != all_mask(a)) {
+        return CON_E_MOVED;
+    }
+    hom_config_default(&cfg);
+    for (i = 0; i < a->info.n_tendons; i++) {
+        set_goal(a, i, home_cur(a, i), cfg.v_final, cfg.acc);
+    }
+    move_start(a, MOVE_HOME);
+    return 0;
+}
+
+static int8_t h_release(con_t *con, const con_args_t *args, void *ctx)
+{
+    app_t *a = ctx;
+    (void)con;
+    (void)args;
+    if (!a->table_ok) {
+        return CON_E_NO_TABLE;
+    }
+    if (a->state == APP_ST_BOOT) {
+        return CON_E_BUSY;
+    }
+    if (!idle_state(a)) {
+        app_abort(a);
+        return 0;
+    }
+    (void)release_goals(a);
+    move_start(a, MOVE_RELEASE);
+    return 0;
+}
+
+static int8_t h_learn(con_t *con, const con_args_t *args, void *ctx)
+{
+    app_t *a = ctx;
+    uint8_t g, t = (uint8_t)args->v[0];
+    (void)con;
+    if (!a->table_ok) {
+        return CON_E_NO_TABLE;
+    }
+    if (!idle_state(a) || (a->save_due & (SAVE_HIST | SAVE_LEARNED)) != 0u ||
+        a->save_now == SAVE_HIST || a->save_now == SAVE_LEARNED) {
+        return CON_E_BUSY;
+    }
+    if (t >= a->info.n_tendons) {
+        return CON_E_BAD_TENDON;
+    }
+    for (g = 0; g < a->info.n_grid && a->info.grid_mN[g] != (uint16_t)args->v[1]; g++) {
+    }
+    if (g >= a->info.n_grid) {
+        return CON_E_TENSION_RANGE; /* learned targets sit on the table's grid */
+    }
+    if (!a->have_b0) {
+        return CON_E_NOT_HOMED; /* no straight-pose baseline yet: `release` first */
+    }
+    {
+        icm_diag_t d;
+        (void)icm_set_diag(&a->sens, a->sensor_of[t], &d);
+        if (d.state != ICM_SET_S_RUN) {
+            return CON_E_SENSOR_FAULT;
+        }
+    }
+    a->learn_grid = g;
+    learn_begin(a, t);
+    return CON_PENDING;
+}
+
+static int8_t h_table(con_t *con, const con_args_t *args, void *ctx)
+{
+    app_t *a = ctx;
+    char buf[TBL_MAX_GRID * 12u + 1u];
+    uint8_t i, g, pos;
+    (void)con;
+    (void)args;
+    if (!a->table_ok) {
+        return CON_E_NO_TABLE;
+    }
+    rep_begin(a, S("table"));
+    con_report_str(&a->con, S("name"), a->info.name);
+    rep_hex(a, S("table_id"), a->info.table_id);
+    rep_int(a, S("tendons"), a->info.n_tendons);
+    rep_int(a, S("sensors"), a->info.n_sensors);
+    pos = 0;
+    buf[0] = '\0';
+    for (g = 0; g < a->info.n_grid; g++) {
+        list_add(buf, sizeof buf, &pos, a->info.grid_mN[g], '\0');
+    }
+    con_report_str(&a->con, S("grid_mN"), buf);
+    rep_int(a, S("default_mN"), a->info.default_mN);
+    rep_int(a, S("noise_cuT"), a->info.noise_cuT);
+    rep_end(a);
+    for (i = 0; i < a->info.n_tendons; i++) {
+        tbl_tendon_t row, eff;
+        (void)tbl_tendon(&a->tab, i, &row);
+        (void)tbl_tendon(&a->htab, i, &eff);
+        rep_begin(a, S("tendon"));
+        rep_int(a, S("tendon"), i);
+        rep_int(a, S("id"), row.servo_id);
+        rep_int(a, S("dir"), row.pull_dir);
+        rep_int(a, S("segment"), row.segment);
+        rep_int(a, S("sensor"), row.sensor);
+        rep_int(a, S("limit_um"), (int32_t)row.travel_limit_um);
+        pos = 0;
+        buf[0] = '\0';
+        for (g = 0; g < a->info.n_grid; g++) {
+            list_add(buf, sizeof buf, &pos, (int32_t)eff.target_cuT[g],
+                     eff.target_cuT[g] != row.target_cuT[g] ? '*' : '\0');
+        }
+        con_report_str(&a->con, S("target_cuT"), buf);
+        rep_end(a);
+    }
+    return 0;
+}
+
+static int8_t h_history(con_t *con, const con_args_t *args, void *ctx)
+{
+    app_t *a = ctx;
+    uint8_t n, age, i, pos;
+    char buf[TBL_MAX_TENDONS * 12u + 1u];
+    store_hist_t e;
+    (void)con;
+    (void)args;
+    n = store_hist_count(&a->store);
+    for (age = 0; age < n; age++) {
+        if (store_hist_get(&a->store, age, &e) != 0) {
+            break;
+        }
+        rep_begin(a, S("hist"));
+        rep_int(a, S("age"), age);
+        rep_int(a, S("count"), (int32_t)e.cal_count);
+        rep_hex(a, S("table_id"), e.table_id);
+        rep_int(a, S("tension_mN"), e.tension_mN);
+        pos = 0;
+        buf[0] = '\0';
+        for (i = 0; i < e.n_tendons && i < TBL_MAX_TENDONS; i++) {
+            list_add(buf, sizeof buf, &pos, e.home_ticks[i], ((e.valid_mask >> i) & 1u) ? 0 : '?');
+        }
+        con_report_str(&a->con, S("homes"), buf);
+        rep_end(a);
+    }
+    return 0;
+}
+
+static void setting_line(app_t *a, uint8_t id)
+{
+    char buf[24];
+    store_setting_info_t inf;
+    (void)store_setting_info(&a->store, id, &inf);
+    rep_begin(a, S("setting"));
+    (void)store_setting_text(&a->store, id, 0, buf, sizeof buf);
+    con_report_str(&a->con, S("name"), buf);
+    rep_int(a, S("value"), a->set.v[id]);
+    (void)store_setting_text(&a->store, id, 1, buf, sizeof buf);
+    con_report_str(&a->con, S("unit"), buf);
+    rep_int(a, S("min"), inf.min);
+    rep_int(a, S("max"), inf.max);
+    rep_int(a, S("default"), inf.def);
+    rep_end(a);
+}
+
+static int8_t find_setting(app_t *a, const con_args_t *args)
+{
+    const char *n = args->s[0];
+    return store_setting_find(&a->store, n, (uint8_t)strlen(n));
+}
+
+static int8_t h_get(con_t *con, const con_args_t *args, void *ctx)
+{
+    app_t *a = ctx;
+    uint8_t id;
+    (void)con;
+    if (args->given & 1u) {
+        int8_t f = find_setting(a, args);
+        if (f < 0) {
+            return CON_E_UNKNOWN_SETTING;
+        }
+        setting_line(a, (uint8_t)f);
+        return 0;
+    }
+    for (id = 0; id < STORE_SETTING_COUNT; id++) {
+        setting_line(a, id);
+    }
+    return 0;
+}
+
+static int8_t h_set(con_t *con, const con_args_t *args, void *ctx)
+{
+    app_t *a = ctx;
+    int8_t f, rc;
+    (void)con;
+    f = find_setting(a, args);
+    if (f < 0) {
+        return CON_E_UNKNOWN_SETTING;
+    }
+    if ((a->save_due & SAVE_SETTINGS) || a->save_now == SAVE_SETTINGS) {
+        return CON_E_BUSY; /* the record is being written */
+    }
+    rc = store_setting_set(&a->store, &a->set, (uint8_t)f, args->v[1]);
+    if (rc != 0) {
+        return CON_E_SETTING_RANGE;
+    }
+    return 0;
+}
+
+static int8_t h_save(con_t *con, const con_args_t *args, void *ctx)
+{
+    app_t *a = ctx;
+    (void)con;
+    (void)args;
+    if (!idle_state(a) || (a->save_due & SAVE_SETTINGS) || a->save_now == SAVE_SETTINGS) {
+        return CON_E_BUSY; /* EEPROM writes happen only while nothing moves */
+    }
+    save_queue(a, SAVE_SETTINGS);
+    return CON_PENDING;
+}
+
+static int8_t h_reboot(con_t *con, const con_args_t *args, void *ctx)
+{
+    app_t *a = ctx;
+    (void)con;
+    if (!idle_state(a)) {
+        return CON_E_BUSY;
+    }
+    a->reboot_id = (uint8_t)args->v[0];
+    a->reboot_req = 1;
+    return CON_PENDING;
+}
+
+const con_handler_fn app_handlers[CON_CMD_COUNT] CON_FLASH = {
+    [CON_CMD_HELP] = NULL, /* built into the console */
+    [CON_CMD_VERSION] = h_version, [CON_CMD_STATUS] = h_status,   [CON_CMD_SENSORS] = h_sensors,
+    [CON_CMD_SERVOS] = h_servos,   [CON_CMD_CAL] = h_cal,         [CON_CMD_REHOME] = h_rehome,
+    [CON_CMD_HOME] = h_home,       [CON_CMD_RELEASE] = h_release, [CON_CMD_LEARN] = h_learn,
+    [CON_CMD_TABLE] = h_table,     [CON_CMD_HISTORY] = h_history, [CON_CMD_GET] = h_get,
+    [CON_CMD_SET] = h_set,         [CON_CMD_SAVE] = h_save,       [CON_CMD_REBOOT] = h_reboot,
+};

@@ -1,0 +1,262 @@
+/*
+ * app: the hallhome product on one board. Press the button, every tendon is
+ * homed, the result is stored and reported.
+ *
+ * The application wires the portable modules together and runs them from a
+ * superloop: app_poll() is called as often as possible and each call does
+ * one bounded step of every task, in this order:
+ *   1. watchdog kick, realtime stop (`!`) and button (debounced: a short
+ *      press calibrates, or quick re-homes when that is offered after a power
+ *      cycle; a press held for APP_LONG_PRESS_MS aborts and releases);
+ *   2. sensors: one icm_set_poll() step, new samples taken;
+ *   3. servos: one dxl_poll(); when the bus is free, the next transaction
+ *      (torque, then goals, then hardware-error or position sync reads);
+ *   4. homing: hom_step() on the newest samples and positions, its goals
+ *      queued for the bus, its events turned into console reports;
+ *      app-driven moves (`home`, `release`) and `learn` captures;
+ *   5. console: con_poll() (commands are handled by the app_* handlers);
+ *   6. store: one EEPROM byte per call, only while no motion runs;
+ *   7. LED pattern, and the loop time (the longest is shown by `status`).
+ *
+ * Boot: app_init() prints `<boot ...>`, loads settings, homes and learned
+ * targets and checks the table; the first app_poll() calls bring the servo bus
+ * up (ping, extended-position mode) and the sensors (WHO_AM_I, AK09916) and,
+ * once every device answered or APP_PREFLIGHT_MS passed, report each missing
+ * device and `<ready ...>`. Stored homes of this table are recovered into the
+ * servos' new frame (store_recover_position); when that works for every
+ * tendon a quick re-home is offered (`rehome=1`).
+ *
+ * The app never includes firmware headers: the board is reached through
+ * app_board_t, and every bus through the modules' own port interfaces, so the
+ * same code runs natively in tests against the device models.
+ *
+ * Report formats and the learn procedure: docs/app.md.
+ *
+ * Error convention: 0 = done, negative = APP_E_* or a console CON_E_* code,
+ * positive = in progress.
+ */
+#ifndef HALLHOME_APP_H
+#define HALLHOME_APP_H
+
+#include <stdint.h>
+
+#include "console/console.h"
+#include "dxl/dxl.h"
+#include "homing/homing.h"
+#include "icm20948/icm_set.h"
+#include "store/store.h"
+#include "table/table.h"
+
+/* Sensor slots the app reserves (83 bytes each on the AVR); a table with more
+ * sensors is refused at boot with "no valid lookup table". */
+#ifndef APP_MAX_SENSORS
+#define APP_MAX_SENSORS 4u
+#endif
+
+#define APP_DEBOUNCE_MS     30u    /* the button level must hold this long */
+#define APP_LONG_PRESS_MS   2000u  /* held this long: abort and release */
+#define APP_PREFLIGHT_MS    3000u  /* boot: longest wait for every device */
+#define APP_MOVE_TIMEOUT_MS 10000u /* `home` / `release` moves */
+#define APP_MOVE_TOL_TICKS  3      /* a move has arrived within this */
+#define APP_LEARN_SAMPLES   16u    /* samples averaged by `learn` and the baseline */
+#define APP_HWERR_EVERY     8u     /* read Hardware Error Status every n-th cycle */
+#define APP_SERVO_REBOOT_MS 600u   /* wait after `reboot` before the bus is brought up */
+
+enum {
+    APP_E_ARG = -1 /* NULL pointer or missing interface in app_init() */
+};
+
+/* App states (also `state=` in status reports). */
+enum {
+    APP_ST_BOOT = 0, /* bus bring-up and sensor init */
+    APP_ST_IDLE,     /* nothing moves */
+    APP_ST_CAL,      /* the homing state machine runs */
+    APP_ST_MOVE,     /* an app-driven move (`home`, `release`) */
+    APP_ST_LEARN,    /* `learn` or a baseline capture averages samples */
+    APP_ST_FAULT     /* the last run ended in a fault; idle otherwise */
+};
+
+/* LED patterns (app_led_pattern()). */
+enum {
+    APP_LED_BOOT = 0, /* fast blink 5 Hz */
+    APP_LED_IDLE,     /* 50 ms blip every 2 s (two blips: quick re-home offered) */
+    APP_LED_RUN,      /* 4 Hz blink while anything moves */
+    APP_LED_DONE,     /* steady on after a successful run */
+    APP_LED_FAULT     /* 10 Hz blink, three flashes then a pause, until the next action */
+};
+
+/* The board as the app sees it. Every function must return at once. */
+typedef struct {
+    void *ctx;
+    uint32_t (*now_ms)(void *ctx); /* free-running milliseconds */
+    uint32_t (*now_us)(void *ctx); /* free-running microseconds (may wrap) */
+    uint8_t (*button)(void *ctx);  /* nonzero while the button is pressed (raw level) */
+    void (*led)(void *ctx, uint8_t on);
+    void (*wdt_kick)(void *ctx);
+    void (*reboot)(void *ctx); /* resets the board (NULL: not available) */
+} app_board_t;
+
+/* Everything the app is wired to. Strings marked _f are read through
+ * con_copy (flash on the AVR). */
+typedef struct {
+    const app_board_t *board;
+    dxl_port servo_port; /* half-duplex servo bus */
+    uint8_t servo_bits;  /* bits per byte on the wire (10; 11 in simavr) */
+    const icm_bus_t *sensor_bus;
+    uint8_t mux_addr; /* TCA9548A address, or ICM_NO_MUX */
+    const store_eeprom_t *eeprom;
+    store_copy_fn store_copy; /* reads the settings declaration */
+    const con_io_t *console;
+    con_copy_fn con_copy;     /* reads console declarations and report keys */
+    con_rt_t *rt;             /* shared with the RX interrupt's hook */
+    const tbl_table_t *table; /* the compiled table, or NULL when none was built */
+    tbl_copy_fn table_copy;   /* plain copy from table memory */
+    /* Copy that also applies learned targets: a function of the tbl_copy_fn
+     * type that calls app_table_copy() on this app (tbl_copy_fn carries no
+     * context, so the owner of the app instance binds it). NULL: learned
+     * targets are stored but not used. */
+    tbl_copy_fn table_copy_learned;
+    const char *version_f; /* firmware version */
+    const char *board_f;   /* board name */
+    const char *reset_f;   /* reset cause word */
+} app_io_t;
+
+/* Caller-owned application state. Read-only outside lib/app. */
+typedef struct {
+    app_io_t io;
+    /* modules */
+    dxl_master dxl;
+    dxl_bringup bring;
+    icm_set_t sens;
+    icm_set_slot_t slot[APP_MAX_SENSORS];
+    store_t store;
+    store_settings_t set;
+    store_homes_t homes;
+    union {
+        store_hist_t hist;
+        store_learned_t learned;
+    } rec; /* the record being saved (kept until store_poll() is done) */
+    con_t con;
+    hom_t hom;
+    tbl_src_t tab;  /* plain */
+    tbl_src_t htab; /* learned targets applied */
+    tbl_info_t info;
+    /* state */
+    uint8_t state;
+    uint8_t table_ok;
+    uint8_t boot_step;
+    uint32_t t_boot;
+    uint8_t n_servo_found;
+    uint8_t n_sens_found;
+    uint8_t ids[TBL_MAX_TENDONS];
+    uint8_t sensor_of[TBL_MAX_TENDONS]; /* selected sensor per tendon */
+    int8_t dir[TBL_MAX_TENDONS];
+    uint32_t nm_per_tick[TBL_MAX_TENDONS];
+    uint16_t servo_absent; /* bit i: tendon i's servo did not answer the bring-up */
+    uint16_t servo_fresh;  /* bit i: a position arrived since the last homing step */
+    uint16_t servo_seen;   /* bit i: a position has arrived since boot */
+    uint8_t hw_err[TBL_MAX_TENDONS];
+    int32_t present[TBL_MAX_TENDONS];
+    int32_t offset[TBL_MAX_TENDONS]; /* calibration frame = present frame + offset */
+    uint16_t home_now;               /* bit i: homes.t[i] usable in this power cycle */
+    int8_t recover_rc;               /* worst store_recover_position() result at boot */
+    int8_t homes_rc;                 /* store_homes_load() result */
+    uint8_t offer_quick;
+    /* bus scheduler */
+    uint8_t sv_txn; /* APP_TX_* of the transaction in flight */
+    uint8_t sv_cycle;
+    uint8_t hwerr_due;
+    uint16_t goal_due;   /* bit i: goal/velocity of tendon i to send */
+    uint16_t torque_due; /* bit i: torque of tendon i to send */
+    uint16_t txn_mask;   /* tendons of the transaction in flight */
+    int32_t goal[TBL_MAX_TENDONS];
+    uint16_t vel[TBL_MAX_TENDONS];
+    uint16_t acc[TBL_MAX_TENDONS];
+    uint8_t torque[TBL_MAX_TENDONS];
+    uint8_t reboot_id;
+    uint8_t reboot_req; /* `reboot` waits for the bus */
+    uint8_t boot_con;   /* a pending command is answered when the bring-up is done */
+    uint32_t t_reboot;
+    /* sensors */
+    uint16_t sens_err[APP_MAX_SENSORS]; /* error counts already passed to the homing */
+    /* run bookkeeping */
+    uint8_t run_mode;
+    uint8_t last_fault;
+    uint8_t last_fault_index;
+    uint8_t last_fault_dev;
+    uint16_t run_tension;
+    uint16_t run_mask; /* tendons calibrated by this run */
+    uint32_t t_run;
+    uint32_t t_tendon[TBL_MAX_TENDONS];
+    int32_t engage[TBL_MAX_TENDONS];
+    uint32_t runs_ok;
+    /* a run requested while an EEPROM save finishes */
+    uint8_t req_start;
+    uint8_t req_con; /* the request came from a pending `cal` / `rehome` */
+    uint8_t req_mode;
+    uint8_t req_tendon;
+    uint16_t req_tension;
+    /* app moves */
+    uint8_t move_kind; /* 1 home, 2 release */
+    uint32_t t_move;
+    uint8_t released; /* the last app release has not been followed by a pull */
+    /* learn / baseline */
+    uint8_t learn_tendon;
+    uint8_t learn_grid;
+    uint8_t learn_n;
+    uint8_t have_b0;
+    uint8_t learn_cnt[APP_MAX_SENSORS];
+    int32_t learn_acc[APP_MAX_SENSORS][3];
+    int32_t b0[APP_MAX_SENSORS][3];
+    uint32_t t_learn;
+    uint16_t learned_mask; /* bit t: tendon t has a learned record for this table */
+    /* store queue */
+    uint8_t save_due; /* APP_SAVE_* bits */
+    uint8_t save_now; /* the record being written */
+    int8_t save_rc;
+    uint8_t rest_due; /* rest positions to record once the servos have stopped */
+    uint32_t t_rest;
+    /* button, LED, loop time */
+    uint8_t btn_raw;
+    uint8_t btn_state;
+    uint8_t btn_long_done;
+    uint32_t t_btn_change;
+    uint32_t t_btn_down;
+    uint8_t led;
+    uint8_t led_on;
+    uint32_t t_led;
+    uint32_t loop_max_us;
+    uint32_t loops;
+    uint32_t t_loop_us;
+} app_t;
+
+/* Binds the app to its board and ports, initialises every module, reads the
+ * settings, homes and learned targets, checks the table and prints the
+ * `<boot ...>` line. Nothing moves. Returns 0 or APP_E_ARG. */
+int8_t app_init(app_t *app, const app_io_t *io);
+
+/* The settings' bus rate (the board configures its servo UART with it before
+ * the first app_poll()). */
+uint32_t app_bus_baud(const app_t *app);
+
+/* One pass of the superloop (see the file comment). Returns the app state
+ * (APP_ST_*). Never blocks beyond one bus transfer and the console's output. */
+int8_t app_poll(app_t *app);
+
+/* Aborts whatever moves and releases every tendon (button long press, `!`).
+ * Reports `<released ...>` once the release goals are sent. */
+void app_abort(app_t *app);
+
+/* The tbl_copy_fn body that applies learned targets: copies n bytes of the
+ * table at src into dst with io.table_copy, then overwrites the parts that
+ * fall inside a tendon's target_cuT[] with the learned entries stored in
+ * EEPROM for this table. */
+void app_table_copy(app_t *app, void *dst, const void *src, size_t n);
+
+/* Current LED pattern (APP_LED_*). */
+uint8_t app_led_pattern(const app_t *app);
+
+/* The console handler table (CON_CMD_COUNT entries, in CON_FLASH). */
+extern const con_handler_fn app_handlers[CON_CMD_COUNT];
+
+#endif /* HALLHOME_APP_H */

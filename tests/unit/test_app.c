@@ -1,0 +1,349 @@
+/*
+ * lib/app on a native board: the real modules against the XL430, ICM-20948
+ * and TCA9548A models and the robot plant (tests/unit/support/app_bench.h).
+ */
+#include <math.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <cmocka.h>
+
+#include "app_bench.h"
+
+static app_bench_t g_b;
+static char g_line[512];
+
+static void boot(app_bench_t *b, uint8_t with_table)
+{
+    assert_int_equal(app_bench_init(b, with_table), 0);
+    assert_true(app_bench_wait_line(b, "<boot ", g_line, sizeof g_line, 10));
+    assert_non_null(strstr(g_line, "name=hallhome"));
+    assert_non_null(strstr(g_line, "board=\"native bench\""));
+    assert_true(app_bench_wait_line(b, "<ready ", g_line, sizeof g_line, 4000));
+}
+
+/* Waits for the final reply of a command line. */
+static void reply(app_bench_t *b, const char *expect, uint32_t ms)
+{
+    uint64_t end = b->now_us + (uint64_t)ms * 1000u;
+    for (;;) {
+        while (con_fake_line(&b->con, g_line, sizeof g_line)) {
+            if (g_line[0] != '<') {
+                assert_string_equal(g_line, expect);
+                return;
+            }
+        }
+        assert_true(b->now_us < end);
+        app_bench_step(b);
+    }
+}
+
+static void cmd(app_bench_t *b, const char *line, const char *expect)
+{
+    app_bench_send(b, line);
+    reply(b, expect, 4000);
+}
+
+static void press(app_bench_t *b, uint32_t ms)
+{
+    b->button = 1;
+    app_bench_run_ms(b, ms);
+    b->button = 0;
+    app_bench_run_ms(b, 50);
+}
+
+static void test_boot_banner_and_ready(void **state)
+{
+    (void)state;
+    boot(&g_b, 1);
+    assert_non_null(strstr(g_line, "table=paper_2seg"));
+    assert_int_equal(app_bench_field(g_line, "sensors", -1), 3);
+    assert_int_equal(app_bench_field(g_line, "servos", -1), 6);
+    assert_non_null(strstr(g_line, "homes=none"));
+    assert_int_equal(app_bench_field(g_line, "rehome", -1), 0);
+    assert_int_equal(g_b.app.state, APP_ST_IDLE);
+    assert_true(g_b.kicks > 10u);
+    cmd(&g_b, "version", "ok");
+    cmd(&g_b, "rehome", "error:12 no homes: calibrate first");
+    cmd(&g_b, "home", "error:12 no homes: calibrate first");
+    cmd(&g_b, "cal 5", "error:16 tension outside the table grid");
+    cmd(&g_b, "cal 0.8 6", "error:15 no such tendon");
+    /* the servo bus runs: every servo's position is fresh */
+    assert_int_equal(g_b.app.servo_seen, 0x3F);
+    /* idle LED: a short blip every 2 s */
+    assert_int_equal(app_led_pattern(&g_b.app), APP_LED_IDLE);
+}
+
+static void test_no_table(void **state)
+{
+    (void)state;
+    boot(&g_b, 0);
+    assert_non_null(strstr(g_line, "table=none"));
+    cmd(&g_b, "cal", "error:11 no valid lookup table");
+    cmd(&g_b, "table", "error:11 no valid lookup table");
+    press(&g_b, 200);
+    assert_true(app_bench_wait_line(&g_b, "<fault ", g_line, sizeof g_line, 100));
+    assert_non_null(strstr(g_line, "reason=refused"));
+    assert_int_equal(app_bench_field(g_line, "error", 0), 11);
+    assert_int_equal(g_b.app.state, APP_ST_IDLE);
+}
+
+/* Press the button: every tendon is homed, stored and reported; then a power
+ * cycle offers the quick re-home, which finds the same homes. */
+static void test_button_calibrates_and_stores(void **state)
+{
+    int32_t first[TBL_MAX_TENDONS];
+    uint8_t i, results = 0;
+    store_homes_t h;
+    (void)state;
+    boot(&g_b, 1);
+    press(&g_b, 100);
+    assert_int_equal(g_b.app.state, APP_ST_CAL);
+    assert_int_equal(app_led_pattern(&g_b.app), APP_LED_RUN);
+    for (;;) {
+        assert_true(app_bench_wait_line(&g_b, "<", g_line, sizeof g_line, 20000));
+        assert_null(strstr(g_line, "<fault"));
+        if (strncmp(g_line, "<result ", 8) == 0) {
+            long t = app_bench_field(g_line, "tendon", -1);
+            double truth;
+            assert_true(t >= 0 && t < 6);
+            assert_int_equal(plant_true_home(&g_b.cfg, (uint8_t)t, 800, &truth), 0);
+            assert_true(fabs((double)app_bench_field(g_line, "home", 0) - truth) <= 2.0);
+            assert_true(app_bench_field(g_line, "travel_um", 0) > 0);
+            assert_true(app_bench_field(g_line, "time_ms", 0) > 0);
+            assert_non_null(strstr(g_line, "dB_uT="));
+            results++;
+        }
+        if (strncmp(g_line, "<done ", 6) == 0) {
+            break;
+        }
+    }
+    assert_int_equal(results, 6);
+    assert_non_null(strstr(g_line, "mode=full"));
+    assert_int_equal(app_bench_field(g_line, "count", 0), 1);
+    assert_int_equal(app_led_pattern(&g_b.app), APP_LED_DONE);
+    /* the records reach the EEPROM once idle */
+    app_bench_run_ms(&g_b, 2000);
+    assert_int_equal(store_homes_load(&g_b.app.store, g_b.table.table_id, &h), 0);
+    assert_int_equal(h.valid_mask, 0x3F);
+    assert_int_equal(h.cal_count, 1);
+    assert_int_equal(h.tension_mN, 800);
+    assert_int_equal(store_hist_count(&g_b.app.store), 1);
+    for (i = 0; i < 6; i++) {
+        first[i] = h.t[i].home_ticks;
+        /* every tendon taut at its home (together they load each other) */
+        assert_true(app_bench_tension(&g_b, i) > 0.3);
+    }
+    cmd(&g_b, "history", "ok");
+    cmd(&g_b, "status", "ok");
+
+    /* power cycle: the servos forget their turns, the app recovers the homes */
+    app_bench_restart(&g_b, 1);
+    assert_true(app_bench_wait_line(&g_b, "<ready ", g_line, sizeof g_line, 4000));
+    assert_non_null(strstr(g_line, "homes=stored"));
+    assert_int_equal(app_bench_field(g_line, "rehome", -1), 1);
+    cmd(&g_b, "rehome", "ok");
+    assert_true(app_bench_wait_line(&g_b, "<done ", g_line, sizeof g_line, 20000));
+    assert_non_null(strstr(g_line, "mode=quick"));
+    app_bench_run_ms(&g_b, 2000);
+    assert_int_equal(store_homes_load(&g_b.app.store, g_b.table.table_id, &h), 0);
+    assert_int_equal(h.cal_count, 2);
+    for (i = 0; i < 6; i++) {
+        double truth;
+        int32_t shaft = (int32_t)lround(xl430_shaft_ticks(&g_b.servo[i]));
+        assert_int_equal(plant_true_home(&g_b.cfg, i, 800, &truth), 0);
+        /* the servo rests at its home: shaft (plant frame) near the truth */
+        assert_true(fabs((double)shaft - truth) <= 2.0);
+        (void)first;
+    }
+}
+
+/* '!' during a tendon's approach: fault "aborted", every tendon slack within
+ * 100 ms. */
+static void test_realtime_abort_releases(void **state)
+{
+    uint64_t t0;
+    uint8_t i, slack = 0;
+    (void)state;
+    boot(&g_b, 1);
+    cmd(&g_b, "cal", "ok");
+    assert_true(app_bench_wait_line(&g_b, "<progress state=engaged", g_line, sizeof g_line, 10000));
+    app_bench_run_ms(&g_b, 150);
+    assert_true(app_bench_tension(&g_b, 0) > 0.05);
+    (void)con_rt_byte(&g_b.rt, '!');
+    t0 = g_b.now_us;
+    while (g_b.now_us - t0 < 100000u && !slack) {
+        app_bench_step(&g_b);
+        slack = 1;
+        for (i = 0; i < 6; i++) {
+            if (app_bench_tension(&g_b, i) > 0.001) {
+                slack = 0;
+            }
+        }
+    }
+    assert_true(slack);
+    assert_true(app_bench_wait_line(&g_b, "<fault ", g_line, sizeof g_line, 100));
+    assert_non_null(strstr(g_line, "reason=aborted"));
+    assert_int_equal(app_bench_field(g_line, "code", -1), HOM_F_ABORTED);
+    assert_true(app_bench_wait_line(&g_b, "<released ", g_line, sizeof g_line, 100));
+    assert_int_equal(g_b.app.state, APP_ST_FAULT);
+    assert_int_equal(app_led_pattern(&g_b.app), APP_LED_FAULT);
+    /* nothing was stored */
+    app_bench_run_ms(&g_b, 1500);
+    {
+        store_homes_t h;
+        assert_int_equal(store_homes_load(&g_b.app.store, g_b.table.table_id, &h), STORE_E_EMPTY);
+    }
+}
+
+/* A long press aborts too; a short press while running does nothing. */
+static void test_long_press_aborts(void **state)
+{
+    (void)state;
+    boot(&g_b, 1);
+    press(&g_b, 100);
+    assert_int_equal(g_b.app.state, APP_ST_CAL);
+    app_bench_run_ms(&g_b, 300);
+    press(&g_b, 100);
+    assert_int_equal(g_b.app.state, APP_ST_CAL);
+    g_b.button = 1;
+    app_bench_run_ms(&g_b, 1900);
+    assert_int_equal(g_b.app.state, APP_ST_CAL);
+    app_bench_run_ms(&g_b, 200);
+    assert_true(app_bench_wait_line(&g_b, "<fault ", g_line, sizeof g_line, 100));
+    assert_non_null(strstr(g_line, "reason=aborted"));
+    g_b.button = 0;
+    app_bench_run_ms(&g_b, 100);
+    assert_int_equal(g_b.app.state, APP_ST_FAULT);
+}
+
+/* Missing devices are named before any motion and refuse the calibration. */
+static void test_missing_sensor_and_servo(void **state)
+{
+    (void)state;
+    assert_int_equal(app_bench_init(&g_b, 1), 0);
+    /* sensor 1 unplugged, servo of tendon 4 (ID 5) silent: rebuild the bus */
+    g_b.icm[1].present = 0;
+    dxl_fakebus_init(&g_b.bus, 1000000u, 10);
+    for (uint8_t i = 0; i < 6; i++) {
+        if (i != 4) {
+            dxl_fakebus_add(&g_b.bus, &g_b.servo[i]);
+        }
+    }
+    assert_true(app_bench_wait_line(&g_b, "<missing dev=sensor", g_line, sizeof g_line, 4000));
+    assert_int_equal(app_bench_field(g_line, "index", -1), 1);
+    assert_true(app_bench_wait_line(&g_b, "<missing dev=servo", g_line, sizeof g_line, 100));
+    assert_int_equal(app_bench_field(g_line, "id", -1), 5);
+    assert_true(app_bench_wait_line(&g_b, "<ready ", g_line, sizeof g_line, 100));
+    assert_int_equal(app_bench_field(g_line, "sensors", -1), 2);
+    assert_int_equal(app_bench_field(g_line, "servos", -1), 5);
+    cmd(&g_b, "cal", "error:13 sensor missing or faulty");
+    g_b.icm[1].present = 1; /* plugged in again: the sensor set re-inits it */
+    app_bench_run_ms(&g_b, 1500);
+    cmd(&g_b, "cal", "error:14 servo missing or faulty");
+    assert_int_equal(g_b.app.state, APP_ST_IDLE);
+    for (uint8_t i = 0; i < 6; i++) {
+        assert_true(app_bench_tension(&g_b, i) < 0.001);
+    }
+}
+
+/* A servo overload mid-run: fault servo_error naming the servo, released. */
+static void test_servo_fault_mid_run(void **state)
+{
+    (void)state;
+    boot(&g_b, 1);
+    cmd(&g_b, "cal", "ok");
+    assert_true(app_bench_wait_line(&g_b, "<progress state=tendon", g_line, sizeof g_line, 10000));
+    xl430_inject_hw_error(&g_b.servo[2], DXL_XL430_HW_ERR_OVERLOAD);
+    assert_true(app_bench_wait_line(&g_b, "<fault ", g_line, sizeof g_line, 1000));
+    assert_non_null(strstr(g_line, "reason=servo_error"));
+    assert_int_equal(app_bench_field(g_line, "code", -1), HOM_F_SERVO_ERROR);
+    assert_int_equal(app_bench_field(g_line, "index", -1), 2);
+    assert_int_equal(app_bench_field(g_line, "id", -1), 3);
+    assert_true(app_bench_wait_line(&g_b, "<released ", g_line, sizeof g_line, 100));
+    /* a new calibration is refused while the servo reports its error */
+    app_bench_run_ms(&g_b, 200);
+    cmd(&g_b, "cal", "error:14 servo missing or faulty");
+    /* reboot clears it; the bus is brought up again */
+    cmd(&g_b, "reboot 3", "ok");
+    assert_int_equal(g_b.app.hw_err[2], 0);
+    assert_int_equal(g_b.app.state, APP_ST_IDLE);
+}
+
+/* Settings: get/set/save survive a restart; bad names and values refused. */
+static void test_settings(void **state)
+{
+    (void)state;
+    boot(&g_b, 1);
+    cmd(&g_b, "set cal_tension 900", "ok");
+    cmd(&g_b, "set nope 1", "error:17 unknown setting");
+    cmd(&g_b, "set cal_tension 1", "error:18 setting value out of range");
+    cmd(&g_b, "save", "ok");
+    app_bench_restart(&g_b, 0);
+    assert_true(app_bench_wait_line(&g_b, "<ready ", g_line, sizeof g_line, 4000));
+    app_bench_send(&g_b, "get cal_tension");
+    assert_true(app_bench_wait_line(&g_b, "<setting ", g_line, sizeof g_line, 100));
+    assert_int_equal(app_bench_field(g_line, "value", 0), 900);
+    reply(&g_b, "ok", 100);
+    cmd(&g_b, "get", "ok");
+    cmd(&g_b, "sensors", "ok");
+    cmd(&g_b, "servos pos", "ok");
+    cmd(&g_b, "servos", "ok");
+}
+
+/* Model-free learning: release (baseline), a weight pulls tendon 1 to 0.8 N,
+ * learn records |dB|; the table shows it, and it overrides the compiled one. */
+static void test_learn_with_weight(void **state)
+{
+    double ticks;
+    long learned;
+    tbl_tendon_t eff;
+    (void)state;
+    boot(&g_b, 1);
+    cmd(&g_b, "learn 1 0.8", "error:12 no homes: calibrate first"); /* no baseline yet */
+    cmd(&g_b, "release", "ok");
+    assert_true(app_bench_wait_line(&g_b, "<done mode=release", g_line, sizeof g_line, 3000));
+    assert_int_equal(app_bench_field(g_line, "baseline", 0), 1);
+    cmd(&g_b, "learn 1 0.75", "error:16 tension outside the table grid");
+    assert_int_equal(plant_true_home(&g_b.cfg, 1, 800, &ticks), 0);
+    g_b.weight_on = 1;
+    g_b.weight_tendon = 1;
+    g_b.weight_ticks = ticks;
+    app_bench_run_ms(&g_b, 100);
+    app_bench_send(&g_b, "learn 1 0.8");
+    assert_true(app_bench_wait_line(&g_b, "<learned ", g_line, sizeof g_line, 1000));
+    learned = app_bench_field(g_line, "tendon", -1);
+    assert_int_equal(learned, 1);
+    reply(&g_b, "ok", 100);
+    g_b.weight_on = 0;
+    /* learned |dB| close to the plant-made table's target at 800 mN (grid 4) */
+    {
+        uint32_t want = g_b.table.tendons[1].target_cuT[4];
+        app_bench_run_ms(&g_b, 1000);
+        assert_int_equal(tbl_tendon(&g_b.app.htab, 1, &eff), 0);
+        assert_true(eff.target_cuT[4] != want);
+        assert_true(labs((long)eff.target_cuT[4] - (long)want) < (long)want / 20);
+        assert_int_equal(eff.target_cuT[3], g_b.table.tendons[1].target_cuT[3]);
+    }
+    cmd(&g_b, "table", "ok");
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_boot_banner_and_ready),
+        cmocka_unit_test(test_no_table),
+        cmocka_unit_test(test_missing_sensor_and_servo),
+        cmocka_unit_test(test_settings),
+        cmocka_unit_test(test_learn_with_weight),
+        cmocka_unit_test(test_realtime_abort_releases),
+        cmocka_unit_test(test_long_press_aborts),
+        cmocka_unit_test(test_servo_fault_mid_run),
+        cmocka_unit_test(test_button_calibrates_and_stores),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
