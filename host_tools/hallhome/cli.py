@@ -122,6 +122,8 @@ def solve_cmd(robot, tensions, model, no_gravity):
     click.echo(f"tip z axis:      {z[0]:.6f} {z[1]:.6f} {z[2]:.6f}")
     click.echo("tendon displacement mm (geometric, + = shorter): "
                + " ".join(f"{d * 1e3:.4f}" for d in sol.displacements))
+    click.echo("tendon take-up mm (geometric + stretch):           "
+               + " ".join(f"{d * 1e3:.4f}" for d in sol.take_up))
 
 
 @main.command("characterize")

@@ -50,7 +50,10 @@ class Solution:
     frames (columns: body x, y, z in base coordinates). ``tensions`` (N) the
     load; ``path_lengths`` each tendon's path length inside the robot, m;
     ``displacements`` each tendon's geometric path shortening against the
-    unloaded straight robot, m (positive = shorter); ``base_moment`` the
+    unloaded straight robot, m (positive = shorter); ``stretches`` each
+    tendon's elastic elongation T (path + free length) / EA, m, so that
+    ``take_up`` = displacements + stretches is the spool travel from the
+    unloaded straight robot to this load; ``base_moment`` the
     shooting unknown M(0), N m; ``residual`` the tip boundary error, N m;
     ``iterations`` the number of shots.
     """
@@ -64,6 +67,12 @@ class Solution:
     base_moment: np.ndarray
     residual: float
     iterations: int
+    stretches: np.ndarray
+
+    @property
+    def take_up(self) -> np.ndarray:
+        """Geometric shortening plus elastic stretch per tendon, m."""
+        return self.displacements + self.stretches
 
     @property
     def tip_position(self) -> np.ndarray:
@@ -342,7 +351,12 @@ class CosseratModel:
         return Solution(s=s, positions=pos, rotations=rot, tensions=tau,
                         path_lengths=lengths, displacements=self.straight_lengths - lengths,
                         base_moment=x * self.m_scale,
-                        residual=float(np.abs(f).max() * self.m_scale), iterations=shots)
+                        residual=float(np.abs(f).max() * self.m_scale), iterations=shots,
+                        stretches=self._stretches(tau, lengths))
+
+    def _stretches(self, tau: np.ndarray, lengths: np.ndarray) -> np.ndarray:
+        return np.array([self.robot.tendon_stretch(t, T, ln)
+                         for t, T, ln in zip(self.robot.tendons, tau, lengths)])
 
 
 _FD_STEP = 1e-6
@@ -391,4 +405,5 @@ class ConstantCurvatureModel:
         return Solution(s=np.array(ss), positions=np.array(ps), rotations=np.array(rs),
                         tensions=tau, path_lengths=lengths,
                         displacements=self.cos.straight_lengths - lengths,
-                        base_moment=np.zeros(3), residual=0.0, iterations=0)
+                        base_moment=np.zeros(3), residual=0.0, iterations=0,
+                        stretches=self.cos._stretches(tau, lengths))

@@ -86,6 +86,10 @@ def test_pure_tendon_moment_gives_circular_arc(tmp_path):
     assert sol.tip_position[0] == pytest.approx(tip_x, rel=1e-9)
     # tendon path shortening: rho * theta plus the backbone compression
     assert sol.displacements[0] == pytest.approx(5e-3 * theta + r.length * tau / ea, rel=1e-6)
+    # tendon elasticity: stretch T (path + free length) / EA on top
+    stretch = tau * (sol.path_lengths[0] + 0.1) / 2000.0
+    assert sol.take_up[0] == pytest.approx(sol.displacements[0] + stretch, rel=1e-12)
+    assert abs(CosseratModel(r).solve([0.0]).take_up[0]) < 1e-15
 
 
 def test_paper_reference_numbers():
