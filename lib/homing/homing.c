@@ -925,6 +925,12 @@ static void fine_point(hom_t *h, uint32_t now)
         finish_tendon(h, now, fit_or(h, p, p * 256 + t->dir * (int32_t)r_q8));
         return;
     }
+    if ((int64_t)t->dir * (p - t->engage) * 256 + r_q8 > (int64_t)t->limit_ticks * 256) {
+        /* the target lies beyond the travel limit: unreachable, stop here */
+        fail(h, now, HOM_F_TRAVEL_LIMIT, HOM_DEV_TENDON, h->cur,
+             (int32_t)(((int64_t)t->dir * (p - t->engage) * 256 + r_q8) / 256));
+        return;
+    }
     if (++h->steps > h->cfg.fine_max_steps) {
         fail(h, now, HOM_F_NO_PROGRESS, HOM_DEV_TENDON, h->cur, (int32_t)b);
         return;

@@ -229,7 +229,14 @@ static void test_dry_run_no_motion(void **state)
     for (i = 0; i < g_res.n_tendons; i++) {
         assert_true(g_res.max_tension_N[i] == 0.0);
     }
-    assert_int_equal(find_event(&g_res, HOM_EV_TARGET)->a, (int32_t)g_tab.tendons[0].target_cuT[4]);
+    {
+        tbl_src_t src;
+        tbl_point_t pt;
+        src.table = &g_tab;
+        src.copy = tbl_copy_ram;
+        assert_int_equal(tbl_target(&src, 0, g_tab.default_mN, &pt), 0);
+        assert_int_equal(find_event(&g_res, HOM_EV_TARGET)->a, (int32_t)pt.target_cuT);
+    }
 }
 
 static void test_sensor_stops_answering(void **state)
