@@ -35,6 +35,7 @@ SIM_UNTIL   ?= ^<cal .*state=done
 SIM_FAIL    ?= ^<fault
 SIM_TOL     ?= 10
 SIM_ARGS    ?=
+SIM_SCN     := sim/bench/scenarios/$(FAULT).scn
 
 .PHONY: bench sim sim-test
 EXTRA_HELP += "make sim [ROBOT= TENSION= SEED= FAULT= INTERACTIVE=1]   firmware on the virtual bench" \
@@ -56,14 +57,16 @@ $(SIM_DIR)/testfw/%.elf: sim/bench/testfw/%.c $(TESTFW_DRIVERS) $(AVR_DIR)/versi
 
 sim: $(BENCH) firmware
 	@test -f $(SIM_PLANT) || { echo "make sim: no plant config $(SIM_PLANT)"; exit 2; }
+	@test -z "$(FAULT)" || test -f $(SIM_SCN) || { echo "make sim: no scenario $(SIM_SCN); known:"; \
+		ls sim/bench/scenarios | sed 's/\.scn$$//; s/^/  /'; exit 2; }
 	@echo "make sim: ROBOT=$(ROBOT) SEED=$(SEED) TENSION=$(or $(TENSION),default) FAULT=$(or $(FAULT),none)"
 	$(BENCH) $(FW_ELF) --plant $(SIM_PLANT) --seed $(SEED) --eeprom $(SIM_STATE) \
 		--summary $(SIM_DIR)/summary.json --timestamps --table \
 		$(if $(TENSION),--tension $(TENSION) --at "0.3s send set cal_tension $(shell awk 'BEGIN{printf "%d", $(TENSION)*1000}')") \
-		$(if $(FAULT),--scenario sim/bench/scenarios/$(FAULT).scn) \
 		$(if $(INTERACTIVE),--interactive --realtime --pty-link $(SIM_DIR)/console, \
-			--limit $(SIM_LIMIT) --at "0.5s press" --until '$(SIM_UNTIL)' --fail-on '$(SIM_FAIL)' \
-			--check-tension $(SIM_TOL)) \
+			--limit $(SIM_LIMIT) --at "0.5s press" \
+			$(if $(FAULT),--scenario $(SIM_SCN), \
+				--until '$(SIM_UNTIL)' --fail-on '$(SIM_FAIL)' --check-tension $(SIM_TOL))) \
 		$(SIM_ARGS)
 
 sim-test: $(BENCH) $(TESTFW_ELFS) firmware

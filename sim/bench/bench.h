@@ -43,6 +43,7 @@
 #define BENCH_EECR     0x3Fu
 #define BENCH_TWSR     0xB9u
 #define BENCH_TWCR     0xBCu
+#define BENCH_UCSR0B   0xC1u
 #define BENCH_UCSR1A   0xC8u
 #define BENCH_UCSR1B   0xC9u
 #define BENCH_UDR1     0xCEu
@@ -98,6 +99,14 @@ typedef struct {
 } bench_led_t;
 
 typedef struct bench_t bench_t;
+
+/* A console-line pattern of --until / --fail-on, or of a scenario's `until`
+ * and `fail-on` lines, active from a simulated time on. */
+typedef struct {
+    regex_t re;
+    uint64_t from_us;
+    char text[128];
+} bench_pattern_t;
 
 /* ---- UART1 half-duplex servo bus (bus.c) ---------------------------------- */
 
@@ -245,11 +254,10 @@ struct bench_t {
     double start_slack_min_mm, start_slack_max_mm;
     uint8_t realtime;
     uint8_t quiet_stats;
-    regex_t until_re[BENCH_MAX_PATTERN];
+    bench_pattern_t until[BENCH_MAX_PATTERN];
     uint8_t n_until;
-    regex_t fail_re[BENCH_MAX_PATTERN];
+    bench_pattern_t fail[BENCH_MAX_PATTERN];
     uint8_t n_fail;
-    char fail_text[BENCH_MAX_PATTERN][128];
     uint64_t eewrite_stop; /* stop after this many EEPROM byte writes (0 = never) */
     /* state */
     bench_con_t con;
@@ -298,6 +306,9 @@ static inline uint64_t bench_now_us(const bench_t *b)
 void bench_finish(bench_t *b, int code, const char *reason);
 void bench_console_line(bench_t *b, const char *line);
 void bench_rearm(bench_t *b);
+/* Adds an --until (fail = 0) or --fail-on (fail = 1) pattern. Returns 0, or
+ * -1 when the expression does not compile or the table is full. */
+int bench_add_pattern(bench_t *b, uint8_t fail, const char *re, uint64_t from_us);
 
 /* scenario.c */
 int scen_parse_time(const char *s, uint64_t *us);

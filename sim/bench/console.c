@@ -100,11 +100,15 @@ void con_bench_queue(bench_t *b, const char *data, size_t n)
     con_bench_pump(b);
 }
 
-/* Raises queued bytes while simavr's RX FIFO has room. The UART itself paces
- * them at the line rate into UDR0. */
+/* Raises queued bytes while simavr's RX FIFO has room and the firmware's
+ * receiver is on (simavr drops bytes that arrive while RXEN0 = 0; a script
+ * waits for the firmware instead). The UART paces them into UDR0. */
 void con_bench_pump(bench_t *b)
 {
     bench_con_t *c = &b->con;
+    if (!(b->avr->data[BENCH_UCSR0B] & 0x10u)) {
+        return;
+    }
     while (!c->xoff && c->in_pos < c->in_len) {
         c->bytes_in++;
         avr_raise_irq(c->rx_irq, c->in[c->in_pos++]);

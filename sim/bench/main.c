@@ -7,6 +7,7 @@
 #include <errno.h>
 #include <math.h>
 #include <signal.h>
+#include <stdarg.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
@@ -28,6 +29,13 @@ static double wall_now(void)
 {
     struct timespec ts;
     clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + (double)ts.tv_nsec * 1e-9;
+}
+
+static double cpu_now(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
     return (double)ts.tv_sec + (double)ts.tv_nsec * 1e-9;
 }
 
@@ -69,22 +77,32 @@ void bench_console_line(bench_t *b, const char *line)
     if (b->stop) {
         return;
     }
+    uint64_t now = bench_now_us(b);
     for (uint8_t i = 0; i < b->n_fail; i++) {
-        if (regexec(&b->fail_re[i], line, 0, NULL, 0) == 0) {
+        if (now >= b->fail[i].from_us && regexec(&b->fail[i].re, line, 0, NULL, 0) == 0) {
             snprintf(b->until_line, sizeof b->until_line, "%s", line);
             b->until_at_us = bench_now_us(b);
-            snprintf(b->reason_buf, sizeof b->reason_buf, "fail-on matched: %s", b->fail_text[i]);
+            snprintf(b->reason_buf, sizeof b->reason_buf, "fail-on matched: %s", b->fail[i].text);
             bench_finish(b, BENCH_EXIT_FAIL, b->reason_buf);
             return;
         }
     }
     for (uint8_t i = 0; i < b->n_until; i++) {
-        if (regexec(&b->until_re[i], line, 0, NULL, 0) == 0) {
+        if (now >= b->until[i].from_us && regexec(&b->until[i].re, line, 0, NULL, 0) == 0) {
             snprintf(b->until_line, sizeof b->until_line, "%s", line);
             b->until_at_us = bench_now_us(b);
             bench_finish(b, BENCH_EXIT_OK, "until matched");
             return;
         }
+    }
+}
+
+/* simavr's messages (load report, warnings) go to stderr: standard output
+ * carries only the console. */
+static void bench_logger(avr_t *avr, const int level, const char *format, va_list ap)
+{
+    if (avr == NULL || level <= avr->log) {
+        vfprintf(stderr, format, ap);
     }
 }
 
@@ -354,7 +372,7 @@ static const char *cause_name(uint8_t mcusr)
     return "software";
 }
 
-static void write_summary(bench_t *b, double wall)
+static void write_summary(bench_t *b, double wall, double cpu)
 {
     FILE *f = fopen(b->summary_path, "w");
     double sim = (double)bench_now_us(b) * 1e-6;
@@ -369,8 +387,10 @@ static void write_summary(bench_t *b, double wall)
     fprintf(f, ",\n  \"exit_code\": %d,\n  \"reason\": ", b->exit_code);
     json_str(f, b->reason ? b->reason : "");
     fprintf(f,
-            ",\n  \"sim_s\": %.6f,\n  \"wall_s\": %.3f,\n  \"speed\": %.2f,\n  \"cycles\": %llu,\n",
-            sim, wall, wall > 0 ? sim / wall : 0.0, (unsigned long long)b->avr->cycle);
+            ",\n  \"sim_s\": %.6f,\n  \"wall_s\": %.3f,\n  \"speed\": %.2f,\n  \"cpu_s\": %.3f,\n"
+            "  \"speed_cpu\": %.2f,\n  \"cycles\": %llu,\n",
+            sim, wall, wall > 0 ? sim / wall : 0.0, cpu, cpu > 0 ? sim / cpu : 0.0,
+            (unsigned long long)b->avr->cycle);
     fprintf(f, "  \"seed\": %u,\n  \"until\": {\"matched\": %s, \"t_s\": %.6f, \"line\": ", b->seed,
             b->until_line[0] ? "true" : "false", (double)b->until_at_us * 1e-6);
     json_str(f, b->until_line);
@@ -471,15 +491,16 @@ static void usage(FILE *f)
         "5 signal\n");
 }
 
-static int add_re(regex_t *re, uint8_t *n, const char *pat, char (*text)[128])
+int bench_add_pattern(bench_t *b, uint8_t fail, const char *re, uint64_t from_us)
 {
-    if (*n >= BENCH_MAX_PATTERN || regcomp(&re[*n], pat, REG_EXTENDED | REG_NOSUB) != 0) {
-        fprintf(stderr, "hh_bench: bad or too many patterns: %s\n", pat);
+    bench_pattern_t *tab = fail ? b->fail : b->until;
+    uint8_t *n = fail ? &b->n_fail : &b->n_until;
+    if (*n >= BENCH_MAX_PATTERN || regcomp(&tab[*n].re, re, REG_EXTENDED | REG_NOSUB) != 0) {
+        fprintf(stderr, "hh_bench: bad or too many patterns: %s\n", re);
         return -1;
     }
-    if (text != NULL) {
-        snprintf(text[*n], sizeof text[*n], "%s", pat);
-    }
+    tab[*n].from_us = from_us;
+    snprintf(tab[*n].text, sizeof tab[*n].text, "%s", re);
     (*n)++;
     return 0;
 }
@@ -520,12 +541,12 @@ int main(int argc, char **argv)
             }
         } else if (strcmp(a, "--until") == 0) {
             NEEDV();
-            if (add_re(b->until_re, &b->n_until, v, NULL) != 0) {
+            if (bench_add_pattern(b, 0, v, 0) != 0) {
                 return BENCH_EXIT_USAGE;
             }
         } else if (strcmp(a, "--fail-on") == 0) {
             NEEDV();
-            if (add_re(b->fail_re, &b->n_fail, v, b->fail_text) != 0) {
+            if (bench_add_pattern(b, 1, v, 0) != 0) {
                 return BENCH_EXIT_USAGE;
             }
         } else if (strcmp(a, "--at") == 0) {
@@ -604,6 +625,7 @@ int main(int argc, char **argv)
         return BENCH_EXIT_USAGE;
     }
 
+    avr_global_logger_set(bench_logger);
     memset(&fw, 0, sizeof fw);
     if (elf_read_firmware(b->elf_path, &fw) != 0) {
         fprintf(stderr, "hh_bench: cannot read %s\n", b->elf_path);
@@ -671,6 +693,7 @@ int main(int argc, char **argv)
     signal(SIGPIPE, SIG_IGN);
 
     b->wall_start = wall_now();
+    double cpu_start = cpu_now();
     uint64_t limit_cycles = b->limit_us * (BENCH_F_CPU / 1000000u);
     uint32_t spin = 0;
     while (!b->stop) {
@@ -701,6 +724,7 @@ int main(int argc, char **argv)
                 bench_finish(b, BENCH_EXIT_SIGNAL, "signal");
             }
             con_bench_poll_fds(b);
+            con_bench_pump(b);
             if (b->realtime) {
                 double ahead = (double)bench_now_us(b) * 1e-6 - (wall_now() - b->wall_start);
                 if (ahead > 0.002) {
@@ -711,6 +735,7 @@ int main(int argc, char **argv)
         }
     }
     double wall = wall_now() - b->wall_start;
+    double cpu = cpu_now() - cpu_start;
     con_bench_flush(b);
 
     if (check_pct >= 0.0 && b->have_plant && b->exit_code == BENCH_EXIT_OK) {
@@ -738,11 +763,14 @@ int main(int argc, char **argv)
         }
     }
     if (b->summary_path != NULL) {
-        write_summary(b, wall);
+        write_summary(b, wall, cpu);
     }
-    fprintf(stderr, "hh_bench: %s after %.3f s simulated in %.3f s wall (%.1fx), exit %d\n",
-            b->reason ? b->reason : "stopped", (double)bench_now_us(b) * 1e-6, wall,
-            wall > 0 ? (double)bench_now_us(b) * 1e-6 / wall : 0.0, b->exit_code);
+    fprintf(
+        stderr,
+        "hh_bench: %s after %.3f s simulated in %.3f s wall (%.1fx; %.1fx of CPU time), exit %d\n",
+        b->reason ? b->reason : "stopped", (double)bench_now_us(b) * 1e-6, wall,
+        wall > 0 ? (double)bench_now_us(b) * 1e-6 / wall : 0.0,
+        cpu > 0 ? (double)bench_now_us(b) * 1e-6 / cpu : 0.0, b->exit_code);
     fflush(stdout);
     return b->exit_code;
 }

@@ -103,9 +103,60 @@ static void unescape(char *s)
     *o = '\0';
 }
 
+/* "[<time>] until|fail-on REGEX": the scenario's expected outcome, matched
+ * against console lines from that time on. Returns 1 when the line is one. */
+static int scen_pattern_line(bench_t *b, const char *line, int *rc)
+{
+    uint64_t from = 0;
+    const char *p = line;
+    while (*p == ' ' || *p == '\t') {
+        p++;
+    }
+    if (*p >= '0' && *p <= '9') {
+        char tbuf[32];
+        size_t n = strcspn(p, " \t");
+        if (n >= sizeof tbuf) {
+            return 0;
+        }
+        memcpy(tbuf, p, n);
+        tbuf[n] = '\0';
+        if (scen_parse_time(tbuf, &from) != 0) {
+            return 0;
+        }
+        p += n;
+        while (*p == ' ' || *p == '\t') {
+            p++;
+        }
+    }
+    uint8_t fail;
+    if (strncmp(p, "until ", 6) == 0) {
+        fail = 0;
+        p += 6;
+    } else if (strncmp(p, "fail-on ", 8) == 0) {
+        fail = 1;
+        p += 8;
+    } else {
+        return 0;
+    }
+    char re[200];
+    size_t n = strcspn(p, "\r\n");
+    if (n >= sizeof re) {
+        *rc = -1;
+        return 1;
+    }
+    memcpy(re, p, n);
+    re[n] = '\0';
+    *rc = bench_add_pattern(b, fail, re, from);
+    return 1;
+}
+
 /* "<time> <event> [args]" */
 static int scen_add_line(bench_t *b, const char *line)
 {
+    int prc = 0;
+    if (line[0] != '#' && scen_pattern_line(b, line, &prc)) {
+        return prc;
+    }
     char buf[256];
     char *save = NULL;
     size_t len = strlen(line);
