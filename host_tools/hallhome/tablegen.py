@@ -11,7 +11,6 @@ same bytes on every run (no time stamps, no absolute paths, fixed rounding).
 from __future__ import annotations
 
 import json
-import math
 import re
 import struct
 import zlib
