@@ -208,3 +208,22 @@ def test_bad_tensions_are_rejected():
         m.solve([-0.1, 0, 0, 0, 0, 0])
     with pytest.raises(ValueError):
         ConstantCurvatureModel(load_robot(PAPER)).solve([1.0])
+
+
+def test_solve_time_regression_guard():
+    """Budget is 50 ms per solve (docs/model.md, `hallhome bench`); this guard
+    allows 3x for a loaded shared machine."""
+    import time
+    r = load_robot(PAPER)
+    m = CosseratModel(r)
+    tau = np.zeros(6)
+    tau[5] = 0.8
+    m.solve(tau)
+    best = min(_timed(m.solve, tau, time) for _ in range(3))
+    assert best < 0.150
+
+
+def _timed(fn, arg, time):
+    t0 = time.perf_counter()
+    fn(arg)
+    return time.perf_counter() - t0
