@@ -202,7 +202,8 @@ class Sensor:
 class Robot:
     """A validated robot description in SI units.
 
-    ``name``: the TOML file stem (a C identifier of at most 15 characters).
+    ``name``: the TOML file stem (a C identifier; the table format limits
+    its length to TBL_NAME_LEN - 1).
     ``gravity``: gravitational acceleration in the base frame (m/s^2), or
     None. ``tension_grid``: strictly increasing tensions (N) the tables are
     computed at; ``default_tension`` (N) lies on the grid. ``noise``: the
@@ -242,8 +243,9 @@ class Robot:
 
 # --- validation -------------------------------------------------------------------
 
+# The name's length limit belongs to the table format (TBL_NAME_LEN): the
+# generator checks it against lib/table/table.h.
 _C_IDENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
-_NAME_MAX = 15  # TBL_NAME_LEN - 1; checked against table.h by the generator
 
 _TOP_KEYS = {"description", "segments", "tendons", "magnet", "sensors", "sensing", "gravity",
              "calibration"}
@@ -356,9 +358,9 @@ def load_robot(path: str | Path) -> Robot:
         raise RobotError([f"{path.name}: not valid TOML: {exc}"]) from None
 
     name = path.stem
-    if not _C_IDENT.match(name) or len(name) > _NAME_MAX:
-        ck.problems.append(f"{path.name}: file name: expected a C identifier of at most "
-                           f"{_NAME_MAX} characters as the robot name, got {name!r}")
+    if not _C_IDENT.match(name):
+        ck.problems.append(f"{path.name}: file name: expected a C identifier as the robot "
+                           f"name, got {name!r}")
     ck.keys(doc, "", _TOP_KEYS)
     description = doc.get("description", "")
     if not isinstance(description, str):

@@ -168,6 +168,13 @@ def test_limits_come_from_the_header(tmp_path):
         build_table(res, small)
 
 
+def test_robot_name_longer_than_the_table_allows(tmp_path):
+    r = make_robot(tmp_path, name="a_very_long_robot_name")
+    res = compute(r)
+    with pytest.raises(TableError, match=r"longer than 15 characters \(TBL_NAME_LEN\)"):
+        build_table(res, SPEC)
+
+
 def test_warns_when_target_change_is_below_ten_sigma(tmp_path):
     r = make_robot(tmp_path, noise=20.0)
     res = compute(r)
