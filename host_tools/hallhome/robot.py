@@ -401,10 +401,10 @@ def load_robot(path: str | Path) -> Robot:
                        90, default=0.0)
         sid = ck.number(t, w, "servo_id", "a DYNAMIXEL ID 0..252", 0, 252, integer=True)
         pd = t.get("pull_dir")
-        if pd not in (1, -1) or isinstance(pd, bool):
-            ck.fail(f"{w}.pull_dir", "+1 (increasing ticks shortens the tendon) or -1",
-                    pd) if "pull_dir" in t else ck.fail(f"{w}.pull_dir", "+1 or -1 (missing)",
-                                                        show=False)
+        if "pull_dir" not in t:
+            ck.fail(f"{w}.pull_dir", "+1 or -1 (missing)", show=False)
+        elif pd not in (1, -1) or isinstance(pd, bool):
+            ck.fail(f"{w}.pull_dir", "+1 (increasing ticks shortens the tendon) or -1", pd)
             pd = None
         sr = ck.number(t, w, "spool_radius_mm", "a positive radius in mm", 0, lo_open=True)
         tpr = ck.number(t, w, "ticks_per_rev", "encoder ticks per revolution, 1..1048576", 1,
