@@ -79,6 +79,7 @@ ERROR_CASES = [
      "(tendons[1] already uses it), got 1"),
     (r"^pull_dir = 1$", "pull_dir = 0",
      "tendons[1].pull_dir: expected +1 (increasing ticks shortens the tendon) or -1, got 0"),
+    (r"^pull_dir = 1\n", "", "tendons[1].pull_dir: expected +1 or -1 (missing)"),
     (r"^spool_radius_mm = 4.0$", "spool_radius_mm = -4.0",
      "tendons[1].spool_radius_mm: expected a positive radius in mm, got -4.0"),
     (r"^stiffness_EA_N = 2000.0$", "stiffness_EA_N = \"stiff\"",
