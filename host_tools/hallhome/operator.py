@@ -51,7 +51,7 @@ def cmd(name: str, *args) -> str:
 
 def ends_motion(rep: Report) -> bool:
     """A report after which nothing the host started still moves."""
-    return rep.kind in (R.DONE, R.RELEASED)
+    return rep.kind in (R.DONE, R.RELEASED, R.FAULT)
 
 
 def newtons(grams: float) -> float:
@@ -234,6 +234,9 @@ def status_cmd(port, timeout) -> None:
 
 # --- calibrate ----------------------------------------------------------------------
 
+FAULT_GRACE = 1.5  # seconds to wait for the release report after a fault
+
+
 class CalView:
     """Per-tendon progress of a calibration run, built from its reports."""
 
@@ -285,7 +288,11 @@ class CalView:
 
     @property
     def finished(self) -> bool:
-        return self.done is not None or self.released is not None
+        """Done, released, or a fault (which ends the run) a moment ago: the
+        board follows a fault with its release, given a little time."""
+        if self.done is not None or self.released is not None:
+            return True
+        return bool(self.faults) and time.monotonic() - self.faults[0].at > FAULT_GRACE
 
     def table(self, title: str) -> Table:
         t = Table("tendon", "servo", "state", "home (ticks)", "travel mm", "|dB| uT", "target uT", "time s",
@@ -467,12 +474,13 @@ def learn_cmd(tendons, masses, tolerance, out_path, port, timeout) -> None:
                     except ValueError as e:
                         con.print(f"[yellow]{e}[/]")
                         continue
+                    wait_saved(c, 20.0)  # the board refuses `learn` while it writes a record
                     try:
                         rep = c.command(cmd("learn", t, fixed3(g_used / 1000.0)), timeout=max(timeout, 10.0))
                     except BoardError as e:
                         con.print(f"[red]{e.name}: {e.text}[/]")
                         if e.name in ("BUSY", "TIMEOUT", "SENSOR_FAULT"):
-                            continue
+                            continue  # ask again: the capture can be repeated
                         raise
                     lr = rep.first(R.LEARNED)
                     if lr is None:
@@ -488,6 +496,8 @@ def learn_cmd(tendons, masses, tolerance, out_path, port, timeout) -> None:
             if ans == "q":
                 break
             con.print(f"tendon {t} done: remove the weight")
+        if samples:
+            wait_saved(c, 20.0)
         _, rows = read_table(c)
     board_targets = {int(r.get("tendon")): int_list(r.get("target_cuT")) for r in rows}
     # The board stored each capture (EEPROM); its table, learned entries
@@ -514,6 +524,18 @@ def learn_cmd(tendons, masses, tolerance, out_path, port, timeout) -> None:
     con.print(f"{len(samples)} target(s) learned and stored on the board; exported to {path}")
     if bad:
         raise HallhomeError("learned target(s) not in the board's table: " + ", ".join(bad))
+
+
+def wait_saved(c: Client, secs: float) -> None:
+    """Waits until the board has written its queued EEPROM records."""
+    deadline = time.monotonic() + secs
+    while True:
+        s = c.command(cmd("status")).first(R.STATUS)
+        if s is None or not s.get("saving"):
+            return
+        if time.monotonic() > deadline:
+            raise ReplyTimeout(f"the board was still writing its EEPROM after {secs:g} s")
+        time.sleep(0.2)
 
 
 def wait_for(c: Client, pred, secs: float, what: str) -> Report:
@@ -789,7 +811,7 @@ def console_cmd(port, timeout) -> None:
             if r.kind == R.BOOT:
                 con.print(f"[yellow]{r.raw}  <- the board reset; the console re-synchronises[/]")
             else:
-                con.print(r.raw, markup=False)
+                click.echo(r.raw)
 
         def reader() -> None:
             while not stop.is_set():
@@ -816,7 +838,7 @@ def console_cmd(port, timeout) -> None:
                 except EOFError:
                     break
                 if not tty:
-                    con.print(f"> {line}", markup=False)
+                    click.echo(f"> {line}")
                 line = line.strip()
                 if line in ("exit", "quit"):
                     break
@@ -830,7 +852,7 @@ def console_cmd(port, timeout) -> None:
                         rep = c.command(line, timeout=timeout)
                     for r in rep.reports:
                         show(r)
-                    con.print("ok", markup=False)
+                    click.echo("ok")
                 except LocalError as e:
                     con.print(f"[red]{e}[/]")
                 except BoardError as e:

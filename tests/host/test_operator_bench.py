@@ -1,0 +1,377 @@
+"""The operator subcommands against the virtual bench.
+
+The real firmware ELF runs on simavr (build/sim/hh_bench --interactive
+--realtime) with its console on a pty; each test runs `hallhome <command>
+--port <pty>` as an operator would (a separate process, so Ctrl-C and
+SIGTERM are real signals) or drives hallhome.client directly. Board resets
+come from the bench's own events (watchdog, reset pin), the unplugged cable
+from killing the bench.
+
+The bench and the firmware are built with make if missing; only when that
+build fails are these tests skipped, with the build's error as the reason.
+"""
+
+import json
+import os
+import re
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from hallhome import protocol
+from hallhome.client import BoardError, BoardReset, Client, Disconnected, LocalError
+from hallhome.paths import PROJECT_ROOT as ROOT
+
+BENCH = ROOT / "build" / "sim" / "hh_bench"
+FW = ROOT / "build" / "firmware" / "hallhome.elf"
+PLANT = ROOT / "sim" / "plant" / "configs" / "paper_2seg.cfg"
+SEED = "7"
+
+
+@pytest.fixture(scope="session")
+def built():
+    r = subprocess.run(["make", "-s", str(BENCH.relative_to(ROOT)), "firmware"], cwd=ROOT,
+                       capture_output=True, text=True, timeout=1200)
+    if r.returncode != 0 and not (BENCH.exists() and FW.exists()):
+        pytest.skip("the virtual bench could not be built (`make build/sim/hh_bench firmware`): "
+                    + (r.stderr or r.stdout).strip()[-400:])
+    assert BENCH.exists() and FW.exists()
+
+
+class Bench:
+    """One hh_bench process with the firmware; console on a pty link."""
+
+    def __init__(self, tmp: Path, *events: str):
+        tmp.mkdir(parents=True, exist_ok=True)
+        self.pty = tmp / "console"
+        self.logpath = tmp / "bench.log"
+        self.log = open(self.logpath, "w")
+        args = [str(BENCH), str(FW), "--plant", str(PLANT), "--seed", SEED,
+                "--eeprom", str(tmp / "eeprom.bin"), "--interactive", "--realtime", "--timestamps",
+                "--pty-link", str(self.pty)]
+        for e in events:
+            args += ["--at", e]
+        self.proc = subprocess.Popen(args, stdout=self.log, stderr=subprocess.STDOUT, cwd=ROOT)
+        self.wait_line(r"<ready ", 15)
+        assert self.pty.exists()
+
+    def text(self) -> str:
+        return self.logpath.read_text(errors="replace")
+
+    def wait_line(self, pattern: str, timeout: float, after: int = 0) -> str:
+        """The first console line (from byte offset `after` of the log) that
+        matches; fails after timeout."""
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            for line in self.text()[after:].splitlines():
+                if re.search(pattern, line):
+                    return line
+            if self.proc.poll() is not None:
+                break
+            time.sleep(0.1)
+        raise AssertionError(f"no bench line matches {pattern!r} within {timeout} s:\n{self.text()[-3000:]}")
+
+    def mark(self) -> int:
+        return len(self.text())
+
+    def kill(self):
+        if self.proc.poll() is None:
+            self.proc.kill()
+        self.proc.wait()
+
+    def close(self):
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGINT)
+            try:
+                self.proc.wait(5)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait()
+        self.log.close()
+
+
+@pytest.fixture
+def bench(built, tmp_path):
+    made = []
+
+    def start(*events):
+        b = Bench(tmp_path / f"b{len(made)}", *events)
+        made.append(b)
+        return b
+
+    yield start
+    for b in made:
+        b.close()
+
+
+def hh(*args, input=None, timeout=120, **popen):
+    """`hallhome ARGS` as a separate process; returns CompletedProcess."""
+    env = dict(os.environ, COLUMNS="160", HALLHOME_HISTORY=os.devnull)
+    return subprocess.run([sys.executable, "-m", "hallhome", *map(str, args)], input=input,
+                          capture_output=True, text=True, timeout=timeout, env=env, cwd=popen.get("cwd"))
+
+
+def hh_start(*args, cwd=None):
+    env = dict(os.environ, COLUMNS="160", HALLHOME_HISTORY=os.devnull)
+    return subprocess.Popen([sys.executable, "-m", "hallhome", *map(str, args)], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, stdin=subprocess.DEVNULL, text=True, env=env, cwd=cwd)
+
+
+# --- status, console, errors ---------------------------------------------------------
+
+def test_status_shows_board_sensors_and_servos(bench):
+    b = bench()
+    r = hh("status", "--port", b.pty)
+    assert r.returncode == 0, r.stderr
+    out = r.stdout
+    assert "paper_2seg" in out and "Arduino Mega 2560" in out
+    assert re.search(r"│ state +│ idle", out), out
+    sens = re.findall(r"^│ (\d) +│ \d +│ 0x69 +│ yes", out, re.M)
+    assert sens == ["0", "1", "2"], out
+    servos = re.findall(r"^│ (\d) +│ (\d) +│ yes", out, re.M)
+    assert servos == [(str(t), str(t + 1)) for t in range(6)], out
+
+
+def test_port_from_environment_and_missing_port(bench, tmp_path):
+    b = bench()
+    env = dict(os.environ, HALLHOME_PORT=str(b.pty), COLUMNS="160")
+    r = subprocess.run([sys.executable, "-m", "hallhome", "status"], capture_output=True, text=True,
+                       env=env, timeout=60)
+    assert r.returncode == 0 and "paper_2seg" in r.stdout
+    r = hh("status", "--port", tmp_path / "nope")
+    assert r.returncode == 5
+    assert "cannot open" in r.stderr and "nope" in r.stderr
+
+
+def test_console_with_scripted_input(bench):
+    b = bench()
+    script = "version\nstatus 1\nfrobnicate\ncal 0.8 11\nlearn 0 0.25\n!\nget cal_tension\nhelp\n"
+    r = hh("console", "--port", b.pty, input=script)
+    assert r.returncode == 0, r.stderr
+    out = r.stdout
+    assert re.search(r"> version\n<version name=hallhome .*tendons=6 sensors=3>\nok\n", out)
+    # rejected locally: never reach the board
+    assert "`status 1` not sent: error:5 too many arguments" in out
+    assert "`frobnicate` not sent: error:1 unknown command" in out
+    # rejected by the firmware, named from con_errors.def
+    assert "error:15 no such tendon (BAD_TENDON)" in out
+    assert "error:16 tension outside the table grid (TENSION_RANGE)" in out
+    assert "abort sent" in out
+    assert re.search(r"<setting name=cal_tension value=800 .*>\nok", out)
+    assert len(re.findall(r"^<help cmd=", out, re.M)) == len(protocol.COMMANDS)
+    log = b.text()
+    assert "frobnicate" not in log and "status 1" not in log
+    assert "<released reason=aborted>" in log  # the `!` reached the board
+
+
+def test_client_against_the_firmware(bench):
+    b = bench()
+    with Client(str(b.pty), timeout=6) as c:
+        v = c.command("version").first("version")
+        assert v.get("tendons") == 6 and v.get("table") == "paper_2seg"
+        with pytest.raises(BoardError) as e:
+            c.command("get no_such_setting")
+        assert (e.value.code, e.value.name) == (17, "UNKNOWN_SETTING")
+        assert e.value.text == protocol.ERRORS[17].text
+        with pytest.raises(BoardError) as e:
+            c.command("set filter_k 65")
+        assert e.value.name == "SETTING_RANGE"
+        with pytest.raises(LocalError):
+            c.command("cal 11")  # out of range: checked locally
+        assert c.command("get filter_k").first("setting").get("value") == 8
+        assert c.garbled == 0 and c.resets == 0
+
+
+# --- calibrate ------------------------------------------------------------------------
+
+def test_calibrate_one_tendon_then_history_and_export(bench, tmp_path):
+    b = bench()
+    r = hh("calibrate", "--port", b.pty, "--tendon", 0, "--tension", 0.8, timeout=300)
+    assert r.returncode == 0, r.stdout + r.stderr
+    out = r.stdout
+    row = re.search(r"^│ 0 +│ 1 +│ home +│ (-?\d+) +│ (\d+\.\d{3}) +│ (\d+\.\d+) +│ (\d+\.\d+) +│ (\d+\.\d) ", out, re.M)
+    assert row, out
+    home, travel, dB, target = int(row[1]), float(row[2]), float(row[3]), float(row[4])
+    assert 0 < travel < 2.5
+    assert abs(dB - target) / target < 0.2
+    assert re.search(r"done: single calibration at 0.800 N in \d+\.\d s \(calibration #1\)", out)
+    assert re.search(rf"<result tendon=0 id=1 home={home} ", b.text())
+
+    r = hh("history", "--port", b.pty, "--csv")
+    assert r.returncode == 0, r.stderr
+    lines = r.stdout.strip().splitlines()
+    assert lines[0].startswith("count,table_id,tension_mN,home0")
+    assert lines[1].split(",")[:4] == ["1", "0x1115c2f1", "800", str(home)]
+    png = tmp_path / "h.png"
+    r = hh("history", "--port", b.pty, "--plot", png)
+    assert r.returncode == 0 and png.read_bytes()[:4] == b"\x89PNG"
+
+    r = hh("export", "--port", b.pty)
+    assert r.returncode == 0, r.stderr
+    data = json.loads(r.stdout)
+    assert data["robot"] == "paper_2seg" and data["calibration_count"] == 1
+    t0 = [t for t in data["tendons"] if t["tendon"] == 0][0]
+    assert t0["home_ticks"] == home and t0["servo_id"] == 1 and t0["usable"] is True
+    r = hh("export", "--port", b.pty, "--format", "csv")
+    assert r.stdout.splitlines()[0] == ("robot,table_id,tension_N,calibration_count,tendon,servo_id,"
+                                        "home_ticks,home_now_ticks,rest_ticks,usable")
+
+
+def test_calibrate_fault_is_reported_and_released(bench):
+    b = bench("0.3s sensor-unplug 0")
+    r = hh("calibrate", "--port", b.pty, timeout=120)
+    assert r.returncode == 1, r.stdout + r.stderr
+    assert "missing sensor 0" in r.stdout
+    assert "the calibration failed" in r.stderr
+    assert "<fault " in b.text()
+
+
+def test_calibrate_ctrl_c_aborts_on_the_board(bench):
+    b = bench()
+    m = b.mark()
+    p = hh_start("calibrate", "--port", b.pty)
+    b.wait_line(r"<progress state=tendon ", 60, after=m)
+    p.send_signal(signal.SIGINT)
+    out, err = p.communicate(timeout=30)
+    assert p.returncode == 130, out + err
+    assert "aborted: the board stopped and released every tendon" in err
+    b.wait_line(r"<released reason=aborted>", 5, after=m)
+
+
+def test_sigterm_leaves_no_calibration_running(bench):
+    b = bench()
+    m = b.mark()
+    p = hh_start("calibrate", "--port", b.pty)
+    b.wait_line(r"<progress state=tendon ", 60, after=m)
+    p.send_signal(signal.SIGTERM)
+    p.communicate(timeout=30)
+    assert p.returncode != 0
+    b.wait_line(r"<released reason=aborted>", 5, after=m)
+    with Client(str(b.pty)) as c:
+        assert c.command("status").first("status").get("state") in ("idle", "fault")
+
+
+def test_client_close_aborts_what_it_started(bench):
+    b = bench()
+    m = b.mark()
+    c = Client(str(b.pty))
+    c.command("cal")
+    assert c.motion == "cal"
+    c.close()
+    b.wait_line(r"<released reason=aborted>", 5, after=m)
+
+
+# --- learn, monitor -----------------------------------------------------------------
+
+def test_learn_dialogue_stores_and_exports(bench, tmp_path):
+    # The bench has no way to hang a weight: the robot stays slack, so the
+    # captured field change is the sensor noise. The dialogue, the board's
+    # storage and the export are real.
+    b = bench()
+    out = tmp_path / "learned.json"
+    answers = "\n" + "80\n81.6\n" + "s\n" + "\n" + "q\n"
+    r = hh("learn", "--port", b.pty, "--tendon", 0, "--tendon", 3, "--mass", 81.6, "--mass", 20.4,
+           "--out", out, input=answers, timeout=180)
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert "baseline captured" in r.stdout
+    assert "80 g is 0.785 N, -1.9 % from the nearest grid tension 0.800 N (81.6 g)" in r.stdout
+    assert re.search(r"tendon 0 at 0.800 N: \|dB\| = \d+\.\d\d uT at sensor 0", r.stdout)
+    assert re.search(r"tendon 3 at 0.800 N: \|dB\| = \d+\.\d\d uT", r.stdout)
+    doc = json.loads(out.read_text())
+    assert doc["format"] == "hallhome-learned" and doc["robot"] == "paper_2seg"
+    assert [s["tension_mN"] for s in doc["samples"]] == [800, 800]
+    assert [s["mass_g"] for s in doc["samples"]] == [81.6, 81.6]
+    grid = doc["grid_mN"]
+    by_t = {t["tendon"]: t["target_cuT"] for t in doc["tendons"]}
+    for s in doc["samples"]:
+        assert by_t[s["tendon"]][grid.index(800)] == round(s["dB_uT"] * 100)
+    log = b.text()
+    assert "learn 0 0.800" not in log  # commands are not echoed; the reports are
+    assert len(re.findall(r"<learned tendon=(0|3) tension_mN=800 grid=6 ", log)) == 2
+    # stored on the board: survives a new session
+    with Client(str(b.pty)) as c:
+        rows = {r.get("tendon"): r.get("target_cuT") for r in c.command("table").of("tendon")}
+        assert rows[0].split(",")[6].endswith("*") and rows[3].split(",")[6].endswith("*")
+
+
+def test_monitor_samples_and_plot(bench, tmp_path):
+    b = bench()
+    png = tmp_path / "m.png"
+    r = hh("monitor", "--port", b.pty, "-n", 3, "--interval", 0.1, "--plot", png)
+    assert r.returncode == 0, r.stderr
+    lines = [l for l in r.stdout.splitlines() if " s  s0=" in l]
+    assert len(lines) == 3
+    assert all(re.search(r"s0=\d+\.\d\duT  s1=\d+\.\d\duT  s2=\d+\.\d\duT$", l) for l in lines)
+    assert png.read_bytes()[:4] == b"\x89PNG"
+
+
+def test_export_without_homes_fails_clearly(bench):
+    b = bench()
+    r = hh("export", "--port", b.pty)
+    assert r.returncode == 1
+    assert "no homes: calibrate first" in r.stderr or "has no homes" in r.stderr
+
+
+def test_history_empty(bench):
+    b = bench()
+    r = hh("history", "--port", b.pty, "--no-plot")
+    assert r.returncode == 0 and "no calibrations in the history yet" in r.stdout
+
+
+# --- reset and disconnect -------------------------------------------------------------
+
+@pytest.mark.parametrize("event,cause", [("wdt-reset", "watchdog"), ("ext-reset", "external")])
+def test_board_reset_mid_session(bench, event, cause):
+    b = bench(f"4s {event}")
+    with Client(str(b.pty), timeout=6) as c:
+        deadline = time.monotonic() + 20
+        reset = None
+        while time.monotonic() < deadline and reset is None:
+            try:
+                c.command("status")
+            except BoardReset as e:
+                reset = e
+            time.sleep(0.05)
+        if reset is None:
+            # the banner may fall between two commands: then the next
+            # command's re-sync or event() sees it
+            assert c.resets == 1, b.text()[-2000:]
+        else:
+            assert "the board reset" in str(reset) and "nothing moves" in str(reset)
+            assert reset.boot.get("reset", "").startswith(cause)
+        assert c.resets == 1
+        # the session goes on: the client re-synchronised
+        assert c.command("version").first("version").get("tendons") == 6
+
+
+def test_board_reset_during_monitor_is_reported_and_monitoring_goes_on(bench):
+    b = bench("3s wdt-reset")
+    r = hh("monitor", "--port", b.pty, "-n", 25, "--interval", 0.2, timeout=60)
+    assert r.returncode == 0, r.stderr
+    assert "the board reset (reset=watchdog)" in r.stderr
+    assert len([l for l in r.stdout.splitlines() if " s  s0=" in l]) == 25
+
+
+def test_unplugged_cable_during_monitor(bench):
+    b = bench()
+    p = hh_start("monitor", "--port", b.pty, "--interval", 0.1)
+    time.sleep(2.0)
+    b.kill()
+    out, err = p.communicate(timeout=30)
+    assert p.returncode == 5, out + err
+    assert "lost the connection to the board" in err and "USB cable" in err
+
+
+def test_unplugged_cable_during_console(bench):
+    b = bench()
+    c = Client(str(b.pty))
+    c.command("version")
+    b.kill()
+    with pytest.raises(Disconnected, match="lost the connection"):
+        c.command("status")
+        c.command("status")
+    c.close()
