@@ -1,0 +1,155 @@
+"""PNG plots of the benchmark report, each measured figure beside the paper's."""
+from __future__ import annotations
+
+import os
+from typing import Dict, List
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from .stats import PAPER  # noqa: E402
+
+
+def _save(fig, outdir: str, name: str) -> str:
+    path = os.path.join(outdir, name)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return name
+
+
+def repeatability(res: Dict, outdir: str) -> str:
+    """Table I as bars: SD of each tendon's home, paper (manual, automated) and
+    ours (native loop, simavr bench when measured), log scale."""
+    fig, ax = plt.subplots(figsize=(8, 4.2))
+    labels = [f"S{s + 1}T{t + 1}" for s in range(2) for t in range(3)] + ["avg"]
+    x = np.arange(len(labels))
+    series = [
+        ("paper manual", sum(PAPER["repeat_manual_mm"], []) + [PAPER["repeat_manual_avg_mm"]]),
+        ("paper automated", sum(PAPER["repeat_auto_mm"], []) + [PAPER["repeat_auto_avg_mm"]]),
+    ]
+    for src in ("native", "simavr"):
+        r = res.get(src)
+        if r and "per_tendon_mm" in r:
+            per = [r["per_tendon_mm"].get(str(i), r["per_tendon_mm"].get(i, np.nan)) for i in range(6)]
+            series.append((f"hallhome ({src})", per + [r["avg_mm"]]))
+    w = 0.8 / len(series)
+    floor = 1e-4  # an SD of 0 (every home on the same tick) drawn at the floor
+    for k, (name, vals) in enumerate(series):
+        v = np.array([max(float(a), floor) if np.isfinite(a) else np.nan for a in vals])
+        ax.bar(x + (k - (len(series) - 1) / 2) * w, v, w, label=name)
+    ax.axhline(PAPER["tick_mm"], color="k", ls="--", lw=1, label="one encoder tick (goal)")
+    ax.set_yscale("log")
+    ax.set_ylim(floor / 2, 10)
+    ax.set_xticks(x)
+    ax.set_xticklabels(labels)
+    ax.set_ylabel("SD of home position (mm)")
+    ax.set_title("Repeatability of tendon homes, 10 calibrations at 0.8 N (0 drawn at 1e-4)")
+    ax.legend(fontsize=8, ncol=2)
+    return _save(fig, outdir, "repeatability.png")
+
+
+def accuracy(acc: Dict, outdir: str) -> str:
+    """Mean tension error +- SD per target and segment, with the paper's
+    overall (0.06 +- 0.20) N band."""
+    fig, ax = plt.subplots(figsize=(7, 4))
+    ax.axhspan(PAPER["tension_err_mean_N"] - PAPER["tension_err_sd_N"],
+               PAPER["tension_err_mean_N"] + PAPER["tension_err_sd_N"], color="0.85",
+               label="paper: 0.06 ± 0.20 N")
+    ax.axhline(PAPER["tension_err_mean_N"], color="0.5", lw=1)
+    ax.axhspan(-0.02, 0.02, color="tab:green", alpha=0.15, label="goal: mean within ±0.02 N")
+    markers = {"native": "o", "simavr": "s"}
+    for src, off in (("native", -0.012), ("simavr", 0.012)):
+        a = acc.get(src)
+        if not a or "cells" not in a:
+            continue
+        for c in a["cells"]:
+            seg = c["segment"]
+            ax.errorbar(c["target_N"] + off + (seg - 1.5) * 0.01, c["mean_N"], yerr=c["sd_N"],
+                        fmt=markers[src], color="tab:blue" if seg == 1 else "tab:orange",
+                        capsize=3,
+                        label=f"{src}, segment {seg}")
+    h, l = ax.get_legend_handles_labels()
+    uniq = dict(zip(l, h))
+    ax.legend(uniq.values(), uniq.keys(), fontsize=8)
+    ax.set_xlabel("target tension (N)")
+    ax.set_ylabel("true tension at home − target (N)")
+    ax.set_title("Tension accuracy, 5 calibrations per target")
+    return _save(fig, outdir, "accuracy.png")
+
+
+def timing(tm: Dict, outdir: str) -> str:
+    fig, ax = plt.subplots(figsize=(6.5, 3.6))
+    names = ["paper (full)"]
+    vals = [PAPER["cal_time_s"]]
+    for src in ("native", "simavr"):
+        t = tm.get(src) or {}
+        if t.get("full_s") is not None:
+            names.append(f"{src} full")
+            vals.append(t["full_s"])
+        if t.get("quick_s") is not None:
+            names.append(f"{src} quick re-home")
+            vals.append(t["quick_s"])
+    ax.barh(names, vals, color=["0.6"] + ["tab:blue"] * (len(vals) - 1))
+    ax.axvline(12.0, color="tab:green", ls="--", label="goal: 12 s")
+    for k, v in enumerate(vals):
+        ax.text(v, k, f" {v:.1f} s", va="center", fontsize=8)
+    ax.set_xlabel("time per calibration, 6 tendons (s)")
+    ax.legend(fontsize=8)
+    return _save(fig, outdir, "timing.png")
+
+
+def robustness(rob: Dict, outdir: str) -> List[str]:
+    err = np.array([e for e in rob.get("err_N", []) if e is not None and np.isfinite(e)])
+    fig, ax = plt.subplots(figsize=(7, 4))
+    if err.size:
+        ax.hist(err, bins=40, color="tab:blue", alpha=0.8, label="hallhome, native loop")
+    ax.axvspan(PAPER["tension_err_mean_N"] - PAPER["tension_err_sd_N"],
+               PAPER["tension_err_mean_N"] + PAPER["tension_err_sd_N"], color="0.85", zorder=0,
+               label="paper: 0.06 ± 0.20 N")
+    ax.set_xlabel("true tension at home − target (N)")
+    ax.set_ylabel("tendon homes")
+    ax.set_title(f"Tension error over {rob.get('runs', 0)} perturbed robots "
+                 f"(±{100 * rob.get('frac', 0):.0f} %), {rob.get('tension_mN', 0)} mN")
+    ax.legend(fontsize=8)
+    names = [_save(fig, outdir, "robustness_hist.png")]
+
+    rank = rob.get("ranking", [])
+    oat = rob.get("oat", [])
+    fig, axs = plt.subplots(1, 2, figsize=(11, 4.2))
+    if rank:
+        r = rank[:12][::-1]
+        axs[0].barh([d["name"] for d in r], [d["share"] for d in r], color="tab:purple")
+        axs[0].set_xlabel("share of error variance (joint linear fit)")
+        axs[0].set_title(f"Monte Carlo sensitivity (R² = {rank[0]['r2']:.2f})")
+    for d in oat[:6]:
+        axs[1].plot(d["x"], d["mean_err_N"], marker="o", label=d["group"])
+    axs[1].set_xlabel("parameter deviation (plant_cfg_perturb units)")
+    axs[1].set_ylabel("mean tension error (N)")
+    axs[1].set_title("One at a time (six largest)")
+    axs[1].legend(fontsize=7)
+    names.append(_save(fig, outdir, "robustness_sensitivity.png"))
+    return names
+
+
+def ambient(amb: Dict, outdir: str) -> str:
+    fig, ax = plt.subplots(figsize=(7, 4))
+    styles = {"abs_ideal": ("tab:red", "absolute |B| (paper), ideal detector"),
+              "delta_ideal": ("tab:blue", "field change |B−B0|, ideal detector"),
+              "delta_loop": ("tab:green", "field change |B−B0|, homing core (closed loop)")}
+    for mode, (color, label) in styles.items():
+        rows = amb.get("modes", {}).get(mode)
+        if not rows:
+            continue
+        x = [r["dA_uT"] for r in rows]
+        ax.plot(x, [r["rms_N"] for r in rows], marker="o", color=color, label=label + ", RMS")
+        ax.plot(x, [r["max_abs_N"] for r in rows], ls=":", color=color, label=label + ", max")
+    ax.axhline(PAPER["tension_err_sd_N"], color="0.6", ls="--", lw=1, label="paper SD 0.20 N")
+    ax.set_xlabel("ambient field change between table and calibration (µT)")
+    ax.set_ylabel("|tension error| (N)")
+    ax.set_title("Ambient change: absolute mode vs field-change mode")
+    ax.legend(fontsize=7)
+    return _save(fig, outdir, "ambient.png")

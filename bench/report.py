@@ -1,0 +1,365 @@
+"""Markdown report of a benchmark run (bench/results/report.md) and its check.
+
+build_report() turns the results dictionary that bench/run.py collects into
+Markdown; check_report() verifies that a report has every section and that
+its figures parse as numbers (the reduced pipeline check, `make bench-check`).
+"""
+from __future__ import annotations
+
+import math
+import os
+import re
+from typing import Dict, List, Optional
+
+from . import stats
+from .stats import GOALS, PAPER
+
+SECTIONS = [
+    "## 1. Repeatability",
+    "## 2. Tension accuracy",
+    "## 3. Time per calibration",
+    "## 4. Robustness",
+    "## 5. Absolute-magnitude mode vs field-change mode",
+    "## 6. Firmware resources",
+    "## Goals",
+]
+
+
+def fmt(v, digits: int = 4, unit: str = "") -> str:
+    """A number for the report, or 'n/a' when not measured."""
+    if v is None:
+        return "n/a"
+    try:
+        f = float(v)
+    except (TypeError, ValueError):
+        return str(v)
+    if not math.isfinite(f):
+        return "n/a"
+    return f"{f:.{digits}f}{(' ' + unit) if unit else ''}"
+
+
+def _src_note(r: Optional[Dict]) -> str:
+    if not r:
+        return "not measured"
+    if r.get("not_measured"):
+        return f"not measured: {r['not_measured']}"
+    return ""
+
+
+def _per(r: Dict, i: int):
+    per = r.get("per_tendon_mm", {})
+    return per.get(str(i), per.get(i))
+
+
+def section_repeat(res: Dict) -> List[str]:
+    rep = res.get("repeat", {})
+    nat, sim = rep.get("native") or {}, rep.get("simavr") or {}
+    out = [SECTIONS[0] + " (paper Table I)", ""]
+    out.append(
+        f"{rep.get('runs', 10)} automated calibrations at 0.8 N from random initial slack "
+        "(each tendon starts between 2 mm slack and 0.3 mm taut), nominal robot; standard "
+        "deviation of each tendon's home position (spool travel), in mm. One encoder tick is "
+        f"{fmt(res.get('meta', {}).get('mm_per_tick'), 5)} mm.")
+    out.append("")
+    out.append("| segment | tendon | paper manual (mm) | paper automated (mm) | "
+               "hallhome native loop (mm) | hallhome simavr bench (mm) |")
+    out.append("| --- | --- | --- | --- | --- | --- |")
+    for s in range(2):
+        for t in range(3):
+            i = 3 * s + t
+            out.append(
+                f"| {s + 1} | {t + 1} | {PAPER['repeat_manual_mm'][s][t]:.3f} | "
+                f"{PAPER['repeat_auto_mm'][s][t]:.4f} | {fmt(_per(nat, i))} | "
+                f"{fmt(_per(sim, i)) if sim and not sim.get('not_measured') else 'n/a'} |")
+    out.append(f"| average | | {PAPER['repeat_manual_avg_mm']:.3f} | "
+               f"{PAPER['repeat_auto_avg_mm']:.4f} | {fmt(nat.get('avg_mm'))} | "
+               f"{fmt(sim.get('avg_mm')) if sim and not sim.get('not_measured') else 'n/a'} |")
+    out.append("")
+    if nat:
+        out.append(f"- Native loop: largest spread of one tendon's homes "
+                   f"{fmt(nat.get('max_spread_ticks'), 0)} tick(s); largest distance from the "
+                   f"true home {fmt(nat.get('max_abs_err_ticks'), 2)} tick.")
+    if sim and not sim.get("not_measured"):
+        out.append(f"- simavr bench: largest spread of one tendon's homes "
+                   f"{fmt(sim.get('max_spread_ticks'), 0)} tick(s) over "
+                   f"{sim.get('runs', 'n/a')} calibrations.")
+    else:
+        out.append(f"- simavr bench: {_src_note(sim)}")
+    out += ["", "![repeatability](repeatability.png)", ""]
+    return out
+
+
+def section_accuracy(res: Dict) -> List[str]:
+    acc = res.get("accuracy", {})
+    out = [SECTIONS[1], ""]
+    out.append("Targets 0.5, 0.8 and 1.0 N, 5 calibrations each, nominal robot; the plant's "
+               "true spool-side tension at each home (pulled alone from slack: the "
+               "calibration's definition) minus the target. Paper: (0.06 ± 0.20) N over all "
+               "tests, measured with load cells (±0.15 N).")
+    out.append("")
+    out.append("| source | target (N) | segment | n | mean error (N) | SD (N) |")
+    out.append("| --- | --- | --- | --- | --- | --- |")
+    for src in ("native", "simavr"):
+        a = acc.get(src) or {}
+        if a.get("not_measured") or not a:
+            out.append(f"| {src} | - | - | 0 | {_src_note(a)} | |")
+            continue
+        for c in a["cells"]:
+            out.append(f"| {src} | {c['target_N']:.1f} | {c['segment']} | {c['n']} | "
+                       f"{c['mean_N']:+.4f} | {c['sd_N']:.4f} |")
+        for sg in a["segments"]:
+            out.append(f"| {src} | all | {sg['segment']} | {sg['n']} | {sg['mean_N']:+.4f} | "
+                       f"{sg['sd_N']:.4f} |")
+        al = a["all"]
+        out.append(f"| **{src}** | **all** | **both** | {al['n']} | **{al['mean_N']:+.4f}** | "
+                   f"**{al['sd_N']:.4f}** |")
+    out.append(f"| paper | all | both | 30 | +{PAPER['tension_err_mean_N']:.2f} | "
+               f"{PAPER['tension_err_sd_N']:.2f} |")
+    out += ["", "![accuracy](accuracy.png)", ""]
+    return out
+
+
+def section_time(res: Dict) -> List[str]:
+    tm = res.get("time", {})
+    nat, sim = tm.get("native") or {}, tm.get("simavr") or {}
+    out = [SECTIONS[2], ""]
+    out.append("Simulated time of a full 6-tendon calibration (start to done) and of a quick "
+               "re-home after a power cycle (robot left at its homes, encoders off by whole "
+               f"turns). Paper: about {PAPER['cal_time_s']:.0f} s per calibration.")
+    out.append("")
+    out.append("| source | full: mean (s) | full: max (s) | n | quick re-home (s) | n |")
+    out.append("| --- | --- | --- | --- | --- | --- |")
+    out.append(f"| native loop (1 ms bus cycle, ideal servo model) | {fmt(nat.get('full_s'), 2)} | "
+               f"{fmt(nat.get('full_max_s'), 2)} | {nat.get('n_full', 0)} | "
+               f"{fmt(nat.get('quick_s'), 2)} | {nat.get('n_quick', 0)} |")
+    if sim and not sim.get("not_measured"):
+        out.append(f"| simavr bench (firmware ELF, XL430 model, 1 Mbps bus) | "
+                   f"{fmt(sim.get('full_s'), 2)} | {fmt(sim.get('full_max_s'), 2)} | "
+                   f"{sim.get('n_full', 0)} | {fmt(sim.get('quick_s'), 2)} | "
+                   f"{sim.get('n_quick', 0)} |")
+        if sim.get("quick_note"):
+            out.append("")
+            out.append(f"- quick re-home on the bench: {sim['quick_note']}")
+    else:
+        out.append(f"| simavr bench | {_src_note(sim)} | | 0 | | 0 |")
+    out.append(f"| paper | {PAPER['cal_time_s']:.0f} | | | | |")
+    out += ["", "![timing](timing.png)", ""]
+    return out
+
+
+def section_robust(res: Dict) -> List[str]:
+    rob = res.get("robust", {})
+    out = [SECTIONS[3] + " (Monte Carlo, native loop)", ""]
+    out.append(
+        f"{rob.get('runs', 0)} seeded robots from `plant_cfg_perturb` at ±"
+        f"{100 * rob.get('frac', 0):.0f} % (stiffness, free lengths, friction, backlash, "
+        "magnet moment ±frac; segment lengths and radii ±frac/5; tendon angles ±5°·frac; "
+        "sensor positions ±1 mm·frac; slack ±500 µm·frac), each calibrated once at "
+        f"{rob.get('tension_mN', 800)} mN by the homing core with the table of the nominal "
+        "robot: the model error the paper's model-based workflow has. Native loop only "
+        "(hh_mc, bench/hh_mc.c): homing core + plant, no simavr.")
+    out.append("")
+    out.append("| perturbation | runs | tendon homes | faults | mean error (N) | SD (N) | "
+               "5th pct (N) | 95th pct (N) | max abs (N) |")
+    out.append("| --- | --- | --- | --- | --- | --- | --- | --- | --- |")
+    for lvl in rob.get("levels", []):
+        out.append(f"| ±{100 * lvl['frac']:.0f} % | {lvl['runs']} | {lvl['n']} | "
+                   f"{lvl['faults']} | {lvl['mean_N']:+.4f} | {lvl['sd_N']:.4f} | "
+                   f"{lvl['p5_N']:+.4f} | {lvl['p95_N']:+.4f} | {lvl['max_abs_N']:.4f} |")
+    out.append(f"| paper (real robot) | | 30 | | +{PAPER['tension_err_mean_N']:.2f} | "
+               f"{PAPER['tension_err_sd_N']:.2f} | | | |")
+    out.append("")
+    rank = rob.get("ranking", [])
+    if rank:
+        out.append(f"Which parameter drives the error (±{100 * rob.get('frac', 0):.0f} % runs): "
+                   "joint linear fit of the tension error on every parameter deviation of "
+                   f"the tendon (standardized), R² = {rank[0]['r2']:.2f}; share = the part of "
+                   "the error variance each one explains.")
+        out.append("")
+        out.append("| rank | parameter | share of variance | correlation | standardized coefficient |")
+        out.append("| --- | --- | --- | --- | --- |")
+        for k, d in enumerate(rank[:10]):
+            out.append(f"| {k + 1} | {d['name']} | {d['share']:.3f} | {d['corr']:+.3f} | "
+                       f"{d['beta']:+.3f} |")
+        out.append("")
+    oat = rob.get("oat", [])
+    if oat:
+        out.append("One parameter group at a time over ±frac (every tendon or sensor moved "
+                   "together; closed loop): range of the mean tension error over the sweep.")
+        out.append("")
+        out.append("| group | error range (N) | slope (N per unit deviation) |")
+        out.append("| --- | --- | --- |")
+        for d in oat:
+            out.append(f"| {d['group']} | {d['range_N']:.4f} | {d['slope_N']:+.4f} |")
+        out.append("")
+    out += ["![robustness histogram](robustness_hist.png)", "",
+            "![robustness sensitivity](robustness_sensitivity.png)", ""]
+    return out
+
+
+def section_ambient(res: Dict) -> List[str]:
+    amb = res.get("ambient", {})
+    out = [SECTIONS[4], ""]
+    out.append(
+        "The table is generated with the configured ambient field; the calibration then sees "
+        "every sensor's ambient changed by the same vector (seeded random directions, "
+        f"{amb.get('dirs', 0)} per magnitude; a re-oriented robot or moved iron), nominal "
+        f"robot, {amb.get('tension_mN', 800)} mN. Field-change mode: |B − B0| against the "
+        "table's |B(p_T) − B(p_0)|. Paper's absolute mode: |B − A_table| (the ambient seen at "
+        "table generation removed) against the table's |B(p_T)|, pulling until the reading "
+        "crosses the target in the direction the table predicts (|B| falls with the pull on "
+        "the distal tendons here).")
+    out.append("")
+    if amb.get("abs_mode_note"):
+        out.append(f"- {amb['abs_mode_note']}")
+        out.append("")
+    out.append("| ambient change (µT) | mode | tendon homes | failed | mean error (N) | "
+               "RMS (N) | max abs (N) |")
+    out.append("| --- | --- | --- | --- | --- | --- | --- |")
+    for mode in ("abs_ideal", "delta_ideal", "delta_loop"):
+        for r in amb.get("modes", {}).get(mode, []):
+            out.append(f"| {r['dA_uT']:g} | {mode} | {r['n']} | {r['failed']} | "
+                       f"{r['mean_N']:+.4f} | {r['rms_N']:.4f} | {r['max_abs_N']:.4f} |")
+    out += ["", "`abs_ideal` / `delta_ideal`: noise-free quasi-static pull of the plant, "
+            "sub-tick crossing (isolates the ambient effect); `delta_loop`: the homing core in "
+            "the closed loop (noise, encoder ticks).", "", "![ambient](ambient.png)", ""]
+    return out
+
+
+def section_resources(res: Dict) -> List[str]:
+    r = res.get("resources", {})
+    out = [SECTIONS[5], ""]
+    out.append("| figure | value | source |")
+    out.append("| --- | --- | --- |")
+    out.append(f"| flash | {fmt(r.get('flash_bytes'), 0, 'bytes')} "
+               f"({fmt(r.get('flash_pct'), 1)} % of 256 KB; budget 64 KB) | {r.get('size_src', 'n/a')} |")
+    out.append(f"| static RAM | {fmt(r.get('ram_bytes'), 0, 'bytes')} "
+               f"({fmt(r.get('ram_pct'), 1)} % of 8 KB; budget 4 KB) | {r.get('size_src', 'n/a')} |")
+    out.append(f"| worst main-loop time | {fmt(r.get('loop_max_us'), 0, 'µs')} | "
+               f"{r.get('loop_src', 'not measured')} |")
+    bus = r.get("bus", {})
+    out.append(f"| servo bus cycle, sync write 6 + sync read 6 | "
+               f"{fmt(bus.get('sync_wire_ms'), 3, 'ms')} on the wire, "
+               f"{fmt(bus.get('sync_simavr_ms'), 3, 'ms')} on simavr (11 bit/byte) | "
+               "build/native/hh_dxl_bench (simulated bus, 1 Mbps, return delay 0) |")
+    out.append(f"| servo bus cycle, with fast sync read | {fmt(bus.get('fast_sync_wire_ms'), 3, 'ms')} "
+               f"on the wire, {fmt(bus.get('fast_sync_simavr_ms'), 3, 'ms')} on simavr | "
+               "build/native/hh_dxl_bench |")
+    out.append(f"| servo transactions per servo on the bench | "
+               f"{fmt(r.get('servo_tx_hz'), 0, 'per s')} | {r.get('bench_src', 'not measured')} |")
+    rates = r.get("sensor_rate_hz")
+    out.append(f"| sensor sample rate achieved | "
+               f"{', '.join(fmt(x, 1) for x in rates) + ' Hz' if rates else 'n/a'} | "
+               f"{r.get('bench_src', 'not measured')} |")
+    out.append("")
+    if r.get("notes"):
+        out += [f"- {n}" for n in r["notes"]] + [""]
+    return out
+
+
+def goals_table(res: Dict) -> List[Dict]:
+    """Each goal with the figure it is judged on: the simavr bench when it was
+    measured there, otherwise the native loop (said so)."""
+    rep, acc, tm = res.get("repeat", {}), res.get("accuracy", {}), res.get("time", {})
+
+    def pick(d: Dict, key):
+        sim = d.get("simavr") or {}
+        if sim and not sim.get("not_measured") and key(sim) is not None:
+            return key(sim), "simavr bench"
+        nat = d.get("native") or {}
+        return (key(nat) if nat else None), "native loop (simavr bench not measured)"
+
+    g = []
+    v, s = pick(rep, lambda r: r.get("avg_mm"))
+    g.append({"goal": "repeatability (average SD of homes)", "limit": f"≤ {GOALS['repeat_avg_mm']} mm",
+              "value": fmt(v, 4, "mm"), "source": s,
+              "status": stats.goal(v, GOALS["repeat_avg_mm"])})
+    v, s = pick(tm, lambda r: r.get("full_max_s"))
+    g.append({"goal": "full 6-tendon calibration time (slowest run)",
+              "limit": f"≤ {GOALS['cal_time_s']:g} s", "value": fmt(v, 2, "s"), "source": s,
+              "status": stats.goal(v, GOALS["cal_time_s"])})
+    v, s = pick(acc, lambda r: r.get("all", {}).get("mean_N"))
+    g.append({"goal": "mean tension error", "limit": f"within ±{GOALS['tension_err_mean_abs_N']} N",
+              "value": fmt(v, 4, "N"), "source": s,
+              "status": stats.goal(v, GOALS["tension_err_mean_abs_N"], "abs")})
+    v, s = pick(acc, lambda r: r.get("all", {}).get("sd_N"))
+    g.append({"goal": "tension error SD", "limit": f"≤ {GOALS['tension_err_sd_N']} N",
+              "value": fmt(v, 4, "N"), "source": s,
+              "status": stats.goal(v, GOALS["tension_err_sd_N"])})
+    return g
+
+
+def section_goals(res: Dict) -> List[str]:
+    out = [SECTIONS[6] + " (bench, nominal parameters)", ""]
+    out.append("| goal | limit | measured | source | status |")
+    out.append("| --- | --- | --- | --- | --- |")
+    for g in goals_table(res):
+        out.append(f"| {g['goal']} | {g['limit']} | {g['value']} | {g['source']} | "
+                   f"**{g['status']}** |")
+    out.append("")
+    for n in res.get("goal_notes", []):
+        out.append(f"- {n}")
+    out.append("")
+    return out
+
+
+def build_report(res: Dict) -> str:
+    m = res.get("meta", {})
+    out = ["# hallhome benchmark report", ""]
+    out.append(f"Generated by `make bench` (bench/run.py) on {m.get('date', 'n/a')}, "
+               f"commit {m.get('git', 'n/a')}, robot config `{m.get('config', 'n/a')}`, "
+               f"{'REDUCED pipeline check' if m.get('reduced') else 'full run'} in "
+               f"{fmt(m.get('wall_s'), 0)} s. Every figure says where it was measured: the "
+               "**native loop** (homing core + plant model, tests/tools/closedloop.c and "
+               "bench/hh_mc.c, no AVR) or the **simavr bench** (the firmware ELF on simavr "
+               "with simulated servos, sensors and the plant, sim/bench). "
+               "The paper's figures come from reference/tension-calibration-paper.txt.")
+    out.append("")
+    sb = m.get("simavr_status")
+    if sb:
+        out.append(f"simavr bench: {sb}")
+        out.append("")
+    for part in (section_goals, section_repeat, section_accuracy, section_time, section_robust,
+                 section_ambient, section_resources):
+        out += part(res)
+    return "\n".join(out).rstrip() + "\n"
+
+
+NUM = re.compile(r"[-+]?\d+(?:\.\d+)?(?:e[-+]?\d+)?")
+
+
+def check_report(path: str) -> List[str]:
+    """Problems with a report: a missing section, a section without numbers, a
+    referenced image that is not there, a goal without a status. Empty when
+    the report is complete."""
+    problems = []
+    try:
+        text = open(path).read()
+    except OSError as e:
+        return [f"cannot read {path}: {e}"]
+    outdir = os.path.dirname(path)
+    for k, head in enumerate(SECTIONS):
+        i = text.find(head)
+        if i < 0:
+            problems.append(f"missing section {head!r}")
+            continue
+        nxt = min([j for j in (text.find("\n## ", i + 1),) if j > 0] or [len(text)])
+        body = text[i + len(head):nxt]
+        nums = []
+        for line in body.splitlines():
+            if line.startswith("|") and not line.startswith("| ---"):
+                cells = [c.strip(" *") for c in line.strip("|").split("|")]
+                for c in cells[1:]:
+                    m = NUM.match(c.lstrip("±≤ "))
+                    if m:
+                        nums.append(float(m.group(0)))
+        if not nums:
+            problems.append(f"section {head!r} has no numeric figures")
+        for img in re.findall(r"!\[[^\]]*\]\(([^)]+)\)", body):
+            if not os.path.exists(os.path.join(outdir, img)):
+                problems.append(f"section {head!r}: image {img} missing")
+    goals = text[text.find(SECTIONS[6]):] if SECTIONS[6] in text else ""
+    st = re.findall(r"\*\*(met|missed|not measured)\*\*", goals)
+    if len(st) < 4:
+        problems.append(f"goals: {len(st)} statuses, expected 4")
+    return problems

@@ -1,0 +1,176 @@
+"""Runs calibrations of the real firmware ELF on the simavr bench (hh_bench,
+docs in sim/README.md) and parses its console and JSON summary."""
+from __future__ import annotations
+
+import json
+import os
+import re
+import subprocess
+import tempfile
+from concurrent.futures import ThreadPoolExecutor
+from typing import Dict, List, Optional
+
+LINE = re.compile(r"^\[\s*([\d.]+)\]\s?(.*)$")
+KV = re.compile(r"(\w+)=(\"[^\"]*\"|\S+)")
+
+
+def parse_report(text: str) -> Dict[str, str]:
+    """`<kind k=v ...>` -> {"_kind": kind, k: v}."""
+    text = text.strip()
+    if not (text.startswith("<") and text.endswith(">")):
+        return {}
+    body = text[1:-1]
+    kind = body.split(" ", 1)[0]
+    out = {"_kind": kind}
+    for k, v in KV.findall(body):
+        out[k] = v.strip('"')
+    return out
+
+
+def parse_console(stdout: str) -> List[Dict]:
+    """Timestamped console lines -> [{"t": s, "text": line, "rep": {...}}]."""
+    lines = []
+    for raw in stdout.splitlines():
+        m = LINE.match(raw)
+        if not m:
+            continue
+        text = m.group(2)
+        lines.append({"t": float(m.group(1)), "text": text, "rep": parse_report(text)})
+    return lines
+
+
+def run(hh_bench: str, elf: str, plant: str, seed: int, events: List[str], until: str,
+        limit_s: float, tension_mN: int, workdir: str) -> Dict:
+    """One hh_bench invocation. Returns {"ok", "exit", "summary", "lines",
+    "wall_s", "error"}."""
+    summ = os.path.join(workdir, f"summary_{seed}_{tension_mN}_{len(events)}.json")
+    cmd = [hh_bench, elf, "--plant", plant, "--seed", str(seed), "--perturb", "0",
+           "--summary", summ, "--timestamps", "--limit", f"{limit_s:g}s",
+           "--tension", f"{tension_mN / 1000:g}", "--until", until, "--fail-on", "^<fault"]
+    for e in events:
+        cmd += ["--at", e]
+    res = {"ok": False, "cmd": " ".join(cmd), "seed": seed, "tension_mN": tension_mN}
+    try:
+        p = subprocess.run(cmd, capture_output=True, text=True, timeout=limit_s * 4 + 60)
+    except (OSError, subprocess.TimeoutExpired) as e:
+        res["error"] = str(e)
+        return res
+    res["exit"] = p.returncode
+    res["lines"] = parse_console(p.stdout)
+    try:
+        with open(summ) as fh:
+            res["summary"] = json.load(fh)
+    except (OSError, ValueError) as e:
+        res["error"] = f"no summary: {e}"
+        res["stderr"] = p.stderr[-500:]
+        return res
+    res["ok"] = p.returncode == 0 and res["summary"].get("until", {}).get("matched", False)
+    if not res["ok"]:
+        last = [l["text"] for l in res["lines"] if l["text"].startswith("<")][-3:]
+        res["error"] = (f"exit {p.returncode}, {res['summary'].get('reason', '')}; "
+                        f"last reports: {' | '.join(last) or 'none'}")
+    return res
+
+
+def _t_of(lines: List[Dict], kind: str, **match) -> Optional[Dict]:
+    for l in lines:
+        r = l["rep"]
+        if r.get("_kind") == kind and all(r.get(k) == v for k, v in match.items()):
+            return l
+    return None
+
+
+def calibration(hh_bench: str, elf: str, plant: str, seed: int, tension_mN: int,
+                workdir: str, limit_s: float = 60.0) -> Dict:
+    """A full calibration at tension_mN from the bench's seeded random slack,
+    nominal robot. Adds "cal_s" (start report to done report, simulated),
+    "done_ms" (the firmware's own time_ms), "homes" (tendon -> home in the
+    plant's motor frame), "tension_N" (tendon -> true single-tendon tension
+    at the shaft position) and "done_t" (console time of done)."""
+    ev = [f"0.3s send set cal_tension {tension_mN}", "0.6s send cal"]
+    r = run(hh_bench, elf, plant, seed, ev, r"^<done ", limit_s, tension_mN, workdir)
+    if not r["ok"]:
+        return r
+    lines = r["lines"]
+    start = _t_of(lines, "progress", state="start")
+    done = _t_of(lines, "done")
+    r["done_t"] = done["t"] if done else None
+    r["cal_s"] = done["t"] - start["t"] if (done and start) else None
+    try:
+        r["done_ms"] = float(done["rep"].get("time_ms")) if done else None
+    except (TypeError, ValueError):
+        r["done_ms"] = None
+    tend = {int(t["tendon"]): t for t in r["summary"].get("tendons", [])}
+    homes = {}
+    for l in lines:
+        rep = l["rep"]
+        if rep.get("_kind") == "result" and "home" in rep:
+            i = int(rep["tendon"])
+            home = float(rep["home"])
+            t = tend.get(i)
+            if t is not None:
+                # encoder frame -> plant frame: whole turns between them
+                turns = round((t["shaft_ticks"] - t["present_ticks"]) / 4096.0)
+                home += 4096.0 * turns
+            homes[i] = home
+    r["homes"] = homes
+    r["tension_N"] = {i: t["tension_at_home_mN"] / 1000.0 for i, t in tend.items()}
+    r["shaft_err_ticks"] = {i: t["err_ticks"] for i, t in tend.items()}
+    return r
+
+
+def rehome_and_status(hh_bench: str, elf: str, plant: str, seed: int, tension_mN: int,
+                      done_t: float, workdir: str, limit_s: float = 90.0) -> Dict:
+    """The same seeded calibration again (simavr is deterministic), a
+    `status` just after it (worst main-loop time so far), a power cycle with
+    the robot at its homes, and a quick re-home. Adds "loop_max_us",
+    "status_t", "quick_s" and "quick_ms"."""
+    t_status = done_t + 0.3
+    t_cycle = done_t + 1.0
+    t_rehome = done_t + 2.0
+    ev = [f"0.3s send set cal_tension {tension_mN}", "0.6s send cal",
+          f"{t_status:.3f}s send status", f"{t_cycle:.3f}s power-cycle",
+          f"{t_rehome:.3f}s send rehome"]
+    r = run(hh_bench, elf, plant, seed, ev, r"^<done mode=quick", limit_s, tension_mN, workdir)
+    lines = r.get("lines", [])
+    st = _t_of(lines, "status")
+    r["loop_max_us"] = float(st["rep"]["loop_max_us"]) if st and "loop_max_us" in st["rep"] else None
+    r["loops"] = float(st["rep"]["loops"]) if st and "loops" in st["rep"] else None
+    r["status_t"] = st["t"] if st else None
+    qs = [l for l in lines if l["rep"].get("_kind") == "progress"
+          and l["rep"].get("state") == "start" and l["rep"].get("mode") == "quick"]
+    qd = _t_of(lines, "done", mode="quick")
+    r["quick_s"] = qd["t"] - qs[0]["t"] if (qd and qs) else None
+    try:
+        r["quick_ms"] = float(qd["rep"]["time_ms"]) if qd else None
+    except (KeyError, ValueError):
+        r["quick_ms"] = None
+    return r
+
+
+def batch(jobs: List[Dict], parallel: int, progress=None) -> List[Dict]:
+    """Runs calibration() jobs (dicts of its keyword arguments) on `parallel`
+    processes at once; results in job order."""
+    out: List[Optional[Dict]] = [None] * len(jobs)
+
+    def one(k):
+        r = calibration(**jobs[k])
+        out[k] = r
+        if progress:
+            progress(k, r)
+        return r
+
+    with ThreadPoolExecutor(max_workers=max(1, parallel)) as ex:
+        list(ex.map(one, range(len(jobs))))
+    return out  # type: ignore[return-value]
+
+
+def probe(hh_bench: str, elf: str, plant: str, workdir: str) -> Dict:
+    """Can the firmware calibrate on the bench? One calibration with a short
+    limit; returns its result (ok False with the reason when not)."""
+    return calibration(hh_bench, elf, plant, 1, 800, workdir, limit_s=40.0)
+
+
+def scratch_dir(base: str) -> str:
+    os.makedirs(base, exist_ok=True)
+    return tempfile.mkdtemp(prefix="simavr_", dir=base)

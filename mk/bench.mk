@@ -1,0 +1,53 @@
+# Benchmarks (docs/benchmarks.md): the paper's figures on the native closed loop
+# and on the simavr bench, with plots, in bench/results/report.md.
+#
+#   make bench         full run (under 15 minutes): bench/results/report.md + PNGs
+#   make bench-check   reduced run into build/bench-check: checks the pipeline
+#                      produces every section with numbers, not that goals are met
+#
+# Variables: BENCH_ARGS (extra bench/run.py options, e.g. --no-simavr --jobs 1).
+# mk/sim.mk also names `bench` (its prerequisites build hh_bench and its test
+# firmware); the recipe here runs the benchmarks on top of them.
+
+BENCH_BUILD   := $(BUILD)/bench
+BENCH_CL      := $(BENCH_BUILD)/hh_closedloop
+BENCH_MC      := $(BENCH_BUILD)/hh_mc
+BENCH_RESULTS := bench/results
+BENCH_CHECK_DIR := $(BUILD)/bench-check
+BENCH_ARGS    ?=
+# The native runners built with optimisation (the CMake build carries the
+# sanitizers, 7x slower): the homing core and the plant, no AVR.
+BENCH_NATIVE_SRCS = $(wildcard sim/plant/*.c) lib/homing/homing.c lib/table/table.c
+BENCH_NATIVE_CFLAGS := -std=c99 -O2 -Wall -Wextra -pedantic -Ilib -Isim
+
+.PHONY: bench bench-check bench-tools
+
+$(BENCH_CL): tests/tools/closedloop.c $(BENCH_NATIVE_SRCS) $(wildcard sim/plant/*.h lib/homing/*.h lib/table/*.h) | $(STAMP)
+	@mkdir -p $(@D)
+	$(CC) $(BENCH_NATIVE_CFLAGS) -o $@ tests/tools/closedloop.c $(BENCH_NATIVE_SRCS) -lm
+
+$(BENCH_MC): bench/hh_mc.c $(BENCH_NATIVE_SRCS) $(wildcard sim/plant/*.h lib/homing/*.h lib/table/*.h) | $(STAMP)
+	@mkdir -p $(@D)
+	$(CC) $(BENCH_NATIVE_CFLAGS) -Werror -o $@ bench/hh_mc.c $(BENCH_NATIVE_SRCS) -lm
+
+bench-tools: $(BENCH_CL) $(BENCH_MC)
+
+bench: bench-tools native-build firmware $(BUILD)/sim/hh_bench
+	@echo "make bench: full run, progress below (about 10 minutes)"
+	$(PY) -m bench.run --out $(BENCH_RESULTS) --closedloop $(BENCH_CL) --mc $(BENCH_MC) \
+		--hh-bench $(BUILD)/sim/hh_bench --elf $(FW_ELF) --dxl-bench $(BUILD)/native/hh_dxl_bench \
+		$(BENCH_ARGS)
+	@echo "make bench: report in $(BENCH_RESULTS)/report.md"
+
+bench-check: bench-tools native-build firmware $(BUILD)/sim/hh_bench
+	@rm -rf $(BENCH_CHECK_DIR)
+	$(PY) -m bench.run --reduced --out $(BENCH_CHECK_DIR) --closedloop $(BENCH_CL) \
+		--mc $(BENCH_MC) --hh-bench $(BUILD)/sim/hh_bench --elf $(FW_ELF) \
+		--dxl-bench $(BUILD)/native/hh_dxl_bench --sim-limit 40 $(BENCH_ARGS)
+	$(PY) -c "import sys; from bench.report import check_report; \
+		p = check_report('$(BENCH_CHECK_DIR)/report.md'); print(*p, sep='\n'); sys.exit(1 if p else 0)"
+	@echo "bench-check: report with every section and its figures in $(BENCH_CHECK_DIR)/report.md"
+
+TEST_TARGETS += bench-check
+EXTRA_HELP += "make bench      benchmarks vs the paper: bench/results/report.md (BENCH_ARGS=)" \
+	"make bench-check   reduced benchmark run: the report pipeline works"
