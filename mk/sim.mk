@@ -29,7 +29,11 @@ SEED        ?= $(SIM_SEED)
 TENSION     ?=
 FAULT       ?=
 SIM_LIMIT   ?= 120s
-SIM_PLANT   := sim/plant/configs/$(ROBOT).cfg
+# The plant is written from the robot TOML (host_tools/hallhome/plantcfg.py,
+# nominal values: the bench perturbs them with SEED); a hand-written
+# sim/plant/configs/$(ROBOT).cfg is used only for a robot without a TOML.
+ROBOT_TOML  := lookup_tables/robots/$(ROBOT).toml
+SIM_PLANT   := $(if $(wildcard $(ROBOT_TOML)),$(SIM_DIR)/plant/$(ROBOT).cfg,sim/plant/configs/$(ROBOT).cfg)
 SIM_STATE   := $(SIM_DIR)/$(ROBOT).eeprom
 SIM_UNTIL   ?= ^<cal .*state=done
 SIM_FAIL    ?= ^<fault
@@ -55,7 +59,13 @@ $(SIM_DIR)/testfw/%.elf: sim/bench/testfw/%.c $(TESTFW_DRIVERS) $(AVR_DIR)/versi
 	$(AVR_CC) -mmcu=$(MCU) -DF_CPU=$(F_CPU) -std=c99 -Os -g -Wall -Wextra -Werror \
 		-Ilib -Ifirmware -I$(AVR_DIR) $< $(TESTFW_DRIVERS) -o $@
 
-sim: $(BENCH) firmware
+$(SIM_DIR)/plant/%.cfg: lookup_tables/robots/%.toml $(wildcard host_tools/hallhome/*.py) | $(STAMP)
+	@mkdir -p $(@D)
+	$(PY) -c "import sys; from hallhome.robot import load_robot; \
+		from hallhome.plantcfg import write_plant_config; \
+		write_plant_config(load_robot(sys.argv[1]), sys.argv[2])" $< $@
+
+sim: $(BENCH) firmware $(SIM_PLANT)
 	@test -f $(SIM_PLANT) || { echo "make sim: no plant config $(SIM_PLANT)"; exit 2; }
 	@test -z "$(FAULT)" || test -f $(SIM_SCN) || { echo "make sim: no scenario $(SIM_SCN); known:"; \
 		ls sim/bench/scenarios | sed 's/\.scn$$//; s/^/  /'; exit 2; }
