@@ -145,8 +145,9 @@ class CosseratModel:
     """Cosserat-rod statics of ``robot`` (see the module docstring).
 
     ``steps_per_segment`` sets the integration grid (second-order Lie-group
-    midpoint rule; docs/model.md shows its convergence). ``gravity=False``
-    ignores the robot's gravity entry.
+    midpoint rule; docs/model.md shows its convergence); segments with
+    helical routing get more steps, at most HELIX_STEP_RAD of turn per
+    step. ``gravity=False`` ignores the robot's gravity entry.
     """
 
     def __init__(self, robot: Robot, steps_per_segment: int = 12, gravity: bool = True):
@@ -178,6 +179,13 @@ class CosseratModel:
         self.straight_lengths = np.array(
             [robot.segment_end(t.segment) * math.hypot(1.0, t.routing_radius * t.twist)
              for t in td])
+        # Helical routing turns the tendon offsets within a step; keep that
+        # below HELIX_STEP_RAD per step so helices converge like straight routing.
+        self.seg_steps = []
+        for k, seg in enumerate(self.segs):
+            tw = [abs(t.twist) for t in td if t.segment >= k + 1] or [0.0]
+            turn = max(tw) * seg.length
+            self.seg_steps.append(max(self.steps, math.ceil(turn / HELIX_STEP_RAD)))
         ei = min(s.bending_stiffness for s in self.segs)
         self.m_scale = ei / self.L
 
@@ -237,9 +245,10 @@ class CosseratModel:
         for k, seg in enumerate(self.segs):
             active = np.nonzero(self.t_seg >= k + 1)[0]
             loaded = active[tensions[active] > 0.0]
-            h = seg.length / self.steps
+            n_steps = self.seg_steps[k]
+            h = seg.length / n_steps
             stages = []
-            for j in range(self.steps):
+            for j in range(n_steps):
                 sm = self.seg_start[k] + (j + 0.5) * h
                 r, rp = self._routing(loaded, sm)
                 ra, rpa = self._routing(active, sm)
@@ -359,6 +368,7 @@ class CosseratModel:
                          for t, T, ln in zip(self.robot.tendons, tau, lengths)])
 
 
+HELIX_STEP_RAD = math.radians(2.0)
 _FD_STEP = 1e-6
 _SHOOT_TOL = 1e-10
 _CHORD_STEPS = 6
