@@ -5,7 +5,10 @@
 #   make bench-check   reduced run into build/bench-check: checks the pipeline
 #                      produces every section with numbers, not that goals are met
 #
-# Variables: BENCH_ARGS (extra bench/run.py options, e.g. --no-simavr --jobs 1).
+# Variables: BENCH_ARGS (extra bench/run.py options, e.g. --no-simavr --jobs 1),
+# BENCH_PLANT (plant config; default the one `make sim` uses, $(SIM_PLANT) of
+# mk/sim.mk: written from the robot TOML when there is one). Both the native
+# loop and the simavr bench run that robot.
 # mk/sim.mk also names `bench` (its prerequisites build hh_bench and its test
 # firmware); the recipe here runs the benchmarks on top of them.
 
@@ -15,6 +18,7 @@ BENCH_MC      := $(BENCH_BUILD)/hh_mc
 BENCH_RESULTS := bench/results
 BENCH_CHECK_DIR := $(BUILD)/bench-check
 BENCH_ARGS    ?=
+BENCH_PLANT    = $(or $(SIM_PLANT),sim/plant/configs/$(ROBOT).cfg)
 # The native runners built with optimisation (the CMake build carries the
 # sanitizers, 7x slower): the homing core and the plant, no AVR.
 BENCH_NATIVE_SRCS = $(wildcard sim/plant/*.c) lib/homing/homing.c lib/table/table.c
@@ -33,15 +37,17 @@ $(BENCH_MC): bench/hh_mc.c $(BENCH_NATIVE_SRCS) $(wildcard sim/plant/*.h lib/hom
 bench-tools: $(BENCH_CL) $(BENCH_MC)
 
 bench: bench-tools native-build firmware $(BUILD)/sim/hh_bench
-	@echo "make bench: full run, progress below (about 10 minutes)"
-	$(PY) -m bench.run --out $(BENCH_RESULTS) --closedloop $(BENCH_CL) --mc $(BENCH_MC) \
+	@$(MAKE) --no-print-directory $(BENCH_PLANT)
+	@echo "make bench: full run on $(BENCH_PLANT), progress below"
+	$(PY) -m bench.run --out $(BENCH_RESULTS) --config $(BENCH_PLANT) --closedloop $(BENCH_CL) --mc $(BENCH_MC) \
 		--hh-bench $(BUILD)/sim/hh_bench --elf $(FW_ELF) --dxl-bench $(BUILD)/native/hh_dxl_bench \
 		$(BENCH_ARGS)
 	@echo "make bench: report in $(BENCH_RESULTS)/report.md"
 
 bench-check: bench-tools native-build firmware $(BUILD)/sim/hh_bench
 	@rm -rf $(BENCH_CHECK_DIR)
-	$(PY) -m bench.run --reduced --out $(BENCH_CHECK_DIR) --closedloop $(BENCH_CL) \
+	@$(MAKE) --no-print-directory $(BENCH_PLANT)
+	$(PY) -m bench.run --reduced --out $(BENCH_CHECK_DIR) --config $(BENCH_PLANT) --closedloop $(BENCH_CL) \
 		--mc $(BENCH_MC) --hh-bench $(BUILD)/sim/hh_bench --elf $(FW_ELF) \
 		--dxl-bench $(BUILD)/native/hh_dxl_bench --sim-limit 40 $(BENCH_ARGS)
 	$(PY) -c "import sys; from bench.report import check_report; \

@@ -1,0 +1,178 @@
+"""The benchmark report builder (bench/stats.py, bench/report.py, the parsers
+of bench/native.py and bench/simavr.py) on known inputs."""
+import math
+import os
+import sys
+
+import pytest
+
+ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
+if ROOT not in sys.path:
+    sys.path.insert(0, ROOT)
+
+from bench import native, report, simavr, stats  # noqa: E402
+
+
+def test_mean_sd_is_the_sample_sd():
+    m, sd = stats.mean_sd([1.0, 2.0, 3.0, 4.0])
+    assert m == pytest.approx(2.5)
+    assert sd == pytest.approx(math.sqrt(5.0 / 3.0))
+    assert stats.mean_sd([7.0]) == (7.0, 0.0)
+    m, sd = stats.mean_sd([])
+    assert math.isnan(m) and sd == 0.0
+    assert stats.mean_sd([1.0, float("nan"), 3.0, None]) == (2.0, pytest.approx(math.sqrt(2.0)))
+
+
+def test_repeatability_table_one():
+    # tendon 0 always on the same tick, tendon 1 alternating one tick apart
+    homes = {0: [100] * 10, 1: [200, 201] * 5}
+    r = stats.repeatability(homes, 0.0061)
+    assert r["per_tendon_mm"][0] == 0.0
+    sd1 = stats.mean_sd([200, 201] * 5)[1]
+    assert r["per_tendon_mm"][1] == pytest.approx(sd1 * 0.0061)
+    assert r["avg_mm"] == pytest.approx(sd1 * 0.0061 / 2)
+    assert r["n"] == {0: 10, 1: 10}
+    assert r["max_spread_ticks"] == 1
+
+
+def test_accuracy_per_cell_segment_and_overall():
+    rows = [(0.5, 1, 0.51), (0.5, 1, 0.53), (0.5, 2, 0.49), (0.8, 2, 0.80), (0.8, 1, float("nan"))]
+    a = stats.accuracy(rows)
+    m, sd, n = a["cells"][(0.5, 1)]
+    assert (m, n) == (pytest.approx(0.02), 2)
+    assert sd == pytest.approx(math.sqrt(2) * 0.01)
+    assert a["segments"][2][:1] == (pytest.approx(-0.005),)
+    m, sd, n = a["all"]
+    assert n == 4
+    assert m == pytest.approx((0.01 + 0.03 - 0.01 + 0.0) / 4)
+
+
+def test_sensitivity_ranks_the_driving_parameter_first():
+    rng = __import__("numpy").random.default_rng(3)
+    x1 = rng.uniform(-1, 1, 400)
+    x2 = rng.uniform(-1, 1, 400)
+    x3 = rng.uniform(-1, 1, 400)
+    y = 0.1 * x2 + 0.01 * x1 + 0.0001 * rng.normal(size=400)
+    r = stats.sensitivity({"a": x1, "b": x2, "c": x3, "flat": [0.0] * 400}, y)
+    assert [d["name"] for d in r][:2] == ["b", "a"]
+    assert "flat" not in [d["name"] for d in r]
+    assert r[0]["r2"] == pytest.approx(1.0, abs=1e-3)
+    assert sum(d["share"] for d in r) == pytest.approx(r[0]["r2"])
+
+
+def test_oat_slopes():
+    rows = [("g", -0.05, -0.01), ("g", 0.0, 0.0), ("g", 0.05, 0.01), ("h", -0.05, 0.0),
+            ("h", 0.05, 0.0)]
+    r = stats.oat_slopes(rows)
+    assert r[0]["group"] == "g"
+    assert r[0]["slope_N"] == pytest.approx(0.2)
+    assert r[0]["range_N"] == pytest.approx(0.02)
+    assert r[1]["range_N"] == 0.0
+
+
+def test_goal_status():
+    assert stats.goal(0.005, 0.0061) == "met"
+    assert stats.goal(0.007, 0.0061) == "missed"
+    assert stats.goal(-0.03, 0.02, "abs") == "missed"
+    assert stats.goal(-0.01, 0.02, "abs") == "met"
+    assert stats.goal(None, 1.0) == "not measured"
+    assert stats.goal(float("nan"), 1.0) == "not measured"
+
+
+def test_parse_closedloop_output():
+    text = ("home,0,1,270,270.394,-0.394,0.7970,-0.0030,4549,none\n"
+            "summary,runs=1,faults=0,max_abs_err_ticks=0.606,mean_sim_ms=4554\n")
+    out = native.parse_closedloop(text)
+    assert out["homes"][0]["tendon"] == 1
+    assert out["homes"][0]["tension_N"] == pytest.approx(0.797)
+    assert out["summary"]["mean_sim_ms"] == 4554
+
+
+def test_parse_cols_output():
+    text = "cols,amb,dA_uT,mode,err_N\namb,50.00,abs_ideal,0.0123\namb,0,delta_loop,nan\n"
+    rows = native.parse_cols(text)["amb"]
+    assert rows[0] == {"dA_uT": 50.0, "mode": "abs_ideal", "err_N": pytest.approx(0.0123)}
+    assert math.isnan(rows[1]["err_N"])
+
+
+def test_parse_bench_console():
+    text = ("Loaded 80250 .text\n"
+            "[  2.463825] <result tendon=0 id=1 home=4324 home_um=26532 dB_uT=106.91>\n"
+            "[  8.600157] <done mode=full time_ms=7972 tension_mN=800 count=1>\n"
+            "[  8.7] ok\n")
+    lines = simavr.parse_console(text)
+    assert len(lines) == 3
+    assert lines[0]["rep"]["_kind"] == "result" and lines[0]["rep"]["home"] == "4324"
+    assert lines[1]["t"] == pytest.approx(8.600157)
+    assert lines[1]["rep"]["time_ms"] == "7972"
+    assert lines[2]["rep"] == {}
+
+
+def test_read_cfg(tmp_path):
+    p = tmp_path / "r.cfg"
+    p.write_text("nm_per_tick = 6000\ntendon.*.segment = 1\ntendon.0.angle_deg = 0\n"
+                 "tendon.1.segment = 2 # distal\n")
+    c = native.read_cfg(str(p))
+    assert c["nm_per_tick"] == 6000.0
+    assert c["segment"] == [1, 2]
+
+
+def _results():
+    per = {str(i): 0.001 * i for i in range(6)}
+    acc = {"cells": [{"target_N": 0.5, "segment": 1, "mean_N": 0.01, "sd_N": 0.002, "n": 5}],
+           "segments": [{"segment": 1, "mean_N": 0.01, "sd_N": 0.002, "n": 5}],
+           "all": {"mean_N": 0.01, "sd_N": 0.002, "n": 5}}
+    return {
+        "meta": {"date": "d", "git": "g", "config": "c", "reduced": True, "mm_per_tick": 0.0061},
+        "repeat": {"runs": 10, "native": {"per_tendon_mm": per, "avg_mm": 0.0025,
+                                          "max_spread_ticks": 1, "max_abs_err_ticks": 0.6},
+                   "simavr": {"not_measured": "bench off"}},
+        "accuracy": {"native": acc, "simavr": {"not_measured": "bench off"}},
+        "time": {"native": {"full_s": 4.5, "full_max_s": 13.0, "n_full": 3, "quick_s": 2.0,
+                            "n_quick": 1}, "simavr": {"not_measured": "bench off"}},
+        "robust": {"runs": 3, "frac": 0.05, "tension_mN": 800,
+                   "levels": [{"frac": 0.05, "runs": 3, "n": 18, "faults": 0, "mean_N": 0.01,
+                               "sd_N": 0.05, "p5_N": -0.1, "p95_N": 0.1, "max_abs_N": 0.2}],
+                   "ranking": [{"name": "moment", "share": 0.5, "corr": -0.7, "beta": -0.7,
+                                "r2": 0.6}],
+                   "oat": [{"group": "moment", "range_N": 0.08, "slope_N": -0.8, "x": [-0.05, 0.05],
+                            "mean_err_N": [0.04, -0.04]}], "err_N": [0.01, -0.02, None]},
+        "ambient": {"dirs": 1, "tension_mN": 800, "modes": {
+            "abs_ideal": [{"dA_uT": 50, "n": 6, "failed": 0, "mean_N": 0.1, "rms_N": 0.2,
+                           "max_abs_N": 0.4}]}},
+        "resources": {"flash_bytes": 80000, "ram_bytes": 4000, "flash_pct": 30.5, "ram_pct": 48.8,
+                      "bus": {"sync_wire_ms": 1.54}, "sensor_rate_hz": [99.0]},
+    }
+
+
+def test_goals_fall_back_to_the_native_loop_and_say_so():
+    g = report.goals_table(_results())
+    assert [x["status"] for x in g] == ["met", "missed", "met", "met"]
+    assert all("native loop" in x["source"] for x in g)
+    r = _results()
+    r["time"]["simavr"] = {"full_s": 8.0, "full_max_s": 9.0, "n_full": 2}
+    g = report.goals_table(r)
+    assert g[1]["status"] == "met" and g[1]["source"] == "simavr bench"
+
+
+def test_report_has_every_section_and_passes_the_check(tmp_path):
+    text = report.build_report(_results())
+    for head in report.SECTIONS:
+        assert head in text
+    assert "not measured: bench off" in text
+    path = tmp_path / "report.md"
+    path.write_text(text)
+    problems = report.check_report(str(path))
+    # no PNGs were drawn here: only the images are missing
+    assert problems and all("image" in p for p in problems)
+    for name in ("repeatability", "accuracy", "timing", "robustness_hist",
+                 "robustness_sensitivity", "ambient"):
+        (tmp_path / f"{name}.png").write_bytes(b"")
+    assert report.check_report(str(path)) == []
+
+
+def test_check_finds_a_missing_section(tmp_path):
+    text = report.build_report(_results()).replace(report.SECTIONS[4], "## 5. Something else")
+    path = tmp_path / "report.md"
+    path.write_text(text)
+    assert any("missing section" in p for p in report.check_report(str(path)))
