@@ -25,6 +25,13 @@ static int group_setup(void **state)
     return hom_fix_paper(&g_cfg, &g_tab);
 }
 
+/* The second group: the robot description's own geometry, a weak field. */
+static int group_setup_desc(void **state)
+{
+    (void)state;
+    return hom_fix_paper_desc(&g_cfg, &g_tab);
+}
+
 static int count_events(const plant_run_result_t *r, uint8_t type)
 {
     int n = 0;
@@ -418,5 +425,16 @@ int main(void)
         cmocka_unit_test(test_abort_releases),
         cmocka_unit_test(test_preflight_names_missing),
     };
-    return cmocka_run_group_tests(tests, group_setup, NULL);
+    const struct CMUnitTest desc_tests[] = {
+        cmocka_unit_test(test_nominal_lands_within_one_tick),
+        cmocka_unit_test(test_repeatable_from_random_slack),
+        cmocka_unit_test(test_quick_rehome_same_homes),
+        cmocka_unit_test(test_single_tendon),
+        cmocka_unit_test(test_magnet_missing),
+        cmocka_unit_test(test_target_unreachable),
+        cmocka_unit_test(test_abort_releases),
+    };
+    int failed = cmocka_run_group_tests_name("near sensors", tests, group_setup, NULL);
+    return failed +
+           cmocka_run_group_tests_name("described geometry", desc_tests, group_setup_desc, NULL);
 }

@@ -110,8 +110,15 @@ static void test_load_paper_config(void **state)
 {
     tbl_table_t t;
     (void)state;
-    assert_int_equal(hom_fix_paper(&g_cfg, &t), 0);
+    assert_int_equal(hom_fix_paper_desc(&g_cfg, &t), 0);
     assert_string_equal(g_cfg.name, "paper_2seg");
+    assert_int_equal(g_cfg.n_grid, 12);
+    assert_true(fabs(g_cfg.tendon[0].nm_per_tick - 6135.92) < 0.01);
+    assert_true(fabs(g_cfg.sensor[0].rot[4] + 1.0) < 1e-9); /* chip facing down */
+    assert_true(fabs(g_cfg.travel_limit_um - 2500.0) < 1e-9);
+    assert_int_equal(t.tendons[5].travel_limit_um, 2500);
+    assert_int_equal(hom_fix_paper(&g_cfg, &t), 0);
+    assert_string_equal(g_cfg.name, "paper_2seg_near");
     assert_int_equal(g_cfg.n_tendons, 6);
     assert_int_equal(g_cfg.n_sensors, 3);
     assert_int_equal(g_cfg.tendon[4].segment, 2);

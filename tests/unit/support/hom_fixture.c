@@ -18,12 +18,16 @@ const char *hom_fix_path(const char *rel, char *buf, size_t n)
     return buf;
 }
 
-int hom_fix_paper(plant_cfg_t *cfg, tbl_table_t *t)
+int hom_fix_load(const char *name, plant_cfg_t *cfg, tbl_table_t *t)
 {
+    char rel[128];
     char path[512];
     int line = 0;
-    int rc = plant_cfg_load(
-        cfg, hom_fix_path("sim/plant/configs/paper_2seg.cfg", path, sizeof path), &line);
+    int rc;
+    if (snprintf(rel, sizeof rel, "sim/plant/configs/%s", name) >= (int)sizeof rel) {
+        return PLANT_E_ARG;
+    }
+    rc = plant_cfg_load(cfg, hom_fix_path(rel, path, sizeof path), &line);
     if (rc != 0) {
         fprintf(stderr, "hom_fixture: %s: error %d at line %d\n", path, rc, line);
         return rc;
@@ -32,4 +36,14 @@ int hom_fix_paper(plant_cfg_t *cfg, tbl_table_t *t)
         rc = plant_make_table(cfg, t);
     }
     return rc;
+}
+
+int hom_fix_paper(plant_cfg_t *cfg, tbl_table_t *t)
+{
+    return hom_fix_load("paper_2seg_near.cfg", cfg, t);
+}
+
+int hom_fix_paper_desc(plant_cfg_t *cfg, tbl_table_t *t)
+{
+    return hom_fix_load("paper_2seg.cfg", cfg, t);
 }

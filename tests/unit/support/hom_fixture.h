@@ -1,6 +1,6 @@
-/* Fixtures for the homing and plant tests: the paper robot's plant config from
- * sim/plant/configs/ and a table computed from the nominal plant, so "lands
- * within one tick of the true home" compares like with like. */
+/* Fixtures for the homing, plant and app tests: the paper robot's plant
+ * configs from sim/plant/configs/ and a table computed from the nominal plant,
+ * so "lands within one tick of the true home" compares like with like. */
 #ifndef HALLHOME_HOM_FIXTURE_H
 #define HALLHOME_HOM_FIXTURE_H
 
@@ -10,8 +10,16 @@
  * buf of size n. Returns buf. */
 const char *hom_fix_path(const char *rel, char *buf, size_t n);
 
-/* Loads sim/plant/configs/paper_2seg.cfg into *cfg and, when t is not NULL,
- * fills *t with plant_make_table(). Returns 0 or the plant error. */
+/* Loads sim/plant/configs/<name> into *cfg and, when t is not NULL, fills *t
+ * with plant_make_table(). Returns 0 or the plant error. */
+int hom_fix_load(const char *name, plant_cfg_t *cfg, tbl_table_t *t);
+
+/* hom_fix_load("paper_2seg_near.cfg"): the paper robot with the sensors close
+ * to the magnet (a strong field; grid 250..1500 mN, 800 mN at index 4). */
 int hom_fix_paper(plant_cfg_t *cfg, tbl_table_t *t);
+
+/* hom_fix_load("paper_2seg.cfg"): the paper robot as its description has it
+ * (written by hallhome.plantcfg; sensors on a 22 mm ring, a weak field). */
+int hom_fix_paper_desc(plant_cfg_t *cfg, tbl_table_t *t);
 
 #endif /* HALLHOME_HOM_FIXTURE_H */
