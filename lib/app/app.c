@@ -33,12 +33,12 @@ enum { MOVE_HOME = 1, MOVE_RELEASE = 2 };
 
 static uint32_t now_ms(const app_t *a)
 {
-    return a->io.board->now_ms(a->io.board->ctx);
+    return a->io->board->now_ms(a->io->board->ctx);
 }
 
 static uint32_t now_us(const app_t *a)
 {
-    return a->io.board->now_us(a->io.board->ctx);
+    return a->io->board->now_us(a->io->board->ctx);
 }
 
 static uint16_t bit16(uint8_t i)
@@ -102,51 +102,34 @@ static void list_add(char *buf, uint8_t cap, uint8_t *pos, int32_t v, char mark)
     buf[*pos] = '\0';
 }
 
-static const char *mode_word(uint8_t mode)
+/* Writes key=<word i of the flash list words_f> (space-separated; "?" past
+ * its end): one routine instead of a table of string pointers in RAM. */
+static void rep_word(app_t *a, const char *key, const char *words_f, uint8_t i)
 {
-    switch (mode) {
-    case HOM_MODE_QUICK:
-        return S("quick");
-    case HOM_MODE_SINGLE:
-        return S("single");
-    case HOM_MODE_DRY:
-        return S("dry");
-    default:
-        return S("full");
+    char buf[16], c;
+    uint8_t n = 0;
+    for (;;) {
+        a->io->con_copy(&c, words_f++, 1);
+        if (c == '\0' || c == ' ') {
+            if (i == 0u || c == '\0') {
+                break;
+            }
+            i--;
+        } else if (i == 0u && n < sizeof buf - 1u) {
+            buf[n++] = c;
+        }
     }
+    if (i != 0u || n == 0u) {
+        buf[n++] = '?';
+    }
+    buf[n] = '\0';
+    con_report_str(&a->con, key, buf);
 }
 
-static const char *state_word(uint8_t st)
-{
-    switch (st) {
-    case APP_ST_BOOT:
-        return S("boot");
-    case APP_ST_CAL:
-        return S("cal");
-    case APP_ST_MOVE:
-        return S("move");
-    case APP_ST_LEARN:
-        return S("learn");
-    case APP_ST_FAULT:
-        return S("fault");
-    default:
-        return S("idle");
-    }
-}
-
-static const char *dev_word(uint8_t dev)
-{
-    switch (dev) {
-    case HOM_DEV_SENSOR:
-        return S("sensor");
-    case HOM_DEV_SERVO:
-        return S("servo");
-    case HOM_DEV_TENDON:
-        return S("tendon");
-    default:
-        return S("none");
-    }
-}
+#define MODE_WORDS  S("full quick single dry")
+#define STATE_WORDS S("boot idle cal move learn fault")
+#define DEV_WORDS   S("none sensor servo tendon")
+#define PHASE_WORDS S("- preflight release baseline tendon final")
 
 /* A fault the app itself detects (moves, learn, EEPROM), in the same shape
  * as the homing's: reason word, console error code, device. */
@@ -155,7 +138,7 @@ static void rep_app_fault(app_t *a, const char *reason_f, int8_t err, uint8_t de
     rep_begin(a, S("fault"));
     con_report_flash(&a->con, S("reason"), reason_f);
     rep_int(a, S("error"), -err);
-    con_report_flash(&a->con, S("dev"), dev_word(dev));
+    rep_word(a, S("dev"), DEV_WORDS, dev);
     rep_int(a, S("index"), index);
     rep_end(a);
 }
@@ -165,8 +148,8 @@ static void rep_app_fault(app_t *a, const char *reason_f, int8_t err, uint8_t de
 void app_table_copy(app_t *app, void *dst, const void *src, size_t n)
 {
     uint8_t t;
-    app->io.table_copy(dst, src, n);
-    if (app->io.table == NULL || app->learned_mask == 0u) {
+    app->io->table_copy(dst, src, n);
+    if (app->io->table == NULL || app->learned_mask == 0u) {
         return;
     }
     for (t = 0; t < TBL_MAX_TENDONS; t++) {
@@ -176,7 +159,7 @@ void app_table_copy(app_t *app, void *dst, const void *src, size_t n)
         if (((app->learned_mask >> t) & 1u) == 0u) {
             continue;
         }
-        lo = (uintptr_t)&app->io.table->tendons[t].target_cuT[0];
+        lo = (uintptr_t)&app->io->table->tendons[t].target_cuT[0];
         if (lo >= s1 || lo + sizeof(uint32_t) * TBL_MAX_GRID <= s0) {
             continue;
         }
@@ -195,13 +178,14 @@ void app_table_copy(app_t *app, void *dst, const void *src, size_t n)
 static void load_table(app_t *a)
 {
     uint8_t i;
-    a->tab.table = a->io.table;
-    a->tab.copy = a->io.table_copy;
-    a->htab.table = a->io.table;
-    a->htab.copy = a->io.table_copy_learned != NULL ? a->io.table_copy_learned : a->io.table_copy;
+    a->tab.table = a->io->table;
+    a->tab.copy = a->io->table_copy;
+    a->htab.table = a->io->table;
+    a->htab.copy =
+        a->io->table_copy_learned != NULL ? a->io->table_copy_learned : a->io->table_copy;
     a->table_ok = 0;
     memset(&a->info, 0, sizeof a->info);
-    if (a->io.table == NULL || tbl_check(&a->tab) != 0 || tbl_info(&a->tab, &a->info) != 0 ||
+    if (a->io->table == NULL || tbl_check(&a->tab) != 0 || tbl_info(&a->tab, &a->info) != 0 ||
         a->info.n_sensors > APP_MAX_SENSORS) {
         memset(&a->info, 0, sizeof a->info);
         return;
@@ -210,23 +194,25 @@ static void load_table(app_t *a)
         tbl_tendon_t row;
         (void)tbl_tendon(&a->tab, i, &row);
         a->ids[i] = row.servo_id;
-        a->sensor_of[i] = row.sensor;
-        a->dir[i] = row.pull_dir < 0 ? -1 : 1;
-        a->nm_per_tick[i] = row.nm_per_tick;
     }
     a->table_ok = 1;
 }
 
-/* um of tendon travel in encoder ticks of tendon i (rounded). */
-static int32_t um_ticks(const app_t *a, uint8_t i, uint32_t um)
+/* um of tendon travel in encoder ticks at npt nm per tick (rounded; travel
+ * is at most metres, so 32 bits hold um * 1000). */
+static int32_t um_ticks(uint32_t npt, uint32_t um)
 {
-    uint32_t npt = a->nm_per_tick[i] != 0u ? a->nm_per_tick[i] : 1u;
-    return (int32_t)(((uint64_t)um * 1000u + npt / 2u) / npt);
+    if (npt == 0u) {
+        npt = 1u;
+    }
+    return (int32_t)((um * 1000u + npt / 2u) / npt);
 }
 
-static int32_t ticks_um(const app_t *a, uint8_t i, int32_t ticks)
+/* Ticks to um, split so that the products stay in 32 bits for any
+ * extended-position value (+-256 turns). */
+static int32_t ticks_um(uint32_t npt, int32_t ticks)
 {
-    return (int32_t)(((int64_t)ticks * (int64_t)a->nm_per_tick[i]) / 1000);
+    return ticks * (int32_t)(npt / 1000u) + ticks * (int32_t)(npt % 1000u) / 1000;
 }
 
 static int32_t home_cur(const app_t *a, uint8_t i)
@@ -248,12 +234,12 @@ int8_t app_init(app_t *app, const app_io_t *io)
         return APP_E_ARG;
     }
     memset(app, 0, sizeof *app);
-    app->io = *io;
+    app->io = io;
     (void)con_init(&app->con, io->console, app_handlers, app, io->con_copy, io->rt);
     (void)store_init(&app->store, io->eeprom, io->store_copy);
     (void)store_settings_load(&app->store, &app->set);
     load_table(app);
-    hom_init(&app->hom, NULL);
+    hom_init(&app->u.hom, NULL);
     dxl_config_default(&dc, app_bus_baud(app), io->servo_bits != 0u ? io->servo_bits : 10u);
     dxl_master_init(&app->dxl, &io->servo_port, &dc);
     app->homes_rc = STORE_E_EMPTY;
@@ -307,11 +293,11 @@ static void boot_start(app_t *a)
         return;
     }
     if (a->sens.n == 0u) {
-        (void)icm_set_setup(&a->sens, a->io.sensor_bus, a->io.mux_addr, a->slot, APP_MAX_SENSORS);
+        (void)icm_set_setup(&a->sens, a->io->sensor_bus, a->io->mux_addr, a->slot, APP_MAX_SENSORS);
         for (k = 0; k < a->info.n_sensors; k++) {
             tbl_sensor_t s;
             (void)tbl_sensor(&a->tab, k, &s);
-            (void)icm_set_add(&a->sens, a->io.mux_addr == ICM_NO_MUX ? ICM_NO_MUX : s.mux_channel,
+            (void)icm_set_add(&a->sens, a->io->mux_addr == ICM_NO_MUX ? ICM_NO_MUX : s.mux_channel,
                               s.i2c_addr);
         }
         (void)icm_set_begin(&a->sens, now_us(a));
@@ -324,7 +310,7 @@ static void boot_start(app_t *a)
     dxl_abort(&a->dxl);
     a->sv_txn = TX_NONE;
     a->servo_absent = 0;
-    (void)dxl_bringup_start(&a->bring, &a->dxl, a->ids, a->info.n_tendons, &bc);
+    (void)dxl_bringup_start(&a->u.bring, &a->dxl, a->ids, a->info.n_tendons, &bc);
     a->boot_step = 1;
 }
 
@@ -358,9 +344,9 @@ static void recover_homes(app_t *a)
 static const dxl_servo_info *bring_info(const app_t *a, uint8_t id)
 {
     uint8_t j;
-    for (j = 0; j < a->bring.n; j++) {
-        if (a->bring.servo[j].id == id) {
-            return &a->bring.servo[j];
+    for (j = 0; j < a->u.bring.n; j++) {
+        if (a->u.bring.servo[j].id == id) {
+            return &a->u.bring.servo[j];
         }
     }
     return NULL;
@@ -376,7 +362,7 @@ static void boot_finish(app_t *a)
         if (((a->servo_absent >> i) & 1u) == 0u && s != NULL && s->present) {
             a->n_servo_found++;
             a->hw_err[i] = s->hw_error;
-            if (a->bring.result == 0) {
+            if (a->u.bring.result == 0) {
                 a->present[i] = s->position;
                 a->servo_seen |= bit16(i);
             }
@@ -390,7 +376,7 @@ static void boot_finish(app_t *a)
     for (k = 0; k < a->info.n_sensors; k++) {
         icm_diag_t d;
         (void)icm_set_diag(&a->sens, k, &d);
-        a->sens_err[k] = d.error_count;
+        a->sens_err[k] = (uint8_t)d.error_count;
         if (d.state != ICM_SET_S_RUN) {
             rep_begin(a, S("missing"));
             con_report_flash(&a->con, S("dev"), S("sensor"));
@@ -423,7 +409,7 @@ static void boot_finish(app_t *a)
 }
 
 /* One `<servo ...>` line per tendon: what the bus knows of its servo. */
-static void servo_lines(app_t *a)
+static void servo_lines(app_t *a, uint8_t with_model)
 {
     uint8_t i;
     for (i = 0; i < a->info.n_tendons; i++) {
@@ -431,7 +417,7 @@ static void servo_lines(app_t *a)
         rep_int(a, S("tendon"), i);
         rep_int(a, S("id"), a->ids[i]);
         rep_int(a, S("found"), ((a->servo_absent >> i) & 1u) == 0u);
-        if (bring_info(a, a->ids[i]) != NULL) {
+        if (with_model && bring_info(a, a->ids[i]) != NULL) {
             rep_int(a, S("model"), bring_info(a, a->ids[i])->model);
             rep_int(a, S("fw"), bring_info(a, a->ids[i])->firmware);
         }
@@ -471,7 +457,7 @@ static void boot_ready(app_t *a)
     a->state = APP_ST_IDLE;
     a->boot_step = 3;
     if (a->boot_con && con_pending(&a->con)) {
-        servo_lines(a);
+        servo_lines(a, 1);
         (void)con_complete(&a->con, 0);
     }
     a->boot_con = 0;
@@ -482,7 +468,7 @@ static void boot_poll(app_t *a)
 {
     uint32_t t = now_ms(a);
     if (a->boot_step == 0u) {
-        if (a->reboot_id != 0u && t - a->t_reboot < APP_SERVO_REBOOT_MS) {
+        if (a->reboot_id != 0u && t - a->t_boot < APP_SERVO_REBOOT_MS) {
             return;
         }
         boot_start(a);
@@ -492,18 +478,18 @@ static void boot_poll(app_t *a)
         return;
     }
     if (a->boot_step == 1u) {
-        int8_t rc = dxl_bringup_poll(&a->bring);
+        int8_t rc = dxl_bringup_poll(&a->u.bring);
         if (rc == -DXL_E_MISSING && a->servo_absent == 0u) {
             /* set up the servos that answered; the missing ones stay named */
             uint8_t ids[TBL_MAX_TENDONS], i, n = 0;
             for (i = 0; i < a->info.n_tendons; i++) {
-                if (i < a->bring.n && a->bring.servo[i].present) {
+                if (i < a->u.bring.n && a->u.bring.servo[i].present) {
                     ids[n++] = a->ids[i];
                 } else {
                     a->servo_absent |= bit16(i);
                 }
             }
-            if (n > 0u && dxl_bringup_start(&a->bring, &a->dxl, ids, n, &a->bring.cfg) > 0) {
+            if (n > 0u && dxl_bringup_start(&a->u.bring, &a->dxl, ids, n, &a->u.bring.cfg) > 0) {
                 return;
             }
         }
@@ -582,7 +568,7 @@ static void servo_done(app_t *a, int8_t rc)
         } else {
             /* the servo lost its multi-turn count: bring the bus up again
              * and recover the homes as after a power cycle */
-            a->t_reboot = now_ms(a);
+            a->t_boot = now_ms(a);
             a->boot_con = 1;
             a->boot_step = 0;
             a->state = APP_ST_BOOT;
@@ -609,8 +595,8 @@ static void servo_next(app_t *a)
         for (i = 0; ((a->torque_due >> i) & 1u) == 0u; i++) {
         }
         a->torque_due &= (uint16_t)~bit16(i);
-        if (dxl_write_value(&a->dxl, a->ids[i], DXL_XL430_TORQUE_ENABLE_ADDR, a->torque[i], 1) >
-            0) {
+        if (dxl_write_value(&a->dxl, a->ids[i], DXL_XL430_TORQUE_ENABLE_ADDR,
+                            (a->torque_on >> i) & 1u, 1) > 0) {
             a->sv_txn = TX_TORQUE;
             a->txn_mask = bit16(i);
         }
@@ -627,9 +613,9 @@ static void servo_next(app_t *a)
                 continue;
             }
             ids[n] = a->ids[i];
-            put32(&data[n * 12u], a->acc[i]);
-            put32(&data[n * 12u + 4u], a->vel[i]);
-            put32(&data[n * 12u + 8u], (uint32_t)a->goal[i]);
+            put32(&data[n * 12u], a->acc);
+            put32(&data[n * 12u + 4u], a->u.hom.out.vel[i]);
+            put32(&data[n * 12u + 8u], (uint32_t)a->u.hom.out.goal[i]);
             n++;
         }
         if (n > 0u &&
@@ -678,12 +664,12 @@ static void servo_poll(app_t *a)
 /* Queues a goal for tendon i. */
 static void set_goal(app_t *a, uint8_t i, int32_t goal, uint16_t vel, uint16_t acc)
 {
-    a->goal[i] = goal;
-    a->vel[i] = vel;
-    a->acc[i] = acc;
+    a->u.hom.out.goal[i] = goal;
+    a->u.hom.out.vel[i] = vel;
+    a->acc = acc;
     a->goal_due |= bit16(i);
-    if (a->torque[i] != 1u) {
-        a->torque[i] = 1;
+    if (((a->torque_on >> i) & 1u) == 0u) {
+        a->torque_on |= bit16(i);
         a->torque_due |= bit16(i);
     }
 }
@@ -707,12 +693,12 @@ static void sensors_take(app_t *a, hom_in_t *in)
             o->b_cuT[2] = (int32_t)s.raw[2] * 15;
         } else if (d.state == ICM_SET_S_FAIL && !d.present) {
             o->status = HOM_SENS_ABSENT;
-        } else if (d.error_count != a->sens_err[k]) {
+        } else if ((uint8_t)d.error_count != a->sens_err[k]) {
             o->status = HOM_SENS_ERROR;
         } else {
             o->status = HOM_SENS_NONE;
         }
-        a->sens_err[k] = d.error_count;
+        a->sens_err[k] = (uint8_t)d.error_count;
     }
 }
 
@@ -730,16 +716,14 @@ static void rep_event(app_t *a, const hom_event_t *ev)
     case HOM_EV_START:
         rep_begin(a, S("progress"));
         con_report_flash(&a->con, S("state"), S("start"));
-        con_report_flash(&a->con, S("mode"), mode_word(ev->code));
+        rep_word(a, S("mode"), MODE_WORDS, ev->code);
         rep_int(a, S("tension_mN"), ev->a);
         rep_end(a);
         break;
     case HOM_EV_PHASE: {
-        static const char *const ph[] = {"", "preflight", "release", "baseline", "tendon", "final"};
         rep_begin(a, S("progress"));
-        con_report_str(&a->con, S("state"), ev->code <= HOM_PH_FINAL ? ph[ev->code] : "");
+        rep_word(a, S("state"), PHASE_WORDS, ev->code);
         if (ev->code == HOM_PH_TENDON && i < TBL_MAX_TENDONS) {
-            a->t_tendon[i] = ev->t_ms;
             rep_int(a, S("tendon"), i);
             rep_int(a, S("id"), a->ids[i]);
         }
@@ -748,7 +732,7 @@ static void rep_event(app_t *a, const hom_event_t *ev)
     }
     case HOM_EV_MISSING:
         rep_begin(a, S("missing"));
-        con_report_flash(&a->con, S("dev"), dev_word(ev->code));
+        rep_word(a, S("dev"), DEV_WORDS, ev->code);
         rep_int(a, S("index"), i);
         if (ev->code == HOM_DEV_SERVO && i < TBL_MAX_TENDONS) {
             rep_int(a, S("id"), a->ids[i]);
@@ -758,9 +742,6 @@ static void rep_event(app_t *a, const hom_event_t *ev)
         rep_end(a);
         break;
     case HOM_EV_ENGAGED:
-        if (i < TBL_MAX_TENDONS) {
-            a->engage[i] = ev->a;
-        }
         rep_begin(a, S("progress"));
         con_report_flash(&a->con, S("state"), S("engaged"));
         rep_int(a, S("tendon"), i);
@@ -769,8 +750,8 @@ static void rep_event(app_t *a, const hom_event_t *ev)
         break;
     case HOM_EV_HOME:
         if (i < a->info.n_tendons) {
-            const hom_tendon_t *t = &a->hom.tendon[i];
-            const hom_sensor_t *s = &a->hom.sensor[t->sensor];
+            const hom_tendon_t *t = &a->u.hom.tendon[i];
+            const hom_sensor_t *s = &a->u.hom.sensor[t->sensor];
             int32_t d[3];
             uint8_t k;
             for (k = 0; k < 3u; k++) {
@@ -780,11 +761,11 @@ static void rep_event(app_t *a, const hom_event_t *ev)
             rep_int(a, S("tendon"), i);
             rep_int(a, S("id"), a->ids[i]);
             rep_int(a, S("home"), ev->a);
-            rep_int(a, S("home_um"), ticks_um(a, i, ev->a));
+            rep_int(a, S("home_um"), ticks_um(t->nm_per_tick, ev->a));
             con_report_fixed(&a->con, S("dB_uT"), (int32_t)hom_norm3(d), 2);
             con_report_fixed(&a->con, S("target_uT"), (int32_t)t->target_cuT, 2);
-            rep_int(a, S("travel_um"), ticks_um(a, i, (ev->a - t->engage) * t->dir));
-            rep_int(a, S("time_ms"), (int32_t)(ev->t_ms - a->t_tendon[i]));
+            rep_int(a, S("travel_um"), ticks_um(t->nm_per_tick, (ev->a - t->engage) * t->dir));
+            rep_int(a, S("time_ms"), (int32_t)(ev->t_ms - a->u.hom.t_tendon));
             rep_end(a);
         }
         break;
@@ -799,12 +780,10 @@ static void rep_event(app_t *a, const hom_event_t *ev)
         break; /* reported by run_done() with the count */
     case HOM_EV_FAULT:
         a->last_fault = ev->code;
-        a->last_fault_index = i;
-        a->last_fault_dev = (uint8_t)ev->a;
         rep_begin(a, S("fault"));
         con_report_str(&a->con, S("reason"), hom_fault_name(ev->code));
         rep_int(a, S("code"), ev->code);
-        con_report_flash(&a->con, S("dev"), dev_word((uint8_t)ev->a));
+        rep_word(a, S("dev"), DEV_WORDS, (uint8_t)ev->a);
         rep_int(a, S("index"), i);
         if ((ev->a == HOM_DEV_SERVO || ev->a == HOM_DEV_TENDON) && i < TBL_MAX_TENDONS) {
             rep_int(a, S("id"), a->ids[i]);
@@ -834,7 +813,7 @@ static void run_done(app_t *a)
     a->homes.cal_count++;
     for (i = 0; i < a->info.n_tendons; i++) {
         int32_t h;
-        if (((a->run_mask >> i) & 1u) && hom_home(&a->hom, i, &h) == 0) {
+        if (((a->run_mask >> i) & 1u) && hom_home(&a->u.hom, i, &h) == 0) {
             store_home_set(&a->homes.t[i], h, h);
             a->offset[i] = 0;
             a->homes.valid_mask |= bit16(i);
@@ -855,14 +834,13 @@ static void run_done(app_t *a)
     save_queue(a, SAVE_HOMES | SAVE_HIST);
     /* the run's baseline is the learn baseline until the next release */
     for (k = 0; k < a->info.n_sensors; k++) {
-        memcpy(a->b0[k], a->hom.sensor[k].b0, sizeof a->b0[k]);
+        memcpy(a->b0[k], a->u.hom.sensor[k].b0, sizeof a->b0[k]);
     }
     a->have_b0 = 1;
     a->offer_quick = 0;
     a->released = 0;
-    a->runs_ok++;
     rep_begin(a, S("done"));
-    con_report_flash(&a->con, S("mode"), mode_word(a->run_mode));
+    rep_word(a, S("mode"), MODE_WORDS, a->run_mode);
     rep_int(a, S("time_ms"), (int32_t)(t - a->t_run));
     rep_int(a, S("tension_mN"), a->run_tension);
     rep_int(a, S("count"), (int32_t)a->homes.cal_count);
@@ -962,8 +940,8 @@ static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon
     }
     hom_config_default(&cfg);
     cfg.v_fast = (uint16_t)a->set.v[STORE_SET_APPROACH_FAST];
-    hom_init(&a->hom, &cfg);
-    rc = hom_start(&a->hom, &a->htab, &cmd);
+    hom_init(&a->u.hom, &cfg);
+    rc = hom_start(&a->u.hom, &a->htab, &cmd);
     if (rc == HOM_E_TENSION) {
         return CON_E_TENSION_RANGE;
     }
@@ -1002,20 +980,18 @@ static void cal_step(app_t *a, hom_in_t *in)
         s->pos = a->present[i];
     }
     a->servo_fresh = 0;
-    rc = hom_step(&a->hom, in, &out);
+    rc = hom_step(&a->u.hom, in, &out);
     for (i = 0; i < a->info.n_tendons; i++) {
         if ((out.changed >> i) & 1u) {
-            a->goal[i] = out.goal[i];
-            a->vel[i] = out.vel[i];
-            a->acc[i] = out.acc[i];
+            a->acc = out.acc[i]; /* one profile acceleration for every move */
             a->goal_due |= bit16(i);
-            if (out.torque[i] != a->torque[i]) {
-                a->torque[i] = out.torque[i];
+            if ((out.torque[i] != 0u) != (((a->torque_on >> i) & 1u) != 0u)) {
+                a->torque_on ^= bit16(i);
                 a->torque_due |= bit16(i);
             }
         }
     }
-    while (hom_event_pop(&a->hom, &ev)) {
+    while (hom_event_pop(&a->u.hom, &ev)) {
         rep_event(a, &ev);
     }
     if (rc == 0) {
@@ -1052,25 +1028,26 @@ static uint8_t release_goals(app_t *a)
     for (i = 0; i < a->info.n_tendons; i++) {
         tbl_point_t pt;
         tbl_tendon_t row;
-        int32_t g;
+        int32_t g, dir;
         if ((a->servo_absent >> i) & 1u) {
             continue;
         }
+        (void)tbl_tendon(&a->tab, i, &row);
+        dir = row.pull_dir < 0 ? -1 : 1;
         if ((a->home_now >> i) & 1u) {
             uint32_t trav = 0;
             if (tbl_target(&a->tab, i, a->homes.tension_mN, &pt) == 0) {
                 trav = pt.travel_um;
             }
-            g = home_cur(a, i) - a->dir[i] * um_ticks(a, i, trav + cfg.slack_margin_um);
+            g = home_cur(a, i) - dir * um_ticks(row.nm_per_tick, trav + cfg.slack_margin_um);
         } else if (!a->released) {
-            (void)tbl_tendon(&a->tab, i, &row);
-            g = a->present[i] - a->dir[i] * um_ticks(a, i,
-                                                     row.travel_um[a->info.n_grid - 1u] * 3u / 2u +
-                                                         cfg.slack_margin_um);
+            g = a->present[i] -
+                dir * um_ticks(row.nm_per_tick,
+                               row.travel_um[a->info.n_grid - 1u] * 3u / 2u + cfg.slack_margin_um);
         } else {
             g = a->present[i];
         }
-        if (a->dir[i] * (g - a->present[i]) > 0) {
+        if (dir * (g - a->present[i]) > 0) {
             g = a->present[i]; /* already slacker than the release point */
         }
         set_goal(a, i, g, cfg.v_release, cfg.acc);
@@ -1090,7 +1067,7 @@ void app_abort(app_t *app)
     }
     app->req_start = 0;
     if (app->state == APP_ST_CAL) {
-        hom_abort(&app->hom);
+        hom_abort(&app->u.hom);
         return;
     }
     if (app->state == APP_ST_LEARN && app->learn_tendon != LEARN_BASELINE &&
@@ -1111,9 +1088,9 @@ static void learn_begin(app_t *a, uint8_t tendon)
 {
     a->learn_tendon = tendon;
     a->learn_n = 0;
-    memset(a->learn_acc, 0, sizeof a->learn_acc);
-    memset(a->learn_cnt, 0, sizeof a->learn_cnt);
-    a->t_learn = now_ms(a);
+    memset(a->u.learn.acc, 0, sizeof a->u.learn.acc);
+    memset(a->u.learn.cnt, 0, sizeof a->u.learn.cnt);
+    a->t_move = now_ms(a);
     a->state = APP_ST_LEARN;
 }
 
@@ -1122,7 +1099,7 @@ static void move_step(app_t *a)
     uint8_t i, arrived = 1;
     uint32_t t = now_ms(a);
     for (i = 0; i < a->info.n_tendons; i++) {
-        int32_t d = a->present[i] - a->goal[i];
+        int32_t d = a->present[i] - a->u.hom.out.goal[i];
         if ((a->servo_absent >> i) & 1u) {
             continue;
         }
@@ -1167,11 +1144,11 @@ static void learn_step(app_t *a, const hom_in_t *in)
     if (a->learn_tendon == LEARN_BASELINE) {
         first = 0;
         last = a->info.n_sensors;
-        if (t - a->t_learn < SETTLE_MS) {
+        if (t - a->t_move < SETTLE_MS) {
             return;
         }
     } else {
-        first = a->sensor_of[a->learn_tendon];
+        first = a->learn_sensor;
         last = (uint8_t)(first + 1u);
     }
     for (k = first; k < last; k++) {
@@ -1182,18 +1159,18 @@ static void learn_step(app_t *a, const hom_in_t *in)
     if (rc == 0) {
         uint8_t least = APP_LEARN_SAMPLES;
         for (k = first; k < last; k++) {
-            if (in->sensor[k].status == HOM_SENS_NEW && a->learn_cnt[k] < APP_LEARN_SAMPLES) {
-                a->learn_acc[k][0] += in->sensor[k].b_cuT[0];
-                a->learn_acc[k][1] += in->sensor[k].b_cuT[1];
-                a->learn_acc[k][2] += in->sensor[k].b_cuT[2];
-                a->learn_cnt[k]++;
+            if (in->sensor[k].status == HOM_SENS_NEW && a->u.learn.cnt[k] < APP_LEARN_SAMPLES) {
+                a->u.learn.acc[k][0] += in->sensor[k].b_cuT[0];
+                a->u.learn.acc[k][1] += in->sensor[k].b_cuT[1];
+                a->u.learn.acc[k][2] += in->sensor[k].b_cuT[2];
+                a->u.learn.cnt[k]++;
             }
-            if (a->learn_cnt[k] < least) {
-                least = a->learn_cnt[k];
+            if (a->u.learn.cnt[k] < least) {
+                least = a->u.learn.cnt[k];
             }
         }
         a->learn_n = least;
-        if (least < APP_LEARN_SAMPLES && t - a->t_learn > LEARN_WAIT_MS + SETTLE_MS) {
+        if (least < APP_LEARN_SAMPLES && t - a->t_move > LEARN_WAIT_MS + SETTLE_MS) {
             rc = CON_E_TIMEOUT;
         }
     }
@@ -1203,9 +1180,9 @@ static void learn_step(app_t *a, const hom_in_t *in)
     if (a->learn_tendon == LEARN_BASELINE) {
         if (rc == 0) {
             for (k = 0; k < a->info.n_sensors; k++) {
-                a->b0[k][0] = a->learn_acc[k][0] / (int32_t)APP_LEARN_SAMPLES;
-                a->b0[k][1] = a->learn_acc[k][1] / (int32_t)APP_LEARN_SAMPLES;
-                a->b0[k][2] = a->learn_acc[k][2] / (int32_t)APP_LEARN_SAMPLES;
+                a->b0[k][0] = a->u.learn.acc[k][0] / (int32_t)APP_LEARN_SAMPLES;
+                a->b0[k][1] = a->u.learn.acc[k][1] / (int32_t)APP_LEARN_SAMPLES;
+                a->b0[k][2] = a->u.learn.acc[k][2] / (int32_t)APP_LEARN_SAMPLES;
             }
             a->have_b0 = 1;
         }
@@ -1223,7 +1200,7 @@ static void learn_step(app_t *a, const hom_in_t *in)
         uint32_t v;
         uint8_t s = first, tdn = a->learn_tendon;
         for (k = 0; k < 3u; k++) {
-            d[k] = a->learn_acc[s][k] / (int32_t)APP_LEARN_SAMPLES - a->b0[s][k];
+            d[k] = a->u.learn.acc[s][k] / (int32_t)APP_LEARN_SAMPLES - a->b0[s][k];
         }
         v = hom_norm3(d);
         if (store_learned_load(&a->store, tdn, a->info.table_id, &a->rec.learned) != 0) {
@@ -1339,7 +1316,7 @@ static void short_press(app_t *a)
 
 static void button_poll(app_t *a, uint32_t t)
 {
-    uint8_t raw = a->io.board->button(a->io.board->ctx) ? 1u : 0u;
+    uint8_t raw = a->io->board->button(a->io->board->ctx) ? 1u : 0u;
     if (raw != a->btn_raw) {
         a->btn_raw = raw;
         a->t_btn_change = t;
@@ -1400,7 +1377,7 @@ static void led_poll(app_t *a, uint32_t t)
     }
     if (on != a->led_on || a->loops == 0u) {
         a->led_on = on;
-        a->io.board->led(a->io.board->ctx, on);
+        a->io->board->led(a->io->board->ctx, on);
     }
 }
 
@@ -1411,8 +1388,8 @@ int8_t app_poll(app_t *app)
     app_t *a = app;
     hom_in_t in;
     uint32_t t0 = now_us(a), t = now_ms(a), dt;
-    a->io.board->wdt_kick(a->io.board->ctx);
-    if (con_rt_take(a->io.rt)) {
+    a->io->board->wdt_kick(a->io->board->ctx);
+    if (con_rt_take(a->io->rt)) {
         app_abort(a);
     }
     button_poll(a, t);
@@ -1469,11 +1446,11 @@ static int8_t h_version(con_t *con, const con_args_t *args, void *ctx)
     (void)args;
     rep_begin(a, S("version"));
     con_report_flash(&a->con, S("name"), S("hallhome"));
-    if (a->io.version_f != NULL) {
-        con_report_flash(&a->con, S("version"), a->io.version_f);
+    if (a->io->version_f != NULL) {
+        con_report_flash(&a->con, S("version"), a->io->version_f);
     }
-    if (a->io.board_f != NULL) {
-        con_report_flash(&a->con, S("board"), a->io.board_f);
+    if (a->io->board_f != NULL) {
+        con_report_flash(&a->con, S("board"), a->io->board_f);
     }
     if (a->table_ok) {
         con_report_str(&a->con, S("table"), a->info.name);
@@ -1494,7 +1471,7 @@ static int8_t h_status(con_t *con, const con_args_t *args, void *ctx)
     (void)con;
     (void)args;
     rep_begin(a, S("status"));
-    con_report_flash(&a->con, S("state"), state_word(a->state));
+    rep_word(a, S("state"), STATE_WORDS, a->state);
     if (a->table_ok) {
         con_report_str(&a->con, S("table"), a->info.name);
     } else {
@@ -1571,7 +1548,7 @@ static int8_t h_servos(con_t *con, const con_args_t *args, void *ctx)
         return CON_E_NO_TABLE;
     }
     if ((args->given & 1u) && args->v[0] != 0) {
-        servo_lines(a); /* pos, err: the live cycle keeps both fresh */
+        servo_lines(a, 0); /* pos, err: the live cycle keeps both fresh */
         return 0;
     }
     if (!idle_state(a)) {
@@ -1691,7 +1668,10 @@ static int8_t h_learn(con_t *con, const con_args_t *args, void *ctx)
     }
     {
         icm_diag_t d;
-        (void)icm_set_diag(&a->sens, a->sensor_of[t], &d);
+        tbl_tendon_t row;
+        (void)tbl_tendon(&a->tab, t, &row);
+        a->learn_sensor = row.sensor;
+        (void)icm_set_diag(&a->sens, row.sensor, &d);
         if (d.state != ICM_SET_S_RUN) {
             return CON_E_SENSOR_FAULT;
         }

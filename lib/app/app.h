@@ -96,9 +96,9 @@ typedef struct {
     void (*reboot)(void *ctx); /* resets the board (NULL: not available) */
 } app_board_t;
 
-/* Everything the app is wired to. Strings marked _f are read through
- * con_copy (flash on the AVR). */
-typedef struct {
+/* Everything the app is wired to (the caller keeps it for the app's life). Strings marked _f are
+ * read through con_copy (flash on the AVR). */
+typedef struct app_io_s {
     const app_board_t *board;
     dxl_port servo_port; /* half-duplex servo bus */
     uint8_t servo_bits;  /* bits per byte on the wire (10; 11 in simavr) */
@@ -121,14 +121,80 @@ typedef struct {
     const char *reset_f;   /* reset cause word */
 } app_io_t;
 
-/* Caller-owned application state. Read-only outside lib/app. */
+/* Caller-owned application state. Read-only outside lib/app. The small
+ * fields come first: the AVR reaches the first 64 bytes of a struct with
+ * one instruction. */
 typedef struct {
-    app_io_t io;
-    /* modules */
-    dxl_master dxl;
-    dxl_bringup bring;
-    icm_set_t sens;
-    icm_set_slot_t slot[APP_MAX_SENSORS];
+    /* state */
+    uint8_t state;
+    uint8_t table_ok;
+    uint8_t boot_step;
+    uint8_t boot_con; /* a pending command is answered when the bring-up is done */
+    uint8_t n_servo_found;
+    uint8_t n_sens_found;
+    uint8_t offer_quick;
+    int8_t recover_rc; /* worst store_recover_position() result at boot */
+    int8_t homes_rc;   /* store_homes_load() result */
+    uint8_t sv_txn;    /* transaction in flight */
+    uint8_t sv_cycle;
+    uint8_t hwerr_due;
+    uint8_t released; /* the last app release has not been followed by a pull */
+    uint8_t move_kind;
+    uint8_t run_mode;
+    uint8_t last_fault;
+    uint8_t save_due; /* records waiting for the EEPROM */
+    uint8_t save_now; /* the record being written */
+    uint8_t rest_due; /* rest positions to record once the servos have stopped */
+    uint8_t have_b0;
+    uint8_t learn_tendon;
+    uint8_t learn_sensor;
+    uint8_t learn_grid;
+    uint8_t learn_n;
+    uint8_t req_start; /* a run requested while an EEPROM save finishes */
+    uint8_t req_con;   /* the request came from a pending `cal` / `rehome` */
+    uint8_t req_mode;
+    uint8_t req_tendon;
+    uint8_t reboot_id;
+    uint8_t reboot_req; /* `reboot` waits for the bus */
+    uint8_t btn_raw;
+    uint8_t btn_state;
+    uint8_t btn_long_done;
+    uint8_t led;
+    uint8_t led_on;
+    uint16_t servo_absent; /* bit i: tendon i's servo did not answer the bring-up */
+    uint16_t servo_fresh;  /* bit i: a position arrived since the last homing step */
+    uint16_t servo_seen;   /* bit i: a position has arrived since boot */
+    uint16_t home_now;     /* bit i: homes.t[i] usable in this power cycle */
+    uint16_t goal_due;     /* bit i: goal/velocity of tendon i to send */
+    uint16_t torque_due;   /* bit i: torque of tendon i to send */
+    uint16_t torque_on;    /* bit i: torque of tendon i as last sent */
+    uint16_t txn_mask;     /* tendons of the transaction in flight */
+    uint16_t run_mask;     /* tendons calibrated by this run */
+    uint16_t run_tension;
+    uint16_t req_tension;
+    uint16_t learned_mask; /* bit t: tendon t has a learned record for this table */
+    uint16_t acc;          /* profile acceleration of every goal */
+    const struct app_io_s *io;
+    /* times */
+    uint32_t t_boot;
+    uint32_t t_run;
+    uint32_t t_move;
+    uint32_t t_rest;
+    uint32_t t_btn_change;
+    uint32_t t_btn_down;
+    uint32_t loop_max_us;
+    uint32_t loops;
+    /* per tendon and sensor */
+    uint8_t ids[TBL_MAX_TENDONS];
+    uint8_t hw_err[TBL_MAX_TENDONS];
+    int32_t present[TBL_MAX_TENDONS];
+    int32_t offset[TBL_MAX_TENDONS];   /* calibration frame = present frame + offset */
+    uint8_t sens_err[APP_MAX_SENSORS]; /* error counts (low byte) already passed to the homing */
+    int32_t b0[APP_MAX_SENSORS][3];    /* straight-pose baseline for `learn` */
+    /* modules and records */
+    tbl_src_t tab;  /* plain */
+    tbl_src_t htab; /* learned targets applied */
+    tbl_info_t info;
     store_t store;
     store_settings_t set;
     store_homes_t homes;
@@ -137,102 +203,26 @@ typedef struct {
         store_learned_t learned;
     } rec; /* the record being saved (kept until store_poll() is done) */
     con_t con;
-    hom_t hom;
-    tbl_src_t tab;  /* plain */
-    tbl_src_t htab; /* learned targets applied */
-    tbl_info_t info;
-    /* state */
-    uint8_t state;
-    uint8_t table_ok;
-    uint8_t boot_step;
-    uint32_t t_boot;
-    uint8_t n_servo_found;
-    uint8_t n_sens_found;
-    uint8_t ids[TBL_MAX_TENDONS];
-    uint8_t sensor_of[TBL_MAX_TENDONS]; /* selected sensor per tendon */
-    int8_t dir[TBL_MAX_TENDONS];
-    uint32_t nm_per_tick[TBL_MAX_TENDONS];
-    uint16_t servo_absent; /* bit i: tendon i's servo did not answer the bring-up */
-    uint16_t servo_fresh;  /* bit i: a position arrived since the last homing step */
-    uint16_t servo_seen;   /* bit i: a position has arrived since boot */
-    uint8_t hw_err[TBL_MAX_TENDONS];
-    int32_t present[TBL_MAX_TENDONS];
-    int32_t offset[TBL_MAX_TENDONS]; /* calibration frame = present frame + offset */
-    uint16_t home_now;               /* bit i: homes.t[i] usable in this power cycle */
-    int8_t recover_rc;               /* worst store_recover_position() result at boot */
-    int8_t homes_rc;                 /* store_homes_load() result */
-    uint8_t offer_quick;
-    /* bus scheduler */
-    uint8_t sv_txn; /* APP_TX_* of the transaction in flight */
-    uint8_t sv_cycle;
-    uint8_t hwerr_due;
-    uint16_t goal_due;   /* bit i: goal/velocity of tendon i to send */
-    uint16_t torque_due; /* bit i: torque of tendon i to send */
-    uint16_t txn_mask;   /* tendons of the transaction in flight */
-    int32_t goal[TBL_MAX_TENDONS];
-    uint16_t vel[TBL_MAX_TENDONS];
-    uint16_t acc[TBL_MAX_TENDONS];
-    uint8_t torque[TBL_MAX_TENDONS];
-    uint8_t reboot_id;
-    uint8_t reboot_req; /* `reboot` waits for the bus */
-    uint8_t boot_con;   /* a pending command is answered when the bring-up is done */
-    uint32_t t_reboot;
-    /* sensors */
-    uint16_t sens_err[APP_MAX_SENSORS]; /* error counts already passed to the homing */
-    /* run bookkeeping */
-    uint8_t run_mode;
-    uint8_t last_fault;
-    uint8_t last_fault_index;
-    uint8_t last_fault_dev;
-    uint16_t run_tension;
-    uint16_t run_mask; /* tendons calibrated by this run */
-    uint32_t t_run;
-    uint32_t t_tendon[TBL_MAX_TENDONS];
-    int32_t engage[TBL_MAX_TENDONS];
-    uint32_t runs_ok;
-    /* a run requested while an EEPROM save finishes */
-    uint8_t req_start;
-    uint8_t req_con; /* the request came from a pending `cal` / `rehome` */
-    uint8_t req_mode;
-    uint8_t req_tendon;
-    uint16_t req_tension;
-    /* app moves */
-    uint8_t move_kind; /* 1 home, 2 release */
-    uint32_t t_move;
-    uint8_t released; /* the last app release has not been followed by a pull */
-    /* learn / baseline */
-    uint8_t learn_tendon;
-    uint8_t learn_grid;
-    uint8_t learn_n;
-    uint8_t have_b0;
-    uint8_t learn_cnt[APP_MAX_SENSORS];
-    int32_t learn_acc[APP_MAX_SENSORS][3];
-    int32_t b0[APP_MAX_SENSORS][3];
-    uint32_t t_learn;
-    uint16_t learned_mask; /* bit t: tendon t has a learned record for this table */
-    /* store queue */
-    uint8_t save_due; /* APP_SAVE_* bits */
-    uint8_t save_now; /* the record being written */
-    int8_t save_rc;
-    uint8_t rest_due; /* rest positions to record once the servos have stopped */
-    uint32_t t_rest;
-    /* button, LED, loop time */
-    uint8_t btn_raw;
-    uint8_t btn_state;
-    uint8_t btn_long_done;
-    uint32_t t_btn_change;
-    uint32_t t_btn_down;
-    uint8_t led;
-    uint8_t led_on;
-    uint32_t t_led;
-    uint32_t loop_max_us;
-    uint32_t loops;
-    uint32_t t_loop_us;
+    icm_set_t sens;
+    icm_set_slot_t slot[APP_MAX_SENSORS];
+    dxl_master dxl;
+    /* Storage used by one activity at a time. hom: calibration runs; its
+     * `out` also holds the goals of app moves (home, release) while no run is
+     * active. bring: boot and `servos scan`. learn: sample sums of `learn`
+     * and the baseline capture (no overlap with hom.out). */
+    union {
+        hom_t hom;
+        dxl_bringup bring;
+        struct {
+            uint8_t cnt[APP_MAX_SENSORS];
+            int32_t acc[APP_MAX_SENSORS][3];
+        } learn;
+    } u;
 } app_t;
 
 /* Binds the app to its board and ports, initialises every module, reads the
  * settings, homes and learned targets, checks the table and prints the
- * `<boot ...>` line. Nothing moves. Returns 0 or APP_E_ARG. */
+ * `<boot ...>` line. io is kept by reference. Nothing moves. Returns 0 or APP_E_ARG. */
 int8_t app_init(app_t *app, const app_io_t *io);
 
 /* The settings' bus rate (the board configures its servo UART with it before
