@@ -55,6 +55,7 @@ for _name in MOTION_COMMANDS:
         raise RuntimeError(f"command {_name!r} is no longer declared in con_commands.def")
 
 ABORT_BYTE = b"!"
+BOOT_PREFIX = "<boot "  # the firmware's banner after any reset
 
 # USB IDs of Arduino Mega 2560 boards. Clones carry a generic USB serial
 # bridge, so a port with one of those IDs is only "possibly" a Mega.
@@ -343,8 +344,17 @@ class Client:
             try:
                 msg = protocol.parse_line(line)
             except protocol.ProtocolError:
-                self._garble(line)
-                continue
+                # A reset cuts the line being written: the banner then
+                # follows the cut line's start without a line break.
+                cut = line.rfind(BOOT_PREFIX)
+                try:
+                    if cut <= 0:
+                        raise protocol.ProtocolError(line)
+                    msg = protocol.parse_line(line[cut:])
+                except protocol.ProtocolError:
+                    self._garble(line)
+                    continue
+                self._garble(line[:cut])
             if msg["type"] == "report":
                 rep = Report(msg["kind"], msg["fields"], line, time.monotonic())
                 msg["report"] = rep

@@ -86,11 +86,11 @@ def int_list(text) -> List[Tuple[Optional[int], str]]:
 
 
 def out() -> Console:
-    return Console(highlight=False, soft_wrap=False)
+    return Console(highlight=False, soft_wrap=True)
 
 
 def err() -> Console:
-    return Console(stderr=True, highlight=False)
+    return Console(stderr=True, highlight=False, soft_wrap=True)
 
 
 # --- common options and the session ---------------------------------------------
@@ -234,6 +234,11 @@ def status_cmd(port, timeout) -> None:
 
 # --- calibrate ----------------------------------------------------------------------
 
+def missing_text(m: Report) -> str:
+    return (f"[red]missing {m.get('dev')} {m.get('index')}"
+            + (f" (servo id {m.get('id')})" if m.get("id") is not None else "") + "[/]")
+
+
 FAULT_GRACE = 1.5  # seconds to wait for the release report after a fault
 
 
@@ -344,7 +349,14 @@ def calibrate_cmd(tension, tendon, run_timeout, port, timeout) -> None:
         view = CalView(n, tendon)
         what = f"tendon {tendon}" if tendon is not None else f"{n} tendons"
         title = f"calibration of {what}" + (f" at {fixed3(tension)} N" if tension is not None else "")
-        reply = c.command(cmd("cal", *args))
+        try:
+            reply = c.command(cmd("cal", *args))
+        except BoardError as e:
+            # refused before any motion: the reports name what is missing
+            for m in e.reports:
+                if m.kind == R.MISSING:
+                    con.print(missing_text(m))
+            raise
         for r in reply.reports:
             view.feed(r)
         deadline = time.monotonic() + run_timeout
@@ -374,8 +386,7 @@ def calibrate_cmd(tension, tendon, run_timeout, port, timeout) -> None:
             sys.exit(130)
         c.motion_ended()
     for m in view.missing:
-        con.print(f"[red]missing {m.get('dev')} {m.get('index')}"
-                  + (f" (servo id {m.get('id')})" if m.get("id") is not None else "") + "[/]")
+        con.print(missing_text(m))
     if view.done is not None and not view.faults:
         d = view.done
         con.print(f"[green]done[/]: {d.get('mode')} calibration at {int(d.get('tension_mN', 0)) / 1000:.3f} N "
