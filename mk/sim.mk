@@ -35,7 +35,7 @@ SIM_LIMIT   ?= 120s
 ROBOT_TOML  := lookup_tables/robots/$(ROBOT).toml
 SIM_PLANT   := $(if $(wildcard $(ROBOT_TOML)),$(SIM_DIR)/plant/$(ROBOT).cfg,sim/plant/configs/$(ROBOT).cfg)
 SIM_STATE   := $(SIM_DIR)/$(ROBOT).eeprom
-SIM_UNTIL   ?= ^<cal .*state=done
+SIM_UNTIL   ?= ^<done mode=full
 SIM_FAIL    ?= ^<fault
 SIM_TOL     ?= 10
 SIM_ARGS    ?=
@@ -80,7 +80,7 @@ sim: $(BENCH) firmware $(SIM_PLANT)
 		$(SIM_ARGS)
 
 sim-test: $(BENCH) $(TESTFW_ELFS) firmware
-	$(VENV)/bin/pytest -q tests/host/test_bench*.py
+	$(VENV)/bin/pytest -q tests/host/test_bench.py
 
 TEST_TARGETS += sim-test
 
