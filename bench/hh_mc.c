@@ -7,10 +7,14 @@
  *   hh_mc CONFIG mc      [-n runs] [-s seed] [-p frac] [-t mN]
  *   hh_mc CONFIG oat     [-p frac] [-k steps] [-s seed] [-t mN]
  *   hh_mc CONFIG ambient [-a "uT uT ..."] [-d directions] [-s seed] [-t mN]
+ *   hh_mc CONFIG cal     [-g] [-n runs] [-s seed] [-p frac] [-t mN] [-m full|quick]
  *
- * The table always comes from the nominal plant (plant_make_table), as in
- * hh_closedloop; the robot a run calibrates differs from it as each study
- * says. Output: `cols,<kind>,<name>,...` header lines naming the columns,
+ * The table comes from the nominal plant (plant_make_table: the targets the
+ * model-free workflow records with weights on the true robot), as in
+ * hh_closedloop; with -g it is the generated table the firmware links
+ * (lookup_tables/generated/<robot>.c from the host model, built in with
+ * -DHH_ROBOT=<robot>): the model-based workflow. The robot a run calibrates
+ * differs from the nominal plant as each study says. Output: `cols,<kind>,<name>,...` header lines naming the columns,
  * then one `<kind>,...` CSV line per result (bench/native.py parses both).
  *
  * mc: the robot is plant_cfg_perturb(nominal, seed + run, frac); one line per
@@ -19,6 +23,9 @@
  *   slack and sensor positions), so the error can be regressed on them.
  * oat: one parameter group at a time moved over [-frac, +frac] (the same
  *   scale plant_cfg_perturb uses for that group), every tendon at once.
+ * cal: repeated calibrations of the plant (perturbed with seed + run and
+ *   frac when frac > 0) from random slack; quick mode re-homes after a
+ *   simulated power cycle as hh_closedloop does. One line per tendon home.
  * ambient: the calibration sees every sensor's ambient field changed by the
  *   same vector (magnitude from -a, seeded random directions). Per tendon:
  *   the field-change mode through the closed loop (homing core), and both
@@ -46,15 +53,23 @@ typedef struct {
     unsigned dirs;
     double amb[32];
     unsigned n_amb;
+    int generated;
+    int quick;
 } opts_t;
 
 static plant_cfg_t nominal;
 static tbl_table_t table;
 
+#ifdef HH_ROBOT
+#define HH_CAT2(a, b) a##b
+#define HH_CAT(a, b)  HH_CAT2(a, b)
+extern const tbl_table_t HH_CAT(tbl_table_, HH_ROBOT);
+#endif
+
 static void usage(void)
 {
-    fprintf(stderr, "usage: hh_mc CONFIG mc|oat|ambient [-n runs] [-s seed] [-p frac] [-t mN]\n"
-                    "             [-k steps] [-a \"uT ...\"] [-d directions]\n");
+    fprintf(stderr, "usage: hh_mc CONFIG mc|oat|ambient|cal [-g] [-n runs] [-s seed] [-p frac]\n"
+                    "             [-t mN] [-k steps] [-a \"uT ...\"] [-d directions] [-m full|quick]\n");
 }
 
 static double rel(double actual, double nom)
@@ -366,6 +381,48 @@ static int study_ambient(const opts_t *o)
     return 0;
 }
 
+static int study_cal(const opts_t *o)
+{
+    static plant_cfg_t actual;
+    static plant_run_result_t res;
+    plant_run_cfg_t rc;
+    unsigned r, i;
+    printf("cols,cal,run,tendon,segment,rc,home_ticks,true_home_ticks,err_ticks,tension_N,err_N,"
+           "sim_ms\n");
+    for (r = 0; r < o->runs; r++) {
+        int prc;
+        actual = nominal;
+        (void)plant_cfg_perturb(&actual, o->seed + r, o->frac);
+        plant_run_defaults(&rc, &actual, &table);
+        rc.seed = o->seed * 7919u + r;
+        rc.cmd.mode = HOM_MODE_FULL;
+        rc.cmd.tension_mN = (uint16_t)o->tension;
+        prc = plant_run(&rc, &res);
+        if (o->quick && prc == 0 && res.rc == 0) {
+            static double start[TBL_MAX_TENDONS];
+            rc.cmd.mode = HOM_MODE_QUICK;
+            rc.cmd.stored_mask = 0;
+            for (i = 0; i < res.n_tendons; i++) {
+                rc.cmd.stored_home[i] = res.home[i];
+                rc.cmd.stored_mask |= (uint16_t)(1u << i);
+                start[i] = res.home_plant[i];
+            }
+            rc.start_ticks = start;
+            rc.frame_offset = 4096 * (int32_t)(1 + r % 3);
+            rc.seed += 1000003u;
+            prc = plant_run(&rc, &res);
+        }
+        for (i = 0; i < nominal.n_tendons; i++) {
+            int ok = prc == 0 && res.rc == 0 && res.have_home[i];
+            printf("cal,%u,%u,%u,%d,%.0f,%.3f,%.3f,%.5f,%.5f,%u\n", r, i, nominal.tendon[i].segment,
+                   prc != 0 ? prc : res.rc, ok ? res.home_plant[i] : NAN, res.true_home[i],
+                   ok ? res.err_ticks[i] : NAN, ok ? res.tension_at_home_N[i] : NAN,
+                   ok ? res.tension_at_home_N[i] - o->tension * 1e-3 : NAN, (unsigned)res.end_ms);
+        }
+    }
+    return 0;
+}
+
 int main(int argc, char **argv)
 {
     opts_t o;
@@ -383,9 +440,19 @@ int main(int argc, char **argv)
     }
     o.path = argv[1];
     o.study = argv[2];
-    for (a = 3; a + 1 < argc; a += 2) {
-        const char *v = argv[a + 1];
-        if (strcmp(argv[a], "-n") == 0) {
+    for (a = 3; a < argc; a += 2) {
+        const char *v = argv[a + 1 < argc ? a + 1 : a];
+        if (strcmp(argv[a], "-g") == 0) {
+            o.generated = 1;
+            a--; /* a flag: no value */
+            continue;
+        }
+        if (a + 1 >= argc) {
+            break;
+        }
+        if (strcmp(argv[a], "-m") == 0) {
+            o.quick = strcmp(v, "quick") == 0;
+        } else if (strcmp(argv[a], "-n") == 0) {
             o.runs = (unsigned)strtoul(v, NULL, 10);
         } else if (strcmp(argv[a], "-s") == 0) {
             o.seed = (unsigned)strtoul(v, NULL, 10);
@@ -427,7 +494,18 @@ int main(int argc, char **argv)
         fprintf(stderr, "hh_mc: %s: bad config (line %d)\n", o.path, err_line);
         return 1;
     }
-    if (plant_make_table(&nominal, &table) != 0) {
+    if (o.generated) {
+#ifdef HH_ROBOT
+        table = HH_CAT(tbl_table_, HH_ROBOT);
+        if (table.n_tendons != nominal.n_tendons || table.n_sensors != nominal.n_sensors) {
+            fprintf(stderr, "hh_mc: the generated table does not fit %s\n", o.path);
+            return 1;
+        }
+#else
+        fprintf(stderr, "hh_mc: built without a generated table (-DHH_ROBOT)\n");
+        return 2;
+#endif
+    } else if (plant_make_table(&nominal, &table) != 0) {
         fprintf(stderr, "hh_mc: cannot build the table from %s\n", o.path);
         return 1;
     }
@@ -442,6 +520,9 @@ int main(int argc, char **argv)
     }
     if (strcmp(o.study, "ambient") == 0) {
         return study_ambient(&o);
+    }
+    if (strcmp(o.study, "cal") == 0) {
+        return study_cal(&o);
     }
     usage();
     return 2;

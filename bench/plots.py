@@ -10,6 +10,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from .report import SOURCES  # noqa: E402
 from .stats import PAPER  # noqa: E402
 
 
@@ -31,11 +32,11 @@ def repeatability(res: Dict, outdir: str) -> str:
         ("paper manual", sum(PAPER["repeat_manual_mm"], []) + [PAPER["repeat_manual_avg_mm"]]),
         ("paper automated", sum(PAPER["repeat_auto_mm"], []) + [PAPER["repeat_auto_avg_mm"]]),
     ]
-    for src in ("native", "simavr"):
+    for src, lab in SOURCES:
         r = res.get(src)
         if r and "per_tendon_mm" in r:
             per = [r["per_tendon_mm"].get(str(i), r["per_tendon_mm"].get(i, np.nan)) for i in range(6)]
-            series.append((f"hallhome ({src})", per + [r["avg_mm"]]))
+            series.append((f"hallhome, {lab}", per + [r["avg_mm"]]))
     w = 0.8 / len(series)
     floor = 1e-4  # an SD of 0 (every home on the same tick) drawn at the floor
     for k, (name, vals) in enumerate(series):
@@ -43,35 +44,37 @@ def repeatability(res: Dict, outdir: str) -> str:
         ax.bar(x + (k - (len(series) - 1) / 2) * w, v, w, label=name)
     ax.axhline(PAPER["tick_mm"], color="k", ls="--", lw=1, label="one encoder tick (goal)")
     ax.set_yscale("log")
-    ax.set_ylim(floor / 2, 10)
+    ax.set_ylim(floor / 2, 1000)
     ax.set_xticks(x)
     ax.set_xticklabels(labels)
     ax.set_ylabel("SD of home position (mm)")
-    ax.set_title("Repeatability of tendon homes, 10 calibrations at 0.8 N (0 drawn at 1e-4)")
-    ax.legend(fontsize=8, ncol=2)
+    ax.set_title(f"Repeatability of tendon homes, {res.get('runs', 10)} calibrations at 0.8 N "
+                 "(an SD of 0 drawn at 1e-4)")
+    ax.legend(fontsize=7, ncol=3, loc="upper center")
     return _save(fig, outdir, "repeatability.png")
 
 
 def accuracy(acc: Dict, outdir: str) -> str:
     """Mean tension error +- SD per target and segment, with the paper's
     overall (0.06 +- 0.20) N band."""
-    fig, ax = plt.subplots(figsize=(7, 4))
+    fig, ax = plt.subplots(figsize=(8, 4.5))
     ax.axhspan(PAPER["tension_err_mean_N"] - PAPER["tension_err_sd_N"],
                PAPER["tension_err_mean_N"] + PAPER["tension_err_sd_N"], color="0.85",
                label="paper: 0.06 ± 0.20 N")
     ax.axhline(PAPER["tension_err_mean_N"], color="0.5", lw=1)
     ax.axhspan(-0.02, 0.02, color="tab:green", alpha=0.15, label="goal: mean within ±0.02 N")
-    markers = {"native": "o", "simavr": "s"}
-    for src, off in (("native", -0.012), ("simavr", 0.012)):
+    markers = {"native": "o", "native_gen": "^", "simavr": "s"}
+    offs = {"native": -0.02, "native_gen": 0.0, "simavr": 0.02}
+    for src, lab in SOURCES:
         a = acc.get(src)
         if not a or "cells" not in a:
             continue
         for c in a["cells"]:
             seg = c["segment"]
-            ax.errorbar(c["target_N"] + off + (seg - 1.5) * 0.01, c["mean_N"], yerr=c["sd_N"],
-                        fmt=markers[src], color="tab:blue" if seg == 1 else "tab:orange",
-                        capsize=3,
-                        label=f"{src}, segment {seg}")
+            ax.errorbar(c["target_N"] + offs[src] + (seg - 1.5) * 0.008, c["mean_N"],
+                        yerr=c["sd_N"], fmt=markers[src],
+                        color="tab:blue" if seg == 1 else "tab:orange", capsize=3,
+                        label=f"{lab}, segment {seg}")
     h, l = ax.get_legend_handles_labels()
     uniq = dict(zip(l, h))
     ax.legend(uniq.values(), uniq.keys(), fontsize=8)
@@ -82,16 +85,16 @@ def accuracy(acc: Dict, outdir: str) -> str:
 
 
 def timing(tm: Dict, outdir: str) -> str:
-    fig, ax = plt.subplots(figsize=(6.5, 3.6))
+    fig, ax = plt.subplots(figsize=(8, 3.8))
     names = ["paper (full)"]
     vals = [PAPER["cal_time_s"]]
-    for src in ("native", "simavr"):
+    for src, lab in SOURCES:
         t = tm.get(src) or {}
         if t.get("full_s") is not None:
-            names.append(f"{src} full")
+            names.append(f"{lab}: full")
             vals.append(t["full_s"])
         if t.get("quick_s") is not None:
-            names.append(f"{src} quick re-home")
+            names.append(f"{lab}: quick re-home")
             vals.append(t["quick_s"])
     ax.barh(names, vals, color=["0.6"] + ["tab:blue"] * (len(vals) - 1))
     ax.axvline(12.0, color="tab:green", ls="--", label="goal: 12 s")

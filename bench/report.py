@@ -14,6 +14,13 @@ from typing import Dict, List, Optional
 from . import stats
 from .stats import GOALS, PAPER
 
+# Where a figure comes from: key in the results, label in the report.
+SOURCES = [
+    ("native", "native loop, plant table"),
+    ("native_gen", "native loop, generated table"),
+    ("simavr", "simavr bench, generated table"),
+]
+
 SECTIONS = [
     "## 1. Repeatability",
     "## 2. Tension accuracy",
@@ -51,9 +58,12 @@ def _per(r: Dict, i: int):
     return per.get(str(i), per.get(i))
 
 
+def _measured(r: Optional[Dict]) -> bool:
+    return bool(r) and not r.get("not_measured")
+
+
 def section_repeat(res: Dict) -> List[str]:
     rep = res.get("repeat", {})
-    nat, sim = rep.get("native") or {}, rep.get("simavr") or {}
     out = [SECTIONS[0] + " (paper Table I)", ""]
     out.append(
         f"{rep.get('runs', 10)} automated calibrations at 0.8 N from random initial slack "
@@ -62,29 +72,27 @@ def section_repeat(res: Dict) -> List[str]:
         f"{fmt(res.get('meta', {}).get('mm_per_tick'), 5)} mm.")
     out.append("")
     out.append("| segment | tendon | paper manual (mm) | paper automated (mm) | "
-               "hallhome native loop (mm) | hallhome simavr bench (mm) |")
-    out.append("| --- | --- | --- | --- | --- | --- |")
-    for s in range(2):
+               + " | ".join(f"{lab} (mm)" for _, lab in SOURCES) + " |")
+    out.append("| --- | --- | --- | --- | " + " | ".join("---" for _ in SOURCES) + " |")
+    for sg in range(2):
         for t in range(3):
-            i = 3 * s + t
-            out.append(
-                f"| {s + 1} | {t + 1} | {PAPER['repeat_manual_mm'][s][t]:.3f} | "
-                f"{PAPER['repeat_auto_mm'][s][t]:.4f} | {fmt(_per(nat, i))} | "
-                f"{fmt(_per(sim, i)) if sim and not sim.get('not_measured') else 'n/a'} |")
+            i = 3 * sg + t
+            cells = [fmt(_per(rep[k], i)) if _measured(rep.get(k)) else "n/a" for k, _ in SOURCES]
+            out.append(f"| {sg + 1} | {t + 1} | {PAPER['repeat_manual_mm'][sg][t]:.3f} | "
+                       f"{PAPER['repeat_auto_mm'][sg][t]:.4f} | " + " | ".join(cells) + " |")
+    cells = [fmt(rep[k].get("avg_mm")) if _measured(rep.get(k)) else "n/a" for k, _ in SOURCES]
     out.append(f"| average | | {PAPER['repeat_manual_avg_mm']:.3f} | "
-               f"{PAPER['repeat_auto_avg_mm']:.4f} | {fmt(nat.get('avg_mm'))} | "
-               f"{fmt(sim.get('avg_mm')) if sim and not sim.get('not_measured') else 'n/a'} |")
+               f"{PAPER['repeat_auto_avg_mm']:.4f} | " + " | ".join(cells) + " |")
     out.append("")
-    if nat:
-        out.append(f"- Native loop: largest spread of one tendon's homes "
-                   f"{fmt(nat.get('max_spread_ticks'), 0)} tick(s); largest distance from the "
-                   f"true home {fmt(nat.get('max_abs_err_ticks'), 2)} tick.")
-    if sim and not sim.get("not_measured"):
-        out.append(f"- simavr bench: largest spread of one tendon's homes "
-                   f"{fmt(sim.get('max_spread_ticks'), 0)} tick(s) over "
-                   f"{sim.get('runs', 'n/a')} calibrations.")
-    else:
-        out.append(f"- simavr bench: {_src_note(sim)}")
+    for k, lab in SOURCES:
+        r = rep.get(k)
+        if _measured(r):
+            extra = (f"; largest distance from the true home {fmt(r.get('max_abs_err_ticks'), 2)} "
+                     "tick") if r.get("max_abs_err_ticks") is not None else ""
+            out.append(f"- {lab}: {r.get('runs', 'n/a')} calibrations, largest spread of one "
+                       f"tendon's homes {fmt(r.get('max_spread_ticks'), 0)} tick(s){extra}.")
+        else:
+            out.append(f"- {lab}: {_src_note(r)}")
     out += ["", "![repeatability](repeatability.png)", ""]
     return out
 
@@ -99,19 +107,19 @@ def section_accuracy(res: Dict) -> List[str]:
     out.append("")
     out.append("| source | target (N) | segment | n | mean error (N) | SD (N) |")
     out.append("| --- | --- | --- | --- | --- | --- |")
-    for src in ("native", "simavr"):
+    for src, lab in SOURCES:
         a = acc.get(src) or {}
         if a.get("not_measured") or not a:
-            out.append(f"| {src} | - | - | 0 | {_src_note(a)} | |")
+            out.append(f"| {lab} | - | - | 0 | {_src_note(a)} | |")
             continue
         for c in a["cells"]:
-            out.append(f"| {src} | {c['target_N']:.1f} | {c['segment']} | {c['n']} | "
+            out.append(f"| {lab} | {c['target_N']:.1f} | {c['segment']} | {c['n']} | "
                        f"{c['mean_N']:+.4f} | {c['sd_N']:.4f} |")
         for sg in a["segments"]:
-            out.append(f"| {src} | all | {sg['segment']} | {sg['n']} | {sg['mean_N']:+.4f} | "
+            out.append(f"| {lab} | all | {sg['segment']} | {sg['n']} | {sg['mean_N']:+.4f} | "
                        f"{sg['sd_N']:.4f} |")
         al = a["all"]
-        out.append(f"| **{src}** | **all** | **both** | {al['n']} | **{al['mean_N']:+.4f}** | "
+        out.append(f"| **{lab}** | **all** | **both** | {al['n']} | **{al['mean_N']:+.4f}** | "
                    f"**{al['sd_N']:.4f}** |")
     out.append(f"| paper | all | both | 30 | +{PAPER['tension_err_mean_N']:.2f} | "
                f"{PAPER['tension_err_sd_N']:.2f} |")
@@ -121,29 +129,27 @@ def section_accuracy(res: Dict) -> List[str]:
 
 def section_time(res: Dict) -> List[str]:
     tm = res.get("time", {})
-    nat, sim = tm.get("native") or {}, tm.get("simavr") or {}
     out = [SECTIONS[2], ""]
     out.append("Simulated time of a full 6-tendon calibration (start to done) and of a quick "
                "re-home after a power cycle (robot left at its homes, encoders off by whole "
-               f"turns). Paper: about {PAPER['cal_time_s']:.0f} s per calibration.")
+               f"turns). Paper: about {PAPER['cal_time_s']:.0f} s per calibration. The native "
+               "loop assumes a servo answer every 1 ms and a first-order servo; the simavr bench "
+               "runs the firmware's own bus schedule at 1 Mbps against the XL430 model.")
     out.append("")
-    out.append("| source | full: mean (s) | full: max (s) | n | quick re-home (s) | n |")
+    out.append("| source | full: mean (s) | full: max (s) | n | quick re-home: mean (s) | n |")
     out.append("| --- | --- | --- | --- | --- | --- |")
-    out.append(f"| native loop (1 ms bus cycle, ideal servo model) | {fmt(nat.get('full_s'), 2)} | "
-               f"{fmt(nat.get('full_max_s'), 2)} | {nat.get('n_full', 0)} | "
-               f"{fmt(nat.get('quick_s'), 2)} | {nat.get('n_quick', 0)} |")
-    if sim and not sim.get("not_measured"):
-        out.append(f"| simavr bench (firmware ELF, XL430 model, 1 Mbps bus) | "
-                   f"{fmt(sim.get('full_s'), 2)} | {fmt(sim.get('full_max_s'), 2)} | "
-                   f"{sim.get('n_full', 0)} | {fmt(sim.get('quick_s'), 2)} | "
-                   f"{sim.get('n_quick', 0)} |")
-        if sim.get("quick_note"):
-            out.append("")
-            out.append(f"- quick re-home on the bench: {sim['quick_note']}")
-    else:
-        out.append(f"| simavr bench | {_src_note(sim)} | | 0 | | 0 |")
+    notes = []
+    for k, lab in SOURCES:
+        t = tm.get(k)
+        if _measured(t):
+            out.append(f"| {lab} | {fmt(t.get('full_s'), 2)} | {fmt(t.get('full_max_s'), 2)} | "
+                       f"{t.get('n_full', 0)} | {fmt(t.get('quick_s'), 2)} | {t.get('n_quick', 0)} |")
+            if t.get("quick_note"):
+                notes.append(f"- quick re-home, {lab}: {t['quick_note']}")
+        else:
+            out.append(f"| {lab} | {_src_note(t)} | | 0 | | 0 |")
     out.append(f"| paper | {PAPER['cal_time_s']:.0f} | | | | |")
-    out += ["", "![timing](timing.png)", ""]
+    out += [""] + notes + (["" ] if notes else []) + ["![timing](timing.png)", ""]
     return out
 
 
@@ -263,11 +269,13 @@ def goals_table(res: Dict) -> List[Dict]:
     rep, acc, tm = res.get("repeat", {}), res.get("accuracy", {}), res.get("time", {})
 
     def pick(d: Dict, key):
-        sim = d.get("simavr") or {}
-        if sim and not sim.get("not_measured") and key(sim) is not None:
-            return key(sim), "simavr bench"
-        nat = d.get("native") or {}
-        return (key(nat) if nat else None), "native loop (simavr bench not measured)"
+        for k, lab in (("simavr", "simavr bench"),
+                       ("native_gen", "native loop, generated table (simavr bench not measured)"),
+                       ("native", "native loop, plant table (simavr bench not measured)")):
+            r = d.get(k)
+            if _measured(r) and key(r) is not None:
+                return key(r), lab
+        return None, "not measured"
 
     g = []
     v, s = pick(rep, lambda r: r.get("avg_mm"))

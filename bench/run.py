@@ -42,12 +42,29 @@ def _repeat_dict(homes: Dict[int, List[float]], mm_per_tick: float) -> Dict:
 
 # ---- native loop ---------------------------------------------------------------------
 
-def _run_ms(cl: Dict) -> List[float]:
-    """Simulated time of each run of one hh_closedloop invocation."""
+def _run_ms(homes: List[Dict]) -> List[float]:
+    """Simulated time of each run of one runner invocation (rows per home)."""
     per = {}
-    for h in cl["homes"]:
+    for h in homes:
         per[h["run"]] = h["sim_ms"]
     return [per[k] for k in sorted(per)]
+
+
+def _closedloop_rows(a, runs: int, tension: int, seed: int, mode: str = "full") -> List[Dict]:
+    """Plant table (model-free targets): the project's hh_closedloop."""
+    out = native.closedloop(a.closedloop, a.config, runs, tension, seed, mode=mode)
+    return out["homes"]
+
+
+def _generated_rows(a, runs: int, tension: int, seed: int, mode: str = "full") -> List[Dict]:
+    """Generated table (the firmware's, model-based): hh_mc cal -g."""
+    out = native.mc(a.mc, a.config, "cal", ["-g", "-n", str(runs), "-p", "0", "-t", str(tension),
+                                             "-s", str(seed), "-m", mode])
+    return [r for r in out.get("cal", [])]
+
+
+NATIVE_SOURCES = (("native", "plant table", _closedloop_rows),
+                  ("native_gen", "generated table", _generated_rows))
 
 
 def native_items(a, res: Dict, cfg: Dict) -> None:
@@ -55,37 +72,44 @@ def native_items(a, res: Dict, cfg: Dict) -> None:
     seg = cfg["segment"]
     n_rep = 3 if a.reduced else 10
     n_acc = 2 if a.reduced else 5
-    log(f"native loop: repeatability, {n_rep} calibrations at 800 mN")
-    cl = native.closedloop(a.closedloop, a.config, n_rep, 800, a.seed)
-    homes: Dict[int, List[float]] = {}
-    for h in cl["homes"]:
-        homes.setdefault(h["tendon"], []).append(h["home_ticks"])
-    rep = _repeat_dict(homes, mm_tick)
-    rep["max_abs_err_ticks"] = cl["summary"].get("max_abs_err_ticks")
-    rep["runs"] = n_rep
-    rep["faults"] = cl["summary"].get("faults")
-    res["repeat"]["native"] = rep
-    res["repeat"]["runs"] = n_rep
-
-    log(f"native loop: tension accuracy, {n_acc} calibrations at 500 / 800 / 1000 mN")
-    rows = []
-    runs_ms = _run_ms(cl)
-    for t in (500, 800, 1000):
-        r = native.closedloop(a.closedloop, a.config, n_acc, t, a.seed + t)
-        for h in r["homes"]:
-            rows.append((t / 1000.0, seg[h["tendon"]] if h["tendon"] < len(seg) else 1,
-                         h["tension_N"]))
-        runs_ms += _run_ms(r)
-    res["accuracy"]["native"] = _acc_dict(rows)
-
     n_q = 2 if a.reduced else 10
-    log(f"native loop: {n_q} quick re-homes")
-    q = native.closedloop(a.closedloop, a.config, n_q, 800, a.seed + 77, mode="quick")
-    q_ms = _run_ms(q)
-    res["time"]["native"] = {
-        "full_s": stats.mean_sd(runs_ms)[0] / 1000.0, "full_max_s": max(runs_ms) / 1000.0,
-        "n_full": len(runs_ms), "quick_s": stats.mean_sd(q_ms)[0] / 1000.0 if q_ms else None,
-        "quick_max_s": max(q_ms) / 1000.0 if q_ms else None, "n_quick": len(q_ms)}
+    res["repeat"]["runs"] = n_rep
+    for key, label, rows_of in NATIVE_SOURCES:
+        log(f"native loop, {label}: repeatability, {n_rep} calibrations at 800 mN")
+        try:
+            homes_rows = rows_of(a, n_rep, 800, a.seed)
+        except (OSError, RuntimeError) as e:
+            why = f"the runner failed: {e}"
+            log(f"native loop, {label}: {why}")
+            for k in ("repeat", "accuracy", "time"):
+                res[k][key] = {"not_measured": why}
+            continue
+        homes: Dict[int, List[float]] = {}
+        for h in homes_rows:
+            homes.setdefault(int(h["tendon"]), []).append(h["home_ticks"])
+        rep = _repeat_dict(homes, mm_tick)
+        errs = stats.clean(abs(h["err_ticks"]) for h in homes_rows)
+        rep["max_abs_err_ticks"] = max(errs) if errs else None
+        rep["runs"] = n_rep
+        res["repeat"][key] = rep
+
+        log(f"native loop, {label}: tension accuracy, {n_acc} calibrations at 500 / 800 / 1000 mN")
+        rows = []
+        runs_ms = _run_ms(homes_rows)
+        for t in (500, 800, 1000):
+            r = rows_of(a, n_acc, t, a.seed + t)
+            for h in r:
+                i = int(h["tendon"])
+                rows.append((t / 1000.0, seg[i] if i < len(seg) else 1, h["tension_N"]))
+            runs_ms += _run_ms(r)
+        res["accuracy"][key] = _acc_dict(rows)
+
+        log(f"native loop, {label}: {n_q} quick re-homes")
+        q_ms = _run_ms(rows_of(a, n_q, 800, a.seed + 77, mode="quick"))
+        res["time"][key] = {
+            "full_s": stats.mean_sd(runs_ms)[0] / 1000.0, "full_max_s": max(runs_ms) / 1000.0,
+            "n_full": len(runs_ms), "quick_s": stats.mean_sd(q_ms)[0] / 1000.0 if q_ms else None,
+            "quick_max_s": max(q_ms) / 1000.0 if q_ms else None, "n_quick": len(q_ms)}
 
 
 def robust_item(a, res: Dict) -> None:

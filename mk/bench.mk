@@ -14,7 +14,7 @@
 
 BENCH_BUILD   := $(BUILD)/bench
 BENCH_CL      := $(BENCH_BUILD)/hh_closedloop
-BENCH_MC      := $(BENCH_BUILD)/hh_mc
+BENCH_MC      := $(BENCH_BUILD)/hh_mc_$(ROBOT)
 BENCH_RESULTS := bench/results
 BENCH_CHECK_DIR := $(BUILD)/bench-check
 BENCH_ARGS    ?=
@@ -30,9 +30,13 @@ $(BENCH_CL): tests/tools/closedloop.c $(BENCH_NATIVE_SRCS) $(wildcard sim/plant/
 	@mkdir -p $(@D)
 	$(CC) $(BENCH_NATIVE_CFLAGS) -o $@ tests/tools/closedloop.c $(BENCH_NATIVE_SRCS) -lm
 
-$(BENCH_MC): bench/hh_mc.c $(BENCH_NATIVE_SRCS) $(wildcard sim/plant/*.h lib/homing/*.h lib/table/*.h) | $(STAMP)
+# hh_mc links the generated table of $(ROBOT) too (-g: the model-based workflow).
+BENCH_GEN_TABLE := $(wildcard lookup_tables/generated/$(ROBOT).c)
+
+$(BENCH_MC): bench/hh_mc.c $(BENCH_NATIVE_SRCS) $(BENCH_GEN_TABLE) $(wildcard sim/plant/*.h lib/homing/*.h lib/table/*.h) | $(STAMP)
 	@mkdir -p $(@D)
-	$(CC) $(BENCH_NATIVE_CFLAGS) -Werror -o $@ bench/hh_mc.c $(BENCH_NATIVE_SRCS) -lm
+	$(CC) $(BENCH_NATIVE_CFLAGS) -Werror $(if $(BENCH_GEN_TABLE),-DHH_ROBOT=$(ROBOT)) -o $@ \
+		bench/hh_mc.c $(BENCH_GEN_TABLE) $(BENCH_NATIVE_SRCS) -lm
 
 bench-tools: $(BENCH_CL) $(BENCH_MC)
 
