@@ -151,10 +151,22 @@ int hom_home(const hom_t *h, uint8_t i, int32_t *ticks)
     return 0;
 }
 
+/* a * b / c truncated towards zero, through 64 bits and saturated to int32.
+ * The one place with 64-bit multiply and divide: on the AVR each inline
+ * 64-bit expression costs hundreds of bytes of code. c must not be 0. */
+static int32_t muldiv(int32_t a, int32_t b, int32_t c)
+{
+    int64_t q = (int64_t)a * (int64_t)b / (int64_t)c;
+    if (q > INT32_MAX) {
+        return INT32_MAX;
+    }
+    return q < INT32_MIN ? INT32_MIN : (int32_t)q;
+}
+
 /* um to ticks, rounded up so margins are never smaller than asked */
 static int32_t um_to_ticks(uint32_t um, uint32_t nm_per_tick)
 {
-    return (int32_t)(((uint64_t)um * 1000u + nm_per_tick - 1u) / nm_per_tick);
+    return muldiv((int32_t)um, 1000, (int32_t)nm_per_tick) + 1;
 }
 
 /* A stored home moved into this power cycle's frame: the XL430 keeps the angle
@@ -179,22 +191,22 @@ static int32_t table_slope(const tbl_src_t *table, uint8_t i, uint16_t tension,
     tbl_point_t hi;
     uint16_t t0 = tension;
     uint16_t t1 = tension;
-    int64_t dticks;
-    int64_t s;
+    int32_t dticks;
+    int32_t s;
     t0 = (uint16_t)(t0 >= info->grid_mN[0] + 50u ? t0 - 50u : info->grid_mN[0]);
     t1 =
         (uint16_t)(t1 + 50u <= info->grid_mN[info->n_grid - 1u] ? t1 + 50u
                                                                 : info->grid_mN[info->n_grid - 1u]);
     (void)tbl_target(table, i, t0, &lo);
     (void)tbl_target(table, i, t1, &hi);
-    dticks = ((int64_t)hi.travel_um - (int64_t)lo.travel_um) * 1000 / (int64_t)nm_per_tick;
+    dticks = muldiv((int32_t)hi.travel_um - (int32_t)lo.travel_um, 1000, (int32_t)nm_per_tick);
     if (dticks <= 0 || hi.target_cuT <= lo.target_cuT) {
-        dticks = (int64_t)hi.travel_um * 1000 / (int64_t)nm_per_tick;
-        s = dticks > 0 ? ((int64_t)hi.target_cuT << 8) / dticks : 256;
+        dticks = muldiv((int32_t)hi.travel_um, 1000, (int32_t)nm_per_tick);
+        s = dticks > 0 ? muldiv((int32_t)hi.target_cuT, 256, dticks) : 256;
     } else {
-        s = ((int64_t)(hi.target_cuT - lo.target_cuT) << 8) / dticks;
+        s = muldiv((int32_t)(hi.target_cuT - lo.target_cuT), 256, dticks);
     }
-    return (int32_t)(s < 1 ? 1 : (s > 0x7FFFFFFF ? 0x7FFFFFFF : s));
+    return s < 1 ? 1 : s;
 }
 
 int hom_start(hom_t *h, const tbl_src_t *table, const hom_cmd_t *cmd)
@@ -240,7 +252,7 @@ int hom_start(hom_t *h, const tbl_src_t *table, const hom_cmd_t *cmd)
         t->sensor = row.sensor;
         t->target_cuT = pt.target_cuT;
         t->travel_ticks = um_to_ticks(pt.travel_um, row.nm_per_tick);
-        t->limit_ticks = (int32_t)(((uint64_t)row.travel_limit_um * 1000u) / row.nm_per_tick);
+        t->limit_ticks = muldiv((int32_t)row.travel_limit_um, 1000, (int32_t)row.nm_per_tick);
         t->margin_ticks = um_to_ticks(h->cfg.slack_margin_um, row.nm_per_tick);
         if ((cmd->stored_mask >> i) & 1u) {
             t->est_home = cmd->stored_home[i]; /* unwrapped once positions are known */
@@ -691,8 +703,7 @@ static void begin_moderate(hom_t *h, uint32_t now)
     if (t->retries != 0u) {
         g = h->mod_goal;
     } else {
-        g = t->engage +
-            t->dir * (int32_t)(((int64_t)t->travel_ticks * h->cfg.near_permille) / 1000);
+        g = t->engage + t->dir * muldiv(t->travel_ticks, h->cfg.near_permille, 1000);
     }
     if (t->dir * (g - t->engage) > t->limit_ticks) {
         g = t->engage + t->dir * t->limit_ticks;
@@ -729,15 +740,15 @@ static void finish_tendon(hom_t *h, uint32_t now, int32_t home_q8)
  * field change of one tick; at least twice avg_samples, at most HOM_MAX_AVG.
  * A weak field (sensors far from the magnet, a high tension where |dB|
  * flattens) needs many; a strong one needs the minimum. */
-static uint8_t near_samples(const hom_t *h, int64_t s_q8)
+static uint8_t near_samples(const hom_t *h, int32_t s_q8)
 {
-    int64_t q = ((int64_t)h->noise_cuT * 5 * 256 + s_q8 - 1) / s_q8; /* ceil(5 noise / slope) */
-    int64_t n = q * q;
-    int64_t lo = 2 * (int64_t)h->cfg.avg_samples;
+    int32_t q = ((int32_t)h->noise_cuT * 5 * 256 + s_q8 - 1) / s_q8; /* ceil(5 noise / slope) */
+    int32_t n = q > 6 ? (int32_t)HOM_MAX_AVG : q * q;
+    int32_t lo = 2 * (int32_t)h->cfg.avg_samples;
     if (n < lo) {
         n = lo;
     }
-    return (uint8_t)(n > (int64_t)HOM_MAX_AVG ? HOM_MAX_AVG : n);
+    return (uint8_t)(n > (int32_t)HOM_MAX_AVG ? (int32_t)HOM_MAX_AVG : n);
 }
 
 /* Keeps a point averaged near the target for the final fit (the newest
@@ -766,22 +777,23 @@ static void keep_point(hom_t *h, int32_t p, uint32_t b, uint8_t n)
 static int32_t fit_or(const hom_t *h, int32_t p, int32_t fallback)
 {
     const hom_tendon_t *t = &h->tendon[h->cur];
-    int64_t sn = 0;
-    int64_t sx = 0;
-    int64_t sy = 0;
-    int64_t sxx = 0;
-    int64_t sxy = 0;
+    /* sums fit 32 bits: at most 4 points of 32 samples, |x| <= 4, |y| < 2^20 */
+    int32_t sn = 0;
+    int32_t sx = 0;
+    int32_t sy = 0;
+    int32_t sxx = 0;
+    int32_t sxy = 0;
+    int32_t d;
     int64_t snum;
-    int64_t d;
-    int64_t x_q8;
+    int32_t x_q8;
     int32_t lo = 0;
     int32_t hi = 0;
     uint8_t k;
     for (k = 0; k < h->n_pts; k++) {
         int32_t x = t->dir * (h->pts[k].p - p); /* pull-direction ticks from p */
-        int64_t y = (int64_t)h->pts[k].b - (int64_t)t->target_cuT;
-        int64_t n = h->pts[k].n;
-        if (x < -4 || x > 4) {
+        int32_t y = (int32_t)h->pts[k].b - (int32_t)t->target_cuT;
+        int32_t n = h->pts[k].n;
+        if (x < -4 || x > 4 || y >= (1L << 20) || y <= -(1L << 20)) {
             continue;
         }
         lo = x < lo ? x : lo;
@@ -793,17 +805,17 @@ static int32_t fit_or(const hom_t *h, int32_t p, int32_t fallback)
         sxy += n * x * y;
     }
     d = sn * sxx - sx * sx;
-    snum = sn * sxy - sx * sy;
+    snum = (int64_t)sn * sxy - (int64_t)sx * sy;
     if (hi == lo || d <= 0 || snum <= 0) {
         return fallback;
     }
     /* y = a + s x with s = snum / d; the crossing y = 0 lies at
-     * x = (snum sx - sy d) / (sn snum) */
-    x_q8 = ((snum * sx - sy * d) * 256) / (sn * snum);
-    if (x_q8 < ((int64_t)lo - 1) * 256 || x_q8 > ((int64_t)hi + 1) * 256) {
+     * x = (sx - sy d / snum) / sn */
+    x_q8 = (int32_t)(((int64_t)sx * 256 - (int64_t)sy * d * 256 / snum) / sn);
+    if (x_q8 < (lo - 1) * 256 || x_q8 > (hi + 1) * 256) {
         return fallback;
     }
-    return p * 256 + t->dir * (int32_t)x_q8;
+    return p * 256 + t->dir * x_q8;
 }
 
 /* Remaining travel from a field b to the target along the table's own
@@ -818,8 +830,8 @@ static int32_t table_remaining_q8(const hom_t *h, uint32_t b)
     const hom_tendon_t *t = &h->tendon[h->cur];
     uint32_t x0 = 0;
     uint32_t y0 = 0;
-    int64_t travel_b = -1;
-    int64_t travel_t;
+    int32_t travel_b = -1;
+    int32_t travel_t;
     uint8_t g;
     if (tbl_tendon(&h->table, h->cur, &row) != 0 || tbl_info(&h->table, &info) != 0) {
         return 0;
@@ -828,8 +840,8 @@ static int32_t table_remaining_q8(const hom_t *h, uint32_t b)
         uint32_t x1 = row.travel_um[g];
         uint32_t y1 = row.target_cuT[g];
         if (b < y1 && y1 > y0) {
-            travel_b =
-                (int64_t)x0 * 256 + ((int64_t)(b - y0) * (int64_t)(x1 - x0) * 256) / (y1 - y0);
+            travel_b = (int32_t)x0 * 256 +
+                       muldiv((int32_t)(b - y0), (int32_t)(x1 - x0) * 256, (int32_t)(y1 - y0));
         }
         x0 = x1;
         y0 = y1;
@@ -837,11 +849,11 @@ static int32_t table_remaining_q8(const hom_t *h, uint32_t b)
     if (travel_b < 0) {
         return 0;
     }
-    travel_t = ((int64_t)t->travel_ticks * t->nm_per_tick * 256) / 1000; /* um * 256 */
+    travel_t = muldiv(t->travel_ticks * 256, (int32_t)t->nm_per_tick, 1000); /* um * 256 */
     if (travel_t <= travel_b) {
         return 0;
     }
-    return (int32_t)(((travel_t - travel_b) * 1000) / t->nm_per_tick);
+    return muldiv(travel_t - travel_b, 1000, (int32_t)t->nm_per_tick);
 }
 
 /* One averaged fine point at the present position. Finishes by interpolation
@@ -860,9 +872,10 @@ static void fine_point(hom_t *h, uint32_t now)
     int32_t avg[3];
     int32_t p = h->present[h->cur];
     uint32_t b;
-    int64_t s_q8;
-    int64_t r_q8;
-    int64_t step;
+    int32_t s_q8;
+    int32_t r_q8;
+    int32_t step;
+    int32_t room;
     int32_t dp;
 
     avg_of(h, t->sensor, avg);
@@ -879,9 +892,9 @@ static void fine_point(hom_t *h, uint32_t now)
             return;
         }
         if (h->have_prev && b > h->b_prev && dp >= 1 && dp <= 3) {
-            int64_t num = (int64_t)(t->target_cuT - h->b_prev) * (int64_t)(p - h->p_prev) * 256;
-            finish_tendon(
-                h, now, fit_or(h, p, h->p_prev * 256 + (int32_t)(num / (int64_t)(b - h->b_prev))));
+            int32_t f = muldiv((int32_t)(t->target_cuT - h->b_prev), (p - h->p_prev) * 256,
+                               (int32_t)(b - h->b_prev));
+            finish_tendon(h, now, fit_or(h, p, h->p_prev * 256 + f));
             return;
         }
         if (++t->retries > 2u) {
@@ -891,12 +904,11 @@ static void fine_point(hom_t *h, uint32_t now)
         if (h->have_prev) {
             /* the secant across the crossing is the slope to come back with */
             if (dp > 0 && b > h->b_prev) {
-                h->slope_q8 = (int32_t)(((int64_t)(b - h->b_prev) << 8) / dp);
+                h->slope_q8 = muldiv((int32_t)(b - h->b_prev), 256, dp);
             }
             h->mod_goal = h->p_prev;
         } else {
-            h->mod_goal =
-                t->engage + (int32_t)(((int64_t)(p - t->engage) * h->cfg.near_permille) / 1000);
+            h->mod_goal = t->engage + muldiv(p - t->engage, h->cfg.near_permille, 1000);
         }
         h->have_prev = 0;
         h->n_pts = 0;
@@ -907,13 +919,13 @@ static void fine_point(hom_t *h, uint32_t now)
     /* a slope measured over 3 ticks or more replaces the estimate; one over
      * fewer ticks is too noisy and the last good one is kept */
     if (h->have_prev && dp >= 3 && b > h->b_prev) {
-        h->slope_q8 = (int32_t)(((int64_t)(b - h->b_prev) << 8) / dp);
+        h->slope_q8 = muldiv((int32_t)(b - h->b_prev), 256, dp);
     }
     s_q8 = h->slope_q8;
     if (s_q8 < 1) {
         s_q8 = 1;
     }
-    r_q8 = ((int64_t)(t->target_cuT - b) << 16) / s_q8;
+    r_q8 = muldiv((int32_t)(t->target_cuT - b), 65536, s_q8);
     if (!h->have_prev && t->retries == 0u) {
         /* first point: the table's own curve says how far the target is */
         int32_t rt = table_remaining_q8(h, b);
@@ -925,24 +937,25 @@ static void fine_point(hom_t *h, uint32_t now)
         finish_tendon(h, now, fit_or(h, p, p * 256 + t->dir * (int32_t)r_q8));
         return;
     }
-    if ((int64_t)t->dir * (p - t->engage) * 256 + r_q8 > (int64_t)t->limit_ticks * 256) {
+    room = (t->limit_ticks - t->dir * (p - t->engage)) * 256;
+    if (r_q8 > room) {
         /* the target lies beyond the travel limit: unreachable, stop here */
         fail(h, now, HOM_F_TRAVEL_LIMIT, HOM_DEV_TENDON, h->cur,
-             (int32_t)(((int64_t)t->dir * (p - t->engage) * 256 + r_q8) / 256));
+             t->dir * (p - t->engage) + r_q8 / 256);
         return;
     }
     if (++h->steps > h->cfg.fine_max_steps) {
         fail(h, now, HOM_F_NO_PROGRESS, HOM_DEV_TENDON, h->cur, (int32_t)b);
         return;
     }
-    step = r_q8 <= 3 * 256 ? r_q8 >> 8 : (r_q8 * 3 / 4) >> 8;
+    step = r_q8 <= 3 * 256 ? r_q8 >> 8 : (r_q8 / 4 * 3) >> 8;
     if (r_q8 >= 128 && step < 1) {
         step = 1; /* half a tick or more: bracket it rather than extrapolate */
     }
     h->near = (uint8_t)(r_q8 <= 4 * 256);
     h->n_near = near_samples(h, s_q8);
-    if (step > (int64_t)t->limit_ticks + 1) {
-        step = (int64_t)t->limit_ticks + 1; /* refused below as beyond the limit */
+    if (step > t->limit_ticks + 1) {
+        step = t->limit_ticks + 1; /* refused below as beyond the limit */
     }
     h->p_prev = p;
     h->b_prev = b;
@@ -972,9 +985,8 @@ static void slack_done(hom_t *h, uint32_t now)
     push_event(h, now, HOM_EV_PHASE, HOM_PH_BASELINE, 0, 0, 0);
     if (h->mode == HOM_MODE_DRY) {
         for (i = 0; i < h->n_tendons; i++) {
-            push_event(
-                h, now, HOM_EV_TARGET, 0, i, (int32_t)h->tendon[i].target_cuT,
-                (int32_t)(((int64_t)h->tendon[i].travel_ticks * h->tendon[i].nm_per_tick) / 1000));
+            push_event(h, now, HOM_EV_TARGET, 0, i, (int32_t)h->tendon[i].target_cuT,
+                       muldiv(h->tendon[i].travel_ticks, (int32_t)h->tendon[i].nm_per_tick, 1000));
         }
         push_event(h, now, HOM_EV_DONE, 0, 0, (int32_t)elapsed(now, h->t_start), 0);
         h->state = ST_DONE;
@@ -1071,7 +1083,7 @@ static void do_tendon(hom_t *h, const hom_in_t *in)
             h->pos_at_sample = p;
         }
         if (h->quick_leg && t->engaged && fresh &&
-            (uint64_t)b * 1000u >= (uint64_t)t->target_cuT * HOM_QUICK_STOP_PERMILLE) {
+            (int32_t)b >= muldiv((int32_t)t->target_cuT, HOM_QUICK_STOP_PERMILLE, 1000)) {
             /* the stored home is further than the field says: stop short */
             int32_t g = p + t->dir * 2;
             if (t->dir * (h->out.goal[h->cur] - g) > 0) {
@@ -1094,7 +1106,7 @@ static void do_tendon(hom_t *h, const hom_in_t *in)
         }
         break;
     case ST_MODERATE:
-        if (fresh && (uint64_t)b * 1000u >= (uint64_t)t->target_cuT * h->cfg.near_permille) {
+        if (fresh && (int32_t)b >= muldiv((int32_t)t->target_cuT, h->cfg.near_permille, 1000)) {
             int32_t g = p + t->dir * 2;
             if (t->dir * (h->out.goal[h->cur] - g) > 0) {
                 (void)pull_to(h, now, g, h->cfg.v_moderate);
