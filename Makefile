@@ -46,7 +46,7 @@ help:
 	@echo "make unit | host-test | fuzz-smoke | lint   one suite"
 	@echo "make fuzz       longer libFuzzer runs (FUZZ_SECONDS=$(FUZZ_SECONDS))"
 	@echo "make format     clang-format every C file in place"
-	@$(foreach t,$(EXTRA_HELP),echo "$(t)";)
+	@printf "%s\n" $(EXTRA_HELP)
 
 $(STAMP): scripts/bootstrap.sh scripts/apt-packages.txt host_tools/pyproject.toml
 	@mkdir -p $(BUILD)
