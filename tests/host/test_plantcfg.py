@@ -110,8 +110,6 @@ def test_closed_loop_generated_table_model_error(tmp_path):
     repeatable, with a tension error that stays small (model error)."""
     cfg = write_plant_config(load_robot(PAPER), tmp_path / "paper.cfg")
     p, s = run_tool(cfg, "-g", "paper_2seg", "-n", "2", "-s", "4", "-q")
-    if p.returncode == 1 and "not linked" in p.stderr:
-        pytest.skip("generated table not linked")
     assert p.returncode == 0 and s, p.stdout + p.stderr
     assert s["faults"] == "0"
     assert abs(float(s["tension_err_mean_N"])) < 0.1

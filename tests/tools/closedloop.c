@@ -8,9 +8,10 @@
  *
  * -f injects a fault (plant_fault_t number, see sim/plant/closedloop.h) into
  * every run; the summary then reports the slowest release to slack.
- * The table comes from the nominal plant (plant_make_table), or with -g from
- * a generated table linked into the program (lookup_tables/generated: the
- * host's Cosserat model against this plant, model error included); each run
+ * The table comes from the nominal plant (plant_make_table), or with
+ * -g paper_2seg from the generated table linked into the program
+ * (lookup_tables/generated: the host's Cosserat model against this plant,
+ * model error included); each run
  * uses the
  * plant perturbed with seed+run and `perturb` (0 = nominal), so model error is
  * real when perturb > 0. Quick mode first runs a full calibration, then power
@@ -28,17 +29,13 @@
 
 #include "plant/closedloop.h"
 
-/* Generated tables, when linked (weak: the tool still builds without them). */
-extern const tbl_table_t tbl_table_paper_2seg __attribute__((weak));
-extern const tbl_table_t tbl_table_trio_3seg __attribute__((weak));
+/* The default robot's generated table (linked through hh_lib). */
+extern const tbl_table_t tbl_table_paper_2seg;
 
 static const tbl_table_t *generated(const char *name)
 {
     if (strcmp(name, "paper_2seg") == 0) {
         return &tbl_table_paper_2seg;
-    }
-    if (strcmp(name, "trio_3seg") == 0) {
-        return &tbl_table_trio_3seg;
     }
     return NULL;
 }

@@ -11,6 +11,10 @@
 
 #include "table/table.h"
 
+/* The default robot's generated table (lookup_tables/generated/paper_2seg.c,
+ * linked into every test through hh_lib). */
+extern const tbl_table_t tbl_table_paper_2seg;
+
 static tbl_table_t g_tab;
 static unsigned g_copies;
 
@@ -210,6 +214,27 @@ static void test_interp_ram(void **state)
     assert_int_equal(tbl_interp(NULL, y, 4, 100, &v), TBL_E_ARG);
 }
 
+/* The generated table passes the checks and interpolates its default tension
+ * to a positive target for every tendon. */
+static void test_generated_table(void **state)
+{
+    tbl_src_t s;
+    tbl_info_t info;
+    uint8_t i;
+    (void)state;
+    s.table = &tbl_table_paper_2seg;
+    s.copy = tbl_copy_ram;
+    assert_int_equal(tbl_check(&s), 0);
+    assert_int_equal(tbl_info(&s, &info), 0);
+    assert_string_equal(info.name, "paper_2seg");
+    for (i = 0; i < info.n_tendons; i++) {
+        tbl_point_t p;
+        assert_int_equal(tbl_target(&s, i, info.default_mN, &p), 0);
+        assert_true(p.target_cuT > 0u && p.travel_um > 0u);
+        assert_int_equal(tbl_target(&s, i, (uint16_t)(info.grid_mN[0] - 1u), &p), TBL_E_RANGE);
+    }
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -221,6 +246,7 @@ int main(void)
         cmocka_unit_test_setup(test_target_interpolates, setup),
         cmocka_unit_test_setup(test_target_errors, setup),
         cmocka_unit_test_setup(test_interp_ram, setup),
+        cmocka_unit_test(test_generated_table),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
