@@ -77,6 +77,19 @@ static double rel(double actual, double nom)
     return nom != 0.0 ? actual / nom - 1.0 : 0.0;
 }
 
+/* Relative change of segment j's bending stiffness (its own EI when the
+ * config gives one, else the backbone's). */
+static double seg_ei_rel(const plant_cfg_t *actual, unsigned j)
+{
+    if (j >= nominal.n_segments) {
+        return 0.0;
+    }
+    if (nominal.seg_ei_Nm2[j] > 0.0) {
+        return rel(actual->seg_ei_Nm2[j], nominal.seg_ei_Nm2[j]);
+    }
+    return rel(actual->ei_Nm2, nominal.ei_Nm2);
+}
+
 /* One closed-loop calibration of `actual` with the nominal table. */
 static int run_one(const plant_cfg_t *actual, unsigned tension, uint32_t seed,
                    plant_run_result_t *res)
@@ -94,8 +107,8 @@ static int study_mc(const opts_t *o)
     static plant_cfg_t actual;
     static plant_run_result_t res;
     unsigned r;
-    printf("cols,mc,run,tendon,segment,rc,tension_N,err_N,err_ticks,sim_ms,ei,moment,seg1_len,"
-           "seg2_len,angle_deg,radius,ea,free_len,slack_um,friction_f0,friction_mu,backlash,"
+    printf("cols,mc,run,tendon,segment,rc,tension_N,err_N,err_ticks,sim_ms,seg1_ei,seg2_ei,moment,"
+           "seg1_len,seg2_len,angle_deg,radius,ea,free_len,slack_um,friction_f0,friction_mu,backlash,"
            "sensor_dx_mm,sensor_dy_mm,sensor_dz_mm,sensor_dr_mm\n");
     for (r = 0; r < o->runs; r++) {
         unsigned i;
@@ -111,13 +124,13 @@ static int study_mc(const opts_t *o)
             double rn = hypot(pn[0], pn[1]);
             double dr = rn > 0.0 ? ((pa[0] - pn[0]) * pn[0] + (pa[1] - pn[1]) * pn[1]) / rn : 0.0;
             int ok = prc == 0 && res.rc == 0 && res.have_home[i];
-            printf("mc,%u,%u,%u,%d,%.5f,%.5f,%.3f,%u,%.5f,%.5f,%.5f,%.5f,%.4f,%.5f,%.5f,%.5f,"
+            printf("mc,%u,%u,%u,%d,%.5f,%.5f,%.3f,%u,%.5f,%.5f,%.5f,%.5f,%.5f,%.4f,%.5f,%.5f,%.5f,"
                    "%.2f,%.5f,%.5f,%.5f,%.4f,%.4f,%.4f,%.4f\n",
                    r, i, n->segment, prc != 0 ? prc : res.rc,
                    ok ? res.tension_at_home_N[i] : NAN,
                    ok ? res.tension_at_home_N[i] - o->tension * 1e-3 : NAN,
                    ok ? res.err_ticks[i] : NAN, (unsigned)res.end_ms,
-                   rel(actual.ei_Nm2, nominal.ei_Nm2),
+                   seg_ei_rel(&actual, 0), seg_ei_rel(&actual, 1),
                    rel(actual.magnet_moment_Am2, nominal.magnet_moment_Am2),
                    rel(actual.seg_len_mm[0], nominal.seg_len_mm[0]),
                    nominal.n_segments > 1 ? rel(actual.seg_len_mm[1], nominal.seg_len_mm[1]) : 0.0,

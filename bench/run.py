@@ -132,7 +132,7 @@ def robust_item(a, res: Dict) -> None:
             "max_abs_N": max((abs(e) for e in ok), default=float("nan"))})
         if frac == main_frac:
             rob["err_N"] = [e if math.isfinite(e) else None for e in errs]
-            names = ["ei", "moment", "seg1_len", "seg2_len", "angle_deg", "radius", "ea",
+            names = ["seg1_ei", "seg2_ei", "moment", "seg1_len", "seg2_len", "angle_deg", "radius", "ea",
                      "free_len", "slack_um", "friction_f0", "friction_mu", "backlash",
                      "sensor_dx_mm", "sensor_dy_mm", "sensor_dz_mm", "sensor_dr_mm"]
             feats = {n: [r[n] for r in rows] for n in names if rows and n in rows[0]}
