@@ -239,6 +239,7 @@ def missing_text(m: Report) -> str:
             + (f" (servo id {m.get('id')})" if m.get("id") is not None else "") + "[/]")
 
 
+ABORT_WAIT = 3.0  # seconds to wait for the board's confirmation of an abort
 FAULT_GRACE = 1.5  # seconds to wait for the release report after a fault
 
 
@@ -375,14 +376,17 @@ def calibrate_cmd(tension, tendon, run_timeout, port, timeout) -> None:
                         view.feed(r)
                     live.update(view.table(title))
         except KeyboardInterrupt:
-            got = c.abort(wait=2.0, until=lambda r: r.kind == R.RELEASED)
+            got = c.abort(wait=ABORT_WAIT, until=lambda r: r.kind == R.RELEASED)
             for r in got:
                 view.feed(r)
             con.print(view.table(title + " (aborted)"))
             if view.released is not None:
                 err().print("[yellow]aborted: the board stopped and released every tendon[/]")
+            elif any(f.get("reason") == "aborted" for f in view.faults):
+                err().print("[yellow]aborted: the board stopped the calibration (no tendon was "
+                            "under way, so no release was needed)[/]")
             else:
-                err().print("[yellow]abort sent; the board did not confirm the release within 2 s[/]")
+                err().print(f"[yellow]abort sent; the board did not confirm it within {ABORT_WAIT:g} s[/]")
             sys.exit(130)
         c.motion_ended()
     for m in view.missing:

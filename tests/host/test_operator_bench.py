@@ -242,6 +242,7 @@ def test_calibrate_ctrl_c_aborts_on_the_board(bench):
     assert p.returncode == 130, out + err
     assert "aborted: the board stopped and released every tendon" in err
     b.wait_line(r"<released reason=aborted>", 5, after=m)
+    assert not re.search(r"<done mode=(full|single)", b.text()[m:])
 
 
 def test_sigterm_leaves_no_calibration_running(bench):
@@ -264,7 +265,8 @@ def test_client_close_aborts_what_it_started(bench):
     c.command("cal")
     assert c.motion == "cal"
     c.close()
-    b.wait_line(r"<released reason=aborted>", 5, after=m)
+    b.wait_line(r"<(fault|released) reason=aborted", 5, after=m)
+    assert not re.search(r"<done mode=(full|single)", b.text()[m:])
 
 
 # --- learn, monitor -----------------------------------------------------------------
