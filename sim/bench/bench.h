@@ -286,6 +286,7 @@ struct bench_t {
     uint8_t pending_reset; /* 0 none, else an EV_* reset kind to perform */
     uint8_t reset_seen;
     uint64_t resets, wdt_resets, power_cycles;
+    uint64_t uart_fixes; /* UART frame times corrected (U2X set after UBRR) */
     uint64_t next_world_us;
     uint64_t timer_at; /* absolute us of the armed service timer */
     /* end of run */

@@ -169,6 +169,31 @@ void bench_rearm(bench_t *b)
     b->timer_at = next;
 }
 
+/* simavr computes a UART's frame time when UBRR is written, reading U2X at
+ * that moment; a firmware that sets U2X after UBRR (as the datasheet's
+ * examples and uart0_init() do) would get frames twice as long as on the
+ * board: the console at half its rate. The bench keeps each UART's frame at
+ * 11 bit times of the rate UBRR and U2X select now. */
+static void uart_timing_fix(bench_t *b)
+{
+    for (avr_io_t *io = b->avr->io_port; io != NULL; io = io->next) {
+        if (io->kind == NULL || strcmp(io->kind, "uart") != 0) {
+            continue;
+        }
+        avr_uart_t *u = (avr_uart_t *)(void *)io;
+        uint32_t ubrr =
+            avr_regbit_get(b->avr, u->ubrrl) | (uint32_t)avr_regbit_get(b->avr, u->ubrrh) << 8;
+        avr_cycle_count_t want = (avr_cycle_count_t)(ubrr + 1u) * 8u * 11u;
+        if (!avr_regbit_get(b->avr, u->u2x)) {
+            want *= 2u;
+        }
+        if (u->cycles_per_byte != 0 && u->cycles_per_byte != want) {
+            u->cycles_per_byte = want;
+            b->uart_fixes++;
+        }
+    }
+}
+
 /* ---- pins, EEPROM, resets ------------------------------------------------------ */
 
 static void led_pin(avr_irq_t *irq, uint32_t value, void *param)
@@ -391,6 +416,7 @@ static void write_summary(bench_t *b, double wall, double cpu)
             "  \"speed_cpu\": %.2f,\n  \"cycles\": %llu,\n",
             sim, wall, wall > 0 ? sim / wall : 0.0, cpu, cpu > 0 ? sim / cpu : 0.0,
             (unsigned long long)b->avr->cycle);
+    fprintf(f, "  \"uart_timing_fixes\": %llu,\n", (unsigned long long)b->uart_fixes);
     fprintf(f, "  \"seed\": %u,\n  \"until\": {\"matched\": %s, \"t_s\": %.6f, \"line\": ", b->seed,
             b->until_line[0] ? "true" : "false", (double)b->until_at_us * 1e-6);
     json_str(f, b->until_line);
@@ -719,7 +745,10 @@ int main(int argc, char **argv)
         if (limit_cycles != 0 && b->avr->cycle >= limit_cycles) {
             bench_finish(b, b->n_until ? BENCH_EXIT_TIMEOUT : BENCH_EXIT_OK, "time limit");
         }
-        if ((++spin & 0x3FFFu) == 0) {
+        if ((++spin & 0x3FFu) == 0) {
+            uart_timing_fix(b);
+        }
+        if ((spin & 0x3FFFu) == 0) {
             if (bench_signalled) {
                 bench_finish(b, BENCH_EXIT_SIGNAL, "signal");
             }

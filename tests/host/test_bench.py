@@ -179,6 +179,16 @@ def test_console_line_is_received_and_answered(tmp_path):
     assert r.summary["console"]["bytes_in"] == 3
 
 
+def test_console_runs_at_the_board_rate(tmp_path):
+    # 115200 with U2X (UBRR 16) is 117647 baud; simavr frames are 11 bits:
+    # 93.5 us per byte. "n\r" in, then "rx_count=2\r\n" out: 12 frames out
+    # (simavr alone would take twice that: it reads U2X only when UBRR is set).
+    r = probe(tmp_path, ("0.1s", "n"), limit="200ms", extra=["--timestamps"])
+    t = float(re.match(r"^\[\s*([0-9.]+)\] rx_count=2$", r.line(r"rx_count=")).group(1))
+    assert 0.1 + 12 * 93.5e-6 <= t < 0.1 + 15 * 93.5e-6
+    assert r.summary["uart_timing_fixes"] >= 1
+
+
 def test_console_input_from_file(tmp_path):
     f = tmp_path / "in.txt"
     f.write_text("b\nn\n")
