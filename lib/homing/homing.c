@@ -24,6 +24,8 @@ enum {
 
 #define HOM_MAX_AVG             32u
 #define HOM_QUICK_STOP_PERMILLE 975u /* quick leg: stop when the field is this close */
+#define HOM_DROOP_TICKS         8    /* a servo stopped this close counts as arrived ... */
+#define HOM_STILL_MS            100u /* ... after this long without motion */
 #define HOM_FIT_POINTS          4u   /* near points kept for the final fit (hom_t.pts) */
 
 void hom_config_default(hom_config_t *cfg)
@@ -317,8 +319,14 @@ void hom_abort(hom_t *h)
 
 /* ---- helpers ------------------------------------------------------------------ */
 
+static uint32_t elapsed(uint32_t now, uint32_t since)
+{
+    return (uint32_t)(now - since);
+}
+
 static void set_goal(hom_t *h, uint8_t i, int32_t goal, uint16_t vel)
 {
+    h->cmd_ms[i] = h->now_ms;
     h->out.goal[i] = goal;
     h->out.vel[i] = vel;
     h->out.acc[i] = h->cfg.acc;
@@ -327,10 +335,18 @@ static void set_goal(hom_t *h, uint8_t i, int32_t goal, uint16_t vel)
     h->moved = 1;
 }
 
+/* At the goal: within a tick, or stopped short by a few ticks for
+ * HOM_STILL_MS since both the command and the last motion (a position
+ * controller without integral action droops under the tendon's load). */
 static int reached(const hom_t *h, uint8_t i)
 {
     int32_t d = h->present[i] - h->out.goal[i];
-    return d >= -1 && d <= 1;
+    if (d >= -1 && d <= 1) {
+        return 1;
+    }
+    return d >= -HOM_DROOP_TICKS && d <= HOM_DROOP_TICKS &&
+           elapsed(h->now_ms, h->cmd_ms[i]) >= HOM_STILL_MS &&
+           elapsed(h->now_ms, h->moved_ms[i]) >= HOM_STILL_MS;
 }
 
 /* Every tendon whose goal was set in this run has reached it. */
@@ -343,11 +359,6 @@ static int all_reached(const hom_t *h)
         }
     }
     return 1;
-}
-
-static uint32_t elapsed(uint32_t now, uint32_t since)
-{
-    return (uint32_t)(now - since);
 }
 
 static void start_avg(hom_t *h)
@@ -476,6 +487,9 @@ static int check_servos(hom_t *h, const hom_in_t *in)
             if (s->hw_error != 0u) {
                 fail(h, in->now_ms, HOM_F_SERVO_ERROR, HOM_DEV_SERVO, i, s->hw_error);
                 return 1;
+            }
+            if (s->pos != h->present[i]) {
+                h->moved_ms[i] = in->now_ms;
             }
             h->present[i] = s->pos;
             h->servo_ok_ms[i] = in->now_ms;
@@ -1120,8 +1134,9 @@ static void do_tendon(hom_t *h, const hom_in_t *in)
         break;
     case ST_FINE_MOVE: {
         int32_t err = p - h->out.goal[h->cur];
-        if (elapsed(now, h->t_phase) >= h->cfg.settle_ms && err >= -1 && err <= 1 &&
-            elapsed(now, h->t_moved) >= h->cfg.settle_ms / 2u) {
+        if (elapsed(now, h->t_phase) >= h->cfg.settle_ms &&
+            elapsed(now, h->moved_ms[h->cur]) >= h->cfg.settle_ms / 2u &&
+            ((err >= -1 && err <= 1) || reached(h, h->cur))) {
             start_avg(h);
             h->state = ST_FINE_AVG;
         } else if (elapsed(now, h->t_phase) > h->cfg.move_timeout_ms) {
@@ -1151,6 +1166,7 @@ int hom_step(hom_t *h, const hom_in_t *in, hom_out_t *out)
     if (h == NULL || in == NULL || out == NULL) {
         return HOM_E_ARG;
     }
+    h->now_ms = in->now_ms;
     h->out.changed = 0;
     if (h->state == ST_IDLE || h->state == ST_DONE || h->state == ST_FAULT) {
         *out = h->out;
@@ -1167,11 +1183,7 @@ int hom_step(hom_t *h, const hom_in_t *in, hom_out_t *out)
     } else if (h->state == ST_PREFLIGHT) {
         do_preflight(h, in);
     } else {
-        int32_t before = h->present[h->cur];
         if (check_servos(h, in) == 0 && check_sensors(h, in) == 0) {
-            if (h->present[h->cur] != before) {
-                h->t_moved = in->now_ms;
-            }
             switch (h->state) {
             case ST_RELEASE_ALL:
                 if (all_reached(h)) {

@@ -288,7 +288,9 @@ typedef struct {
     int32_t slack_ref[TBL_MAX_SENSORS][3]; /* slack check: previous averaged field */
     int32_t mod_goal;                      /* re-approach: moderate goal after an overshoot */
     int32_t slope_q8;                      /* fine: current slope estimate, cuT per tick * 256 */
-    uint32_t t_moved;                      /* last change of the active tendon's present position */
+    uint32_t now_ms;                       /* time of the current step */
+    uint32_t cmd_ms[TBL_MAX_TENDONS];      /* last goal written, per tendon */
+    uint32_t moved_ms[TBL_MAX_TENDONS];    /* last change of the present position */
     uint8_t settled;                       /* slack average: settle time over, averaging */
     uint8_t quick_leg; /* quick mode: fast leg to just before the expected engagement */
     uint8_t near;      /* fine: the next point is within a few ticks of the target */

@@ -22,6 +22,7 @@ typedef struct {
     int32_t pos[TBL_MAX_TENDONS];
     int32_t field[TBL_MAX_SENSORS][3];
     int32_t drift_per_sample; /* added to every field z at each sample */
+    int32_t droop;            /* servos stop this many ticks short of their goals */
     uint8_t sensor_status[TBL_MAX_SENSORS];
     uint8_t servo_status[TBL_MAX_TENDONS];
     uint8_t hw_error[TBL_MAX_TENDONS];
@@ -70,7 +71,7 @@ static int bench_step(bench_t *b, hom_t *h)
     rc = hom_step(h, &b->in, &b->out);
     for (k = 0; k < TBL_MAX_TENDONS; k++) {
         if ((b->out.changed >> k) & 1u) {
-            b->pos[k] = b->out.goal[k];
+            b->pos[k] = b->out.goal[k] + (b->out.goal[k] > b->pos[k] ? -b->droop : b->droop);
         }
     }
     return rc;
@@ -287,6 +288,39 @@ static void test_steady_field_reaches_tendon_phase_across_wrap(void **state)
     assert_int_equal(g_h.fault, HOM_F_NO_ENGAGEMENT);
 }
 
+static void test_servo_droop_counts_as_arrived(void **state)
+{
+    /* position control without integral action stops short under load: a
+     * servo still for 100 ms within a few ticks of its goal has arrived */
+    tbl_src_t src = src_of(&g_tab);
+    hom_cmd_t c = full_cmd();
+    hom_event_t ev;
+    int n;
+    int tendon_phase = 0;
+    (void)state;
+    hom_init(&g_h, NULL);
+    bench_init(&g_b, 0);
+    g_b.droop = 3;
+    assert_int_equal(hom_start(&g_h, &src, &c), 0);
+    for (n = 0; n < 5000 && !tendon_phase; n++) {
+        assert_int_equal(bench_step(&g_b, &g_h), HOM_RUNNING);
+        while (hom_event_pop(&g_h, &ev)) {
+            tendon_phase |= ev.type == HOM_EV_PHASE && ev.code == HOM_PH_TENDON;
+        }
+    }
+    assert_true(tendon_phase);
+    assert_true(n > 200); /* it did wait for the servos to stand still */
+    /* 20 ticks short is not arrived: the release never completes */
+    hom_init(&g_h, NULL);
+    bench_init(&g_b, 0);
+    g_b.droop = 20;
+    assert_int_equal(hom_start(&g_h, &src, &c), 0);
+    for (n = 0; n < 10000 && g_h.fault == HOM_F_NONE; n++) {
+        (void)bench_step(&g_b, &g_h);
+    }
+    assert_int_equal(g_h.fault, HOM_F_SERVO_STALL);
+}
+
 static void test_event_queue_overflow(void **state)
 {
     static tbl_table_t big;
@@ -354,6 +388,7 @@ int main(void)
         cmocka_unit_test(test_preflight_names_every_missing_device),
         cmocka_unit_test(test_slack_never_confirmed),
         cmocka_unit_test(test_steady_field_reaches_tendon_phase_across_wrap),
+        cmocka_unit_test(test_servo_droop_counts_as_arrived),
         cmocka_unit_test(test_event_queue_overflow),
         cmocka_unit_test(test_helpers),
     };
