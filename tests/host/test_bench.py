@@ -349,6 +349,7 @@ def test_transmitting_into_a_reply_collides(tmp_path):
     bus = r.summary["bus"]
     assert bus["collisions"] > 0 and bus["corrupted"] >= bus["collisions"]
     assert bus["servos"][0]["replies"] == 1  # the corrupted second ping got no answer
+    assert bus["rx_lost"] > 0  # reply bytes that came while the MCU was transmitting
     assert len(data) < 14 or crc16_dxl(data[:-2]) != data[-2] | data[-1] << 8
 
 
@@ -387,6 +388,18 @@ def test_silent_servo_and_bus_noise(tmp_path):
     assert bus["noise_hits"] == bus["mcu_bytes"] + bus["servo_bytes"] and bus["noise_hits"] >= 10
     data = parse_rx(r.line(r"^rx "))
     assert data == b"" or crc16_dxl(data[:-2]) != data[-2] | data[-1] << 8
+
+
+def test_hardware_error_on_demand_sets_the_alert_bit(tmp_path):
+    r = probe(tmp_path, ("0.1s", "p 1"), ("0.3s", "p 1"), ("0.4s", "p 2"),
+              extra=["--at", "0.2s servo-hwerr 0 32"], limit="500ms")
+    replies = [parse_rx(l) for l in r.lines if l.startswith("rx ")]
+    assert replies[0][8] == 0x00
+    assert replies[1][8] & 0x80  # alert: hardware error status set
+    assert crc16_dxl(replies[1][:-2]) == replies[1][-2] | replies[1][-1] << 8
+    assert replies[2][8] == 0x00  # the other servos are fine
+    assert r.summary["tendons"][0]["hw_error"] == 32
+    assert r.summary["tendons"][0]["torque"] == 0
 
 
 def test_bus_noise_is_reproducible_with_the_seed(tmp_path):
