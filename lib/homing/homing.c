@@ -284,6 +284,13 @@ int hom_start(hom_t *h, const tbl_src_t *table, const hom_cmd_t *cmd)
         h->tendon[i].release_ticks = um_to_ticks(rel_um, h->tendon[i].nm_per_tick);
     }
     h->table = *table;
+    /* averages beyond the accumulator's reach would never complete */
+    if (h->cfg.baseline_samples == 0u || h->cfg.baseline_samples > HOM_MAX_AVG) {
+        h->cfg.baseline_samples = HOM_MAX_AVG;
+    }
+    if (h->cfg.avg_samples == 0u || h->cfg.avg_samples > HOM_MAX_AVG / 2u) {
+        h->cfg.avg_samples = HOM_MAX_AVG / 2u;
+    }
     h->mode = (uint8_t)cmd->mode;
     h->single = cmd->tendon;
     h->n_tendons = info.n_tendons;

@@ -191,30 +191,31 @@ typedef struct {
 
 /* Tunables. hom_config_default() explains the defaults (docs/homing.md). */
 typedef struct {
-    uint16_t v_fast;          /* take-up before engagement, 0.229 rpm units */
-    uint16_t v_moderate;      /* engagement to near the target */
-    uint16_t v_fine;          /* fine steps */
-    uint16_t v_release;       /* releases and aborts */
-    uint16_t v_final;         /* final move to the homes (the longest move) */
-    uint16_t acc;             /* profile acceleration for every move (0 = the servo's maximum) */
-    uint16_t slack_margin_um; /* release this far beyond engagement */
-    uint16_t slack_step_um;   /* slack check: further release per step */
-    uint8_t slack_max_steps;  /* slack check: steps before HOM_F_SLACK */
-    uint8_t baseline_samples; /* per slack-check average; B0 takes two (<= 32) */
-    uint8_t avg_samples; /* samples averaged per fine point; near the target more, by the noise */
-    uint8_t fine_max_steps;     /* fine points before HOM_F_NO_PROGRESS */
-    uint16_t near_permille;     /* moderate approach stops at this fraction of the target */
-    uint16_t settle_ms;         /* wait after a fine move before sampling */
-    uint16_t preflight_ms;      /* time for every device to answer */
-    uint16_t sensor_timeout_ms; /* no sample for this long: HOM_F_SENSOR_TIMEOUT */
-    uint16_t servo_timeout_ms;  /* no answer for this long: HOM_F_SERVO_TIMEOUT */
-    uint16_t move_timeout_ms;   /* a release / final move longer than this: HOM_F_SERVO_STALL */
-    uint16_t
-        tendon_timeout_ms;   /* one tendon's calibration longer than this: HOM_F_TENDON_TIMEOUT */
-    uint32_t engage_min_cuT; /* engagement threshold floor (raised to 8x table noise) */
-    uint32_t rate_limit_cuT; /* largest plausible change of one axis between two samples */
-    uint32_t sat_cuT;        /* an axis at or beyond this reads as saturated */
-    uint32_t max_takeup_um;  /* search distance for engagement */
+    uint16_t v_fast;             /* take-up before engagement, 0.229 rpm units */
+    uint16_t v_moderate;         /* engagement to near the target */
+    uint16_t v_fine;             /* fine steps */
+    uint16_t v_release;          /* releases and aborts */
+    uint16_t v_final;            /* final move to the homes (the longest move) */
+    uint16_t acc;                /* profile acceleration for every move (0 = the servo's maximum) */
+    uint16_t slack_margin_um;    /* release this far beyond engagement */
+    uint16_t slack_step_um;      /* slack check: further release per step */
+    uint8_t slack_max_steps;     /* slack check: steps before HOM_F_SLACK */
+    uint8_t baseline_samples;    /* per slack-check average, B0 takes two (1..32, else 32) */
+    uint8_t avg_samples;         /* per fine point, more near the target (1..16, else 16) */
+    uint8_t fine_max_steps;      /* fine points before HOM_F_NO_PROGRESS */
+    uint16_t near_permille;      /* moderate approach stops at this fraction of the target */
+    uint16_t settle_ms;          /* wait after a fine move before sampling */
+    uint16_t preflight_ms;       /* time for every device to answer */
+    uint16_t sensor_timeout_ms;  /* no sample for this long: HOM_F_SENSOR_TIMEOUT */
+    uint16_t servo_timeout_ms;   /* no answer for this long: HOM_F_SERVO_TIMEOUT */
+    uint16_t move_timeout_ms;    /* a release / final move longer than this: HOM_F_SERVO_STALL */
+    uint16_t tendon_timeout_ms;  /* one tendon longer than this: HOM_F_TENDON_TIMEOUT */
+    uint32_t engage_min_cuT;     /* engagement threshold floor (raised to 8x table noise, at most
+                                    a quarter of the smallest target) */
+    uint32_t rate_limit_cuT;     /* largest plausible change of one axis between two samples */
+    uint32_t sat_cuT;            /* an axis at or beyond this reads as saturated */
+    uint32_t max_takeup_um;      /* engagement search: the most slack a tendon may start with (the
+                                    search adds what the run itself released) */
     uint32_t initial_release_um; /* first release when positions are unknown (0 = from table) */
 } hom_config_t;
 
