@@ -349,7 +349,7 @@ static int study_ambient(const opts_t *o)
     static plant_run_result_t res;
     uint64_t rng = 0xA3B1E47ull ^ ((uint64_t)o->seed << 20);
     unsigned m, dd, i, k;
-    printf("cols,amb,dA_uT,dir,dx_uT,dy_uT,dz_uT,tendon,segment,mode,rc,tension_N,err_N\n");
+    printf("cols,amb,dA_uT,dir,dx_uT,dy_uT,dz_uT,tendon,segment,mode,rc,tension_N,err_N,why\n");
     for (m = 0; m < o->n_amb; m++) {
         unsigned ndirs = o->amb[m] == 0.0 ? 1u : o->dirs;
         for (dd = 0; dd < ndirs; dd++) {
@@ -375,19 +375,21 @@ static int study_ambient(const opts_t *o)
             for (i = 0; i < nominal.n_tendons; i++) {
                 double xd, xa, td, ta;
                 int ok = prc == 0 && res.rc == 0 && res.have_home[i];
-                printf("amb,%.2f,%u,%.3f,%.3f,%.3f,%u,%u,delta_loop,%d,%.5f,%.5f\n", o->amb[m], dd,
-                       v[0], v[1], v[2], i, nominal.tendon[i].segment, prc != 0 ? prc : res.rc,
-                       ok ? res.tension_at_home_N[i] : NAN,
-                       ok ? res.tension_at_home_N[i] - o->tension * 1e-3 : NAN);
+                printf("amb,%.2f,%u,%.3f,%.3f,%.3f,%u,%u,delta_loop,%d,%.5f,%.5f,%s\n", o->amb[m],
+                       dd, v[0], v[1], v[2], i, nominal.tendon[i].segment,
+                       prc != 0 ? prc : res.rc, ok ? res.tension_at_home_N[i] : NAN,
+                       ok ? res.tension_at_home_N[i] - o->tension * 1e-3 : NAN,
+                       prc != 0 ? "run_error" : hom_fault_name(res.fault));
                 ideal_detect(&actual, i, o->tension, &xd, &xa);
                 td = isnan(xd) ? NAN : plant_tension_at(&actual, (uint8_t)i, xd);
                 ta = isnan(xa) ? NAN : plant_tension_at(&actual, (uint8_t)i, xa);
-                printf("amb,%.2f,%u,%.3f,%.3f,%.3f,%u,%u,delta_ideal,%d,%.5f,%.5f\n", o->amb[m],
-                       dd, v[0], v[1], v[2], i, nominal.tendon[i].segment, isnan(xd) ? 1 : 0, td,
-                       td - o->tension * 1e-3);
-                printf("amb,%.2f,%u,%.3f,%.3f,%.3f,%u,%u,abs_ideal,%d,%.5f,%.5f\n", o->amb[m], dd,
-                       v[0], v[1], v[2], i, nominal.tendon[i].segment, isnan(xa) ? 1 : 0, ta,
-                       ta - o->tension * 1e-3);
+                printf("amb,%.2f,%u,%.3f,%.3f,%.3f,%u,%u,delta_ideal,%d,%.5f,%.5f,%s\n",
+                       o->amb[m], dd, v[0], v[1], v[2], i, nominal.tendon[i].segment,
+                       isnan(xd) ? 1 : 0, td, td - o->tension * 1e-3,
+                       isnan(xd) ? "target_not_reached" : "none");
+                printf("amb,%.2f,%u,%.3f,%.3f,%.3f,%u,%u,abs_ideal,%d,%.5f,%.5f,%s\n", o->amb[m],
+                       dd, v[0], v[1], v[2], i, nominal.tendon[i].segment, isnan(xa) ? 1 : 0, ta,
+                       ta - o->tension * 1e-3, isnan(xa) ? "target_not_reached" : "none");
             }
         }
     }
@@ -401,7 +403,7 @@ static int study_cal(const opts_t *o)
     plant_run_cfg_t rc;
     unsigned r, i;
     printf("cols,cal,run,tendon,segment,rc,home_ticks,true_home_ticks,err_ticks,tension_N,err_N,"
-           "sim_ms\n");
+           "sim_ms,why\n");
     for (r = 0; r < o->runs; r++) {
         int prc;
         actual = nominal;
@@ -427,10 +429,12 @@ static int study_cal(const opts_t *o)
         }
         for (i = 0; i < nominal.n_tendons; i++) {
             int ok = prc == 0 && res.rc == 0 && res.have_home[i];
-            printf("cal,%u,%u,%u,%d,%.0f,%.3f,%.3f,%.5f,%.5f,%u\n", r, i, nominal.tendon[i].segment,
-                   prc != 0 ? prc : res.rc, ok ? res.home_plant[i] : NAN, res.true_home[i],
-                   ok ? res.err_ticks[i] : NAN, ok ? res.tension_at_home_N[i] : NAN,
-                   ok ? res.tension_at_home_N[i] - o->tension * 1e-3 : NAN, (unsigned)res.end_ms);
+            printf("cal,%u,%u,%u,%d,%.0f,%.3f,%.3f,%.5f,%.5f,%u,%s\n", r, i,
+                   nominal.tendon[i].segment, prc != 0 ? prc : res.rc,
+                   ok ? res.home_plant[i] : NAN, res.true_home[i], ok ? res.err_ticks[i] : NAN,
+                   ok ? res.tension_at_home_N[i] : NAN,
+                   ok ? res.tension_at_home_N[i] - o->tension * 1e-3 : NAN, (unsigned)res.end_ms,
+                   prc != 0 ? "run_error" : hom_fault_name(res.fault));
         }
     }
     return 0;

@@ -150,9 +150,13 @@ def ambient(amb: Dict, outdir: str) -> str:
         x = [r["dA_uT"] for r in rows]
         ax.plot(x, [r["rms_N"] for r in rows], marker="o", color=color, label=label + ", RMS")
         ax.plot(x, [r["max_abs_N"] for r in rows], ls=":", color=color, label=label + ", max")
+        for r in rows:
+            if r.get("failed"):
+                ax.annotate(f"{r['failed']}/{r['n']} failed", (r["dA_uT"], r["rms_N"]),
+                            textcoords="offset points", xytext=(4, 6), fontsize=7, color=color)
     ax.axhline(PAPER["tension_err_sd_N"], color="0.6", ls="--", lw=1, label="paper SD 0.20 N")
     ax.set_xlabel("ambient field change between table and calibration (µT)")
     ax.set_ylabel("|tension error| (N)")
-    ax.set_title("Ambient change: absolute mode vs field-change mode")
+    ax.set_title("Ambient change: absolute mode vs field-change mode (failed homes not in RMS)")
     ax.legend(fontsize=7)
     return _save(fig, outdir, "ambient.png")

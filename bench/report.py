@@ -224,11 +224,17 @@ def section_ambient(res: Dict) -> List[str]:
     out.append("| --- | --- | --- | --- | --- | --- | --- |")
     for mode in ("abs_ideal", "delta_ideal", "delta_loop"):
         for r in amb.get("modes", {}).get(mode, []):
-            out.append(f"| {r['dA_uT']:g} | {mode} | {r['n']} | {r['failed']} | "
+            failed = f"{r['failed']} ({r['why']})" if r.get("failed") and r.get("why") else r["failed"]
+            out.append(f"| {r['dA_uT']:g} | {mode} | {r['n']} | {failed} | "
                        f"{r['mean_N']:+.4f} | {r['rms_N']:.4f} | {r['max_abs_N']:.4f} |")
     out += ["", "`abs_ideal` / `delta_ideal`: noise-free quasi-static pull of the plant, "
             "sub-tick crossing (isolates the ambient effect); `delta_loop`: the homing core in "
-            "the closed loop (noise, encoder ticks).", "", "![ambient](ambient.png)", ""]
+            "the closed loop (noise, encoder ticks). Errors are over the homes found; a failed "
+            "home is one the mode never reached within the travel limit (`target_not_reached`, "
+            "a travel-limit fault in practice) or a run the homing core ended with a fault "
+            "(`magnet_missing`: its magnet check compares the absolute |B0| with the table's "
+            "straight-pose prediction, so a large ambient change can trip it).", "",
+            "![ambient](ambient.png)", ""]
     return out
 
 

@@ -144,6 +144,13 @@ def robust_item(a, res: Dict) -> None:
     res["robust"] = rob
 
 
+def _count(words) -> str:
+    c: Dict[str, int] = {}
+    for w in words:
+        c[w] = c.get(w, 0) + 1
+    return ", ".join(f"{k} x{v}" for k, v in sorted(c.items()))
+
+
 def ambient_item(a, res: Dict) -> None:
     mags = "0 50" if a.reduced else "0 10 25 50 100 200"
     dirs = 1 if a.reduced else 8
@@ -159,6 +166,7 @@ def ambient_item(a, res: Dict) -> None:
         m, _ = stats.mean_sd(e)
         modes.setdefault(mode, []).append({
             "dA_uT": mag, "n": len(rows), "failed": sum(1 for r in rows if r["rc"] != 0),
+            "why": _count(str(r.get("why", "")) for r in rows if r["rc"] != 0),
             "mean_N": m, "rms_N": math.sqrt(sum(x * x for x in e) / len(e)) if e else float("nan"),
             "max_abs_N": max((abs(x) for x in e), default=float("nan"))})
     res["ambient"] = {

@@ -26,9 +26,11 @@ BENCH_NATIVE_CFLAGS := -std=c99 -O2 -Wall -Wextra -pedantic -Ilib -Isim
 
 .PHONY: bench bench-check bench-tools
 
-$(BENCH_CL): tests/tools/closedloop.c $(BENCH_NATIVE_SRCS) $(wildcard sim/plant/*.h lib/homing/*.h lib/table/*.h) | $(STAMP)
+# hh_closedloop links every generated table, as the CMake build does (its -g).
+$(BENCH_CL): tests/tools/closedloop.c $(BENCH_NATIVE_SRCS) $(wildcard lookup_tables/generated/*.c) $(wildcard sim/plant/*.h lib/homing/*.h lib/table/*.h) | $(STAMP)
 	@mkdir -p $(@D)
-	$(CC) $(BENCH_NATIVE_CFLAGS) -o $@ tests/tools/closedloop.c $(BENCH_NATIVE_SRCS) -lm
+	$(CC) $(BENCH_NATIVE_CFLAGS) -o $@ tests/tools/closedloop.c $(BENCH_NATIVE_SRCS) \
+		$(wildcard lookup_tables/generated/*.c) -lm
 
 # hh_mc links the generated table of $(ROBOT) too (-g: the model-based workflow).
 BENCH_GEN_TABLE := $(wildcard lookup_tables/generated/$(ROBOT).c)
