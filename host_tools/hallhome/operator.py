@@ -361,8 +361,12 @@ def calibrate_cmd(tension, tendon, run_timeout, port, timeout) -> None:
         for r in reply.reports:
             view.feed(r)
         deadline = time.monotonic() + run_timeout
+        if not con.is_terminal:  # a log: the reports as they come, the table at the end
+            for r in reply.reports:
+                click.echo(r.raw)
         try:
-            with Live(view.table(title), console=con, refresh_per_second=4, transient=False) as live:
+            with Live(view.table(title), console=con, refresh_per_second=4, transient=False,
+                      auto_refresh=con.is_terminal) as live:
                 while not view.finished:
                     if time.monotonic() > deadline:
                         c.abort(wait=2.0, until=ends_motion)
@@ -374,7 +378,13 @@ def calibrate_cmd(tension, tendon, run_timeout, port, timeout) -> None:
                             raise BoardReset(c.reset_message(r, "during the calibration") +
                                              "; run `hallhome calibrate` again", r)
                         view.feed(r)
-                    live.update(view.table(title))
+                        if not con.is_terminal:
+                            click.echo(r.raw)
+                    if con.is_terminal:
+                        live.update(view.table(title))
+                live.update(view.table(title))
+            if not con.is_terminal:
+                click.echo()
         except KeyboardInterrupt:
             got = c.abort(wait=ABORT_WAIT, until=lambda r: r.kind == R.RELEASED)
             for r in got:
@@ -399,7 +409,8 @@ def calibrate_cmd(tension, tendon, run_timeout, port, timeout) -> None:
     for f in view.faults:
         err().print(f"[red]fault: {f.get('reason')} on {f.get('dev')} {f.get('index')}"
                     + (f" (servo id {f.get('id')})" if f.get("id") is not None else "") + "[/]")
-    err().print("[red]the calibration failed; the board released every tendon[/]")
+    err().print("[red]the calibration failed" +
+                ("; the board released every tendon" if view.released is not None else "") + "[/]")
     sys.exit(1)
 
 
