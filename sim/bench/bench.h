@@ -101,10 +101,10 @@ typedef struct {
 typedef struct bench_t bench_t;
 
 /* A console-line pattern of --until / --fail-on, or of a scenario's `until`
- * and `fail-on` lines, active from a simulated time on. */
+ * and `fail-on` lines, active in a window of simulated time. */
 typedef struct {
     regex_t re;
-    uint64_t from_us;
+    uint64_t from_us, to_us; /* active in [from, to) */
     char text[128];
 } bench_pattern_t;
 
@@ -309,7 +309,7 @@ void bench_console_line(bench_t *b, const char *line);
 void bench_rearm(bench_t *b);
 /* Adds an --until (fail = 0) or --fail-on (fail = 1) pattern. Returns 0, or
  * -1 when the expression does not compile or the table is full. */
-int bench_add_pattern(bench_t *b, uint8_t fail, const char *re, uint64_t from_us);
+int bench_add_pattern(bench_t *b, uint8_t fail, const char *re, uint64_t from_us, uint64_t to_us);
 
 /* scenario.c */
 int scen_parse_time(const char *s, uint64_t *us);

@@ -79,7 +79,8 @@ void bench_console_line(bench_t *b, const char *line)
     }
     uint64_t now = bench_now_us(b);
     for (uint8_t i = 0; i < b->n_fail; i++) {
-        if (now >= b->fail[i].from_us && regexec(&b->fail[i].re, line, 0, NULL, 0) == 0) {
+        if (now >= b->fail[i].from_us && now < b->fail[i].to_us &&
+            regexec(&b->fail[i].re, line, 0, NULL, 0) == 0) {
             snprintf(b->until_line, sizeof b->until_line, "%s", line);
             b->until_at_us = bench_now_us(b);
             snprintf(b->reason_buf, sizeof b->reason_buf, "fail-on matched: %s", b->fail[i].text);
@@ -88,7 +89,8 @@ void bench_console_line(bench_t *b, const char *line)
         }
     }
     for (uint8_t i = 0; i < b->n_until; i++) {
-        if (now >= b->until[i].from_us && regexec(&b->until[i].re, line, 0, NULL, 0) == 0) {
+        if (now >= b->until[i].from_us && now < b->until[i].to_us &&
+            regexec(&b->until[i].re, line, 0, NULL, 0) == 0) {
             snprintf(b->until_line, sizeof b->until_line, "%s", line);
             b->until_at_us = bench_now_us(b);
             bench_finish(b, BENCH_EXIT_OK, "until matched");
@@ -517,7 +519,7 @@ static void usage(FILE *f)
         "5 signal\n");
 }
 
-int bench_add_pattern(bench_t *b, uint8_t fail, const char *re, uint64_t from_us)
+int bench_add_pattern(bench_t *b, uint8_t fail, const char *re, uint64_t from_us, uint64_t to_us)
 {
     bench_pattern_t *tab = fail ? b->fail : b->until;
     uint8_t *n = fail ? &b->n_fail : &b->n_until;
@@ -526,6 +528,7 @@ int bench_add_pattern(bench_t *b, uint8_t fail, const char *re, uint64_t from_us
         return -1;
     }
     tab[*n].from_us = from_us;
+    tab[*n].to_us = to_us;
     snprintf(tab[*n].text, sizeof tab[*n].text, "%s", re);
     (*n)++;
     return 0;
@@ -567,12 +570,12 @@ int main(int argc, char **argv)
             }
         } else if (strcmp(a, "--until") == 0) {
             NEEDV();
-            if (bench_add_pattern(b, 0, v, 0) != 0) {
+            if (bench_add_pattern(b, 0, v, 0, UINT64_MAX) != 0) {
                 return BENCH_EXIT_USAGE;
             }
         } else if (strcmp(a, "--fail-on") == 0) {
             NEEDV();
-            if (bench_add_pattern(b, 1, v, 0) != 0) {
+            if (bench_add_pattern(b, 1, v, 0, UINT64_MAX) != 0) {
                 return BENCH_EXIT_USAGE;
             }
         } else if (strcmp(a, "--at") == 0) {

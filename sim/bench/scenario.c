@@ -103,23 +103,31 @@ static void unescape(char *s)
     *o = '\0';
 }
 
-/* "[<time>] until|fail-on REGEX": the scenario's expected outcome, matched
- * against console lines from that time on. Returns 1 when the line is one. */
+/* "[FROM[-TO]] until|fail-on REGEX": the scenario's expected outcome, matched
+ * against console lines from FROM (default 0) until TO (default the end).
+ * Returns 1 when the line is one. */
 static int scen_pattern_line(bench_t *b, const char *line, int *rc)
 {
-    uint64_t from = 0;
+    uint64_t from = 0, to = UINT64_MAX;
     const char *p = line;
     while (*p == ' ' || *p == '\t') {
         p++;
     }
     if (*p >= '0' && *p <= '9') {
-        char tbuf[32];
+        char tbuf[48];
         size_t n = strcspn(p, " \t");
         if (n >= sizeof tbuf) {
             return 0;
         }
         memcpy(tbuf, p, n);
         tbuf[n] = '\0';
+        char *dash = strchr(tbuf, '-');
+        if (dash != NULL) {
+            *dash = '\0';
+            if (scen_parse_time(dash + 1, &to) != 0) {
+                return 0;
+            }
+        }
         if (scen_parse_time(tbuf, &from) != 0) {
             return 0;
         }
@@ -146,7 +154,7 @@ static int scen_pattern_line(bench_t *b, const char *line, int *rc)
     }
     memcpy(re, p, n);
     re[n] = '\0';
-    *rc = bench_add_pattern(b, fail, re, from);
+    *rc = bench_add_pattern(b, fail, re, from, to);
     return 1;
 }
 

@@ -162,6 +162,20 @@ def test_usage_errors(tmp_path):
     assert r.rc == 2 and "bad.scn:2" in r.err
 
 
+def test_scenario_expectations_have_time_windows(tmp_path):
+    scn = tmp_path / "w.scn"
+    # the banner comes at about 20 ms: inside 0-50ms, outside 50ms-1s
+    scn.write_text("0-50ms fail-on ^<boot\nuntil ^<boot\n")
+    r = bench(tmp_path, FW, "--scenario", scn, "--limit", "1s")
+    assert r.rc == 1 and "fail-on matched" in r.summary["reason"]
+    scn.write_text("50ms-1s fail-on ^<boot\nuntil ^<boot\n")
+    r = bench(tmp_path, FW, "--scenario", scn, "--limit", "1s")
+    assert r.rc == 0 and r.summary["reason"] == "until matched"
+    scn.write_text("0.5s until ^<boot\n")  # before its window: not a match
+    r = bench(tmp_path, FW, "--scenario", scn, "--limit", "1s")
+    assert r.rc == 3
+
+
 def test_every_fault_scenario_parses(tmp_path):
     for scn in sorted(SCENARIOS.glob("*.scn")):
         r = bench(tmp_path, FW, "--plant", PLANT, "--scenario", scn, "--limit", "10ms")
