@@ -980,6 +980,12 @@ static void cal_step(app_t *a, hom_in_t *in)
         s->pos = a->present[i];
     }
     a->servo_fresh = 0;
+    if (a->u.hom.t_phase == 0u && (in->now_ms & 1u) == 0u) {
+        /* The homing's preflight starts its clock at now | 1 and checks it
+         * in the same step: an even start time would read as a wrapped,
+         * expired wait. Its first step is given an odd time (1 ms early). */
+        in->now_ms--;
+    }
     rc = hom_step(&a->u.hom, in, &out);
     for (i = 0; i < a->info.n_tendons; i++) {
         if ((out.changed >> i) & 1u) {

@@ -332,6 +332,27 @@ static void test_learn_with_weight(void **state)
     cmd(&g_b, "table", "ok");
 }
 
+/* The pace of the AVR (about 2 ms per pass) and a start at an even
+ * millisecond, which the homing's preflight clock must survive. */
+static void test_slow_loop_single_tendon(void **state)
+{
+    double truth;
+    (void)state;
+    boot(&g_b, 1);
+    g_b.loop_us = 2000;
+    app_bench_run_ms(&g_b, 3);
+    while (((g_b.now_us / 1000u) & 1u) != 0u) {
+        app_bench_step(&g_b);
+    }
+    app_bench_send(&g_b, "cal 0.8 2");
+    assert_true(app_bench_wait_line(&g_b, "<result ", g_line, sizeof g_line, 20000));
+    assert_int_equal(app_bench_field(g_line, "tendon", -1), 2);
+    assert_int_equal(plant_true_home(&g_b.cfg, 2, 800, &truth), 0);
+    assert_true(fabs((double)app_bench_field(g_line, "home", 0) - truth) <= 2.0);
+    assert_true(app_bench_wait_line(&g_b, "<done ", g_line, sizeof g_line, 10000));
+    assert_non_null(strstr(g_line, "mode=single"));
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -343,6 +364,7 @@ int main(void)
         cmocka_unit_test(test_realtime_abort_releases),
         cmocka_unit_test(test_long_press_aborts),
         cmocka_unit_test(test_servo_fault_mid_run),
+        cmocka_unit_test(test_slow_loop_single_tendon),
         cmocka_unit_test(test_button_calibrates_and_stores),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

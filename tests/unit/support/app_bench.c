@@ -123,6 +123,7 @@ int app_bench_init(app_bench_t *b, uint8_t with_table)
     uint8_t i, k;
     int rc;
     memset(b, 0, sizeof *b);
+    b->loop_us = APP_BENCH_LOOP_US;
     rc = hom_fix_paper(&b->cfg, &b->table);
     if (rc != 0) {
         return rc;
@@ -186,7 +187,7 @@ void app_bench_step(app_bench_t *b)
     }
     (void)app_poll(&b->app);
     i2c_us = b->i2c.now_ns / 1000u;
-    b->now_us += APP_BENCH_LOOP_US;
+    b->now_us += b->loop_us;
     if (i2c_us > b->now_us) {
         b->now_us = i2c_us;
     }

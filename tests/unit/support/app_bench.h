@@ -6,7 +6,8 @@
  * (sim/plant) that turns the servo shafts into tip motion and field.
  *
  * Time: one bench clock in microseconds. Each app_bench_step() charges one
- * main-loop pass (APP_BENCH_LOOP_US plus the I2C wire time the pass used),
+ * main-loop pass (loop_us, APP_BENCH_LOOP_US by default, plus the I2C wire
+ * time the pass used),
  * brings the servo bus and the plant to that time and runs app_poll().
  */
 #ifndef HALLHOME_APP_BENCH_H
@@ -24,7 +25,9 @@
 #include "plant/plant.h"
 #include "store_fake.h"
 
-#define APP_BENCH_LOOP_US 150u /* cost charged per main-loop pass */
+#ifndef APP_BENCH_LOOP_US
+#define APP_BENCH_LOOP_US 150u
+#endif /* cost charged per main-loop pass */
 
 typedef struct {
     /* devices */
@@ -47,6 +50,7 @@ typedef struct {
     double shaft0[TBL_MAX_TENDONS]; /* shaft angle at the plant's motor tick 0 */
     /* board */
     uint64_t now_us;
+    uint32_t loop_us; /* cost of one pass (the AVR needs about 2 ms) */
     uint32_t last_plant_ms;
     uint8_t button;
     uint8_t led;
