@@ -518,8 +518,9 @@ static void do_preflight(hom_t *h, const hom_in_t *in)
     uint8_t i;
     int missing = 0;
     int all = 1;
-    if (h->t_phase == 0u) {
-        h->t_phase = in->now_ms | 1u;
+    if (!h->pf_started) {
+        h->pf_started = 1;
+        h->t_phase = in->now_ms;
         h->t_start = in->now_ms;
         push_event(h, in->now_ms, HOM_EV_START, h->mode, 0, h->tension_mN, 0);
         push_event(h, in->now_ms, HOM_EV_PHASE, HOM_PH_PREFLIGHT, 0, 0, 0);

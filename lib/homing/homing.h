@@ -293,6 +293,7 @@ typedef struct {
     uint32_t cmd_ms[TBL_MAX_TENDONS];      /* last goal written, per tendon */
     uint32_t moved_ms[TBL_MAX_TENDONS];    /* last change of the present position */
     uint8_t settled;                       /* slack average: settle time over, averaging */
+    uint8_t pf_started;                    /* preflight: first step seen, t_phase valid */
     uint8_t quick_leg; /* quick mode: fast leg to just before the expected engagement */
     uint8_t near;      /* fine: the next point is within a few ticks of the target */
     uint8_t n_near;    /* fine: samples to average at a near point */

@@ -321,6 +321,28 @@ static void test_servo_droop_counts_as_arrived(void **state)
     assert_int_equal(g_h.fault, HOM_F_SERVO_STALL);
 }
 
+static void test_preflight_from_any_start_time(void **state)
+{
+    /* the preflight clock starts at the first step, even or odd, wrapping or
+     * not: a healthy bench never fails it */
+    static const uint32_t starts[] = {0u, 1u, 1000u, 1001u, 0xFFFFFFFEu, 0xFFFFFFF0u};
+    tbl_src_t src = src_of(&g_tab);
+    hom_cmd_t c = full_cmd();
+    unsigned k;
+    int n;
+    (void)state;
+    for (k = 0; k < sizeof starts / sizeof starts[0]; k++) {
+        hom_init(&g_h, NULL);
+        bench_init(&g_b, starts[k]);
+        assert_int_equal(hom_start(&g_h, &src, &c), 0);
+        for (n = 0; n < 50 && g_h.moved == 0u; n++) {
+            assert_int_equal(bench_step(&g_b, &g_h), HOM_RUNNING);
+        }
+        assert_true(g_h.moved);
+        assert_int_equal(g_h.fault, HOM_F_NONE);
+    }
+}
+
 static void test_event_queue_overflow(void **state)
 {
     static tbl_table_t big;
@@ -389,6 +411,7 @@ int main(void)
         cmocka_unit_test(test_slack_never_confirmed),
         cmocka_unit_test(test_steady_field_reaches_tendon_phase_across_wrap),
         cmocka_unit_test(test_servo_droop_counts_as_arrived),
+        cmocka_unit_test(test_preflight_from_any_start_time),
         cmocka_unit_test(test_event_queue_overflow),
         cmocka_unit_test(test_helpers),
     };
