@@ -310,6 +310,7 @@ static void boot_start(app_t *a)
     dxl_abort(&a->dxl);
     a->sv_txn = TX_NONE;
     a->servo_absent = 0;
+    a->have_b0 = 0; /* the bring-up reuses the baseline's storage */
     (void)dxl_bringup_start(&a->u.bring, &a->dxl, a->ids, a->info.n_tendons, &bc);
     a->boot_step = 1;
 }
@@ -704,6 +705,14 @@ static void sensors_take(app_t *a, hom_in_t *in)
 
 /* ---- runs ------------------------------------------------------------------- */
 
+/* A history or learned record waits in u.idle: the homing and the bring-up
+ * must not reuse that storage until it is written. */
+static uint8_t rec_busy(const app_t *a)
+{
+    return (uint8_t)((a->save_due & (SAVE_HIST | SAVE_LEARNED)) != 0u || a->save_now == SAVE_HIST ||
+                     a->save_now == SAVE_LEARNED);
+}
+
 static void save_queue(app_t *a, uint8_t what)
 {
     a->save_due |= what;
@@ -820,23 +829,25 @@ static void run_done(app_t *a)
             a->home_now |= bit16(i);
         }
     }
-    memset(&a->rec.hist, 0, sizeof a->rec.hist);
-    a->rec.hist.cal_count = a->homes.cal_count;
-    a->rec.hist.table_id = a->homes.table_id;
-    a->rec.hist.tension_mN = a->homes.tension_mN;
-    a->rec.hist.valid_mask = a->homes.valid_mask;
-    a->rec.hist.n_tendons = a->homes.n_tendons;
+    /* The run's baseline is the learn baseline until the next release. From
+     * here on the homing's storage is reused (u.idle overlaps its first
+     * bytes only: the homes and baselines above were read first). */
+    for (k = 0; k < a->info.n_sensors; k++) {
+        memcpy(a->u.idle.b0[k], a->u.hom.sensor[k].b0, sizeof a->u.idle.b0[k]);
+    }
+    a->have_b0 = 1;
+    memset(&a->u.idle.rec.hist, 0, sizeof a->u.idle.rec.hist);
+    a->u.idle.rec.hist.cal_count = a->homes.cal_count;
+    a->u.idle.rec.hist.table_id = a->homes.table_id;
+    a->u.idle.rec.hist.tension_mN = a->homes.tension_mN;
+    a->u.idle.rec.hist.valid_mask = a->homes.valid_mask;
+    a->u.idle.rec.hist.n_tendons = a->homes.n_tendons;
     for (i = 0; i < a->info.n_tendons; i++) {
-        a->rec.hist.home_ticks[i] = a->homes.t[i].home_ticks;
+        a->u.idle.rec.hist.home_ticks[i] = a->homes.t[i].home_ticks;
     }
     a->homes_rc = 0;
     a->recover_rc = 0;
     save_queue(a, SAVE_HOMES | SAVE_HIST);
-    /* the run's baseline is the learn baseline until the next release */
-    for (k = 0; k < a->info.n_sensors; k++) {
-        memcpy(a->b0[k], a->u.hom.sensor[k].b0, sizeof a->b0[k]);
-    }
-    a->have_b0 = 1;
     a->offer_quick = 0;
     a->released = 0;
     rep_begin(a, S("done"));
@@ -925,7 +936,7 @@ static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon
         }
         tension = a->homes.tension_mN;
     }
-    if (store_busy(&a->store)) {
+    if (store_busy(&a->store) || rec_busy(a)) {
         return CON_E_BUSY; /* finishes within a few hundred ms */
     }
     memset(&cmd, 0, sizeof cmd);
@@ -940,6 +951,7 @@ static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon
     }
     hom_config_default(&cfg);
     cfg.v_fast = (uint16_t)a->set.v[STORE_SET_APPROACH_FAST];
+    a->have_b0 = 0; /* its storage goes to the homing */
     hom_init(&a->u.hom, &cfg);
     rc = hom_start(&a->u.hom, &a->htab, &cmd);
     if (rc == HOM_E_TENSION) {
@@ -1094,8 +1106,8 @@ static void learn_begin(app_t *a, uint8_t tendon)
 {
     a->learn_tendon = tendon;
     a->learn_n = 0;
-    memset(a->u.learn.acc, 0, sizeof a->u.learn.acc);
-    memset(a->u.learn.cnt, 0, sizeof a->u.learn.cnt);
+    memset(a->u.idle.acc, 0, sizeof a->u.idle.acc);
+    memset(a->u.idle.cnt, 0, sizeof a->u.idle.cnt);
     a->t_move = now_ms(a);
     a->state = APP_ST_LEARN;
 }
@@ -1165,14 +1177,14 @@ static void learn_step(app_t *a, const hom_in_t *in)
     if (rc == 0) {
         uint8_t least = APP_LEARN_SAMPLES;
         for (k = first; k < last; k++) {
-            if (in->sensor[k].status == HOM_SENS_NEW && a->u.learn.cnt[k] < APP_LEARN_SAMPLES) {
-                a->u.learn.acc[k][0] += in->sensor[k].b_cuT[0];
-                a->u.learn.acc[k][1] += in->sensor[k].b_cuT[1];
-                a->u.learn.acc[k][2] += in->sensor[k].b_cuT[2];
-                a->u.learn.cnt[k]++;
+            if (in->sensor[k].status == HOM_SENS_NEW && a->u.idle.cnt[k] < APP_LEARN_SAMPLES) {
+                a->u.idle.acc[k][0] += in->sensor[k].b_cuT[0];
+                a->u.idle.acc[k][1] += in->sensor[k].b_cuT[1];
+                a->u.idle.acc[k][2] += in->sensor[k].b_cuT[2];
+                a->u.idle.cnt[k]++;
             }
-            if (a->u.learn.cnt[k] < least) {
-                least = a->u.learn.cnt[k];
+            if (a->u.idle.cnt[k] < least) {
+                least = a->u.idle.cnt[k];
             }
         }
         a->learn_n = least;
@@ -1186,9 +1198,9 @@ static void learn_step(app_t *a, const hom_in_t *in)
     if (a->learn_tendon == LEARN_BASELINE) {
         if (rc == 0) {
             for (k = 0; k < a->info.n_sensors; k++) {
-                a->b0[k][0] = a->u.learn.acc[k][0] / (int32_t)APP_LEARN_SAMPLES;
-                a->b0[k][1] = a->u.learn.acc[k][1] / (int32_t)APP_LEARN_SAMPLES;
-                a->b0[k][2] = a->u.learn.acc[k][2] / (int32_t)APP_LEARN_SAMPLES;
+                a->u.idle.b0[k][0] = a->u.idle.acc[k][0] / (int32_t)APP_LEARN_SAMPLES;
+                a->u.idle.b0[k][1] = a->u.idle.acc[k][1] / (int32_t)APP_LEARN_SAMPLES;
+                a->u.idle.b0[k][2] = a->u.idle.acc[k][2] / (int32_t)APP_LEARN_SAMPLES;
             }
             a->have_b0 = 1;
         }
@@ -1206,17 +1218,17 @@ static void learn_step(app_t *a, const hom_in_t *in)
         uint32_t v;
         uint8_t s = first, tdn = a->learn_tendon;
         for (k = 0; k < 3u; k++) {
-            d[k] = a->u.learn.acc[s][k] / (int32_t)APP_LEARN_SAMPLES - a->b0[s][k];
+            d[k] = a->u.idle.acc[s][k] / (int32_t)APP_LEARN_SAMPLES - a->u.idle.b0[s][k];
         }
         v = hom_norm3(d);
-        if (store_learned_load(&a->store, tdn, a->info.table_id, &a->rec.learned) != 0) {
-            memset(&a->rec.learned, 0, sizeof a->rec.learned);
+        if (store_learned_load(&a->store, tdn, a->info.table_id, &a->u.idle.rec.learned) != 0) {
+            memset(&a->u.idle.rec.learned, 0, sizeof a->u.idle.rec.learned);
         }
-        a->rec.learned.table_id = a->info.table_id;
-        a->rec.learned.tendon = tdn;
-        a->rec.learned.n_grid = a->info.n_grid;
-        a->rec.learned.target_cuT[a->learn_grid] = v;
-        a->rec.learned.grid_mask |= bit16(a->learn_grid);
+        a->u.idle.rec.learned.table_id = a->info.table_id;
+        a->u.idle.rec.learned.tendon = tdn;
+        a->u.idle.rec.learned.n_grid = a->info.n_grid;
+        a->u.idle.rec.learned.target_cuT[a->learn_grid] = v;
+        a->u.idle.rec.learned.grid_mask |= bit16(a->learn_grid);
         save_queue(a, SAVE_LEARNED);
         rep_begin(a, S("learned"));
         rep_int(a, S("tendon"), tdn);
@@ -1284,11 +1296,11 @@ static void store_task(app_t *a)
         (void)store_save_homes(&a->store, &a->homes);
     } else if (a->save_due & SAVE_HIST) {
         a->save_now = SAVE_HIST;
-        (void)store_save_hist(&a->store, &a->rec.hist);
+        (void)store_save_hist(&a->store, &a->u.idle.rec.hist);
     } else if (a->save_due & SAVE_LEARNED) {
         a->save_now = SAVE_LEARNED;
-        a->learned_mask |= bit16(a->rec.learned.tendon);
-        (void)store_save_learned(&a->store, &a->rec.learned);
+        a->learned_mask |= bit16(a->u.idle.rec.learned.tendon);
+        (void)store_save_learned(&a->store, &a->u.idle.rec.learned);
     } else {
         a->save_now = SAVE_SETTINGS;
         (void)store_save_settings(&a->store, &a->set);
@@ -1305,7 +1317,7 @@ static void short_press(app_t *a)
         return; /* a long press aborts */
     }
     a->led = APP_LED_IDLE;
-    if (store_busy(&a->store)) {
+    if (store_busy(&a->store) || rec_busy(a)) {
         a->req_start = 1; /* starts once the EEPROM write in flight is done */
         a->req_con = 0;
         a->req_mode = a->offer_quick ? HOM_MODE_QUICK : HOM_MODE_FULL;
@@ -1408,7 +1420,7 @@ int8_t app_poll(app_t *app)
         boot_poll(a);
     }
     servo_poll(a);
-    if (a->req_start && store_busy(&a->store) == 0u) {
+    if (a->req_start && store_busy(&a->store) == 0u && !rec_busy(a)) {
         int8_t rc;
         a->req_start = 0;
         rc = run_start(a, a->req_mode, a->req_tension, a->req_tendon);
@@ -1557,8 +1569,8 @@ static int8_t h_servos(con_t *con, const con_args_t *args, void *ctx)
         servo_lines(a, 0); /* pos, err: the live cycle keeps both fresh */
         return 0;
     }
-    if (!idle_state(a)) {
-        return CON_E_BUSY;
+    if (!idle_state(a) || rec_busy(a)) {
+        return CON_E_BUSY; /* the bring-up reuses the record's storage */
     }
     a->boot_con = 1;
     a->boot_step = 0;
@@ -1568,7 +1580,7 @@ static int8_t h_servos(con_t *con, const con_args_t *args, void *ctx)
 
 static int8_t start_or_defer(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon)
 {
-    if (idle_state(a) && store_busy(&a->store)) {
+    if (idle_state(a) && (store_busy(&a->store) || rec_busy(a))) {
         a->req_start = 1;
         a->req_con = 1;
         a->req_mode = mode;
@@ -1840,7 +1852,7 @@ static int8_t h_reboot(con_t *con, const con_args_t *args, void *ctx)
 {
     app_t *a = ctx;
     (void)con;
-    if (!idle_state(a)) {
+    if (!idle_state(a) || rec_busy(a)) {
         return CON_E_BUSY;
     }
     a->reboot_id = (uint8_t)args->v[0];

@@ -38,6 +38,7 @@
 #ifndef HALLHOME_APP_H
 #define HALLHOME_APP_H
 
+#include <stddef.h>
 #include <stdint.h>
 
 #include "console/console.h"
@@ -190,7 +191,6 @@ typedef struct {
     int32_t present[TBL_MAX_TENDONS];
     int32_t offset[TBL_MAX_TENDONS];   /* calibration frame = present frame + offset */
     uint8_t sens_err[APP_MAX_SENSORS]; /* error counts (low byte) already passed to the homing */
-    int32_t b0[APP_MAX_SENSORS][3];    /* straight-pose baseline for `learn` */
     /* modules and records */
     tbl_src_t tab;  /* plain */
     tbl_src_t htab; /* learned targets applied */
@@ -198,27 +198,36 @@ typedef struct {
     store_t store;
     store_settings_t set;
     store_homes_t homes;
-    union {
-        store_hist_t hist;
-        store_learned_t learned;
-    } rec; /* the record being saved (kept until store_poll() is done) */
     con_t con;
     icm_set_t sens;
     icm_set_slot_t slot[APP_MAX_SENSORS];
     dxl_master dxl;
-    /* Storage used by one activity at a time. hom: calibration runs; its
-     * `out` also holds the goals of app moves (home, release) while no run is
-     * active. bring: boot and `servos scan`. learn: sample sums of `learn`
-     * and the baseline capture (no overlap with hom.out). */
+    /* Storage used by one activity at a time (RAM is the scarce resource):
+     *  hom    calibration runs; its `out` also holds the goals of app moves
+     *         (home, release) while no run is active;
+     *  bring  boot, `servos scan` and `reboot`;
+     *  idle   between runs: the sample sums of `learn` and the baseline
+     *         capture, the straight-pose baseline (have_b0) and the history or
+     *         learned record being saved. It overlaps only the homing's first
+     *         bytes (never its tendons, sensors or outputs); runs and bring-ups
+     *         wait until its record is written, and clear have_b0. */
     union {
         hom_t hom;
         dxl_bringup bring;
         struct {
             uint8_t cnt[APP_MAX_SENSORS];
             int32_t acc[APP_MAX_SENSORS][3];
-        } learn;
+            int32_t b0[APP_MAX_SENSORS][3];
+            union {
+                store_hist_t hist;
+                store_learned_t learned;
+            } rec; /* kept until store_poll() is done */
+        } idle;
     } u;
 } app_t;
+
+/* u.idle must stay clear of the homing's tendon results and outputs. */
+typedef char app_idle_fits_t[(sizeof(((app_t *)0)->u.idle) <= offsetof(hom_t, tendon)) ? 1 : -1];
 
 /* Binds the app to its board and ports, initialises every module, reads the
  * settings, homes and learned targets, checks the table and prints the
