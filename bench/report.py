@@ -243,10 +243,17 @@ def section_resources(res: Dict) -> List[str]:
     out = [SECTIONS[5], ""]
     out.append("| figure | value | source |")
     out.append("| --- | --- | --- |")
+    def budget(v, cap):
+        if v is None:
+            return ""
+        return "within" if v <= cap else "**over**"
+
     out.append(f"| flash | {fmt(r.get('flash_bytes'), 0, 'bytes')} "
-               f"({fmt(r.get('flash_pct'), 1)} % of 256 KB; budget 64 KB) | {r.get('size_src', 'n/a')} |")
+               f"({fmt(r.get('flash_pct'), 1)} % of 256 KB; {budget(r.get('flash_bytes'), 65536)} "
+               f"the 64 KB budget) | {r.get('size_src', 'n/a')} |")
     out.append(f"| static RAM | {fmt(r.get('ram_bytes'), 0, 'bytes')} "
-               f"({fmt(r.get('ram_pct'), 1)} % of 8 KB; budget 4 KB) | {r.get('size_src', 'n/a')} |")
+               f"({fmt(r.get('ram_pct'), 1)} % of 8 KB; {budget(r.get('ram_bytes'), 4096)} "
+               f"the 4 KB budget) | {r.get('size_src', 'n/a')} |")
     out.append(f"| worst main-loop time | {fmt(r.get('loop_max_us'), 0, 'µs')} | "
                f"{r.get('loop_src', 'not measured')} |")
     bus = r.get("bus", {})
