@@ -19,7 +19,8 @@
  * re-homes from the stored homes.
  *
  * CSV lines: `home,run,tendon,home_ticks,true_home_ticks,err_ticks,tension_N,
- * tension_err_N,sim_ms,fault` and one `summary,key=value,...` line.
+ * tension_err_N,sim_ms,fault`; without -q also `event,run,t_ms,type,code,index,
+ * a,b` (homing.h documents the fields); one `summary,key=value,...` line.
  */
 #include <math.h>
 #include <stdio.h>
@@ -46,6 +47,13 @@ static void usage(void)
             "usage: hh_closedloop CONFIG [-t mN] [-s seed] [-p perturb] [-n runs]\n"
             "                     [-m full|quick|single|dry] [-i tendon] [-f fault:index:ms]"
             " [-q]\n");
+}
+
+static const char *event_name(uint8_t type)
+{
+    static const char *const names[] = {"?",    "start",  "phase", "missing", "engaged",
+                                        "home", "target", "done",  "fault",   "released"};
+    return type < sizeof names / sizeof names[0] ? names[type] : "?";
 }
 
 static int parse_mode(const char *s, hom_mode_t *m)
@@ -242,9 +250,8 @@ int main(int argc, char **argv)
             unsigned e;
             for (e = 0; e < res.n_events; e++) {
                 const hom_event_t *ev = &res.events[e];
-                printf("  event t=%lu type=%u code=%u index=%u a=%ld b=%ld\n",
-                       (unsigned long)ev->t_ms, ev->type, ev->code, ev->index, (long)ev->a,
-                       (long)ev->b);
+                printf("event,%u,%lu,%s,%u,%u,%ld,%ld\n", r, (unsigned long)ev->t_ms,
+                       event_name(ev->type), ev->code, ev->index, (long)ev->a, (long)ev->b);
             }
         }
     }
