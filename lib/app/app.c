@@ -8,13 +8,114 @@
 
 #include "dxl/dxl_xl430_reg.h"
 
-/* A string in console-flash memory (program memory on the AVR, where
- * CON_FLASH is __progmem__; ordinary const data on the host). */
-#define S(s)                                                                                       \
-    (__extension__({                                                                               \
-        static const char app_s_[] CON_FLASH = (s);                                                \
-        &app_s_[0];                                                                                \
-    }))
+/* Report kinds, keys and words, each once in console-flash memory (program
+ * memory on the AVR, where CON_FLASH is __progmem__). */
+static const char s_full_quick_single_dry[] CON_FLASH = "full quick single dry";
+static const char s_boot_idle_cal_move_lea[] CON_FLASH = "boot idle cal move learn fault";
+static const char s_none_sensor_servo_tend[] CON_FLASH = "none sensor servo tendon";
+static const char s_preflight_release_base[] CON_FLASH =
+    "- preflight release baseline tendon final";
+static const char s_fault[] CON_FLASH = "fault";
+static const char s_reason[] CON_FLASH = "reason";
+static const char s_error[] CON_FLASH = "error";
+static const char s_dev[] CON_FLASH = "dev";
+static const char s_index[] CON_FLASH = "index";
+static const char s_boot[] CON_FLASH = "boot";
+static const char s_name[] CON_FLASH = "name";
+static const char s_hallhome[] CON_FLASH = "hallhome";
+static const char s_version[] CON_FLASH = "version";
+static const char s_board[] CON_FLASH = "board";
+static const char s_reset[] CON_FLASH = "reset";
+static const char s_missing[] CON_FLASH = "missing";
+static const char s_sensor[] CON_FLASH = "sensor";
+static const char s_ch[] CON_FLASH = "ch";
+static const char s_addr[] CON_FLASH = "addr";
+static const char s_err[] CON_FLASH = "err";
+static const char s_servo[] CON_FLASH = "servo";
+static const char s_id[] CON_FLASH = "id";
+static const char s_hw_error[] CON_FLASH = "hw_error";
+static const char s_tendon[] CON_FLASH = "tendon";
+static const char s_found[] CON_FLASH = "found";
+static const char s_model[] CON_FLASH = "model";
+static const char s_fw[] CON_FLASH = "fw";
+static const char s_pos[] CON_FLASH = "pos";
+static const char s_cal_pos[] CON_FLASH = "cal_pos";
+static const char s_ready[] CON_FLASH = "ready";
+static const char s_table[] CON_FLASH = "table";
+static const char s_table_id[] CON_FLASH = "table_id";
+static const char s_none[] CON_FLASH = "none";
+static const char s_sensors[] CON_FLASH = "sensors";
+static const char s_sensors_expected[] CON_FLASH = "sensors_expected";
+static const char s_servos[] CON_FLASH = "servos";
+static const char s_servos_expected[] CON_FLASH = "servos_expected";
+static const char s_homes[] CON_FLASH = "homes";
+static const char s_moved[] CON_FLASH = "moved";
+static const char s_stored[] CON_FLASH = "stored";
+static const char s_count[] CON_FLASH = "count";
+static const char s_other_table[] CON_FLASH = "other_table";
+static const char s_rehome[] CON_FLASH = "rehome";
+static const char s_progress[] CON_FLASH = "progress";
+static const char s_state[] CON_FLASH = "state";
+static const char s_start[] CON_FLASH = "start";
+static const char s_mode[] CON_FLASH = "mode";
+static const char s_tension_mN[] CON_FLASH = "tension_mN";
+static const char s_why[] CON_FLASH = "why";
+static const char s_bits[] CON_FLASH = "bits";
+static const char s_engaged[] CON_FLASH = "engaged";
+static const char s_result[] CON_FLASH = "result";
+static const char s_home[] CON_FLASH = "home";
+static const char s_home_um[] CON_FLASH = "home_um";
+static const char s_dB_uT[] CON_FLASH = "dB_uT";
+static const char s_target_uT[] CON_FLASH = "target_uT";
+static const char s_travel_um[] CON_FLASH = "travel_um";
+static const char s_time_ms[] CON_FLASH = "time_ms";
+static const char s_target[] CON_FLASH = "target";
+static const char s_code[] CON_FLASH = "code";
+static const char s_detail[] CON_FLASH = "detail";
+static const char s_released[] CON_FLASH = "released";
+static const char s_done[] CON_FLASH = "done";
+static const char s_aborted[] CON_FLASH = "aborted";
+static const char s_servo_stall[] CON_FLASH = "servo_stall";
+static const char s_release[] CON_FLASH = "release";
+static const char s_baseline[] CON_FLASH = "baseline";
+static const char s_learned[] CON_FLASH = "learned";
+static const char s_grid[] CON_FLASH = "grid";
+static const char s_eeprom[] CON_FLASH = "eeprom";
+static const char s_refused[] CON_FLASH = "refused";
+static const char s_tendons[] CON_FLASH = "tendons";
+static const char s_status[] CON_FLASH = "status";
+static const char s_homes_now[] CON_FLASH = "homes_now";
+static const char s_saving[] CON_FLASH = "saving";
+static const char s_loop_max_us[] CON_FLASH = "loop_max_us";
+static const char s_loops[] CON_FLASH = "loops";
+static const char s_rest[] CON_FLASH = "rest";
+static const char s_usable[] CON_FLASH = "usable";
+static const char s_now[] CON_FLASH = "now";
+static const char s_ok[] CON_FLASH = "ok";
+static const char s_who[] CON_FLASH = "who";
+static const char s_mag[] CON_FLASH = "mag";
+static const char s_rate_Hz[] CON_FLASH = "rate_Hz";
+static const char s_bx_uT[] CON_FLASH = "bx_uT";
+static const char s_by_uT[] CON_FLASH = "by_uT";
+static const char s_bz_uT[] CON_FLASH = "bz_uT";
+static const char s_ovf[] CON_FLASH = "ovf";
+static const char s_last_err[] CON_FLASH = "last_err";
+static const char s_reinits[] CON_FLASH = "reinits";
+static const char s_grid_mN[] CON_FLASH = "grid_mN";
+static const char s_default_mN[] CON_FLASH = "default_mN";
+static const char s_noise_cuT[] CON_FLASH = "noise_cuT";
+static const char s_dir[] CON_FLASH = "dir";
+static const char s_segment[] CON_FLASH = "segment";
+static const char s_limit_um[] CON_FLASH = "limit_um";
+static const char s_target_cuT[] CON_FLASH = "target_cuT";
+static const char s_hist[] CON_FLASH = "hist";
+static const char s_age[] CON_FLASH = "age";
+static const char s_setting[] CON_FLASH = "setting";
+static const char s_value[] CON_FLASH = "value";
+static const char s_unit[] CON_FLASH = "unit";
+static const char s_min[] CON_FLASH = "min";
+static const char s_max[] CON_FLASH = "max";
+static const char s_default[] CON_FLASH = "default";
 
 /* Bus transactions. */
 enum { TX_NONE = 0, TX_POS, TX_HWERR, TX_GOAL, TX_TORQUE, TX_REBOOT };
@@ -126,20 +227,20 @@ static void rep_word(app_t *a, const char *key, const char *words_f, uint8_t i)
     con_report_str(&a->con, key, buf);
 }
 
-#define MODE_WORDS  S("full quick single dry")
-#define STATE_WORDS S("boot idle cal move learn fault")
-#define DEV_WORDS   S("none sensor servo tendon")
-#define PHASE_WORDS S("- preflight release baseline tendon final")
+#define MODE_WORDS  s_full_quick_single_dry
+#define STATE_WORDS s_boot_idle_cal_move_lea
+#define DEV_WORDS   s_none_sensor_servo_tend
+#define PHASE_WORDS s_preflight_release_base
 
 /* A fault the app itself detects (moves, learn, EEPROM), in the same shape
  * as the homing's: reason word, console error code, device. */
 static void rep_app_fault(app_t *a, const char *reason_f, int8_t err, uint8_t dev, uint8_t index)
 {
-    rep_begin(a, S("fault"));
-    con_report_flash(&a->con, S("reason"), reason_f);
-    rep_int(a, S("error"), -err);
-    rep_word(a, S("dev"), DEV_WORDS, dev);
-    rep_int(a, S("index"), index);
+    rep_begin(a, s_fault);
+    con_report_flash(&a->con, s_reason, reason_f);
+    rep_int(a, s_error, -err);
+    rep_word(a, s_dev, DEV_WORDS, dev);
+    rep_int(a, s_index, index);
     rep_end(a);
 }
 
@@ -260,16 +361,16 @@ int8_t app_init(app_t *app, const app_io_t *io)
     app->t_boot = now_ms(app);
     app->btn_raw = 0;
     app->led = APP_LED_BOOT;
-    rep_begin(app, S("boot"));
-    con_report_flash(&app->con, S("name"), S("hallhome"));
+    rep_begin(app, s_boot);
+    con_report_flash(&app->con, s_name, s_hallhome);
     if (io->version_f != NULL) {
-        con_report_flash(&app->con, S("version"), io->version_f);
+        con_report_flash(&app->con, s_version, io->version_f);
     }
     if (io->board_f != NULL) {
-        con_report_flash(&app->con, S("board"), io->board_f);
+        con_report_flash(&app->con, s_board, io->board_f);
     }
     if (io->reset_f != NULL) {
-        con_report_flash(&app->con, S("reset"), io->reset_f);
+        con_report_flash(&app->con, s_reset, io->reset_f);
     }
     rep_end(app);
     return 0;
@@ -379,28 +480,28 @@ static void boot_finish(app_t *a)
         (void)icm_set_diag(&a->sens, k, &d);
         a->sens_err[k] = (uint8_t)d.error_count;
         if (d.state != ICM_SET_S_RUN) {
-            rep_begin(a, S("missing"));
-            con_report_flash(&a->con, S("dev"), S("sensor"));
-            rep_int(a, S("index"), k);
-            rep_int(a, S("ch"), d.channel);
-            rep_int(a, S("addr"), d.addr);
-            rep_int(a, S("err"), d.last_err);
+            rep_begin(a, s_missing);
+            con_report_flash(&a->con, s_dev, s_sensor);
+            rep_int(a, s_index, k);
+            rep_int(a, s_ch, d.channel);
+            rep_int(a, s_addr, d.addr);
+            rep_int(a, s_err, d.last_err);
             rep_end(a);
         }
     }
     for (i = 0; i < a->info.n_tendons; i++) {
         if ((a->servo_absent >> i) & 1u) {
-            rep_begin(a, S("missing"));
-            con_report_flash(&a->con, S("dev"), S("servo"));
-            rep_int(a, S("index"), i);
-            rep_int(a, S("id"), a->ids[i]);
+            rep_begin(a, s_missing);
+            con_report_flash(&a->con, s_dev, s_servo);
+            rep_int(a, s_index, i);
+            rep_int(a, s_id, a->ids[i]);
             rep_end(a);
         } else if (a->hw_err[i] != 0u) {
-            rep_begin(a, S("missing"));
-            con_report_flash(&a->con, S("dev"), S("servo"));
-            rep_int(a, S("index"), i);
-            rep_int(a, S("id"), a->ids[i]);
-            rep_int(a, S("hw_error"), a->hw_err[i]);
+            rep_begin(a, s_missing);
+            con_report_flash(&a->con, s_dev, s_servo);
+            rep_int(a, s_index, i);
+            rep_int(a, s_id, a->ids[i]);
+            rep_int(a, s_hw_error, a->hw_err[i]);
             rep_end(a);
         }
     }
@@ -414,17 +515,17 @@ static void servo_lines(app_t *a, uint8_t with_model)
 {
     uint8_t i;
     for (i = 0; i < a->info.n_tendons; i++) {
-        rep_begin(a, S("servo"));
-        rep_int(a, S("tendon"), i);
-        rep_int(a, S("id"), a->ids[i]);
-        rep_int(a, S("found"), ((a->servo_absent >> i) & 1u) == 0u);
+        rep_begin(a, s_servo);
+        rep_int(a, s_tendon, i);
+        rep_int(a, s_id, a->ids[i]);
+        rep_int(a, s_found, ((a->servo_absent >> i) & 1u) == 0u);
         if (with_model && bring_info(a, a->ids[i]) != NULL) {
-            rep_int(a, S("model"), bring_info(a, a->ids[i])->model);
-            rep_int(a, S("fw"), bring_info(a, a->ids[i])->firmware);
+            rep_int(a, s_model, bring_info(a, a->ids[i])->model);
+            rep_int(a, s_fw, bring_info(a, a->ids[i])->firmware);
         }
-        rep_int(a, S("pos"), a->present[i]);
-        rep_int(a, S("cal_pos"), a->present[i] + a->offset[i]);
-        rep_int(a, S("hw_error"), a->hw_err[i]);
+        rep_int(a, s_pos, a->present[i]);
+        rep_int(a, s_cal_pos, a->present[i] + a->offset[i]);
+        rep_int(a, s_hw_error, a->hw_err[i]);
         rep_end(a);
     }
 }
@@ -434,26 +535,25 @@ static void boot_ready(app_t *a)
     recover_homes(a);
     a->offer_quick = (uint8_t)(a->table_ok && a->home_now != 0u && a->home_now == all_mask(a) &&
                                a->servo_absent == 0u);
-    rep_begin(a, S("ready"));
+    rep_begin(a, s_ready);
     if (a->table_ok) {
-        con_report_str(&a->con, S("table"), a->info.name);
-        rep_hex(a, S("table_id"), a->info.table_id);
+        con_report_str(&a->con, s_table, a->info.name);
+        rep_hex(a, s_table_id, a->info.table_id);
     } else {
-        con_report_flash(&a->con, S("table"), S("none"));
+        con_report_flash(&a->con, s_table, s_none);
     }
-    rep_int(a, S("sensors"), a->n_sens_found);
-    rep_int(a, S("sensors_expected"), a->info.n_sensors);
-    rep_int(a, S("servos"), a->n_servo_found);
-    rep_int(a, S("servos_expected"), a->info.n_tendons);
+    rep_int(a, s_sensors, a->n_sens_found);
+    rep_int(a, s_sensors_expected, a->info.n_sensors);
+    rep_int(a, s_servos, a->n_servo_found);
+    rep_int(a, s_servos_expected, a->info.n_tendons);
     if (a->homes_rc == 0) {
-        con_report_flash(&a->con, S("homes"),
-                         a->recover_rc == STORE_E_MOVED ? S("moved") : S("stored"));
-        rep_int(a, S("count"), (int32_t)a->homes.cal_count);
+        con_report_flash(&a->con, s_homes, a->recover_rc == STORE_E_MOVED ? s_moved : s_stored);
+        rep_int(a, s_count, (int32_t)a->homes.cal_count);
     } else {
-        con_report_flash(&a->con, S("homes"),
-                         a->homes_rc == STORE_E_OTHER_TABLE ? S("other_table") : S("none"));
+        con_report_flash(&a->con, s_homes,
+                         a->homes_rc == STORE_E_OTHER_TABLE ? s_other_table : s_none);
     }
-    rep_int(a, S("rehome"), a->offer_quick);
+    rep_int(a, s_rehome, a->offer_quick);
     rep_end(a);
     a->state = APP_ST_IDLE;
     a->boot_step = 3;
@@ -723,38 +823,38 @@ static void rep_event(app_t *a, const hom_event_t *ev)
     uint8_t i = ev->index;
     switch (ev->type) {
     case HOM_EV_START:
-        rep_begin(a, S("progress"));
-        con_report_flash(&a->con, S("state"), S("start"));
-        rep_word(a, S("mode"), MODE_WORDS, ev->code);
-        rep_int(a, S("tension_mN"), ev->a);
+        rep_begin(a, s_progress);
+        con_report_flash(&a->con, s_state, s_start);
+        rep_word(a, s_mode, MODE_WORDS, ev->code);
+        rep_int(a, s_tension_mN, ev->a);
         rep_end(a);
         break;
     case HOM_EV_PHASE: {
-        rep_begin(a, S("progress"));
-        rep_word(a, S("state"), PHASE_WORDS, ev->code);
+        rep_begin(a, s_progress);
+        rep_word(a, s_state, PHASE_WORDS, ev->code);
         if (ev->code == HOM_PH_TENDON && i < TBL_MAX_TENDONS) {
-            rep_int(a, S("tendon"), i);
-            rep_int(a, S("id"), a->ids[i]);
+            rep_int(a, s_tendon, i);
+            rep_int(a, s_id, a->ids[i]);
         }
         rep_end(a);
         break;
     }
     case HOM_EV_MISSING:
-        rep_begin(a, S("missing"));
-        rep_word(a, S("dev"), DEV_WORDS, ev->code);
-        rep_int(a, S("index"), i);
+        rep_begin(a, s_missing);
+        rep_word(a, s_dev, DEV_WORDS, ev->code);
+        rep_int(a, s_index, i);
         if (ev->code == HOM_DEV_SERVO && i < TBL_MAX_TENDONS) {
-            rep_int(a, S("id"), a->ids[i]);
+            rep_int(a, s_id, a->ids[i]);
         }
-        rep_int(a, S("why"), ev->a);
-        rep_int(a, S("bits"), ev->b);
+        rep_int(a, s_why, ev->a);
+        rep_int(a, s_bits, ev->b);
         rep_end(a);
         break;
     case HOM_EV_ENGAGED:
-        rep_begin(a, S("progress"));
-        con_report_flash(&a->con, S("state"), S("engaged"));
-        rep_int(a, S("tendon"), i);
-        rep_int(a, S("pos"), ev->a);
+        rep_begin(a, s_progress);
+        con_report_flash(&a->con, s_state, s_engaged);
+        rep_int(a, s_tendon, i);
+        rep_int(a, s_pos, ev->a);
         rep_end(a);
         break;
     case HOM_EV_HOME:
@@ -766,43 +866,43 @@ static void rep_event(app_t *a, const hom_event_t *ev)
             for (k = 0; k < 3u; k++) {
                 d[k] = s->last[k] - s->b0[k];
             }
-            rep_begin(a, S("result"));
-            rep_int(a, S("tendon"), i);
-            rep_int(a, S("id"), a->ids[i]);
-            rep_int(a, S("home"), ev->a);
-            rep_int(a, S("home_um"), ticks_um(t->nm_per_tick, ev->a));
-            con_report_fixed(&a->con, S("dB_uT"), (int32_t)hom_norm3(d), 2);
-            con_report_fixed(&a->con, S("target_uT"), (int32_t)t->target_cuT, 2);
-            rep_int(a, S("travel_um"), ticks_um(t->nm_per_tick, (ev->a - t->engage) * t->dir));
-            rep_int(a, S("time_ms"), (int32_t)(ev->t_ms - a->u.hom.t_tendon));
+            rep_begin(a, s_result);
+            rep_int(a, s_tendon, i);
+            rep_int(a, s_id, a->ids[i]);
+            rep_int(a, s_home, ev->a);
+            rep_int(a, s_home_um, ticks_um(t->nm_per_tick, ev->a));
+            con_report_fixed(&a->con, s_dB_uT, (int32_t)hom_norm3(d), 2);
+            con_report_fixed(&a->con, s_target_uT, (int32_t)t->target_cuT, 2);
+            rep_int(a, s_travel_um, ticks_um(t->nm_per_tick, (ev->a - t->engage) * t->dir));
+            rep_int(a, s_time_ms, (int32_t)(ev->t_ms - a->u.hom.t_tendon));
             rep_end(a);
         }
         break;
     case HOM_EV_TARGET:
-        rep_begin(a, S("target"));
-        rep_int(a, S("tendon"), i);
-        con_report_fixed(&a->con, S("target_uT"), ev->a, 2);
-        rep_int(a, S("travel_um"), ev->b);
+        rep_begin(a, s_target);
+        rep_int(a, s_tendon, i);
+        con_report_fixed(&a->con, s_target_uT, ev->a, 2);
+        rep_int(a, s_travel_um, ev->b);
         rep_end(a);
         break;
     case HOM_EV_DONE:
         break; /* reported by run_done() with the count */
     case HOM_EV_FAULT:
         a->last_fault = ev->code;
-        rep_begin(a, S("fault"));
-        con_report_str(&a->con, S("reason"), hom_fault_name(ev->code));
-        rep_int(a, S("code"), ev->code);
-        rep_word(a, S("dev"), DEV_WORDS, (uint8_t)ev->a);
-        rep_int(a, S("index"), i);
+        rep_begin(a, s_fault);
+        con_report_str(&a->con, s_reason, hom_fault_name(ev->code));
+        rep_int(a, s_code, ev->code);
+        rep_word(a, s_dev, DEV_WORDS, (uint8_t)ev->a);
+        rep_int(a, s_index, i);
         if ((ev->a == HOM_DEV_SERVO || ev->a == HOM_DEV_TENDON) && i < TBL_MAX_TENDONS) {
-            rep_int(a, S("id"), a->ids[i]);
+            rep_int(a, s_id, a->ids[i]);
         }
-        rep_int(a, S("detail"), ev->b);
+        rep_int(a, s_detail, ev->b);
         rep_end(a);
         break;
     case HOM_EV_RELEASED:
-        rep_begin(a, S("released"));
-        con_report_str(&a->con, S("reason"), hom_fault_name((int)ev->a));
+        rep_begin(a, s_released);
+        con_report_str(&a->con, s_reason, hom_fault_name((int)ev->a));
         rep_end(a);
         break;
     default:
@@ -850,11 +950,11 @@ static void run_done(app_t *a)
     save_queue(a, SAVE_HOMES | SAVE_HIST);
     a->offer_quick = 0;
     a->released = 0;
-    rep_begin(a, S("done"));
-    rep_word(a, S("mode"), MODE_WORDS, a->run_mode);
-    rep_int(a, S("time_ms"), (int32_t)(t - a->t_run));
-    rep_int(a, S("tension_mN"), a->run_tension);
-    rep_int(a, S("count"), (int32_t)a->homes.cal_count);
+    rep_begin(a, s_done);
+    rep_word(a, s_mode, MODE_WORDS, a->run_mode);
+    rep_int(a, s_time_ms, (int32_t)(t - a->t_run));
+    rep_int(a, s_tension_mN, a->run_tension);
+    rep_int(a, s_count, (int32_t)a->homes.cal_count);
     rep_end(a);
     a->led = APP_LED_DONE;
     a->state = APP_ST_IDLE;
@@ -873,21 +973,21 @@ static int8_t check_devices(app_t *a)
         icm_diag_t d;
         (void)icm_set_diag(&a->sens, k, &d);
         if (d.state != ICM_SET_S_RUN) {
-            rep_begin(a, S("missing"));
-            con_report_flash(&a->con, S("dev"), S("sensor"));
-            rep_int(a, S("index"), k);
-            rep_int(a, S("err"), d.last_err);
+            rep_begin(a, s_missing);
+            con_report_flash(&a->con, s_dev, s_sensor);
+            rep_int(a, s_index, k);
+            rep_int(a, s_err, d.last_err);
             rep_end(a);
             return CON_E_SENSOR_FAULT;
         }
     }
     for (k = 0; k < a->info.n_tendons; k++) {
         if (((a->servo_absent >> k) & 1u) || a->hw_err[k] != 0u) {
-            rep_begin(a, S("missing"));
-            con_report_flash(&a->con, S("dev"), S("servo"));
-            rep_int(a, S("index"), k);
-            rep_int(a, S("id"), a->ids[k]);
-            rep_int(a, S("hw_error"), a->hw_err[k]);
+            rep_begin(a, s_missing);
+            con_report_flash(&a->con, s_dev, s_servo);
+            rep_int(a, s_index, k);
+            rep_int(a, s_id, a->ids[k]);
+            rep_int(a, s_hw_error, a->hw_err[k]);
             rep_end(a);
             return CON_E_SERVO_FAULT;
         }
@@ -1096,8 +1196,8 @@ void app_abort(app_t *app)
         return;
     }
     (void)release_goals(app);
-    rep_begin(app, S("released"));
-    con_report_flash(&app->con, S("reason"), S("aborted"));
+    rep_begin(app, s_released);
+    con_report_flash(&app->con, s_reason, s_aborted);
     rep_end(app);
     move_start(app, MOVE_RELEASE);
 }
@@ -1128,7 +1228,7 @@ static void move_step(app_t *a)
     }
     if (!arrived) {
         if (t - a->t_move > APP_MOVE_TIMEOUT_MS) {
-            rep_app_fault(a, S("servo_stall"), CON_E_TIMEOUT, HOM_DEV_SERVO, 0);
+            rep_app_fault(a, s_servo_stall, CON_E_TIMEOUT, HOM_DEV_SERVO, 0);
             a->state = APP_ST_FAULT;
             a->led = APP_LED_FAULT;
             a->rest_due = 1;
@@ -1145,9 +1245,9 @@ static void move_step(app_t *a)
         learn_begin(a, LEARN_BASELINE); /* the robot stands straight: capture B0 */
         return;
     }
-    rep_begin(a, S("done"));
-    con_report_flash(&a->con, S("mode"), S("home"));
-    rep_int(a, S("time_ms"), (int32_t)(t - a->t_move));
+    rep_begin(a, s_done);
+    con_report_flash(&a->con, s_mode, s_home);
+    rep_int(a, s_time_ms, (int32_t)(t - a->t_move));
     rep_end(a);
     a->released = 0;
     a->state = APP_ST_IDLE;
@@ -1204,10 +1304,10 @@ static void learn_step(app_t *a, const hom_in_t *in)
             }
             a->have_b0 = 1;
         }
-        rep_begin(a, S("done"));
-        con_report_flash(&a->con, S("mode"), S("release"));
-        rep_int(a, S("time_ms"), (int32_t)(t - a->t_move));
-        rep_int(a, S("baseline"), rc == 0);
+        rep_begin(a, s_done);
+        con_report_flash(&a->con, s_mode, s_release);
+        rep_int(a, s_time_ms, (int32_t)(t - a->t_move));
+        rep_int(a, s_baseline, rc == 0);
         rep_end(a);
         a->state = APP_ST_IDLE;
         a->led = APP_LED_IDLE;
@@ -1230,12 +1330,12 @@ static void learn_step(app_t *a, const hom_in_t *in)
         a->u.idle.rec.learned.target_cuT[a->learn_grid] = v;
         a->u.idle.rec.learned.grid_mask |= bit16(a->learn_grid);
         save_queue(a, SAVE_LEARNED);
-        rep_begin(a, S("learned"));
-        rep_int(a, S("tendon"), tdn);
-        rep_int(a, S("tension_mN"), a->info.grid_mN[a->learn_grid]);
-        rep_int(a, S("grid"), a->learn_grid);
-        rep_int(a, S("sensor"), s);
-        con_report_fixed(&a->con, S("dB_uT"), (int32_t)v, 2);
+        rep_begin(a, s_learned);
+        rep_int(a, s_tendon, tdn);
+        rep_int(a, s_tension_mN, a->info.grid_mN[a->learn_grid]);
+        rep_int(a, s_grid, a->learn_grid);
+        rep_int(a, s_sensor, s);
+        con_report_fixed(&a->con, s_dB_uT, (int32_t)v, 2);
         rep_end(a);
     }
     if (con_pending(&a->con)) {
@@ -1282,7 +1382,7 @@ static void store_task(app_t *a)
             if (a->save_now == SAVE_SETTINGS && con_pending(&a->con)) {
                 (void)con_complete(&a->con, rc == 0 ? 0 : CON_E_EEPROM);
             } else if (rc < 0) {
-                rep_app_fault(a, S("eeprom"), CON_E_EEPROM, HOM_DEV_NONE, a->save_now);
+                rep_app_fault(a, s_eeprom, CON_E_EEPROM, HOM_DEV_NONE, a->save_now);
             }
             a->save_now = 0;
         }
@@ -1327,7 +1427,7 @@ static void short_press(app_t *a)
     }
     rc = run_start(a, a->offer_quick ? HOM_MODE_QUICK : HOM_MODE_FULL, 0, 0);
     if (rc != 0) {
-        rep_app_fault(a, S("refused"), rc, HOM_DEV_NONE, 0);
+        rep_app_fault(a, s_refused, rc, HOM_DEV_NONE, 0);
         a->led = APP_LED_FAULT;
     }
 }
@@ -1427,7 +1527,7 @@ int8_t app_poll(app_t *app)
         if (a->req_con && con_pending(&a->con)) {
             (void)con_complete(&a->con, rc);
         } else if (rc != 0) {
-            rep_app_fault(a, S("refused"), rc, HOM_DEV_NONE, 0);
+            rep_app_fault(a, s_refused, rc, HOM_DEV_NONE, 0);
         }
     }
     switch (a->state) {
@@ -1462,21 +1562,21 @@ static int8_t h_version(con_t *con, const con_args_t *args, void *ctx)
     app_t *a = ctx;
     (void)con;
     (void)args;
-    rep_begin(a, S("version"));
-    con_report_flash(&a->con, S("name"), S("hallhome"));
+    rep_begin(a, s_version);
+    con_report_flash(&a->con, s_name, s_hallhome);
     if (a->io->version_f != NULL) {
-        con_report_flash(&a->con, S("version"), a->io->version_f);
+        con_report_flash(&a->con, s_version, a->io->version_f);
     }
     if (a->io->board_f != NULL) {
-        con_report_flash(&a->con, S("board"), a->io->board_f);
+        con_report_flash(&a->con, s_board, a->io->board_f);
     }
     if (a->table_ok) {
-        con_report_str(&a->con, S("table"), a->info.name);
-        rep_hex(a, S("table_id"), a->info.table_id);
-        rep_int(a, S("tendons"), a->info.n_tendons);
-        rep_int(a, S("sensors"), a->info.n_sensors);
+        con_report_str(&a->con, s_table, a->info.name);
+        rep_hex(a, s_table_id, a->info.table_id);
+        rep_int(a, s_tendons, a->info.n_tendons);
+        rep_int(a, s_sensors, a->info.n_sensors);
     } else {
-        con_report_flash(&a->con, S("table"), S("none"));
+        con_report_flash(&a->con, s_table, s_none);
     }
     rep_end(a);
     return 0;
@@ -1488,38 +1588,38 @@ static int8_t h_status(con_t *con, const con_args_t *args, void *ctx)
     uint8_t i;
     (void)con;
     (void)args;
-    rep_begin(a, S("status"));
-    rep_word(a, S("state"), STATE_WORDS, a->state);
+    rep_begin(a, s_status);
+    rep_word(a, s_state, STATE_WORDS, a->state);
     if (a->table_ok) {
-        con_report_str(&a->con, S("table"), a->info.name);
+        con_report_str(&a->con, s_table, a->info.name);
     } else {
-        con_report_flash(&a->con, S("table"), S("none"));
+        con_report_flash(&a->con, s_table, s_none);
     }
-    rep_int(a, S("sensors"), icm_set_ready_count(&a->sens));
-    rep_int(a, S("servos"), a->n_servo_found);
-    rep_hex(a, S("homes"), a->homes.valid_mask);
-    rep_hex(a, S("homes_now"), a->home_now);
-    rep_int(a, S("rehome"), a->offer_quick);
-    rep_int(a, S("tension_mN"), a->homes.tension_mN);
-    rep_int(a, S("count"), (int32_t)a->homes.cal_count);
-    con_report_str(&a->con, S("fault"), hom_fault_name(a->last_fault));
-    rep_int(a, S("learned"), a->learned_mask);
-    rep_int(a, S("baseline"), a->have_b0);
-    rep_int(a, S("saving"), store_busy(&a->store) || a->save_due != 0u);
-    rep_int(a, S("loop_max_us"), (int32_t)a->loop_max_us);
-    rep_int(a, S("loops"), (int32_t)a->loops);
+    rep_int(a, s_sensors, icm_set_ready_count(&a->sens));
+    rep_int(a, s_servos, a->n_servo_found);
+    rep_hex(a, s_homes, a->homes.valid_mask);
+    rep_hex(a, s_homes_now, a->home_now);
+    rep_int(a, s_rehome, a->offer_quick);
+    rep_int(a, s_tension_mN, a->homes.tension_mN);
+    rep_int(a, s_count, (int32_t)a->homes.cal_count);
+    con_report_str(&a->con, s_fault, hom_fault_name(a->last_fault));
+    rep_int(a, s_learned, a->learned_mask);
+    rep_int(a, s_baseline, a->have_b0);
+    rep_int(a, s_saving, store_busy(&a->store) || a->save_due != 0u);
+    rep_int(a, s_loop_max_us, (int32_t)a->loop_max_us);
+    rep_int(a, s_loops, (int32_t)a->loops);
     rep_end(a);
     for (i = 0; i < a->info.n_tendons; i++) {
         if (((a->homes.valid_mask >> i) & 1u) == 0u) {
             continue;
         }
-        rep_begin(a, S("home"));
-        rep_int(a, S("tendon"), i);
-        rep_int(a, S("home"), a->homes.t[i].home_ticks);
-        rep_int(a, S("rest"), a->homes.t[i].rest_ticks);
-        rep_int(a, S("usable"), (a->home_now >> i) & 1u);
+        rep_begin(a, s_home);
+        rep_int(a, s_tendon, i);
+        rep_int(a, s_home, a->homes.t[i].home_ticks);
+        rep_int(a, s_rest, a->homes.t[i].rest_ticks);
+        rep_int(a, s_usable, (a->home_now >> i) & 1u);
         if ((a->home_now >> i) & 1u) {
-            rep_int(a, S("now"), home_cur(a, i));
+            rep_int(a, s_now, home_cur(a, i));
         }
         rep_end(a);
     }
@@ -1538,21 +1638,21 @@ static int8_t h_sensors(con_t *con, const con_args_t *args, void *ctx)
     for (k = 0; k < a->info.n_sensors; k++) {
         icm_diag_t d;
         (void)icm_set_diag(&a->sens, k, &d);
-        rep_begin(a, S("sensor"));
-        rep_int(a, S("index"), k);
-        rep_int(a, S("ch"), d.channel);
-        rep_int(a, S("addr"), d.addr);
-        rep_int(a, S("ok"), d.state == ICM_SET_S_RUN);
-        rep_int(a, S("who"), d.who_am_i);
-        rep_int(a, S("mag"), d.mag_ready);
-        con_report_fixed(&a->con, S("rate_Hz"), d.rate_dhz, 1);
-        con_report_fixed(&a->con, S("bx_uT"), d.field_cuT[0], 2);
-        con_report_fixed(&a->con, S("by_uT"), d.field_cuT[1], 2);
-        con_report_fixed(&a->con, S("bz_uT"), d.field_cuT[2], 2);
-        rep_int(a, S("ovf"), d.overflow_count);
-        rep_int(a, S("err"), d.error_count);
-        rep_int(a, S("last_err"), d.last_err);
-        rep_int(a, S("reinits"), d.reinits);
+        rep_begin(a, s_sensor);
+        rep_int(a, s_index, k);
+        rep_int(a, s_ch, d.channel);
+        rep_int(a, s_addr, d.addr);
+        rep_int(a, s_ok, d.state == ICM_SET_S_RUN);
+        rep_int(a, s_who, d.who_am_i);
+        rep_int(a, s_mag, d.mag_ready);
+        con_report_fixed(&a->con, s_rate_Hz, d.rate_dhz, 1);
+        con_report_fixed(&a->con, s_bx_uT, d.field_cuT[0], 2);
+        con_report_fixed(&a->con, s_by_uT, d.field_cuT[1], 2);
+        con_report_fixed(&a->con, s_bz_uT, d.field_cuT[2], 2);
+        rep_int(a, s_ovf, d.overflow_count);
+        rep_int(a, s_err, d.error_count);
+        rep_int(a, s_last_err, d.last_err);
+        rep_int(a, s_reinits, d.reinits);
         rep_end(a);
     }
     return 0;
@@ -1709,38 +1809,38 @@ static int8_t h_table(con_t *con, const con_args_t *args, void *ctx)
     if (!a->table_ok) {
         return CON_E_NO_TABLE;
     }
-    rep_begin(a, S("table"));
-    con_report_str(&a->con, S("name"), a->info.name);
-    rep_hex(a, S("table_id"), a->info.table_id);
-    rep_int(a, S("tendons"), a->info.n_tendons);
-    rep_int(a, S("sensors"), a->info.n_sensors);
+    rep_begin(a, s_table);
+    con_report_str(&a->con, s_name, a->info.name);
+    rep_hex(a, s_table_id, a->info.table_id);
+    rep_int(a, s_tendons, a->info.n_tendons);
+    rep_int(a, s_sensors, a->info.n_sensors);
     pos = 0;
     buf[0] = '\0';
     for (g = 0; g < a->info.n_grid; g++) {
         list_add(buf, sizeof buf, &pos, a->info.grid_mN[g], '\0');
     }
-    con_report_str(&a->con, S("grid_mN"), buf);
-    rep_int(a, S("default_mN"), a->info.default_mN);
-    rep_int(a, S("noise_cuT"), a->info.noise_cuT);
+    con_report_str(&a->con, s_grid_mN, buf);
+    rep_int(a, s_default_mN, a->info.default_mN);
+    rep_int(a, s_noise_cuT, a->info.noise_cuT);
     rep_end(a);
     for (i = 0; i < a->info.n_tendons; i++) {
         tbl_tendon_t row, eff;
         (void)tbl_tendon(&a->tab, i, &row);
         (void)tbl_tendon(&a->htab, i, &eff);
-        rep_begin(a, S("tendon"));
-        rep_int(a, S("tendon"), i);
-        rep_int(a, S("id"), row.servo_id);
-        rep_int(a, S("dir"), row.pull_dir);
-        rep_int(a, S("segment"), row.segment);
-        rep_int(a, S("sensor"), row.sensor);
-        rep_int(a, S("limit_um"), (int32_t)row.travel_limit_um);
+        rep_begin(a, s_tendon);
+        rep_int(a, s_tendon, i);
+        rep_int(a, s_id, row.servo_id);
+        rep_int(a, s_dir, row.pull_dir);
+        rep_int(a, s_segment, row.segment);
+        rep_int(a, s_sensor, row.sensor);
+        rep_int(a, s_limit_um, (int32_t)row.travel_limit_um);
         pos = 0;
         buf[0] = '\0';
         for (g = 0; g < a->info.n_grid; g++) {
             list_add(buf, sizeof buf, &pos, (int32_t)eff.target_cuT[g],
                      eff.target_cuT[g] != row.target_cuT[g] ? '*' : '\0');
         }
-        con_report_str(&a->con, S("target_cuT"), buf);
+        con_report_str(&a->con, s_target_cuT, buf);
         rep_end(a);
     }
     return 0;
@@ -1759,17 +1859,17 @@ static int8_t h_history(con_t *con, const con_args_t *args, void *ctx)
         if (store_hist_get(&a->store, age, &e) != 0) {
             break;
         }
-        rep_begin(a, S("hist"));
-        rep_int(a, S("age"), age);
-        rep_int(a, S("count"), (int32_t)e.cal_count);
-        rep_hex(a, S("table_id"), e.table_id);
-        rep_int(a, S("tension_mN"), e.tension_mN);
+        rep_begin(a, s_hist);
+        rep_int(a, s_age, age);
+        rep_int(a, s_count, (int32_t)e.cal_count);
+        rep_hex(a, s_table_id, e.table_id);
+        rep_int(a, s_tension_mN, e.tension_mN);
         pos = 0;
         buf[0] = '\0';
         for (i = 0; i < e.n_tendons && i < TBL_MAX_TENDONS; i++) {
             list_add(buf, sizeof buf, &pos, e.home_ticks[i], ((e.valid_mask >> i) & 1u) ? 0 : '?');
         }
-        con_report_str(&a->con, S("homes"), buf);
+        con_report_str(&a->con, s_homes, buf);
         rep_end(a);
     }
     return 0;
@@ -1780,15 +1880,15 @@ static void setting_line(app_t *a, uint8_t id)
     char buf[24];
     store_setting_info_t inf;
     (void)store_setting_info(&a->store, id, &inf);
-    rep_begin(a, S("setting"));
+    rep_begin(a, s_setting);
     (void)store_setting_text(&a->store, id, 0, buf, sizeof buf);
-    con_report_str(&a->con, S("name"), buf);
-    rep_int(a, S("value"), a->set.v[id]);
+    con_report_str(&a->con, s_name, buf);
+    rep_int(a, s_value, a->set.v[id]);
     (void)store_setting_text(&a->store, id, 1, buf, sizeof buf);
-    con_report_str(&a->con, S("unit"), buf);
-    rep_int(a, S("min"), inf.min);
-    rep_int(a, S("max"), inf.max);
-    rep_int(a, S("default"), inf.def);
+    con_report_str(&a->con, s_unit, buf);
+    rep_int(a, s_min, inf.min);
+    rep_int(a, s_max, inf.max);
+    rep_int(a, s_default, inf.def);
     rep_end(a);
 }
 
