@@ -24,8 +24,9 @@ TESTFW_SRCS := $(wildcard sim/bench/testfw/*.c)
 TESTFW_ELFS := $(patsubst sim/bench/testfw/%.c,$(SIM_DIR)/testfw/%.elf,$(TESTFW_SRCS))
 TESTFW_DRIVERS := firmware/tick.c firmware/uart0.c firmware/uart1.c firmware/twi.c firmware/reset.c
 
-SIM_SEED    ?= $(shell od -An -N4 -tu4 /dev/urandom | tr -d ' ')
-SEED        ?= $(SIM_SEED)
+ifeq ($(origin SEED),undefined)
+SEED        := $(shell od -An -N4 -tu4 /dev/urandom | tr -d ' ')
+endif
 TENSION     ?=
 FAULT       ?=
 SIM_LIMIT   ?= 120s
@@ -34,8 +35,11 @@ SIM_LIMIT   ?= 120s
 # sim/plant/configs/$(ROBOT).cfg is used only for a robot without a TOML.
 ROBOT_TOML  := lookup_tables/robots/$(ROBOT).toml
 SIM_PLANT   := $(if $(wildcard $(ROBOT_TOML)),$(SIM_DIR)/plant/$(ROBOT).cfg,sim/plant/configs/$(ROBOT).cfg)
-SIM_STATE   := $(SIM_DIR)/$(ROBOT).eeprom
-SIM_UNTIL   ?= ^<done mode=full
+# One EEPROM image per robot and seed: the same SEED again is the same robot
+# after a power cycle (stored homes: the firmware re-homes quickly), a new
+# seed is a new robot with an erased EEPROM.
+SIM_STATE    = $(SIM_DIR)/eeprom/$(ROBOT)-$(SEED).eeprom
+SIM_UNTIL   ?= ^<done mode=(full|quick)
 SIM_FAIL    ?= ^<fault
 SIM_TOL     ?= 10
 SIM_ARGS    ?=
@@ -69,12 +73,13 @@ sim: $(BENCH) firmware $(SIM_PLANT)
 	@test -f $(SIM_PLANT) || { echo "make sim: no plant config $(SIM_PLANT)"; exit 2; }
 	@test -z "$(FAULT)" || test -f $(SIM_SCN) || { echo "make sim: no scenario $(SIM_SCN); known:"; \
 		ls sim/bench/scenarios | sed 's/\.scn$$//; s/^/  /'; exit 2; }
+	@mkdir -p $(SIM_DIR)/eeprom
 	@echo "make sim: ROBOT=$(ROBOT) SEED=$(SEED) TENSION=$(or $(TENSION),default) FAULT=$(or $(FAULT),none)"
 	$(BENCH) $(FW_ELF) --plant $(SIM_PLANT) --seed $(SEED) --eeprom $(SIM_STATE) \
-		--summary $(SIM_DIR)/summary.json --timestamps --table \
+		--summary $(SIM_DIR)/summary.json --timestamps --table --linger 3s \
 		$(if $(TENSION),--tension $(TENSION) --at "0.3s send set cal_tension $(shell awk 'BEGIN{printf "%d", $(TENSION)*1000}')") \
 		$(if $(INTERACTIVE),--interactive --realtime --pty-link $(SIM_DIR)/console, \
-			--limit $(SIM_LIMIT) --at "0.5s press" \
+			--limit $(SIM_LIMIT) --at "1s press 100" \
 			$(if $(FAULT),--scenario $(SIM_SCN), \
 				--until '$(SIM_UNTIL)' --fail-on '$(SIM_FAIL)' --check-tension $(SIM_TOL))) \
 		$(SIM_ARGS)

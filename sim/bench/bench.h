@@ -258,7 +258,9 @@ struct bench_t {
     uint8_t n_until;
     bench_pattern_t fail[BENCH_MAX_PATTERN];
     uint8_t n_fail;
-    uint64_t eewrite_stop; /* stop after this many EEPROM byte writes (0 = never) */
+    uint64_t linger_us;     /* run on this long after --until matched */
+    uint64_t linger_end_us; /* set when it matched (0 = not yet) */
+    uint64_t eewrite_stop;  /* stop after this many EEPROM byte writes (0 = never) */
     /* state */
     bench_con_t con;
     bench_bus_t bus;

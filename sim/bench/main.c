@@ -88,12 +88,16 @@ void bench_console_line(bench_t *b, const char *line)
             return;
         }
     }
-    for (uint8_t i = 0; i < b->n_until; i++) {
+    for (uint8_t i = 0; i < b->n_until && b->linger_end_us == 0; i++) {
         if (now >= b->until[i].from_us && now < b->until[i].to_us &&
             regexec(&b->until[i].re, line, 0, NULL, 0) == 0) {
             snprintf(b->until_line, sizeof b->until_line, "%s", line);
             b->until_at_us = bench_now_us(b);
-            bench_finish(b, BENCH_EXIT_OK, "until matched");
+            if (b->linger_us == 0) {
+                bench_finish(b, BENCH_EXIT_OK, "until matched");
+            } else {
+                b->linger_end_us = b->until_at_us + b->linger_us; /* let saves finish */
+            }
             return;
         }
     }
@@ -573,6 +577,12 @@ int main(int argc, char **argv)
             if (bench_add_pattern(b, 0, v, 0, UINT64_MAX) != 0) {
                 return BENCH_EXIT_USAGE;
             }
+        } else if (strcmp(a, "--linger") == 0) {
+            NEEDV();
+            if (scen_parse_time(v, &b->linger_us) != 0) {
+                fprintf(stderr, "hh_bench: bad time %s\n", v);
+                return BENCH_EXIT_USAGE;
+            }
         } else if (strcmp(a, "--fail-on") == 0) {
             NEEDV();
             if (bench_add_pattern(b, 1, v, 0, UINT64_MAX) != 0) {
@@ -745,8 +755,13 @@ int main(int argc, char **argv)
             b->pending_reset = 0;
             do_reset(b, k);
         }
+        if (b->linger_end_us != 0 && bench_now_us(b) >= b->linger_end_us) {
+            bench_finish(b, BENCH_EXIT_OK, "until matched");
+        }
         if (limit_cycles != 0 && b->avr->cycle >= limit_cycles) {
-            bench_finish(b, b->n_until ? BENCH_EXIT_TIMEOUT : BENCH_EXIT_OK, "time limit");
+            bench_finish(b,
+                         b->n_until && b->linger_end_us == 0 ? BENCH_EXIT_TIMEOUT : BENCH_EXIT_OK,
+                         b->linger_end_us != 0 ? "until matched" : "time limit");
         }
         if ((++spin & 0x3FFu) == 0) {
             uart_timing_fix(b);

@@ -105,6 +105,15 @@ def test_fail_on_pattern_fails_the_run(tmp_path):
     assert "fail-on matched" in r.summary["reason"]
 
 
+def test_linger_runs_on_after_until_with_fail_on_still_active(tmp_path):
+    r = bench(tmp_path, FW, "--limit", "5s", "--until", "^<boot ", "--linger", "300ms")
+    assert r.rc == 0 and r.summary["reason"] == "until matched"
+    assert r.summary["sim_s"] == pytest.approx(r.summary["until"]["t_s"] + 0.3, abs=1e-4)
+    r = bench(tmp_path, FW, "--limit", "5s", "--until", "^<boot ", "--linger", "300ms",
+              "--at", "0.2s wdt-reset", "--fail-on", "reset=watchdog")
+    assert r.rc == 1
+
+
 def test_watchdog_reset_is_reported_by_the_firmware(tmp_path):
     r = bench(tmp_path, FW, "--limit", "1s", "--at", "0.3s wdt-reset", "--until", "reset=watchdog")
     assert r.rc == 0, r.out + r.err
