@@ -155,8 +155,9 @@ def ambient(amb: Dict, outdir: str) -> str:
                 ax.annotate(f"{r['failed']}/{r['n']} failed", (r["dA_uT"], r["rms_N"]),
                             textcoords="offset points", xytext=(4, 6), fontsize=7, color=color)
     ax.axhline(PAPER["tension_err_sd_N"], color="0.6", ls="--", lw=1, label="paper SD 0.20 N")
+    ax.set_yscale("symlog", linthresh=0.01)
     ax.set_xlabel("ambient field change between table and calibration (µT)")
-    ax.set_ylabel("|tension error| (N)")
+    ax.set_ylabel("|tension error| (N), linear below 0.01")
     ax.set_title("Ambient change: absolute mode vs field-change mode (failed homes not in RMS)")
     ax.legend(fontsize=7)
     return _save(fig, outdir, "ambient.png")

@@ -139,7 +139,7 @@ def robust_item(a, res: Dict) -> None:
             feats = {n: [r[n] for r in rows] for n in names if rows and n in rows[0]}
             rob["ranking"] = stats.sensitivity(feats, errs)
     log("native loop: one-at-a-time parameter sweeps")
-    out = native.mc(a.mc, a.config, "oat", ["-p", str(main_frac), "-k", "2" if a.reduced else "5",
+    out = native.mc(a.mc, a.config, "oat", ["-p", str(main_frac), "-k", "2" if a.reduced else "7",
                                              "-s", str(a.seed), "-t", "800"])
     rob["oat"] = stats.oat_slopes((r["group"], r["x"], r["err_N"]) for r in out.get("oat", []))
     res["robust"] = rob
@@ -333,7 +333,7 @@ def main(argv=None) -> int:
     p.add_argument("--no-simavr", action="store_true")
     p.add_argument("--jobs", type=int, default=2, help="simavr runs at once")
     p.add_argument("--sim-limit", type=float, default=60.0, help="simulated s per calibration")
-    p.add_argument("--mc-runs", type=int, default=300)
+    p.add_argument("--mc-runs", type=int, default=500)
     p.add_argument("--seed", type=int, default=1)
     a = p.parse_args(argv)
     t0 = time.time()

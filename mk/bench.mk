@@ -57,7 +57,7 @@ bench-check: bench-tools native-build firmware $(BUILD)/sim/hh_bench
 		--mc $(BENCH_MC) --hh-bench $(BUILD)/sim/hh_bench --elf $(FW_ELF) \
 		--dxl-bench $(BUILD)/native/hh_dxl_bench --sim-limit 40 $(BENCH_ARGS)
 	$(PY) -c "import sys; from bench.report import check_report; \
-		p = check_report('$(BENCH_CHECK_DIR)/report.md'); print(*p, sep='\n'); sys.exit(1 if p else 0)"
+		p = check_report('$(BENCH_CHECK_DIR)/report.md'); [print('bench-check:', x) for x in p]; sys.exit(1 if p else 0)"
 	@echo "bench-check: report with every section and its figures in $(BENCH_CHECK_DIR)/report.md"
 
 TEST_TARGETS += bench-check
