@@ -160,6 +160,16 @@ static void test_button_calibrates_and_stores(void **state)
         assert_true(fabs((double)shaft - truth) <= 2.0);
         (void)first;
     }
+    /* a spool turned by hand while the board was off: the homes are not used */
+    app_bench_run_ms(&g_b, 1500);
+    g_b.shaft0[3] -= 1500.0;
+    g_b.servo[3].shaft += 1500.0;
+    app_bench_restart(&g_b, 1);
+    assert_true(app_bench_wait_line(&g_b, "<ready ", g_line, sizeof g_line, 4000));
+    assert_non_null(strstr(g_line, "homes=moved"));
+    assert_int_equal(app_bench_field(g_line, "rehome", -1), 0);
+    cmd(&g_b, "rehome", "error:22 spool turned while powered off: full calibration needed");
+    cmd(&g_b, "home", "error:22 spool turned while powered off: full calibration needed");
 }
 
 /* '!' during a tendon's approach: fault "aborted", every tendon slack within
@@ -353,6 +363,46 @@ static void test_slow_loop_single_tendon(void **state)
     assert_non_null(strstr(g_line, "mode=single"));
 }
 
+/* EEPROM writes only while nothing moves: a run asked for while the records
+ * of the previous one are being written starts after them, and no byte is
+ * written during it. After a power cycle with a spool turned by hand, the
+ * homes are not trusted: `rehome` answers error:22. */
+static void test_store_idle_only_and_moved_spool(void **state)
+{
+    uint32_t writes;
+    (void)state;
+    boot(&g_b, 1);
+    cmd(&g_b, "cal 0.8 0", "ok");
+    assert_true(app_bench_wait_line(&g_b, "<done ", g_line, sizeof g_line, 20000));
+    app_bench_send(&g_b, "cal 0.8 1"); /* held until the homes and history are written */
+    app_bench_step(&g_b);
+    assert_int_equal(g_b.app.state, APP_ST_IDLE);
+    reply(&g_b, "ok", 3000);
+    assert_int_equal(g_b.app.state, APP_ST_CAL);
+    writes = g_b.ee.writes;
+    while (g_b.app.state == APP_ST_CAL) {
+        app_bench_step(&g_b);
+        assert_int_equal(g_b.ee.writes, writes);
+    }
+    assert_true(app_bench_wait_line(&g_b, "<done ", g_line, sizeof g_line, 100));
+    app_bench_run_ms(&g_b, 2000);
+    assert_true(g_b.ee.writes > writes);
+    assert_int_equal(g_b.ee.violations, 0);
+    /* a rest position is known for tendons 0 and 1 only: no quick re-home */
+    app_bench_restart(&g_b, 1);
+    assert_true(app_bench_wait_line(&g_b, "<ready ", g_line, sizeof g_line, 4000));
+    assert_non_null(strstr(g_line, "homes=stored"));
+    assert_int_equal(app_bench_field(g_line, "rehome", -1), 0);
+    cmd(&g_b, "rehome", "error:12 no homes: calibrate first");
+    /* a spool turned by half a turn while powered off */
+    g_b.shaft0[0] -= 2000.0;
+    g_b.servo[0].shaft += 2000.0;
+    app_bench_restart(&g_b, 1);
+    assert_true(app_bench_wait_line(&g_b, "<ready ", g_line, sizeof g_line, 4000));
+    assert_non_null(strstr(g_line, "homes=moved"));
+    cmd(&g_b, "home", "error:12 no homes: calibrate first");
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -365,6 +415,7 @@ int main(void)
         cmocka_unit_test(test_long_press_aborts),
         cmocka_unit_test(test_servo_fault_mid_run),
         cmocka_unit_test(test_slow_loop_single_tendon),
+        cmocka_unit_test(test_store_idle_only_and_moved_spool),
         cmocka_unit_test(test_button_calibrates_and_stores),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
