@@ -291,6 +291,12 @@ def simavr_items(a, res: Dict, cfg: Dict, workdir: str) -> None:
     if q.get("quick_s") is not None:
         tm["quick_s"] = q["quick_s"]
         tm["n_quick"] = 1
+        if q.get("phantom"):
+            tm["quick_note"] = (
+                "the firmware reported `" + q["phantom"][0] + "` about 2 s after the power "
+                "cycle, with no button event scheduled (a long press seen at power-up), so the "
+                "tendons were released from their homes before the quick re-home started; the "
+                "time includes taking them up again")
     else:
         tm["quick_note"] = f"not measured: {q.get('error', 'no quick done report')}"
     r = res["resources"]

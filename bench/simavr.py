@@ -127,7 +127,9 @@ def rehome_and_status(hh_bench: str, elf: str, plant: str, seed: int, tension_mN
     "status_t", "quick_s" and "quick_ms"."""
     t_status = done_t + 0.3
     t_cycle = done_t + 1.0
-    t_rehome = done_t + 2.0
+    # 3 s after power-up: later than the long-press abort the bench produces
+    # about 2 s after a power cycle (see "phantom" below)
+    t_rehome = t_cycle + 3.0
     ev = [f"0.3s send set cal_tension {tension_mN}", "0.6s send cal",
           f"{t_status:.3f}s send status", f"{t_cycle:.3f}s power-cycle",
           f"{t_rehome:.3f}s send rehome"]
@@ -137,6 +139,10 @@ def rehome_and_status(hh_bench: str, elf: str, plant: str, seed: int, tension_mN
     r["loop_max_us"] = float(st["rep"]["loop_max_us"]) if st and "loop_max_us" in st["rep"] else None
     r["loops"] = float(st["rep"]["loops"]) if st and "loops" in st["rep"] else None
     r["status_t"] = st["t"] if st else None
+    # a release reported between the power cycle and the re-home: the robot
+    # was no longer at its homes when the quick re-home started
+    r["phantom"] = [l["text"] for l in lines
+                    if t_cycle < l["t"] < t_rehome and l["rep"].get("_kind") == "released"]
     qs = [l for l in lines if l["rep"].get("_kind") == "progress"
           and l["rep"].get("state") == "start" and l["rep"].get("mode") == "quick"]
     qd = _t_of(lines, "done", mode="quick")
