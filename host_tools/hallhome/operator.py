@@ -643,6 +643,8 @@ def plot_history(rows, n, path: Path) -> None:
         if pts:
             base = pts[0][1]
             ax.plot([p[0] for p in pts], [p[1] - base for p in pts], marker="o", label=f"tendon {k}")
+    from matplotlib.ticker import MaxNLocator
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
     ax.set_xlabel("calibration")
     ax.set_ylabel("home - first home (encoder ticks)")
     ax.set_title("home over time (tendon creep)")
@@ -816,6 +818,7 @@ def console_cmd(port, timeout) -> None:
     `exit` leaves. Lines are checked against the firmware's declarations
     before they are sent."""
     tty = sys.stdin.isatty()
+    readline = None
     con = out()
     lock = threading.Lock()
     stop = threading.Event()
@@ -827,8 +830,8 @@ def console_cmd(port, timeout) -> None:
                 readline.read_history_file(HISTORY_FILE)
             except OSError:
                 pass
-        except ImportError:
-            readline = None  # type: ignore[assignment]
+        except ImportError:  # no GNU readline on this platform: plain input()
+            pass
     with session(port, timeout) as c:
         b = c.boot
         con.print(f"connected to {c.port}" + (f" ({b.raw})" if b else "") + "; `help` lists the commands")
@@ -838,6 +841,22 @@ def console_cmd(port, timeout) -> None:
                 con.print(f"[yellow]{r.raw}  <- the board reset; the console re-synchronises[/]")
             else:
                 click.echo(r.raw)
+
+        prompt = "hallhome> " if tty else ""
+        at_prompt = threading.Event()
+
+        def show_async(r: Report) -> None:
+            """A report between commands: on a terminal, above the prompt
+            and the half-typed line, which are drawn again."""
+            if not (tty and at_prompt.is_set()):
+                show(r)
+                return
+            buf = readline.get_line_buffer() if readline is not None else ""
+            sys.stdout.write("\r\x1b[K")
+            sys.stdout.flush()
+            show(r)
+            sys.stdout.write(prompt + buf)
+            sys.stdout.flush()
 
         def reader() -> None:
             while not stop.is_set():
@@ -851,7 +870,7 @@ def console_cmd(port, timeout) -> None:
                         _thread.interrupt_main()
                         return
                 if r is not None:
-                    show(r)
+                    show_async(r)
                 else:
                     time.sleep(0.02)
 
@@ -859,10 +878,13 @@ def console_cmd(port, timeout) -> None:
         th.start()
         try:
             while True:
+                at_prompt.set()
                 try:
-                    line = input("hallhome> " if tty else "")
+                    line = input(prompt)
                 except EOFError:
                     break
+                finally:
+                    at_prompt.clear()
                 if not tty:
                     click.echo(f"> {line}")
                 line = line.strip()

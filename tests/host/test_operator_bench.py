@@ -14,6 +14,7 @@ build fails are these tests skipped, with the build's error as the reason.
 import json
 import os
 import re
+import select
 import signal
 import subprocess
 import sys
@@ -381,3 +382,67 @@ def test_unplugged_cable_during_console(bench):
         c.command("status")
         c.command("status")
     c.close()
+
+
+def test_board_reset_during_calibration(bench):
+    b = bench("3s wdt-reset")
+    r = hh("calibrate", "--port", b.pty, timeout=120)
+    assert r.returncode == 4, r.stdout + r.stderr
+    assert "the board reset (reset=watchdog) during the calibration" in r.stderr
+    assert "run `hallhome calibrate` again" in r.stderr
+    assert "<progress state=tendon" in r.stdout  # it was under way
+
+
+def test_unplugged_cable_during_calibration(bench):
+    b = bench()
+    m = b.mark()
+    p = hh_start("calibrate", "--port", b.pty)
+    b.wait_line(r"<progress state=tendon ", 60, after=m)
+    b.kill()
+    out, err = p.communicate(timeout=30)
+    assert p.returncode == 5, out + err
+    assert "lost the connection to the board" in err
+
+
+def read_until(fd, pattern, timeout=15.0):
+    buf = b""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if select.select([fd], [], [], 0.1)[0]:
+            try:
+                chunk = os.read(fd, 4096)
+            except OSError:
+                break
+            if not chunk:
+                break
+            buf += chunk
+            if re.search(pattern, buf.decode(errors="replace")):
+                return buf.decode(errors="replace")
+    raise AssertionError(f"no {pattern!r} in terminal output:\n{buf.decode(errors='replace')}")
+
+
+def test_console_on_a_terminal(bench, tmp_path):
+    b = bench()
+    hist = tmp_path / "history"
+    master, slave = os.openpty()
+    env = dict(os.environ, COLUMNS="160", HALLHOME_HISTORY=str(hist), TERM="dumb")
+    p = subprocess.Popen([sys.executable, "-m", "hallhome", "console", "--port", str(b.pty)],
+                         stdin=slave, stdout=slave, stderr=slave, env=env, close_fds=True)
+    os.close(slave)
+    try:
+        read_until(master, r"hallhome> ")
+        os.write(master, b"version\r")
+        out = read_until(master, r"<version name=hallhome[^\n]*\r?\n(\x1b\[K)?ok")
+        assert "tendons=6" in out
+        os.write(master, b"cal 0.8 0\r")
+        read_until(master, r"<done mode=single")  # progress arrives at the prompt
+        os.write(master, b"!\r")
+        read_until(master, r"abort sent")
+        os.write(master, b"\x04")  # Ctrl-D
+        assert p.wait(15) == 0
+    finally:
+        if p.poll() is None:
+            p.kill()
+        os.close(master)
+    saved = hist.read_text()
+    assert "version" in saved and "cal 0.8 0" in saved
