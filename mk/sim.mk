@@ -78,7 +78,7 @@ sim: $(BENCH) firmware $(SIM_PLANT)
 	$(BENCH) $(FW_ELF) --plant $(SIM_PLANT) --seed $(SEED) --eeprom $(SIM_STATE) \
 		--summary $(SIM_DIR)/summary.json --timestamps --table --linger 3s \
 		$(if $(TENSION),--tension $(TENSION) --at "0.3s send set cal_tension $(shell awk 'BEGIN{printf "%d", $(TENSION)*1000}')") \
-		$(if $(INTERACTIVE),--interactive --realtime --pty-link $(SIM_DIR)/console, \
+		$(if $(INTERACTIVE),--interactive --realtime --pty-link $(SIM_DIR)/console --control -, \
 			--limit $(SIM_LIMIT) --at "1s press 100" \
 			$(if $(FAULT),--scenario $(SIM_SCN), \
 				--until '$(SIM_UNTIL)' --fail-on '$(SIM_FAIL)' --check-tension $(SIM_TOL))) \

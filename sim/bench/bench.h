@@ -206,6 +206,9 @@ typedef struct {
     size_t line_len;
     int pty_fd; /* master side in interactive mode, else -1 */
     int stdin_fd;
+    int control_fd; /* --control: event lines run when read (-1 = none) */
+    char ctl_line[256];
+    size_t ctl_len;
     uint8_t timestamps;
     uint8_t echo; /* stream console lines to stdout */
     uint64_t bytes_out, bytes_in, lines;
@@ -216,6 +219,7 @@ void con_bench_queue(bench_t *b, const char *data, size_t n);
 void con_bench_pump(bench_t *b);
 int con_bench_open_pty(bench_t *b, const char *link);
 void con_bench_poll_fds(bench_t *b);
+void con_bench_poll_control(bench_t *b);
 void con_bench_flush(bench_t *b);
 
 /* ---- the bench ---------------------------------------------------------------- */
@@ -318,6 +322,7 @@ int scen_parse_time(const char *s, uint64_t *us);
 int scen_load_file(bench_t *b, const char *path);
 int scen_add_spec(bench_t *b, const char *spec);
 void scen_sort(bench_t *b);
+int scen_add_now(bench_t *b, const char *line);
 void scen_run_due(bench_t *b, uint64_t now_us);
 /* Drives the button pin: down = 1 pulls PE5 low. */
 void bench_button(bench_t *b, uint8_t down);

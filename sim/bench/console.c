@@ -180,6 +180,40 @@ void con_bench_poll_fds(bench_t *b)
     }
 }
 
+/* --control: "EVENT ARGS" lines (press, sensor-unplug 1, ...) from a file,
+ * FIFO or standard input, each run at the simulated time it is read. */
+void con_bench_poll_control(bench_t *b)
+{
+    bench_con_t *c = &b->con;
+    char buf[128];
+    if (c->control_fd < 0) {
+        return;
+    }
+    struct pollfd p = {c->control_fd, POLLIN, 0};
+    if (poll(&p, 1, 0) != 1) {
+        return;
+    }
+    ssize_t n = read(c->control_fd, buf, sizeof buf);
+    if (n <= 0) {
+        if (n == 0 || (errno != EAGAIN && errno != EINTR)) {
+            c->control_fd = -1;
+        }
+        return;
+    }
+    for (ssize_t i = 0; i < n; i++) {
+        char ch = buf[i];
+        if (ch == '\n' || ch == '\r') {
+            c->ctl_line[c->ctl_len] = '\0';
+            if (c->ctl_len > 0 && scen_add_now(b, c->ctl_line) != 0) {
+                fprintf(stderr, "hh_bench: bad control line: %s\n", c->ctl_line);
+            }
+            c->ctl_len = 0;
+        } else if (c->ctl_len + 1u < sizeof c->ctl_line) {
+            c->ctl_line[c->ctl_len++] = ch;
+        }
+    }
+}
+
 /* A partial last line (no newline yet) is shown at the end of the run. */
 void con_bench_flush(bench_t *b)
 {

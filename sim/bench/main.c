@@ -5,6 +5,7 @@
  */
 #define _POSIX_C_SOURCE 200809L
 #include <errno.h>
+#include <fcntl.h>
 #include <math.h>
 #include <signal.h>
 #include <stdarg.h>
@@ -552,6 +553,7 @@ int main(int argc, char **argv)
     b->con.echo = 1;
     b->con.pty_fd = -1;
     b->con.stdin_fd = -1;
+    b->con.control_fd = -1;
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i];
         const char *v = i + 1 < argc ? argv[i + 1] : NULL;
@@ -604,6 +606,13 @@ int main(int argc, char **argv)
             b->input_path = v;
         } else if (strcmp(a, "--stdin") == 0) {
             use_stdin = 1;
+        } else if (strcmp(a, "--control") == 0) {
+            NEEDV();
+            b->con.control_fd = strcmp(v, "-") == 0 ? 0 : open(v, O_RDONLY | O_NONBLOCK);
+            if (b->con.control_fd < 0) {
+                perror(v);
+                return BENCH_EXIT_USAGE;
+            }
         } else if (strcmp(a, "--interactive") == 0) {
             b->interactive = 1;
         } else if (strcmp(a, "--pty-link") == 0) {
@@ -771,6 +780,7 @@ int main(int argc, char **argv)
                 bench_finish(b, BENCH_EXIT_SIGNAL, "signal");
             }
             con_bench_poll_fds(b);
+            con_bench_poll_control(b);
             con_bench_pump(b);
             if (b->realtime) {
                 double ahead = (double)bench_now_us(b) * 1e-6 - (wall_now() - b->wall_start);

@@ -304,6 +304,32 @@ int scen_add_spec(bench_t *b, const char *spec)
     return scen_add_line(b, buf) == 0 ? 0 : -1;
 }
 
+/* A control line ("EVENT ARGS", or an until/fail-on line) to run now: the
+ * event is placed after every event already due. Returns 0 or -1. */
+int scen_add_now(bench_t *b, const char *line)
+{
+    char buf[256];
+    uint64_t now = bench_now_us(b);
+    int n = snprintf(buf, sizeof buf, "0 %s", line);
+    uint16_t before = b->n_ev;
+    if (n < 0 || (size_t)n >= sizeof buf || scen_add_line(b, buf) < 0) {
+        return -1;
+    }
+    if (b->n_ev == before) {
+        return 0; /* a pattern line, or blank */
+    }
+    bench_event_t e = b->ev[b->n_ev - 1];
+    e.at_us = now;
+    uint16_t j = (uint16_t)(b->n_ev - 1u);
+    while (j > b->next_ev && b->ev[j - 1].at_us > now) {
+        b->ev[j] = b->ev[j - 1];
+        j--;
+    }
+    b->ev[j] = e;
+    bench_rearm(b);
+    return 0;
+}
+
 static int ev_cmp(const void *a, const void *c)
 {
     const bench_event_t *x = a, *y = c;

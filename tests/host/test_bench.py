@@ -235,6 +235,24 @@ def test_button_press_and_timed_release(tmp_path):
     assert r.summary["button"]["down"] == 0
 
 
+def test_control_lines_run_events_while_the_bench_runs(tmp_path):
+    summary = tmp_path / "ctl.json"
+    proc = subprocess.Popen(
+        [str(BENCH), str(PROBE), "--control", "-", "--realtime", "--limit", "1.5s",
+         "--summary", str(summary)],
+        stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT,
+    )
+    for line in ("send b", "press 0", "send b", "release", "send b", "explode"):
+        time.sleep(0.2)
+        proc.stdin.write(line + "\n")
+        proc.stdin.flush()
+    out, err = proc.communicate(timeout=30)
+    assert proc.returncode == 0, err
+    assert [l for l in out.splitlines() if l.startswith("btn=")] == ["btn=1", "btn=0", "btn=1"]
+    assert "bad control line: explode" in err
+    assert json.loads(summary.read_text())["button"]["presses"] == 1
+
+
 def test_led_log_has_the_pattern_timing(tmp_path):
     r = probe(tmp_path, ("0.1s", "l"), limit="1s")
     log = r.summary["led"]["log"]
