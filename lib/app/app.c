@@ -69,7 +69,6 @@ static const char s_dB_uT[] CON_FLASH = "dB_uT";
 static const char s_target_uT[] CON_FLASH = "target_uT";
 static const char s_travel_um[] CON_FLASH = "travel_um";
 static const char s_time_ms[] CON_FLASH = "time_ms";
-static const char s_target[] CON_FLASH = "target";
 static const char s_code[] CON_FLASH = "code";
 static const char s_detail[] CON_FLASH = "detail";
 static const char s_released[] CON_FLASH = "released";
@@ -145,6 +144,12 @@ static uint32_t now_us(const app_t *a)
 static uint16_t bit16(uint8_t i)
 {
     return (uint16_t)(1u << i);
+}
+
+/* Bit i of m (one routine: a variable shift is a loop on the AVR). */
+static uint8_t has(uint16_t m, uint8_t i)
+{
+    return (uint8_t)((m >> i) & 1u);
 }
 
 static uint16_t all_mask(const app_t *a)
@@ -257,7 +262,7 @@ void app_table_copy(app_t *app, void *dst, const void *src, size_t n)
         uintptr_t lo, s0 = (uintptr_t)src, s1 = (uintptr_t)src + n;
         store_learned_t l;
         uint8_t g;
-        if (((app->learned_mask >> t) & 1u) == 0u) {
+        if (has(app->learned_mask, t) == 0u) {
             continue;
         }
         lo = (uintptr_t)&app->io->table->tendons[t].target_cuT[0];
@@ -269,7 +274,7 @@ void app_table_copy(app_t *app, void *dst, const void *src, size_t n)
         }
         for (g = 0; g < l.n_grid && g < TBL_MAX_GRID; g++) {
             uintptr_t w = lo + sizeof(uint32_t) * g;
-            if (((l.grid_mask >> g) & 1u) != 0u && w >= s0 && w + sizeof(uint32_t) <= s1) {
+            if (has(l.grid_mask, g) != 0u && w >= s0 && w + sizeof(uint32_t) <= s1) {
                 memcpy((uint8_t *)dst + (w - s0), &l.target_cuT[g], sizeof(uint32_t));
             }
         }
@@ -428,7 +433,7 @@ static void recover_homes(app_t *a)
     for (i = 0; i < a->info.n_tendons; i++) {
         int32_t pos;
         int8_t rc;
-        if (((a->homes.valid_mask >> i) & 1u) == 0u || ((a->servo_seen >> i) & 1u) == 0u) {
+        if (has(a->homes.valid_mask, i) == 0u || has(a->servo_seen, i) == 0u) {
             continue;
         }
         rc = store_recover_position(&a->homes.t[i], a->present[i],
@@ -440,6 +445,43 @@ static void recover_homes(app_t *a)
             a->recover_rc = rc;
         }
     }
+}
+
+/* One `<missing ...>` per sensor that is not sampling and per servo that is
+ * absent or reports a hardware error. Returns CON_E_SENSOR_FAULT when a
+ * sensor is missing, else CON_E_SERVO_FAULT when a servo is, else 0. */
+static int8_t rep_missing(app_t *a)
+{
+    uint8_t i;
+    int8_t rc = 0;
+    for (i = 0; i < a->info.n_sensors; i++) {
+        icm_diag_t d;
+        (void)icm_set_diag(&a->sens, i, &d);
+        if (d.state != ICM_SET_S_RUN) {
+            rep_begin(a, s_missing);
+            con_report_flash(&a->con, s_dev, s_sensor);
+            rep_int(a, s_index, i);
+            rep_int(a, s_ch, d.channel);
+            rep_int(a, s_addr, d.addr);
+            rep_int(a, s_err, d.last_err);
+            rep_end(a);
+            rc = CON_E_SENSOR_FAULT;
+        }
+    }
+    for (i = 0; i < a->info.n_tendons; i++) {
+        if (has(a->servo_absent, i) || a->hw_err[i] != 0u) {
+            rep_begin(a, s_missing);
+            con_report_flash(&a->con, s_dev, s_servo);
+            rep_int(a, s_index, i);
+            rep_int(a, s_id, a->ids[i]);
+            rep_int(a, s_hw_error, a->hw_err[i]);
+            rep_end(a);
+            if (rc == 0) {
+                rc = CON_E_SERVO_FAULT;
+            }
+        }
+    }
+    return rc;
 }
 
 /* The bring-up's entry for servo id, or NULL. */
@@ -461,7 +503,7 @@ static void boot_finish(app_t *a)
     a->servo_seen = 0;
     for (i = 0; i < a->info.n_tendons; i++) {
         const dxl_servo_info *s = bring_info(a, a->ids[i]);
-        if (((a->servo_absent >> i) & 1u) == 0u && s != NULL && s->present) {
+        if (has(a->servo_absent, i) == 0u && s != NULL && s->present) {
             a->n_servo_found++;
             a->hw_err[i] = s->hw_error;
             if (a->u.bring.result == 0) {
@@ -479,32 +521,8 @@ static void boot_finish(app_t *a)
         icm_diag_t d;
         (void)icm_set_diag(&a->sens, k, &d);
         a->sens_err[k] = (uint8_t)d.error_count;
-        if (d.state != ICM_SET_S_RUN) {
-            rep_begin(a, s_missing);
-            con_report_flash(&a->con, s_dev, s_sensor);
-            rep_int(a, s_index, k);
-            rep_int(a, s_ch, d.channel);
-            rep_int(a, s_addr, d.addr);
-            rep_int(a, s_err, d.last_err);
-            rep_end(a);
-        }
     }
-    for (i = 0; i < a->info.n_tendons; i++) {
-        if ((a->servo_absent >> i) & 1u) {
-            rep_begin(a, s_missing);
-            con_report_flash(&a->con, s_dev, s_servo);
-            rep_int(a, s_index, i);
-            rep_int(a, s_id, a->ids[i]);
-            rep_end(a);
-        } else if (a->hw_err[i] != 0u) {
-            rep_begin(a, s_missing);
-            con_report_flash(&a->con, s_dev, s_servo);
-            rep_int(a, s_index, i);
-            rep_int(a, s_id, a->ids[i]);
-            rep_int(a, s_hw_error, a->hw_err[i]);
-            rep_end(a);
-        }
-    }
+    (void)rep_missing(a);
     /* Positions not read by the bring-up (it stopped on a missing servo)
      * arrive with the first cycles; homes are recovered once they have. */
     a->boot_step = 2;
@@ -518,7 +536,7 @@ static void servo_lines(app_t *a, uint8_t with_model)
         rep_begin(a, s_servo);
         rep_int(a, s_tendon, i);
         rep_int(a, s_id, a->ids[i]);
-        rep_int(a, s_found, ((a->servo_absent >> i) & 1u) == 0u);
+        rep_int(a, s_found, has(a->servo_absent, i) == 0u);
         if (with_model && bring_info(a, a->ids[i]) != NULL) {
             rep_int(a, s_model, bring_info(a, a->ids[i])->model);
             rep_int(a, s_fw, bring_info(a, a->ids[i])->firmware);
@@ -620,7 +638,7 @@ static uint8_t present_ids(const app_t *a, uint8_t *ids, uint16_t *mask)
     uint8_t i, n = 0;
     *mask = 0;
     for (i = 0; i < a->info.n_tendons; i++) {
-        if (((a->servo_absent >> i) & 1u) == 0u) {
+        if (has(a->servo_absent, i) == 0u) {
             ids[n++] = a->ids[i];
             *mask |= bit16(i);
         }
@@ -642,7 +660,7 @@ static void servo_done(app_t *a, int8_t rc)
     if (a->sv_txn == TX_POS || a->sv_txn == TX_HWERR) {
         for (i = 0; i < a->info.n_tendons; i++) {
             const dxl_reply *r;
-            if (((a->txn_mask >> i) & 1u) == 0u) {
+            if (has(a->txn_mask, i) == 0u) {
                 continue;
             }
             r = dxl_reply_for(&a->dxl, a->ids[i]);
@@ -693,11 +711,11 @@ static void servo_next(app_t *a)
         return;
     }
     if (a->torque_due != 0u) {
-        for (i = 0; ((a->torque_due >> i) & 1u) == 0u; i++) {
+        for (i = 0; has(a->torque_due, i) == 0u; i++) {
         }
         a->torque_due &= (uint16_t)~bit16(i);
-        if (dxl_write_value(&a->dxl, a->ids[i], DXL_XL430_TORQUE_ENABLE_ADDR,
-                            (a->torque_on >> i) & 1u, 1) > 0) {
+        if (dxl_write_value(&a->dxl, a->ids[i], DXL_XL430_TORQUE_ENABLE_ADDR, has(a->torque_on, i),
+                            1) > 0) {
             a->sv_txn = TX_TORQUE;
             a->txn_mask = bit16(i);
         }
@@ -706,11 +724,11 @@ static void servo_next(app_t *a)
     if (a->goal_due != 0u) {
         uint8_t data[GOALS_PER_TXN * 12u];
         for (i = 0; i < a->info.n_tendons && n < GOALS_PER_TXN; i++) {
-            if (((a->goal_due >> i) & 1u) == 0u) {
+            if (has(a->goal_due, i) == 0u) {
                 continue;
             }
             a->goal_due &= (uint16_t)~bit16(i);
-            if ((a->servo_absent >> i) & 1u) {
+            if (has(a->servo_absent, i)) {
                 continue;
             }
             ids[n] = a->ids[i];
@@ -769,7 +787,7 @@ static void set_goal(app_t *a, uint8_t i, int32_t goal, uint16_t vel, uint16_t a
     a->u.hom.out.vel[i] = vel;
     a->acc = acc;
     a->goal_due |= bit16(i);
-    if (((a->torque_on >> i) & 1u) == 0u) {
+    if (has(a->torque_on, i) == 0u) {
         a->torque_on |= bit16(i);
         a->torque_due |= bit16(i);
     }
@@ -878,13 +896,6 @@ static void rep_event(app_t *a, const hom_event_t *ev)
             rep_end(a);
         }
         break;
-    case HOM_EV_TARGET:
-        rep_begin(a, s_target);
-        rep_int(a, s_tendon, i);
-        con_report_fixed(&a->con, s_target_uT, ev->a, 2);
-        rep_int(a, s_travel_um, ev->b);
-        rep_end(a);
-        break;
     case HOM_EV_DONE:
         break; /* reported by run_done() with the count */
     case HOM_EV_FAULT:
@@ -922,7 +933,7 @@ static void run_done(app_t *a)
     a->homes.cal_count++;
     for (i = 0; i < a->info.n_tendons; i++) {
         int32_t h;
-        if (((a->run_mask >> i) & 1u) && hom_home(&a->u.hom, i, &h) == 0) {
+        if (has(a->run_mask, i) && hom_home(&a->u.hom, i, &h) == 0) {
             store_home_set(&a->homes.t[i], h, h);
             a->offset[i] = 0;
             a->homes.valid_mask |= bit16(i);
@@ -962,37 +973,13 @@ static void run_done(app_t *a)
 
 static int8_t check_devices(app_t *a)
 {
-    uint8_t k;
     if (a->state == APP_ST_BOOT) {
         return CON_E_BUSY;
     }
     if (!a->table_ok) {
         return CON_E_NO_TABLE;
     }
-    for (k = 0; k < a->info.n_sensors; k++) {
-        icm_diag_t d;
-        (void)icm_set_diag(&a->sens, k, &d);
-        if (d.state != ICM_SET_S_RUN) {
-            rep_begin(a, s_missing);
-            con_report_flash(&a->con, s_dev, s_sensor);
-            rep_int(a, s_index, k);
-            rep_int(a, s_err, d.last_err);
-            rep_end(a);
-            return CON_E_SENSOR_FAULT;
-        }
-    }
-    for (k = 0; k < a->info.n_tendons; k++) {
-        if (((a->servo_absent >> k) & 1u) || a->hw_err[k] != 0u) {
-            rep_begin(a, s_missing);
-            con_report_flash(&a->con, s_dev, s_servo);
-            rep_int(a, s_index, k);
-            rep_int(a, s_id, a->ids[k]);
-            rep_int(a, s_hw_error, a->hw_err[k]);
-            rep_end(a);
-            return CON_E_SERVO_FAULT;
-        }
-    }
-    return 0;
+    return rep_missing(a);
 }
 
 static uint8_t idle_state(const app_t *a)
@@ -1044,7 +1031,7 @@ static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon
     cmd.tension_mN = tension;
     cmd.tendon = tendon;
     for (i = 0; i < a->info.n_tendons; i++) {
-        if ((a->home_now >> i) & 1u) {
+        if (has(a->home_now, i)) {
             cmd.stored_home[i] = home_cur(a, i);
             cmd.stored_mask |= bit16(i);
         }
@@ -1083,10 +1070,10 @@ static void cal_step(app_t *a, hom_in_t *in)
     in->now_ms = now_ms(a);
     for (i = 0; i < a->info.n_tendons; i++) {
         hom_servo_in_t *s = &in->servo[i];
-        if ((a->servo_absent >> i) & 1u) {
+        if (has(a->servo_absent, i)) {
             s->status = HOM_SERVO_ABSENT;
         } else {
-            s->status = ((a->servo_fresh >> i) & 1u) ? HOM_SERVO_OK : HOM_SERVO_NOREPLY;
+            s->status = has(a->servo_fresh, i) ? HOM_SERVO_OK : HOM_SERVO_NOREPLY;
         }
         s->hw_error = a->hw_err[i];
         s->pos = a->present[i];
@@ -1100,10 +1087,10 @@ static void cal_step(app_t *a, hom_in_t *in)
     }
     rc = hom_step(&a->u.hom, in, &out);
     for (i = 0; i < a->info.n_tendons; i++) {
-        if ((out.changed >> i) & 1u) {
+        if (has(out.changed, i)) {
             a->acc = out.acc[i]; /* one profile acceleration for every move */
             a->goal_due |= bit16(i);
-            if ((out.torque[i] != 0u) != (((a->torque_on >> i) & 1u) != 0u)) {
+            if ((out.torque[i] != 0u) != (has(a->torque_on, i) != 0u)) {
                 a->torque_on ^= bit16(i);
                 a->torque_due |= bit16(i);
             }
@@ -1147,12 +1134,12 @@ static uint8_t release_goals(app_t *a)
         tbl_point_t pt;
         tbl_tendon_t row;
         int32_t g, dir;
-        if ((a->servo_absent >> i) & 1u) {
+        if (has(a->servo_absent, i)) {
             continue;
         }
         (void)tbl_tendon(&a->tab, i, &row);
         dir = row.pull_dir < 0 ? -1 : 1;
-        if ((a->home_now >> i) & 1u) {
+        if (has(a->home_now, i)) {
             uint32_t trav = 0;
             if (tbl_target(&a->tab, i, a->homes.tension_mN, &pt) == 0) {
                 trav = pt.travel_um;
@@ -1218,10 +1205,10 @@ static void move_step(app_t *a)
     uint32_t t = now_ms(a);
     for (i = 0; i < a->info.n_tendons; i++) {
         int32_t d = a->present[i] - a->u.hom.out.goal[i];
-        if ((a->servo_absent >> i) & 1u) {
+        if (has(a->servo_absent, i)) {
             continue;
         }
-        if (((a->servo_fresh >> i) & 1u) == 0u || a->goal_due != 0u || d > APP_MOVE_TOL_TICKS ||
+        if (has(a->servo_fresh, i) == 0u || a->goal_due != 0u || d > APP_MOVE_TOL_TICKS ||
             d < -APP_MOVE_TOL_TICKS) {
             arrived = 0;
         }
@@ -1358,7 +1345,7 @@ static void rest_poll(app_t *a)
     a->rest_due = 0;
     for (i = 0; i < a->info.n_tendons; i++) {
         int32_t rest, d;
-        if (((a->home_now >> i) & 1u) == 0u || ((a->servo_seen >> i) & 1u) == 0u) {
+        if (has(a->home_now, i) == 0u || has(a->servo_seen, i) == 0u) {
             continue;
         }
         rest = a->present[i] + a->offset[i];
@@ -1610,15 +1597,15 @@ static int8_t h_status(con_t *con, const con_args_t *args, void *ctx)
     rep_int(a, s_loops, (int32_t)a->loops);
     rep_end(a);
     for (i = 0; i < a->info.n_tendons; i++) {
-        if (((a->homes.valid_mask >> i) & 1u) == 0u) {
+        if (has(a->homes.valid_mask, i) == 0u) {
             continue;
         }
         rep_begin(a, s_home);
         rep_int(a, s_tendon, i);
         rep_int(a, s_home, a->homes.t[i].home_ticks);
         rep_int(a, s_rest, a->homes.t[i].rest_ticks);
-        rep_int(a, s_usable, (a->home_now >> i) & 1u);
-        if ((a->home_now >> i) & 1u) {
+        rep_int(a, s_usable, has(a->home_now, i));
+        if (has(a->home_now, i)) {
             rep_int(a, s_now, home_cur(a, i));
         }
         rep_end(a);
@@ -1867,7 +1854,7 @@ static int8_t h_history(con_t *con, const con_args_t *args, void *ctx)
         pos = 0;
         buf[0] = '\0';
         for (i = 0; i < e.n_tendons && i < TBL_MAX_TENDONS; i++) {
-            list_add(buf, sizeof buf, &pos, e.home_ticks[i], ((e.valid_mask >> i) & 1u) ? 0 : '?');
+            list_add(buf, sizeof buf, &pos, e.home_ticks[i], has(e.valid_mask, i) ? 0 : '?');
         }
         con_report_str(&a->con, s_homes, buf);
         rep_end(a);
