@@ -930,7 +930,11 @@ static void fine_point(hom_t *h, uint32_t now)
             }
             h->mod_goal = h->p_prev;
         } else {
-            h->mod_goal = t->engage + muldiv(p - t->engage, h->cfg.near_permille, 1000);
+            /* scale the travel by how far the field overshot (the take-up can
+             * cross a low target within one sample), then keep a margin */
+            h->mod_goal =
+                t->engage + muldiv(muldiv(p - t->engage, (int32_t)t->target_cuT, (int32_t)b),
+                                   h->cfg.near_permille, 1000);
         }
         h->have_prev = 0;
         h->n_pts = 0;
@@ -1128,7 +1132,10 @@ static void do_tendon(hom_t *h, const hom_in_t *in)
         }
         break;
     case ST_MODERATE:
-        if (fresh && (int32_t)b >= muldiv((int32_t)t->target_cuT, h->cfg.near_permille, 1000)) {
+        /* a re-approach goes to a point measured short of the target: only
+         * the target itself stops it early */
+        if (fresh && (int32_t)b >= muldiv((int32_t)t->target_cuT,
+                                          t->retries != 0u ? 1000 : h->cfg.near_permille, 1000)) {
             int32_t g = p + t->dir * 2;
             if (t->dir * (h->out.goal[h->cur] - g) > 0) {
                 (void)pull_to(h, now, g, h->cfg.v_moderate);
