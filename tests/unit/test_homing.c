@@ -183,6 +183,38 @@ static void test_quick_rehome_same_homes(void **state)
     assert_true(g_res2.end_ms * 3u < g_res.end_ms * 2u); /* well under 2/3 of a full run */
 }
 
+static void test_overshoot_recovers(void **state)
+{
+    /* at the servo's top speed the take-up crosses a low target within one
+     * sensor sample: the machine backs off and comes again, from slack */
+    plant_run_cfg_t rc;
+    hom_config_t hc;
+    uint8_t i;
+    uint16_t e;
+    int backoffs = 0;
+    (void)state;
+    hom_config_default(&hc);
+    hc.v_fast = 265;
+    hc.v_moderate = 265;
+    plant_run_defaults(&rc, &g_cfg, &g_tab);
+    rc.hom = &hc;
+    rc.cmd.tension_mN = g_tab.grid_mN[0];
+    rc.seed = 51;
+    assert_int_equal(plant_run(&rc, &g_res), 0);
+    assert_int_equal(g_res.rc, 0);
+    for (i = 0; i < g_res.n_tendons; i++) {
+        assert_true(fabs(g_res.err_ticks[i]) <= 1.0);
+    }
+    /* engaged once per tendon, yet some tendon went past its target first */
+    for (e = 0; e < g_res.n_events; e++) {
+        if (g_res.events[e].type == HOM_EV_ENGAGED &&
+            (uint32_t)g_res.events[e].b > g_tab.tendons[g_res.events[e].index].target_cuT[0]) {
+            backoffs++;
+        }
+    }
+    assert_true(backoffs > 0);
+}
+
 static void test_quick_needs_homes(void **state)
 {
     plant_run_cfg_t rc;
@@ -410,6 +442,7 @@ int main(void)
         cmocka_unit_test(test_other_tensions),
         cmocka_unit_test(test_repeatable_from_random_slack),
         cmocka_unit_test(test_quick_rehome_same_homes),
+        cmocka_unit_test(test_overshoot_recovers),
         cmocka_unit_test(test_quick_needs_homes),
         cmocka_unit_test(test_single_tendon),
         cmocka_unit_test(test_dry_run_no_motion),
