@@ -8,6 +8,7 @@
  *   hh_mc CONFIG oat     [-p frac] [-k steps] [-s seed] [-t mN]
  *   hh_mc CONFIG ambient [-a "uT uT ..."] [-d directions] [-s seed] [-t mN]
  *   hh_mc CONFIG cal     [-g] [-n runs] [-s seed] [-p frac] [-t mN] [-m full|quick]
+ *   hh_mc CONFIG targets [-t mN]
  *
  * The table comes from the nominal plant (plant_make_table: the targets the
  * model-free workflow records with weights on the true robot), as in
@@ -26,6 +27,8 @@
  * cal: repeated calibrations of the plant (perturbed with seed + run and
  *   frac when frac > 0) from random slack; quick mode re-homes after a
  *   simulated power cycle as hh_closedloop does. One line per tendon home.
+ * targets: per tendon the plant table's and the generated table's target
+ *   |dB| and expected travel at the tension, side by side (model error).
  * ambient: the calibration sees every sensor's ambient field changed by the
  *   same vector (magnitude from -a, seeded random directions). Per tendon:
  *   the field-change mode through the closed loop (homing core), and both
@@ -68,7 +71,7 @@ extern const tbl_table_t HH_CAT(tbl_table_, HH_ROBOT);
 
 static void usage(void)
 {
-    fprintf(stderr, "usage: hh_mc CONFIG mc|oat|ambient|cal [-g] [-n runs] [-s seed] [-p frac]\n"
+    fprintf(stderr, "usage: hh_mc CONFIG mc|oat|ambient|cal|targets [-g] [-n runs] [-s seed] [-p frac]\n"
                     "             [-t mN] [-k steps] [-a \"uT ...\"] [-d directions] [-m full|quick]\n");
 }
 
@@ -440,6 +443,41 @@ static int study_cal(const opts_t *o)
     return 0;
 }
 
+static int study_targets(const opts_t *o)
+{
+    tbl_src_t sp = {&table, tbl_copy_ram};
+    unsigned i;
+    static tbl_table_t own;
+    own = table;
+    printf("cols,tgt,tendon,segment,plant_sensor,plant_target_uT,plant_travel_um,gen_sensor,"
+           "gen_target_uT,gen_travel_um,gen_ideal_tension_N\n");
+    for (i = 0; i < table.n_tendons; i++) {
+        tbl_point_t a, b;
+        int ga = tbl_target(&sp, (uint8_t)i, (uint16_t)o->tension, &a);
+        int gb = -1;
+        int gs = -1;
+        double tn = NAN;
+#ifdef HH_ROBOT
+        tbl_src_t sg = {&HH_CAT(tbl_table_, HH_ROBOT), tbl_copy_ram};
+        double xd, xa;
+        gb = tbl_target(&sg, (uint8_t)i, (uint16_t)o->tension, &b);
+        gs = HH_CAT(tbl_table_, HH_ROBOT).tendons[i].sensor;
+        /* where the noise-free plant meets the generated target, sub-tick */
+        table = HH_CAT(tbl_table_, HH_ROBOT);
+        ideal_detect(&nominal, i, o->tension, &xd, &xa);
+        table = own;
+        tn = isnan(xd) ? NAN : plant_tension_at(&nominal, (uint8_t)i, xd);
+#else
+        memset(&b, 0, sizeof b);
+#endif
+        printf("tgt,%u,%u,%u,%.2f,%.0f,%d,%.2f,%.0f,%.5f\n", i, nominal.tendon[i].segment,
+               table.tendons[i].sensor, ga == 0 ? a.target_cuT * 0.01 : NAN,
+               ga == 0 ? (double)a.travel_um : NAN, gs, gb == 0 ? b.target_cuT * 0.01 : NAN,
+               gb == 0 ? (double)b.travel_um : NAN, tn);
+    }
+    return 0;
+}
+
 int main(int argc, char **argv)
 {
     opts_t o;
@@ -540,6 +578,9 @@ int main(int argc, char **argv)
     }
     if (strcmp(o.study, "cal") == 0) {
         return study_cal(&o);
+    }
+    if (strcmp(o.study, "targets") == 0) {
+        return study_targets(&o);
     }
     usage();
     return 2;

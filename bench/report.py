@@ -123,7 +123,37 @@ def section_accuracy(res: Dict) -> List[str]:
                    f"**{al['sd_N']:.4f}** |")
     out.append(f"| paper | all | both | 30 | +{PAPER['tension_err_mean_N']:.2f} | "
                f"{PAPER['tension_err_sd_N']:.2f} |")
-    out += ["", "![accuracy](accuracy.png)", ""]
+    out.append("")
+    diag = acc.get("table_diag") or {}
+    if diag.get("rows"):
+        out.append("What the generated table alone does (native, noise-free plant pulled "
+                   "quasi-statically until the table's target is met, sub-tick): the tension "
+                   "error before any homing, bus or firmware effect. The plant table's target "
+                   "is shown beside it" + (
+                       " (its own sensor choice differs for tendon(s) "
+                       + ", ".join(sorted({str(r["tendon"]) for r in diag["rows"]
+                                           if r["gen_sensor"] != r["plant_sensor"]}))
+                       + ")." if any(r["gen_sensor"] != r["plant_sensor"] for r in diag["rows"])
+                       else ", same sensors."))
+        out.append("")
+        out.append("| target (N) | segment | tendons | generated: target (µT) | plant table: "
+                   "target (µT) | error at the generated target (N) |")
+        out.append("| --- | --- | --- | --- | --- | --- |")
+        groups: Dict = {}
+        for r in diag["rows"]:
+            groups.setdefault((r["target_N"], r["segment"]), []).append(r)
+        for (t, sg), rs in sorted(groups.items()):
+            errs = [r["ideal_err_N"] for r in rs if r["ideal_err_N"] is not None]
+            gt = sorted({fmt(r["gen_target_uT"], 1) for r in rs})
+            pt = sorted({fmt(r["plant_target_uT"], 1) for r in rs})
+            err = (fmt(min(errs), 4) if errs and abs(max(errs) - min(errs)) < 5e-5
+                   else (f"{fmt(min(errs), 4)} .. {fmt(max(errs), 4)}" if errs else "n/a"))
+            out.append(f"| {t:.1f} | {sg} | {', '.join(str(r['tendon']) for r in rs)} | "
+                       f"{' / '.join(gt)} | {' / '.join(pt)} | {err} |")
+        out.append("")
+    elif diag.get("not_measured"):
+        out += [f"- generated-table diagnosis: not measured: {diag['not_measured']}", ""]
+    out += ["![accuracy](accuracy.png)", ""]
     return out
 
 

@@ -113,6 +113,27 @@ def native_items(a, res: Dict, cfg: Dict) -> None:
             "quick_max_s": max(q_ms) / 1000.0 if q_ms else None, "n_quick": len(q_ms)}
 
 
+def table_diag_item(a, res: Dict) -> None:
+    """Where the noise-free plant meets the generated table's targets: the
+    tension error the table alone imposes, before any homing or firmware."""
+    rows = []
+    for t in (500, 800, 1000):
+        try:
+            out = native.mc(a.mc, a.config, "targets", ["-t", str(t)])
+        except (OSError, RuntimeError) as e:
+            res["accuracy"]["table_diag"] = {"not_measured": str(e)}
+            return
+        for r in out.get("tgt", []):
+            tn = r.get("gen_ideal_tension_N")
+            rows.append({"target_N": t / 1000.0, "tendon": int(r["tendon"]),
+                         "segment": int(r["segment"]), "gen_sensor": int(r["gen_sensor"]),
+                         "gen_target_uT": r["gen_target_uT"],
+                         "plant_sensor": int(r["plant_sensor"]),
+                         "plant_target_uT": r["plant_target_uT"],
+                         "ideal_err_N": (tn - t / 1000.0) if isinstance(tn, float) else None})
+    res["accuracy"]["table_diag"] = {"rows": rows}
+
+
 def robust_item(a, res: Dict) -> None:
     runs = 10 if a.reduced else a.mc_runs
     fracs = [0.05] if a.reduced else [0.02, 0.05, 0.10]
@@ -357,6 +378,7 @@ def main(argv=None) -> int:
         "repeat": {}, "accuracy": {}, "time": {}, "resources": {}, "goal_notes": [],
     }
     native_items(a, res, cfg)
+    table_diag_item(a, res)
     robust_item(a, res)
     ambient_item(a, res)
     size_item(a, res)
