@@ -437,12 +437,21 @@ def snap_to_grid(newton: float, grid_mN: List[int], tol_pct: float) -> Tuple[int
     return best, dev
 
 
+def default_points(grid: List[int], default_mN) -> List[int]:
+    """The grid tension nearest the table's default and its neighbours: the
+    firmware interpolates over the grid, so learned points around the
+    tension in use matter (docs/app.md)."""
+    d = int(default_mN) if default_mN is not None else grid[len(grid) // 2]
+    i = min(range(len(grid)), key=lambda k: abs(grid[k] - d))
+    return grid[max(0, i - 1):i + 2]
+
+
 @click.command("learn")
 @click.option("--tendon", "-k", "tendons", type=click.IntRange(0, 11), multiple=True,
               help="Tendon to learn (repeatable; default: every tendon).")
 @click.option("--mass", "-m", "masses", type=click.FloatRange(min=0.1), multiple=True,
-              help="Mass in grams to hang (repeatable; default: the table's lowest, default and "
-                   "highest grid tensions as masses).")
+              help="Mass in grams to hang (repeatable; default: the grid tension nearest the "
+                   "table's default tension and its two neighbours, as masses).")
 @click.option("--tolerance", type=float, default=1.0, show_default=True,
               help="Largest deviation in % between a mass's weight and its grid tension.")
 @click.option("--out", "-o", "out_path", type=click.Path(dir_okay=False), default=None,
@@ -472,9 +481,7 @@ def learn_cmd(tendons, masses, tolerance, out_path, port, timeout) -> None:
                 except ValueError as e:
                     raise click.BadParameter(str(e), param_hint="--mass") from None
         else:
-            d = int(head.get("default_mN", grid[len(grid) // 2]))
-            pts = sorted({grid[0], d if d in grid else grid[len(grid) // 2], grid[-1]})
-            plan = [(round(grams(g / 1000.0), 1), g) for g in pts]
+            plan = [(round(grams(g / 1000.0), 1), g) for g in default_points(grid, head.get("default_mN"))]
         con.print(f"model-free calibration of [bold]{robot}[/] (table {head.get('table_id')}): "
                   f"tendons {', '.join(map(str, todo))}, masses "
                   + ", ".join(f"{m:g} g ({g / 1000:.3f} N)" for m, g in plan))

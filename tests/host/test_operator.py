@@ -39,6 +39,14 @@ def test_snap_to_grid():
     assert op.snap_to_grid(op.newtons(80), grid, 2.0)[0] == 800
 
 
+def test_default_learn_points_surround_the_default_tension():
+    grid = [200, 300, 400, 500, 600, 700, 800, 900, 1000, 1100, 1300, 1500]
+    assert op.default_points(grid, 800) == [700, 800, 900]
+    assert op.default_points(grid, 200) == [200, 300]
+    assert op.default_points(grid, 1450) == [1300, 1500]
+    assert [round(op.grams(g / 1000), 1) for g in op.default_points(grid, 800)] == [71.4, 81.6, 91.8]
+
+
 def test_int_list_keeps_marks():
     assert op.int_list("2650,11*,-5,7?") == [(2650, ""), (11, "*"), (-5, ""), (7, "?")]
     assert op.int_list("") == []
