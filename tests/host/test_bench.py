@@ -552,3 +552,35 @@ def test_bad_plant_config_is_refused(tmp_path):
     cfg.write_text("name = x\nsegment_len_mm = banana\n")
     r = bench(tmp_path, FW, "--plant", cfg, "--limit", "10ms")
     assert r.rc == 2 and "line 2" in r.err
+
+
+# ---- the whole loop: the application firmware calibrating the plant ---------------
+
+
+def test_full_calibration_then_quick_rehome_after_power_cycle(tmp_path):
+    """What `make sim SEED=3` runs, twice: the second run is the same robot
+    after a power cycle (EEPROM kept, multi-turn counts lost)."""
+    img = tmp_path / "ee.img"
+    args = ["--plant", PLANT, "--seed", "3", "--eeprom", img, "--limit", "60s",
+            "--at", "1s press 100", "--until", "^<done mode=(full|quick)", "--fail-on", "^<fault",
+            "--linger", "2s", "--check-tension", "10", "--table"]
+    r = bench(tmp_path, FW, *args)
+    assert r.rc == 0, r.summary["reason"]
+    assert r.summary["until"]["line"].startswith("<done mode=full")
+    assert 3.0 < r.summary["cal_time_s"] < 30.0
+    homes = [t["goal_ticks"] for t in r.summary["tendons"]]
+    for t in r.summary["tendons"]:
+        assert abs(t["tension_at_home_mN"] - 800) <= 80
+        assert t["torque"] == 1
+    assert r.summary["eeprom"]["writes"] > 0
+    assert r.summary["bus"]["collisions"] == 0 and r.summary["twi"]["recoveries"] == 0
+    rows = [l for l in r.lines if re.match(r"^\s+\d+\s+\d+\s", l)]
+    assert len(rows) == 6 and r.line(r"^calibration time [0-9.]+ s simulated$")
+
+    r2 = bench(tmp_path, FW, *args)
+    assert r2.rc == 0, r2.summary["reason"]
+    assert "homes=stored" in r2.line(r"^<ready ")
+    assert r2.summary["until"]["line"].startswith("<done mode=quick")
+    assert r2.summary["cal_time_s"] < r.summary["cal_time_s"]
+    for t, h in zip(r2.summary["tendons"], homes):
+        assert abs(t["goal_ticks"] - h) <= 3  # same robot, same homes
