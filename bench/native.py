@@ -112,7 +112,18 @@ def read_cfg(path: str) -> Dict:
             if m:
                 seg.setdefault(int(m.group(1)), seg_default)
     n = max(seg) + 1 if seg else 0
-    return {"nm_per_tick": nm_per_tick, "segment": [seg.get(i, seg_default) for i in range(n)]}
+    return {"nm_per_tick": nm_per_tick, "segment": [seg.get(i, seg_default) for i in range(n)],
+            "n_sensors": _count_sensors(path)}
+
+
+def _count_sensors(path: str) -> int:
+    idx = set()
+    with open(path) as fh:
+        for raw in fh:
+            m = re.match(r"\s*sensor\.(\d+)\.", raw)
+            if m:
+                idx.add(int(m.group(1)))
+    return max(idx) + 1 if idx else 0
 
 
 def dxl_bench(binary: Optional[str]) -> Dict:

@@ -257,6 +257,20 @@ def section_ambient(res: Dict) -> List[str]:
             failed = f"{r['failed']} ({r['why']})" if r.get("failed") and r.get("why") else r["failed"]
             out.append(f"| {r['dA_uT']:g} | {mode} | {r['n']} | {failed} | "
                        f"{r['mean_N']:+.4f} | {r['rms_N']:.4f} | {r['max_abs_N']:.4f} |")
+    bench = amb.get("bench")
+    if bench:
+        out += ["", "The firmware on the simavr bench (field-change mode, the only one it has), "
+                "the same seeded calibration as the first repeatability run with every sensor's "
+                "ambient changed by the same vector before it starts:", "",
+                "| ambient change (µT) | result | mean error (N) | max abs error (N) | "
+                "unchanged run: mean error (N) | largest home shift (ticks) |",
+                "| --- | --- | --- | --- | --- | --- |"]
+        for b in bench:
+            if b.get("ok"):
+                out.append(f"| {b['dA_uT']:g} | done | {b['mean_N']:+.4f} | {b['max_abs_N']:.4f} | "
+                           f"{b['base_mean_N']:+.4f} | {fmt(b.get('max_home_shift_ticks'), 0)} |")
+            else:
+                out.append(f"| {b['dA_uT']:g} | failed: {b.get('error')} | | | | |")
     out += ["", "`abs_ideal` / `delta_ideal`: noise-free quasi-static pull of the plant, "
             "sub-tick crossing (isolates the ambient effect); `delta_loop`: the homing core in "
             "the closed loop (noise, encoder ticks). Errors are over the homes found; a failed "

@@ -306,6 +306,7 @@ def simavr_items(a, res: Dict, cfg: Dict, workdir: str) -> None:
         res["resources"]["loop_src"] = "not measured in the reduced check"
         _bench_rates(res, probe)
         return
+    bench_ambient(a, res, cfg, workdir, probe)
     log("simavr bench: status after a calibration, power cycle, quick re-home")
     q = simavr.rehome_and_status(a.hh_bench, a.elf, a.config, a.seed, 800, probe["done_t"],
                                  workdir, limit_s=probe["done_t"] + a.sim_limit)
@@ -328,6 +329,35 @@ def simavr_items(a, res: Dict, cfg: Dict, workdir: str) -> None:
     else:
         r["loop_src"] = "not measured: no status report after the calibration"
     _bench_rates(res, probe)
+
+
+def bench_ambient(a, res: Dict, cfg: Dict, workdir: str, base: Dict) -> None:
+    """The firmware (field-change mode) with every sensor's ambient changed
+    by the same vector before the calibration, same seed as the probe run:
+    its homes and tensions against the unchanged run's."""
+    import random
+    rng = random.Random(a.seed * 7 + 3)
+    out = []
+    for mag in (50.0, 100.0):
+        v = [rng.gauss(0, 1) for _ in range(3)]
+        n = math.sqrt(sum(x * x for x in v)) or 1.0
+        v = [mag * x / n for x in v]
+        ev = [f"0.1s field {k} {v[0]:.2f} {v[1]:.2f} {v[2]:.2f}" for k in range(cfg["n_sensors"])]
+        log(f"simavr bench: calibration with the ambient changed by {mag:g} uT")
+        r = simavr.calibration(a.hh_bench, a.elf, a.config, a.seed, 800, workdir,
+                               limit_s=a.sim_limit, extra_events=ev)
+        row = {"dA_uT": mag, "vector_uT": v, "ok": r.get("ok", False)}
+        if r.get("ok"):
+            errs = [t - 0.8 for t in r["tension_N"].values()]
+            row["mean_N"] = stats.mean_sd(errs)[0]
+            row["max_abs_N"] = max(abs(e) for e in errs)
+            d = [r["homes"][i] - base["homes"][i] for i in r["homes"] if i in base["homes"]]
+            row["max_home_shift_ticks"] = max(abs(x) for x in d) if d else None
+            row["base_mean_N"] = stats.mean_sd([t - 0.8 for t in base["tension_N"].values()])[0]
+        else:
+            row["error"] = r.get("error")
+        out.append(row)
+    res["ambient"]["bench"] = out
 
 
 def _bench_rates(res: Dict, run: Dict, note: str = "") -> None:

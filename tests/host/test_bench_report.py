@@ -127,7 +127,11 @@ def _results():
         "repeat": {"runs": 10, "native": {"per_tendon_mm": per, "avg_mm": 0.0025,
                                           "max_spread_ticks": 1, "max_abs_err_ticks": 0.6},
                    "simavr": {"not_measured": "bench off"}},
-        "accuracy": {"native": acc, "simavr": {"not_measured": "bench off"}},
+        "accuracy": {"native": acc, "simavr": {"not_measured": "bench off"},
+                     "table_diag": {"rows": [
+                         {"target_N": 0.8, "tendon": t, "segment": 1 + t // 2, "gen_sensor": 0,
+                          "plant_sensor": t, "gen_target_uT": 100.0, "plant_target_uT": 110.0,
+                          "ideal_err_N": 0.04 + 0.001 * (t // 2)} for t in range(4)]}},
         "time": {"native": {"full_s": 4.5, "full_max_s": 13.0, "n_full": 3, "quick_s": 2.0,
                             "n_quick": 1}, "simavr": {"not_measured": "bench off"}},
         "robust": {"runs": 3, "frac": 0.05, "tension_mN": 800,
@@ -137,7 +141,11 @@ def _results():
                                 "r2": 0.6}],
                    "oat": [{"group": "moment", "range_N": 0.08, "slope_N": -0.8, "x": [-0.05, 0.05],
                             "mean_err_N": [0.04, -0.04]}], "err_N": [0.01, -0.02, None]},
-        "ambient": {"dirs": 1, "tension_mN": 800, "modes": {
+        "ambient": {"dirs": 1, "tension_mN": 800,
+                    "bench": [{"dA_uT": 50.0, "ok": True, "mean_N": 0.04, "max_abs_N": 0.045,
+                               "base_mean_N": 0.041, "max_home_shift_ticks": 1.0},
+                              {"dA_uT": 100.0, "ok": False, "error": "exit 1"}],
+                    "modes": {
             "abs_ideal": [{"dA_uT": 50, "n": 6, "failed": 0, "mean_N": 0.1, "rms_N": 0.2,
                            "max_abs_N": 0.4}]}},
         "resources": {"flash_bytes": 80000, "ram_bytes": 4000, "flash_pct": 30.5, "ram_pct": 48.8,
@@ -176,3 +184,16 @@ def test_check_finds_a_missing_section(tmp_path):
     path = tmp_path / "report.md"
     path.write_text(text)
     assert any("missing section" in p for p in report.check_report(str(path)))
+
+
+def test_table_diagnosis_groups_tendons_by_segment():
+    text = report.build_report(_results())
+    assert "| 0.8 | 1 | 0, 1 | 100.0 | 110.0 | 0.0400 |" in text
+    assert "| 0.8 | 2 | 2, 3 | 100.0 | 110.0 | 0.0410 |" in text
+    assert "differs for tendon(s) 1, 2, 3" in text
+
+
+def test_bench_ambient_rows():
+    text = report.build_report(_results())
+    assert "| 50 | done | +0.0400 | 0.0450 | +0.0410 | 1 |" in text
+    assert "| 100 | failed: exit 1 |" in text
