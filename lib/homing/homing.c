@@ -758,13 +758,13 @@ static void finish_tendon(hom_t *h, uint32_t now, int32_t home_q8)
 }
 
 /* Samples to average at a point near the target: enough that the noise of
- * the average (table noise per axis / sqrt n) is at most a fifth of the
+ * the average (table noise per axis / sqrt n) is at most a seventh of the
  * field change of one tick; at least twice avg_samples, at most HOM_MAX_AVG.
  * A weak field (sensors far from the magnet, a high tension where |dB|
  * flattens) needs many; a strong one needs the minimum. */
 static uint8_t near_samples(const hom_t *h, int32_t s_q8)
 {
-    int32_t q = ((int32_t)h->noise_cuT * 5 * 256 + s_q8 - 1) / s_q8; /* ceil(5 noise / slope) */
+    int32_t q = ((int32_t)h->noise_cuT * 7 * 256 + s_q8 - 1) / s_q8; /* ceil(7 noise / slope) */
     int32_t n = q > 6 ? (int32_t)HOM_MAX_AVG : q * q;
     int32_t lo = 2 * (int32_t)h->cfg.avg_samples;
     if (n < lo) {
