@@ -1555,6 +1555,14 @@ int8_t app_poll(app_t *app)
 
 /* ---- console handlers ------------------------------------------------------------ */
 
+/* Console output waits for the UART0 ring (128 bytes, 11 ms per ring at
+ * 115200): listings of several lines would hold the loop for tens of ms,
+ * longer than the homing's servo deadline, so they wait until nothing moves. */
+static int8_t quiet_needed(const app_t *a)
+{
+    return (a->state == APP_ST_IDLE || a->state == APP_ST_FAULT) ? 0 : CON_E_BUSY;
+}
+
 static int8_t h_version(con_t *con, const con_args_t *args, void *ctx)
 {
     app_t *a = ctx;
@@ -1627,6 +1635,9 @@ static int8_t h_status(con_t *con, const con_args_t *args, void *ctx)
 static int8_t h_sensors(con_t *con, const con_args_t *args, void *ctx)
 {
     app_t *a = ctx;
+    if (quiet_needed(a) != 0) {
+        return CON_E_BUSY;
+    }
     uint8_t k;
     (void)con;
     (void)args;
@@ -1662,6 +1673,9 @@ static int8_t h_servos(con_t *con, const con_args_t *args, void *ctx)
     (void)con;
     if (!a->table_ok) {
         return CON_E_NO_TABLE;
+    }
+    if (quiet_needed(a) != 0) {
+        return CON_E_BUSY;
     }
     if ((args->given & 1u) && args->v[0] != 0) {
         servo_lines(a, 0); /* pos, err: the live cycle keeps both fresh */
@@ -1800,6 +1814,9 @@ static int8_t h_learn(con_t *con, const con_args_t *args, void *ctx)
 static int8_t h_table(con_t *con, const con_args_t *args, void *ctx)
 {
     app_t *a = ctx;
+    if (quiet_needed(a) != 0) {
+        return CON_E_BUSY;
+    }
     char buf[TBL_MAX_GRID * 12u + 1u];
     uint8_t i, g, pos;
     (void)con;
@@ -1847,6 +1864,9 @@ static int8_t h_table(con_t *con, const con_args_t *args, void *ctx)
 static int8_t h_history(con_t *con, const con_args_t *args, void *ctx)
 {
     app_t *a = ctx;
+    if (quiet_needed(a) != 0) {
+        return CON_E_BUSY;
+    }
     uint8_t n, age, i, pos;
     char buf[TBL_MAX_TENDONS * 12u + 1u];
     store_hist_t e;
@@ -1899,6 +1919,9 @@ static int8_t find_setting(app_t *a, const con_args_t *args)
 static int8_t h_get(con_t *con, const con_args_t *args, void *ctx)
 {
     app_t *a = ctx;
+    if (quiet_needed(a) != 0) {
+        return CON_E_BUSY;
+    }
     uint8_t id;
     (void)con;
     if (args->given & 1u) {
