@@ -46,6 +46,7 @@
 #define BENCH_UCSR0B   0xC1u
 #define BENCH_UCSR1A   0xC8u
 #define BENCH_UCSR1B   0xC9u
+#define BENCH_UBRR1L   0xCCu
 #define BENCH_UDR1     0xCEu
 #define BENCH_RAMSTART 0x200u
 #define BENCH_RAMEND   0x21FFu
@@ -121,7 +122,8 @@ typedef struct {
     avr_irq_t *rx_irq; /* UART1 INPUT */
     uint8_t dir_tx;    /* PE4 level: 1 = MCU drives the bus */
     uint8_t xoff;      /* simavr's RX FIFO is full */
-    uint32_t byte_us;  /* 11 bit times at 1 Mbps */
+    uint32_t byte_us;  /* 11 bit times at the MCU's rate (11 us at 1 Mbps) */
+    uint32_t mcu_baud; /* UART1's rate at the last MCU byte */
     /* MCU bytes in flight: delivered to the servos at the end of their frame */
     uint8_t mcu_q[256];
     uint64_t mcu_start[256];
@@ -149,7 +151,8 @@ typedef struct {
     uint64_t corrupted;        /* bytes corrupted (collision, truncation, noise) */
     uint64_t noise_hits;       /* of which by injected noise */
     uint64_t xoff_events;
-    uint8_t trace; /* --trace bus: every byte and direction change on stderr */
+    uint64_t baud_mismatch; /* bytes a receiver at another rate could not decode */
+    uint8_t trace;          /* --trace bus: every byte and direction change on stderr */
 } bench_bus_t;
 
 void bus_init(bench_t *b);
@@ -254,6 +257,7 @@ struct bench_t {
     uint64_t limit_us;      /* 0 = none */
     uint32_t seed;
     double perturb;
+    uint8_t servo_baud_index; /* Baud Rate field the servos power up with (3 = 1 Mbps) */
     double tension_N;
     double start_slack_min_mm, start_slack_max_mm;
     uint8_t realtime;

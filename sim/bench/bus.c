@@ -57,6 +57,23 @@ static uint32_t servo_byte_us(const xl430 *m)
     return (uint32_t)(((uint64_t)m->cfg.bits_per_byte * 1000000u + baud - 1u) / baud);
 }
 
+/* The rate UART1 runs at now (UBRR1, U2X1). */
+static uint32_t mcu_baud(const bench_t *b)
+{
+    const uint8_t *d = b->avr->data;
+    uint32_t ubrr = (uint32_t)d[BENCH_UBRR1L] | (uint32_t)(d[BENCH_UBRR1L + 1u] & 0x0Fu) << 8;
+    uint32_t div = (d[BENCH_UCSR1A] & 0x02u) ? 8u : 16u;
+    return BENCH_F_CPU / ((ubrr + 1u) * div);
+}
+
+/* A UART decodes a sender within about 3 % of its own rate; beyond that it
+ * sees framing errors and garbage, which the bench delivers as nothing. */
+static int baud_match(uint32_t a, uint32_t b)
+{
+    uint32_t d = a > b ? a - b : b - a;
+    return (uint64_t)d * 100u < (uint64_t)b * 3u;
+}
+
 static void hist_add(bench_bus_t *s, uint64_t start, uint64_t end, int8_t src)
 {
     s->hist[s->hist_pos].start_us = start;
@@ -168,6 +185,8 @@ static void bus_mcu_byte(avr_irq_t *irq, uint32_t value, void *param)
     uint64_t now = bench_now_us(b);
     uint64_t start = now > s->mcu_busy_until ? now : s->mcu_busy_until;
     (void)irq;
+    s->mcu_baud = mcu_baud(b);
+    s->byte_us = (uint32_t)((11u * 1000000u + s->mcu_baud - 1u) / s->mcu_baud);
     if (s->trace) {
         fprintf(stderr, "bus %10llu us mcu %02X start %llu dir %u\n", (unsigned long long)now,
                 (unsigned)value & 0xFFu, (unsigned long long)start, s->dir_tx);
@@ -234,7 +253,7 @@ static void bus_dir(avr_irq_t *irq, uint32_t value, void *param)
             continue;
         }
         if (st + s->byte_us > now) {
-            uint64_t bits = now - st; /* 1 us per bit: start bit first */
+            uint64_t bits = (now - st) * s->mcu_baud / 1000000u; /* start bit first */
             unsigned sent = bits > 1u ? (unsigned)(bits - 1u) : 0u;
             if (sent < 8u) {
                 s->mcu_q[q] |= (uint8_t)(0xFFu << sent);
@@ -265,6 +284,7 @@ static void bus_udr1_write(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *para
 void bus_init(bench_t *b)
 {
     bench_bus_t *s = &b->bus;
+    s->mcu_baud = BUS_MCU_BAUD;
     s->byte_us = 11u * 1000000u / BUS_MCU_BAUD;
     s->rng = 0x9E3779B97F4A7C15ull ^ ((uint64_t)b->seed << 17) ^ b->seed;
     if (s->rng == 0) {
@@ -319,9 +339,14 @@ static void deliver_mcu_byte(bench_t *b)
     byte = bus_noise(s, byte);
     hist_add(s, start, end, -1);
     for (uint8_t i = 0; i < s->n_servos; i++) {
-        if (!s->silent[i]) {
-            xl430_rx(&s->servo[i], byte, (uint32_t)end);
+        if (s->silent[i]) {
+            continue;
         }
+        if (!baud_match(xl430_baud(&s->servo[i]), s->mcu_baud)) {
+            s->baud_mismatch++;
+            continue;
+        }
+        xl430_rx(&s->servo[i], byte, (uint32_t)end);
     }
 }
 
@@ -347,10 +372,15 @@ static void deliver_servo_byte(bench_t *b, uint8_t i, uint64_t due)
         fprintf(stderr, "bus %10llu us servo %u %02X start %llu\n", (unsigned long long)due, i,
                 byte, (unsigned long long)start);
     }
+    uint32_t baud = xl430_baud(&s->servo[i]);
     for (uint8_t k = 0; k < s->n_servos; k++) {
-        if (k != i && !s->silent[k]) {
+        if (k != i && !s->silent[k] && baud_match(xl430_baud(&s->servo[k]), baud)) {
             xl430_rx(&s->servo[k], byte, due32);
         }
+    }
+    if (!baud_match(mcu_baud(b), baud)) {
+        s->baud_mismatch++;
+        return;
     }
     rx_push(b, byte);
 }

@@ -458,13 +458,14 @@ static void write_summary(bench_t *b, double wall, double cpu)
         f,
         "  \"bus\": {\"mcu_bytes\": %llu, \"mcu_bytes_no_dir\": %llu, \"truncated\": %llu, "
         "\"servo_bytes\": %llu, \"rx_delivered\": %llu, \"rx_lost\": %llu, \"collisions\": %llu, "
-        "\"corrupted\": %llu, \"noise_hits\": %llu, \"xoff\": %llu, \"noise_rate\": %g, "
-        "\"servos\": [",
+        "\"corrupted\": %llu, \"noise_hits\": %llu, \"xoff\": %llu, \"baud_mismatch\": %llu, "
+        "\"noise_rate\": %g, \"servos\": [",
         (unsigned long long)s->mcu_bytes, (unsigned long long)s->mcu_bytes_no_dir,
         (unsigned long long)s->truncated, (unsigned long long)s->servo_bytes,
         (unsigned long long)s->delivered_rx, (unsigned long long)s->lost_rx_disabled,
         (unsigned long long)s->collisions, (unsigned long long)s->corrupted,
-        (unsigned long long)s->noise_hits, (unsigned long long)s->xoff_events, s->noise_rate);
+        (unsigned long long)s->noise_hits, (unsigned long long)s->xoff_events,
+        (unsigned long long)s->baud_mismatch, s->noise_rate);
     for (uint8_t i = 0; i < s->n_servos; i++) {
         fprintf(f, "%s{\"id\": %u, \"instructions\": %u, \"replies\": %u, \"silent\": %u}",
                 i ? ", " : "", s->servo[i].cfg.id, s->servo[i].instructions, s->servo[i].replies,
@@ -548,6 +549,7 @@ int main(int argc, char **argv)
 
     b->seed = 1;
     b->perturb = 0.05;
+    b->servo_baud_index = 3;
     b->start_slack_min_mm = 0.3;
     b->start_slack_max_mm = 2.0;
     b->con.echo = 1;
@@ -642,6 +644,13 @@ int main(int argc, char **argv)
         } else if (strcmp(a, "--perturb") == 0) {
             NEEDV();
             b->perturb = strtod(v, NULL);
+        } else if (strcmp(a, "--servo-baud") == 0) {
+            NEEDV();
+            b->servo_baud_index = (uint8_t)strtoul(v, NULL, 10);
+            if (b->servo_baud_index > 7) {
+                fprintf(stderr, "hh_bench: --servo-baud takes the control table value 0-7\n");
+                return BENCH_EXIT_USAGE;
+            }
         } else if (strcmp(a, "--slack") == 0) {
             NEEDV();
             if (sscanf(v, "%lf:%lf", &b->start_slack_min_mm, &b->start_slack_max_mm) != 2 ||

@@ -73,6 +73,7 @@ int world_init(bench_t *b)
         double slack_ticks = mm * 1e6 / cfg.nm_per_tick;
         xl430_config_default(&xc, cfg.tendon[i].servo_id);
         xc.bits_per_byte = 11; /* simavr's frame */
+        xc.baud_index = b->servo_baud_index;
         xc.shaft_ticks = eng - (double)cfg.tendon[i].pull_dir * slack_ticks;
         xl430_init(&s->servo[i], &xc, 0);
         xl430_set_sensed(&s->servo[i], 0, 120, 32);

@@ -443,6 +443,15 @@ def test_hardware_error_on_demand_sets_the_alert_bit(tmp_path):
     assert r.summary["tendons"][0]["torque"] == 0
 
 
+def test_servos_at_another_rate_do_not_understand_the_master(tmp_path):
+    r = probe(tmp_path, ("0.1s", "p 1"), extra=["--servo-baud", "1"], limit="200ms")  # 57600
+    assert parse_rx(r.line(r"^rx ")) == b""
+    bus = r.summary["bus"]
+    assert bus["baud_mismatch"] == 10 * 6  # every byte of the ping, at each servo
+    assert bus["servos"][0]["instructions"] == 0
+    assert bench(tmp_path, PROBE, "--plant", PLANT, "--servo-baud", "9").rc == 2
+
+
 def test_bus_noise_is_reproducible_with_the_seed(tmp_path):
     def hits(seed):
         r = probe(tmp_path, *[(f"{0.05 + 0.02 * i:.2f}s", "p 1") for i in range(20)],
