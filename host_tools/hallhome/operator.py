@@ -589,6 +589,9 @@ def wait_for(c: Client, pred, secs: float, what: str) -> Report:
 # --- history --------------------------------------------------------------------------
 
 def read_history(c: Client) -> List[Dict[str, object]]:
+    # The entry of a run that just ended is written to EEPROM after it:
+    # read once the board has written it.
+    wait_saved(c, 20.0)
     rows = []
     for r in c.command(cmd("history")).of(R.HIST):
         homes = int_list(r.get("homes", ""))
