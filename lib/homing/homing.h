@@ -11,8 +11,9 @@
  * Field interface (decided here): the application passes RAW 3-axis samples
  * per sensor in cuT (int32, one AK09916 LSB = 15 cuT) with a status saying
  * whether the sample is new. The machine captures its own straight-pose
- * baseline B0 (an average of samples with every tendon slack) and computes
- * |B - B0| with integer arithmetic. It needs nothing from lib/field.
+ * baseline B0 (the two agreeing averages of the slack check, every tendon
+ * slack) and computes |B - B0| with integer arithmetic. It needs nothing from
+ * lib/field.
  *
  * Sequence (full calibration; docs/homing.md has the state diagram):
  *   1. preflight: every servo and sensor of the table must answer and be
@@ -25,14 +26,18 @@
  *   4. per tendon, the others slack: fast take-up until |B - B0| on its
  *      selected sensor rises above the engagement threshold; moderate speed
  *      to a fraction of the expected travel; fine steps that stop, settle,
- *      average, and use the locally measured slope to predict the target;
- *      always moving in the pull direction so backlash and friction sit on
- *      the same side every time; the home is interpolated between measured
- *      points (sub-tick, then rounded); release the tendon.
+ *      average (more samples near the target, as the noise requires), and
+ *      use the table's curve, then the locally measured slope, to predict
+ *      the target; always moving in the pull direction so backlash and
+ *      friction sit on the same side every time; the home is the crossing of
+ *      a least-squares line through the points near the target (sub-tick,
+ *      then rounded); release the tendon. A wide overshoot backs off to slack
+ *      and comes again.
  *   5. move every tendon to its home together, profile velocities scaled by
  *      distance so they arrive together; HOM_EV_DONE.
  * Modes: HOM_MODE_FULL; HOM_MODE_QUICK after a power cycle, from stored homes
- * (small release, fast take-up to just before the expected engagement);
+ * (stored homes moved into the new encoder frame, whole turns being lost;
+ * small release; fast take-up to just short of the stored home);
  * HOM_MODE_SINGLE (one tendon); HOM_MODE_DRY (preflight, baseline, targets
  * reported, no motion).
  *
@@ -43,12 +48,12 @@
  * place. Torque off would also slacken the tendon on an XL430, but leaves the
  * spool free to drift.
  *
- * Safety: a travel limit counted from engagement (goals are never set beyond
- * it; being beyond it aborts), a time limit per tendon, a field-rate check and
- * sensor saturation abort, as do a sensor that stops answering and a servo
- * that times out or reports a hardware error. Every abort (hom_abort() or a
- * fault) writes release goals for every tendon in the very step call that
- * detects it, so the application sends them within one main-loop pass.
+ * Safety: a travel limit counted from engagement (a target predicted or a
+ * goal beyond it is refused; being beyond it aborts), a time limit per tendon, a field-rate check
+ * and sensor saturation abort, as do a sensor that stops answering and a servo that times out or
+ * reports a hardware error. Every abort (hom_abort() or a fault) writes release goals for every
+ * tendon in the very step call that detects it, so the application sends them within one main-loop
+ * pass.
  *
  * Return convention: hom_step() returns HOM_RUNNING (positive) while a
  * calibration runs, 0 when idle or finished, and -(hom_fault_t) once a run
@@ -57,7 +62,9 @@
  *
  * Integer arithmetic only (the AVR has no FPU); per step the work is bounded
  * by the number of tendons and sensors. One 64-bit integer square root per
- * new sample of the selected sensor.
+ * new sample of the selected sensor, a few 64-bit multiply-divides per fine
+ * point. The table must stay readable (and its copy function valid) until
+ * the run ends: the fine approach reads it.
  */
 #ifndef HALLHOME_HOMING_H
 #define HALLHOME_HOMING_H
