@@ -7,15 +7,16 @@
  * model error a real robot brings is present in simulation too:
  *   - piecewise constant curvature: segment j bends with the moment of every
  *     tendon that ends at or beyond it (tendons coupled across segments),
- *     curvature = sum(T_tip * r * direction) / EI, plus an optional gravity term;
+ *     curvature = sum(T_tip * r * direction) / EI (EI per segment), plus an
+ *     optional gravity term;
  *   - tendon path shortening r * (direction . curvature) * L per segment;
  *   - tendon elasticity k = EA / L_free and slack (no compression);
  *   - friction along the tendon path as a play operator between spool-side
  *     and tip-side tension (dead band f0 + mu * T: hysteresis);
  *   - spool backlash as a play operator between motor and spool;
  *   - a point dipole magnet following the tip frame, an ambient field per
- *     sensor, Gaussian sensor noise, 0.15 uT quantisation, the AK09916's
- *     +-4912 uT range with an overflow flag;
+ *     sensor, each sensor reading in its own frame, Gaussian noise, 0.15 uT
+ *     quantisation, the AK09916's +-4912 uT range with an overflow flag;
  *   - a simple servo (first-order position response with the profile velocity
  *     as a speed limit and encoder quantisation), kept apart in plant_servo_*
  *     so the virtual bench can drive the plant from its XL430 model instead.
