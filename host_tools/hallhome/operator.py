@@ -183,7 +183,8 @@ def ports_cmd() -> None:
 @port_options
 @operator_command
 def status_cmd(port, timeout) -> None:
-    """Board, sensors and servos at a glance."""
+    """Board, sensors and servos at a glance. Exits 1 when a sensor or servo
+    is missing or reports a hardware error."""
     con = out()
     with session(port, timeout) as c:
         ver = board_info(c)
@@ -230,6 +231,13 @@ def status_cmd(port, timeout) -> None:
         con.print(t)
     for n in notes:
         con.print(f"[yellow]{n}[/]")
+    bad = ([f"sensor {r.get('index')} not running" for r in sens if r.get("ok") != 1] +
+           [f"servo {r.get('id')} (tendon {r.get('tendon')}) not found" for r in servos if r.get("found") != 1] +
+           [f"servo {r.get('id')} (tendon {r.get('tendon')}) hardware error 0x{int(r.get('hw_error')):02x}"
+            for r in servos if r.get("found") == 1 and r.get("hw_error")])
+    if bad:
+        err().print("[red]attention: " + "; ".join(bad) + "[/]")
+        sys.exit(1)
 
 
 # --- calibrate ----------------------------------------------------------------------

@@ -137,6 +137,14 @@ def test_status_shows_board_sensors_and_servos(bench):
     assert servos == [(str(t), str(t + 1)) for t in range(6)], out
 
 
+def test_status_names_a_missing_sensor(bench):
+    b = bench("0.2s sensor-unplug 1")
+    r = hh("status", "--port", b.pty)
+    assert r.returncode == 1, r.stdout + r.stderr
+    assert re.search(r"^│ 1 +│ 1 +│ 0x69 +│ NO", r.stdout, re.M), r.stdout
+    assert "attention: sensor 1 not running" in r.stderr
+
+
 def test_port_from_environment_and_missing_port(bench, tmp_path):
     b = bench()
     env = dict(os.environ, HALLHOME_PORT=str(b.pty), COLUMNS="160")
