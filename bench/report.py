@@ -105,7 +105,7 @@ def section_accuracy(res: Dict) -> List[str]:
                "calibration's definition) minus the target. Paper: (0.06 ± 0.20) N over all "
                "tests, measured with load cells (±0.15 N).")
     out.append("")
-    out.append("| source | target (N) | segment | n | mean error (N) | SD (N) |")
+    out.append("| source | target (N) | segment | tendon homes | mean error (N) | SD (N) |")
     out.append("| --- | --- | --- | --- | --- | --- |")
     for src, lab in SOURCES:
         a = acc.get(src) or {}
@@ -166,7 +166,7 @@ def section_time(res: Dict) -> List[str]:
                "loop assumes a servo answer every 1 ms and a first-order servo; the simavr bench "
                "runs the firmware's own bus schedule at 1 Mbps against the XL430 model.")
     out.append("")
-    out.append("| source | full: mean (s) | full: max (s) | n | quick re-home: mean (s) | n |")
+    out.append("| source | full: mean (s) | full: max (s) | runs | quick re-home: mean (s) | runs |")
     out.append("| --- | --- | --- | --- | --- | --- |")
     notes = []
     for k, lab in SOURCES:
@@ -243,8 +243,8 @@ def section_ambient(res: Dict) -> List[str]:
         f"robot, {amb.get('tension_mN', 800)} mN. Field-change mode: |B − B0| against the "
         "table's |B(p_T) − B(p_0)|. Paper's absolute mode: |B − A_table| (the ambient seen at "
         "table generation removed) against the table's |B(p_T)|, pulling until the reading "
-        "crosses the target in the direction the table predicts (|B| falls with the pull on "
-        "the distal tendons here).")
+        "crosses the target in the direction the table predicts (|B| of the magnet can fall "
+        "with the pull, as the tip turns the dipole away).")
     out.append("")
     if amb.get("abs_mode_note"):
         out.append(f"- {amb['abs_mode_note']}")
@@ -308,8 +308,10 @@ def section_resources(res: Dict) -> List[str]:
     out.append(f"| servo bus cycle, with fast sync read | {fmt(bus.get('fast_sync_wire_ms'), 3, 'ms')} "
                f"on the wire, {fmt(bus.get('fast_sync_simavr_ms'), 3, 'ms')} on simavr | "
                "build/native/hh_dxl_bench |")
-    out.append(f"| servo transactions per servo on the bench | "
-               f"{fmt(r.get('servo_tx_hz'), 0, 'per s')} | {r.get('bench_src', 'not measured')} |")
+    tx = r.get("servo_tx_hz")
+    out.append(f"| servo transactions per servo on the bench | {fmt(tx, 0, 'per s')}"
+               f"{f' (one every {1000.0 / tx:.2f} ms)' if tx else ''} | "
+               f"{r.get('bench_src', 'not measured')} |")
     rates = r.get("sensor_rate_hz")
     out.append(f"| sensor sample rate achieved | "
                f"{', '.join(fmt(x, 1) for x in rates) + ' Hz' if rates else 'n/a'} | "
