@@ -153,6 +153,26 @@ def test_stray_bytes_before_sync(double):
         assert c.command("help").first("help").get("cmd") == "help"
 
 
+def test_sync_drains_late_replies_of_an_earlier_session(double):
+    # a reply still on its way from before (held `servos scan`), then the
+    # sync's own ok: the next command must get its own reply, not these
+    d = double(answers({"version": b"<version name=hallhome>\r\nok\r\n"}))
+    c = Client(d.path, timeout=1, sync=False)
+    d.send(b"<servo tendon=0 id=1 found=1>\r\nok\r\nok\r\n")
+    c.sync()
+    assert c.event(0.1).kind == "servo"  # kept as an event
+    assert c.command("version").first("version").get("name") == "hallhome"
+    c.close()
+
+
+def test_final_reply_without_a_command_is_counted(double):
+    d = double(answers({}))
+    with Client(d.path, timeout=1) as c:
+        d.send(b"ok\r\n<done mode=home time_ms=5>\r\n")
+        assert c.event(1.0).kind == "done"
+        assert c.garbled == 1
+
+
 # --- silence -------------------------------------------------------------------
 
 def test_silent_port_fails_sync_with_clear_message(double):
