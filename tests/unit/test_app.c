@@ -407,6 +407,37 @@ static void test_store_idle_only_and_moved_spool(void **state)
     cmd(&g_b, "home", "error:12 no homes: calibrate first");
 }
 
+/* Bounces shorter than the debounce time do nothing; the LED shows the
+ * state; a worn EEPROM cell makes `save` fail with error:19. */
+static void test_debounce_led_and_eeprom_failure(void **state)
+{
+    uint32_t changes;
+    uint8_t i;
+    (void)state;
+    assert_int_equal(app_bench_init(&g_b, 1), 0);
+    assert_int_equal(app_led_pattern(&g_b.app), APP_LED_BOOT);
+    assert_true(app_bench_wait_line(&g_b, "<ready ", g_line, sizeof g_line, 4000));
+    for (i = 0; i < 10; i++) {
+        g_b.button = 1;
+        app_bench_run_ms(&g_b, 10);
+        g_b.button = 0;
+        app_bench_run_ms(&g_b, 10);
+    }
+    app_bench_run_ms(&g_b, 100);
+    assert_int_equal(g_b.app.state, APP_ST_IDLE);
+    changes = g_b.led_changes;
+    app_bench_run_ms(&g_b, 4100);
+    assert_true(g_b.led_changes >= changes + 4u); /* two blips in 4 s */
+    assert_true(g_b.kicks >= g_b.app.loops);
+    /* a cell of both settings slots ignores writes: the save does not verify */
+    g_b.ee.stuck_addr = (int32_t)STORE_ADDR_SETTINGS + 6;
+    cmd(&g_b, "set cal_tension 700", "ok");
+    app_bench_send(&g_b, "save");
+    reply(&g_b, "error:19 EEPROM write failed", 3000);
+    g_b.ee.stuck_addr = -1;
+    cmd(&g_b, "save", "ok");
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -418,6 +449,7 @@ int main(void)
         cmocka_unit_test(test_realtime_abort_releases),
         cmocka_unit_test(test_long_press_aborts),
         cmocka_unit_test(test_servo_fault_mid_run),
+        cmocka_unit_test(test_debounce_led_and_eeprom_failure),
         cmocka_unit_test(test_slow_loop_single_tendon),
         cmocka_unit_test(test_store_idle_only_and_moved_spool),
         cmocka_unit_test(test_button_calibrates_and_stores),
