@@ -454,3 +454,40 @@ def test_console_on_a_terminal(bench, tmp_path):
         os.close(master)
     saved = hist.read_text()
     assert "version" in saved and "cal 0.8 0" in saved
+
+
+def run_on_terminal(*args, timeout=120):
+    """`hallhome ARGS` with its output on a pty (rich draws live views);
+    returns (exit code, everything written)."""
+    master, slave = os.openpty()
+    env = dict(os.environ, COLUMNS="120", LINES="40", TERM="xterm-256color")
+    p = subprocess.Popen([sys.executable, "-m", "hallhome", *map(str, args)], stdin=subprocess.DEVNULL,
+                         stdout=slave, stderr=slave, env=env)
+    os.close(slave)
+    buf = b""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if select.select([master], [], [], 0.1)[0]:
+            try:
+                chunk = os.read(master, 65536)
+            except OSError:
+                break
+            if not chunk:
+                break
+            buf += chunk
+        elif p.poll() is not None:
+            break
+    rc = p.wait(10)
+    os.close(master)
+    return rc, re.sub(r"\x1b\[[0-9;?]*[A-Za-z]", "", buf.decode(errors="replace"))
+
+
+def test_live_views_on_a_terminal(bench):
+    b = bench()
+    rc, out = run_on_terminal("calibrate", "--port", b.pty, "--tendon", 1)
+    assert rc == 0, out
+    assert re.search(r"│ 1 +│ 2 +│ home +│ \d+ ", out), out
+    assert "done: single calibration at 0.800 N" in out
+    rc, out = run_on_terminal("monitor", "--port", b.pty, "-n", 4, "--interval", 0.1)
+    assert rc == 0, out
+    assert re.search(r"│ 2 +│ yes +│ \d+\.\d\d +│ [+-]\d+\.\d\d +│ [▁▂▃▄▅▆▇█]{4} ", out), out
