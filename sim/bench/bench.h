@@ -275,7 +275,11 @@ struct bench_t {
     bench_twi_t twi;
     plant_t plant;
     uint8_t have_plant;
-    double shaft0[BENCH_MAX_SERVOS]; /* plant motor ticks at shaft angle 0 */
+    double eng_ticks[BENCH_MAX_SERVOS];         /* true engagement per tendon */
+    double max_tension_N[BENCH_MAX_SERVOS];     /* highest spool tension of the run */
+    double max_take_up_ticks[BENCH_MAX_SERVOS]; /* deepest pull past the true engagement */
+    uint64_t fault_at_us;                       /* first `<fault` console line (0 = none) */
+    uint64_t released_at_us; /* first time after it with every tendon below 1 mN */
     int32_t target_mN;
     uint8_t magnet_removed;
     bench_event_t ev[BENCH_MAX_EVENTS];

@@ -75,6 +75,10 @@ void bench_console_line(bench_t *b, const char *line)
         }
         fflush(stdout);
     }
+    if (b->fault_at_us == 0 && strncmp(line, "<fault", 6) == 0) {
+        b->fault_at_us = bench_now_us(b);
+        b->released_at_us = 0;
+    }
     if (b->stop) {
         return;
     }

@@ -71,6 +71,7 @@ int world_init(bench_t *b)
         double mm = b->start_slack_min_mm +
                     (b->start_slack_max_mm - b->start_slack_min_mm) * world_rand01(&rng);
         double slack_ticks = mm * 1e6 / cfg.nm_per_tick;
+        b->eng_ticks[i] = eng;
         xl430_config_default(&xc, cfg.tendon[i].servo_id);
         xc.bits_per_byte = 11; /* simavr's frame */
         xc.baud_index = b->servo_baud_index;
@@ -114,8 +115,29 @@ void world_tick(bench_t *b, uint64_t now)
     if (moved) {
         plant_solve(&b->plant);
         for (uint8_t i = 0; i < s->n_servos; i++) {
+            double take = (plant_motor_ticks(&b->plant, i) - b->eng_ticks[i]) *
+                          (double)b->plant.cfg.tendon[i].pull_dir;
+            if (b->plant.tension_N[i] > b->max_tension_N[i]) {
+                b->max_tension_N[i] = b->plant.tension_N[i];
+            }
+            if (take > b->max_take_up_ticks[i]) {
+                b->max_take_up_ticks[i] = take;
+            }
+        }
+        for (uint8_t i = 0; i < s->n_servos; i++) {
             double load = b->plant.tension_N[i] * WORLD_SPOOL_M / WORLD_STALL_NM * 1000.0;
             xl430_set_sensed(&s->servo[i], (int16_t)lround(load > 1000.0 ? 1000.0 : load), 120, 32);
+        }
+    }
+    if (b->fault_at_us != 0 && b->released_at_us == 0) {
+        uint8_t slack = 1;
+        for (uint8_t i = 0; i < s->n_servos; i++) {
+            if (b->plant.tension_N[i] >= 0.001) {
+                slack = 0;
+            }
+        }
+        if (slack) {
+            b->released_at_us = now;
         }
     }
     for (uint8_t k = 0; k < b->twi.n_icm; k++) {
@@ -151,6 +173,11 @@ void world_report(bench_t *b, FILE *json, FILE *table)
                 "err_mN   err_%%\n");
     }
     if (json) {
+        fprintf(json, "  \"fault\": {\"t_s\": %.6f, \"released_after_ms\": %.3f},\n",
+                (double)b->fault_at_us * 1e-6,
+                b->fault_at_us && b->released_at_us >= b->fault_at_us
+                    ? (double)(b->released_at_us - b->fault_at_us) * 1e-3
+                    : -1.0);
         fprintf(json, "  \"target_mN\": %d,\n  \"tendons\": [", (int)b->target_mN);
     }
     for (uint8_t i = 0; i < b->bus.n_servos; i++) {
@@ -175,12 +202,14 @@ void world_report(bench_t *b, FILE *json, FILE *table)
                 "%s\n    {\"tendon\": %u, \"id\": %u, \"goal_ticks\": %d, \"present_ticks\": %d, "
                 "\"torque\": %u, \"hw_error\": %u, \"shaft_ticks\": %.2f, \"take_up_mm\": %.4f, "
                 "\"true_engagement_ticks\": %.2f, \"true_home_ticks\": %.2f, \"err_ticks\": %.2f, "
-                "\"tension_at_home_mN\": %.1f, \"tension_now_mN\": %.1f, \"err_mN\": %.1f}",
+                "\"tension_at_home_mN\": %.1f, \"tension_now_mN\": %.1f, \"err_mN\": %.1f, "
+                "\"max_tension_mN\": %.1f, \"max_take_up_mm\": %.4f}",
                 i ? "," : "", i, m->cfg.id, (int)goal, (int)present,
                 (unsigned)xl430_get(m, DXL_XL430_TORQUE_ENABLE_ADDR, 1),
                 (unsigned)xl430_get(m, DXL_XL430_HW_ERROR_ADDR, 1), shaft, take_mm, eng,
                 isnan(home) ? -1.0 : home, isnan(home) ? 0.0 : shaft - home, t_home,
-                b->plant.tension_N[i] * 1000.0, err_mN);
+                b->plant.tension_N[i] * 1000.0, err_mN, b->max_tension_N[i] * 1000.0,
+                b->max_take_up_ticks[i] * cfg->nm_per_tick / 1e6);
         }
     }
     if (json) {

@@ -593,3 +593,17 @@ def test_full_calibration_then_quick_rehome_after_power_cycle(tmp_path):
     assert r2.summary["cal_time_s"] < r.summary["cal_time_s"]
     for t, h in zip(r2.summary["tendons"], homes):
         assert abs(t["goal_ticks"] - h) <= 3  # same robot, same homes
+
+
+def test_realtime_stop_mid_pull_releases_within_100_ms(tmp_path):
+    r = bench(tmp_path, FW, "--plant", PLANT, "--seed", "3", "--limit", "20s",
+              "--at", "1s press 100", "--at", "2.9s raw !", "--until", "^<fault reason=aborted",
+              "--linger", "500ms")
+    assert r.rc == 0, r.summary["reason"]
+    fault = r.summary["fault"]
+    assert 2.9 < fault["t_s"] < 2.95
+    assert 0 <= fault["released_after_ms"] < 100
+    t0 = r.summary["tendons"][0]
+    assert t0["max_tension_mN"] > 100  # it was pulling when the stop came
+    assert t0["max_take_up_mm"] > 0
+    assert all(t["tension_now_mN"] == 0.0 for t in r.summary["tendons"])
