@@ -24,6 +24,7 @@ from typing import Dict, Iterator, List, Optional, Tuple
 import click
 from rich.console import Console
 from rich.live import Live
+from rich.markup import escape
 from rich.table import Table
 
 from hallhome import protocol
@@ -104,10 +105,6 @@ def port_options(f):
     return f
 
 
-class Interrupted(Exception):
-    pass
-
-
 @contextmanager
 def session(port: Optional[str], timeout: float) -> Iterator[Client]:
     """An open, synchronised client. On exit (also after Ctrl-C or SIGTERM)
@@ -118,7 +115,12 @@ def session(port: Optional[str], timeout: float) -> Iterator[Client]:
         def on_term(signum, frame):
             raise KeyboardInterrupt
         old = signal.signal(signal.SIGTERM, on_term)
-    c = Client(dev, timeout=timeout, ends_motion=ends_motion)
+    try:
+        c = Client(dev, timeout=timeout, ends_motion=ends_motion)
+    except BaseException:
+        if old is not None:
+            signal.signal(signal.SIGTERM, old)
+        raise
     try:
         yield c
     finally:
@@ -128,7 +130,7 @@ def session(port: Optional[str], timeout: float) -> Iterator[Client]:
         c.close()
         if c.garbled:
             err().print(f"[yellow]note: {c.garbled} line(s) from the board were not protocol and were "
-                        f"ignored (last: {c.garbled_last!r})[/]")
+                        f"ignored (last: {escape(repr(c.garbled_last))})[/]")
         if old is not None:
             signal.signal(signal.SIGTERM, old)
 
@@ -142,7 +144,7 @@ def operator_command(f):
         try:
             return f(*a, **kw)
         except HallhomeError as e:
-            err().print(f"[red]hallhome: {e}[/]", markup=True)
+            err().print(f"[red]hallhome: {escape(str(e))}[/]")
             sys.exit(e.exit_code)
         except KeyboardInterrupt:
             err().print("[yellow]interrupted[/]")
@@ -174,7 +176,7 @@ def ports_cmd() -> None:
     try:
         con.print(f"default port: {find_port(None)}")
     except HallhomeError as e:
-        con.print(str(e))
+        con.print(escape(str(e)))
 
 
 # --- status -----------------------------------------------------------------------
@@ -230,13 +232,13 @@ def status_cmd(port, timeout) -> None:
                       str(h.get("home")) if h else "-", f"[red]0x{hw:02x}[/]" if hw else "0")
         con.print(t)
     for n in notes:
-        con.print(f"[yellow]{n}[/]")
+        con.print(f"[yellow]{escape(n)}[/]")
     bad = ([f"sensor {r.get('index')} not running" for r in sens if r.get("ok") != 1] +
            [f"servo {r.get('id')} (tendon {r.get('tendon')}) not found" for r in servos if r.get("found") != 1] +
            [f"servo {r.get('id')} (tendon {r.get('tendon')}) hardware error 0x{int(r.get('hw_error')):02x}"
             for r in servos if r.get("found") == 1 and r.get("hw_error")])
     if bad:
-        err().print("[red]attention: " + "; ".join(bad) + "[/]")
+        err().print("[red]attention: " + escape("; ".join(bad)) + "[/]")
         sys.exit(1)
 
 
@@ -513,13 +515,13 @@ def learn_cmd(tendons, masses, tolerance, out_path, port, timeout) -> None:
                         m = float(ans)
                         g_used, dev = snap_to_grid(newtons(m), [g_mN], tolerance)
                     except ValueError as e:
-                        con.print(f"[yellow]{e}[/]")
+                        con.print(f"[yellow]{escape(str(e))}[/]")
                         continue
                     wait_saved(c, 20.0)  # the board refuses `learn` while it writes a record
                     try:
                         rep = c.command(cmd("learn", t, fixed3(g_used / 1000.0)), timeout=max(timeout, 10.0))
                     except BoardError as e:
-                        con.print(f"[red]{e.name}: {e.text}[/]")
+                        con.print(f"[red]{e.name}: {escape(e.text)}[/]")
                         if e.name in ("BUSY", "TIMEOUT", "SENSOR_FAULT"):
                             continue  # ask again: the capture can be repeated
                         raise
@@ -734,7 +736,7 @@ def monitor_cmd(samples, interval, plot_path, port, timeout) -> None:
                     try:
                         data = sample_fields(c)
                     except BoardReset as e:
-                        err().print(f"[yellow]{e}; monitoring goes on[/]")
+                        err().print(f"[yellow]{escape(str(e))}; monitoring goes on[/]")
                         continue
                     times.append(tick - t0)
                     for k, okk, mag, _ in data:
@@ -856,7 +858,7 @@ def console_cmd(port, timeout) -> None:
 
         def show(r: Report) -> None:
             if r.kind == R.BOOT:
-                con.print(f"[yellow]{r.raw}  <- the board reset; the console re-synchronises[/]")
+                con.print(f"[yellow]{escape(r.raw)}  <- the board reset; the console re-synchronises[/]")
             else:
                 click.echo(r.raw)
 
@@ -920,13 +922,13 @@ def console_cmd(port, timeout) -> None:
                         show(r)
                     click.echo("ok")
                 except LocalError as e:
-                    con.print(f"[red]{e}[/]")
+                    con.print(f"[red]{escape(str(e))}[/]")
                 except BoardError as e:
                     for r in e.reports:
                         show(r)
-                    con.print(f"[red]error:{e.code} {e.text}[/] ({e.name})", markup=True)
+                    con.print(f"[red]error:{e.code} {escape(e.text)}[/] ({e.name})")
                 except (ReplyTimeout, BoardReset) as e:
-                    con.print(f"[yellow]{e}[/]")
+                    con.print(f"[yellow]{escape(str(e))}[/]")
             if not tty:
                 time.sleep(0.3)  # trailing reports of the last command
         except KeyboardInterrupt:
