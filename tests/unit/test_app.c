@@ -436,6 +436,14 @@ static void test_debounce_led_and_eeprom_failure(void **state)
     reply(&g_b, "error:19 EEPROM write failed", 3000);
     g_b.ee.stuck_addr = -1;
     cmd(&g_b, "save", "ok");
+    /* a long press while idle releases every tendon and captures the baseline */
+    g_b.button = 1;
+    assert_true(app_bench_wait_line(&g_b, "<released ", g_line, sizeof g_line, 2200));
+    assert_non_null(strstr(g_line, "reason=aborted"));
+    g_b.button = 0;
+    assert_true(app_bench_wait_line(&g_b, "<done mode=release", g_line, sizeof g_line, 3000));
+    assert_int_equal(app_bench_field(g_line, "baseline", 0), 1);
+    assert_int_equal(g_b.app.state, APP_ST_IDLE);
 }
 
 int main(void)
