@@ -738,6 +738,11 @@ def monitor_cmd(samples, interval, plot_path, port, timeout) -> None:
                     except BoardReset as e:
                         err().print(f"[yellow]{escape(str(e))}; monitoring goes on[/]")
                         continue
+                    except BoardError as e:
+                        if e.name != "BUSY":
+                            raise
+                        time.sleep(interval)  # still booting after a reset
+                        continue
                     times.append(tick - t0)
                     for k, okk, mag, _ in data:
                         hist.setdefault(k, []).append(mag)
