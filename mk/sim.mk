@@ -85,7 +85,7 @@ sim: $(BENCH) firmware $(SIM_PLANT)
 		$(SIM_ARGS)
 
 sim-test: $(BENCH) $(TESTFW_ELFS) firmware
-	$(VENV)/bin/pytest -q tests/host/test_bench.py
+	$(VENV)/bin/pytest -q tests/sim
 
 TEST_TARGETS += sim-test
 
