@@ -139,20 +139,26 @@ def robust_item(a, res: Dict) -> None:
     fracs = [0.05] if a.reduced else [0.02, 0.05, 0.10]
     main_frac = 0.05
     rob = {"runs": runs, "frac": main_frac, "tension_mN": 800, "levels": []}
-    for frac in fracs:
-        log(f"native loop: Monte Carlo, {runs} perturbed robots at ±{100 * frac:.0f} %")
-        out = native.mc(a.mc, a.config, "mc", ["-n", str(runs), "-p", str(frac), "-s",
-                                                str(a.seed + 1000), "-t", "800"])
+    plan = [(f, "plant") for f in fracs] + ([] if a.reduced else [(main_frac, "generated")])
+    for frac, table in plan:
+        log(f"native loop: Monte Carlo, {runs} perturbed robots at ±{100 * frac:.0f} %, "
+            f"{table} table")
+        try:
+            out = native.mc(a.mc, a.config, "mc", (["-g"] if table == "generated" else []) + [
+                "-n", str(runs), "-p", str(frac), "-s", str(a.seed + 1000), "-t", "800"])
+        except (OSError, RuntimeError) as e:
+            log(f"native loop: Monte Carlo failed: {e}")
+            continue
         rows = out.get("mc", [])
         errs = [r["err_N"] for r in rows]
         ok = stats.clean(errs)
         faults = len({r["run"] for r in rows if r["rc"] != 0})
         m, sd = stats.mean_sd(ok)
         rob["levels"].append({
-            "frac": frac, "runs": runs, "n": len(ok), "faults": faults, "mean_N": m, "sd_N": sd,
+            "frac": frac, "table": table, "runs": runs, "n": len(ok), "faults": faults, "mean_N": m, "sd_N": sd,
             "p5_N": stats.percentile(ok, 5), "p95_N": stats.percentile(ok, 95),
             "max_abs_N": max((abs(e) for e in ok), default=float("nan"))})
-        if frac == main_frac:
+        if frac == main_frac and table == "plant":
             rob["err_N"] = [e if math.isfinite(e) else None for e in errs]
             names = ["seg1_ei", "seg2_ei", "moment", "seg1_len", "seg2_len", "angle_deg", "radius", "ea",
                      "free_len", "slack_um", "friction_f0", "friction_mu", "backlash",
@@ -240,6 +246,9 @@ def simavr_items(a, res: Dict, cfg: Dict, workdir: str) -> None:
         log("simavr bench: probe calibration (seed 1, 800 mN)")
         probe = simavr.calibration(a.hh_bench, a.elf, a.config, a.seed, 800, workdir,
                                    limit_s=a.sim_limit)
+        boot = [l["rep"] for l in probe.get("lines", []) if l["rep"].get("_kind") == "boot"]
+        if boot:
+            res["meta"]["firmware"] = boot[0].get("version")
         if not probe["ok"]:
             why = f"the firmware does not complete a calibration on the bench ({probe.get('error')})"
     if why is not None:
@@ -403,7 +412,7 @@ def main(argv=None) -> int:
         git = "n/a"
     res: Dict = {
         "meta": {"date": datetime.datetime.utcnow().strftime("%Y-%m-%d %H:%M UTC"),
-                 "git": git or "n/a", "config": a.config, "reduced": a.reduced,
+                 "git": git or "n/a", "config": a.config, "reduced": a.reduced, "elf": a.elf,
                  "mm_per_tick": cfg["nm_per_tick"] * 1e-6},
         "repeat": {}, "accuracy": {}, "time": {}, "resources": {}, "goal_notes": [],
     }
@@ -478,7 +487,7 @@ def goal_notes(res: Dict) -> List[str]:
             "remove it; the bench has no way to hang a known weight on a tendon yet, so that "
             "path is measured in the native loop only.")
     rob = res.get("robust", {})
-    lv = {round(l["frac"], 3): l for l in rob.get("levels", [])}
+    lv = {round(l["frac"], 3): l for l in rob.get("levels", []) if l.get("table", "plant") == "plant"}
     if 0.05 in lv:
         l = lv[0.05]
         top = ", ".join(d["name"] for d in rob.get("ranking", [])[:3]) or "n/a"
