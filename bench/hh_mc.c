@@ -15,8 +15,9 @@
  * hh_closedloop; with -g it is the generated table the firmware links
  * (lookup_tables/generated/<robot>.c from the host model, built in with
  * -DHH_ROBOT=<robot>): the model-based workflow. The robot a run calibrates
- * differs from the nominal plant as each study says. Output: `cols,<kind>,<name>,...` header lines naming the columns,
- * then one `<kind>,...` CSV line per result (bench/native.py parses both).
+ * differs from the nominal plant as each study says. Output: header lines
+ * `cols,<kind>,<name>,...` naming the columns, then one `<kind>,...` CSV line
+ * per result (bench/native.py parses both).
  *
  * mc: the robot is plant_cfg_perturb(nominal, seed + run, frac); one line per
  *   tendon with the tension error and the deviation of every parameter that
@@ -28,7 +29,8 @@
  *   frac when frac > 0) from random slack; quick mode re-homes after a
  *   simulated power cycle as hh_closedloop does. One line per tendon home.
  * targets: per tendon the plant table's and the generated table's target
- *   |dB| and expected travel at the tension, side by side (model error).
+ *   |dB| and expected travel at the tension, side by side, and the tension
+ *   where the noise-free plant meets the generated target (model error).
  * ambient: the calibration sees every sensor's ambient field changed by the
  *   same vector (magnitude from -a, seeded random directions). Per tendon:
  *   the field-change mode through the closed loop (homing core), and both
@@ -71,8 +73,9 @@ extern const tbl_table_t HH_CAT(tbl_table_, HH_ROBOT);
 
 static void usage(void)
 {
-    fprintf(stderr, "usage: hh_mc CONFIG mc|oat|ambient|cal|targets [-g] [-n runs] [-s seed] [-p frac]\n"
-                    "             [-t mN] [-k steps] [-a \"uT ...\"] [-d directions] [-m full|quick]\n");
+    fprintf(stderr,
+            "usage: hh_mc CONFIG mc|oat|ambient|cal|targets [-g] [-n runs] [-s seed] [-p frac]\n"
+            "             [-t mN] [-k steps] [-a \"uT ...\"] [-d directions] [-m full|quick]\n");
 }
 
 static double rel(double actual, double nom)
@@ -110,9 +113,10 @@ static int study_mc(const opts_t *o)
     static plant_cfg_t actual;
     static plant_run_result_t res;
     unsigned r;
-    printf("cols,mc,run,tendon,segment,rc,tension_N,err_N,err_ticks,sim_ms,seg1_ei,seg2_ei,moment,"
-           "seg1_len,seg2_len,angle_deg,radius,ea,free_len,slack_um,friction_f0,friction_mu,backlash,"
-           "sensor_dx_mm,sensor_dy_mm,sensor_dz_mm,sensor_dr_mm\n");
+    printf(
+        "cols,mc,run,tendon,segment,rc,tension_N,err_N,err_ticks,sim_ms,seg1_ei,seg2_ei,moment,"
+        "seg1_len,seg2_len,angle_deg,radius,ea,free_len,slack_um,friction_f0,friction_mu,backlash,"
+        "sensor_dx_mm,sensor_dy_mm,sensor_dz_mm,sensor_dr_mm\n");
     for (r = 0; r < o->runs; r++) {
         unsigned i;
         int prc;
@@ -129,12 +133,10 @@ static int study_mc(const opts_t *o)
             int ok = prc == 0 && res.rc == 0 && res.have_home[i];
             printf("mc,%u,%u,%u,%d,%.5f,%.5f,%.3f,%u,%.5f,%.5f,%.5f,%.5f,%.5f,%.4f,%.5f,%.5f,%.5f,"
                    "%.2f,%.5f,%.5f,%.5f,%.4f,%.4f,%.4f,%.4f\n",
-                   r, i, n->segment, prc != 0 ? prc : res.rc,
-                   ok ? res.tension_at_home_N[i] : NAN,
+                   r, i, n->segment, prc != 0 ? prc : res.rc, ok ? res.tension_at_home_N[i] : NAN,
                    ok ? res.tension_at_home_N[i] - o->tension * 1e-3 : NAN,
-                   ok ? res.err_ticks[i] : NAN, (unsigned)res.end_ms,
-                   seg_ei_rel(&actual, 0), seg_ei_rel(&actual, 1),
-                   rel(actual.magnet_moment_Am2, nominal.magnet_moment_Am2),
+                   ok ? res.err_ticks[i] : NAN, (unsigned)res.end_ms, seg_ei_rel(&actual, 0),
+                   seg_ei_rel(&actual, 1), rel(actual.magnet_moment_Am2, nominal.magnet_moment_Am2),
                    rel(actual.seg_len_mm[0], nominal.seg_len_mm[0]),
                    nominal.n_segments > 1 ? rel(actual.seg_len_mm[1], nominal.seg_len_mm[1]) : 0.0,
                    a->angle_deg - n->angle_deg, rel(a->radius_mm, n->radius_mm),
@@ -207,7 +209,7 @@ static int apply_group(plant_cfg_t *cfg, const char *g, double x)
 }
 
 static const char *const groups[] = {
-    "ei",    "moment",   "seg_len", "angle",       "radius",      "ea",       "free_len",
+    "ei",    "moment",      "seg_len",     "angle",    "radius",   "ea",      "free_len",
     "slack", "friction_f0", "friction_mu", "backlash", "sensor_z", "sensor_r"};
 
 static int study_oat(const opts_t *o)
@@ -279,16 +281,15 @@ static void ideal_detect(const plant_cfg_t *actual, unsigned i, unsigned tension
          * reading falls to the target. The table's straight-pose prediction
          * tells which way. */
         const int32_t *bs = table.sensors[k].b_straight_cuT;
-        double straight = 0.01 * sqrt((double)bs[0] * bs[0] + (double)bs[1] * bs[1] +
-                                      (double)bs[2] * bs[2]);
+        double straight =
+            0.01 * sqrt((double)bs[0] * bs[0] + (double)bs[1] * bs[1] + (double)bs[2] * bs[2]);
         sgn = tgt_a >= straight ? 1.0 : -1.0;
     }
     for (j = 0; j < actual->n_tendons; j++) {
         if (plant_true_engagement(actual, (uint8_t)j, &eng[j]) != 0) {
             return;
         }
-        (void)plant_set_motor(&p, (uint8_t)j,
-                              eng[j] - actual->tendon[j].pull_dir * 1000.0 / tpu);
+        (void)plant_set_motor(&p, (uint8_t)j, eng[j] - actual->tendon[j].pull_dir * 1000.0 / tpu);
     }
     (void)plant_solve(&p);
     plant_field_true(&p, (uint8_t)k, b0);
@@ -379,17 +380,16 @@ static int study_ambient(const opts_t *o)
                 double xd, xa, td, ta;
                 int ok = prc == 0 && res.rc == 0 && res.have_home[i];
                 printf("amb,%.2f,%u,%.3f,%.3f,%.3f,%u,%u,delta_loop,%d,%.5f,%.5f,%s\n", o->amb[m],
-                       dd, v[0], v[1], v[2], i, nominal.tendon[i].segment,
-                       prc != 0 ? prc : res.rc, ok ? res.tension_at_home_N[i] : NAN,
+                       dd, v[0], v[1], v[2], i, nominal.tendon[i].segment, prc != 0 ? prc : res.rc,
+                       ok ? res.tension_at_home_N[i] : NAN,
                        ok ? res.tension_at_home_N[i] - o->tension * 1e-3 : NAN,
                        prc != 0 ? "run_error" : hom_fault_name(res.fault));
                 ideal_detect(&actual, i, o->tension, &xd, &xa);
                 td = isnan(xd) ? NAN : plant_tension_at(&actual, (uint8_t)i, xd);
                 ta = isnan(xa) ? NAN : plant_tension_at(&actual, (uint8_t)i, xa);
-                printf("amb,%.2f,%u,%.3f,%.3f,%.3f,%u,%u,delta_ideal,%d,%.5f,%.5f,%s\n",
-                       o->amb[m], dd, v[0], v[1], v[2], i, nominal.tendon[i].segment,
-                       isnan(xd) ? 1 : 0, td, td - o->tension * 1e-3,
-                       isnan(xd) ? "target_not_reached" : "none");
+                printf("amb,%.2f,%u,%.3f,%.3f,%.3f,%u,%u,delta_ideal,%d,%.5f,%.5f,%s\n", o->amb[m],
+                       dd, v[0], v[1], v[2], i, nominal.tendon[i].segment, isnan(xd) ? 1 : 0, td,
+                       td - o->tension * 1e-3, isnan(xd) ? "target_not_reached" : "none");
                 printf("amb,%.2f,%u,%.3f,%.3f,%.3f,%u,%u,abs_ideal,%d,%.5f,%.5f,%s\n", o->amb[m],
                        dd, v[0], v[1], v[2], i, nominal.tendon[i].segment, isnan(xa) ? 1 : 0, ta,
                        ta - o->tension * 1e-3, isnan(xa) ? "target_not_reached" : "none");
@@ -433,8 +433,8 @@ static int study_cal(const opts_t *o)
         for (i = 0; i < nominal.n_tendons; i++) {
             int ok = prc == 0 && res.rc == 0 && res.have_home[i];
             printf("cal,%u,%u,%u,%d,%.0f,%.3f,%.3f,%.5f,%.5f,%u,%s\n", r, i,
-                   nominal.tendon[i].segment, prc != 0 ? prc : res.rc,
-                   ok ? res.home_plant[i] : NAN, res.true_home[i], ok ? res.err_ticks[i] : NAN,
+                   nominal.tendon[i].segment, prc != 0 ? prc : res.rc, ok ? res.home_plant[i] : NAN,
+                   res.true_home[i], ok ? res.err_ticks[i] : NAN,
                    ok ? res.tension_at_home_N[i] : NAN,
                    ok ? res.tension_at_home_N[i] - o->tension * 1e-3 : NAN, (unsigned)res.end_ms,
                    prc != 0 ? "run_error" : hom_fault_name(res.fault));
