@@ -67,7 +67,9 @@ def section_repeat(res: Dict) -> List[str]:
     out = [SECTIONS[0] + " (paper Table I)", ""]
     out.append(
         f"{rep.get('runs', 10)} automated calibrations at 0.8 N from random initial slack "
-        "(each tendon starts between 2 mm slack and 0.3 mm taut), nominal robot; standard "
+        "(native loop: each tendon starts between 2 mm slack and 0.3 mm taut of its "
+        "engagement; simavr bench: between 2 and 0.3 mm slack, hh_bench's default), nominal "
+        "robot; standard "
         "deviation of each tendon's home position (spool travel), in mm. One encoder tick is "
         f"{fmt(res.get('meta', {}).get('mm_per_tick'), 5)} mm.")
     out.append("")
