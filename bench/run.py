@@ -305,6 +305,13 @@ def simavr_items(a, res: Dict, cfg: Dict, workdir: str) -> None:
     cal = [r["cal_s"] for r in runs if r.get("ok") and r.get("cal_s") is not None]
     tm = {"full_s": stats.mean_sd(cal)[0] if cal else None, "full_max_s": max(cal) if cal else None,
           "n_full": len(cal), "n_quick": 0, "failed": len(failed)}
+    ph = [r["phases"] for r in runs if r.get("ok") and r.get("phases")]
+    if ph:
+        tm["phases"] = {
+            "prep_s": stats.mean_sd(p["prep_s"] for p in ph)[0],
+            "tendon_s": stats.mean_sd(x for p in ph for x in p["tendon_s"])[0],
+            "tendon_max_s": max((x for p in ph for x in p["tendon_s"]), default=None),
+            "final_s": stats.mean_sd(p["final_s"] for p in ph)[0], "runs": len(ph)}
     res["time"]["simavr"] = tm
     res["meta"]["simavr_status"] = (
         f"{len(runs) - len(failed)} of {len(runs)} calibrations completed"

@@ -114,6 +114,22 @@ def calibration(hh_bench: str, elf: str, plant: str, seed: int, tension_mN: int,
                 home += 4096.0 * turns
             homes[i] = home
     r["homes"] = homes
+    # where the time goes: start -> first tendon, per tendon, final move -> done
+    first = next((l for l in lines if l["rep"].get("_kind") == "progress"
+                  and l["rep"].get("state") == "tendon"), None)
+    final = _t_of(lines, "progress", state="final")
+    tend_ms = []
+    for l in lines:
+        if l["rep"].get("_kind") == "result" and "time_ms" in l["rep"]:
+            try:
+                tend_ms.append(float(l["rep"]["time_ms"]))
+            except ValueError:
+                pass
+    r["phases"] = {
+        "prep_s": first["t"] - start["t"] if (first and start) else None,
+        "tendon_s": [x / 1000.0 for x in tend_ms],
+        "final_s": done["t"] - final["t"] if (final and done) else None,
+    }
     r["tension_N"] = {i: t["tension_at_home_mN"] / 1000.0 for i, t in tend.items()}
     r["shaft_err_ticks"] = {i: t["err_ticks"] for i, t in tend.items()}
     return r
