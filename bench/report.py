@@ -322,6 +322,16 @@ def section_resources(res: Dict) -> List[str]:
     out.append(f"| servo bus cycle, with fast sync read | {fmt(bus.get('fast_sync_wire_ms'), 3, 'ms')} "
                f"on the wire, {fmt(bus.get('fast_sync_simavr_ms'), 3, 'ms')} on simavr | "
                "build/native/hh_dxl_bench |")
+    bb = r.get("bench_bus") or {}
+    if bb.get("median_ms") is not None:
+        out.append(f"| servo position-read period on the bench (firmware's bus cycle) | median "
+                   f"{fmt(bb['median_ms'], 2, 'ms')}, 95th pct {fmt(bb['p95_ms'], 2, 'ms')}, max "
+                   f"{fmt(bb['max_ms'], 2, 'ms')} ({bb['reads']} sync reads of Present Position "
+                   f"in {fmt(bb['window_s'], 1, 's')}) | simavr bench, `--trace-bus` during a "
+                   "calibration |")
+    else:
+        out.append(f"| servo position-read period on the bench | "
+                   f"not measured: {bb.get('error', 'no simavr bench run')} | simavr bench |")
     tx = r.get("servo_tx_hz")
     out.append(f"| servo transactions per servo on the bench | {fmt(tx, 0, 'per s')}"
                f"{f' (one every {1000.0 / tx:.2f} ms)' if tx else ''} | "

@@ -170,6 +170,54 @@ def rehome_and_status(hh_bench: str, elf: str, plant: str, seed: int, tension_mN
     return r
 
 
+BUS = re.compile(r"^bus\s+(\d+) us mcu ([0-9A-Fa-f]{2})\b")
+
+
+def parse_bus_packets(text: str) -> List[Dict]:
+    """MCU packets from `hh_bench --trace-bus` lines: [{"t_us", "id", "inst",
+    "addr"}] for every DYNAMIXEL 2.0 instruction packet the firmware sent
+    (t_us: its first byte; addr: the first two parameter bytes, little
+    endian, 0 when the packet has none)."""
+    tb = []
+    for line in text.splitlines():
+        m = BUS.match(line)
+        if m:
+            tb.append((int(m.group(1)), int(m.group(2), 16)))
+    out: List[Dict] = []
+    i = 0
+    while i + 8 <= len(tb):
+        if [b for _, b in tb[i:i + 4]] == [0xFF, 0xFF, 0xFD, 0x00]:
+            n = tb[i + 5][1] | (tb[i + 6][1] << 8)  # LEN = params + 3
+            addr = tb[i + 8][1] | (tb[i + 9][1] << 8) if n >= 5 and i + 10 <= len(tb) else 0
+            out.append({"t_us": tb[i][0], "id": tb[i + 4][1], "inst": tb[i + 7][1], "addr": addr})
+            i += 7 + max(n, 3)
+        else:
+            i += 1
+    return out
+
+
+def bus_cycle(hh_bench: str, elf: str, plant: str, workdir: str, limit_s: float = 3.0) -> Dict:
+    """Position-read period of the firmware during a calibration: a short
+    traced run (calibration from 0.6 s), intervals between successive
+    position reads (sync read or fast sync read of address 132) after 1 s."""
+    cmd = [hh_bench, elf, "--plant", plant, "--seed", "1", "--perturb", "0", "--limit",
+           f"{limit_s:g}s", "--at", "0.6s send cal", "--trace-bus", "--quiet"]
+    try:
+        p = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
+    except (OSError, subprocess.TimeoutExpired) as e:
+        return {"error": str(e)}
+    pk = parse_bus_packets(p.stdout + p.stderr)
+    reads = [x["t_us"] for x in pk if x["inst"] in (0x82, 0x8A) and x["addr"] == 132
+             and x["t_us"] >= 1_000_000]
+    writes = [x["t_us"] for x in pk if x["inst"] in (0x83, 0x03) and x["t_us"] >= 1_000_000]
+    if len(reads) < 3:
+        return {"error": f"{len(reads)} position reads in the trace"}
+    d = sorted((b - a) / 1000.0 for a, b in zip(reads, reads[1:]))
+    return {"reads": len(reads), "goal_writes": len(writes),
+            "median_ms": d[len(d) // 2], "p95_ms": d[int(0.95 * (len(d) - 1))], "max_ms": d[-1],
+            "window_s": (reads[-1] - reads[0]) / 1e6}
+
+
 def batch(jobs: List[Dict], parallel: int, progress=None) -> List[Dict]:
     """Runs calibration() jobs (dicts of its keyword arguments) on `parallel`
     processes at once; results in job order."""

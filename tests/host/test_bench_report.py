@@ -197,3 +197,18 @@ def test_bench_ambient_rows():
     text = report.build_report(_results())
     assert "| 50 | done | +0.0400 | 0.0450 | +0.0410 | 1 |" in text
     assert "| 100 | failed: exit 1 |" in text
+
+
+def test_parse_bus_packets_from_a_trace():
+    # sync read of Present Position (addr 132, 4 bytes) of IDs 1 and 2, then a
+    # servo reply byte and a write of goal position 512 to ID 1 (device-facts)
+    sync_read = "FF FF FD 00 FE 09 00 82 84 00 04 00 01 02 CE FA".split()
+    write = "FF FF FD 00 01 09 00 03 74 00 00 02 00 00 CA 89".split()
+    lines = [f"bus {1000 + 11 * k} us mcu {b} start {1000 + 11 * k} dir 1"
+             for k, b in enumerate(sync_read)]
+    lines.append("bus 1300 us servo 0 FF start 1290")
+    lines += [f"bus {5000 + 11 * k} us mcu {b} start {5000 + 11 * k} dir 1"
+              for k, b in enumerate(write)]
+    pk = simavr.parse_bus_packets("\n".join(lines))
+    assert [(p["t_us"], p["id"], p["inst"], p["addr"]) for p in pk] == [
+        (1000, 0xFE, 0x82, 132), (5000, 1, 0x03, 116)]
