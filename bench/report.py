@@ -45,11 +45,16 @@ def fmt(v, digits: int = 4, unit: str = "") -> str:
     return f"{f:.{digits}f}{(' ' + unit) if unit else ''}"
 
 
+def cell(text) -> str:
+    """Text safe inside a Markdown table cell."""
+    return str(text).replace("|", "\\|").replace("\n", " ")
+
+
 def _src_note(r: Optional[Dict]) -> str:
     if not r:
         return "not measured"
     if r.get("not_measured"):
-        return f"not measured: {r['not_measured']}"
+        return cell(f"not measured: {r['not_measured']}")
     return ""
 
 
@@ -284,7 +289,7 @@ def section_ambient(res: Dict) -> List[str]:
                 out.append(f"| {b['dA_uT']:g} | done | {b['mean_N']:+.4f} | {b['max_abs_N']:.4f} | "
                            f"{b['base_mean_N']:+.4f} | {fmt(b.get('max_home_shift_ticks'), 0)} |")
             else:
-                out.append(f"| {b['dA_uT']:g} | failed: {b.get('error')} | | | | |")
+                out.append(f"| {b['dA_uT']:g} | failed: {cell(b.get('error'))} | | | | |")
     out += ["", "`abs_ideal` / `delta_ideal`: noise-free quasi-static pull of the plant, "
             "sub-tick crossing (isolates the ambient effect); `delta_loop`: the homing core in "
             "the closed loop (noise, encoder ticks). Errors are over the homes found; a failed "
@@ -308,12 +313,12 @@ def section_resources(res: Dict) -> List[str]:
 
     out.append(f"| flash | {fmt(r.get('flash_bytes'), 0, 'bytes')} "
                f"({fmt(r.get('flash_pct'), 1)} % of 256 KB; {budget(r.get('flash_bytes'), 65536)} "
-               f"the 64 KB budget) | {r.get('size_src', 'n/a')} |")
+               f"the 64 KB budget) | {cell(r.get('size_src', 'n/a'))} |")
     out.append(f"| static RAM | {fmt(r.get('ram_bytes'), 0, 'bytes')} "
                f"({fmt(r.get('ram_pct'), 1)} % of 8 KB; {budget(r.get('ram_bytes'), 4096)} "
-               f"the 4 KB budget) | {r.get('size_src', 'n/a')} |")
+               f"the 4 KB budget) | {cell(r.get('size_src', 'n/a'))} |")
     out.append(f"| worst main-loop time | {fmt(r.get('loop_max_us'), 0, 'µs')} | "
-               f"{r.get('loop_src', 'not measured')} |")
+               f"{cell(r.get('loop_src', 'not measured'))} |")
     bus = r.get("bus", {})
     out.append(f"| servo bus cycle, sync write 6 + sync read 6 | "
                f"{fmt(bus.get('sync_wire_ms'), 3, 'ms')} on the wire, "
@@ -331,15 +336,15 @@ def section_resources(res: Dict) -> List[str]:
                    "calibration |")
     else:
         out.append(f"| servo position-read period on the bench | "
-                   f"not measured: {bb.get('error', 'no simavr bench run')} | simavr bench |")
+                   f"not measured: {cell(bb.get('error', 'no simavr bench run'))} | simavr bench |")
     tx = r.get("servo_tx_hz")
     out.append(f"| servo transactions per servo on the bench | {fmt(tx, 0, 'per s')}"
                f"{f' (one every {1000.0 / tx:.2f} ms)' if tx else ''} | "
-               f"{r.get('bench_src', 'not measured')} |")
+               f"{cell(r.get('bench_src', 'not measured'))} |")
     rates = r.get("sensor_rate_hz")
     out.append(f"| sensor sample rate achieved | "
                f"{', '.join(fmt(x, 1) for x in rates) + ' Hz' if rates else 'n/a'} | "
-               f"{r.get('bench_src', 'not measured')} |")
+               f"{cell(r.get('bench_src', 'not measured'))} |")
     out.append("")
     if r.get("notes"):
         out += [f"- {n}" for n in r["notes"]] + [""]

@@ -68,7 +68,7 @@ def run(hh_bench: str, elf: str, plant: str, seed: int, events: List[str], until
     if not res["ok"]:
         last = [l["text"] for l in res["lines"] if l["text"].startswith("<")][-3:]
         res["error"] = (f"exit {p.returncode}, {res['summary'].get('reason', '')}; "
-                        f"last reports: {' | '.join(last) or 'none'}")
+                        f"last reports: {' / '.join(last) or 'none'}")
     return res
 
 

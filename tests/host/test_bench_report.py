@@ -212,3 +212,12 @@ def test_parse_bus_packets_from_a_trace():
     pk = simavr.parse_bus_packets("\n".join(lines))
     assert [(p["t_us"], p["id"], p["inst"], p["addr"]) for p in pk] == [
         (1000, 0xFE, 0x82, 132), (5000, 1, 0x03, 116)]
+
+
+def test_not_measured_reasons_do_not_break_tables():
+    r = _results()
+    r["accuracy"]["simavr"] = {"not_measured": "exit 1; last reports: <a> | <b>"}
+    text = report.build_report(r)
+    row = [l for l in text.splitlines() if "exit 1; last reports" in l][0]
+    assert row.count(" | ") == 5  # six cells: the reason's bar is escaped
+    assert "<a> \\| <b>" in row
