@@ -341,20 +341,18 @@ class Client:
                 return None
             if line == "":
                 continue
+            # A reset cuts the line being written: the banner then follows
+            # the cut line's start without a line break, and the whole may
+            # even parse as one report (`loops=<boot name=...>`).
+            cut = line.rfind(BOOT_PREFIX)
+            if cut > 0:
+                self._garble(line[:cut])
+                line = line[cut:]
             try:
                 msg = protocol.parse_line(line)
             except protocol.ProtocolError:
-                # A reset cuts the line being written: the banner then
-                # follows the cut line's start without a line break.
-                cut = line.rfind(BOOT_PREFIX)
-                try:
-                    if cut <= 0:
-                        raise protocol.ProtocolError(line)
-                    msg = protocol.parse_line(line[cut:])
-                except protocol.ProtocolError:
-                    self._garble(line)
-                    continue
-                self._garble(line[:cut])
+                self._garble(line)
+                continue
             if msg["type"] == "report":
                 rep = Report(msg["kind"], msg["fields"], line, time.monotonic())
                 msg["report"] = rep

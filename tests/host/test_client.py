@@ -16,7 +16,7 @@ import pytest
 
 from hallhome import client as hc
 from hallhome import protocol
-from hallhome.client import (BoardError, Client, Disconnected, LocalError, PortNotFound,
+from hallhome.client import (BoardError, BoardReset, Client, Disconnected, LocalError, PortNotFound,
                              ReplyTimeout)
 
 
@@ -171,6 +171,20 @@ def test_final_reply_without_a_command_is_counted(double):
         d.send(b"ok\r\n<done mode=home time_ms=5>\r\n")
         assert c.event(1.0).kind == "done"
         assert c.garbled == 1
+
+
+def test_boot_banner_glued_to_a_cut_line_is_a_reset(double):
+    # the reset cut `<status ... loops=` and the banner followed on the
+    # same line: taken together they even look like one report
+    d = double(answers({"status": b"<status state=idle loops=<boot name=hallhome reset=watchdog>\r\n",
+                        "version": b"<version name=hallhome>\r\nok\r\n"}))
+    with Client(d.path, timeout=1) as c:
+        with pytest.raises(BoardReset, match=r"reset \(reset=watchdog\) while `status`") as e:
+            c.command("status")
+        assert e.value.boot.kind == "boot" and c.resets == 1 and c.garbled == 1
+        n = len(d.lines)
+        assert c.command("version").first("version") is not None
+        assert d.lines[n:] == ["", "version"]  # re-synchronised first
 
 
 # --- silence -------------------------------------------------------------------
