@@ -22,6 +22,14 @@ enum {
     ST_FAULT
 };
 
+/* Helpers stay functions of their own: on the AVR each inlined copy of 32-
+ * and 64-bit arithmetic costs more code than the call. */
+#if defined(__GNUC__)
+#define HOM_NOINLINE __attribute__((noinline))
+#else
+#define HOM_NOINLINE
+#endif
+
 #define HOM_MAX_AVG             32u
 #define HOM_QUICK_STOP_PERMILLE 975u /* quick leg: stop when the field is this close */
 #define HOM_DROOP_TICKS         8    /* a servo stopped this close counts as arrived ... */
@@ -113,8 +121,8 @@ const char *hom_fault_name(int fault)
     return names[fault];
 }
 
-static void push_event(hom_t *h, uint32_t t, uint8_t type, uint8_t code, uint8_t index, int32_t a,
-                       int32_t b)
+HOM_NOINLINE static void push_event(hom_t *h, uint8_t type, uint8_t code, uint8_t index, int32_t a,
+                                    int32_t b)
 {
     hom_event_t *e;
     if (h->ev_count >= HOM_EV_CAP) {
@@ -124,7 +132,7 @@ static void push_event(hom_t *h, uint32_t t, uint8_t type, uint8_t code, uint8_t
         return;
     }
     e = &h->ev[(h->ev_head + h->ev_count) % HOM_EV_CAP];
-    e->t_ms = t;
+    e->t_ms = h->now_ms;
     e->type = type;
     e->code = code;
     e->index = index;
@@ -156,7 +164,7 @@ int hom_home(const hom_t *h, uint8_t i, int32_t *ticks)
 /* a * b / c truncated towards zero, through 64 bits and saturated to int32.
  * The one place with 64-bit multiply and divide: on the AVR each inline
  * 64-bit expression costs hundreds of bytes of code. c must not be 0. */
-static int32_t muldiv(int32_t a, int32_t b, int32_t c)
+HOM_NOINLINE static int32_t muldiv(int32_t a, int32_t b, int32_t c)
 {
     int64_t q = (int64_t)a * (int64_t)b / (int64_t)c;
     if (q > INT32_MAX) {
@@ -166,7 +174,7 @@ static int32_t muldiv(int32_t a, int32_t b, int32_t c)
 }
 
 /* um to ticks, rounded up so margins are never smaller than asked */
-static int32_t um_to_ticks(uint32_t um, uint32_t nm_per_tick)
+HOM_NOINLINE static int32_t um_to_ticks(uint32_t um, uint32_t nm_per_tick)
 {
     return muldiv((int32_t)um, 1000, (int32_t)nm_per_tick) + 1;
 }
@@ -174,7 +182,7 @@ static int32_t um_to_ticks(uint32_t um, uint32_t nm_per_tick)
 /* A stored home moved into this power cycle's frame: the XL430 keeps the angle
  * within one turn but not the turn count, and the spool does not turn half a
  * revolution while unpowered. */
-static int32_t unwrap_home(int32_t stored, int32_t present)
+HOM_NOINLINE static int32_t unwrap_home(int32_t stored, int32_t present)
 {
     int32_t d = (int32_t)((uint32_t)(stored - present) & 4095u);
     if (d >= 2048) {
@@ -186,8 +194,8 @@ static int32_t unwrap_home(int32_t stored, int32_t present)
 /* The table's local slope of |dB| over travel around the tension (a 100 mN
  * window clipped to the grid), cuT per tick with 8 fractional bits: the
  * first fine step's estimate before two points of its own exist. */
-static int32_t table_slope(const tbl_src_t *table, uint8_t i, uint16_t tension,
-                           const tbl_info_t *info, uint32_t nm_per_tick)
+HOM_NOINLINE static int32_t table_slope(const tbl_src_t *table, uint8_t i, uint16_t tension,
+                                        const tbl_info_t *info, uint32_t nm_per_tick)
 {
     tbl_point_t lo;
     tbl_point_t hi;
@@ -326,12 +334,25 @@ void hom_abort(hom_t *h)
 
 /* ---- helpers ------------------------------------------------------------------ */
 
-static uint32_t elapsed(uint32_t now, uint32_t since)
+/* d ticks in the tendon's pull direction (dir is +1 or -1). */
+HOM_NOINLINE static int32_t pull(const hom_tendon_t *t, int32_t d)
 {
-    return (uint32_t)(now - since);
+    return t->dir < 0 ? -d : d;
 }
 
-static void set_goal(hom_t *h, uint8_t i, int32_t goal, uint16_t vel)
+/* The release goal of an engaged tendon: the slack margin short of engagement. */
+HOM_NOINLINE static int32_t slack_goal(const hom_tendon_t *t)
+{
+    return t->engage - pull(t, t->margin_ticks);
+}
+
+/* Milliseconds from t to the current step. */
+HOM_NOINLINE static uint32_t since(const hom_t *h, uint32_t t)
+{
+    return (uint32_t)(h->now_ms - t);
+}
+
+HOM_NOINLINE static void set_goal(hom_t *h, uint8_t i, int32_t goal, uint16_t vel)
 {
     h->cmd_ms[i] = h->now_ms;
     h->out.goal[i] = goal;
@@ -345,19 +366,18 @@ static void set_goal(hom_t *h, uint8_t i, int32_t goal, uint16_t vel)
 /* At the goal: within a tick, or stopped short by a few ticks for
  * HOM_STILL_MS since both the command and the last motion (a position
  * controller without integral action droops under the tendon's load). */
-static int reached(const hom_t *h, uint8_t i)
+HOM_NOINLINE static int reached(const hom_t *h, uint8_t i)
 {
     int32_t d = h->present[i] - h->out.goal[i];
     if (d >= -1 && d <= 1) {
         return 1;
     }
     return d >= -HOM_DROOP_TICKS && d <= HOM_DROOP_TICKS &&
-           elapsed(h->now_ms, h->cmd_ms[i]) >= HOM_STILL_MS &&
-           elapsed(h->now_ms, h->moved_ms[i]) >= HOM_STILL_MS;
+           since(h, h->cmd_ms[i]) >= HOM_STILL_MS && since(h, h->moved_ms[i]) >= HOM_STILL_MS;
 }
 
 /* Every tendon whose goal was set in this run has reached it. */
-static int all_reached(const hom_t *h)
+HOM_NOINLINE static int all_reached(const hom_t *h)
 {
     uint8_t i;
     for (i = 0; i < h->n_tendons; i++) {
@@ -368,7 +388,7 @@ static int all_reached(const hom_t *h)
     return 1;
 }
 
-static void start_avg(hom_t *h)
+HOM_NOINLINE static void start_avg(hom_t *h)
 {
     uint8_t k;
     for (k = 0; k < h->n_sensors; k++) {
@@ -377,7 +397,7 @@ static void start_avg(hom_t *h)
     }
 }
 
-static void avg_of(const hom_t *h, uint8_t k, int32_t out[3])
+HOM_NOINLINE static void avg_of(const hom_t *h, uint8_t k, int32_t out[3])
 {
     int a;
     int32_t n = h->sensor[k].n_acc ? h->sensor[k].n_acc : 1;
@@ -387,7 +407,7 @@ static void avg_of(const hom_t *h, uint8_t k, int32_t out[3])
     }
 }
 
-static uint32_t delta_of(const hom_t *h, uint8_t k, const int32_t b[3])
+HOM_NOINLINE static uint32_t delta_of(const hom_t *h, uint8_t k, const int32_t b[3])
 {
     int32_t d[3];
     int a;
@@ -397,7 +417,7 @@ static uint32_t delta_of(const hom_t *h, uint8_t k, const int32_t b[3])
     return hom_norm3(d);
 }
 
-static int32_t floor_div256(int32_t q8)
+HOM_NOINLINE static int32_t floor_div256(int32_t q8)
 {
     return q8 >= 0 ? (q8 + 128) / 256 : -((-q8 + 127) / 256);
 }
@@ -406,35 +426,35 @@ static int32_t floor_div256(int32_t q8)
  * tendon that engaged goes back to the margin beyond its engagement; any
  * other goes back the margin from where it is (or keeps a release already
  * under way if that is further). Nothing moves if nothing had moved. */
-static void fail(hom_t *h, uint32_t now, hom_fault_t f, uint8_t dev, uint8_t index, int32_t detail)
+HOM_NOINLINE static void fail(hom_t *h, hom_fault_t f, uint8_t dev, uint8_t index, int32_t detail)
 {
     uint8_t i;
     h->fault = (uint8_t)f;
     h->fault_dev = dev;
     h->fault_index = index;
-    push_event(h, now, HOM_EV_FAULT, (uint8_t)f, index, dev, detail);
+    push_event(h, HOM_EV_FAULT, (uint8_t)f, index, dev, detail);
     if (h->moved) {
         for (i = 0; i < h->n_tendons; i++) {
             const hom_tendon_t *t = &h->tendon[i];
-            int32_t g = h->present[i] - t->dir * t->margin_ticks;
-            if (t->engaged && t->dir * (t->engage - t->margin_ticks * t->dir - g) < 0) {
-                g = t->engage - t->dir * t->margin_ticks;
+            int32_t g = h->present[i] - pull(t, t->margin_ticks);
+            if (t->engaged && pull(t, slack_goal(t) - g) < 0) {
+                g = slack_goal(t);
             }
-            if (t->have_slack && t->dir * (t->slack_pos - g) < 0) {
+            if (t->have_slack && pull(t, t->slack_pos - g) < 0) {
                 g = t->slack_pos; /* a tendon pulled without engaging: back to slack */
             }
-            if (t->dir * (h->out.goal[i] - g) < 0) {
+            if (pull(t, h->out.goal[i] - g) < 0) {
                 g = h->out.goal[i]; /* a release already going further */
             }
             set_goal(h, i, g, h->cfg.v_release);
         }
-        push_event(h, now, HOM_EV_RELEASED, 0, 0, (int32_t)f, 0);
+        push_event(h, HOM_EV_RELEASED, 0, 0, (int32_t)f, 0);
     }
     h->state = ST_FAULT;
 }
 
 /* Sensor bookkeeping and health checks of one step. Returns 1 if it failed. */
-static int check_sensors(hom_t *h, const hom_in_t *in)
+HOM_NOINLINE static int check_sensors(hom_t *h, const hom_in_t *in)
 {
     uint8_t k;
     int a;
@@ -442,12 +462,12 @@ static int check_sensors(hom_t *h, const hom_in_t *in)
         const hom_sensor_in_t *s = &in->sensor[k];
         hom_sensor_t *st = &h->sensor[k];
         if (s->status == HOM_SENS_OVERFLOW) {
-            fail(h, in->now_ms, HOM_F_SATURATED, HOM_DEV_SENSOR, k, 0);
+            fail(h, HOM_F_SATURATED, HOM_DEV_SENSOR, k, 0);
             return 1;
         }
         if (s->status == HOM_SENS_ERROR || s->status == HOM_SENS_ABSENT) {
             if (++st->err_run >= 3u) {
-                fail(h, in->now_ms, HOM_F_SENSOR_ERROR, HOM_DEV_SENSOR, k, s->status);
+                fail(h, HOM_F_SENSOR_ERROR, HOM_DEV_SENSOR, k, s->status);
                 return 1;
             }
         } else if (s->status == HOM_SENS_NEW) {
@@ -455,20 +475,20 @@ static int check_sensors(hom_t *h, const hom_in_t *in)
             for (a = 0; a < 3; a++) {
                 int32_t v = s->b_cuT[a];
                 if (v >= (int32_t)h->cfg.sat_cuT || v <= -(int32_t)h->cfg.sat_cuT) {
-                    fail(h, in->now_ms, HOM_F_SATURATED, HOM_DEV_SENSOR, k, v);
+                    fail(h, HOM_F_SATURATED, HOM_DEV_SENSOR, k, v);
                     return 1;
                 }
                 if (st->have_last) {
                     int32_t d = v - st->last[a];
                     if (d > (int32_t)h->cfg.rate_limit_cuT || d < -(int32_t)h->cfg.rate_limit_cuT) {
-                        fail(h, in->now_ms, HOM_F_FIELD_RATE, HOM_DEV_SENSOR, k, d);
+                        fail(h, HOM_F_FIELD_RATE, HOM_DEV_SENSOR, k, d);
                         return 1;
                     }
                 }
             }
             memcpy(st->last, s->b_cuT, sizeof st->last);
             st->have_last = 1;
-            st->last_ms = in->now_ms;
+            st->last_ms = h->now_ms;
             if (st->n_acc < HOM_MAX_AVG) {
                 for (a = 0; a < 3; a++) {
                     st->acc[a] += s->b_cuT[a];
@@ -476,33 +496,31 @@ static int check_sensors(hom_t *h, const hom_in_t *in)
                 st->n_acc++;
             }
         }
-        if (elapsed(in->now_ms, st->last_ms) > h->cfg.sensor_timeout_ms) {
-            fail(h, in->now_ms, HOM_F_SENSOR_TIMEOUT, HOM_DEV_SENSOR, k,
-                 (int32_t)elapsed(in->now_ms, st->last_ms));
+        if (since(h, st->last_ms) > h->cfg.sensor_timeout_ms) {
+            fail(h, HOM_F_SENSOR_TIMEOUT, HOM_DEV_SENSOR, k, (int32_t)since(h, st->last_ms));
             return 1;
         }
     }
     return 0;
 }
 
-static int check_servos(hom_t *h, const hom_in_t *in)
+HOM_NOINLINE static int check_servos(hom_t *h, const hom_in_t *in)
 {
     uint8_t i;
     for (i = 0; i < h->n_tendons; i++) {
         const hom_servo_in_t *s = &in->servo[i];
         if (s->status == HOM_SERVO_OK) {
             if (s->hw_error != 0u) {
-                fail(h, in->now_ms, HOM_F_SERVO_ERROR, HOM_DEV_SERVO, i, s->hw_error);
+                fail(h, HOM_F_SERVO_ERROR, HOM_DEV_SERVO, i, s->hw_error);
                 return 1;
             }
             if (s->pos != h->present[i]) {
-                h->moved_ms[i] = in->now_ms;
+                h->moved_ms[i] = h->now_ms;
             }
             h->present[i] = s->pos;
-            h->servo_ok_ms[i] = in->now_ms;
-        } else if (elapsed(in->now_ms, h->servo_ok_ms[i]) > h->cfg.servo_timeout_ms) {
-            fail(h, in->now_ms, HOM_F_SERVO_TIMEOUT, HOM_DEV_SERVO, i,
-                 (int32_t)elapsed(in->now_ms, h->servo_ok_ms[i]));
+            h->servo_ok_ms[i] = h->now_ms;
+        } else if (since(h, h->servo_ok_ms[i]) > h->cfg.servo_timeout_ms) {
+            fail(h, HOM_F_SERVO_TIMEOUT, HOM_DEV_SERVO, i, (int32_t)since(h, h->servo_ok_ms[i]));
             return 1;
         }
     }
@@ -513,17 +531,17 @@ static int check_servos(hom_t *h, const hom_in_t *in)
 
 /* Preflight: every device must answer within preflight_ms; each one that does
  * not, or reports an error, is named before the refusal. */
-static void do_preflight(hom_t *h, const hom_in_t *in)
+HOM_NOINLINE static void do_preflight(hom_t *h, const hom_in_t *in)
 {
     uint8_t i;
     int missing = 0;
     int all = 1;
     if (!h->pf_started) {
         h->pf_started = 1;
-        h->t_phase = in->now_ms;
-        h->t_start = in->now_ms;
-        push_event(h, in->now_ms, HOM_EV_START, h->mode, 0, h->tension_mN, 0);
-        push_event(h, in->now_ms, HOM_EV_PHASE, HOM_PH_PREFLIGHT, 0, 0, 0);
+        h->t_phase = h->now_ms;
+        h->t_start = h->now_ms;
+        push_event(h, HOM_EV_START, h->mode, 0, h->tension_mN, 0);
+        push_event(h, HOM_EV_PHASE, HOM_PH_PREFLIGHT, 0, 0, 0);
         memset(h->seen, 0, sizeof h->seen);
         for (i = 0; i < h->n_tendons; i++) {
             h->servo_ok_ms[i] = 0xFFFFFFFFu; /* not yet answered */
@@ -545,7 +563,7 @@ static void do_preflight(hom_t *h, const hom_in_t *in)
     for (i = 0; i < h->n_tendons; i++) {
         const hom_servo_in_t *s = &in->servo[i];
         if (s->status == HOM_SERVO_OK && s->hw_error == 0u) {
-            h->servo_ok_ms[i] = in->now_ms;
+            h->servo_ok_ms[i] = h->now_ms;
             h->present[i] = s->pos;
         } else if (s->status == HOM_SERVO_OK || s->status == HOM_SERVO_ABSENT) {
             h->servo_ok_ms[i] = 0xFFFFFFFEu; /* faulty: hardware error or absent */
@@ -563,16 +581,16 @@ static void do_preflight(hom_t *h, const hom_in_t *in)
     }
     if (all) {
         for (i = 0; i < h->n_sensors; i++) {
-            h->sensor[i].last_ms = in->now_ms;
+            h->sensor[i].last_ms = h->now_ms;
         }
         for (i = 0; i < h->n_tendons; i++) {
             h->tendon[i].est_home = unwrap_home(h->tendon[i].est_home, h->present[i]);
             h->tendon[i].start_pos = h->present[i];
         }
-        push_event(h, in->now_ms, HOM_EV_PHASE, HOM_PH_RELEASE, 0, 0, 0);
+        push_event(h, HOM_EV_PHASE, HOM_PH_RELEASE, 0, 0, 0);
         if (h->mode == HOM_MODE_DRY) {
             h->state = ST_SLACK_AVG;
-            h->t_phase = in->now_ms;
+            h->t_phase = h->now_ms;
             h->t_settled = 0;
             h->steps = 0;
             return;
@@ -581,24 +599,24 @@ static void do_preflight(hom_t *h, const hom_in_t *in)
             hom_tendon_t *t = &h->tendon[i];
             int32_t g;
             if (h->mode == HOM_MODE_QUICK) {
-                g = t->est_home - t->dir * (t->travel_ticks + t->margin_ticks);
+                g = t->est_home - pull(t, t->travel_ticks + t->margin_ticks);
             } else {
-                g = h->present[i] - t->dir * t->release_ticks;
+                g = h->present[i] - pull(t, t->release_ticks);
             }
             set_goal(h, i, g, h->cfg.v_release);
         }
         h->state = ST_RELEASE_ALL;
-        h->t_phase = in->now_ms;
+        h->t_phase = h->now_ms;
         h->steps = 0;
         return;
     }
-    if (elapsed(in->now_ms, h->t_phase) < h->cfg.preflight_ms) {
+    if (since(h, h->t_phase) < h->cfg.preflight_ms) {
         return;
     }
     for (i = 0; i < h->n_sensors; i++) {
         if (h->seen[i] != 1u) {
             int32_t why = (h->seen[i] & 2u) ? 1 : ((h->seen[i] & 4u) ? 3 : 2);
-            push_event(h, in->now_ms, HOM_EV_MISSING, HOM_DEV_SENSOR, i, why, 0);
+            push_event(h, HOM_EV_MISSING, HOM_DEV_SENSOR, i, why, 0);
             missing++;
         }
     }
@@ -606,20 +624,20 @@ static void do_preflight(hom_t *h, const hom_in_t *in)
         if (h->servo_ok_ms[i] >= 0xFFFFFFFEu) {
             const hom_servo_in_t *s = &in->servo[i];
             int32_t why = s->status == HOM_SERVO_ABSENT ? 1 : (s->hw_error != 0u ? 4 : 2);
-            push_event(h, in->now_ms, HOM_EV_MISSING, HOM_DEV_SERVO, i, why, s->hw_error);
+            push_event(h, HOM_EV_MISSING, HOM_DEV_SERVO, i, why, s->hw_error);
             missing++;
         }
     }
-    fail(h, in->now_ms, HOM_F_PREFLIGHT, HOM_DEV_NONE, 0, missing);
+    fail(h, HOM_F_PREFLIGHT, HOM_DEV_NONE, 0, missing);
 }
 
-static int32_t um_ticks_cur(const hom_t *h, uint8_t i, uint32_t um)
+HOM_NOINLINE static int32_t um_ticks_cur(const hom_t *h, uint8_t i, uint32_t um)
 {
     return um_to_ticks(um, h->tendon[i].nm_per_tick);
 }
 
 /* The next tendon to calibrate at or after `from`, or n_tendons when none. */
-static uint8_t next_tendon(const hom_t *h, uint8_t from)
+HOM_NOINLINE static uint8_t next_tendon(const hom_t *h, uint8_t from)
 {
     if (h->mode == HOM_MODE_SINGLE) {
         return from <= h->single ? h->single : h->n_tendons;
@@ -630,18 +648,18 @@ static uint8_t next_tendon(const hom_t *h, uint8_t from)
 /* How far the take-up may search for engagement from the present position:
  * what this run released the tendon by, plus the most slack it may have
  * started with. */
-static int32_t search_ticks(const hom_t *h, uint8_t i)
+HOM_NOINLINE static int32_t search_ticks(const hom_t *h, uint8_t i)
 {
-    int32_t released = h->tendon[i].dir * (h->tendon[i].start_pos - h->present[i]);
+    int32_t released = pull(&h->tendon[i], h->tendon[i].start_pos - h->present[i]);
     return (released > 0 ? released : 0) + um_ticks_cur(h, i, h->cfg.max_takeup_um);
 }
 
-static void begin_final(hom_t *h, uint32_t now)
+HOM_NOINLINE static void begin_final(hom_t *h)
 {
     uint8_t i;
     int32_t dmax = 1;
     int32_t goal[TBL_MAX_TENDONS];
-    push_event(h, now, HOM_EV_PHASE, HOM_PH_FINAL, 0, 0, 0);
+    push_event(h, HOM_EV_PHASE, HOM_PH_FINAL, 0, 0, 0);
     for (i = 0; i < h->n_tendons; i++) {
         const hom_tendon_t *t = &h->tendon[i];
         int32_t d;
@@ -665,20 +683,20 @@ static void begin_final(hom_t *h, uint32_t now)
         }
     }
     h->state = ST_FINAL;
-    h->t_phase = now;
+    h->t_phase = h->now_ms;
 }
 
-static void begin_tendon(hom_t *h, uint32_t now, uint8_t i)
+HOM_NOINLINE static void begin_tendon(hom_t *h, uint8_t i)
 {
     hom_tendon_t *t;
     int32_t g;
     if (i >= h->n_tendons) {
-        begin_final(h, now);
+        begin_final(h);
         return;
     }
     t = &h->tendon[i];
     h->cur = i;
-    h->t_tendon = now;
+    h->t_tendon = h->now_ms;
     h->have_prev = 0;
     h->near = 0;
     h->n_pts = 0;
@@ -687,74 +705,74 @@ static void begin_tendon(hom_t *h, uint32_t now, uint8_t i)
     h->pos_at_sample = h->present[i];
     t->engaged = 0;
     t->retries = 0;
-    push_event(h, now, HOM_EV_PHASE, HOM_PH_TENDON, i, 0, 0);
+    push_event(h, HOM_EV_PHASE, HOM_PH_TENDON, i, 0, 0);
     h->quick_leg = 0;
     if (h->mode == HOM_MODE_QUICK) {
         /* straight to just short of the stored home: a tenth of the expected
          * travel (at least 3 ticks) leaves room for the fine steps */
         int32_t guard = t->travel_ticks / 10 < 3 ? 3 : t->travel_ticks / 10;
-        g = t->est_home - t->dir * guard;
-        if (t->dir * (g - h->present[i]) > 0) {
+        g = t->est_home - pull(t, guard);
+        if (pull(t, g - h->present[i]) > 0) {
             h->quick_leg = 1;
             set_goal(h, i, g, h->cfg.v_fast);
             h->state = ST_TAKEUP;
             return;
         }
     }
-    g = h->present[i] + t->dir * search_ticks(h, i);
+    g = h->present[i] + pull(t, search_ticks(h, i));
     set_goal(h, i, g, h->mode == HOM_MODE_QUICK ? h->cfg.v_moderate : h->cfg.v_fast);
     h->state = ST_TAKEUP;
 }
 
 /* A goal in the pull direction, refused beyond the travel limit. */
-static int pull_to(hom_t *h, uint32_t now, int32_t g, uint16_t v)
+HOM_NOINLINE static int pull_to(hom_t *h, int32_t g, uint16_t v)
 {
     hom_tendon_t *t = &h->tendon[h->cur];
-    if (t->engaged && t->dir * (g - t->engage) > t->limit_ticks) {
-        fail(h, now, HOM_F_TRAVEL_LIMIT, HOM_DEV_TENDON, h->cur, t->dir * (g - t->engage));
+    if (t->engaged && pull(t, g - t->engage) > t->limit_ticks) {
+        fail(h, HOM_F_TRAVEL_LIMIT, HOM_DEV_TENDON, h->cur, pull(t, g - t->engage));
         return -1;
     }
     set_goal(h, h->cur, g, v);
     return 0;
 }
 
-static void begin_moderate(hom_t *h, uint32_t now)
+HOM_NOINLINE static void begin_moderate(hom_t *h)
 {
     hom_tendon_t *t = &h->tendon[h->cur];
     int32_t g;
     if (t->retries != 0u) {
         g = h->mod_goal;
     } else {
-        g = t->engage + t->dir * muldiv(t->travel_ticks, h->cfg.near_permille, 1000);
+        g = t->engage + pull(t, muldiv(t->travel_ticks, h->cfg.near_permille, 1000));
     }
-    if (t->dir * (g - t->engage) > t->limit_ticks) {
-        g = t->engage + t->dir * t->limit_ticks;
+    if (pull(t, g - t->engage) > t->limit_ticks) {
+        g = t->engage + pull(t, t->limit_ticks);
     }
-    if (t->dir * (g - h->present[h->cur]) < 2) {
-        g = h->present[h->cur] + t->dir * 2;
+    if (pull(t, g - h->present[h->cur]) < 2) {
+        g = h->present[h->cur] + pull(t, 2);
     }
-    if (pull_to(h, now, g, h->cfg.v_moderate) == 0) {
+    if (pull_to(h, g, h->cfg.v_moderate) == 0) {
         h->state = ST_MODERATE;
     }
 }
 
-static void begin_fine_move(hom_t *h, uint32_t now)
+HOM_NOINLINE static void begin_fine_move(hom_t *h)
 {
     h->state = ST_FINE_MOVE;
-    h->t_phase = now;
+    h->t_phase = h->now_ms;
 }
 
-static void finish_tendon(hom_t *h, uint32_t now, int32_t home_q8)
+HOM_NOINLINE static void finish_tendon(hom_t *h, int32_t home_q8)
 {
     hom_tendon_t *t = &h->tendon[h->cur];
     t->home_q8 = home_q8;
     t->home = floor_div256(home_q8);
     t->have_home = 1;
-    push_event(h, now, HOM_EV_HOME, 0, h->cur, t->home, home_q8 - t->home * 256);
-    set_goal(h, h->cur, t->engage - t->dir * t->margin_ticks, h->cfg.v_release);
-    t->slack_pos = t->engage - t->dir * t->margin_ticks;
+    push_event(h, HOM_EV_HOME, 0, h->cur, t->home, home_q8 - t->home * 256);
+    set_goal(h, h->cur, slack_goal(t), h->cfg.v_release);
+    t->slack_pos = slack_goal(t);
     h->state = ST_TENDON_RELEASE;
-    h->t_phase = now;
+    h->t_phase = h->now_ms;
 }
 
 /* Samples to average at a point near the target: enough that the noise of
@@ -762,7 +780,7 @@ static void finish_tendon(hom_t *h, uint32_t now, int32_t home_q8)
  * field change of one tick; at least twice avg_samples, at most HOM_MAX_AVG.
  * A weak field (sensors far from the magnet, a high tension where |dB|
  * flattens) needs many; a strong one needs the minimum. */
-static uint8_t near_samples(const hom_t *h, int32_t s_q8)
+HOM_NOINLINE static uint8_t near_samples(const hom_t *h, int32_t s_q8)
 {
     int32_t q = ((int32_t)h->noise_cuT * 7 * 256 + s_q8 - 1) / s_q8; /* ceil(7 noise / slope) */
     int32_t n = q > 6 ? (int32_t)HOM_MAX_AVG : q * q;
@@ -775,7 +793,7 @@ static uint8_t near_samples(const hom_t *h, int32_t s_q8)
 
 /* Keeps a point averaged near the target for the final fit (the newest
  * HOM_FIT_POINTS). */
-static void keep_point(hom_t *h, int32_t p, uint32_t b, uint8_t n)
+HOM_NOINLINE static void keep_point(hom_t *h, int32_t p, uint32_t b, uint8_t n)
 {
     uint8_t k;
     if (h->n_pts == HOM_FIT_POINTS) {
@@ -796,7 +814,7 @@ static void keep_point(hom_t *h, int32_t p, uint32_t b, uint8_t n)
  * tick is worth little more than the sensor noise. Returns the fitted
  * crossing in 1/256 tick, or `fallback` when fewer than two positions, a
  * non-rising line, or a crossing more than a tick outside the points. */
-static int32_t fit_or(const hom_t *h, int32_t p, int32_t fallback)
+HOM_NOINLINE static int32_t fit_or(const hom_t *h, int32_t p, int32_t fallback)
 {
     const hom_tendon_t *t = &h->tendon[h->cur];
     /* sums fit 32 bits: at most 4 points of 32 samples, |x| <= 4, |y| < 2^20 */
@@ -812,7 +830,7 @@ static int32_t fit_or(const hom_t *h, int32_t p, int32_t fallback)
     int32_t hi = 0;
     uint8_t k;
     for (k = 0; k < h->n_pts; k++) {
-        int32_t x = t->dir * (h->pts[k].p - p); /* pull-direction ticks from p */
+        int32_t x = pull(t, h->pts[k].p - p); /* pull-direction ticks from p */
         int32_t y = (int32_t)h->pts[k].b - (int32_t)t->target_cuT;
         int32_t n = h->pts[k].n;
         if (x < -4 || x > 4 || y >= (1L << 20) || y <= -(1L << 20)) {
@@ -837,7 +855,7 @@ static int32_t fit_or(const hom_t *h, int32_t p, int32_t fallback)
     if (x_q8 < (lo - 1) * 256 || x_q8 > (hi + 1) * 256) {
         return fallback;
     }
-    return p * 256 + t->dir * x_q8;
+    return p * 256 + pull(t, x_q8);
 }
 
 /* Remaining travel from a field b to the target along the table's own
@@ -845,7 +863,7 @@ static int32_t fit_or(const hom_t *h, int32_t p, int32_t fallback)
  * origin), 1/256 tick; 0 when the table cannot say. The field is not linear
  * in travel (it flattens as the tip moves away), so from a point well short of
  * the target this beats any one slope. */
-static int32_t table_remaining_q8(const hom_t *h, uint32_t b)
+HOM_NOINLINE static int32_t table_remaining_q8(const hom_t *h, uint32_t b)
 {
     tbl_tendon_t row;
     tbl_info_t info;
@@ -888,7 +906,7 @@ static int32_t table_remaining_q8(const hom_t *h, uint32_t b)
  * down, at least one), three quarters of it beyond, so the approach stays on
  * the slack side of the target. A wide overshoot backs off to slack and comes
  * again to the last point known to be short of it. */
-static void fine_point(hom_t *h, uint32_t now)
+HOM_NOINLINE static void fine_point(hom_t *h)
 {
     hom_tendon_t *t = &h->tendon[h->cur];
     int32_t avg[3];
@@ -902,25 +920,25 @@ static void fine_point(hom_t *h, uint32_t now)
 
     avg_of(h, t->sensor, avg);
     b = delta_of(h, t->sensor, avg);
-    dp = h->have_prev ? t->dir * (p - h->p_prev) : 0;
+    dp = h->have_prev ? pull(t, p - h->p_prev) : 0;
     if (h->near) {
         keep_point(h, p, b, h->sensor[t->sensor].n_acc);
     }
     if (b >= t->target_cuT) {
         if (h->have_prev && dp == 0) {
-            /* the same position averaged again now reads at or past the
+            /* the same position averaged again h->now_ms reads at or past the
              * target: the target is here, within the noise */
-            finish_tendon(h, now, fit_or(h, p, p * 256));
+            finish_tendon(h, fit_or(h, p, p * 256));
             return;
         }
         if (h->have_prev && b > h->b_prev && dp >= 1 && dp <= 3) {
             int32_t f = muldiv((int32_t)(t->target_cuT - h->b_prev), (p - h->p_prev) * 256,
                                (int32_t)(b - h->b_prev));
-            finish_tendon(h, now, fit_or(h, p, h->p_prev * 256 + f));
+            finish_tendon(h, fit_or(h, p, h->p_prev * 256 + f));
             return;
         }
         if (++t->retries > 2u) {
-            fail(h, now, HOM_F_NO_PROGRESS, HOM_DEV_TENDON, h->cur, (int32_t)b);
+            fail(h, HOM_F_NO_PROGRESS, HOM_DEV_TENDON, h->cur, (int32_t)b);
             return;
         }
         if (h->have_prev) {
@@ -938,7 +956,7 @@ static void fine_point(hom_t *h, uint32_t now)
         }
         h->have_prev = 0;
         h->n_pts = 0;
-        set_goal(h, h->cur, t->engage - t->dir * t->margin_ticks, h->cfg.v_release);
+        set_goal(h, h->cur, slack_goal(t), h->cfg.v_release);
         h->state = ST_BACKOFF;
         return;
     }
@@ -960,18 +978,17 @@ static void fine_point(hom_t *h, uint32_t now)
         }
     }
     if (r_q8 < 128 && h->near) {
-        finish_tendon(h, now, fit_or(h, p, p * 256 + t->dir * (int32_t)r_q8));
+        finish_tendon(h, fit_or(h, p, p * 256 + pull(t, (int32_t)r_q8)));
         return;
     }
-    room = (t->limit_ticks - t->dir * (p - t->engage)) * 256;
+    room = (t->limit_ticks - pull(t, p - t->engage)) * 256;
     if (r_q8 > room) {
         /* the target lies beyond the travel limit: unreachable, stop here */
-        fail(h, now, HOM_F_TRAVEL_LIMIT, HOM_DEV_TENDON, h->cur,
-             t->dir * (p - t->engage) + r_q8 / 256);
+        fail(h, HOM_F_TRAVEL_LIMIT, HOM_DEV_TENDON, h->cur, pull(t, p - t->engage) + r_q8 / 256);
         return;
     }
     if (++h->steps > h->cfg.fine_max_steps) {
-        fail(h, now, HOM_F_NO_PROGRESS, HOM_DEV_TENDON, h->cur, (int32_t)b);
+        fail(h, HOM_F_NO_PROGRESS, HOM_DEV_TENDON, h->cur, (int32_t)b);
         return;
     }
     step = r_q8 <= 3 * 256 ? r_q8 >> 8 : (r_q8 / 4 * 3) >> 8;
@@ -986,12 +1003,12 @@ static void fine_point(hom_t *h, uint32_t now)
     h->p_prev = p;
     h->b_prev = b;
     h->have_prev = 1;
-    if (pull_to(h, now, p + t->dir * (int32_t)step, h->cfg.v_fine) == 0) {
-        begin_fine_move(h, now);
+    if (pull_to(h, p + pull(t, (int32_t)step), h->cfg.v_fine) == 0) {
+        begin_fine_move(h);
     }
 }
 
-static void slack_done(hom_t *h, uint32_t now)
+HOM_NOINLINE static void slack_done(hom_t *h)
 {
     uint8_t k;
     uint8_t i;
@@ -1003,33 +1020,32 @@ static void slack_done(hom_t *h, uint32_t now)
     }
     for (k = 0; k < h->n_sensors; k++) {
         if (h->b_pred[k] >= 10000u && hom_norm3(h->sensor[k].b0) < h->b_pred[k] / 2u) {
-            fail(h, now, HOM_F_MAGNET_MISSING, HOM_DEV_SENSOR, k,
-                 (int32_t)hom_norm3(h->sensor[k].b0));
+            fail(h, HOM_F_MAGNET_MISSING, HOM_DEV_SENSOR, k, (int32_t)hom_norm3(h->sensor[k].b0));
             return;
         }
     }
-    push_event(h, now, HOM_EV_PHASE, HOM_PH_BASELINE, 0, 0, 0);
+    push_event(h, HOM_EV_PHASE, HOM_PH_BASELINE, 0, 0, 0);
     if (h->mode == HOM_MODE_DRY) {
         for (i = 0; i < h->n_tendons; i++) {
-            push_event(h, now, HOM_EV_TARGET, 0, i, (int32_t)h->tendon[i].target_cuT,
+            push_event(h, HOM_EV_TARGET, 0, i, (int32_t)h->tendon[i].target_cuT,
                        muldiv(h->tendon[i].travel_ticks, (int32_t)h->tendon[i].nm_per_tick, 1000));
         }
-        push_event(h, now, HOM_EV_DONE, 0, 0, (int32_t)elapsed(now, h->t_start), 0);
+        push_event(h, HOM_EV_DONE, 0, 0, (int32_t)since(h, h->t_start), 0);
         h->state = ST_DONE;
         return;
     }
-    begin_tendon(h, now, next_tendon(h, 0));
+    begin_tendon(h, next_tendon(h, 0));
 }
 
 /* Averages every sensor after a settle time; compares with the previous
  * average; releases further until nothing changes. */
-static void do_slack_avg(hom_t *h, uint32_t now)
+HOM_NOINLINE static void do_slack_avg(hom_t *h)
 {
     uint8_t k;
     uint8_t i;
     uint32_t worst = 0;
     if (!h->settled) {
-        if (elapsed(now, h->t_phase) < h->cfg.settle_ms) {
+        if (since(h, h->t_phase) < h->cfg.settle_ms) {
             return;
         }
         start_avg(h);
@@ -1059,39 +1075,38 @@ static void do_slack_avg(hom_t *h, uint32_t now)
         memcpy(h->slack_ref[k], avg, sizeof avg);
     }
     if (h->mode == HOM_MODE_DRY || (h->steps > 0u && worst <= h->engage_cuT)) {
-        slack_done(h, now);
+        slack_done(h);
         return;
     }
     if (h->steps >= h->cfg.slack_max_steps) {
-        fail(h, now, HOM_F_SLACK, HOM_DEV_NONE, 0, (int32_t)worst);
+        fail(h, HOM_F_SLACK, HOM_DEV_NONE, 0, (int32_t)worst);
         return;
     }
     h->steps++;
     for (i = 0; i < h->n_tendons; i++) {
         hom_tendon_t *t = &h->tendon[i];
-        set_goal(h, i, h->out.goal[i] - t->dir * um_ticks_cur(h, i, h->cfg.slack_step_um),
+        set_goal(h, i, h->out.goal[i] - pull(t, um_ticks_cur(h, i, h->cfg.slack_step_um)),
                  h->cfg.v_release);
     }
     h->state = ST_RELEASE_ALL;
-    h->t_phase = now;
+    h->t_phase = h->now_ms;
 }
 
-static void do_tendon(hom_t *h, const hom_in_t *in)
+HOM_NOINLINE static void do_tendon(hom_t *h, const hom_in_t *in)
 {
-    uint32_t now = in->now_ms;
+
     hom_tendon_t *t = &h->tendon[h->cur];
     uint8_t sel = t->sensor;
     int fresh = in->sensor[sel].status == HOM_SENS_NEW;
     uint32_t b = fresh ? delta_of(h, sel, in->sensor[sel].b_cuT) : 0u;
     int32_t p = h->present[h->cur];
 
-    if (elapsed(now, h->t_tendon) > h->cfg.tendon_timeout_ms) {
-        fail(h, now, HOM_F_TENDON_TIMEOUT, HOM_DEV_TENDON, h->cur,
-             (int32_t)elapsed(now, h->t_tendon));
+    if (since(h, h->t_tendon) > h->cfg.tendon_timeout_ms) {
+        fail(h, HOM_F_TENDON_TIMEOUT, HOM_DEV_TENDON, h->cur, (int32_t)since(h, h->t_tendon));
         return;
     }
-    if (t->engaged && t->dir * (p - t->engage) > t->limit_ticks) {
-        fail(h, now, HOM_F_TRAVEL_LIMIT, HOM_DEV_TENDON, h->cur, t->dir * (p - t->engage));
+    if (t->engaged && pull(t, p - t->engage) > t->limit_ticks) {
+        fail(h, HOM_F_TRAVEL_LIMIT, HOM_DEV_TENDON, h->cur, pull(t, p - t->engage));
         return;
     }
     switch (h->state) {
@@ -1099,9 +1114,9 @@ static void do_tendon(hom_t *h, const hom_in_t *in)
         if (fresh && !t->engaged && b >= h->engage_cuT) {
             t->engaged = 1;
             t->engage = h->pos_at_sample; /* the last position seen slack */
-            push_event(h, now, HOM_EV_ENGAGED, 0, h->cur, t->engage, (int32_t)b);
+            push_event(h, HOM_EV_ENGAGED, 0, h->cur, t->engage, (int32_t)b);
             if (!h->quick_leg) {
-                begin_moderate(h, now);
+                begin_moderate(h);
                 break;
             }
         }
@@ -1111,23 +1126,22 @@ static void do_tendon(hom_t *h, const hom_in_t *in)
         if (h->quick_leg && t->engaged && fresh &&
             (int32_t)b >= muldiv((int32_t)t->target_cuT, HOM_QUICK_STOP_PERMILLE, 1000)) {
             /* the stored home is further than the field says: stop short */
-            int32_t g = p + t->dir * 2;
-            if (t->dir * (h->out.goal[h->cur] - g) > 0) {
-                (void)pull_to(h, now, g, h->cfg.v_moderate);
+            int32_t g = p + pull(t, 2);
+            if (pull(t, h->out.goal[h->cur] - g) > 0) {
+                (void)pull_to(h, g, h->cfg.v_moderate);
             }
             if (h->state == ST_TAKEUP) {
-                begin_fine_move(h, now);
+                begin_fine_move(h);
             }
         } else if (reached(h, h->cur)) {
             if (h->quick_leg && t->engaged) {
-                begin_fine_move(h, now);
+                begin_fine_move(h);
             } else if (h->quick_leg) {
                 /* no engagement where the stored home put it: search as usual */
                 h->quick_leg = 0;
-                set_goal(h, h->cur, p + t->dir * search_ticks(h, h->cur), h->cfg.v_moderate);
+                set_goal(h, h->cur, p + pull(t, search_ticks(h, h->cur)), h->cfg.v_moderate);
             } else {
-                fail(h, now, HOM_F_NO_ENGAGEMENT, HOM_DEV_TENDON, h->cur,
-                     t->dir * (p - h->pos_at_sample));
+                fail(h, HOM_F_NO_ENGAGEMENT, HOM_DEV_TENDON, h->cur, pull(t, p - h->pos_at_sample));
             }
         }
         break;
@@ -1136,38 +1150,38 @@ static void do_tendon(hom_t *h, const hom_in_t *in)
          * the target itself stops it early */
         if (fresh && (int32_t)b >= muldiv((int32_t)t->target_cuT,
                                           t->retries != 0u ? 1000 : h->cfg.near_permille, 1000)) {
-            int32_t g = p + t->dir * 2;
-            if (t->dir * (h->out.goal[h->cur] - g) > 0) {
-                (void)pull_to(h, now, g, h->cfg.v_moderate);
+            int32_t g = p + pull(t, 2);
+            if (pull(t, h->out.goal[h->cur] - g) > 0) {
+                (void)pull_to(h, g, h->cfg.v_moderate);
             }
             if (h->state == ST_MODERATE) {
-                begin_fine_move(h, now);
+                begin_fine_move(h);
             }
         } else if (reached(h, h->cur)) {
-            begin_fine_move(h, now);
+            begin_fine_move(h);
         }
         break;
     case ST_FINE_MOVE: {
         int32_t err = p - h->out.goal[h->cur];
-        if (elapsed(now, h->t_phase) >= h->cfg.settle_ms &&
-            elapsed(now, h->moved_ms[h->cur]) >= h->cfg.settle_ms / 2u &&
+        if (since(h, h->t_phase) >= h->cfg.settle_ms &&
+            since(h, h->moved_ms[h->cur]) >= h->cfg.settle_ms / 2u &&
             ((err >= -1 && err <= 1) || reached(h, h->cur))) {
             start_avg(h);
             h->state = ST_FINE_AVG;
-        } else if (elapsed(now, h->t_phase) > h->cfg.move_timeout_ms) {
-            fail(h, now, HOM_F_SERVO_STALL, HOM_DEV_SERVO, h->cur, err);
+        } else if (since(h, h->t_phase) > h->cfg.move_timeout_ms) {
+            fail(h, HOM_F_SERVO_STALL, HOM_DEV_SERVO, h->cur, err);
         }
         break;
     }
     case ST_FINE_AVG:
         /* points within a few ticks of the target decide the home: more samples */
         if (h->sensor[sel].n_acc >= (h->near ? h->n_near : h->cfg.avg_samples)) {
-            fine_point(h, now);
+            fine_point(h);
         }
         break;
     case ST_BACKOFF:
         if (reached(h, h->cur)) {
-            begin_moderate(h, now);
+            begin_moderate(h);
         }
         break;
     default:
@@ -1194,7 +1208,7 @@ int hom_step(hom_t *h, const hom_in_t *in, hom_out_t *out)
                 h->present[i] = in->servo[i].pos;
             }
         }
-        fail(h, in->now_ms, HOM_F_ABORTED, HOM_DEV_NONE, 0, 0);
+        fail(h, HOM_F_ABORTED, HOM_DEV_NONE, 0, 0);
     } else if (h->state == ST_PREFLIGHT) {
         do_preflight(h, in);
     } else {
@@ -1204,28 +1218,27 @@ int hom_step(hom_t *h, const hom_in_t *in, hom_out_t *out)
                 if (all_reached(h)) {
                     h->state = ST_SLACK_AVG;
                     h->settled = 0;
-                    h->t_phase = in->now_ms;
-                } else if (elapsed(in->now_ms, h->t_phase) > h->cfg.move_timeout_ms) {
-                    fail(h, in->now_ms, HOM_F_SERVO_STALL, HOM_DEV_NONE, 0, 0);
+                    h->t_phase = h->now_ms;
+                } else if (since(h, h->t_phase) > h->cfg.move_timeout_ms) {
+                    fail(h, HOM_F_SERVO_STALL, HOM_DEV_NONE, 0, 0);
                 }
                 break;
             case ST_SLACK_AVG:
-                do_slack_avg(h, in->now_ms);
+                do_slack_avg(h);
                 break;
             case ST_TENDON_RELEASE:
                 if (reached(h, h->cur)) {
-                    begin_tendon(h, in->now_ms, next_tendon(h, (uint8_t)(h->cur + 1u)));
-                } else if (elapsed(in->now_ms, h->t_phase) > h->cfg.move_timeout_ms) {
-                    fail(h, in->now_ms, HOM_F_SERVO_STALL, HOM_DEV_SERVO, h->cur, 0);
+                    begin_tendon(h, next_tendon(h, (uint8_t)(h->cur + 1u)));
+                } else if (since(h, h->t_phase) > h->cfg.move_timeout_ms) {
+                    fail(h, HOM_F_SERVO_STALL, HOM_DEV_SERVO, h->cur, 0);
                 }
                 break;
             case ST_FINAL:
                 if (all_reached(h)) {
-                    push_event(h, in->now_ms, HOM_EV_DONE, 0, 0,
-                               (int32_t)elapsed(in->now_ms, h->t_start), 0);
+                    push_event(h, HOM_EV_DONE, 0, 0, (int32_t)since(h, h->t_start), 0);
                     h->state = ST_DONE;
-                } else if (elapsed(in->now_ms, h->t_phase) > h->cfg.move_timeout_ms) {
-                    fail(h, in->now_ms, HOM_F_SERVO_STALL, HOM_DEV_NONE, 0, 0);
+                } else if (since(h, h->t_phase) > h->cfg.move_timeout_ms) {
+                    fail(h, HOM_F_SERVO_STALL, HOM_DEV_NONE, 0, 0);
                 }
                 break;
             default:
