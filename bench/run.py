@@ -155,7 +155,8 @@ def robust_item(a, res: Dict) -> None:
         faults = len({r["run"] for r in rows if r["rc"] != 0})
         m, sd = stats.mean_sd(ok)
         rob["levels"].append({
-            "frac": frac, "table": table, "runs": runs, "n": len(ok), "faults": faults, "mean_N": m, "sd_N": sd,
+            "frac": frac, "table": table, "runs": runs, "n": len(ok), "faults": faults,
+            "mean_N": m, "sd_N": sd,
             "p5_N": stats.percentile(ok, 5), "p95_N": stats.percentile(ok, 95),
             "max_abs_N": max((abs(e) for e in ok), default=float("nan"))})
         if frac == main_frac and table == "plant":
