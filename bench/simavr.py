@@ -72,6 +72,21 @@ def run(hh_bench: str, elf: str, plant: str, seed: int, events: List[str], until
     return res
 
 
+# The end of a calibration: `<done mode=... time_ms=...>` (docs/console.md);
+# `<cal ... state=done>` accepted too.
+DONE = r"^<(done |cal .*state=done)"
+DONE_QUICK = r"^<(done mode=quick|cal .*mode=quick.*state=done)"
+
+
+def _done(lines: List[Dict], mode: Optional[str] = None) -> Optional[Dict]:
+    for l in lines:
+        r = l["rep"]
+        if r.get("_kind") == "done" or (r.get("_kind") == "cal" and r.get("state") == "done"):
+            if mode is None or r.get("mode") == mode:
+                return l
+    return None
+
+
 def _t_of(lines: List[Dict], kind: str, **match) -> Optional[Dict]:
     for l in lines:
         r = l["rep"]
@@ -88,12 +103,12 @@ def calibration(hh_bench: str, elf: str, plant: str, seed: int, tension_mN: int,
     plant's motor frame), "tension_N" (tendon -> true single-tendon tension
     at the shaft position) and "done_t" (console time of done)."""
     ev = [f"0.3s send set cal_tension {tension_mN}", "0.6s send cal"] + list(extra_events or [])
-    r = run(hh_bench, elf, plant, seed, ev, r"^<done ", limit_s, tension_mN, workdir)
+    r = run(hh_bench, elf, plant, seed, ev, DONE, limit_s, tension_mN, workdir)
     if not r["ok"]:
         return r
     lines = r["lines"]
     start = _t_of(lines, "progress", state="start")
-    done = _t_of(lines, "done")
+    done = _done(lines)
     r["done_t"] = done["t"] if done else None
     r["cal_s"] = done["t"] - start["t"] if (done and start) else None
     try:
@@ -149,7 +164,7 @@ def rehome_and_status(hh_bench: str, elf: str, plant: str, seed: int, tension_mN
     ev = [f"0.3s send set cal_tension {tension_mN}", "0.6s send cal",
           f"{t_status:.3f}s send status", f"{t_cycle:.3f}s power-cycle",
           f"{t_rehome:.3f}s send rehome"]
-    r = run(hh_bench, elf, plant, seed, ev, r"^<done mode=quick", limit_s, tension_mN, workdir)
+    r = run(hh_bench, elf, plant, seed, ev, DONE_QUICK, limit_s, tension_mN, workdir)
     lines = r.get("lines", [])
     st = _t_of(lines, "status")
     r["loop_max_us"] = float(st["rep"]["loop_max_us"]) if st and "loop_max_us" in st["rep"] else None
@@ -161,7 +176,7 @@ def rehome_and_status(hh_bench: str, elf: str, plant: str, seed: int, tension_mN
                     if t_cycle < l["t"] < t_rehome and l["rep"].get("_kind") == "released"]
     qs = [l for l in lines if l["rep"].get("_kind") == "progress"
           and l["rep"].get("state") == "start" and l["rep"].get("mode") == "quick"]
-    qd = _t_of(lines, "done", mode="quick")
+    qd = _done(lines, "quick")
     r["quick_s"] = qd["t"] - qs[0]["t"] if (qd and qs) else None
     try:
         r["quick_ms"] = float(qd["rep"]["time_ms"]) if qd else None
