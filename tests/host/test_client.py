@@ -3,8 +3,10 @@
 The protocol behaviour against the real firmware (replies, errors, reports,
 a board reset, a killed bench) is tested in test_operator_bench.py. Here a
 transport test double stands in for the board only where the virtual bench
-cannot produce the failure: bytes that are not protocol, a cable pulled in the
-middle of a reply, a board that never answers, a reply split across reads.
+cannot produce the failure on demand: bytes that are not protocol, a cable
+pulled in the middle of a reply, a board that never answers, a reply split
+across reads, a line cut by a reset at a chosen byte (the bench's resets cut
+lines wherever they fall).
 """
 
 import os
