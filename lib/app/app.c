@@ -425,7 +425,8 @@ APP_NOINLINE static void boot_start(app_t *a)
     dxl_abort(&a->dxl);
     a->sv_txn = TX_NONE;
     a->servo_absent = 0;
-    a->have_b0 = 0; /* the bring-up reuses the baseline's storage */
+    a->torque_on = 0; /* goals of the old frames must never be sent again */
+    a->have_b0 = 0;   /* the bring-up reuses the baseline's storage */
     (void)dxl_bringup_start(&a->u.bring, &a->dxl, a->ids, a->info.n_tendons, &bc);
     a->boot_step = 1;
 }
@@ -705,6 +706,24 @@ APP_NOINLINE static void servo_done(app_t *a, int8_t rc)
     a->sv_txn = TX_NONE;
 }
 
+/* Tendons whose servo stands more than a tick from the goal last sent. A
+ * sync write carries no reply: a servo that missed one to a corrupted byte
+ * keeps its old goal, so these goals go out again every few cycles. A servo
+ * that is really stuck stays where it is and the homing's stall check still
+ * sees it; a servo on its way gets the goal it already has. */
+static uint16_t off_goal(const app_t *a)
+{
+    uint8_t i = a->info.n_tendons;
+    uint16_t m = 0;
+    while (i-- > 0u) {
+        m = (uint16_t)(m << 1);
+        if ((uint32_t)(a->present[i] - a->u.hom.out.goal[i]) + 1u > 2u) {
+            m |= 1u;
+        }
+    }
+    return m & a->torque_on;
+}
+
 APP_NOINLINE static void servo_next(app_t *a)
 {
     uint8_t ids[TBL_MAX_TENDONS];
@@ -730,7 +749,32 @@ APP_NOINLINE static void servo_next(app_t *a)
         }
         return;
     }
-    if (a->goal_due != 0u) {
+    if (a->goal_due == 0u) {
+        n = present_ids(a, ids, &mask);
+        if (n == 0u) {
+            return;
+        }
+        a->txn_mask = mask;
+        a->sv_cycle++;
+        if (a->hwerr_due || (a->sv_cycle % APP_HWERR_EVERY) == 0u) {
+            a->hwerr_due = 0;
+            if (dxl_sync_read(&a->dxl, DXL_XL430_HW_ERROR_ADDR, 1u, ids, n) > 0) {
+                a->sv_txn = TX_HWERR;
+            }
+            return;
+        }
+        if ((a->sv_cycle % APP_GOAL_REFRESH_EVERY) == APP_GOAL_REFRESH_EVERY / 2u) {
+            a->goal_due = off_goal(a); /* this cycle refreshes goals instead */
+        }
+        if (a->goal_due == 0u) {
+            if (dxl_sync_read(&a->dxl, DXL_XL430_PRESENT_POSITION_ADDR, 4u, ids, n) > 0) {
+                a->sv_txn = TX_POS;
+            }
+            return;
+        }
+        n = 0;
+    }
+    {
         uint8_t data[GOALS_PER_TXN * 12u];
         for (i = 0; i < a->info.n_tendons && n < GOALS_PER_TXN; i++) {
             if (has(a->goal_due, i) == 0u) {
@@ -750,23 +794,6 @@ APP_NOINLINE static void servo_next(app_t *a)
             dxl_sync_write(&a->dxl, DXL_XL430_PROFILE_ACCELERATION_ADDR, 12u, ids, data, n) > 0) {
             a->sv_txn = TX_GOAL;
         }
-        return;
-    }
-    n = present_ids(a, ids, &mask);
-    if (n == 0u) {
-        return;
-    }
-    a->txn_mask = mask;
-    a->sv_cycle++;
-    if (a->hwerr_due || (a->sv_cycle % APP_HWERR_EVERY) == 0u) {
-        a->hwerr_due = 0;
-        if (dxl_sync_read(&a->dxl, DXL_XL430_HW_ERROR_ADDR, 1u, ids, n) > 0) {
-            a->sv_txn = TX_HWERR;
-        }
-        return;
-    }
-    if (dxl_sync_read(&a->dxl, DXL_XL430_PRESENT_POSITION_ADDR, 4u, ids, n) > 0) {
-        a->sv_txn = TX_POS;
     }
 }
 
@@ -1049,6 +1076,7 @@ static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon
     cfg.v_fast = (uint16_t)a->set.v[STORE_SET_APPROACH_FAST];
     a->have_b0 = 0; /* its storage goes to the homing */
     hom_init(&a->u.hom, &cfg);
+    a->torque_on = 0; /* the goals were cleared: nothing to refresh until set */
     rc = hom_start(&a->u.hom, &a->htab, &cmd);
     if (rc == HOM_E_TENSION) {
         return CON_E_TENSION_RANGE;

@@ -54,14 +54,15 @@
 #define APP_MAX_SENSORS 4u
 #endif
 
-#define APP_DEBOUNCE_MS     30u    /* the button level must hold this long */
-#define APP_LONG_PRESS_MS   2000u  /* held this long: abort and release */
-#define APP_PREFLIGHT_MS    3000u  /* boot: longest wait for every device */
-#define APP_MOVE_TIMEOUT_MS 10000u /* `home` / `release` moves */
-#define APP_MOVE_TOL_TICKS  3      /* a move has arrived within this */
-#define APP_LEARN_SAMPLES   16u    /* samples averaged by `learn` and the baseline */
-#define APP_HWERR_EVERY     8u     /* read Hardware Error Status every n-th cycle */
-#define APP_SERVO_REBOOT_MS 600u   /* wait after `reboot` before the bus is brought up */
+#define APP_DEBOUNCE_MS        30u    /* the button level must hold this long */
+#define APP_LONG_PRESS_MS      2000u  /* held this long: abort and release */
+#define APP_PREFLIGHT_MS       3000u  /* boot: longest wait for every device */
+#define APP_MOVE_TIMEOUT_MS    10000u /* `home` / `release` moves */
+#define APP_MOVE_TOL_TICKS     3      /* a move has arrived within this */
+#define APP_LEARN_SAMPLES      16u    /* samples averaged by `learn` and the baseline */
+#define APP_HWERR_EVERY        8u     /* read Hardware Error Status every n-th cycle */
+#define APP_SERVO_REBOOT_MS    600u   /* wait after `reboot` before the bus is brought up */
+#define APP_GOAL_REFRESH_EVERY 4u     /* send goals not reached again every n-th cycle */
 
 enum {
     APP_E_ARG = -1 /* NULL pointer or missing interface in app_init() */
@@ -168,7 +169,7 @@ typedef struct {
     uint16_t home_now;     /* bit i: homes.t[i] usable in this power cycle */
     uint16_t goal_due;     /* bit i: goal/velocity of tendon i to send */
     uint16_t torque_due;   /* bit i: torque of tendon i to send */
-    uint16_t torque_on;    /* bit i: torque of tendon i as last sent */
+    uint16_t torque_on;    /* bit i: torque on sent since u.hom.out.goal[i] became valid */
     uint16_t txn_mask;     /* tendons of the transaction in flight */
     uint16_t run_mask;     /* tendons calibrated by this run */
     uint16_t run_tension;

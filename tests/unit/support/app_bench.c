@@ -60,6 +60,49 @@ static void b_reboot(void *ctx)
     ((app_bench_t *)ctx)->reboots++;
 }
 
+/* Flips one bit of byte with probability b->noise (xorshift64*). */
+static uint8_t noisy(app_bench_t *b, uint8_t byte)
+{
+    uint64_t x = b->noise_seed;
+    if (b->noise <= 0.0) {
+        return byte;
+    }
+    x ^= x >> 12;
+    x ^= x << 25;
+    x ^= x >> 27;
+    b->noise_seed = x;
+    x *= 2685821657736338717ull;
+    if ((double)(x >> 11) * (1.0 / 9007199254740992.0) < b->noise) {
+        b->noise_hits++;
+        return (uint8_t)(byte ^ (1u << (uint8_t)(x & 7u)));
+    }
+    return byte;
+}
+
+static uint16_t noisy_write(void *ctx, const uint8_t *data, uint16_t n)
+{
+    app_bench_t *b = of_bus(ctx);
+    uint8_t buf[DXL_TX_CAP];
+    uint16_t i;
+    if (n > sizeof buf) {
+        n = sizeof buf;
+    }
+    for (i = 0; i < n; i++) {
+        buf[i] = noisy(b, data[i]);
+    }
+    return b->bus_port.write(ctx, buf, n);
+}
+
+static uint16_t noisy_read(void *ctx, uint8_t *out, uint16_t cap)
+{
+    app_bench_t *b = of_bus(ctx);
+    uint16_t i, n = b->bus_port.read(ctx, out, cap);
+    for (i = 0; i < n; i++) {
+        out[i] = noisy(b, out[i]);
+    }
+    return n;
+}
+
 static void bench_copy(void *dst, const void *src, size_t n)
 {
     memcpy(dst, src, n);
@@ -97,7 +140,10 @@ static void app_start(app_bench_t *b, uint8_t with_table)
     b->board.wdt_kick = b_kick;
     b->board.reboot = b_reboot;
     b->io.board = &b->board;
-    dxl_fakebus_port(&b->bus, &b->io.servo_port);
+    dxl_fakebus_port(&b->bus, &b->bus_port);
+    b->io.servo_port = b->bus_port;
+    b->io.servo_port.write = noisy_write;
+    b->io.servo_port.read = noisy_read;
     b->io.servo_port.now_us = port_now;
     b->io.servo_bits = 10;
     b->io.sensor_bus = &b->i2c.bus;
@@ -124,6 +170,7 @@ int app_bench_init(app_bench_t *b, uint8_t with_table)
     int rc;
     memset(b, 0, sizeof *b);
     b->loop_us = APP_BENCH_LOOP_US;
+    b->noise_seed = 0x9E3779B97F4A7C15ull;
     rc = hom_fix_paper(&b->cfg, &b->table);
     if (rc != 0) {
         return rc;

@@ -57,6 +57,12 @@ typedef struct {
     uint32_t led_changes;
     uint32_t kicks;
     uint32_t reboots;
+    /* servo bus noise: each byte the master sends or receives has one bit
+     * flipped with probability noise (a seeded generator) */
+    double noise;
+    uint64_t noise_seed;
+    uint32_t noise_hits;
+    dxl_port bus_port; /* the fake bus's own port, under the noise */
     /* the app */
     app_board_t board;
     con_io_t con_io;
