@@ -194,19 +194,21 @@ HOM_NOINLINE static int32_t unwrap_home(int32_t stored, int32_t present)
 /* The table's local slope of |dB| over travel around the tension (a 100 mN
  * window clipped to the grid), cuT per tick with 8 fractional bits: the
  * first fine step's estimate before two points of its own exist. */
-HOM_NOINLINE static int32_t table_slope(const tbl_src_t *table, uint8_t i, uint16_t tension,
-                                        const tbl_info_t *info, uint32_t nm_per_tick)
+HOM_NOINLINE static int32_t table_slope(const hom_t *h, uint8_t i)
 {
+    const tbl_src_t *table = &h->table;
+    uint32_t nm_per_tick = h->tendon[i].nm_per_tick;
+    tbl_info_t info;
     tbl_point_t lo;
     tbl_point_t hi;
-    uint16_t t0 = tension;
-    uint16_t t1 = tension;
+    uint16_t t0 = h->tension_mN;
+    uint16_t t1 = h->tension_mN;
     int32_t dticks;
     int32_t s;
-    t0 = (uint16_t)(t0 >= info->grid_mN[0] + 50u ? t0 - 50u : info->grid_mN[0]);
-    t1 =
-        (uint16_t)(t1 + 50u <= info->grid_mN[info->n_grid - 1u] ? t1 + 50u
-                                                                : info->grid_mN[info->n_grid - 1u]);
+    (void)tbl_info(table, &info);
+    t0 = (uint16_t)(t0 >= info.grid_mN[0] + 50u ? t0 - 50u : info.grid_mN[0]);
+    t1 = (uint16_t)(t1 + 50u <= info.grid_mN[info.n_grid - 1u] ? t1 + 50u
+                                                               : info.grid_mN[info.n_grid - 1u]);
     (void)tbl_target(table, i, t0, &lo);
     (void)tbl_target(table, i, t1, &hi);
     dticks = muldiv((int32_t)hi.travel_um - (int32_t)lo.travel_um, 1000, (int32_t)nm_per_tick);
@@ -256,7 +258,6 @@ int hom_start(hom_t *h, const tbl_src_t *table, const hom_cmd_t *cmd)
             return HOM_E_TENSION;
         }
         memset(t, 0, sizeof *t);
-        t->slope_q8 = table_slope(table, i, tension, &info, row.nm_per_tick);
         t->dir = row.pull_dir < 0 ? -1 : 1;
         t->nm_per_tick = row.nm_per_tick;
         t->sensor = row.sensor;
@@ -288,9 +289,7 @@ int hom_start(hom_t *h, const tbl_src_t *table, const hom_cmd_t *cmd)
     if (h->cfg.initial_release_um != 0u) {
         rel_um = h->cfg.initial_release_um;
     }
-    for (i = 0; i < info.n_tendons; i++) {
-        h->tendon[i].release_ticks = um_to_ticks(rel_um, h->tendon[i].nm_per_tick);
-    }
+    h->release_um = rel_um;
     h->table = *table;
     /* averages beyond the accumulator's reach would never complete */
     if (h->cfg.baseline_samples == 0u || h->cfg.baseline_samples > HOM_MAX_AVG) {
@@ -313,11 +312,6 @@ int hom_start(hom_t *h, const tbl_src_t *table, const hom_cmd_t *cmd)
         if (h->tendon[i].target_cuT / 4u < h->engage_cuT) {
             h->engage_cuT = h->tendon[i].target_cuT / 4u;
         }
-    }
-    for (i = 0; i < info.n_sensors; i++) {
-        tbl_sensor_t s;
-        (void)tbl_sensor(table, i, &s);
-        h->b_pred[i] = hom_norm3(s.b_straight_cuT); /* predicted, for the magnet check */
     }
     h->state = ST_PREFLIGHT;
     h->t_phase = 0;
@@ -354,7 +348,7 @@ HOM_NOINLINE static uint32_t since(const hom_t *h, uint32_t t)
 
 HOM_NOINLINE static void set_goal(hom_t *h, uint8_t i, int32_t goal, uint16_t vel)
 {
-    h->cmd_ms[i] = h->now_ms;
+    h->moved_ms[i] = h->now_ms;
     h->out.goal[i] = goal;
     h->out.vel[i] = vel;
     h->out.acc[i] = h->cfg.acc;
@@ -373,7 +367,7 @@ HOM_NOINLINE static int reached(const hom_t *h, uint8_t i)
         return 1;
     }
     return d >= -HOM_DROOP_TICKS && d <= HOM_DROOP_TICKS &&
-           since(h, h->cmd_ms[i]) >= HOM_STILL_MS && since(h, h->moved_ms[i]) >= HOM_STILL_MS;
+           since(h, h->moved_ms[i]) >= HOM_STILL_MS;
 }
 
 /* Every tendon whose goal was set in this run has reached it. */
@@ -601,7 +595,7 @@ HOM_NOINLINE static void do_preflight(hom_t *h, const hom_in_t *in)
             if (h->mode == HOM_MODE_QUICK) {
                 g = t->est_home - pull(t, t->travel_ticks + t->margin_ticks);
             } else {
-                g = h->present[i] - pull(t, t->release_ticks);
+                g = h->present[i] - pull(t, um_to_ticks(h->release_um, t->nm_per_tick));
             }
             set_goal(h, i, g, h->cfg.v_release);
         }
@@ -701,7 +695,7 @@ HOM_NOINLINE static void begin_tendon(hom_t *h, uint8_t i)
     h->near = 0;
     h->n_pts = 0;
     h->steps = 0;
-    h->slope_q8 = h->tendon[i].slope_q8;
+    h->slope_q8 = table_slope(h, i);
     h->pos_at_sample = h->present[i];
     t->engaged = 0;
     t->retries = 0;
@@ -765,7 +759,6 @@ HOM_NOINLINE static void begin_fine_move(hom_t *h)
 HOM_NOINLINE static void finish_tendon(hom_t *h, int32_t home_q8)
 {
     hom_tendon_t *t = &h->tendon[h->cur];
-    t->home_q8 = home_q8;
     t->home = floor_div256(home_q8);
     t->have_home = 1;
     push_event(h, HOM_EV_HOME, 0, h->cur, t->home, home_q8 - t->home * 256);
@@ -1019,7 +1012,11 @@ HOM_NOINLINE static void slack_done(hom_t *h)
         }
     }
     for (k = 0; k < h->n_sensors; k++) {
-        if (h->b_pred[k] >= 10000u && hom_norm3(h->sensor[k].b0) < h->b_pred[k] / 2u) {
+        tbl_sensor_t s;
+        uint32_t pred;
+        (void)tbl_sensor(&h->table, k, &s);
+        pred = hom_norm3(s.b_straight_cuT); /* the table's straight-pose |B| */
+        if (pred >= 10000u && hom_norm3(h->sensor[k].b0) < pred / 2u) {
             fail(h, HOM_F_MAGNET_MISSING, HOM_DEV_SENSOR, k, (int32_t)hom_norm3(h->sensor[k].b0));
             return;
         }
@@ -1044,6 +1041,7 @@ HOM_NOINLINE static void do_slack_avg(hom_t *h)
     uint8_t k;
     uint8_t i;
     uint32_t worst = 0;
+    int done;
     if (!h->settled) {
         if (since(h, h->t_phase) < h->cfg.settle_ms) {
             return;
@@ -1058,23 +1056,32 @@ HOM_NOINLINE static void do_slack_avg(hom_t *h)
         }
     }
     h->settled = 0;
+    /* until the slack is confirmed, b0 holds the previous average */
     for (k = 0; k < h->n_sensors; k++) {
         int32_t avg[3];
         int32_t d[3];
         int a;
         avg_of(h, k, avg);
         for (a = 0; a < 3; a++) {
-            d[a] = avg[a] - h->slack_ref[k][a];
-            /* the baseline if this average confirms the slack: both averages
-             * then saw the same straight pose, so it takes both */
-            h->sensor[k].b0[a] = h->steps > 0u ? avg[a] - d[a] / 2 : avg[a];
+            d[a] = avg[a] - h->sensor[k].b0[a];
         }
         if (hom_norm3(d) > worst) {
             worst = hom_norm3(d);
         }
-        memcpy(h->slack_ref[k], avg, sizeof avg);
     }
-    if (h->mode == HOM_MODE_DRY || (h->steps > 0u && worst <= h->engage_cuT)) {
+    done = h->mode == HOM_MODE_DRY || (h->steps > 0u && worst <= h->engage_cuT);
+    for (k = 0; k < h->n_sensors; k++) {
+        int32_t avg[3];
+        int a;
+        avg_of(h, k, avg);
+        for (a = 0; a < 3; a++) {
+            /* the baseline when this average confirms the slack: both
+             * averages then saw the same straight pose, so it takes both */
+            int32_t *b0 = &h->sensor[k].b0[a];
+            *b0 = done && h->steps > 0u ? avg[a] - (avg[a] - *b0) / 2 : avg[a];
+        }
+    }
+    if (done) {
         slack_done(h);
         return;
     }

@@ -227,29 +227,26 @@ typedef struct {
 } hom_config_t;
 
 typedef struct {
-    int8_t dir;            /* table pull_dir */
-    uint8_t sensor;        /* selected sensor */
-    uint8_t engaged;       /* engage is valid */
-    uint8_t have_home;     /* home is valid (this run or stored, for the final move) */
-    uint8_t retries;       /* re-approaches after overshooting the target */
-    uint32_t target_cuT;   /* |B - B0| target at the requested tension */
-    int32_t travel_ticks;  /* expected take-up from engagement */
-    int32_t limit_ticks;   /* travel limit from engagement */
-    int32_t margin_ticks;  /* slack margin */
-    int32_t release_ticks; /* initial release */
-    int32_t slope_q8;      /* table's local d|dB|/dtick at the tension, cuT per tick * 256 */
-    uint32_t nm_per_tick;  /* table spool factor */
-    int32_t engage;        /* engagement position, ticks */
-    int32_t home;          /* home, ticks */
-    int32_t home_q8;       /* interpolated home, 1/256 tick */
-    int32_t est_home;      /* quick mode: stored home in this power cycle's frame */
-    int32_t slack_pos;     /* last position known slack (after the slack check, a release) */
-    uint8_t have_slack;    /* slack_pos is valid */
-    int32_t start_pos;     /* position when the run started */
+    int8_t dir;           /* table pull_dir */
+    uint8_t sensor;       /* selected sensor */
+    uint8_t engaged;      /* engage is valid */
+    uint8_t have_home;    /* home is valid (this run or stored, for the final move) */
+    uint8_t retries;      /* re-approaches after overshooting the target */
+    uint32_t target_cuT;  /* |B - B0| target at the requested tension */
+    int32_t travel_ticks; /* expected take-up from engagement */
+    int32_t limit_ticks;  /* travel limit from engagement */
+    int32_t margin_ticks; /* slack margin */
+    uint32_t nm_per_tick; /* table spool factor */
+    int32_t engage;       /* engagement position, ticks */
+    int32_t home;         /* home, ticks */
+    int32_t est_home;     /* quick mode: stored home in this power cycle's frame */
+    int32_t slack_pos;    /* last position known slack (after the slack check, a release) */
+    uint8_t have_slack;   /* slack_pos is valid */
+    int32_t start_pos;    /* position when the run started */
 } hom_tendon_t;
 
 typedef struct {
-    int32_t b0[3];    /* straight-pose baseline, cuT */
+    int32_t b0[3];    /* straight-pose baseline, cuT (the slack check: its previous average) */
     int32_t last[3];  /* newest sample */
     int32_t acc[3];   /* running sum for averages */
     uint32_t last_ms; /* time of the newest sample */
@@ -291,16 +288,14 @@ typedef struct {
     int32_t pos_at_sample; /* active tendon's position at the previous selected-sensor sample */
     int32_t p_prev;        /* fine: previous point (position, |dB|) */
     uint32_t b_prev;
-    int32_t p_eng_b;                       /* fine: slope reference |dB| at engagement */
-    uint32_t b_pred[TBL_MAX_SENSORS];      /* table's straight-pose |B| (magnet check) */
-    int32_t slack_ref[TBL_MAX_SENSORS][3]; /* slack check: previous averaged field */
-    int32_t mod_goal;                      /* re-approach: moderate goal after an overshoot */
-    int32_t slope_q8;                      /* fine: current slope estimate, cuT per tick * 256 */
-    uint32_t now_ms;                       /* time of the current step */
-    uint32_t cmd_ms[TBL_MAX_TENDONS];      /* last goal written, per tendon */
-    uint32_t moved_ms[TBL_MAX_TENDONS];    /* last change of the present position */
-    uint8_t settled;                       /* slack average: settle time over, averaging */
-    uint8_t pf_started;                    /* preflight: first step seen, t_phase valid */
+    int32_t p_eng_b;                    /* fine: slope reference |dB| at engagement */
+    int32_t mod_goal;                   /* re-approach: moderate goal after an overshoot */
+    int32_t slope_q8;                   /* fine: current slope estimate, cuT per tick * 256 */
+    uint32_t now_ms;                    /* time of the current step */
+    uint32_t moved_ms[TBL_MAX_TENDONS]; /* last goal written or change of the present position */
+    uint32_t release_um;                /* initial release (full and single modes) */
+    uint8_t settled;                    /* slack average: settle time over, averaging */
+    uint8_t pf_started;                 /* preflight: first step seen, t_phase valid */
     uint8_t quick_leg; /* quick mode: fast leg to just before the expected engagement */
     uint8_t near;      /* fine: the next point is within a few ticks of the target */
     uint8_t n_near;    /* fine: samples to average at a near point */
