@@ -201,7 +201,7 @@ def section_time(res: Dict) -> List[str]:
 
 def section_robust(res: Dict) -> List[str]:
     rob = res.get("robust", {})
-    out = [SECTIONS[3] + " (Monte Carlo, native loop)", ""]
+    out = [SECTIONS[3] + " (Monte Carlo)", ""]
     out.append(
         f"{rob.get('runs', 0)} seeded robots from `plant_cfg_perturb` at ±"
         f"{100 * rob.get('frac', 0):.0f} % (stiffness, free lengths, friction, backlash, "
@@ -210,8 +210,10 @@ def section_robust(res: Dict) -> List[str]:
         f"{rob.get('tension_mN', 800)} mN by the homing core. Table `plant`: the nominal "
         "robot's own targets, so the error is what the parameter deviations alone do; table "
         "`generated`: the firmware's table from the host model, its model error added. "
-        "Native loop only (hh_mc, bench/hh_mc.c): homing core + plant, no simavr. The "
-        "histogram and the ranking use the ±5 % plant-table runs.")
+        "Native loop (hh_mc, bench/hh_mc.c): homing core + plant, no simavr; the row "
+        "`generated, simavr bench` is a check of a few perturbed robots (hh_bench --perturb, "
+        "the same perturbation) calibrated by the firmware. The histogram and the ranking use "
+        "the ±5 % plant-table runs.")
     out.append("")
     out.append("| perturbation | table | runs | tendon homes | faults | mean error (N) | SD (N) | "
                "5th pct (N) | 95th pct (N) | max abs (N) |")

@@ -327,6 +327,7 @@ def simavr_items(a, res: Dict, cfg: Dict, workdir: str) -> None:
         _bench_rates(res, probe)
         return
     bench_ambient(a, res, cfg, workdir, probe)
+    bench_perturbed(a, res, workdir)
     base = [r for r in ok800 if r.get("done_t")][:3]
     log(f"simavr bench: {len(base)} x (the same calibration, status, power cycle, quick re-home)")
     qjobs = [dict(hh_bench=a.hh_bench, elf=a.elf, plant=a.config, seed=r["seed"], tension_mN=800,
@@ -358,6 +359,28 @@ def simavr_items(a, res: Dict, cfg: Dict, workdir: str) -> None:
     else:
         r["loop_src"] = "not measured: no status report after the calibration"
     _bench_rates(res, probe)
+
+
+def bench_perturbed(a, res: Dict, workdir: str, frac: float = 0.05, n: int = 6) -> None:
+    """A few calibrations of perturbed robots (hh_bench --perturb, its own
+    seeded plant_cfg_perturb) by the firmware: a check of the native Monte
+    Carlo's generated-table level on the real firmware."""
+    if a.reduced or "robust" not in res:
+        return
+    log(f"simavr bench: {n} calibrations of robots perturbed by ±{100 * frac:.0f} %")
+    jobs = [dict(hh_bench=a.hh_bench, elf=a.elf, plant=a.config, seed=a.seed + 5000 + k,
+                 tension_mN=800, workdir=workdir, limit_s=a.sim_limit, perturb=frac)
+            for k in range(n)]
+    runs = simavr.batch(jobs, a.jobs)
+    ok = [r for r in runs if r.get("ok")]
+    errs = [t - 0.8 for r in ok for t in r["tension_N"].values()]
+    if not errs:
+        return
+    m, sd = stats.mean_sd(errs)
+    res["robust"]["levels"].append({
+        "frac": frac, "table": "generated, simavr bench", "runs": n, "n": len(errs),
+        "faults": n - len(ok), "mean_N": m, "sd_N": sd, "p5_N": stats.percentile(errs, 5),
+        "p95_N": stats.percentile(errs, 95), "max_abs_N": max(abs(e) for e in errs)})
 
 
 def bench_ambient(a, res: Dict, cfg: Dict, workdir: str, base: Dict) -> None:
