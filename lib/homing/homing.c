@@ -585,7 +585,6 @@ HOM_NOINLINE static void do_preflight(hom_t *h, const hom_in_t *in)
         if (h->mode == HOM_MODE_DRY) {
             h->state = ST_SLACK_AVG;
             h->t_phase = h->now_ms;
-            h->t_settled = 0;
             h->steps = 0;
             return;
         }

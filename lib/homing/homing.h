@@ -256,10 +256,10 @@ typedef struct {
 } hom_sensor_t;
 
 /* Caller-owned state. Read-only for the application except through the
- * functions below; tendon[i].home / have_home hold the results. */
+ * functions below; tendon[i].home / have_home hold the results. The fields
+ * used in every step come first: the AVR reaches the first 64 bytes of a
+ * struct without address arithmetic. */
 typedef struct {
-    hom_config_t cfg;
-    tbl_src_t table; /* the run's table: it must stay readable until the run ends */
     uint8_t state;
     uint8_t mode;
     uint8_t n_tendons;
@@ -271,35 +271,35 @@ typedef struct {
     uint8_t fault; /* hom_fault_t of the last run */
     uint8_t fault_index;
     uint8_t fault_dev;
-    uint8_t steps;     /* slack-check steps or fine points so far */
-    uint8_t have_prev; /* fine: a previous point below the target exists */
+    uint8_t steps;      /* slack-check steps or fine points so far */
+    uint8_t have_prev;  /* fine: a previous point below the target exists */
+    uint8_t settled;    /* slack average: settle time over, averaging */
+    uint8_t pf_started; /* preflight: first step seen, t_phase valid */
+    uint8_t quick_leg;  /* quick mode: fast leg to just before the expected engagement */
+    uint8_t near;       /* fine: the next point is within a few ticks of the target */
+    uint8_t n_near;     /* fine: samples to average at a near point */
+    uint8_t n_pts;      /* fine: near points kept */
     uint8_t ev_head;
     uint8_t ev_count;
     uint8_t ev_dropped;
-    uint16_t tension_mN;
-    uint16_t noise_cuT;
-    uint32_t engage_cuT; /* engagement threshold */
-    uint32_t t_start;    /* run start */
-    uint32_t t_phase;    /* start of the current wait */
-    uint32_t t_tendon;   /* start of the current tendon */
-    uint32_t t_settled;  /* fine: time the servo reached its goal (0 = not yet) */
-    uint32_t servo_ok_ms[TBL_MAX_TENDONS];
-    int32_t present[TBL_MAX_TENDONS];
+    uint32_t now_ms;       /* time of the current step */
+    uint32_t t_phase;      /* start of the current wait */
+    uint32_t t_tendon;     /* start of the current tendon */
     int32_t pos_at_sample; /* active tendon's position at the previous selected-sensor sample */
     int32_t p_prev;        /* fine: previous point (position, |dB|) */
     uint32_t b_prev;
-    int32_t p_eng_b;                    /* fine: slope reference |dB| at engagement */
-    int32_t mod_goal;                   /* re-approach: moderate goal after an overshoot */
-    int32_t slope_q8;                   /* fine: current slope estimate, cuT per tick * 256 */
-    uint32_t now_ms;                    /* time of the current step */
+    int32_t mod_goal;    /* re-approach: moderate goal after an overshoot */
+    int32_t slope_q8;    /* fine: current slope estimate, cuT per tick * 256 */
+    uint32_t engage_cuT; /* engagement threshold */
+    uint16_t tension_mN;
+    uint16_t noise_cuT;
+    uint32_t t_start;    /* run start */
+    uint32_t release_um; /* initial release (full and single modes) */
+    hom_config_t cfg;
+    tbl_src_t table; /* the run's table: it must stay readable until the run ends */
+    uint32_t servo_ok_ms[TBL_MAX_TENDONS];
+    int32_t present[TBL_MAX_TENDONS];
     uint32_t moved_ms[TBL_MAX_TENDONS]; /* last goal written or change of the present position */
-    uint32_t release_um;                /* initial release (full and single modes) */
-    uint8_t settled;                    /* slack average: settle time over, averaging */
-    uint8_t pf_started;                 /* preflight: first step seen, t_phase valid */
-    uint8_t quick_leg; /* quick mode: fast leg to just before the expected engagement */
-    uint8_t near;      /* fine: the next point is within a few ticks of the target */
-    uint8_t n_near;    /* fine: samples to average at a near point */
-    uint8_t n_pts;     /* fine: near points kept */
     struct {
         int32_t p;                 /* position, ticks */
         uint32_t b;                /* averaged |B - B0|, cuT */
