@@ -3,6 +3,7 @@
  */
 #include "homing/homing.h"
 
+#include <stddef.h>
 #include <string.h>
 
 enum {
@@ -201,14 +202,15 @@ HOM_NOINLINE static int32_t table_slope(const hom_t *h, uint8_t i)
     tbl_info_t info;
     tbl_point_t lo;
     tbl_point_t hi;
-    uint16_t t0 = h->tension_mN;
-    uint16_t t1 = h->tension_mN;
+    uint16_t t = h->tension_mN;
+    uint16_t t0;
+    uint16_t t1;
     int32_t dticks;
     int32_t s;
     (void)tbl_info(table, &info);
-    t0 = (uint16_t)(t0 >= info.grid_mN[0] + 50u ? t0 - 50u : info.grid_mN[0]);
-    t1 = (uint16_t)(t1 + 50u <= info.grid_mN[info.n_grid - 1u] ? t1 + 50u
-                                                               : info.grid_mN[info.n_grid - 1u]);
+    t0 = (uint16_t)(t >= info.grid_mN[0] + 50u ? t - 50u : info.grid_mN[0]);
+    t1 = (uint16_t)(t + 50u <= info.grid_mN[info.n_grid - 1u] ? t + 50u
+                                                              : info.grid_mN[info.n_grid - 1u]);
     (void)tbl_target(table, i, t0, &lo);
     (void)tbl_target(table, i, t1, &hi);
     dticks = muldiv((int32_t)hi.travel_um - (int32_t)lo.travel_um, 1000, (int32_t)nm_per_tick);
@@ -219,6 +221,42 @@ HOM_NOINLINE static int32_t table_slope(const hom_t *h, uint8_t i)
         s = muldiv((int32_t)(hi.target_cuT - lo.target_cuT), 256, dticks);
     }
     return s < 1 ? 1 : s;
+}
+
+/* Loads tendon i's row for a run at the tension; raises *rel_um to the
+ * release that frees it. Returns 0, or -1 when the table has no target. */
+HOM_NOINLINE static int load_tendon(hom_t *h, const tbl_src_t *table, const hom_cmd_t *cmd,
+                                    uint8_t i, const tbl_info_t *info, uint16_t tension,
+                                    uint32_t *rel_um)
+{
+    tbl_tendon_t row;
+    tbl_point_t pt;
+    hom_tendon_t *t = &h->tendon[i];
+    uint32_t r;
+    (void)tbl_tendon(table, i, &row);
+    if (tbl_target(table, i, tension, &pt) != 0) {
+        return -1;
+    }
+    memset(t, 0, sizeof *t);
+    t->dir = row.pull_dir < 0 ? -1 : 1;
+    t->nm_per_tick = row.nm_per_tick;
+    t->sensor = row.sensor;
+    t->target_cuT = pt.target_cuT;
+    t->travel_ticks = um_to_ticks(pt.travel_um, row.nm_per_tick);
+    t->limit_ticks = muldiv((int32_t)row.travel_limit_um, 1000, (int32_t)row.nm_per_tick);
+    t->margin_ticks = um_to_ticks(h->cfg.slack_margin_um, row.nm_per_tick);
+    if ((cmd->stored_mask >> i) & 1u) {
+        t->est_home = cmd->stored_home[i]; /* unwrapped once positions are known */
+        t->have_home = 2;                  /* 2: stored, not yet measured */
+    }
+    /* The initial release must free a tendon left anywhere up to the top of
+     * the grid: one and a half times that travel plus the margin. */
+    r = row.travel_um[info->n_grid - 1u];
+    r = r + r / 2u + h->cfg.slack_margin_um;
+    if (r > *rel_um) {
+        *rel_um = r;
+    }
+    return 0;
 }
 
 int hom_start(hom_t *h, const tbl_src_t *table, const hom_cmd_t *cmd)
@@ -250,42 +288,15 @@ int hom_start(hom_t *h, const tbl_src_t *table, const hom_cmd_t *cmd)
         return HOM_E_TENSION;
     }
     for (i = 0; i < info.n_tendons; i++) {
-        tbl_tendon_t row;
-        tbl_point_t pt;
-        hom_tendon_t *t = &h->tendon[i];
-        (void)tbl_tendon(table, i, &row);
-        if (tbl_target(table, i, tension, &pt) != 0) {
+        if (load_tendon(h, table, cmd, i, &info, tension, &rel_um) != 0) {
             return HOM_E_TENSION;
         }
-        memset(t, 0, sizeof *t);
-        t->dir = row.pull_dir < 0 ? -1 : 1;
-        t->nm_per_tick = row.nm_per_tick;
-        t->sensor = row.sensor;
-        t->target_cuT = pt.target_cuT;
-        t->travel_ticks = um_to_ticks(pt.travel_um, row.nm_per_tick);
-        t->limit_ticks = muldiv((int32_t)row.travel_limit_um, 1000, (int32_t)row.nm_per_tick);
-        t->margin_ticks = um_to_ticks(h->cfg.slack_margin_um, row.nm_per_tick);
-        if ((cmd->stored_mask >> i) & 1u) {
-            t->est_home = cmd->stored_home[i]; /* unwrapped once positions are known */
-            t->have_home = 2;                  /* 2: stored, not yet measured */
-        }
-        /* The initial release must free a tendon left anywhere up to the top of
-         * the grid: one and a half times that travel plus the margin. */
-        {
-            uint32_t r = row.travel_um[info.n_grid - 1u] + row.travel_um[info.n_grid - 1u] / 2u +
-                         h->cfg.slack_margin_um;
-            if (r > rel_um) {
-                rel_um = r;
-            }
-        }
     }
-    {
-        hom_config_t keep = h->cfg;
-        hom_tendon_t tk[TBL_MAX_TENDONS];
-        memcpy(tk, h->tendon, sizeof tk);
-        hom_init(h, &keep);
-        memcpy(h->tendon, tk, sizeof tk);
-    }
+    /* a fresh run: what hom_init() clears, except the config and the tendons
+     * just loaded */
+    memset(h, 0, offsetof(hom_t, cfg));
+    memset(&h->table, 0, offsetof(hom_t, tendon) - offsetof(hom_t, table));
+    memset(h->sensor, 0, sizeof *h - offsetof(hom_t, sensor));
     if (h->cfg.initial_release_um != 0u) {
         rel_um = h->cfg.initial_release_um;
     }
