@@ -389,12 +389,19 @@ def goals_table(res: Dict) -> List[Dict]:
 
 def section_goals(res: Dict) -> List[str]:
     out = [SECTIONS[6] + " (bench, nominal parameters)", ""]
-    out.append("| goal | limit | measured | source | status |")
-    out.append("| --- | --- | --- | --- | --- |")
+    prev = res.get("previous") or {}
+    pg = prev.get("goals") or {}
+    out.append("| goal | limit | measured | source | status |"
+               + (" previous run |" if pg else ""))
+    out.append("| --- | --- | --- | --- | --- |" + (" --- |" if pg else ""))
     for g in goals_table(res):
         out.append(f"| {g['goal']} | {g['limit']} | {g['value']} | {g['source']} | "
-                   f"**{g['status']}** |")
+                   f"**{g['status']}** |" + (f" {cell(pg.get(g['goal'], 'n/a'))} |" if pg else ""))
     out.append("")
+    if pg:
+        out.append(f"Previous run: {prev.get('date', 'n/a')}, commit {prev.get('git', 'n/a')}, "
+                   f"firmware {prev.get('firmware', 'n/a')}.")
+        out.append("")
     for n in res.get("goal_notes", []):
         out.append(f"- {n}")
     out.append("")

@@ -447,6 +447,7 @@ def main(argv=None) -> int:
     a = p.parse_args(argv)
     t0 = time.time()
     os.makedirs(a.out, exist_ok=True)
+    previous = load_previous(os.path.join(a.out, "results.json"))
     cfg = native.read_cfg(a.config)
     try:
         git = subprocess.run(["git", "describe", "--always", "--dirty", "--abbrev=7"],
@@ -472,6 +473,8 @@ def main(argv=None) -> int:
         shutil.rmtree(work, ignore_errors=True)
 
     res["goal_notes"] = goal_notes(res)
+    if previous:
+        res["previous"] = previous
     res["meta"]["wall_s"] = time.time() - t0
     log("drawing plots")
     plots.repeatability(res["repeat"], a.out)
@@ -492,6 +495,20 @@ def main(argv=None) -> int:
     for pr in problems:
         log(f"report problem: {pr}")
     return 1 if problems else 0
+
+
+def load_previous(path: str) -> Dict:
+    """The goal figures of the run whose results are about to be replaced, for
+    the report's comparison column (empty when there is none)."""
+    try:
+        with open(path) as fh:
+            old = json.load(fh)
+    except (OSError, ValueError):
+        return {}
+    m = old.get("meta", {})
+    return {"date": m.get("date"), "git": m.get("git"), "firmware": m.get("firmware"),
+            "goals": {g["goal"]: g["value"] + (f" ({g['source'].split(' (')[0]})")
+                      for g in report.goals_table(old)}}
 
 
 def goal_notes(res: Dict) -> List[str]:

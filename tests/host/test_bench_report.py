@@ -221,3 +221,13 @@ def test_not_measured_reasons_do_not_break_tables():
     row = [l for l in text.splitlines() if "exit 1; last reports" in l][0]
     assert row.count(" | ") == 5  # six cells: the reason's bar is escaped
     assert "<a> \\| <b>" in row
+
+
+def test_goals_show_the_previous_run():
+    r = _results()
+    r["previous"] = {"date": "d0", "git": "abc", "firmware": "0.1",
+                     "goals": {"full 6-tendon calibration time (slowest run)": "9.00 s (simavr bench)"}}
+    text = report.build_report(r)
+    row = [l for l in text.splitlines() if l.startswith("| full 6-tendon")][0]
+    assert row.endswith("| 9.00 s (simavr bench) |")
+    assert "Previous run: d0, commit abc, firmware 0.1." in text
