@@ -122,6 +122,7 @@ def session(port: Optional[str], timeout: float) -> Iterator[Client]:
             signal.signal(signal.SIGTERM, old)
         raise
     try:
+        wait_booted(c)
         yield c
     finally:
         if c.motion is not None:
@@ -133,6 +134,27 @@ def session(port: Optional[str], timeout: float) -> Iterator[Client]:
                         f"ignored (last: {escape(repr(c.garbled_last))})[/]")
         if old is not None:
             signal.signal(signal.SIGTERM, old)
+
+
+BOOT_WAIT = 8.0  # the firmware's device bring-up takes at most 3 s (docs/app.md)
+
+
+def wait_booted(c: Client) -> None:
+    """Returns once the board has finished its boot (bring-up and
+    preflight): opening a Mega's port resets it, and a command sent while it
+    boots is refused as busy."""
+    deadline = time.monotonic() + BOOT_WAIT
+    told = False
+    while True:
+        s = c.command(cmd("status")).first(R.STATUS)
+        if s is None or s.get("state") != "boot":
+            return
+        if time.monotonic() > deadline:
+            raise ReplyTimeout(f"the board was still booting after {BOOT_WAIT:g} s")
+        if not told:
+            err().print("waiting for the board to finish booting ...")
+            told = True
+        time.sleep(0.2)
 
 
 def operator_command(f):

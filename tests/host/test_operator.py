@@ -95,6 +95,39 @@ def test_ends_motion():
     assert not op.ends_motion(rep("<progress state=preflight>"))
 
 
+class StatusSequence:
+    """Not a board: answers wait_booted()'s `status` with a given sequence
+    of states, to check the waiting logic alone (the bench boots in 0.1 s,
+    too fast to catch in the boot state)."""
+
+    def __init__(self, states):
+        self.states = list(states)
+        self.sent = []
+
+    def command(self, line):
+        from hallhome.client import Reply
+        self.sent.append(line)
+        st = self.states.pop(0) if len(self.states) > 1 else self.states[0]
+        return Reply(line, [rep(f"<status state={st} count=0>")])
+
+
+def test_wait_booted_polls_until_the_boot_ends(capsys):
+    s = StatusSequence(["boot", "boot", "idle"])
+    op.wait_booted(s)
+    assert s.sent == ["status"] * 3
+    assert "waiting for the board to finish booting" in capsys.readouterr().err
+    s = StatusSequence(["fault"])
+    op.wait_booted(s)
+    assert s.sent == ["status"]
+
+
+def test_wait_booted_gives_up(monkeypatch):
+    from hallhome.client import ReplyTimeout
+    monkeypatch.setattr(op, "BOOT_WAIT", 0.3)
+    with pytest.raises(ReplyTimeout, match="still booting after 0.3 s"):
+        op.wait_booted(StatusSequence(["boot"]))
+
+
 def test_sparkline():
     assert op.sparkline([0, 1, 2, 3, 4, 5, 6, 7]) == "▁▂▃▄▅▆▇█"
     assert op.sparkline([5, 5]) == "▁▁"

@@ -46,7 +46,7 @@ def built():
 class Bench:
     """One hh_bench process with the firmware; console on a pty link."""
 
-    def __init__(self, tmp: Path, *events: str):
+    def __init__(self, tmp: Path, *events: str, ready: bool = True):
         tmp.mkdir(parents=True, exist_ok=True)
         self.pty = tmp / "console"
         self.logpath = tmp / "bench.log"
@@ -57,7 +57,10 @@ class Bench:
         for e in events:
             args += ["--at", e]
         self.proc = subprocess.Popen(args, stdout=self.log, stderr=subprocess.STDOUT, cwd=ROOT)
-        self.wait_line(r"<ready ", 15)
+        if ready:
+            self.wait_line(r"<ready ", 15)
+        else:
+            self.wait_line(r"<boot ", 15)
         assert self.pty.exists()
 
     def text(self) -> str:
@@ -99,8 +102,8 @@ class Bench:
 def bench(built, tmp_path):
     made = []
 
-    def start(*events):
-        b = Bench(tmp_path / f"b{len(made)}", *events)
+    def start(*events, ready=True):
+        b = Bench(tmp_path / f"b{len(made)}", *events, ready=ready)
         made.append(b)
         return b
 
@@ -143,6 +146,15 @@ def test_status_names_a_missing_sensor(bench):
     assert r.returncode == 1, r.stdout + r.stderr
     assert re.search(r"^│ 1 +│ 1 +│ 0x69 +│ NO", r.stdout, re.M), r.stdout
     assert "attention: sensor 1 not running" in r.stderr
+
+
+def test_status_right_after_power_up(bench):
+    # connect while the board may still be booting: the command waits for
+    # the end of the boot and never shows a half-booted board
+    b = bench("0s servo-silent 5", ready=False)
+    r = hh("status", "--port", b.pty)
+    assert re.search(r"│ state +│ idle", r.stdout), r.stdout
+    assert r.returncode == 1 and "servo 6 (tendon 5) not found" in r.stderr
 
 
 def test_port_from_environment_and_missing_port(bench, tmp_path):
