@@ -189,9 +189,11 @@ def section_time(res: Dict) -> List[str]:
                     f"- where the time goes, {lab} (mean over {ph['runs']} runs): start to the "
                     f"first tendon (preflight, release, slack check, baseline) "
                     f"{fmt(ph['prep_s'], 2)} s; one tendon from its start to its home "
-                    f"(take-up and fine approach) {fmt(ph['tendon_s'], 2)} s, slowest "
-                    f"{fmt(ph['tendon_max_s'], 2)} s; final move to the homes "
-                    f"{fmt(ph['final_s'], 2)} s; the rest is the releases between tendons.")
+                    f"{fmt(ph['tendon_s'], 2)} s (slowest {fmt(ph['tendon_max_s'], 2)} s): "
+                    f"take-up to engagement {fmt(ph.get('takeup_s'), 2)} s, engagement to home "
+                    f"(moderate and fine approach) {fmt(ph.get('fine_s'), 2)} s; final move to "
+                    f"the homes {fmt(ph['final_s'], 2)} s; the rest is the releases between "
+                    "tendons.")
         else:
             out.append(f"| {lab} | {_src_note(t)} | | 0 | | 0 |")
     out.append(f"| paper | {PAPER['cal_time_s']:.0f} | | | | |")

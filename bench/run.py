@@ -313,6 +313,8 @@ def simavr_items(a, res: Dict, cfg: Dict, workdir: str) -> None:
             "prep_s": stats.mean_sd(p["prep_s"] for p in ph)[0],
             "tendon_s": stats.mean_sd(x for p in ph for x in p["tendon_s"])[0],
             "tendon_max_s": max((x for p in ph for x in p["tendon_s"]), default=None),
+            "takeup_s": stats.mean_sd(x for p in ph for x in p.get("takeup_s", []))[0],
+            "fine_s": stats.mean_sd(x for p in ph for x in p.get("fine_s", []))[0],
             "final_s": stats.mean_sd(p["final_s"] for p in ph)[0], "runs": len(ph)}
     res["time"]["simavr"] = tm
     res["meta"]["simavr_status"] = (

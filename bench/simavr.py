@@ -141,9 +141,25 @@ def calibration(hh_bench: str, elf: str, plant: str, seed: int, tension_mN: int,
                 tend_ms.append(float(l["rep"]["time_ms"]))
             except ValueError:
                 pass
+    # per tendon: its start -> engagement (take-up) and engagement -> home
+    t_start: Dict[str, float] = {}
+    t_eng: Dict[str, float] = {}
+    takeup, fine = [], []
+    for l in lines:
+        rep = l["rep"]
+        k, i = rep.get("_kind"), rep.get("tendon")
+        if k == "progress" and rep.get("state") == "tendon":
+            t_start[i] = l["t"]
+        elif k == "progress" and rep.get("state") == "engaged" and i in t_start:
+            t_eng[i] = l["t"]
+            takeup.append(l["t"] - t_start[i])
+        elif k == "result" and i in t_eng:
+            fine.append(l["t"] - t_eng[i])
     r["phases"] = {
         "prep_s": first["t"] - start["t"] if (first and start) else None,
         "tendon_s": [x / 1000.0 for x in tend_ms],
+        "takeup_s": takeup,
+        "fine_s": fine,
         "final_s": done["t"] - final["t"] if (final and done) else None,
     }
     r["tension_N"] = {i: t["tension_at_home_mN"] / 1000.0 for i, t in tend.items()}
