@@ -458,6 +458,12 @@ HOM_NOINLINE static void fail(hom_t *h, hom_fault_t f, uint8_t dev, uint8_t inde
     h->state = ST_FAULT;
 }
 
+/* fail() naming the tendon being calibrated. */
+HOM_NOINLINE static void fail_tendon(hom_t *h, hom_fault_t f, int32_t detail)
+{
+    fail(h, f, HOM_DEV_TENDON, h->cur, detail);
+}
+
 /* Sensor bookkeeping and health checks of one step. Returns 1 if it failed. */
 HOM_NOINLINE static int check_sensors(hom_t *h, const hom_in_t *in)
 {
@@ -733,7 +739,7 @@ HOM_NOINLINE static int pull_to(hom_t *h, int32_t g, uint16_t v)
 {
     hom_tendon_t *t = &h->tendon[h->cur];
     if (t->engaged && pull(t, g - t->engage) > t->limit_ticks) {
-        fail(h, HOM_F_TRAVEL_LIMIT, HOM_DEV_TENDON, h->cur, pull(t, g - t->engage));
+        fail_tendon(h, HOM_F_TRAVEL_LIMIT, pull(t, g - t->engage));
         return -1;
     }
     set_goal(h, h->cur, g, v);
@@ -941,7 +947,7 @@ HOM_NOINLINE static void fine_point(hom_t *h)
             return;
         }
         if (++t->retries > 2u) {
-            fail(h, HOM_F_NO_PROGRESS, HOM_DEV_TENDON, h->cur, (int32_t)b);
+            fail_tendon(h, HOM_F_NO_PROGRESS, (int32_t)b);
             return;
         }
         if (h->have_prev) {
@@ -987,11 +993,11 @@ HOM_NOINLINE static void fine_point(hom_t *h)
     room = (t->limit_ticks - pull(t, p - t->engage)) * 256;
     if (r_q8 > room) {
         /* the target lies beyond the travel limit: unreachable, stop here */
-        fail(h, HOM_F_TRAVEL_LIMIT, HOM_DEV_TENDON, h->cur, pull(t, p - t->engage) + r_q8 / 256);
+        fail_tendon(h, HOM_F_TRAVEL_LIMIT, pull(t, p - t->engage) + r_q8 / 256);
         return;
     }
     if (++h->steps > h->cfg.fine_max_steps) {
-        fail(h, HOM_F_NO_PROGRESS, HOM_DEV_TENDON, h->cur, (int32_t)b);
+        fail_tendon(h, HOM_F_NO_PROGRESS, (int32_t)b);
         return;
     }
     step = r_q8 <= 3 * 256 ? r_q8 >> 8 : (r_q8 / 4 * 3) >> 8;
@@ -1109,9 +1115,29 @@ HOM_NOINLINE static void do_slack_avg(hom_t *h)
     h->t_phase = h->now_ms;
 }
 
+/* The field b has come within permille of the target. */
+HOM_NOINLINE static int near_target(const hom_tendon_t *t, uint32_t b, uint16_t permille)
+{
+    return (int32_t)b >= muldiv((int32_t)t->target_cuT, permille, 1000);
+}
+
+/* Close to the target while moving: stop two ticks on from the present
+ * position p (unless the goal is nearer) and go on with fine points. */
+HOM_NOINLINE static void stop_short(hom_t *h, int32_t p)
+{
+    const hom_tendon_t *t = &h->tendon[h->cur];
+    uint8_t state = h->state;
+    int32_t g = p + pull(t, 2);
+    if (pull(t, h->out.goal[h->cur] - g) > 0) {
+        (void)pull_to(h, g, h->cfg.v_moderate);
+    }
+    if (h->state == state) {
+        begin_fine_move(h);
+    }
+}
+
 HOM_NOINLINE static void do_tendon(hom_t *h, const hom_in_t *in)
 {
-
     hom_tendon_t *t = &h->tendon[h->cur];
     uint8_t sel = t->sensor;
     int fresh = in->sensor[sel].status == HOM_SENS_NEW;
@@ -1119,11 +1145,11 @@ HOM_NOINLINE static void do_tendon(hom_t *h, const hom_in_t *in)
     int32_t p = h->present[h->cur];
 
     if (since(h, h->t_tendon) > h->cfg.tendon_timeout_ms) {
-        fail(h, HOM_F_TENDON_TIMEOUT, HOM_DEV_TENDON, h->cur, (int32_t)since(h, h->t_tendon));
+        fail_tendon(h, HOM_F_TENDON_TIMEOUT, (int32_t)since(h, h->t_tendon));
         return;
     }
     if (t->engaged && pull(t, p - t->engage) > t->limit_ticks) {
-        fail(h, HOM_F_TRAVEL_LIMIT, HOM_DEV_TENDON, h->cur, pull(t, p - t->engage));
+        fail_tendon(h, HOM_F_TRAVEL_LIMIT, pull(t, p - t->engage));
         return;
     }
     switch (h->state) {
@@ -1140,16 +1166,8 @@ HOM_NOINLINE static void do_tendon(hom_t *h, const hom_in_t *in)
         if (fresh && !t->engaged) {
             h->pos_at_sample = p;
         }
-        if (h->quick_leg && t->engaged && fresh &&
-            (int32_t)b >= muldiv((int32_t)t->target_cuT, HOM_QUICK_STOP_PERMILLE, 1000)) {
-            /* the stored home is further than the field says: stop short */
-            int32_t g = p + pull(t, 2);
-            if (pull(t, h->out.goal[h->cur] - g) > 0) {
-                (void)pull_to(h, g, h->cfg.v_moderate);
-            }
-            if (h->state == ST_TAKEUP) {
-                begin_fine_move(h);
-            }
+        if (h->quick_leg && t->engaged && fresh && near_target(t, b, HOM_QUICK_STOP_PERMILLE)) {
+            stop_short(h, p); /* the stored home is further than the field says */
         } else if (reached(h, h->cur)) {
             if (h->quick_leg && t->engaged) {
                 begin_fine_move(h);
@@ -1158,22 +1176,15 @@ HOM_NOINLINE static void do_tendon(hom_t *h, const hom_in_t *in)
                 h->quick_leg = 0;
                 set_goal(h, h->cur, p + pull(t, search_ticks(h, h->cur)), h->cfg.v_moderate);
             } else {
-                fail(h, HOM_F_NO_ENGAGEMENT, HOM_DEV_TENDON, h->cur, pull(t, p - h->pos_at_sample));
+                fail_tendon(h, HOM_F_NO_ENGAGEMENT, pull(t, p - h->pos_at_sample));
             }
         }
         break;
     case ST_MODERATE:
         /* a re-approach goes to a point measured short of the target: only
          * the target itself stops it early */
-        if (fresh && (int32_t)b >= muldiv((int32_t)t->target_cuT,
-                                          t->retries != 0u ? 1000 : h->cfg.near_permille, 1000)) {
-            int32_t g = p + pull(t, 2);
-            if (pull(t, h->out.goal[h->cur] - g) > 0) {
-                (void)pull_to(h, g, h->cfg.v_moderate);
-            }
-            if (h->state == ST_MODERATE) {
-                begin_fine_move(h);
-            }
+        if (fresh && near_target(t, b, t->retries != 0u ? 1000u : h->cfg.near_permille)) {
+            stop_short(h, p);
         } else if (reached(h, h->cur)) {
             begin_fine_move(h);
         }
@@ -1206,6 +1217,16 @@ HOM_NOINLINE static void do_tendon(hom_t *h, const hom_in_t *in)
     }
 }
 
+/* A release or final move: 1 when it has arrived; one that takes longer
+ * than move_timeout_ms ends the run (HOM_F_SERVO_STALL). */
+HOM_NOINLINE static int move_done(hom_t *h, int arrived, uint8_t dev, uint8_t index)
+{
+    if (!arrived && since(h, h->t_phase) > h->cfg.move_timeout_ms) {
+        fail(h, HOM_F_SERVO_STALL, dev, index, 0);
+    }
+    return arrived;
+}
+
 int hom_step(hom_t *h, const hom_in_t *in, hom_out_t *out)
 {
     uint8_t i;
@@ -1232,30 +1253,24 @@ int hom_step(hom_t *h, const hom_in_t *in, hom_out_t *out)
         if (check_servos(h, in) == 0 && check_sensors(h, in) == 0) {
             switch (h->state) {
             case ST_RELEASE_ALL:
-                if (all_reached(h)) {
+                if (move_done(h, all_reached(h), HOM_DEV_NONE, 0)) {
                     h->state = ST_SLACK_AVG;
                     h->settled = 0;
                     h->t_phase = h->now_ms;
-                } else if (since(h, h->t_phase) > h->cfg.move_timeout_ms) {
-                    fail(h, HOM_F_SERVO_STALL, HOM_DEV_NONE, 0, 0);
                 }
                 break;
             case ST_SLACK_AVG:
                 do_slack_avg(h);
                 break;
             case ST_TENDON_RELEASE:
-                if (reached(h, h->cur)) {
+                if (move_done(h, reached(h, h->cur), HOM_DEV_SERVO, h->cur)) {
                     begin_tendon(h, next_tendon(h, (uint8_t)(h->cur + 1u)));
-                } else if (since(h, h->t_phase) > h->cfg.move_timeout_ms) {
-                    fail(h, HOM_F_SERVO_STALL, HOM_DEV_SERVO, h->cur, 0);
                 }
                 break;
             case ST_FINAL:
-                if (all_reached(h)) {
+                if (move_done(h, all_reached(h), HOM_DEV_NONE, 0)) {
                     push_event(h, HOM_EV_DONE, 0, 0, (int32_t)since(h, h->t_start), 0);
                     h->state = ST_DONE;
-                } else if (since(h, h->t_phase) > h->cfg.move_timeout_ms) {
-                    fail(h, HOM_F_SERVO_STALL, HOM_DEV_NONE, 0, 0);
                 }
                 break;
             default:
