@@ -307,6 +307,18 @@ static void test_settings(void **state)
     cmd(&g_b, "sensors", "ok");
     cmd(&g_b, "servos pos", "ok");
     cmd(&g_b, "servos", "ok");
+    /* the approach speeds and the samples per fine point reach the homing */
+    cmd(&g_b, "set filter_k 4", "ok");
+    cmd(&g_b, "set approach_slow 30", "ok");
+    cmd(&g_b, "set approach_fast 90", "ok");
+    cmd(&g_b, "cal 0.9 0", "ok");
+    assert_int_equal(g_b.app.u.hom.cfg.avg_samples, 4);
+    assert_int_equal(g_b.app.u.hom.cfg.v_fine, 30);
+    assert_int_equal(g_b.app.u.hom.cfg.v_fast, 90);
+    assert_int_equal(g_b.app.u.hom.tension_mN, 900);
+    (void)con_rt_byte(&g_b.rt, '!');
+    assert_true(app_bench_wait_line(&g_b, "<fault ", g_line, sizeof g_line, 200));
+    assert_non_null(strstr(g_line, "reason=aborted"));
 }
 
 /* Model-free learning: release (baseline), a weight pulls tendon 1 to 0.8 N,
