@@ -110,16 +110,20 @@ def session(port: Optional[str], timeout: float) -> Iterator[Client]:
     """An open, synchronised client. On exit (also after Ctrl-C or SIGTERM)
     the client aborts any motion it started and has not seen end."""
     dev = find_port(port)
-    old = None
+    old: Dict[int, object] = {}
     if threading.current_thread() is threading.main_thread():
         def on_term(signum, frame):
             raise KeyboardInterrupt
-        old = signal.signal(signal.SIGTERM, on_term)
+        for sig in (signal.SIGTERM, signal.SIGHUP):  # killed, or the terminal closed
+            old[sig] = signal.signal(sig, on_term)
+
+    def restore() -> None:
+        for sig, h in old.items():
+            signal.signal(sig, h)
     try:
         c = Client(dev, timeout=timeout, ends_motion=ends_motion)
     except BaseException:
-        if old is not None:
-            signal.signal(signal.SIGTERM, old)
+        restore()
         raise
     try:
         wait_booted(c)
@@ -132,8 +136,7 @@ def session(port: Optional[str], timeout: float) -> Iterator[Client]:
         if c.garbled:
             err().print(f"[yellow]note: {c.garbled} line(s) from the board were not protocol and were "
                         f"ignored (last: {escape(repr(c.garbled_last))})[/]")
-        if old is not None:
-            signal.signal(signal.SIGTERM, old)
+        restore()
 
 
 BOOT_WAIT = 8.0  # the firmware's device bring-up takes at most 3 s (docs/app.md)

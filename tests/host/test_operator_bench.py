@@ -266,12 +266,13 @@ def test_calibrate_ctrl_c_aborts_on_the_board(bench):
     assert not re.search(r"<done mode=(full|single)", b.text()[m:])
 
 
-def test_sigterm_leaves_no_calibration_running(bench):
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP])
+def test_killed_or_hung_up_leaves_no_calibration_running(bench, sig):
     b = bench()
     m = b.mark()
     p = hh_start("calibrate", "--port", b.pty)
     b.wait_line(r"<progress state=tendon ", 60, after=m)
-    p.send_signal(signal.SIGTERM)
+    p.send_signal(sig)
     p.communicate(timeout=30)
     assert p.returncode != 0
     b.wait_line(r"<released reason=aborted>", 5, after=m)
