@@ -28,7 +28,7 @@ from rich.markup import escape
 from rich.table import Table
 
 from hallhome import protocol
-from hallhome.client import (BoardError, BoardReset, Client, Disconnected, HallhomeError,
+from hallhome.client import (BoardError, BoardReset, Client, HallhomeError,
                              LocalError, Report, ReplyTimeout, find_port, list_ports)
 
 G = 9.80665  # standard gravity, m/s^2: grams <-> newtons
@@ -528,6 +528,7 @@ def learn_cmd(tendons, masses, tolerance, out_path, port, timeout) -> None:
             raise HallhomeError("the board could not capture the straight-pose baseline (sensors?)")
         con.print("baseline captured")
         samples = []
+        ans = ""
         for t in todo:
             for m_plan, g_mN in plan:
                 while True:
