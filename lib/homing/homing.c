@@ -83,29 +83,27 @@ void hom_init(hom_t *h, const hom_config_t *cfg)
     h->state = ST_IDLE;
 }
 
+/* The sum of squares needs 64 bits (3 * 2^62 at most), the root fits 32:
+ * it is built bit by bit from the top, each bit kept when its square still
+ * fits (floor of the root; 32 multiplies, little code on the AVR). */
 uint32_t hom_norm3(const int32_t v[3])
 {
     uint64_t s = 0;
-    uint64_t r = 0;
-    uint64_t bit = (uint64_t)1 << 62;
+    uint32_t r = 0;
+    uint32_t bit = (uint32_t)1 << 31;
     int a;
     for (a = 0; a < 3; a++) {
         int64_t x = v[a];
         s += (uint64_t)(x * x);
     }
-    while (bit > s) {
-        bit >>= 2;
-    }
     while (bit != 0u) {
-        if (s >= r + bit) {
-            s -= r + bit;
-            r = (r >> 1) + bit;
-        } else {
-            r >>= 1;
+        uint32_t c = r | bit;
+        if ((uint64_t)c * c <= s) {
+            r = c;
         }
-        bit >>= 2;
+        bit >>= 1;
     }
-    return (uint32_t)r;
+    return r;
 }
 
 const char *hom_fault_name(int fault)
@@ -734,12 +732,27 @@ HOM_NOINLINE static void begin_tendon(hom_t *h, uint8_t i)
     h->state = ST_TAKEUP;
 }
 
+/* Faults when position x of the engaged tendon lies beyond its travel limit
+ * past engagement. Returns 1 if it did. */
+HOM_NOINLINE static int beyond_limit(hom_t *h, int32_t x)
+{
+    const hom_tendon_t *t = &h->tendon[h->cur];
+    int32_t d;
+    if (!t->engaged) {
+        return 0;
+    }
+    d = pull(t, x - t->engage);
+    if (d > t->limit_ticks) {
+        fail_tendon(h, HOM_F_TRAVEL_LIMIT, d);
+        return 1;
+    }
+    return 0;
+}
+
 /* A goal in the pull direction, refused beyond the travel limit. */
 HOM_NOINLINE static int pull_to(hom_t *h, int32_t g, uint16_t v)
 {
-    hom_tendon_t *t = &h->tendon[h->cur];
-    if (t->engaged && pull(t, g - t->engage) > t->limit_ticks) {
-        fail_tendon(h, HOM_F_TRAVEL_LIMIT, pull(t, g - t->engage));
+    if (beyond_limit(h, g)) {
         return -1;
     }
     set_goal(h, h->cur, g, v);
@@ -826,34 +839,38 @@ HOM_NOINLINE static void keep_point(hom_t *h, int32_t p, uint32_t b, uint8_t n)
 HOM_NOINLINE static int32_t fit_or(const hom_t *h, int32_t p, int32_t fallback)
 {
     const hom_tendon_t *t = &h->tendon[h->cur];
-    /* sums fit 32 bits: at most 4 points of 32 samples, |x| <= 4, |y| < 2^20 */
-    int32_t sn = 0;
-    int32_t sx = 0;
+    /* at most 4 points of at most 32 samples with |x| <= 4: the sums without
+     * y fit 16 bits (|sx| <= 512, sxx <= 2048); with |y| < 2^20 the others
+     * fit 32 */
+    int16_t sn = 0;
+    int16_t sx = 0;
+    int16_t sxx = 0;
     int32_t sy = 0;
-    int32_t sxx = 0;
     int32_t sxy = 0;
     int32_t d;
     int64_t snum;
     int32_t x_q8;
-    int32_t lo = 0;
-    int32_t hi = 0;
+    int16_t lo = 0;
+    int16_t hi = 0;
     uint8_t k;
     for (k = 0; k < h->n_pts; k++) {
         int32_t x = pull(t, h->pts[k].p - p); /* pull-direction ticks from p */
         int32_t y = (int32_t)h->pts[k].b - (int32_t)t->target_cuT;
-        int32_t n = h->pts[k].n;
+        int16_t n = h->pts[k].n;
+        int16_t nx;
         if (x < -4 || x > 4 || y >= (1L << 20) || y <= -(1L << 20)) {
             continue;
         }
-        lo = x < lo ? x : lo;
-        hi = x > hi ? x : hi;
-        sn += n;
-        sx += n * x;
+        nx = (int16_t)(n * x);
+        lo = x < lo ? (int16_t)x : lo;
+        hi = x > hi ? (int16_t)x : hi;
+        sn = (int16_t)(sn + n);
+        sx = (int16_t)(sx + nx);
+        sxx = (int16_t)(sxx + nx * x);
         sy += n * y;
-        sxx += n * x * x;
-        sxy += n * x * y;
+        sxy += nx * y;
     }
-    d = sn * sxx - sx * sx;
+    d = (int32_t)sn * sxx - (int32_t)sx * sx;
     snum = (int64_t)sn * sxy - (int64_t)sx * sy;
     if (hi == lo || d <= 0 || snum <= 0) {
         return fallback;
@@ -1148,8 +1165,7 @@ HOM_NOINLINE static void do_tendon(hom_t *h, const hom_in_t *in)
         fail_tendon(h, HOM_F_TENDON_TIMEOUT, (int32_t)since(h, h->t_tendon));
         return;
     }
-    if (t->engaged && pull(t, p - t->engage) > t->limit_ticks) {
-        fail_tendon(h, HOM_F_TRAVEL_LIMIT, pull(t, p - t->engage));
+    if (beyond_limit(h, p)) {
         return;
     }
     switch (h->state) {
