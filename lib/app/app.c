@@ -126,7 +126,7 @@ static const char s_max[] CON_FLASH = "max";
 static const char s_default[] CON_FLASH = "default";
 
 /* Bus transactions. */
-enum { TX_NONE = 0, TX_POS, TX_HWERR, TX_GOAL, TX_TORQUE, TX_REBOOT };
+enum { TX_NONE = 0, TX_POS, TX_HWERR, TX_GOAL, TX_TORQUE, TX_REBOOT, TX_WDOG };
 
 /* Records waiting for the EEPROM. */
 enum { SAVE_HOMES = 1, SAVE_HIST = 2, SAVE_LEARNED = 4, SAVE_SETTINGS = 8 };
@@ -526,6 +526,7 @@ APP_NOINLINE static void boot_finish(app_t *a)
     }
     a->goal_due = 0;
     a->torque_due = 0;
+    a->wdog_step = (uint8_t)(2u * a->info.n_tendons);
     a->n_sens_found = icm_set_ready_count(&a->sens);
     for (k = 0; k < a->info.n_sensors; k++) {
         icm_diag_t d;
@@ -634,8 +635,10 @@ APP_NOINLINE static void boot_poll(app_t *a)
         boot_finish(a);
         return;
     }
-    /* step 2: every found servo's position, then ready */
-    if ((a->servo_seen | a->servo_absent) != all_mask(a) && t - a->t_boot < APP_PREFLIGHT_MS) {
+    /* step 2: every found servo's position and Bus Watchdog, then ready */
+    if (((a->servo_seen | a->servo_absent) != all_mask(a) || a->wdog_step != 0u ||
+         a->sv_txn == TX_WDOG) &&
+        t - a->t_boot < APP_PREFLIGHT_MS) {
         return;
     }
     boot_ready(a);
@@ -735,6 +738,18 @@ APP_NOINLINE static void servo_next(app_t *a)
             a->sv_txn = TX_REBOOT;
         } else if (con_pending(&a->con)) {
             (void)con_complete(&a->con, CON_E_INTERNAL);
+        }
+        return;
+    }
+    if (a->wdog_step != 0u) {
+        /* two writes per servo, from the last: 0 clears an expired watchdog
+         * (the servo refuses goals until then), then the period arms it */
+        uint8_t st = a->wdog_step--;
+        i = (uint8_t)((st - 1u) >> 1);
+        if (has(a->servo_absent, i) == 0u &&
+            dxl_write_value(&a->dxl, a->ids[i], DXL_XL430_BUS_WATCHDOG_ADDR,
+                            (st & 1u) ? APP_BUS_WATCHDOG : 0u, 1) > 0) {
+            a->sv_txn = TX_WDOG;
         }
         return;
     }
@@ -1148,7 +1163,7 @@ APP_NOINLINE static void cal_step(app_t *a, hom_in_t *in)
         a->state = APP_ST_FAULT;
         a->led = APP_LED_FAULT;
         a->rest_due = 1;
-        a->t_rest = in->now_ms;
+        a->t_rest = (uint16_t)in->now_ms;
         a->released = 1;
     }
 }
@@ -1262,7 +1277,7 @@ APP_NOINLINE static void move_step(app_t *a)
             a->state = APP_ST_FAULT;
             a->led = APP_LED_FAULT;
             a->rest_due = 1;
-            a->t_rest = t;
+            a->t_rest = (uint16_t)t;
             if (a->move_kind == MOVE_HOME) {
                 (void)release_goals(a);
             }
@@ -1270,7 +1285,7 @@ APP_NOINLINE static void move_step(app_t *a)
         return;
     }
     a->rest_due = 1;
-    a->t_rest = t;
+    a->t_rest = (uint16_t)t;
     if (a->move_kind == MOVE_RELEASE) {
         learn_begin(a, LEARN_BASELINE); /* the robot stands straight: capture B0 */
         return;
@@ -1383,8 +1398,9 @@ APP_NOINLINE static void learn_step(app_t *a, const hom_in_t *in)
 APP_NOINLINE static void rest_poll(app_t *a)
 {
     uint8_t i, changed = 0;
-    if (!a->rest_due || !idle_state(a) || now_ms(a) - a->t_rest < REST_DELAY_MS ||
-        (a->save_due & SAVE_HOMES) || a->save_now == SAVE_HOMES) {
+    if (!a->rest_due || !idle_state(a) ||
+        (uint16_t)((uint16_t)now_ms(a) - a->t_rest) < REST_DELAY_MS || (a->save_due & SAVE_HOMES) ||
+        a->save_now == SAVE_HOMES) {
         return;
     }
     a->rest_due = 0;
@@ -1464,14 +1480,14 @@ static void short_press(app_t *a)
     }
 }
 
-APP_NOINLINE static void button_poll(app_t *a, uint32_t t)
+APP_NOINLINE static void button_poll(app_t *a, uint16_t t)
 {
     uint8_t raw = a->io->board->button(a->io->board->ctx) ? 1u : 0u;
     if (raw != a->btn_raw) {
         a->btn_raw = raw;
         a->t_btn_change = t;
     }
-    if (t - a->t_btn_change >= APP_DEBOUNCE_MS && a->btn_state != a->btn_raw) {
+    if ((uint16_t)(t - a->t_btn_change) >= APP_DEBOUNCE_MS && a->btn_state != a->btn_raw) {
         a->btn_state = a->btn_raw;
         if (a->btn_state) {
             a->t_btn_down = t;
@@ -1480,7 +1496,7 @@ APP_NOINLINE static void button_poll(app_t *a, uint32_t t)
             short_press(a);
         }
     }
-    if (a->btn_state && !a->btn_long_done && t - a->t_btn_down >= APP_LONG_PRESS_MS) {
+    if (a->btn_state && !a->btn_long_done && (uint16_t)(t - a->t_btn_down) >= APP_LONG_PRESS_MS) {
         a->btn_long_done = 1;
         app_abort(a);
     }
@@ -1542,7 +1558,7 @@ int8_t app_poll(app_t *app)
     if (con_rt_take(a->io->rt)) {
         app_abort(a);
     }
-    button_poll(a, t);
+    button_poll(a, (uint16_t)t);
     memset(&in, 0, sizeof in);
     if (a->sens.n > 0u) {
         (void)icm_set_poll(&a->sens, t0);

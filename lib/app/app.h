@@ -54,15 +54,18 @@
 #define APP_MAX_SENSORS 4u
 #endif
 
-#define APP_DEBOUNCE_MS        30u    /* the button level must hold this long */
-#define APP_LONG_PRESS_MS      2000u  /* held this long: abort and release */
-#define APP_PREFLIGHT_MS       3000u  /* boot: longest wait for every device */
-#define APP_MOVE_TIMEOUT_MS    10000u /* `home` / `release` moves */
-#define APP_MOVE_TOL_TICKS     3      /* a move has arrived within this */
-#define APP_LEARN_SAMPLES      16u    /* samples averaged by `learn` and the baseline */
-#define APP_HWERR_EVERY        8u     /* read Hardware Error Status every n-th cycle */
-#define APP_SERVO_REBOOT_MS    600u   /* wait after `reboot` before the bus is brought up */
-#define APP_GOAL_REFRESH_EVERY 4u     /* send goals not reached again every n-th cycle */
+#define APP_DEBOUNCE_MS     30u    /* the button level must hold this long */
+#define APP_LONG_PRESS_MS   2000u  /* held this long: abort and release */
+#define APP_PREFLIGHT_MS    3000u  /* boot: longest wait for every device */
+#define APP_MOVE_TIMEOUT_MS 10000u /* `home` / `release` moves */
+#define APP_MOVE_TOL_TICKS  3      /* a move has arrived within this */
+#define APP_LEARN_SAMPLES   16u    /* samples averaged by `learn` and the baseline */
+#define APP_HWERR_EVERY     8u     /* read Hardware Error Status every n-th cycle */
+#define APP_SERVO_REBOOT_MS 600u   /* wait after `reboot` before the bus is brought up */
+#define APP_BUS_WATCHDOG                                                                           \
+    10u                           /* XL430 Bus Watchdog, 20 ms units: servos stop 200 ms           \
+                                       after the last instruction (board hung or reset) */
+#define APP_GOAL_REFRESH_EVERY 4u /* send goals not reached again every n-th cycle */
 
 enum {
     APP_E_ARG = -1 /* NULL pointer or missing interface in app_init() */
@@ -158,6 +161,7 @@ typedef struct {
     uint8_t req_tendon;
     uint8_t reboot_id;
     uint8_t reboot_req; /* `reboot` waits for the bus */
+    uint8_t wdog_step;  /* Bus Watchdog writes left after a bring-up (two per servo) */
     uint8_t btn_raw;
     uint8_t btn_state;
     uint8_t btn_long_done;
@@ -181,9 +185,9 @@ typedef struct {
     uint32_t t_boot;
     uint32_t t_run;
     uint32_t t_move;
-    uint32_t t_rest;
-    uint32_t t_btn_change;
-    uint32_t t_btn_down;
+    uint16_t t_rest; /* short waits: 16-bit ms, compared as 16-bit differences */
+    uint16_t t_btn_change;
+    uint16_t t_btn_down;
     uint32_t loop_max_us;
     uint32_t loops;
     /* per tendon and sensor */

@@ -491,6 +491,58 @@ static void test_bus_noise_calibrates(void **state)
     assert_true(g_b.app.dxl.stats.retries > 0u);
 }
 
+/* The board stops running passes for this long while the bus and the servos
+ * run on (a hang; the AVR's watchdog resets it after 500 ms). */
+static void hang(app_bench_t *b, uint32_t us)
+{
+    dxl_fakebus_advance(&b->bus, us);
+    b->now_us += us;
+}
+
+/* Bus Watchdog: armed at bring-up, fed by the bus cycle; when the board
+ * hangs the servos stop on their own, and after the reset the expired
+ * watchdogs are cleared and armed again so that goals are accepted. */
+static void test_bus_watchdog_stops_servos_when_the_board_hangs(void **state)
+{
+    double s0, s1;
+    uint8_t i;
+    (void)state;
+    boot(&g_b, 1);
+    for (i = 0; i < 6; i++) {
+        assert_int_equal(xl430_get(&g_b.servo[i], DXL_XL430_BUS_WATCHDOG_ADDR, 1),
+                         APP_BUS_WATCHDOG);
+    }
+    /* a slow take-up keeps servo 0 moving for seconds */
+    cmd(&g_b, "set approach_fast 5", "ok");
+    cmd(&g_b, "cal 0.8 0", "ok");
+    assert_true(app_bench_wait_line(&g_b, "<progress state=tendon", g_line, sizeof g_line, 5000));
+    app_bench_run_ms(&g_b, 300);
+    s0 = xl430_shaft_ticks(&g_b.servo[0]);
+    app_bench_run_ms(&g_b, 300); /* fed by the bus cycle: still running */
+    s1 = xl430_shaft_ticks(&g_b.servo[0]);
+    assert_true(fabs(s1 - s0) > 5.0);
+    assert_int_equal(xl430_get(&g_b.servo[0], DXL_XL430_BUS_WATCHDOG_ADDR, 1), APP_BUS_WATCHDOG);
+    hang(&g_b, APP_BUS_WATCHDOG * 20000u + 50000u);
+    s0 = xl430_shaft_ticks(&g_b.servo[0]);
+    hang(&g_b, 200000u);
+    assert_true(fabs(xl430_shaft_ticks(&g_b.servo[0]) - s0) < 0.01);
+    assert_int_equal(xl430_get(&g_b.servo[0], DXL_XL430_BUS_WATCHDOG_ADDR, 1),
+                     DXL_XL430_BUS_WATCHDOG_EXPIRED);
+    /* watchdog reset of the board: nothing moves after the reboot */
+    app_bench_restart(&g_b, 0);
+    assert_true(app_bench_wait_line(&g_b, "<ready ", g_line, sizeof g_line, 4000));
+    app_bench_run_ms(&g_b, 500);
+    assert_true(fabs(xl430_shaft_ticks(&g_b.servo[0]) - s0) < 0.5);
+    for (i = 0; i < 6; i++) {
+        assert_int_equal(xl430_get(&g_b.servo[i], DXL_XL430_BUS_WATCHDOG_ADDR, 1),
+                         APP_BUS_WATCHDOG);
+    }
+    /* goals are accepted again: the release arrives */
+    cmd(&g_b, "release", "ok");
+    assert_true(app_bench_wait_line(&g_b, "<done mode=release", g_line, sizeof g_line, 3000));
+    assert_true(fabs(xl430_shaft_ticks(&g_b.servo[0]) - s0) > 5.0);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -507,6 +559,7 @@ int main(void)
         cmocka_unit_test(test_store_idle_only_and_moved_spool),
         cmocka_unit_test(test_button_calibrates_and_stores),
         cmocka_unit_test(test_bus_noise_calibrates),
+        cmocka_unit_test(test_bus_watchdog_stops_servos_when_the_board_hangs),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
