@@ -241,8 +241,8 @@ HOM_NOINLINE static int load_tendon(hom_t *h, const tbl_src_t *table, const hom_
     t->sensor = row.sensor;
     t->target_cuT = pt.target_cuT;
     t->travel_ticks = um_to_ticks(pt.travel_um, row.nm_per_tick);
-    t->limit_ticks = muldiv((int32_t)row.travel_limit_um, 1000, (int32_t)row.nm_per_tick);
     t->margin_ticks = um_to_ticks(h->cfg.slack_margin_um, row.nm_per_tick);
+    t->limit_ticks = muldiv((int32_t)row.travel_limit_um, 1000, (int32_t)row.nm_per_tick);
     if ((cmd->stored_mask >> i) & 1u) {
         t->est_home = cmd->stored_home[i]; /* unwrapped once positions are known */
         t->have_home = 2;                  /* 2: stored, not yet measured */
@@ -343,7 +343,6 @@ HOM_NOINLINE static int32_t pull(const hom_tendon_t *t, int32_t d)
     return t->dir < 0 ? -d : d;
 }
 
-/* The release goal of an engaged tendon: the slack margin short of engagement. */
 HOM_NOINLINE static int32_t slack_goal(const hom_tendon_t *t)
 {
     return t->engage - pull(t, t->margin_ticks);
@@ -425,6 +424,12 @@ HOM_NOINLINE static int32_t floor_div256(int32_t q8)
     return q8 >= 0 ? (q8 + 128) / 256 : -((-q8 + 127) / 256);
 }
 
+/* Of two goals, the one further in the release direction. */
+HOM_NOINLINE static int32_t further_back(const hom_tendon_t *t, int32_t g, int32_t x)
+{
+    return pull(t, x - g) < 0 ? x : g;
+}
+
 /* Ends the run in a fault: the release goals go out in this very step. A
  * tendon that engaged goes back to the margin beyond its engagement; any
  * other goes back the margin from where it is (or keeps a release already
@@ -439,16 +444,15 @@ HOM_NOINLINE static void fail(hom_t *h, hom_fault_t f, uint8_t dev, uint8_t inde
     if (h->moved) {
         for (i = 0; i < h->n_tendons; i++) {
             const hom_tendon_t *t = &h->tendon[i];
-            int32_t g = h->present[i] - pull(t, t->margin_ticks);
-            if (t->engaged && pull(t, slack_goal(t) - g) < 0) {
-                g = slack_goal(t);
+            int32_t m = pull(t, t->margin_ticks);
+            int32_t g = h->present[i] - m;
+            if (t->engaged) {
+                g = further_back(t, g, t->engage - m);
             }
-            if (t->have_slack && pull(t, t->slack_pos - g) < 0) {
-                g = t->slack_pos; /* a tendon pulled without engaging: back to slack */
+            if (t->have_slack) {
+                g = further_back(t, g, t->slack_pos); /* pulled without engaging: to slack */
             }
-            if (pull(t, h->out.goal[i] - g) < 0) {
-                g = h->out.goal[i]; /* a release already going further */
-            }
+            g = further_back(t, g, h->out.goal[i]); /* a release already going further */
             set_goal(h, i, g, h->cfg.v_release);
         }
         push_event(h, HOM_EV_RELEASED, 0, 0, (int32_t)f, 0);
