@@ -23,8 +23,8 @@ enum {
     ST_FAULT
 };
 
-/* Helpers stay functions of their own: on the AVR each inlined copy of 32-
- * and 64-bit arithmetic costs more code than the call. */
+/* Functions that measured smaller on the AVR as calls than inlined (each
+ * inlined copy of 32- and 64-bit arithmetic costs more than the call). */
 #if defined(__GNUC__)
 #define HOM_NOINLINE __attribute__((noinline))
 #else
@@ -181,7 +181,7 @@ HOM_NOINLINE static int32_t um_to_ticks(uint32_t um, uint32_t nm_per_tick)
 /* A stored home moved into this power cycle's frame: the XL430 keeps the angle
  * within one turn but not the turn count, and the spool does not turn half a
  * revolution while unpowered. */
-HOM_NOINLINE static int32_t unwrap_home(int32_t stored, int32_t present)
+static int32_t unwrap_home(int32_t stored, int32_t present)
 {
     int32_t d = (int32_t)((uint32_t)(stored - present) & 4095u);
     if (d >= 2048) {
@@ -409,7 +409,7 @@ HOM_NOINLINE static void avg_of(const hom_t *h, uint8_t k, int32_t out[3])
     }
 }
 
-HOM_NOINLINE static uint32_t delta_of(const hom_t *h, uint8_t k, const int32_t b[3])
+static uint32_t delta_of(const hom_t *h, uint8_t k, const int32_t b[3])
 {
     int32_t d[3];
     int a;
@@ -419,7 +419,7 @@ HOM_NOINLINE static uint32_t delta_of(const hom_t *h, uint8_t k, const int32_t b
     return hom_norm3(d);
 }
 
-HOM_NOINLINE static int32_t floor_div256(int32_t q8)
+static int32_t floor_div256(int32_t q8)
 {
     return q8 >= 0 ? (q8 + 128) / 256 : -((-q8 + 127) / 256);
 }
@@ -544,7 +544,7 @@ HOM_NOINLINE static int check_servos(hom_t *h, const hom_in_t *in)
 
 /* Preflight: every device must answer within preflight_ms; each one that does
  * not, or reports an error, is named before the refusal. */
-HOM_NOINLINE static void do_preflight(hom_t *h, const hom_in_t *in)
+static void do_preflight(hom_t *h, const hom_in_t *in)
 {
     uint8_t i;
     int missing = 0;
@@ -643,13 +643,13 @@ HOM_NOINLINE static void do_preflight(hom_t *h, const hom_in_t *in)
     fail(h, HOM_F_PREFLIGHT, HOM_DEV_NONE, 0, missing);
 }
 
-HOM_NOINLINE static int32_t um_ticks_cur(const hom_t *h, uint8_t i, uint32_t um)
+static int32_t um_ticks_cur(const hom_t *h, uint8_t i, uint32_t um)
 {
     return um_to_ticks(um, h->tendon[i].nm_per_tick);
 }
 
 /* The next tendon to calibrate at or after `from`, or n_tendons when none. */
-HOM_NOINLINE static uint8_t next_tendon(const hom_t *h, uint8_t from)
+static uint8_t next_tendon(const hom_t *h, uint8_t from)
 {
     if (h->mode == HOM_MODE_SINGLE) {
         return from <= h->single ? h->single : h->n_tendons;
@@ -819,7 +819,7 @@ HOM_NOINLINE static uint8_t near_samples(const hom_t *h, int32_t s_q8)
 
 /* Keeps a point averaged near the target for the final fit (the newest
  * HOM_FIT_POINTS). */
-HOM_NOINLINE static void keep_point(hom_t *h, int32_t p, uint32_t b, uint8_t n)
+static void keep_point(hom_t *h, int32_t p, uint32_t b, uint8_t n)
 {
     uint8_t k;
     if (h->n_pts == HOM_FIT_POINTS) {
@@ -936,7 +936,7 @@ HOM_NOINLINE static int32_t table_remaining_q8(const hom_t *h, uint32_t b)
  * down, at least one), three quarters of it beyond, so the approach stays on
  * the slack side of the target. A wide overshoot backs off to slack and comes
  * again to the last point known to be short of it. */
-HOM_NOINLINE static void fine_point(hom_t *h)
+static void fine_point(hom_t *h)
 {
     hom_tendon_t *t = &h->tendon[h->cur];
     int32_t avg[3];
@@ -1038,7 +1038,7 @@ HOM_NOINLINE static void fine_point(hom_t *h)
     }
 }
 
-HOM_NOINLINE static void slack_done(hom_t *h)
+static void slack_done(hom_t *h)
 {
     uint8_t k;
     uint8_t i;
