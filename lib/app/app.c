@@ -150,7 +150,7 @@ static uint32_t now_us(const app_t *a)
     return a->io->board->now_us(a->io->board->ctx);
 }
 
-static uint16_t bit16(uint8_t i)
+APP_NOINLINE static uint16_t bit16(uint8_t i)
 {
     return (uint16_t)(1u << i);
 }
@@ -161,7 +161,7 @@ static uint8_t has(uint16_t m, uint8_t i)
     return (uint8_t)((m >> i) & 1u);
 }
 
-static uint16_t all_mask(const app_t *a)
+APP_NOINLINE static uint16_t all_mask(const app_t *a)
 {
     return (uint16_t)((1u << a->info.n_tendons) - 1u);
 }
@@ -325,7 +325,7 @@ static int32_t um_ticks(uint32_t npt, uint32_t um)
 
 /* Ticks to um, split so that the products stay in 32 bits for any
  * extended-position value (+-256 turns). */
-static int32_t ticks_um(uint32_t npt, int32_t ticks)
+APP_NOINLINE static int32_t ticks_um(uint32_t npt, int32_t ticks)
 {
     return ticks * (int32_t)(npt / 1000u) + ticks * (int32_t)(npt % 1000u) / 1000;
 }
@@ -495,7 +495,7 @@ static int8_t rep_missing(app_t *a)
 }
 
 /* The bring-up's entry for servo id, or NULL. */
-static const dxl_servo_info *bring_info(const app_t *a, uint8_t id)
+APP_NOINLINE static const dxl_servo_info *bring_info(const app_t *a, uint8_t id)
 {
     uint8_t j;
     for (j = 0; j < a->u.bring.n; j++) {
@@ -548,9 +548,12 @@ static void servo_lines(app_t *a, uint8_t with_model)
         rep_int(a, s_tendon, i);
         rep_int(a, s_id, a->ids[i]);
         rep_int(a, s_found, has(a->servo_absent, i) == 0u);
-        if (with_model && bring_info(a, a->ids[i]) != NULL) {
-            rep_int(a, s_model, bring_info(a, a->ids[i])->model);
-            rep_int(a, s_fw, bring_info(a, a->ids[i])->firmware);
+        if (with_model) {
+            const dxl_servo_info *s = bring_info(a, a->ids[i]);
+            if (s != NULL) {
+                rep_int(a, s_model, s->model);
+                rep_int(a, s_fw, s->firmware);
+            }
         }
         rep_int(a, s_pos, a->present[i]);
         rep_int(a, s_cal_pos, a->present[i] + a->offset[i]);
@@ -659,7 +662,7 @@ static uint8_t present_ids(const app_t *a, uint8_t *ids, uint16_t *mask)
     return n;
 }
 
-static void put32(uint8_t *p, uint32_t v)
+APP_NOINLINE static void put32(uint8_t *p, uint32_t v)
 {
     p[0] = (uint8_t)v;
     p[1] = (uint8_t)(v >> 8);
@@ -730,8 +733,9 @@ static uint16_t off_goal(const app_t *a)
 APP_NOINLINE static void servo_next(app_t *a)
 {
     uint8_t ids[TBL_MAX_TENDONS];
-    uint8_t i, n = 0;
-    uint16_t mask;
+    uint8_t data[GOALS_PER_TXN * 12u];
+    uint8_t i, n = 0, txn, v;
+    uint16_t mask, addr;
     if (a->reboot_req) {
         a->reboot_req = 0;
         if (dxl_reboot(&a->dxl, a->reboot_id) > 0) {
@@ -741,26 +745,29 @@ APP_NOINLINE static void servo_next(app_t *a)
         }
         return;
     }
-    if (a->wdog_step != 0u) {
-        /* two writes per servo, from the last: 0 clears an expired watchdog
-         * (the servo refuses goals until then), then the period arms it */
-        uint8_t st = a->wdog_step--;
-        i = (uint8_t)((st - 1u) >> 1);
-        if (has(a->servo_absent, i) == 0u &&
-            dxl_write_value(&a->dxl, a->ids[i], DXL_XL430_BUS_WATCHDOG_ADDR,
-                            (st & 1u) ? APP_BUS_WATCHDOG : 0u, 1) > 0) {
-            a->sv_txn = TX_WDOG;
+    if (a->wdog_step != 0u || a->torque_due != 0u) {
+        if (a->wdog_step != 0u) {
+            /* two writes per servo, from the last: 0 clears an expired
+             * watchdog (the servo refuses goals until then), then the
+             * period arms it */
+            v = a->wdog_step--;
+            i = (uint8_t)((v - 1u) >> 1);
+            if (has(a->servo_absent, i)) {
+                return;
+            }
+            v = (v & 1u) ? APP_BUS_WATCHDOG : 0u;
+            addr = DXL_XL430_BUS_WATCHDOG_ADDR;
+            txn = TX_WDOG;
+        } else {
+            for (i = 0; has(a->torque_due, i) == 0u; i++) {
+            }
+            a->torque_due &= (uint16_t)~bit16(i);
+            v = has(a->torque_on, i);
+            addr = DXL_XL430_TORQUE_ENABLE_ADDR;
+            txn = TX_TORQUE;
         }
-        return;
-    }
-    if (a->torque_due != 0u) {
-        for (i = 0; has(a->torque_due, i) == 0u; i++) {
-        }
-        a->torque_due &= (uint16_t)~bit16(i);
-        if (dxl_write_value(&a->dxl, a->ids[i], DXL_XL430_TORQUE_ENABLE_ADDR, has(a->torque_on, i),
-                            1) > 0) {
-            a->sv_txn = TX_TORQUE;
-            a->txn_mask = bit16(i);
+        if (dxl_write_value(&a->dxl, a->ids[i], addr, v, 1) > 0) {
+            a->sv_txn = txn;
         }
         return;
     }
@@ -771,44 +778,44 @@ APP_NOINLINE static void servo_next(app_t *a)
         }
         a->txn_mask = mask;
         a->sv_cycle++;
+        addr = DXL_XL430_HW_ERROR_ADDR;
+        v = 1;
+        txn = TX_HWERR;
         if (a->hwerr_due || (a->sv_cycle % APP_HWERR_EVERY) == 0u) {
             a->hwerr_due = 0;
-            if (dxl_sync_read(&a->dxl, DXL_XL430_HW_ERROR_ADDR, 1u, ids, n) > 0) {
-                a->sv_txn = TX_HWERR;
+        } else {
+            if ((a->sv_cycle % APP_GOAL_REFRESH_EVERY) == APP_GOAL_REFRESH_EVERY / 2u) {
+                a->goal_due = off_goal(a); /* this cycle refreshes goals instead */
             }
-            return;
-        }
-        if ((a->sv_cycle % APP_GOAL_REFRESH_EVERY) == APP_GOAL_REFRESH_EVERY / 2u) {
-            a->goal_due = off_goal(a); /* this cycle refreshes goals instead */
+            addr = DXL_XL430_PRESENT_POSITION_ADDR;
+            v = 4;
+            txn = TX_POS;
         }
         if (a->goal_due == 0u) {
-            if (dxl_sync_read(&a->dxl, DXL_XL430_PRESENT_POSITION_ADDR, 4u, ids, n) > 0) {
-                a->sv_txn = TX_POS;
+            if (dxl_sync_read(&a->dxl, addr, v, ids, n) > 0) {
+                a->sv_txn = txn;
             }
             return;
         }
         n = 0;
     }
-    {
-        uint8_t data[GOALS_PER_TXN * 12u];
-        for (i = 0; i < a->info.n_tendons && n < GOALS_PER_TXN; i++) {
-            if (has(a->goal_due, i) == 0u) {
-                continue;
-            }
-            a->goal_due &= (uint16_t)~bit16(i);
-            if (has(a->servo_absent, i)) {
-                continue;
-            }
-            ids[n] = a->ids[i];
-            put32(&data[n * 12u], a->acc);
-            put32(&data[n * 12u + 4u], a->u.hom.out.vel[i]);
-            put32(&data[n * 12u + 8u], (uint32_t)a->u.hom.out.goal[i]);
-            n++;
+    for (i = 0; i < a->info.n_tendons && n < GOALS_PER_TXN; i++) {
+        uint8_t *p = &data[n * 12u];
+        if (has(a->goal_due, i) == 0u) {
+            continue;
         }
-        if (n > 0u &&
-            dxl_sync_write(&a->dxl, DXL_XL430_PROFILE_ACCELERATION_ADDR, 12u, ids, data, n) > 0) {
-            a->sv_txn = TX_GOAL;
+        a->goal_due &= (uint16_t)~bit16(i);
+        if (has(a->servo_absent, i)) {
+            continue;
         }
+        ids[n++] = a->ids[i];
+        put32(p, a->acc);
+        put32(p + 4, a->u.hom.out.vel[i]);
+        put32(p + 8, (uint32_t)a->u.hom.out.goal[i]);
+    }
+    if (n > 0u &&
+        dxl_sync_write(&a->dxl, DXL_XL430_PROFILE_ACCELERATION_ADDR, 12u, ids, data, n) > 0) {
+        a->sv_txn = TX_GOAL;
     }
 }
 
@@ -832,7 +839,7 @@ APP_NOINLINE static void servo_poll(app_t *a)
 }
 
 /* Queues a goal for tendon i. */
-static void set_goal(app_t *a, uint8_t i, int32_t goal, uint16_t vel, uint16_t acc)
+APP_NOINLINE static void set_goal(app_t *a, uint8_t i, int32_t goal, uint16_t vel, uint16_t acc)
 {
     a->u.hom.out.goal[i] = goal;
     a->u.hom.out.vel[i] = vel;
@@ -1022,7 +1029,7 @@ APP_NOINLINE static void run_done(app_t *a)
     a->state = APP_ST_IDLE;
 }
 
-static int8_t check_devices(app_t *a)
+APP_NOINLINE static int8_t check_devices(app_t *a)
 {
     if (a->state == APP_ST_BOOT) {
         return CON_E_BUSY;
@@ -1036,6 +1043,16 @@ static int8_t check_devices(app_t *a)
 static uint8_t idle_state(const app_t *a)
 {
     return (uint8_t)(a->state == APP_ST_IDLE || a->state == APP_ST_FAULT);
+}
+
+/* 0 when every tendon has a stored home usable in this power cycle, else
+ * CON_E_NOT_HOMED or CON_E_MOVED (a spool turned while powered off). */
+APP_NOINLINE static int8_t homes_usable(const app_t *a)
+{
+    if (a->homes_rc != 0 || a->homes.valid_mask != all_mask(a)) {
+        return CON_E_NOT_HOMED;
+    }
+    return a->home_now != all_mask(a) ? CON_E_MOVED : 0;
 }
 
 /* Starts a homing run. Returns 0 or a CON_E_* code (nothing moves then). */
@@ -1066,11 +1083,9 @@ static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon
         return CON_E_TENSION_RANGE;
     }
     if (mode == HOM_MODE_QUICK) {
-        if (a->homes_rc != 0 || a->homes.valid_mask != all_mask(a)) {
-            return CON_E_NOT_HOMED;
-        }
-        if (a->home_now != all_mask(a)) {
-            return CON_E_MOVED;
+        e = homes_usable(a);
+        if (e != 0) {
+            return e;
         }
         tension = a->homes.tension_mN;
     }
@@ -1119,6 +1134,16 @@ static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon
     return 0;
 }
 
+/* A run or move ended in a fault: the rest positions are recorded once the
+ * servos have stopped. */
+APP_NOINLINE static void fault_rest(app_t *a, uint32_t t)
+{
+    a->state = APP_ST_FAULT;
+    a->led = APP_LED_FAULT;
+    a->rest_due = 1;
+    a->t_rest = (uint16_t)t;
+}
+
 APP_NOINLINE static void cal_step(app_t *a, hom_in_t *in)
 {
     hom_out_t out;
@@ -1160,10 +1185,7 @@ APP_NOINLINE static void cal_step(app_t *a, hom_in_t *in)
     if (rc == 0) {
         run_done(a);
     } else if (rc < 0) {
-        a->state = APP_ST_FAULT;
-        a->led = APP_LED_FAULT;
-        a->rest_due = 1;
-        a->t_rest = (uint16_t)in->now_ms;
+        fault_rest(a, in->now_ms);
         a->released = 1;
     }
 }
@@ -1274,10 +1296,7 @@ APP_NOINLINE static void move_step(app_t *a)
     if (!arrived) {
         if (t - a->t_move > APP_MOVE_TIMEOUT_MS) {
             rep_app_fault(a, s_servo_stall, CON_E_TIMEOUT, HOM_DEV_SERVO, 0);
-            a->state = APP_ST_FAULT;
-            a->led = APP_LED_FAULT;
-            a->rest_due = 1;
-            a->t_rest = (uint16_t)t;
+            fault_rest(a, t);
             if (a->move_kind == MOVE_HOME) {
                 (void)release_goals(a);
             }
@@ -1789,11 +1808,9 @@ static int8_t h_home(con_t *con, const con_args_t *args, void *ctx)
     if (e != 0) {
         return e;
     }
-    if (a->homes.valid_mask != all_mask(a) || a->homes_rc != 0) {
-        return CON_E_NOT_HOMED;
-    }
-    if (a->home_now != all_mask(a)) {
-        return CON_E_MOVED;
+    e = homes_usable(a);
+    if (e != 0) {
+        return e;
     }
     hom_config_default(&cfg);
     for (i = 0; i < a->info.n_tendons; i++) {
