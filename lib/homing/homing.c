@@ -1097,13 +1097,15 @@ HOM_NOINLINE static void do_slack_avg(hom_t *h)
     for (k = 0; k < h->n_sensors; k++) {
         int32_t avg[3];
         int32_t d[3];
+        uint32_t n;
         int a;
         avg_of(h, k, avg);
         for (a = 0; a < 3; a++) {
             d[a] = avg[a] - h->sensor[k].b0[a];
         }
-        if (hom_norm3(d) > worst) {
-            worst = hom_norm3(d);
+        n = hom_norm3(d);
+        if (n > worst) {
+            worst = n;
         }
     }
     done = h->mode == HOM_MODE_DRY || (h->steps > 0u && worst <= h->engage_cuT);
