@@ -569,8 +569,8 @@ static void do_preflight(hom_t *h, const hom_in_t *in)
         } else if (st == HOM_SENS_ERROR || st == HOM_SENS_OVERFLOW || st == HOM_SENS_ABSENT) {
             h->seen[i] |= (uint8_t)(st == HOM_SENS_ABSENT ? 2u : 4u);
         }
-        if ((h->seen[i] & 1u) == 0u) {
-            all = 0;
+        if (h->seen[i] != 1u) {
+            all = 0; /* not sampled yet, or an error reported earlier */
         }
     }
     for (i = 0; i < h->n_tendons; i++) {
@@ -587,29 +587,17 @@ static void do_preflight(hom_t *h, const hom_in_t *in)
     }
     if (all) {
         for (i = 0; i < h->n_sensors; i++) {
-            if (h->seen[i] != 1u) {
-                all = 0; /* an error reported earlier still counts */
-            }
-        }
-    }
-    if (all) {
-        for (i = 0; i < h->n_sensors; i++) {
             h->sensor[i].last_ms = h->now_ms;
         }
-        for (i = 0; i < h->n_tendons; i++) {
-            h->tendon[i].est_home = unwrap_home(h->tendon[i].est_home, h->present[i]);
-            h->tendon[i].start_pos = h->present[i];
-        }
         push_event(h, HOM_EV_PHASE, HOM_PH_RELEASE, 0, 0, 0);
-        if (h->mode == HOM_MODE_DRY) {
-            h->state = ST_SLACK_AVG;
-            h->t_phase = h->now_ms;
-            h->steps = 0;
-            return;
-        }
         for (i = 0; i < h->n_tendons; i++) {
             hom_tendon_t *t = &h->tendon[i];
             int32_t g;
+            t->est_home = unwrap_home(t->est_home, h->present[i]);
+            t->start_pos = h->present[i];
+            if (h->mode == HOM_MODE_DRY) {
+                continue;
+            }
             if (h->mode == HOM_MODE_QUICK) {
                 g = t->est_home - pull(t, t->travel_ticks + t->margin_ticks);
             } else {
@@ -617,7 +605,8 @@ static void do_preflight(hom_t *h, const hom_in_t *in)
             }
             set_goal(h, i, g, h->cfg.v_release);
         }
-        h->state = ST_RELEASE_ALL;
+        /* a dry run moves nothing: straight to the baseline average */
+        h->state = h->mode == HOM_MODE_DRY ? ST_SLACK_AVG : ST_RELEASE_ALL;
         h->t_phase = h->now_ms;
         h->steps = 0;
         return;
@@ -666,19 +655,25 @@ HOM_NOINLINE static int32_t search_ticks(const hom_t *h, uint8_t i)
     return (released > 0 ? released : 0) + um_ticks_cur(h, i, h->cfg.max_takeup_um);
 }
 
+/* Distance of tendon i to its goal in the final move: its home (measured or
+ * stored), else where it was sent last. */
+HOM_NOINLINE static int32_t final_dist(const hom_t *h, uint8_t i, int32_t *goal)
+{
+    const hom_tendon_t *t = &h->tendon[i];
+    int32_t d;
+    *goal = t->have_home == 1u ? t->home : (t->have_home == 2u ? t->est_home : h->out.goal[i]);
+    d = *goal - h->present[i];
+    return d < 0 ? -d : d;
+}
+
 HOM_NOINLINE static void begin_final(hom_t *h)
 {
     uint8_t i;
     int32_t dmax = 1;
-    int32_t goal[TBL_MAX_TENDONS];
+    int32_t g;
     push_event(h, HOM_EV_PHASE, HOM_PH_FINAL, 0, 0, 0);
     for (i = 0; i < h->n_tendons; i++) {
-        const hom_tendon_t *t = &h->tendon[i];
-        int32_t d;
-        goal[i] =
-            t->have_home == 1u ? t->home : (t->have_home == 2u ? t->est_home : h->out.goal[i]);
-        d = goal[i] - h->present[i];
-        d = d < 0 ? -d : d;
+        int32_t d = final_dist(h, i, &g);
         if (d > dmax) {
             dmax = d;
         }
@@ -687,11 +682,9 @@ HOM_NOINLINE static void begin_final(hom_t *h)
      * so every tendon arrives at the same moment */
     for (i = 0; i < h->n_tendons; i++) {
         if (h->tendon[i].have_home != 0u) {
-            int32_t d = goal[i] - h->present[i];
-            uint32_t v;
-            d = d < 0 ? -d : d;
-            v = ((uint32_t)h->cfg.v_final * (uint32_t)d + (uint32_t)dmax - 1u) / (uint32_t)dmax;
-            set_goal(h, i, goal[i], (uint16_t)(v == 0u ? 1u : v));
+            uint32_t d = (uint32_t)final_dist(h, i, &g);
+            uint32_t v = ((uint32_t)h->cfg.v_final * d + (uint32_t)dmax - 1u) / (uint32_t)dmax;
+            set_goal(h, i, g, (uint16_t)(v == 0u ? 1u : v));
         }
     }
     h->state = ST_FINAL;
