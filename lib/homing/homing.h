@@ -64,7 +64,8 @@
  * by the number of tendons and sensors. One 64-bit integer square root per
  * new sample of the selected sensor, a few 64-bit multiply-divides per fine
  * point. The table must stay readable (and its copy function valid) until
- * the run ends: the fine approach reads it.
+ * the run ends: the magnet check, the start of each tendon and the fine
+ * approach read it.
  */
 #ifndef HALLHOME_HOMING_H
 #define HALLHOME_HOMING_H
@@ -329,7 +330,7 @@ void hom_config_default(hom_config_t *cfg);
 void hom_init(hom_t *h, const hom_config_t *cfg);
 
 /* Starts a run: validates the table, interpolates every tendon's target at
- * the tension (the table stays in use for the fine approach: keep it and its
+ * the tension (the table stays in use during the run: keep it and its
  * copy function valid until the run ends), resets the events and results of the previous run
  * (stored homes from cmd are kept for the final move and quick mode). Returns 0, HOM_E_ARG,
  * HOM_E_TABLE, HOM_E_TENSION, HOM_E_BUSY or HOM_E_HOMES. Nothing moves until
