@@ -782,18 +782,6 @@ HOM_NOINLINE static void begin_fine_move(hom_t *h)
     h->t_phase = h->now_ms;
 }
 
-HOM_NOINLINE static void finish_tendon(hom_t *h, int32_t home_q8)
-{
-    hom_tendon_t *t = &h->tendon[h->cur];
-    t->home = floor_div256(home_q8);
-    t->have_home = 1;
-    push_event(h, HOM_EV_HOME, 0, h->cur, t->home, home_q8 - t->home * 256);
-    set_goal(h, h->cur, slack_goal(t), h->cfg.v_release);
-    t->slack_pos = slack_goal(t);
-    h->state = ST_TENDON_RELEASE;
-    h->t_phase = h->now_ms;
-}
-
 /* Samples to average at a point near the target: enough that the noise of
  * the average (table noise per axis / sqrt n) is at most a seventh of the
  * field change of one tick; at least twice avg_samples, at most HOM_MAX_AVG.
@@ -881,6 +869,21 @@ HOM_NOINLINE static int32_t fit_or(const hom_t *h, int32_t p, int32_t fallback)
     return p * 256 + pull(t, x_q8);
 }
 
+/* The home is found: the fit through the near points of p, or `fallback`
+ * (1/256 tick); reported, then the tendon goes back to slack. */
+HOM_NOINLINE static void finish_tendon(hom_t *h, int32_t p, int32_t fallback)
+{
+    hom_tendon_t *t = &h->tendon[h->cur];
+    int32_t home_q8 = fit_or(h, p, fallback);
+    t->home = floor_div256(home_q8);
+    t->have_home = 1;
+    push_event(h, HOM_EV_HOME, 0, h->cur, t->home, home_q8 - t->home * 256);
+    t->slack_pos = slack_goal(t);
+    set_goal(h, h->cur, t->slack_pos, h->cfg.v_release);
+    h->state = ST_TENDON_RELEASE;
+    h->t_phase = h->now_ms;
+}
+
 /* Remaining travel from a field b to the target along the table's own
  * field-travel curve (inverse interpolation over the grid, engagement as the
  * origin), 1/256 tick; 0 when the table cannot say. The field is not linear
@@ -951,13 +954,13 @@ static void fine_point(hom_t *h)
         if (h->have_prev && dp == 0) {
             /* the same position averaged again h->now_ms reads at or past the
              * target: the target is here, within the noise */
-            finish_tendon(h, fit_or(h, p, p * 256));
+            finish_tendon(h, p, p * 256);
             return;
         }
         if (h->have_prev && b > h->b_prev && dp >= 1 && dp <= 3) {
             int32_t f = muldiv((int32_t)(t->target_cuT - h->b_prev), (p - h->p_prev) * 256,
                                (int32_t)(b - h->b_prev));
-            finish_tendon(h, fit_or(h, p, h->p_prev * 256 + f));
+            finish_tendon(h, p, h->p_prev * 256 + f);
             return;
         }
         if (++t->retries > 2u) {
@@ -1001,7 +1004,7 @@ static void fine_point(hom_t *h)
         }
     }
     if (r_q8 < 128 && h->near) {
-        finish_tendon(h, fit_or(h, p, p * 256 + pull(t, (int32_t)r_q8)));
+        finish_tendon(h, p, p * 256 + pull(t, (int32_t)r_q8));
         return;
     }
     room = (t->limit_ticks - pull(t, p - t->engage)) * 256;
