@@ -92,7 +92,7 @@ enum {
 #define STORE_KIND_LEARNED     0x4Cu /* 'L' */
 #define STORE_KIND_HIST        0x52u /* 'R' */
 #define STORE_KIND_NONE        0x00u /* slot being rewritten */
-#define STORE_SETTINGS_VERSION 1u    /* raise when store_settings.def changes meaning/order */
+#define STORE_SETTINGS_VERSION 2u    /* raise when store_settings.def changes meaning/order */
 #define STORE_HOMES_VERSION    1u
 #define STORE_LEARNED_VERSION  1u
 #define STORE_HIST_VERSION     1u

@@ -198,12 +198,13 @@ def test_client_against_the_firmware(bench):
             c.command("get no_such_setting")
         assert (e.value.code, e.value.name) == (17, "UNKNOWN_SETTING")
         assert e.value.text == protocol.ERRORS[17].text
+        filter_k = protocol.SETTINGS_BY_NAME["filter_k"]
         with pytest.raises(BoardError) as e:
-            c.command("set filter_k 65")
+            c.command(f"set filter_k {filter_k.max + 1}")
         assert e.value.name == "SETTING_RANGE"
         with pytest.raises(LocalError):
             c.command("cal 11")  # out of range: checked locally
-        assert c.command("get filter_k").first("setting").get("value") == 8
+        assert c.command("get filter_k").first("setting").get("value") == filter_k.default
         assert c.garbled == 0 and c.resets == 0
 
 
