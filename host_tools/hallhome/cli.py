@@ -48,8 +48,15 @@ def check_cmd(robots):
 @click.option("--out-dir", type=click.Path(file_okay=False), default=None,
               help="Where to write <robot>.c and <robot>.json "
                    "(default lookup_tables/generated).")
+@click.option("--learned", "learned", multiple=True,
+              type=click.Path(exists=True, dir_okay=False),
+              help="Learned targets exported by `hallhome learn` (learned_<robot>.json) to "
+                   "compile in instead of the model's, for one robot TOML; repeatable, applied "
+                   "in order. Writes <robot>_learned.c (symbol tbl_table_<robot>_learned, "
+                   "`make firmware ROBOT=<robot>_learned`) and <robot>_learned.json; the "
+                   "model's <robot>.c is left alone.")
 @click.option("--quiet", "-q", is_flag=True, help="Print only warnings and errors.")
-def tables_cmd(robots, all_robots, out_dir, quiet):
+def tables_cmd(robots, all_robots, out_dir, learned, quiet):
     """Generate the C lookup table and its JSON twin for each robot TOML.
 
     For every tendon alone, the Cosserat model gives the tip pose at each grid
@@ -70,6 +77,8 @@ def tables_cmd(robots, all_robots, out_dir, quiet):
         paths += robot_files()
     if not paths:
         raise click.UsageError("name at least one robot TOML, or --all")
+    if learned and len(paths) != 1:
+        raise click.UsageError("--learned applies to exactly one robot TOML")
     out = Path(out_dir) if out_dir else GENERATED_DIR
     err = Console(stderr=True, highlight=False)
     for path in paths:
@@ -80,7 +89,7 @@ def tables_cmd(robots, all_robots, out_dir, quiet):
 
                 def step(n, _task=task):
                     prog.update(_task, completed=n)
-                gen = generate(path, out, progress=step)
+                gen = generate(path, out, progress=step, learned=learned)
         except RobotError as exc:
             raise click.ClickException("invalid robot description:\n" + str(exc)) from None
         except TableError as exc:
@@ -88,8 +97,12 @@ def tables_cmd(robots, all_robots, out_dir, quiet):
         for w in gen.result.warnings:
             err.print(f"[yellow]warning:[/yellow] {gen.robot.name}: {w}")
         if not quiet:
+            extra = ""
+            if gen.learned is not None:
+                extra = (f", {sum(f.count for f in gen.learned.files)} learned target(s) over "
+                         f"the model table 0x{gen.learned.model_table_id:08X}")
             click.echo(f"{gen.robot.name}: wrote {gen.c_path} and {gen.json_path.name} "
-                       f"(table_id 0x{gen.table['table_id']:08X}, "
+                       f"(table_id 0x{gen.table['table_id']:08X}{extra}, "
                        f"{time.perf_counter() - t0:.2f} s)")
 
 

@@ -1,5 +1,6 @@
 """Lookup-table generator: robot TOML -> lookup_tables/generated/<robot>.c
-and its JSON twin <robot>.json (docs/tables.md).
+and its JSON twin <robot>.json (docs/tables.md); with learned targets
+exported by `hallhome learn`, <robot>_learned.c and .json instead.
 
 The C layout is declared once, in lib/table/table.h. This module parses that
 header for the constants (TBL_MAGIC, TBL_MAX_*, ...) and the struct fields,
@@ -16,12 +17,13 @@ import struct
 import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Sequence
 
 import numpy as np
 
 from hallhome.field import field_at_sensors, magnet_poses
 from hallhome.model import CosseratModel, Solution
-from hallhome.paths import LIB_DIR, PROJECT_ROOT
+from hallhome.paths import LIB_DIR, PROJECT_ROOT, ROBOTS_DIR
 from hallhome.robot import SENSOR_SATURATION_T, Robot, load_robot
 
 TABLE_HEADER = LIB_DIR / "table" / "table.h"
@@ -370,6 +372,236 @@ def _zero_struct(spec: TableSpec, sname: str) -> bytes:
     return b"\0" * size
 
 
+# --- learned targets (`hallhome learn` exports) ------------------------------------
+
+LEARNED_FORMAT = "hallhome-learned"
+LEARNED_FORMAT_VERSION = 1
+LEARNED_SUFFIX = "_learned"  # <robot>_learned.c defines tbl_table_<robot>_learned
+_HEX_ID = re.compile(r"0[xX][0-9A-Fa-f]{1,8}")
+
+
+@dataclass(frozen=True)
+class LearnedFile:
+    """One validated learned-targets file (format in docs/operator.md)."""
+
+    path: Path
+    source: str  # the path as written into the outputs (project-relative or bare name)
+    robot: str
+    table_id: int  # the table the board ran while learning
+    grid_mN: tuple[int, ...]
+    targets: dict[int, tuple[int | None, ...]]  # tendon -> per grid_mN entry, None = not learned
+    samples: tuple[dict, ...]
+
+    @property
+    def count(self) -> int:
+        return sum(v is not None for row in self.targets.values() for v in row)
+
+
+def _is_int(v) -> bool:
+    return isinstance(v, int) and not isinstance(v, bool)
+
+
+def load_learned(path: str | Path) -> LearnedFile:
+    """Read and check a `hallhome learn` export on its own (the checks that
+    need the table are in apply_learned). Raises TableError naming the file
+    and the problem."""
+    path = Path(path)
+    where = path.name
+
+    def fail(msg: str):
+        raise TableError(f"learned targets {where}: {msg}")
+
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        fail(f"cannot read the file ({exc})")
+    try:
+        doc = json.loads(text)
+    except json.JSONDecodeError as exc:
+        fail(f"not valid JSON (line {exc.lineno}, column {exc.colno}: {exc.msg})")
+    if not isinstance(doc, dict):
+        fail("expected a JSON object at the top level")
+
+    def need(obj: dict, key: str, ctx: str = ""):
+        if key not in obj:
+            fail(f"missing field '{ctx}{key}'")
+        return obj[key]
+
+    if need(doc, "format") != LEARNED_FORMAT:
+        fail(f"format is {doc['format']!r}, expected {LEARNED_FORMAT!r} "
+             f"(the file `hallhome learn` writes)")
+    version = need(doc, "format_version")
+    if version != LEARNED_FORMAT_VERSION:
+        fail(f"format_version {version!r} is not supported (this generator reads "
+             f"{LEARNED_FORMAT_VERSION})")
+    robot = need(doc, "robot")
+    if not isinstance(robot, str) or not robot:
+        fail(f"robot must be a non-empty string, got {robot!r}")
+    tid = need(doc, "table_id")
+    if not isinstance(tid, str) or not _HEX_ID.fullmatch(tid):
+        fail(f"table_id must be a hex string like \"0x1115c2f1\", got {tid!r}")
+    grid = need(doc, "grid_mN")
+    if (not isinstance(grid, list) or len(grid) < 1
+            or not all(_is_int(g) and 0 < g <= 0xFFFF for g in grid)):
+        fail(f"grid_mN must be a list of tensions in mN (integers 1..65535), got {grid!r}")
+    if any(b <= a for a, b in zip(grid, grid[1:])):
+        fail(f"grid_mN is not strictly increasing: {grid}")
+    rows = need(doc, "tendons")
+    if not isinstance(rows, list):
+        fail(f"tendons must be a list, got {type(rows).__name__}")
+    targets: dict[int, tuple[int | None, ...]] = {}
+    for k, row in enumerate(rows):
+        ctx = f"tendons[{k}]."
+        if not isinstance(row, dict):
+            fail(f"tendons[{k}] must be an object")
+        t = need(row, "tendon", ctx)
+        if not _is_int(t) or t < 0:
+            fail(f"{ctx}tendon must be a tendon index (integer >= 0), got {t!r}")
+        vals = need(row, "target_cuT", ctx)
+        if not isinstance(vals, list) or len(vals) != len(grid):
+            fail(f"{ctx}target_cuT must be a list with one entry per grid_mN tension "
+                 f"({len(grid)}), got {vals!r}")
+        for g, v in zip(grid, vals):
+            if v is not None and not (_is_int(v) and 0 <= v <= 0xFFFFFFFF):
+                fail(f"{ctx}target_cuT at {g} mN must be null or an integer in cuT "
+                     f"(0..4294967295), got {v!r}")
+        if t in targets:
+            fail(f"tendon {t} appears twice in tendons")
+        targets[t] = tuple(vals)
+    samples = doc.get("samples", [])
+    if not isinstance(samples, list):
+        fail(f"samples must be a list, got {type(samples).__name__}")
+    for k, smp in enumerate(samples):
+        ctx = f"samples[{k}]."
+        if not isinstance(smp, dict):
+            fail(f"samples[{k}] must be an object")
+        for key in ("tendon", "tension_mN"):
+            v = need(smp, key, ctx)
+            if not _is_int(v) or v < 0:
+                fail(f"{ctx}{key} must be an integer >= 0, got {v!r}")
+    return LearnedFile(path, _relpath(path), robot, int(tid, 16), tuple(grid), targets,
+                       tuple(samples))
+
+
+@dataclass
+class LearnedApplied:
+    """The model's table with learned targets compiled in."""
+
+    name: str  # <robot>_learned: the file stem and the C symbol's suffix
+    table: dict  # as build_table's, learned target_cuT in place, table_id recomputed
+    model_table_id: int
+    files: list[LearnedFile]
+    mask: list[list[bool]]  # [tendon][grid point]: target learned
+    warnings: list[str]
+
+    def summary(self) -> str:
+        grid = self.table["grid_mN"]
+        parts = [f"{t}: " + ",".join(str(g) for g, m in zip(grid, row) if m)
+                 for t, row in enumerate(self.mask) if any(row)]
+        return "; ".join(parts)
+
+
+def apply_learned(table: dict, spec: TableSpec, robot: Robot,
+                  files: Sequence[LearnedFile]) -> LearnedApplied:
+    """Replace the model's target_cuT by the learned targets of ``files``,
+    applied in order: the first must have been learned on the model's table
+    (same table_id), each later one on the table the earlier ones give (the
+    firmware built from it). A later file's entry replaces an earlier one.
+    Raises TableError on any mismatch; returns warnings for grid points left
+    to the model and for targets that do not grow across the grid."""
+    if not files:
+        raise TableError("no learned targets file given")
+    name = robot.name + LEARNED_SUFFIX
+    if (ROBOTS_DIR / f"{name}.toml").exists():
+        raise TableError(f"{robot.path.name}: a robot named {name!r} exists in "
+                         f"lookup_tables/robots; its table and this learned table would "
+                         f"share a name")
+    grid = list(table["grid_mN"])
+    nt = table["n_tendons"]
+    model_id = table["table_id"]
+    cur = json.loads(json.dumps(table))  # deep copy, plain data
+    mask = [[False] * len(grid) for _ in range(nt)]
+    origin: dict[tuple[int, int], str] = {}
+    grid_txt = ", ".join(map(str, grid))
+    for lf in files:
+        where = f"learned targets {lf.path.name}"
+        if lf.robot != robot.name:
+            raise TableError(f"{where}: learned on robot {lf.robot!r}, but "
+                             f"{robot.path.name} describes {robot.name!r}")
+        for g in lf.grid_mN:
+            if g not in grid:
+                raise TableError(f"{where}: tension {g} mN is not on the table's grid "
+                                 f"({grid_txt} mN)")
+        for k, smp in enumerate(lf.samples):
+            if smp["tension_mN"] not in grid:
+                raise TableError(f"{where}: samples[{k}]: tension {smp['tension_mN']} mN is "
+                                 f"not on the table's grid ({grid_txt} mN)")
+            if smp["tendon"] >= nt:
+                raise TableError(f"{where}: samples[{k}]: tendon {smp['tendon']} out of range "
+                                 f"({robot.name} has tendons 0..{nt - 1})")
+        for t in lf.targets:
+            if t >= nt:
+                raise TableError(f"{where}: tendon {t} out of range ({robot.name} has "
+                                 f"tendons 0..{nt - 1})")
+        if lf.table_id != cur["table_id"]:
+            first = lf is files[0]
+            on = ("the model's table" if first else
+                  "the table the learned files before it give")
+            raise TableError(
+                f"{where}: learned on table 0x{lf.table_id:08X}, but {on} is "
+                f"0x{cur['table_id']:08X}. Learned targets are only valid for the table the "
+                f"board ran while learning (same TOML, model and sensor selection). "
+                + ("A file learned on a firmware with a learned table needs the learned "
+                   "files that built that table before it (--learned in order)."
+                   if first else "Give the files in the order their tables were built."))
+        for t, row in lf.targets.items():
+            for g, v in zip(lf.grid_mN, row):
+                if v is None:
+                    continue
+                gi = grid.index(g)
+                cur["tendons"][t]["target_cuT"][gi] = v
+                mask[t][gi] = True
+                origin[(t, gi)] = lf.path.name
+        cur["table_id"] = 0
+        _check_fields(cur, "tbl_table_t", spec)
+        cur["table_id"] = zlib.crc32(canonical_bytes(cur, spec))
+    if not any(any(row) for row in mask):
+        raise TableError(f"learned targets {', '.join(f.path.name for f in files)}: no learned "
+                         f"target at all (every target_cuT entry is null)")
+    warnings = []
+    for t in range(nt):
+        name_t = _tendon_name(robot, t)
+        vals = cur["tendons"][t]["target_cuT"]
+        pts = [(gi, vals[gi]) for gi in range(len(grid)) if mask[t][gi]]
+        for (ga, va), (gb, vb) in zip(pts, pts[1:]):
+            if vb <= va:
+                raise TableError(
+                    f"learned targets: {name_t}: learned target does not grow between "
+                    f"{grid[ga]} mN ({va} cuT, {origin[(t, ga)]}) and {grid[gb]} mN "
+                    f"({vb} cuT, {origin[(t, gb)]}): the targets must increase with the "
+                    f"tension (a mass hung on the wrong tendon, or a moved sensor?)")
+        left = [g for g, m in zip(grid, mask[t]) if not m]
+        if len(left) == len(grid):
+            warnings.append(f"{name_t}: no learned target; all {len(grid)} grid tensions keep "
+                            f"the model's target")
+        elif left:
+            warnings.append(f"{name_t}: {len(left)} of {len(grid)} grid tensions keep the "
+                            f"model's target ({', '.join(f'{g / 1e3:g}' for g in left)} N)")
+        if pts and left:
+            for k in range(len(grid) - 1):
+                if vals[k + 1] <= vals[k]:
+                    src = ["model" if not mask[t][i] else "learned" for i in (k, k + 1)]
+                    warnings.append(f"{name_t}: target does not grow between {grid[k]} mN "
+                                    f"({src[0]}, {vals[k]} cuT) and {grid[k + 1]} mN "
+                                    f"({src[1]}, {vals[k + 1]} cuT); learn the neighbouring "
+                                    f"grid points too")
+                    break
+    if robot.mode == "absolute":
+        warnings.append("the table's mode is absolute: learned targets replace the delta "
+                        "targets (target_cuT) only, abs_target_cuT stays the model's")
+    return LearnedApplied(name, cur, model_id, list(files), mask, warnings)
+
+
 # --- rendering ----------------------------------------------------------------------
 
 _SYMBOLS = {("tbl_table_t", "magic"): "TBL_MAGIC",
@@ -415,12 +647,20 @@ def _c_struct(spec: TableSpec, sname: str, value: dict, indent: str) -> str:
     return "{\n" + "\n".join(lines) + f"\n{indent}}}"
 
 
-def render_c(table: dict, spec: TableSpec, robot: Robot) -> str:
-    """The generated C source defining tbl_table_<robot>."""
+def render_c(table: dict, spec: TableSpec, robot: Robot,
+             learned: LearnedApplied | None = None) -> str:
+    """The generated C source defining tbl_table_<robot> (with learned
+    targets: tbl_table_<robot>_learned)."""
     src = _relpath(robot.path)
-    var = f"tbl_table_{robot.name}"
+    var = f"tbl_table_{robot.name}" if learned is None else f"tbl_table_{learned.name}"
     body = _c_struct(spec, "tbl_table_t", table, "")
-    return (f"/* generated by hallhome tables, do not edit: {src} */\n"
+    head = f"/* generated by hallhome tables, do not edit: {src} */\n"
+    if learned is not None:
+        head = (f"/* generated by hallhome tables, do not edit: {src}\n"
+                f" * learned targets from {', '.join(f.source for f in learned.files)}\n"
+                f" * over the model table 0x{learned.model_table_id:08X}; learned grid points "
+                f"(tendon: mN): {learned.summary()} */\n")
+    return (head +
             f"#include \"table/table.h\"\n\n"
             f"extern const tbl_table_t {var} TBL_FLASH;\n\n"
             f"const tbl_table_t {var} TBL_FLASH = {body};\n")
@@ -446,7 +686,8 @@ def _slope(x, y, at: float) -> float:
     return float(np.interp(at, x, np.gradient(np.asarray(y), np.asarray(x))))
 
 
-def render_json(res: RobotResult, table: dict, spec: TableSpec) -> str:
+def render_json(res: RobotResult, table: dict, spec: TableSpec,
+                learned: LearnedApplied | None = None) -> str:
     """The JSON twin (format in docs/tables.md)."""
     robot = res.robot
     grid = list(robot.tension_grid)
@@ -482,6 +723,11 @@ def render_json(res: RobotResult, table: dict, spec: TableSpec) -> str:
             "tick_resolution_N": _r(t.metres_per_tick / _slope(grid, tr.travel,
                                                                 robot.default_tension), 5),
         })
+        if learned is not None:
+            h = tendons[-1]
+            h["model_target_uT"] = h["target_uT"]
+            h["target_uT"] = _r(np.array(table["tendons"][t.index]["target_cuT"]) / 100.0, 3)
+            h["learned"] = list(learned.mask[t.index])
     doc = {
         "format": "hallhome-table",
         "format_version": spec["TBL_FORMAT_VERSION"],
@@ -508,6 +754,14 @@ def render_json(res: RobotResult, table: dict, spec: TableSpec) -> str:
              "differs": tr.selected != tr.closest} for k, tr in enumerate(res.tendons)],
         "warnings": res.warnings,
     }
+    if learned is not None:
+        doc["learned"] = {
+            "symbol": f"tbl_table_{learned.name}",
+            "model_table_id": f"0x{learned.model_table_id:08X}",
+            "files": [{"file": f.source, "table_id": f"0x{f.table_id:08X}",
+                       "targets": f.count} for f in learned.files],
+            "targets": sum(f.count for f in learned.files),
+        }
     text = json.dumps(doc, indent=1, ensure_ascii=True)
     # Keep innermost arrays of numbers on one line: the twin stays readable.
     text = re.sub(r"\[\s*([-0-9.eE,\s]+?)\s*\]",
@@ -522,22 +776,32 @@ class Generated:
     table: dict
     c_path: Path
     json_path: Path
+    learned: LearnedApplied | None = None
 
 
 def generate(robot_path: str | Path, out_dir: str | Path, progress=None,
-             steps: int = MODEL_STEPS) -> Generated:
+             steps: int = MODEL_STEPS, learned: Sequence[str | Path] = ()) -> Generated:
     """Load, compute and write <out_dir>/<robot>.c and .json. Files are only
-    rewritten when their content changes."""
+    rewritten when their content changes. With ``learned`` files (exported by
+    `hallhome learn`, applied in order) the learned targets replace the
+    model's and the files are <robot>_learned.c and .json instead."""
     spec = parse_table_header()
+    files = [load_learned(p) for p in learned]  # format errors before the model runs
     robot = load_robot(robot_path)
     res = compute(robot, steps=steps, progress=progress)
     table = build_table(res, spec)
+    applied = None
+    if files:
+        applied = apply_learned(table, spec, robot, files)
+        table = applied.table
+        res.warnings = res.warnings + applied.warnings
+    name = robot.name if applied is None else applied.name
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    c_path, json_path = out / f"{robot.name}.c", out / f"{robot.name}.json"
-    _write_if_changed(c_path, render_c(table, spec, robot))
-    _write_if_changed(json_path, render_json(res, table, spec))
-    return Generated(robot, res, table, c_path, json_path)
+    c_path, json_path = out / f"{name}.c", out / f"{name}.json"
+    _write_if_changed(c_path, render_c(table, spec, robot, applied))
+    _write_if_changed(json_path, render_json(res, table, spec, applied))
+    return Generated(robot, res, table, c_path, json_path, applied)
 
 
 def _write_if_changed(path: Path, text: str) -> None:
