@@ -241,5 +241,27 @@ def bench_cmd(robot, repeat, check):
         sys.exit(1)
 
 
+@main.command("plant-config")
+@click.argument("robot", type=click.Path(exists=True, dir_okay=False))
+@click.argument("out", type=click.Path(dir_okay=False))
+@click.option("--seed", type=int, default=None,
+              help="Seed of the parameter perturbation (reproducible robots).")
+@click.option("--perturb", type=click.FloatRange(0.0, 0.5), default=0.0, show_default=True,
+              help="Relative spread of the perturbed physical parameters (0 = nominal).")
+def plant_config_cmd(robot, out, seed, perturb):
+    """Write the virtual bench's plant config (sim/plant/README.md) for a robot TOML.
+
+    The plant is the bench's physics model of the robot; it deliberately
+    differs from the host's Cosserat model, so model error is real.
+    """
+    from hallhome.plantcfg import PlantConfigError, write_plant_config
+
+    try:
+        path = write_plant_config(_load(robot), out, seed=seed, perturb=perturb)
+    except PlantConfigError as exc:
+        raise click.ClickException(f"{robot}: {exc}") from None
+    click.echo(f"wrote {path}")
+
+
 from hallhome.operator import register as _register_operator  # noqa: E402
 _register_operator(main)

@@ -113,3 +113,32 @@ def test_closed_loop_generated_table_model_error(tmp_path):
     assert p.returncode == 0 and s, p.stdout + p.stderr
     assert s["faults"] == "0"
     assert abs(float(s["tension_err_mean_N"])) < 0.1
+
+
+def test_plant_config_command_writes_the_same_file_as_the_function(tmp_path):
+    from click.testing import CliRunner
+
+    from hallhome.cli import main
+    from hallhome.paths import ROBOTS_DIR
+    from hallhome.plantcfg import write_plant_config
+    from hallhome.robot import load_robot
+
+    toml = ROBOTS_DIR / "paper_2seg.toml"
+    out = tmp_path / "cli.cfg"
+    result = CliRunner().invoke(main, ["plant-config", str(toml), str(out), "--seed", "7",
+                                       "--perturb", "0.05"])
+    assert result.exit_code == 0, result.output
+    ref = write_plant_config(load_robot(toml), tmp_path / "ref.cfg", seed=7, perturb=0.05)
+    assert out.read_text() == ref.read_text()
+
+
+def test_plant_config_command_refuses_a_robot_the_plant_cannot_model(tmp_path):
+    from click.testing import CliRunner
+
+    from hallhome.cli import main
+    from hallhome.paths import ROBOTS_DIR
+
+    result = CliRunner().invoke(main, ["plant-config", str(ROBOTS_DIR / "trio_3seg.toml"),
+                                       str(tmp_path / "x.cfg")])
+    assert result.exit_code == 1
+    assert "trio_3seg.toml" in result.output and not (tmp_path / "x.cfg").exists()
