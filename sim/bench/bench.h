@@ -38,6 +38,7 @@
 /* ATmega2560 I/O addresses (data space) the bench touches directly
  * (datasheet 2549Q, "Register Summary"). */
 #define BENCH_MCUSR    0x54u
+#define BENCH_PIND     0x29u
 #define BENCH_DDRD     0x2Au
 #define BENCH_PINE     0x2Cu
 #define BENCH_EECR     0x3Fu

@@ -306,6 +306,21 @@ static int ee_save(bench_t *b)
     return 0;
 }
 
+/* The reset cleared the PIN registers, but a pin IRQ keeps its last level
+ * and simavr 1.6 filters a raise to the same level: raising the button's PE5
+ * high again after a reset left PINE5 reading 0, a button held down from the
+ * reset on (the firmware took it for a long press 2 s later), and PD2/PD3,
+ * PE6/PE7 low (INT2/3/6/7 polled every cycle). Write the levels the board
+ * holds on its inputs into the registers. */
+static void held_levels(bench_t *b)
+{
+    uint8_t *pine = &b->avr->data[BENCH_PINE];
+    uint8_t *pind = &b->avr->data[BENCH_PIND];
+    *pine = (uint8_t)((*pine & (uint8_t)~b->ext_e_mask) | b->ext_e_value);
+    *pind = (uint8_t)((*pind & (uint8_t)~b->twi.ext_d_mask) | b->twi.ext_d_value);
+    bus_pin_high(b);
+}
+
 /* After any reset (ours or the firmware's watchdog): simavr dropped every
  * host timer and cleared the I/O registers; put back what the board's
  * hardware holds there. */
@@ -337,6 +352,7 @@ static void after_reset(bench_t *b)
     b->twi.cur = -1;
     b->twi.addr_phase = 0;
     twi_bench_lines(b);
+    held_levels(b);
     bench_rearm(b);
 }
 
