@@ -190,6 +190,27 @@ static int32_t unwrap_home(int32_t stored, int32_t present)
     return present + d;
 }
 
+/* The quantity the approach drives towards a tendon's target: delta mode the
+ * table's |B(p_T) - B(p_0)| as it is; absolute mode the table's |B_magnet(p_T)|
+ * as a distance from the straight-pose |b_straight| of the tendon's sensor. */
+HOM_NOINLINE static uint32_t work_target(const hom_t *h, uint8_t k, uint32_t d, uint32_t abs_t)
+{
+    int32_t r;
+    if (h->amb == NULL) {
+        return d;
+    }
+    r = (int32_t)abs_t - (int32_t)h->sensor[k].p0;
+    return (uint32_t)(r < 0 ? -r : r);
+}
+
+/* Tendon i's table point at mN with target_cuT replaced by the approach
+ * quantity's target (work_target). */
+HOM_NOINLINE static void work_point(const hom_t *h, uint8_t i, uint16_t mN, tbl_point_t *pt)
+{
+    (void)tbl_target(&h->table, i, mN, pt);
+    pt->target_cuT = work_target(h, h->tendon[i].sensor, pt->target_cuT, pt->abs_target_cuT);
+}
+
 /* The table's local slope of |dB| over travel around the tension (a 100 mN
  * window clipped to the grid), cuT per tick with 8 fractional bits: the
  * first fine step's estimate before two points of its own exist. */
@@ -209,8 +230,8 @@ HOM_NOINLINE static int32_t table_slope(const hom_t *h, uint8_t i)
     t0 = (uint16_t)(t >= info.grid_mN[0] + 50u ? t - 50u : info.grid_mN[0]);
     t1 = (uint16_t)(t + 50u <= info.grid_mN[info.n_grid - 1u] ? t + 50u
                                                               : info.grid_mN[info.n_grid - 1u]);
-    (void)tbl_target(table, i, t0, &lo);
-    (void)tbl_target(table, i, t1, &hi);
+    work_point(h, i, t0, &lo);
+    work_point(h, i, t1, &hi);
     dticks = muldiv((int32_t)hi.travel_um - (int32_t)lo.travel_um, 1000, (int32_t)nm_per_tick);
     if (dticks <= 0 || hi.target_cuT <= lo.target_cuT) {
         dticks = muldiv((int32_t)hi.travel_um, 1000, (int32_t)nm_per_tick);
@@ -322,6 +343,22 @@ int hom_start(hom_t *h, const tbl_src_t *table, const hom_cmd_t *cmd)
             h->engage_cuT = h->tendon[i].target_cuT / 4u;
         }
     }
+    h->amb = cmd->ambient_cuT;
+    h->amb_capture = cmd->ambient_capture;
+    for (i = 0; h->amb != NULL && i < info.n_sensors; i++) {
+        tbl_sensor_t sn;
+        (void)tbl_sensor(table, i, &sn);
+        h->sensor[i].p0 = hom_norm3(sn.b_straight_cuT);
+    }
+    /* absolute mode: the engagement threshold stays the delta mode's; the
+     * targets become distances of |B_magnet(p_T)| from |b_straight| */
+    for (i = 0; h->amb != NULL && i < info.n_tendons; i++) {
+        hom_tendon_t *t = &h->tendon[i];
+        tbl_point_t pt;
+        work_point(h, i, tension, &pt);
+        t->abs_sign = pt.abs_target_cuT < h->sensor[t->sensor].p0 ? -1 : 1;
+        t->target_cuT = pt.target_cuT;
+    }
     h->state = ST_PREFLIGHT;
     h->t_phase = 0;
     h->fault = HOM_F_NONE;
@@ -409,14 +446,37 @@ HOM_NOINLINE static void avg_of(const hom_t *h, uint8_t k, int32_t out[3])
     }
 }
 
-static uint32_t delta_of(const hom_t *h, uint8_t k, const int32_t b[3])
+/* |b - r| */
+HOM_NOINLINE static uint32_t diff_norm(const int32_t b[3], const int32_t r[3])
 {
     int32_t d[3];
     int a;
     for (a = 0; a < 3; a++) {
-        d[a] = b[a] - h->sensor[k].b0[a];
+        d[a] = b[a] - r[a];
     }
     return hom_norm3(d);
+}
+
+static uint32_t delta_of(const hom_t *h, uint8_t k, const int32_t b[3])
+{
+    return diff_norm(b, h->sensor[k].b0);
+}
+
+/* The approach quantity of sensor k at field b: delta mode |b - B0|;
+ * absolute mode the selected tendon's signed distance of |b - A| from the
+ * straight-pose |b_straight| (0 below it), so that it rises from about 0 at
+ * engagement to target_cuT exactly where |b - A| meets the absolute target. */
+HOM_NOINLINE static uint32_t meas_of(const hom_t *h, uint8_t k, const int32_t b[3])
+{
+    int32_t m;
+    if (h->amb == NULL) {
+        return delta_of(h, k, b);
+    }
+    m = (int32_t)diff_norm(b, h->amb[k]) - (int32_t)h->sensor[k].p0;
+    if (h->tendon[h->cur].abs_sign < 0) {
+        m = -m;
+    }
+    return m < 0 ? 0u : (uint32_t)m;
 }
 
 static int32_t floor_div256(int32_t q8)
@@ -904,7 +964,7 @@ HOM_NOINLINE static int32_t table_remaining_q8(const hom_t *h, uint32_t b)
     }
     for (g = 0; g < info.n_grid && travel_b < 0; g++) {
         uint32_t x1 = row.travel_um[g];
-        uint32_t y1 = row.target_cuT[g];
+        uint32_t y1 = work_target(h, t->sensor, row.target_cuT[g], row.abs_target_cuT[g]);
         if (b < y1 && y1 > y0) {
             travel_b = (int32_t)x0 * 256 +
                        muldiv((int32_t)(b - y0), (int32_t)(x1 - x0) * 256, (int32_t)(y1 - y0));
@@ -945,7 +1005,7 @@ static void fine_point(hom_t *h)
     int32_t dp;
 
     avg_of(h, t->sensor, avg);
-    b = delta_of(h, t->sensor, avg);
+    b = meas_of(h, t->sensor, avg);
     dp = h->have_prev ? pull(t, p - h->p_prev) : 0;
     if (h->near) {
         keep_point(h, p, b, h->sensor[t->sensor].n_acc);
@@ -1049,6 +1109,12 @@ static void slack_done(hom_t *h)
         uint32_t pred;
         (void)tbl_sensor(&h->table, k, &s);
         pred = hom_norm3(s.b_straight_cuT); /* the table's straight-pose |B| */
+        if (h->amb_capture) {
+            int a;
+            for (a = 0; a < 3; a++) {
+                h->amb[k][a] = h->sensor[k].b0[a] - s.b_straight_cuT[a];
+            }
+        }
         if (pred >= 10000u && hom_norm3(h->sensor[k].b0) < pred / 2u) {
             fail(h, HOM_F_MAGNET_MISSING, HOM_DEV_SENSOR, k, (int32_t)hom_norm3(h->sensor[k].b0));
             return;
@@ -1161,6 +1227,7 @@ HOM_NOINLINE static void do_tendon(hom_t *h, const hom_in_t *in)
     uint8_t sel = t->sensor;
     int fresh = in->sensor[sel].status == HOM_SENS_NEW;
     uint32_t b = fresh ? delta_of(h, sel, in->sensor[sel].b_cuT) : 0u;
+    uint32_t m = fresh ? meas_of(h, sel, in->sensor[sel].b_cuT) : 0u;
     int32_t p = h->present[h->cur];
 
     if (since(h, h->t_tendon) > h->cfg.tendon_timeout_ms) {
@@ -1184,7 +1251,7 @@ HOM_NOINLINE static void do_tendon(hom_t *h, const hom_in_t *in)
         if (fresh && !t->engaged) {
             h->pos_at_sample = p;
         }
-        if (h->quick_leg && t->engaged && fresh && near_target(t, b, HOM_QUICK_STOP_PERMILLE)) {
+        if (h->quick_leg && t->engaged && fresh && near_target(t, m, HOM_QUICK_STOP_PERMILLE)) {
             stop_short(h, p); /* the stored home is further than the field says */
         } else if (reached(h, h->cur)) {
             if (h->quick_leg && t->engaged) {
@@ -1201,7 +1268,7 @@ HOM_NOINLINE static void do_tendon(hom_t *h, const hom_in_t *in)
     case ST_MODERATE:
         /* a re-approach goes to a point measured short of the target: only
          * the target itself stops it early */
-        if (fresh && near_target(t, b, t->retries != 0u ? 1000u : h->cfg.near_permille)) {
+        if (fresh && near_target(t, m, t->retries != 0u ? 1000u : h->cfg.near_permille)) {
             stop_short(h, p);
         } else if (reached(h, h->cur)) {
             begin_fine_move(h);

@@ -233,7 +233,9 @@ typedef struct {
     uint8_t engaged;      /* engage is valid */
     uint8_t have_home;    /* home is valid (this run or stored, for the final move) */
     uint8_t retries;      /* re-approaches after overshooting the target */
-    uint32_t target_cuT;  /* |B - B0| target at the requested tension */
+    int8_t abs_sign;      /* absolute mode: +1 when |B| rises towards the target, -1 falls */
+    uint32_t target_cuT;  /* |B - B0| target at the requested tension; absolute mode:
+                             ||B_magnet(p_T)| - |b_straight|| (see hom_cmd_t) */
     int32_t travel_ticks; /* expected take-up from engagement */
     int32_t limit_ticks;  /* travel limit from engagement */
     int32_t margin_ticks; /* slack margin */
@@ -254,6 +256,7 @@ typedef struct {
     uint8_t n_acc;    /* samples in acc */
     uint8_t have_last;
     uint8_t err_run; /* consecutive read errors */
+    uint32_t p0;     /* absolute mode: the table's straight-pose |B| */
 } hom_sensor_t;
 
 /* Caller-owned state. Read-only for the application except through the
@@ -297,7 +300,9 @@ typedef struct {
     uint32_t t_start;    /* run start */
     uint32_t release_um; /* initial release (full and single modes) */
     hom_config_t cfg;
-    tbl_src_t table; /* the run's table: it must stay readable until the run ends */
+    tbl_src_t table;     /* the run's table: it must stay readable until the run ends */
+    int32_t (*amb)[3];   /* absolute mode: the caller's ambient offsets (NULL: delta mode) */
+    uint8_t amb_capture; /* absolute mode: this run captures them at its baseline */
     uint32_t servo_ok_ms[TBL_MAX_TENDONS];
     int32_t present[TBL_MAX_TENDONS];
     uint32_t moved_ms[TBL_MAX_TENDONS]; /* last goal written or change of the present position */
@@ -320,6 +325,14 @@ typedef struct {
     uint8_t tendon;                       /* HOM_MODE_SINGLE: the tendon to calibrate */
     uint16_t stored_mask;                 /* bit i: stored_home[i] is valid */
     int32_t stored_home[TBL_MAX_TENDONS]; /* homes from the last run (EEPROM), previous frame */
+    /* Target mode. NULL: delta mode (|B - B0| against target_cuT). Otherwise the
+     * paper's absolute mode: ambient_cuT[k] is sensor k's ambient offset A (cuT,
+     * sensor frame, one row per table sensor, caller-owned and valid until the run
+     * ends) and the selected sensor's |B - A| is compared with abs_target_cuT.
+     * With ambient_capture set, the run first writes A = B0 - b_straight_cuT for
+     * every sensor from its own baseline; otherwise it uses the stored A. */
+    int32_t (*ambient_cuT)[3];
+    uint8_t ambient_capture;
 } hom_cmd_t;
 
 /* Fills *cfg with the defaults: speeds designed for a 6.1 um tick, a sensor

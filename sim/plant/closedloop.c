@@ -83,6 +83,12 @@ int plant_run(const plant_run_cfg_t *rc, plant_run_result_t *res)
     if (rc->fault == PLANT_FI_MAGNET_MISSING) {
         pcfg.magnet_moment_Am2 = 0.0;
     }
+    for (k = 0; k < pcfg.n_sensors; k++) {
+        int ax;
+        for (ax = 0; ax < 3; ax++) {
+            pcfg.sensor[k].ambient_uT[ax] += rc->ambient_shift_uT[ax];
+        }
+    }
     if (plant_init(&plant, &pcfg, rc->seed) != 0) {
         return PLANT_E_ARG;
     }

@@ -48,7 +48,10 @@ typedef struct {
     plant_fault_t fault;
     uint8_t fault_index;
     uint32_t fault_ms;
-    uint32_t max_ms; /* give up after this simulated time (0 = 60 s) */
+    uint32_t max_ms;            /* give up after this simulated time (0 = 60 s) */
+    double ambient_shift_uT[3]; /* added to every sensor's ambient field (world frame) for
+                                   this run: the bench moved or iron came near since the
+                                   absolute mode's ambient capture (cmd.ambient_cuT) */
 } plant_run_cfg_t;
 
 typedef struct {

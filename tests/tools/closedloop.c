@@ -4,7 +4,7 @@
  *
  *   hh_closedloop CONFIG [-t mN] [-s seed] [-p perturb] [-n runs]
  *                 [-m full|quick|single|dry] [-i tendon] [-f fault:index:ms]
- *                 [-g generated_table] [-q]
+ *                 [-g generated_table] [-a delta|abs] [--ambient-shift uT[,uT,uT]] [-q]
  *
  * -f injects a fault (plant_fault_t number, see sim/plant/closedloop.h) into
  * every run; the summary then reports the slowest release to slack.
@@ -17,6 +17,13 @@
  * real when perturb > 0. Quick mode first runs a full calibration, then power
  * cycles (the encoder loses whole turns) with the robot left at its homes and
  * re-homes from the stored homes.
+ *
+ * -a abs runs the absolute target mode (docs/homing.md): each run is preceded by
+ * a capture run (same robot, ambient unchanged) that stores the ambient offsets,
+ * then the measured run reuses them. --ambient-shift adds a field (world frame;
+ * one number: along x) to every sensor's ambient for the measured run, after the
+ * capture. The summary line then ends with target_mode=...,ambient_shift_uT=...
+ * (fields appended; without these options the output is unchanged).
  *
  * CSV lines: `home,run,tendon,home_ticks,true_home_ticks,err_ticks,tension_N,
  * tension_err_N,sim_ms,fault`; without -q also `event,run,t_ms,type,code,index,
@@ -46,7 +53,7 @@ static void usage(void)
     fprintf(stderr,
             "usage: hh_closedloop CONFIG [-t mN] [-s seed] [-p perturb] [-n runs]\n"
             "                     [-m full|quick|single|dry] [-i tendon] [-f fault:index:ms]"
-            " [-q]\n");
+            " [-g table] [-a delta|abs] [--ambient-shift uT[,uT,uT]] [-q]\n");
 }
 
 static const char *event_name(uint8_t type)
@@ -107,6 +114,10 @@ int main(int argc, char **argv)
     unsigned faults = 0;
     clock_t c0;
     double wall;
+    int abs_mode = 0;
+    int new_opts = 0;
+    double shift[3] = {0.0, 0.0, 0.0};
+    static int32_t amb[TBL_MAX_SENSORS][3];
 
     if (argc < 2) {
         usage();
@@ -135,6 +146,19 @@ int main(int argc, char **argv)
             tendon = (unsigned)strtoul(v, NULL, 10);
         } else if (strcmp(argv[a], "-g") == 0) {
             gen = v;
+        } else if (strcmp(argv[a], "-a") == 0) {
+            if (strcmp(v, "abs") != 0 && strcmp(v, "delta") != 0) {
+                usage();
+                return 2;
+            }
+            abs_mode = strcmp(v, "abs") == 0;
+            new_opts = 1;
+        } else if (strcmp(argv[a], "--ambient-shift") == 0) {
+            if (sscanf(v, "%lf,%lf,%lf", &shift[0], &shift[1], &shift[2]) < 1) {
+                usage();
+                return 2;
+            }
+            new_opts = 1;
         } else if (strcmp(argv[a], "-f") == 0) {
             if (sscanf(v, "%u:%u:%u", &fault, &fault_index, &fault_ms) != 3) {
                 usage();
@@ -182,6 +206,22 @@ int main(int argc, char **argv)
         rc.fault = (plant_fault_t)fault;
         rc.fault_index = (uint8_t)fault_index;
         rc.fault_ms = fault_ms;
+        if (abs_mode) {
+            /* the capture run: the ambient as it was when the offsets were taken */
+            plant_run_cfg_t cap = rc;
+            cap.cmd.mode = HOM_MODE_FULL;
+            cap.cmd.ambient_cuT = amb;
+            cap.cmd.ambient_capture = 1;
+            cap.fault = PLANT_FI_NONE;
+            cap.seed += 500009u;
+            if (plant_run(&cap, &res) != 0 || res.rc != 0) {
+                fprintf(stderr, "hh_closedloop: ambient capture run %u failed (rc %d)\n", r,
+                        res.rc);
+                return 1;
+            }
+            rc.cmd.ambient_cuT = amb;
+        }
+        memcpy(rc.ambient_shift_uT, shift, sizeof shift);
         if (plant_run(&rc, &res) != 0) {
             fprintf(stderr, "hh_closedloop: run %u did not finish (rc %d)\n", r, res.rc);
             return 1;
@@ -275,10 +315,15 @@ int main(int argc, char **argv)
         printf("summary,runs=%u,faults=%u,tension_mN=%u,perturb=%.3f,max_abs_err_ticks=%.3f,"
                "mean_home_sd_ticks=%.3f,mean_home_sd_um=%.4f,tension_err_mean_N=%.4f,"
                "tension_err_sd_N=%.4f,mean_sim_ms=%.0f,wall_s=%.3f,runs_per_min=%.0f,"
-               "max_release_ms=%u\n",
+               "max_release_ms=%u",
                runs, faults, tension, perturb, max_abs_ticks, sd_ticks,
                sd_ticks * nominal.nm_per_tick * 1e-3, mean, sd, runs ? sum_ms / runs : 0.0, wall,
                wall > 0.0 ? runs * 60.0 / wall : 0.0, max_release_ms);
+        if (new_opts) {
+            printf(",target_mode=%s,ambient_shift_uT=%.3f:%.3f:%.3f", abs_mode ? "abs" : "delta",
+                   shift[0], shift[1], shift[2]);
+        }
+        printf("\n");
     }
     return (faults == 0u || fault != 0u) ? 0 : 3;
 }
