@@ -38,7 +38,9 @@
  *   sub-tick crossing of the target): the field-change mode compares
  *   |B - B0| with the table's target, the paper's absolute mode compares
  *   |B - A_table| (the ambient the table was generated with removed) with
- *   the table's |B(p_T)|. The homing core itself has no absolute mode.
+ *   the table's |B(p_T)|. The absolute mode also runs through the homing
+ *   core (hom_cmd_t.ambient_cuT): one capture run before the change stores
+ *   its ambient offsets, every changed-ambient run reuses them.
  */
 #include <math.h>
 #include <stdio.h>
@@ -347,12 +349,46 @@ static double gauss(uint64_t *s)
     return sqrt(-2.0 * log(u1)) * cos(6.283185307179586 * u2);
 }
 
+static int32_t amb_cuT[TBL_MAX_SENSORS][3]; /* absolute mode: captured ambient offsets */
+
+/* The homing core's absolute mode: one capture run on the robot as the table
+ * knows it (its baseline stores A = B0 - b_straight per sensor), once per
+ * study, as an operator would before the ambient changed. Returns 0 when the
+ * offsets were captured. */
+static int capture_ambient(const opts_t *o)
+{
+    static plant_run_result_t res;
+    plant_run_cfg_t rc;
+    plant_run_defaults(&rc, &nominal, &table);
+    rc.seed = o->seed * 7919u + 424243u;
+    rc.cmd.mode = HOM_MODE_FULL;
+    rc.cmd.tension_mN = (uint16_t)o->tension;
+    rc.cmd.ambient_cuT = amb_cuT;
+    rc.cmd.ambient_capture = 1;
+    return plant_run(&rc, &res) == 0 && res.rc == 0 ? 0 : -1;
+}
+
+/* A calibration of `actual` in the absolute mode with the captured offsets. */
+static int run_abs(const plant_cfg_t *actual, unsigned tension, uint32_t seed,
+                   plant_run_result_t *res)
+{
+    plant_run_cfg_t rc;
+    plant_run_defaults(&rc, actual, &table);
+    rc.seed = seed;
+    rc.cmd.mode = HOM_MODE_FULL;
+    rc.cmd.tension_mN = (uint16_t)tension;
+    rc.cmd.ambient_cuT = amb_cuT;
+    rc.cmd.ambient_capture = 0;
+    return plant_run(&rc, res);
+}
+
 static int study_ambient(const opts_t *o)
 {
     static plant_cfg_t actual;
     static plant_run_result_t res;
     uint64_t rng = 0xA3B1E47ull ^ ((uint64_t)o->seed << 20);
     unsigned m, dd, i, k;
+    int have_abs = capture_ambient(o) == 0;
     printf("cols,amb,dA_uT,dir,dx_uT,dy_uT,dz_uT,tendon,segment,mode,rc,tension_N,err_N,why\n");
     for (m = 0; m < o->n_amb; m++) {
         unsigned ndirs = o->amb[m] == 0.0 ? 1u : o->dirs;
@@ -374,6 +410,18 @@ static int study_ambient(const opts_t *o)
                 actual.sensor[k].ambient_uT[0] += v[0];
                 actual.sensor[k].ambient_uT[1] += v[1];
                 actual.sensor[k].ambient_uT[2] += v[2];
+            }
+            if (have_abs) {
+                static plant_run_result_t ra;
+                int arc = run_abs(&actual, o->tension, o->seed * 7919u + m * 131u + dd, &ra);
+                for (i = 0; i < nominal.n_tendons; i++) {
+                    int ok = arc == 0 && ra.rc == 0 && ra.have_home[i];
+                    printf("amb,%.2f,%u,%.3f,%.3f,%.3f,%u,%u,abs_loop,%d,%.5f,%.5f,%s\n", o->amb[m],
+                           dd, v[0], v[1], v[2], i, nominal.tendon[i].segment,
+                           arc != 0 ? arc : ra.rc, ok ? ra.tension_at_home_N[i] : NAN,
+                           ok ? ra.tension_at_home_N[i] - o->tension * 1e-3 : NAN,
+                           arc != 0 ? "run_error" : hom_fault_name(ra.fault));
+                }
             }
             prc = run_one(&actual, o->tension, o->seed * 7919u + m * 131u + dd, &res);
             for (i = 0; i < nominal.n_tendons; i++) {

@@ -140,7 +140,8 @@ def robustness(rob: Dict, outdir: str) -> List[str]:
 
 def ambient(amb: Dict, outdir: str) -> str:
     fig, ax = plt.subplots(figsize=(7, 4))
-    styles = {"abs_ideal": ("tab:red", "absolute |B| (paper), ideal detector"),
+    styles = {"abs_loop": ("tab:orange", "absolute |B−A| (paper), homing core (closed loop)"),
+              "abs_ideal": ("tab:red", "absolute |B| (paper), ideal detector"),
               "delta_ideal": ("tab:blue", "field change |B−B0|, ideal detector"),
               "delta_loop": ("tab:green", "field change |B−B0|, homing core (closed loop)")}
     for mode, (color, label) in styles.items():

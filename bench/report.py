@@ -275,11 +275,11 @@ def section_ambient(res: Dict) -> List[str]:
     out.append("| ambient change (µT) | mode | tendon homes | failed | mean error (N) | "
                "RMS (N) | max abs (N) |")
     out.append("| --- | --- | --- | --- | --- | --- | --- |")
-    for mode in ("abs_ideal", "delta_ideal", "delta_loop"):
+    for mode in ("abs_loop", "abs_ideal", "delta_loop", "delta_ideal"):
         for r in amb.get("modes", {}).get(mode, []):
             failed = f"{r['failed']} ({r['why']})" if r.get("failed") and r.get("why") else r["failed"]
             out.append(f"| {r['dA_uT']:g} | {mode} | {r['n']} | {failed} | "
-                       f"{r['mean_N']:+.4f} | {r['rms_N']:.4f} | {r['max_abs_N']:.4f} |")
+                       f"{fmt(r['mean_N'])} | {fmt(r['rms_N'])} | {fmt(r['max_abs_N'])} |")
     bench = amb.get("bench")
     if bench:
         out += ["", "The firmware on the simavr bench (field-change mode, the only one it has), "
@@ -295,8 +295,9 @@ def section_ambient(res: Dict) -> List[str]:
             else:
                 out.append(f"| {b['dA_uT']:g} | failed: {cell(b.get('error'))} | | | | |")
     out += ["", "`abs_ideal` / `delta_ideal`: noise-free quasi-static pull of the plant, "
-            "sub-tick crossing (isolates the ambient effect); `delta_loop`: the homing core in "
-            "the closed loop (noise, encoder ticks). Errors are over the homes found; a failed "
+            "sub-tick crossing (isolates the ambient effect); `abs_loop` / `delta_loop`: the "
+            "homing core in the closed loop (noise, encoder ticks). Errors are over the homes "
+            "found; a failed "
             "home is one the mode never reached within the travel limit (`target_not_reached`, "
             "a travel-limit fault in practice) or a run the homing core ended with a fault "
             "(`magnet_missing`: its magnet check compares the absolute |B0| with the table's "

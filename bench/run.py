@@ -202,10 +202,13 @@ def ambient_item(a, res: Dict) -> None:
     res["ambient"] = {
         "modes": modes, "dirs": dirs, "tension_mN": 800,
         "abs_mode_note": (
-            "The homing core compares |B − B0| only (lib/homing; lib/app answers "
-            "`target_mode=1` with not-available), so the absolute mode runs as an ideal "
-            "detector on the plant, with the table's abs_target_cuT; the field-change mode "
-            "runs both ways.")}
+            "Both modes run through the homing core in the closed loop (`abs_loop`, "
+            "`delta_loop`; the absolute mode captures its ambient offsets A = B0 − b_straight "
+            "in one run before the change and reuses them, hom_cmd_t.ambient_cuT) and as "
+            "ideal detectors on the noise-free plant (`abs_ideal` with A = the ambient the "
+            "table was made with, `delta_ideal`). The firmware (lib/app) still answers "
+            "`target_mode=1` with not-available, so the absolute mode is not on the simavr "
+            "bench.")}
 
 
 # ---- firmware and simavr bench -------------------------------------------------------
