@@ -139,9 +139,9 @@ def robustness(rob: Dict, outdir: str) -> List[str]:
 
 
 def ambient(amb: Dict, outdir: str) -> str:
-    fig, ax = plt.subplots(figsize=(7, 4))
+    fig, ax = plt.subplots(figsize=(11, 4.2))
     styles = {"abs_loop": ("tab:orange", "absolute |B−A| (paper), homing core (closed loop)"),
-              "abs_ideal": ("tab:red", "absolute |B| (paper), ideal detector"),
+              "abs_ideal": ("tab:red", "absolute |B−A| (paper), ideal detector"),
               "delta_ideal": ("tab:blue", "field change |B−B0|, ideal detector"),
               "delta_loop": ("tab:green", "field change |B−B0|, homing core (closed loop)")}
     for mode, (color, label) in styles.items():
@@ -153,12 +153,14 @@ def ambient(amb: Dict, outdir: str) -> str:
         ax.plot(x, [r["max_abs_N"] for r in rows], ls=":", color=color, label=label + ", max")
         for r in rows:
             if r.get("failed"):
-                ax.annotate(f"{r['failed']}/{r['n']} failed", (r["dA_uT"], r["rms_N"]),
-                            textcoords="offset points", xytext=(4, 6), fontsize=7, color=color)
+                y = r["rms_N"] if r["rms_N"] is not None and np.isfinite(r["rms_N"]) else 3.0
+                ax.annotate(f"{r['failed']}/{r['n']} failed", (r["dA_uT"], y),
+                            textcoords="offset points", xytext=(-60, 6), fontsize=7, color=color)
     ax.axhline(PAPER["tension_err_sd_N"], color="0.6", ls="--", lw=1, label="paper SD 0.20 N")
     ax.set_yscale("symlog", linthresh=0.01)
+    ax.set_ylim(0, 10)
     ax.set_xlabel("ambient field change between table and calibration (µT)")
     ax.set_ylabel("|tension error| (N), linear below 0.01")
     ax.set_title("Ambient change: absolute mode vs field-change mode (failed homes not in RMS)")
-    ax.legend(fontsize=7)
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     return _save(fig, outdir, "ambient.png")
