@@ -84,6 +84,7 @@ typedef enum {
     EV_MAGNET_REMOVE, /* the tip magnet falls off */
     EV_FIELD,         /* extra field farg3[0..2] uT at sensor arg0 (ambient change) */
     EV_SATURATE,      /* 6 mT at sensor arg0 */
+    EV_TENDON_EA,     /* tendon arg0's axial stiffness E*A times farg[0] */
     EV_QUIT           /* end the run (exit code as if the time limit passed) */
 } bench_ev_kind_t;
 
@@ -279,6 +280,8 @@ struct bench_t {
     double eng_ticks[BENCH_MAX_SERVOS];         /* true engagement per tendon */
     double max_tension_N[BENCH_MAX_SERVOS];     /* highest spool tension of the run */
     double max_take_up_ticks[BENCH_MAX_SERVOS]; /* deepest pull past the true engagement */
+    double moved_from[BENCH_MAX_SERVOS];        /* shaft where it last moved a whole tick */
+    uint64_t last_move_us[BENCH_MAX_SERVOS];    /* when (0 = never since power-up) */
     uint64_t fault_at_us;                       /* first `<fault` console line (0 = none) */
     uint64_t released_at_us; /* first time after it with every tendon below 1 mN */
     int32_t target_mN;

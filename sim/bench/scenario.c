@@ -63,6 +63,7 @@ static const struct {
     {"magnet-remove", EV_MAGNET_REMOVE, 0},
     {"field", EV_FIELD, 4},
     {"saturate", EV_SATURATE, 1},
+    {"tendon-stiffness", EV_TENDON_EA, 2},
     {"quit", EV_QUIT, 0},
 };
 
@@ -251,6 +252,12 @@ static int scen_add_line(bench_t *b, const char *line)
     case EV_BUS_NOISE:
         e->farg[0] = v[0];
         if (v[0] < 0.0 || v[0] > 1.0) {
+            return -1;
+        }
+        break;
+    case EV_TENDON_EA:
+        e->farg[0] = v[1];
+        if (!(v[1] > 0.0 && v[1] <= 100.0)) {
             return -1;
         }
         break;
@@ -455,6 +462,16 @@ void scen_run_due(bench_t *b, uint64_t now)
                     b->plant.extra_uT[e->arg0][a] = e->farg[a];
                 }
             }
+            break;
+        case EV_TENDON_EA:
+            /* a more elastic tendon (a spring in line, a stretched or
+             * creeping tendon): the same tension takes more spool travel */
+            if (!b->have_plant || e->arg0 < 0 || e->arg0 >= b->plant.cfg.n_tendons) {
+                fprintf(stderr, "hh_bench: no tendon %d in the plant\n", (int)e->arg0);
+                break;
+            }
+            b->plant.cfg.tendon[e->arg0].ea_N *= e->farg[0];
+            (void)plant_solve(&b->plant);
             break;
         case EV_QUIT:
             bench_finish(b, b->n_until ? BENCH_EXIT_TIMEOUT : BENCH_EXIT_OK, "quit");

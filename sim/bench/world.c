@@ -79,6 +79,7 @@ int world_init(bench_t *b)
         xl430_init(&s->servo[i], &xc, 0);
         xl430_set_sensed(&s->servo[i], 0, 120, 32);
         plant_set_motor(&b->plant, i, xc.shaft_ticks);
+        b->moved_from[i] = xc.shaft_ticks;
     }
     plant_solve(&b->plant);
     t->n_icm = cfg.n_sensors;
@@ -107,6 +108,10 @@ void world_tick(bench_t *b, uint64_t now)
     for (uint8_t i = 0; i < s->n_servos; i++) {
         xl430_step(&s->servo[i], (uint32_t)now);
         double sh = xl430_shaft_ticks(&s->servo[i]);
+        if (fabs(sh - b->moved_from[i]) >= 1.0) {
+            b->moved_from[i] = sh;
+            b->last_move_us[i] = now;
+        }
         if (fabs(sh - plant_motor_ticks(&b->plant, i)) > 1e-3) {
             plant_set_motor(&b->plant, i, sh);
             moved = 1;
@@ -199,17 +204,19 @@ void world_report(bench_t *b, FILE *json, FILE *table)
         if (json) {
             fprintf(
                 json,
-                "%s\n    {\"tendon\": %u, \"id\": %u, \"goal_ticks\": %d, \"present_ticks\": %d, "
+                "%s\n    {\"tendon\": %u, \"id\": %u, \"pull_dir\": %d, \"goal_ticks\": %d, "
+                "\"present_ticks\": %d, "
                 "\"torque\": %u, \"hw_error\": %u, \"shaft_ticks\": %.2f, \"take_up_mm\": %.4f, "
                 "\"true_engagement_ticks\": %.2f, \"true_home_ticks\": %.2f, \"err_ticks\": %.2f, "
                 "\"tension_at_home_mN\": %.1f, \"tension_now_mN\": %.1f, \"err_mN\": %.1f, "
-                "\"max_tension_mN\": %.1f, \"max_take_up_mm\": %.4f}",
-                i ? "," : "", i, m->cfg.id, (int)goal, (int)present,
+                "\"max_tension_mN\": %.1f, \"max_take_up_mm\": %.4f, \"last_move_s\": %.6f}",
+                i ? "," : "", i, m->cfg.id, (int)cfg->tendon[i].pull_dir, (int)goal, (int)present,
                 (unsigned)xl430_get(m, DXL_XL430_TORQUE_ENABLE_ADDR, 1),
                 (unsigned)xl430_get(m, DXL_XL430_HW_ERROR_ADDR, 1), shaft, take_mm, eng,
                 isnan(home) ? -1.0 : home, isnan(home) ? 0.0 : shaft - home, t_home,
                 b->plant.tension_N[i] * 1000.0, err_mN, b->max_tension_N[i] * 1000.0,
-                b->max_take_up_ticks[i] * cfg->nm_per_tick / 1e6);
+                b->max_take_up_ticks[i] * cfg->nm_per_tick / 1e6,
+                (double)b->last_move_us[i] * 1e-6);
         }
     }
     if (json) {
