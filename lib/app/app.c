@@ -20,6 +20,8 @@
 /* Report kinds, keys and words, each once in console-flash memory (program
  * memory on the AVR, where CON_FLASH is __progmem__). */
 static const char s_full_quick_single_dry[] CON_FLASH = "full quick single dry";
+static const char s_delta_abs[] CON_FLASH = "delta abs";
+static const char s_target[] CON_FLASH = "target";
 static const char s_boot_idle_cal_move_lea[] CON_FLASH = "boot idle cal move learn fault";
 static const char s_none_sensor_servo_tend[] CON_FLASH = "none sensor servo tendon";
 static const char s_preflight_release_base[] CON_FLASH =
@@ -951,6 +953,7 @@ APP_NOINLINE static void rep_event(app_t *a, const hom_event_t *ev)
             con_report_fixed(&a->con, s_target_uT, (int32_t)t->target_cuT, 2);
             rep_int(a, s_travel_um, ticks_um(t->nm_per_tick, (ev->a - t->engage) * t->dir));
             rep_int(a, s_time_ms, (int32_t)(ev->t_ms - a->u.hom.t_tendon));
+            rep_word(a, s_target, s_delta_abs, a->run_abs);
             rep_end(a);
         }
         break;
@@ -985,6 +988,7 @@ APP_NOINLINE static void run_done(app_t *a)
 {
     uint8_t i, k;
     uint32_t t = now_ms(a);
+    a->amb_ok |= a->u.hom.amb_capture; /* read before u.idle reuses the storage */
     a->homes.table_id = a->info.table_id;
     a->homes.n_tendons = a->info.n_tendons;
     a->homes.tension_mN = a->run_tension;
@@ -1021,6 +1025,7 @@ APP_NOINLINE static void run_done(app_t *a)
     a->released = 0;
     rep_begin(a, s_done);
     rep_word(a, s_mode, MODE_WORDS, a->run_mode);
+    rep_word(a, s_target, s_delta_abs, a->run_abs);
     rep_int(a, s_time_ms, (int32_t)(t - a->t_run));
     rep_int(a, s_tension_mN, a->run_tension);
     rep_int(a, s_count, (int32_t)a->homes.cal_count);
@@ -1070,9 +1075,6 @@ static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon
     if (e != 0) {
         return e;
     }
-    if (a->set.v[STORE_SET_TARGET_MODE] != 0) {
-        return CON_E_NOT_AVAILABLE; /* the homing compares |B - B0| only */
-    }
     if (mode == HOM_MODE_SINGLE && tendon >= a->info.n_tendons) {
         return CON_E_BAD_TENDON;
     }
@@ -1093,6 +1095,13 @@ static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon
         return CON_E_BUSY; /* finishes within a few hundred ms */
     }
     memset(&cmd, 0, sizeof cmd);
+    a->run_abs = a->set.v[STORE_SET_TARGET_MODE] != 0;
+    if (a->run_abs) {
+        /* the first absolute run takes A from its own straight-pose
+         * baseline (a dry run stands wherever the robot is: never) */
+        cmd.ambient_cuT = a->amb;
+        cmd.ambient_capture = (uint8_t)(!a->amb_ok && mode != HOM_MODE_DRY);
+    }
     cmd.mode = (hom_mode_t)mode;
     cmd.tension_mN = tension;
     cmd.tendon = tendon;
@@ -2020,6 +2029,9 @@ static int8_t h_set(con_t *con, const con_args_t *args, void *ctx)
     rc = store_setting_set(&a->store, &a->set, (uint8_t)f, args->v[1]);
     if (rc != 0) {
         return CON_E_SETTING_RANGE;
+    }
+    if (f == STORE_SET_TARGET_MODE) {
+        a->amb_ok = 0; /* the next absolute calibration captures the ambient again */
     }
     return 0;
 }

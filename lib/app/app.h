@@ -146,6 +146,8 @@ typedef struct {
     uint8_t released; /* the last app release has not been followed by a pull */
     uint8_t move_kind;
     uint8_t run_mode;
+    uint8_t run_abs; /* the run compares |B - A| with the absolute targets (target_mode 1) */
+    uint8_t amb_ok;  /* amb[] holds this power cycle's ambient capture */
     uint8_t last_fault;
     uint8_t save_due; /* records waiting for the EEPROM */
     uint8_t save_now; /* the record being written */
@@ -194,7 +196,11 @@ typedef struct {
     uint8_t ids[TBL_MAX_TENDONS];
     uint8_t hw_err[TBL_MAX_TENDONS];
     int32_t present[TBL_MAX_TENDONS];
-    int32_t offset[TBL_MAX_TENDONS];   /* calibration frame = present frame + offset */
+    int32_t offset[TBL_MAX_TENDONS]; /* calibration frame = present frame + offset */
+    /* absolute target mode: each sensor's ambient offset A (cuT, sensor
+     * frame), captured by the first absolute calibration of the power cycle
+     * (or the first after `set target_mode`), RAM only (docs/app.md) */
+    int32_t amb[APP_MAX_SENSORS][3];
     uint8_t sens_err[APP_MAX_SENSORS]; /* error counts (low byte) already passed to the homing */
     /* modules and records */
     tbl_src_t tab;  /* plain */

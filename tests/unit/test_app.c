@@ -321,6 +321,57 @@ static void test_settings(void **state)
     assert_non_null(strstr(g_line, "reason=aborted"));
 }
 
+/* Runs `cal 0.8 0` (tendon 0 alone) to its <done>; returns tendon 0's home
+ * error against the plant's truth in ticks and checks the target word of
+ * <result> and <done>. */
+static double cal_tendon0(const char *target)
+{
+    double truth, err = 1e9;
+    cmd(&g_b, "cal 0.8 0", "ok");
+    for (;;) {
+        assert_true(app_bench_wait_line(&g_b, "<", g_line, sizeof g_line, 20000));
+        assert_null(strstr(g_line, "<fault"));
+        if (strncmp(g_line, "<result ", 8) == 0) {
+            assert_int_equal(plant_true_home(&g_b.cfg, 0, 800, &truth), 0);
+            err = (double)app_bench_field(g_line, "home", 0) - truth;
+            assert_non_null(strstr(g_line, target));
+        }
+        if (strncmp(g_line, "<done ", 6) == 0) {
+            assert_non_null(strstr(g_line, target));
+            return err;
+        }
+    }
+}
+
+/* target_mode 1: the first absolute run captures the ambient and lands where
+ * the delta mode does; after the ambient moves, the next absolute run reuses
+ * the stale capture and misses (50 uT along -z: hh_closedloop measures 6.6
+ * ticks too far, 88 mN too much tension); the delta mode does not; `set target_mode` makes the next
+ * run capture again. */
+static void test_absolute_target_mode(void **state)
+{
+    uint8_t k;
+    double e;
+    (void)state;
+    boot(&g_b, 1);
+    assert_true(fabs(cal_tendon0("target=delta")) <= 2.0);
+    assert_int_equal(g_b.app.amb_ok, 0);
+    cmd(&g_b, "set target_mode 1", "ok");
+    assert_true(fabs(cal_tendon0("target=abs")) <= 2.0);
+    assert_int_equal(g_b.app.amb_ok, 1);
+    for (k = 0; k < g_b.cfg.n_sensors; k++) {
+        g_b.plant.extra_uT[k][2] = -50.0; /* the bench moved, iron came near */
+    }
+    e = cal_tendon0("target=abs");
+    print_message("absolute mode, ambient moved 50 uT: home error %.2f ticks\n", e);
+    assert_true(e >= 4.0);
+    cmd(&g_b, "set target_mode 0", "ok");
+    assert_true(fabs(cal_tendon0("target=delta")) <= 2.0);
+    cmd(&g_b, "set target_mode 1", "ok");
+    assert_int_equal(g_b.app.amb_ok, 0);
+    assert_true(fabs(cal_tendon0("target=abs")) <= 2.0);
+}
+
 /* Model-free learning: release (baseline), a weight pulls tendon 1 to 0.8 N,
  * learn records |dB|; the table shows it, and it overrides the compiled one. */
 static void test_learn_with_weight(void **state)
@@ -550,6 +601,7 @@ int main(void)
         cmocka_unit_test(test_no_table),
         cmocka_unit_test(test_missing_sensor_and_servo),
         cmocka_unit_test(test_settings),
+        cmocka_unit_test(test_absolute_target_mode),
         cmocka_unit_test(test_learn_with_weight),
         cmocka_unit_test(test_realtime_abort_releases),
         cmocka_unit_test(test_long_press_aborts),
