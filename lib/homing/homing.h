@@ -40,6 +40,9 @@
  * small release; fast take-up to just short of the stored home);
  * HOM_MODE_SINGLE (one tendon); HOM_MODE_DRY (preflight, baseline, targets
  * reported, no motion).
+ * Target modes (hom_cmd_t.ambient_cuT): delta, |B - B0| against the table's
+ * target_cuT (default); absolute, the paper's |B - A| against abs_target_cuT
+ * with a caller-stored ambient offset A (docs/homing.md, "Target modes").
  *
  * Release (decided here): a release is a position move of the servo to a
  * point a known slack margin beyond the tendon's engagement in the release
