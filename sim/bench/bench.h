@@ -284,6 +284,8 @@ struct bench_t {
     uint64_t last_move_us[BENCH_MAX_SERVOS];    /* when (0 = never since power-up) */
     uint64_t fault_at_us;                       /* first `<fault` console line (0 = none) */
     uint64_t released_at_us; /* first time after it with every tendon below 1 mN */
+    double fault_tension_N;  /* highest spool tension at the first tick after it */
+    uint8_t fault_seen;      /* fault_tension_N taken */
     int32_t target_mN;
     uint8_t magnet_removed;
     bench_event_t ev[BENCH_MAX_EVENTS];

@@ -134,6 +134,14 @@ void world_tick(bench_t *b, uint64_t now)
             xl430_set_sensed(&s->servo[i], (int16_t)lround(load > 1000.0 ? 1000.0 : load), 120, 32);
         }
     }
+    if (b->fault_at_us != 0 && !b->fault_seen) {
+        b->fault_seen = 1;
+        for (uint8_t i = 0; i < s->n_servos; i++) {
+            if (b->plant.tension_N[i] > b->fault_tension_N) {
+                b->fault_tension_N = b->plant.tension_N[i];
+            }
+        }
+    }
     if (b->fault_at_us != 0 && b->released_at_us == 0) {
         uint8_t slack = 1;
         for (uint8_t i = 0; i < s->n_servos; i++) {
@@ -178,8 +186,10 @@ void world_report(bench_t *b, FILE *json, FILE *table)
                 "err_mN   err_%%\n");
     }
     if (json) {
-        fprintf(json, "  \"fault\": {\"t_s\": %.6f, \"released_after_ms\": %.3f},\n",
-                (double)b->fault_at_us * 1e-6,
+        fprintf(json,
+                "  \"fault\": {\"t_s\": %.6f, \"max_tension_mN\": %.1f, "
+                "\"released_after_ms\": %.3f},\n",
+                (double)b->fault_at_us * 1e-6, b->fault_tension_N * 1000.0,
                 b->fault_at_us && b->released_at_us >= b->fault_at_us
                     ? (double)(b->released_at_us - b->fault_at_us) * 1e-3
                     : -1.0);
