@@ -97,14 +97,14 @@ def _t_of(lines: List[Dict], kind: str, **match) -> Optional[Dict]:
 
 def calibration(hh_bench: str, elf: str, plant: str, seed: int, tension_mN: int,
                 workdir: str, limit_s: float = 60.0, extra_events: Optional[List[str]] = None,
-                perturb: float = 0.0) -> Dict:
+                perturb: float = 0.0, until: Optional[str] = None) -> Dict:
     """A full calibration at tension_mN from the bench's seeded random slack,
     nominal robot. Adds "cal_s" (start report to done report, simulated),
     "done_ms" (the firmware's own time_ms), "homes" (tendon -> home in the
     plant's motor frame), "tension_N" (tendon -> true single-tendon tension
     at the shaft position) and "done_t" (console time of done)."""
     ev = [f"0.3s send set cal_tension {tension_mN}", "0.6s send cal"] + list(extra_events or [])
-    r = run(hh_bench, elf, plant, seed, ev, DONE, limit_s, tension_mN, workdir, perturb)
+    r = run(hh_bench, elf, plant, seed, ev, until or DONE, limit_s, tension_mN, workdir, perturb)
     if not r["ok"]:
         return r
     lines = r["lines"]

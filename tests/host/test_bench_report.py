@@ -142,9 +142,10 @@ def _results():
                    "oat": [{"group": "moment", "range_N": 0.08, "slope_N": -0.8, "x": [-0.05, 0.05],
                             "mean_err_N": [0.04, -0.04]}], "err_N": [0.01, -0.02, None]},
         "ambient": {"dirs": 1, "tension_mN": 800,
-                    "bench": [{"dA_uT": 50.0, "ok": True, "mean_N": 0.04, "max_abs_N": 0.045,
-                               "base_mean_N": 0.041, "max_home_shift_ticks": 1.0},
-                              {"dA_uT": 100.0, "ok": False, "error": "exit 1"}],
+                    "bench": [{"mode": "absolute", "dA_uT": 50.0, "ok": True, "mean_N": 0.04,
+                               "max_abs_N": 0.045, "max_home_shift_ticks": 1.0},
+                              {"mode": "field change", "dA_uT": 100.0, "ok": False,
+                               "error": "exit 1"}],
                     "modes": {
             "abs_ideal": [{"dA_uT": 50, "n": 6, "failed": 0, "mean_N": 0.1, "rms_N": 0.2,
                            "max_abs_N": 0.4}]}},
@@ -195,8 +196,8 @@ def test_table_diagnosis_groups_tendons_by_segment():
 
 def test_bench_ambient_rows():
     text = report.build_report(_results())
-    assert "| 50 | done | +0.0400 | 0.0450 | +0.0410 | 1 |" in text
-    assert "| 100 | failed: exit 1 |" in text
+    assert "| absolute | 50 | done | 0.0400 | 0.0450 | 1 |" in text
+    assert "| field change | 100 | failed: exit 1 |" in text
 
 
 def test_parse_bus_packets_from_a_trace():
