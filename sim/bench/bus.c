@@ -22,16 +22,13 @@
 #include <sim_io.h>
 
 #include "bench.h"
+#include "simrand.h"
 
 #define BUS_MCU_BAUD 1000000u
 
 static uint64_t bus_rand(bench_bus_t *s)
 {
-    /* xorshift64* */
-    s->rng ^= s->rng >> 12;
-    s->rng ^= s->rng << 25;
-    s->rng ^= s->rng >> 27;
-    return s->rng * 2685821657736338717ull;
+    return simrand_next(&s->rng);
 }
 
 static uint8_t bus_corrupt(bench_bus_t *s, uint8_t byte)

@@ -2,6 +2,7 @@
  * closedloop: homing state machine + plant + simple servos (closedloop.h).
  */
 #include "plant/closedloop.h"
+#include "simrand.h"
 
 #include <math.h>
 #include <string.h>
@@ -14,19 +15,6 @@ void plant_run_defaults(plant_run_cfg_t *rc, const plant_cfg_t *plant, const tbl
     rc->cmd.mode = HOM_MODE_FULL;
     rc->start_min_um = -2000.0;
     rc->start_max_um = 300.0;
-}
-
-static uint64_t run_rand(uint64_t *s)
-{
-    uint64_t z = (*s += 0x9E3779B97F4A7C15ull);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    return z ^ (z >> 31);
-}
-
-static double run_uniform(uint64_t *s)
-{
-    return (double)(run_rand(s) >> 11) / 9007199254740992.0;
 }
 
 static void fill_ground_truth(const plant_run_cfg_t *rc, const plant_t *p, const hom_t *h,
@@ -100,7 +88,7 @@ int plant_run(const plant_run_cfg_t *rc, plant_run_result_t *res)
         } else {
             double eng;
             double um =
-                rc->start_min_um + (rc->start_max_um - rc->start_min_um) * run_uniform(&rng);
+                rc->start_min_um + (rc->start_max_um - rc->start_min_um) * simrand_unit(&rng);
             if (plant_true_engagement(rc->plant, i, &eng) != 0) {
                 return PLANT_E_ARG;
             }

@@ -3,6 +3,7 @@
  * (see plant.h for the model).
  */
 #include "plant/plant.h"
+#include "simrand.h"
 
 #include <math.h>
 #include <string.h>
@@ -324,18 +325,10 @@ void plant_field_true(const plant_t *p, uint8_t k, double b_uT[3])
     }
 }
 
-static uint64_t plant_rand(plant_t *p)
-{
-    uint64_t z = (p->rng += 0x9E3779B97F4A7C15ull);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    return z ^ (z >> 31);
-}
-
 static double plant_gauss(plant_t *p)
 {
-    double u1 = ((double)(plant_rand(p) >> 11) + 0.5) / 9007199254740992.0;
-    double u2 = (double)(plant_rand(p) >> 11) / 9007199254740992.0;
+    double u1 = ((double)(simrand_next(&p->rng) >> 11) + 0.5) / 9007199254740992.0;
+    double u2 = simrand_unit(&p->rng);
     return sqrt(-2.0 * log(u1)) * cos(2.0 * PLANT_PI * u2);
 }
 

@@ -3,6 +3,7 @@
  * file), its defaults, checks and seeded perturbation.
  */
 #include "plant/plant.h"
+#include "simrand.h"
 
 #include <ctype.h>
 #include <math.h>
@@ -434,18 +435,9 @@ int plant_cfg_load(plant_cfg_t *cfg, const char *path, int *err_line)
     return plant_cfg_parse(cfg, buf, err_line);
 }
 
-/* splitmix64: a small seeded generator without hidden state. */
-static uint64_t perturb_next(uint64_t *s)
-{
-    uint64_t z = (*s += 0x9E3779B97F4A7C15ull);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    return z ^ (z >> 31);
-}
-
 static double perturb_u(uint64_t *s)
 {
-    return (double)(perturb_next(s) >> 11) / 4503599627370496.0 - 1.0; /* [-1, 1) */
+    return 2.0 * simrand_unit(s) - 1.0; /* [-1, 1) */
 }
 
 int plant_cfg_perturb(plant_cfg_t *cfg, uint32_t seed, double frac)

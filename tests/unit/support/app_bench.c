@@ -7,6 +7,7 @@
 #include <string.h>
 
 #include "hom_fixture.h"
+#include "simrand.h"
 
 /* tbl_copy_fn carries no context: the bench in use (one at a time). */
 static app_bench_t *g_bench;
@@ -60,18 +61,14 @@ static void b_reboot(void *ctx)
     ((app_bench_t *)ctx)->reboots++;
 }
 
-/* Flips one bit of byte with probability b->noise (xorshift64*). */
+/* Flips one bit of byte with probability b->noise. */
 static uint8_t noisy(app_bench_t *b, uint8_t byte)
 {
-    uint64_t x = b->noise_seed;
+    uint64_t x;
     if (b->noise <= 0.0) {
         return byte;
     }
-    x ^= x >> 12;
-    x ^= x << 25;
-    x ^= x >> 27;
-    b->noise_seed = x;
-    x *= 2685821657736338717ull;
+    x = simrand_next(&b->noise_seed);
     if ((double)(x >> 11) * (1.0 / 9007199254740992.0) < b->noise) {
         b->noise_hits++;
         return (uint8_t)(byte ^ (1u << (uint8_t)(x & 7u)));
