@@ -48,6 +48,7 @@
 #include <string.h>
 
 #include "plant/closedloop.h"
+#include "simrand.h"
 
 typedef struct {
     const char *path;
@@ -334,18 +335,10 @@ static void ideal_detect(const plant_cfg_t *actual, unsigned i, unsigned tension
     }
 }
 
-static uint64_t mix(uint64_t *s)
-{
-    uint64_t z = (*s += 0x9E3779B97F4A7C15ull);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    return z ^ (z >> 31);
-}
-
 static double gauss(uint64_t *s)
 {
-    double u1 = ((double)(mix(s) >> 11) + 1.0) / 9007199254740993.0;
-    double u2 = (double)(mix(s) >> 11) / 9007199254740992.0;
+    double u1 = ((double)(simrand_next(s) >> 11) + 1.0) / 9007199254740993.0;
+    double u2 = simrand_unit(s);
     return sqrt(-2.0 * log(u1)) * cos(6.283185307179586 * u2);
 }
 

@@ -9,8 +9,7 @@
 # BENCH_PLANT (plant config; default the one `make sim` uses, $(SIM_PLANT) of
 # mk/sim.mk: written from the robot TOML when there is one). Both the native
 # loop and the simavr bench run that robot.
-# mk/sim.mk also names `bench` (its prerequisites build hh_bench and its test
-# firmware); the recipe here runs the benchmarks on top of them.
+# hh_bench itself is built by mk/sim.mk (`make sim-build`).
 
 BENCH_BUILD   := $(BUILD)/bench
 BENCH_CL      := $(BENCH_BUILD)/hh_closedloop

@@ -45,11 +45,11 @@ SIM_TOL     ?= 10
 SIM_ARGS    ?=
 SIM_SCN     := sim/bench/scenarios/$(FAULT).scn
 
-.PHONY: bench sim sim-test
+.PHONY: sim-build sim sim-test
 EXTRA_HELP += "make sim [ROBOT= TENSION= SEED= FAULT= INTERACTIVE=1]   firmware on the virtual bench" \
 	"make sim-test   virtual bench tests"
 
-bench: $(BENCH) $(TESTFW_ELFS)
+sim-build: $(BENCH) $(TESTFW_ELFS)
 
 $(SIM_DIR)/obj/%.o: %.c | $(STAMP)
 	@mkdir -p $(@D)
