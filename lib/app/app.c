@@ -675,6 +675,7 @@ APP_NOINLINE static void put32(uint8_t *p, uint32_t v)
 APP_NOINLINE static void servo_done(app_t *a, int8_t rc)
 {
     uint8_t i;
+    uint16_t got = 0;
     if (a->sv_txn == TX_POS || a->sv_txn == TX_HWERR) {
         for (i = 0; i < a->info.n_tendons; i++) {
             const dxl_reply *r;
@@ -687,6 +688,7 @@ APP_NOINLINE static void servo_done(app_t *a, int8_t rc)
             }
             if (a->sv_txn == TX_POS && r->len >= 4u) {
                 a->present[i] = dxl_reply_value(r, 4);
+                got |= bit16(i);
                 a->servo_fresh |= bit16(i);
                 a->servo_seen |= bit16(i);
             } else if (a->sv_txn == TX_HWERR && r->len >= 1u) {
@@ -694,6 +696,14 @@ APP_NOINLINE static void servo_done(app_t *a, int8_t rc)
             }
             if (r->result == -DXL_E_ALERT && a->sv_txn == TX_POS) {
                 a->hwerr_due = 1;
+            }
+        }
+        if (a->sv_txn == TX_POS) {
+            if (got == a->txn_mask) {
+                a->pos_streak = 0;
+            } else if (a->pos_streak < APP_POS_RETRIES) {
+                a->pos_streak++;
+                a->pos_force = 1;
             }
         }
     } else if (a->sv_txn == TX_REBOOT) {
@@ -736,7 +746,7 @@ APP_NOINLINE static void servo_next(app_t *a)
 {
     uint8_t ids[TBL_MAX_TENDONS];
     uint8_t data[GOALS_PER_TXN * 12u];
-    uint8_t i, n = 0, txn, v;
+    uint8_t i, n = 0, txn, v, force;
     uint16_t mask, addr;
     if (a->reboot_req) {
         a->reboot_req = 0;
@@ -780,13 +790,15 @@ APP_NOINLINE static void servo_next(app_t *a)
         }
         a->txn_mask = mask;
         a->sv_cycle++;
+        force = a->pos_force;
+        a->pos_force = 0;
         addr = DXL_XL430_HW_ERROR_ADDR;
         v = 1;
         txn = TX_HWERR;
-        if (a->hwerr_due || (a->sv_cycle % APP_HWERR_EVERY) == 0u) {
+        if (a->hwerr_due || (!force && (a->sv_cycle % APP_HWERR_EVERY) == 0u)) {
             a->hwerr_due = 0;
         } else {
-            if ((a->sv_cycle % APP_GOAL_REFRESH_EVERY) == APP_GOAL_REFRESH_EVERY / 2u) {
+            if (!force && (a->sv_cycle % APP_GOAL_REFRESH_EVERY) == APP_GOAL_REFRESH_EVERY / 2u) {
                 a->goal_due = off_goal(a); /* this cycle refreshes goals instead */
             }
             addr = DXL_XL430_PRESENT_POSITION_ADDR;
@@ -1119,6 +1131,7 @@ static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon
     cfg.v_fast = (uint16_t)a->set.v[STORE_SET_APPROACH_FAST];
     cfg.v_fine = (uint16_t)a->set.v[STORE_SET_APPROACH_SLOW];
     cfg.avg_samples = (uint8_t)a->set.v[STORE_SET_FILTER_K];
+    cfg.servo_timeout_ms = APP_SERVO_TIMEOUT_MS;
     a->have_b0 = 0; /* its storage goes to the homing */
     hom_init(&a->u.hom, &cfg);
     a->torque_on = 0; /* the goals were cleared: nothing to refresh until set */

@@ -66,6 +66,19 @@
     10u                           /* XL430 Bus Watchdog, 20 ms units: servos stop 200 ms           \
                                        after the last instruction (board hung or reset) */
 #define APP_GOAL_REFRESH_EVERY 4u /* send goals not reached again every n-th cycle */
+/* A position read that missed a servo (a corrupted reply) is followed by up to
+ * this many position reads in a row, ahead of the hardware-error reads and
+ * goal refreshes, so one servo's position never goes stale for the homing's
+ * servo timeout because of two unlucky bytes; a servo that stays silent still
+ * times out, and the other transactions resume. */
+#define APP_POS_RETRIES 3u
+/* A servo whose position has not been read for this long is a fault. The
+ * firmware reads positions every 5-13 ms (a pass of the loop during the fine
+ * approach takes up to about 13 ms), so 50 ms left room for only four reads,
+ * and two corrupted replies in a row at a byte error rate of 1e-3 could end
+ * a healthy run; 120 ms is still well inside the servos' own 200 ms bus
+ * watchdog. */
+#define APP_SERVO_TIMEOUT_MS 120u
 
 enum {
     APP_E_ARG = -1 /* NULL pointer or missing interface in app_init() */
@@ -143,7 +156,9 @@ typedef struct {
     uint8_t sv_txn;    /* transaction in flight */
     uint8_t sv_cycle;
     uint8_t hwerr_due;
-    uint8_t released; /* the last app release has not been followed by a pull */
+    uint8_t pos_force;  /* the next cycle reads positions (a servo was missed) */
+    uint8_t pos_streak; /* position reads in a row that missed a servo */
+    uint8_t released;   /* the last app release has not been followed by a pull */
     uint8_t move_kind;
     uint8_t run_mode;
     uint8_t run_abs; /* the run compares |B - A| with the absolute targets (target_mode 1) */

@@ -112,7 +112,7 @@ def assert_all_released(r):
 # scenario, injection time (s), fault fields, tendon 0 taut when it came
 MID_RUN = [
     ("sensor_unplug", 2.8, {"reason": "sensor_(error|timeout)", "dev": "sensor", "index": "0"}, True),
-    ("servo_silent", 3.0, {"reason": "servo_timeout", "dev": "servo", "index": "2", "id": "3"}, True),
+    ("servo_silent", 2.8, {"reason": "servo_timeout", "dev": "servo", "index": "2", "id": "3"}, True),
     ("servo_hwerr", 2.8,
      {"reason": "servo_error", "dev": "servo", "index": "1", "id": "2", "detail": "32"}, True),
     ("saturate", 2.8, {"reason": "saturated", "dev": "sensor", "index": "0"}, True),
