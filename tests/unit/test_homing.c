@@ -32,18 +32,6 @@ static int group_setup_desc(void **state)
     return hom_fix_paper_desc(&g_cfg, &g_tab);
 }
 
-static int count_events(const plant_run_result_t *r, uint8_t type)
-{
-    int n = 0;
-    uint16_t i;
-    for (i = 0; i < r->n_events; i++) {
-        if (r->events[i].type == type) {
-            n++;
-        }
-    }
-    return n;
-}
-
 static const hom_event_t *find_event(const plant_run_result_t *r, uint8_t type)
 {
     uint16_t i;
@@ -76,11 +64,11 @@ static void expect_fault(plant_fault_t fi, uint8_t index, uint32_t at_ms, hom_fa
     assert_non_null(ev);
     assert_int_equal(ev->code, want);
     if (moved) {
-        assert_int_equal(count_events(&g_res, HOM_EV_RELEASED), 1);
+        assert_int_equal(hom_fix_count_events(&g_res, HOM_EV_RELEASED), 1);
         assert_true(g_res.released);
         assert_true(g_res.release_ms <= 100u);
     } else {
-        assert_int_equal(count_events(&g_res, HOM_EV_RELEASED), 0);
+        assert_int_equal(hom_fix_count_events(&g_res, HOM_EV_RELEASED), 0);
     }
     for (i = 0; i < g_res.n_tendons; i++) {
         assert_true(g_res.max_past_engage_ticks[i] <= (double)g_res.limit_ticks[i]);
@@ -97,7 +85,7 @@ static void test_nominal_lands_within_one_tick(void **state)
     assert_int_equal(plant_run(&rc, &g_res), 0);
     assert_int_equal(g_res.rc, 0);
     assert_non_null(find_event(&g_res, HOM_EV_DONE));
-    assert_int_equal(count_events(&g_res, HOM_EV_HOME), g_res.n_tendons);
+    assert_int_equal(hom_fix_count_events(&g_res, HOM_EV_HOME), g_res.n_tendons);
     assert_true(g_res.end_ms <= 12000u);
     for (i = 0; i < g_res.n_tendons; i++) {
         assert_true(g_res.have_home[i]);
@@ -237,7 +225,7 @@ static void test_single_tendon(void **state)
     rc.seed = 31;
     assert_int_equal(plant_run(&rc, &g_res), 0);
     assert_int_equal(g_res.rc, 0);
-    assert_int_equal(count_events(&g_res, HOM_EV_HOME), 1);
+    assert_int_equal(hom_fix_count_events(&g_res, HOM_EV_HOME), 1);
     for (i = 0; i < g_res.n_tendons; i++) {
         assert_int_equal(g_res.have_home[i], i == 4);
         if (i != 4) {
@@ -263,8 +251,8 @@ static void test_dry_run_no_motion(void **state)
     rc.start_ticks = start;
     assert_int_equal(plant_run(&rc, &g_res), 0);
     assert_int_equal(g_res.rc, 0);
-    assert_int_equal(count_events(&g_res, HOM_EV_TARGET), g_res.n_tendons);
-    assert_int_equal(count_events(&g_res, HOM_EV_HOME), 0);
+    assert_int_equal(hom_fix_count_events(&g_res, HOM_EV_TARGET), g_res.n_tendons);
+    assert_int_equal(hom_fix_count_events(&g_res, HOM_EV_HOME), 0);
     for (i = 0; i < g_res.n_tendons; i++) {
         assert_true(g_res.max_tension_N[i] == 0.0);
     }
@@ -317,7 +305,7 @@ static void test_magnet_missing(void **state)
     (void)state;
     /* caught at the baseline, after the release and before any pull */
     expect_fault(PLANT_FI_MAGNET_MISSING, 0, 0, HOM_F_MAGNET_MISSING, 1);
-    assert_int_equal(count_events(&g_res, HOM_EV_ENGAGED), 0);
+    assert_int_equal(hom_fix_count_events(&g_res, HOM_EV_ENGAGED), 0);
 }
 
 static void test_magnet_missing_no_prediction(void **state)
@@ -427,7 +415,7 @@ static void test_preflight_names_missing(void **state)
     assert_int_equal(ev->code, HOM_DEV_SENSOR);
     assert_int_equal(ev->index, 1);
     assert_int_equal(ev->a, 1); /* absent */
-    assert_int_equal(count_events(&g_res, HOM_EV_MISSING), 1);
+    assert_int_equal(hom_fix_count_events(&g_res, HOM_EV_MISSING), 1);
     expect_fault(PLANT_FI_SERVO_ABSENT, 5, 0, HOM_F_PREFLIGHT, 0);
     ev = find_event(&g_res, HOM_EV_MISSING);
     assert_non_null(ev);

@@ -32,16 +32,6 @@ static int setup_desc(void **state)
     return hom_fix_paper_desc(&g_cfg, &g_tab);
 }
 
-static int count_events(const plant_run_result_t *r, uint8_t type)
-{
-    int n = 0;
-    uint16_t i;
-    for (i = 0; i < r->n_events; i++) {
-        n += r->events[i].type == type;
-    }
-    return n;
-}
-
 /* A full run in delta mode (amb NULL) or absolute mode, with the ambient
  * shifted by shift_x_uT (world x) for this run. */
 static void run(uint32_t seed, int32_t (*amb)[3], int capture, double shift_x_uT,
@@ -107,7 +97,7 @@ static void test_same_homes_as_delta(void **state)
         capture(seed + 100u);
         run(seed, g_amb, 0, 0.0, &g_res);
         assert_int_equal(g_res.rc, 0);
-        assert_int_equal(count_events(&g_res, HOM_EV_HOME), g_res.n_tendons);
+        assert_int_equal(hom_fix_count_events(&g_res, HOM_EV_HOME), g_res.n_tendons);
         for (i = 0; i < g_res.n_tendons; i++) {
             assert_true(g_res.have_home[i]);
             assert_true(labs((long)(g_res.home[i] - delta.home[i])) <= 1);
@@ -182,7 +172,7 @@ static void expect_abs_fault(plant_fault_t fi, uint8_t index, uint32_t at_ms, ho
     rc.fault_ms = at_ms;
     assert_int_equal(plant_run(&rc, &g_res), 0);
     assert_int_equal(g_res.fault, want);
-    assert_int_equal(count_events(&g_res, HOM_EV_RELEASED), 1);
+    assert_int_equal(hom_fix_count_events(&g_res, HOM_EV_RELEASED), 1);
     assert_true(g_res.released);
     assert_true(g_res.release_ms <= 100u);
     for (i = 0; i < g_res.n_tendons; i++) {
@@ -222,7 +212,7 @@ static void test_wrong_ambient_faults_safely(void **state)
     assert_int_equal(plant_run(&rc, &g_res), 0);
     /* measured: the predicted target lies beyond the travel limit */
     assert_int_equal(g_res.fault, HOM_F_TRAVEL_LIMIT);
-    assert_int_equal(count_events(&g_res, HOM_EV_RELEASED), 1);
+    assert_int_equal(hom_fix_count_events(&g_res, HOM_EV_RELEASED), 1);
     assert_true(g_res.released);
     for (i = 0; i < g_res.n_tendons; i++) {
         assert_true(g_res.max_past_engage_ticks[i] <= (double)g_res.limit_ticks[i]);

@@ -47,3 +47,15 @@ int hom_fix_paper_desc(plant_cfg_t *cfg, tbl_table_t *t)
 {
     return hom_fix_load("paper_2seg.cfg", cfg, t);
 }
+
+int hom_fix_count_events(const plant_run_result_t *r, uint8_t type)
+{
+    int n = 0;
+    uint16_t i;
+    for (i = 0; i < r->n_events; i++) {
+        if (r->events[i].type == type) {
+            n++;
+        }
+    }
+    return n;
+}

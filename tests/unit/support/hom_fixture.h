@@ -22,4 +22,7 @@ int hom_fix_paper(plant_cfg_t *cfg, tbl_table_t *t);
  * (written by hallhome.plantcfg; sensors on a 22 mm ring, a weak field). */
 int hom_fix_paper_desc(plant_cfg_t *cfg, tbl_table_t *t);
 
+/* Number of events of the given HOM_EV_* type a closed-loop run recorded. */
+int hom_fix_count_events(const plant_run_result_t *r, uint8_t type);
+
 #endif /* HALLHOME_HOM_FIXTURE_H */
