@@ -99,15 +99,22 @@ static double seg_ei_rel(const plant_cfg_t *actual, unsigned j)
     return rel(actual->ei_Nm2, nominal.ei_Nm2);
 }
 
+/* A full calibration of `actual` with the nominal table, delta mode. */
+static void run_setup(plant_run_cfg_t *rc, const plant_cfg_t *actual, unsigned tension,
+                      uint32_t seed)
+{
+    plant_run_defaults(rc, actual, &table);
+    rc->seed = seed;
+    rc->cmd.mode = HOM_MODE_FULL;
+    rc->cmd.tension_mN = (uint16_t)tension;
+}
+
 /* One closed-loop calibration of `actual` with the nominal table. */
 static int run_one(const plant_cfg_t *actual, unsigned tension, uint32_t seed,
                    plant_run_result_t *res)
 {
     plant_run_cfg_t rc;
-    plant_run_defaults(&rc, actual, &table);
-    rc.seed = seed;
-    rc.cmd.mode = HOM_MODE_FULL;
-    rc.cmd.tension_mN = (uint16_t)tension;
+    run_setup(&rc, actual, tension, seed);
     return plant_run(&rc, res);
 }
 
@@ -352,10 +359,7 @@ static int capture_ambient(const opts_t *o)
 {
     static plant_run_result_t res;
     plant_run_cfg_t rc;
-    plant_run_defaults(&rc, &nominal, &table);
-    rc.seed = o->seed * 7919u + 424243u;
-    rc.cmd.mode = HOM_MODE_FULL;
-    rc.cmd.tension_mN = (uint16_t)o->tension;
+    run_setup(&rc, &nominal, o->tension, o->seed * 7919u + 424243u);
     rc.cmd.ambient_cuT = amb_cuT;
     rc.cmd.ambient_capture = 1;
     return plant_run(&rc, &res) == 0 && res.rc == 0 ? 0 : -1;
@@ -366,10 +370,7 @@ static int run_abs(const plant_cfg_t *actual, unsigned tension, uint32_t seed,
                    plant_run_result_t *res)
 {
     plant_run_cfg_t rc;
-    plant_run_defaults(&rc, actual, &table);
-    rc.seed = seed;
-    rc.cmd.mode = HOM_MODE_FULL;
-    rc.cmd.tension_mN = (uint16_t)tension;
+    run_setup(&rc, actual, tension, seed);
     rc.cmd.ambient_cuT = amb_cuT;
     rc.cmd.ambient_capture = 0;
     return plant_run(&rc, res);
@@ -452,10 +453,7 @@ static int study_cal(const opts_t *o)
         int prc;
         actual = nominal;
         (void)plant_cfg_perturb(&actual, o->seed + r, o->frac);
-        plant_run_defaults(&rc, &actual, &table);
-        rc.seed = o->seed * 7919u + r;
-        rc.cmd.mode = HOM_MODE_FULL;
-        rc.cmd.tension_mN = (uint16_t)o->tension;
+        run_setup(&rc, &actual, o->tension, o->seed * 7919u + r);
         prc = plant_run(&rc, &res);
         if (o->quick && prc == 0 && res.rc == 0) {
             static double start[TBL_MAX_TENDONS];
