@@ -31,6 +31,9 @@ extern const tbl_table_t HH_TABLE __attribute__((weak));
 
 static app_t app;
 static con_rt_t con_rt;
+/* Kept across watchdog and reset-pin resets (the servos keep their positions
+ * then); cleared after a power-up, when SRAM holds noise. */
+static app_win_t win __attribute__((section(".noinit")));
 
 static uint8_t rt_hook(uint8_t b)
 {
@@ -130,6 +133,10 @@ int main(void)
     io.version_f = PSTR(HH_VERSION);
     io.board_f = PSTR(BOARD_NAME);
     io.reset_f = reset_cause_P();
+    if (reset_flags() & (RESET_POWER | RESET_BROWNOUT)) {
+        memset(&win, 0, sizeof win);
+    }
+    io.win = &win;
     (void)app_init(&app, &io);
     uart1_init(app_bus_baud(&app));
     board_io_wdt_start();

@@ -332,6 +332,52 @@ APP_NOINLINE static int32_t ticks_um(uint32_t npt, int32_t ticks)
     return ticks * (int32_t)(npt / 1000u) + ticks * (int32_t)(npt % 1000u) / 1000;
 }
 
+/* ---- engagement windows (app_win_t) ------------------------------------------ */
+
+static uint16_t win_crc(const app_win_t *w)
+{
+    return store_crc16(0xFFFFu, w, offsetof(app_win_t, crc));
+}
+
+/* Checks the kept windows at boot: wrong magic, table or CRC clears them. */
+static void win_check(app_t *a)
+{
+    app_win_t *w = a->io->win;
+    if (w != NULL && (w->magic != APP_WIN_MAGIC || w->table_id != a->info.table_id ||
+                      w->crc != win_crc(w) || !a->table_ok)) {
+        memset(w, 0, sizeof *w);
+        w->magic = APP_WIN_MAGIC;
+        w->table_id = a->info.table_id;
+        w->crc = win_crc(w);
+    }
+}
+
+/* Sets tendon i's window (or forgets it with keep 0). */
+APP_NOINLINE static void win_set(app_t *a, uint8_t i, int32_t lo, int32_t hi, uint8_t keep)
+{
+    app_win_t *w = a->io->win;
+    if (w == NULL) {
+        return;
+    }
+    w->mask = (uint16_t)(keep ? (w->mask | bit16(i)) : (w->mask & ~bit16(i)));
+    w->lo[i] = lo;
+    w->hi[i] = hi;
+    w->crc = win_crc(w);
+}
+
+/* Takes the windows a run changed into the kept copy. */
+APP_NOINLINE static void win_take(app_t *a)
+{
+    uint8_t i;
+    for (i = 0; i < a->info.n_tendons; i++) {
+        int32_t lo, hi;
+        if (has(a->u.hom.win_changed, i) && hom_window(&a->u.hom, i, &lo, &hi) == 0) {
+            win_set(a, i, lo, hi, 1);
+        }
+    }
+    a->u.hom.win_changed = 0;
+}
+
 static int32_t home_cur(const app_t *a, uint8_t i)
 {
     return a->homes.t[i].home_ticks - a->offset[i];
@@ -356,6 +402,7 @@ int8_t app_init(app_t *app, const app_io_t *io)
     (void)store_init(&app->store, io->eeprom, io->store_copy);
     (void)store_settings_load(&app->store, &app->set);
     load_table(app);
+    win_check(app);
     hom_init(&app->u.hom, NULL);
     dxl_config_default(&dc, app_bus_baud(app), io->servo_bits != 0u ? io->servo_bits : 10u);
     dxl_master_init(&app->dxl, &io->servo_port, &dc);
@@ -714,7 +761,13 @@ APP_NOINLINE static void servo_done(app_t *a, int8_t rc)
             a->reboot_id = 0;
         } else {
             /* the servo lost its multi-turn count: bring the bus up again
-             * and recover the homes as after a power cycle */
+             * and recover the homes as after a power cycle; its engagement
+             * window is in the old frame */
+            for (i = 0; i < a->info.n_tendons; i++) {
+                if (a->ids[i] == a->reboot_id) {
+                    win_set(a, i, 0, 0, 0);
+                }
+            }
             a->t_boot = now_ms(a);
             a->boot_con = 1;
             a->boot_step = 0;
@@ -1034,7 +1087,6 @@ APP_NOINLINE static void run_done(app_t *a)
     a->recover_rc = 0;
     save_queue(a, SAVE_HOMES | SAVE_HIST);
     a->offer_quick = 0;
-    a->released = 0;
     rep_begin(a, s_done);
     rep_word(a, s_mode, MODE_WORDS, a->run_mode);
     rep_word(a, s_target, s_delta_abs, a->run_abs);
@@ -1123,6 +1175,11 @@ static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon
             cmd.stored_mask |= bit16(i);
         }
     }
+    if (a->io->win != NULL) {
+        cmd.win_mask = a->io->win->mask;
+        memcpy(cmd.win_lo, a->io->win->lo, sizeof cmd.win_lo);
+        memcpy(cmd.win_hi, a->io->win->hi, sizeof cmd.win_hi);
+    }
     hom_config_default(&cfg);
     /* filter_k is the homing's own filter: samples averaged at each fine
      * point while the servo stands still (near the target at least twice as
@@ -1191,6 +1248,9 @@ APP_NOINLINE static void cal_step(app_t *a, hom_in_t *in)
         in->now_ms--;
     }
     rc = hom_step(&a->u.hom, in, &out);
+    if (a->u.hom.win_changed != 0u) {
+        win_take(a);
+    }
     for (i = 0; i < a->info.n_tendons; i++) {
         if (has(out.changed, i)) {
             a->acc = out.acc[i]; /* one profile acceleration for every move */
@@ -1208,7 +1268,6 @@ APP_NOINLINE static void cal_step(app_t *a, hom_in_t *in)
         run_done(a);
     } else if (rc < 0) {
         fault_rest(a, in->now_ms);
-        a->released = 1;
     }
 }
 
@@ -1223,10 +1282,12 @@ static void move_start(app_t *a, uint8_t kind)
     a->led = APP_LED_RUN;
 }
 
-/* Release goals computed by the app when no run is active: a slack margin
- * behind the home at the stored tension, or, with no home, the homing's
- * initial release from where the servo stands (once: a second release
- * without a pull in between does not unwind further). Never pulls. */
+/* Release goals computed by the app when no run is active: the slack margin
+ * before each tendon's engagement window. A tendon without a window gets
+ * one first: the engagement its stored home implies, or, with nothing
+ * known, the homing's own assumption (anywhere up to the release that frees
+ * a tendon left at the top of the grid). Never pulls, and repeated releases
+ * go no further (the window stays). */
 static uint8_t release_goals(app_t *a)
 {
     hom_config_t cfg;
@@ -1235,32 +1296,36 @@ static uint8_t release_goals(app_t *a)
     for (i = 0; i < a->info.n_tendons; i++) {
         tbl_point_t pt;
         tbl_tendon_t row;
-        int32_t g, dir;
+        int32_t g, dir, lo, hi;
         if (has(a->servo_absent, i)) {
             continue;
         }
         (void)tbl_tendon(&a->tab, i, &row);
         dir = row.pull_dir < 0 ? -1 : 1;
-        if (has(a->home_now, i)) {
-            uint32_t trav = 0;
-            if (tbl_target(&a->tab, i, a->homes.tension_mN, &pt) == 0) {
-                trav = pt.travel_um;
-            }
-            g = home_cur(a, i) - dir * um_ticks(row.nm_per_tick, trav + cfg.slack_margin_um);
-        } else if (!a->released) {
-            g = a->present[i] -
-                dir * um_ticks(row.nm_per_tick,
-                               row.travel_um[a->info.n_grid - 1u] * 3u / 2u + cfg.slack_margin_um);
+        if (a->io->win != NULL && has(a->io->win->mask, i)) {
+            lo = a->io->win->lo[i];
         } else {
-            g = a->present[i];
+            if (has(a->home_now, i)) {
+                uint32_t trav = 0;
+                if (tbl_target(&a->tab, i, a->homes.tension_mN, &pt) == 0) {
+                    trav = pt.travel_um;
+                }
+                hi = home_cur(a, i) - dir * um_ticks(row.nm_per_tick, trav);
+                lo = hi;
+            } else {
+                hi = a->present[i];
+                lo = hi -
+                     dir * um_ticks(row.nm_per_tick, row.travel_um[a->info.n_grid - 1u] * 3u / 2u);
+            }
+            win_set(a, i, lo, hi, 1);
         }
+        g = lo - dir * um_ticks(row.nm_per_tick, cfg.slack_margin_um);
         if (dir * (g - a->present[i]) > 0) {
             g = a->present[i]; /* already slacker than the release point */
         }
         set_goal(a, i, g, cfg.v_release, cfg.acc);
         moved = 1;
     }
-    a->released = 1;
     return moved;
 }
 
@@ -1335,7 +1400,6 @@ APP_NOINLINE static void move_step(app_t *a)
     con_report_flash(&a->con, s_mode, s_home);
     rep_int(a, s_time_ms, (int32_t)(t - a->t_move));
     rep_end(a);
-    a->released = 0;
     a->state = APP_ST_IDLE;
     a->led = APP_LED_IDLE;
 }

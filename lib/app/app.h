@@ -103,6 +103,24 @@ enum {
     APP_LED_FAULT     /* 10 Hz blink, three flashes then a pause, until the next action */
 };
 
+/* Engagement windows of every tendon (hom_window()), kept across runs and
+ * across resets that keep the servos powered (watchdog, reset pin): the
+ * board places it in memory the C start-up leaves alone (.noinit on the AVR)
+ * and clears it after a power-up. app_init() keeps it only when the magic,
+ * the table and the CRC check. With it, the release after any stop goes no
+ * further than the slack margin before each tendon's window, so repeated
+ * stops and resets never pay out tendon without bound (docs/app.md). */
+typedef struct {
+    uint16_t magic; /* APP_WIN_MAGIC */
+    uint16_t mask;  /* bit i: lo[i], hi[i] valid */
+    uint32_t table_id;
+    int32_t lo[TBL_MAX_TENDONS];
+    int32_t hi[TBL_MAX_TENDONS];
+    uint16_t crc; /* store_crc16() of everything before it */
+} app_win_t;
+
+#define APP_WIN_MAGIC 0x5748u
+
 /* The board as the app sees it. Every function must return at once. */
 typedef struct {
     void *ctx;
@@ -134,6 +152,7 @@ typedef struct app_io_s {
      * context, so the owner of the app instance binds it). NULL: learned
      * targets are stored but not used. */
     tbl_copy_fn table_copy_learned;
+    app_win_t *win;        /* engagement windows (see app_win_t); NULL: none kept */
     const char *version_f; /* firmware version */
     const char *board_f;   /* board name */
     const char *reset_f;   /* reset cause word */
@@ -158,7 +177,6 @@ typedef struct {
     uint8_t hwerr_due;
     uint8_t pos_force;  /* the next cycle reads positions (a servo was missed) */
     uint8_t pos_streak; /* position reads in a row that missed a servo */
-    uint8_t released;   /* the last app release has not been followed by a pull */
     uint8_t move_kind;
     uint8_t run_mode;
     uint8_t run_abs; /* the run compares |B - A| with the absolute targets (target_mode 1) */

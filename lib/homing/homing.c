@@ -151,6 +151,16 @@ int hom_event_pop(hom_t *h, hom_event_t *ev)
     return 1;
 }
 
+int hom_window(const hom_t *h, uint8_t i, int32_t *lo, int32_t *hi)
+{
+    if (h == NULL || lo == NULL || hi == NULL || i >= h->n_tendons || !((h->win_known >> i) & 1u)) {
+        return HOM_E_ARG;
+    }
+    *lo = h->tendon[i].eng_lo;
+    *hi = h->tendon[i].eng_hi;
+    return 0;
+}
+
 int hom_home(const hom_t *h, uint8_t i, int32_t *ticks)
 {
     if (h == NULL || ticks == NULL || i >= h->n_tendons || !h->tendon[i].have_home) {
@@ -268,6 +278,10 @@ HOM_NOINLINE static int load_tendon(hom_t *h, const tbl_src_t *table, const hom_
         t->est_home = cmd->stored_home[i]; /* unwrapped once positions are known */
         t->have_home = 2;                  /* 2: stored, not yet measured */
     }
+    if ((cmd->win_mask >> i) & 1u) {
+        t->eng_lo = cmd->win_lo[i];
+        t->eng_hi = cmd->win_hi[i];
+    }
     /* The initial release must free a tendon left anywhere up to the top of
      * the grid: one and a half times that travel plus the margin. */
     r = row.travel_um[info->n_grid - 1u];
@@ -320,6 +334,7 @@ int hom_start(hom_t *h, const tbl_src_t *table, const hom_cmd_t *cmd)
         rel_um = h->cfg.initial_release_um;
     }
     h->release_um = rel_um;
+    h->win_known = (uint16_t)(cmd->win_mask & ((1u << info.n_tendons) - 1u));
     h->table = *table;
     /* averages beyond the accumulator's reach would never complete */
     if (h->cfg.baseline_samples == 0u || h->cfg.baseline_samples > HOM_MAX_AVG) {
@@ -504,16 +519,12 @@ HOM_NOINLINE static void fail(hom_t *h, hom_fault_t f, uint8_t dev, uint8_t inde
     if (h->moved) {
         for (i = 0; i < h->n_tendons; i++) {
             const hom_tendon_t *t = &h->tendon[i];
-            int32_t m = pull(t, t->margin_ticks);
-            int32_t g = h->present[i] - m;
-            if (t->engaged) {
-                g = further_back(t, g, t->engage - m);
-            }
-            if (t->have_slack) {
-                g = further_back(t, g, t->slack_pos); /* pulled without engaging: to slack */
-            }
-            g = further_back(t, g, h->out.goal[i]); /* a release already going further */
-            set_goal(h, i, g, h->cfg.v_release);
+            /* the slack margin before the engagement window (this run's
+             * engagement when it engaged: the window is narrowed to it), a
+             * release already going further, and never a pull */
+            int32_t g = t->eng_lo - pull(t, t->margin_ticks);
+            g = further_back(t, g, h->out.goal[i]);
+            set_goal(h, i, further_back(t, h->present[i], g), h->cfg.v_release);
         }
         push_event(h, HOM_EV_RELEASED, 0, 0, (int32_t)f, 0);
     }
@@ -602,6 +613,19 @@ HOM_NOINLINE static int check_servos(hom_t *h, const hom_in_t *in)
 
 /* ---- phases ------------------------------------------------------------------- */
 
+/* Where a run releases tendon i to before its slack check: the margin
+ * before its engagement window (quick mode: before the engagement the stored
+ * home implies). The slack check's further steps count from here, not from
+ * where the tendon stands, so runs after stops do not pay out more. */
+HOM_NOINLINE static int32_t release_base(const hom_t *h, uint8_t i)
+{
+    const hom_tendon_t *t = &h->tendon[i];
+    if (h->mode == HOM_MODE_QUICK) {
+        return t->est_home - pull(t, t->travel_ticks + t->margin_ticks);
+    }
+    return t->eng_lo - pull(t, t->margin_ticks);
+}
+
 /* Preflight: every device must answer within preflight_ms; each one that does
  * not, or reports an error, is named before the refusal. */
 static void do_preflight(hom_t *h, const hom_in_t *in)
@@ -654,16 +678,25 @@ static void do_preflight(hom_t *h, const hom_in_t *in)
             hom_tendon_t *t = &h->tendon[i];
             int32_t g;
             t->est_home = unwrap_home(t->est_home, h->present[i]);
-            t->start_pos = h->present[i];
             if (h->mode == HOM_MODE_DRY) {
                 continue;
             }
-            if (h->mode == HOM_MODE_QUICK) {
-                g = t->est_home - pull(t, t->travel_ticks + t->margin_ticks);
-            } else {
-                g = h->present[i] - pull(t, um_to_ticks(h->release_um, t->nm_per_tick));
+            if (!((h->win_known >> i) & 1u)) {
+                /* nothing known: the engagement may lie up to the release
+                 * that frees a tendon left at the top of the grid behind the
+                 * present position, or (slack) ahead of it */
+                t->eng_hi = h->present[i];
+                t->eng_lo = h->present[i] -
+                            pull(t, um_to_ticks(h->release_um, t->nm_per_tick) - t->margin_ticks);
+                if (h->mode == HOM_MODE_QUICK) {
+                    t->eng_hi = t->est_home - pull(t, t->travel_ticks);
+                    t->eng_lo = t->eng_hi;
+                }
+                h->win_known |= (uint16_t)(1u << i);
+                h->win_changed |= (uint16_t)(1u << i);
             }
-            set_goal(h, i, g, h->cfg.v_release);
+            g = release_base(h, i);
+            set_goal(h, i, further_back(t, h->present[i], g), h->cfg.v_release);
         }
         /* a dry run moves nothing: straight to the baseline average */
         h->state = h->mode == HOM_MODE_DRY ? ST_SLACK_AVG : ST_RELEASE_ALL;
@@ -706,13 +739,14 @@ static uint8_t next_tendon(const hom_t *h, uint8_t from)
     return from;
 }
 
-/* How far the take-up may search for engagement from the present position:
- * what this run released the tendon by, plus the most slack it may have
- * started with. */
-HOM_NOINLINE static int32_t search_ticks(const hom_t *h, uint8_t i)
+/* Where the take-up search for engagement ends: the most slack a tendon may
+ * have started with past the high end of its engagement window (what every
+ * earlier release paid out lies behind it), at least two ticks on. */
+HOM_NOINLINE static int32_t search_goal(const hom_t *h, uint8_t i)
 {
-    int32_t released = pull(&h->tendon[i], h->tendon[i].start_pos - h->present[i]);
-    return (released > 0 ? released : 0) + um_ticks_cur(h, i, h->cfg.max_takeup_um);
+    const hom_tendon_t *t = &h->tendon[i];
+    int32_t g = t->eng_hi + pull(t, um_ticks_cur(h, i, h->cfg.max_takeup_um));
+    return further_back(t, g, h->present[i] + pull(t, 2)) == g ? h->present[i] + pull(t, 2) : g;
 }
 
 /* Distance of tendon i to its goal in the final move: its home (measured or
@@ -784,8 +818,8 @@ HOM_NOINLINE static void begin_tendon(hom_t *h, uint8_t i)
             return;
         }
     }
-    g = h->present[i] + pull(t, search_ticks(h, i));
-    set_goal(h, i, g, h->mode == HOM_MODE_QUICK ? h->cfg.v_moderate : h->cfg.v_fast);
+    set_goal(h, i, search_goal(h, i),
+             h->mode == HOM_MODE_QUICK ? h->cfg.v_moderate : h->cfg.v_fast);
     h->state = ST_TAKEUP;
 }
 
@@ -938,8 +972,7 @@ HOM_NOINLINE static void finish_tendon(hom_t *h, int32_t p, int32_t fallback)
     t->home = floor_div256(home_q8);
     t->have_home = 1;
     push_event(h, HOM_EV_HOME, 0, h->cur, t->home, home_q8 - t->home * 256);
-    t->slack_pos = slack_goal(t);
-    set_goal(h, h->cur, t->slack_pos, h->cfg.v_release);
+    set_goal(h, h->cur, slack_goal(t), h->cfg.v_release);
     h->state = ST_TENDON_RELEASE;
     h->t_phase = h->now_ms;
 }
@@ -1098,10 +1131,17 @@ static void slack_done(hom_t *h)
 {
     uint8_t k;
     uint8_t i;
-    if (h->mode != HOM_MODE_DRY) {
+    if (h->mode != HOM_MODE_DRY && h->steps > 1u) {
+        /* the slack check had to release further: the engagement lies
+         * behind the window, which now starts a margin past the confirmed
+         * slack (later releases go no further than here) */
         for (i = 0; i < h->n_tendons; i++) {
-            h->tendon[i].slack_pos = h->present[i];
-            h->tendon[i].have_slack = 1;
+            hom_tendon_t *t = &h->tendon[i];
+            int32_t lo = h->present[i] + pull(t, t->margin_ticks);
+            if (further_back(t, lo, t->eng_lo) == lo) {
+                t->eng_lo = lo;
+                h->win_changed |= (uint16_t)(1u << i);
+            }
         }
     }
     for (k = 0; k < h->n_sensors; k++) {
@@ -1193,8 +1233,9 @@ HOM_NOINLINE static void do_slack_avg(hom_t *h)
     h->steps++;
     for (i = 0; i < h->n_tendons; i++) {
         hom_tendon_t *t = &h->tendon[i];
-        set_goal(h, i, h->out.goal[i] - pull(t, um_ticks_cur(h, i, h->cfg.slack_step_um)),
-                 h->cfg.v_release);
+        int32_t g =
+            release_base(h, i) - pull(t, h->steps * um_ticks_cur(h, i, h->cfg.slack_step_um));
+        set_goal(h, i, further_back(t, h->present[i], g), h->cfg.v_release);
     }
     h->state = ST_RELEASE_ALL;
     h->t_phase = h->now_ms;
@@ -1242,6 +1283,9 @@ HOM_NOINLINE static void do_tendon(hom_t *h, const hom_in_t *in)
         if (fresh && !t->engaged && b >= h->engage_cuT) {
             t->engaged = 1;
             t->engage = h->pos_at_sample; /* the last position seen slack */
+            t->eng_lo = t->engage;
+            t->eng_hi = t->engage;
+            h->win_changed |= (uint16_t)(1u << h->cur);
             push_event(h, HOM_EV_ENGAGED, 0, h->cur, t->engage, (int32_t)b);
             if (!h->quick_leg) {
                 begin_moderate(h);
@@ -1259,7 +1303,7 @@ HOM_NOINLINE static void do_tendon(hom_t *h, const hom_in_t *in)
             } else if (h->quick_leg) {
                 /* no engagement where the stored home put it: search as usual */
                 h->quick_leg = 0;
-                set_goal(h, h->cur, p + pull(t, search_ticks(h, h->cur)), h->cfg.v_moderate);
+                set_goal(h, h->cur, search_goal(h, h->cur), h->cfg.v_moderate);
             } else {
                 fail_tendon(h, HOM_F_NO_ENGAGEMENT, pull(t, p - h->pos_at_sample));
             }

@@ -246,9 +246,8 @@ typedef struct {
     int32_t engage;       /* engagement position, ticks */
     int32_t home;         /* home, ticks */
     int32_t est_home;     /* quick mode: stored home in this power cycle's frame */
-    int32_t slack_pos;    /* last position known slack (after the slack check, a release) */
-    uint8_t have_slack;   /* slack_pos is valid */
-    int32_t start_pos;    /* position when the run started */
+    int32_t eng_lo;       /* engagement window (see hom_cmd_t.win_*): lowest and highest */
+    int32_t eng_hi;       /* position, in the pull direction, the engagement may lie at */
 } hom_tendon_t;
 
 typedef struct {
@@ -289,6 +288,8 @@ typedef struct {
     uint8_t ev_head;
     uint8_t ev_count;
     uint8_t ev_dropped;
+    uint16_t win_changed;  /* bit i: tendon i's engagement window changed (hom_window()) */
+    uint16_t win_known;    /* bit i: tendon i's window is set */
     uint32_t now_ms;       /* time of the current step */
     uint32_t t_phase;      /* start of the current wait */
     uint32_t t_tendon;     /* start of the current tendon */
@@ -301,7 +302,7 @@ typedef struct {
     uint16_t tension_mN;
     uint16_t noise_cuT;
     uint32_t t_start;    /* run start */
-    uint32_t release_um; /* initial release (full and single modes) */
+    uint32_t release_um; /* release that frees a tendon of unknown state (full and single modes) */
     hom_config_t cfg;
     tbl_src_t table;     /* the run's table: it must stay readable until the run ends */
     int32_t (*amb)[3];   /* absolute mode: the caller's ambient offsets (NULL: delta mode) */
@@ -336,6 +337,18 @@ typedef struct {
      * every sensor from its own baseline; otherwise it uses the stored A. */
     int32_t (*ambient_cuT)[3];
     uint8_t ambient_capture;
+    /* Engagement windows from earlier runs of this power cycle (hom_window()):
+     * bit i of win_mask says tendon i's engagement lies between win_lo[i]
+     * and win_hi[i] (ticks, this power cycle's frame, low and high in the
+     * pull direction). A run releases a tendon only to the slack margin
+     * before win_lo and searches for its engagement up to max_takeup_um past
+     * win_hi, so repeated stops never pay out more tendon. A tendon without
+     * a window gets one at the start of the run: win_lo the release that
+     * frees a tendon left anywhere up to the top of the grid, win_hi where it
+     * stands (quick mode: the stored home minus the expected travel). */
+    uint16_t win_mask;
+    int32_t win_lo[TBL_MAX_TENDONS];
+    int32_t win_hi[TBL_MAX_TENDONS];
 } hom_cmd_t;
 
 /* Fills *cfg with the defaults: speeds designed for a 6.1 um tick, a sensor
@@ -375,6 +388,13 @@ const char *hom_fault_name(int fault);
 /* Tendon i's home from the last run. Returns 0 and writes *ticks, or
  * HOM_E_ARG when i is out of range or has no home. */
 int hom_home(const hom_t *h, uint8_t i, int32_t *ticks);
+
+/* Tendon i's engagement window as the last run left it: the run's own
+ * engagement when it engaged (low = high), otherwise the window it started
+ * with. Returns 0 and writes *lo and *hi, or HOM_E_ARG when i is out of range
+ * or has no window. h->win_changed has bit i set when it changed since the
+ * caller last cleared the bit. */
+int hom_window(const hom_t *h, uint8_t i, int32_t *lo, int32_t *hi);
 
 /* |v| for a 3-axis integer vector (64-bit integer square root). */
 uint32_t hom_norm3(const int32_t v[3]);

@@ -156,6 +156,7 @@ static void app_start(app_bench_t *b, uint8_t with_table)
     b->io.version_f = "0.0.0-test";
     b->io.board_f = "native bench";
     b->io.reset_f = "power";
+    b->io.win = &b->win;
     memset(&b->rt, 0, sizeof b->rt);
     g_bench = b;
     (void)app_init(&b->app, &b->io);

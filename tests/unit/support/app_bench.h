@@ -66,6 +66,7 @@ typedef struct {
     /* the app */
     app_board_t board;
     con_io_t con_io;
+    app_win_t win; /* the board's kept engagement windows */
     app_io_t io;
     app_t app;
 } app_bench_t;
