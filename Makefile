@@ -30,9 +30,9 @@ FW_SRCS  := $(wildcard firmware/*.c) $(wildcard lib/*/*.c) $(TABLE_SRC)
 FW_OBJS  := $(patsubst %.c,$(AVR_DIR)/%.o,$(FW_SRCS))
 AVR_CFLAGS := -mmcu=$(MCU) -DF_CPU=$(F_CPU) -std=c99 -Os -g -Wall -Wextra -Werror -pedantic \
 	-Wshadow -Wstrict-prototypes -Wmissing-prototypes -ffunction-sections -fdata-sections \
-	-mcall-prologues -fno-inline-small-functions -flto -mrelax -Ilib -Ifirmware -I$(AVR_DIR) -DTBL_FLASH=__attribute__\(\(__progmem__\)\) \
+	-mcall-prologues -mstrict-X -fno-inline-small-functions -flto -mrelax -Ilib -Ifirmware -I$(AVR_DIR) -DTBL_FLASH=__attribute__\(\(__progmem__\)\) \
 	-DHH_ROBOT=$(ROBOT) -MMD -MP
-AVR_LDFLAGS := -mmcu=$(MCU) -Os -mcall-prologues -fno-inline-small-functions -flto -mrelax -Wl,--gc-sections -Wl,-Map,$(BUILD)/firmware/hallhome.map
+AVR_LDFLAGS := -mmcu=$(MCU) -Os -mcall-prologues -mstrict-X -fno-inline-small-functions -flto -mrelax -Wl,--gc-sections -Wl,-Map,$(BUILD)/firmware/hallhome.map
 
 .PHONY: all firmware size flash help bootstrap test native-build unit avr-lib fuzz fuzz-smoke host-test lint \
 	format clean

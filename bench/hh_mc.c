@@ -349,7 +349,7 @@ static double gauss(uint64_t *s)
     return sqrt(-2.0 * log(u1)) * cos(6.283185307179586 * u2);
 }
 
-static int32_t amb_cuT[TBL_MAX_SENSORS][3]; /* absolute mode: captured ambient offsets */
+static int32_t amb_cuT[HOM_MAX_SENSORS][3]; /* absolute mode: captured ambient offsets */
 
 /* The homing core's absolute mode: one capture run on the robot as the table
  * knows it (its baseline stores A = B0 - b_straight per sensor), once per

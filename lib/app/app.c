@@ -21,6 +21,7 @@
  * memory on the AVR, where CON_FLASH is __progmem__). */
 static const char s_full_quick_single_dry[] CON_FLASH = "full quick single dry";
 static const char s_delta_abs[] CON_FLASH = "delta abs";
+static const char s_fault_words[] CON_FLASH = HOM_FAULT_WORDS;
 static const char s_target[] CON_FLASH = "target";
 static const char s_boot_idle_cal_move_lea[] CON_FLASH = "boot idle cal move learn fault";
 static const char s_none_sensor_servo_tend[] CON_FLASH = "none sensor servo tendon";
@@ -1027,7 +1028,7 @@ APP_NOINLINE static void rep_event(app_t *a, const hom_event_t *ev)
     case HOM_EV_FAULT:
         a->last_fault = ev->code;
         rep_begin(a, s_fault);
-        con_report_str(&a->con, s_reason, hom_fault_name(ev->code));
+        rep_word(a, s_reason, s_fault_words, ev->code);
         rep_int(a, s_code, ev->code);
         rep_word(a, s_dev, DEV_WORDS, (uint8_t)ev->a);
         rep_int(a, s_index, i);
@@ -1039,7 +1040,7 @@ APP_NOINLINE static void rep_event(app_t *a, const hom_event_t *ev)
         break;
     case HOM_EV_RELEASED:
         rep_begin(a, s_released);
-        con_report_str(&a->con, s_reason, hom_fault_name((int)ev->a));
+        rep_word(a, s_reason, s_fault_words, (uint8_t)ev->a);
         rep_end(a);
         break;
     default:
@@ -1763,7 +1764,7 @@ static int8_t h_status(con_t *con, const con_args_t *args, void *ctx)
     rep_int(a, s_rehome, a->offer_quick);
     rep_int(a, s_tension_mN, a->homes.tension_mN);
     rep_int(a, s_count, (int32_t)a->homes.cal_count);
-    con_report_str(&a->con, s_fault, hom_fault_name(a->last_fault));
+    rep_word(a, s_fault, s_fault_words, a->last_fault);
     rep_int(a, s_learned, a->learned_mask);
     rep_int(a, s_baseline, a->have_b0);
     rep_int(a, s_saving, store_busy(&a->store) || a->save_due != 0u);

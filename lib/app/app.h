@@ -48,11 +48,10 @@
 #include "store/store.h"
 #include "table/table.h"
 
-/* Sensor slots the app reserves (83 bytes each on the AVR); a table with more
- * sensors is refused at boot with "no valid lookup table". */
-#ifndef APP_MAX_SENSORS
-#define APP_MAX_SENSORS 4u
-#endif
+/* Sensor slots the app reserves (83 bytes each on the AVR): as many as a
+ * run can use; a table with more sensors is refused at boot with "no valid
+ * lookup table". */
+#define APP_MAX_SENSORS HOM_MAX_SENSORS
 
 #define APP_DEBOUNCE_MS     30u    /* the button level must hold this long */
 #define APP_LONG_PRESS_MS   2000u  /* held this long: abort and release */

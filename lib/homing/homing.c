@@ -83,37 +83,65 @@ void hom_init(hom_t *h, const hom_config_t *cfg)
     h->state = ST_IDLE;
 }
 
-/* The sum of squares needs 64 bits (3 * 2^62 at most), the root fits 32:
- * it is built bit by bit from the top, each bit kept when its square still
- * fits (floor of the root; 32 multiplies, little code on the AVR). */
+/* 32-bit arithmetic only (64-bit code is large and slow on the AVR): each
+ * axis is scaled down by the smallest power of two that keeps the sum of
+ * three squares within 32 bits (|axis| <= 37837, exact below 378 uT per
+ * axis; short by less than three scaled units of at most 16 cuT at the
+ * AK09916's full range), the
+ * root is built bit by bit (floor), then scaled back. */
 uint32_t hom_norm3(const int32_t v[3])
 {
-    uint64_t s = 0;
+    uint32_t m[3];
+    uint32_t top = 0;
+    uint32_t s;
     uint32_t r = 0;
-    uint32_t bit = (uint32_t)1 << 31;
-    int a;
-    for (a = 0; a < 3; a++) {
-        int64_t x = v[a];
-        s += (uint64_t)(x * x);
+    uint32_t bit = (uint32_t)1 << 30;
+    uint8_t sh = 0;
+    uint8_t a;
+    for (a = 0; a < 3u; a++) {
+        m[a] = v[a] < 0 ? (uint32_t)0 - (uint32_t)v[a] : (uint32_t)v[a];
+        top |= m[a];
+    }
+    while ((top >> sh) > 37837u) {
+        sh++;
+    }
+    s = 0;
+    for (a = 0; a < 3u; a++) {
+        uint32_t x = m[a] >> sh;
+        s += x * x;
+    }
+    while (bit > s) {
+        bit >>= 2;
     }
     while (bit != 0u) {
-        uint32_t c = r | bit;
-        if ((uint64_t)c * c <= s) {
-            r = c;
+        if (s >= r + bit) {
+            s -= r + bit;
+            r = (r >> 1) + bit;
+        } else {
+            r >>= 1;
         }
-        bit >>= 1;
+        bit >>= 2;
     }
-    return r;
+    return r << sh;
 }
 
 const char *hom_fault_name(int fault)
 {
-    static const char *const names[HOM_F_COUNT] = {
-        "none",         "aborted",        "preflight",    "sensor_timeout",
-        "sensor_error", "saturated",      "field_rate",   "servo_timeout",
-        "servo_error",  "servo_stall",    "travel_limit", "no_engagement",
-        "no_progress",  "tendon_timeout", "slack",        "magnet_missing",
-    };
+    /* the words of HOM_FAULT_WORDS, split once into a buffer of its own */
+    static char words[sizeof HOM_FAULT_WORDS];
+    static const char *names[HOM_F_COUNT];
+    if (names[0] == NULL) {
+        char *p = words;
+        int n = 0;
+        memcpy(words, HOM_FAULT_WORDS, sizeof words);
+        names[n++] = p;
+        for (; *p != '\0' && n < (int)HOM_F_COUNT; p++) {
+            if (*p == ' ') {
+                *p = '\0';
+                names[n++] = p + 1;
+            }
+        }
+    }
     if (fault < 0 || fault >= (int)HOM_F_COUNT) {
         return "unknown";
     }
@@ -309,6 +337,9 @@ int hom_start(hom_t *h, const tbl_src_t *table, const hom_cmd_t *cmd)
         return HOM_E_TABLE;
     }
     (void)tbl_info(table, &info);
+    if (info.n_sensors > HOM_MAX_SENSORS) {
+        return HOM_E_TABLE;
+    }
     if (cmd->mode == HOM_MODE_SINGLE && cmd->tendon >= info.n_tendons) {
         return HOM_E_ARG;
     }

@@ -79,12 +79,16 @@
 
 #define HOM_RUNNING 1
 #define HOM_EV_CAP  12u /* event queue capacity */
+/* Sensors a run can use (the table format allows TBL_MAX_SENSORS): state is
+ * kept per sensor, and the firmware's RAM is sized for this many. A table
+ * with more is refused by hom_start() (HOM_E_TABLE). */
+#define HOM_MAX_SENSORS 4u
 
 /* hom_start() errors (numbered apart from the -(hom_fault_t) that hom_step()
  * returns, so the two never collide) */
 enum {
     HOM_E_ARG = -101,     /* NULL pointer, unknown mode, tendon index beyond the table */
-    HOM_E_TABLE = -102,   /* the table fails tbl_check() */
+    HOM_E_TABLE = -102,   /* the table fails tbl_check(), or has more than HOM_MAX_SENSORS */
     HOM_E_TENSION = -103, /* tension outside the table's grid */
     HOM_E_BUSY = -104,    /* a calibration is running: abort it first */
     HOM_E_HOMES = -105    /* quick re-home without a stored home for every tendon */
@@ -97,7 +101,14 @@ typedef enum {
     HOM_MODE_DRY = 3
 } hom_mode_t;
 
-/* Why a run ended in a fault. hom_fault_name() gives the console word. */
+/* Why a run ended in a fault. hom_fault_name() gives the console word, the
+ * n-th word of HOM_FAULT_WORDS (the one declaration of the words: firmware
+ * keeps it in flash). */
+#define HOM_FAULT_WORDS                                                                            \
+    "none aborted preflight sensor_timeout sensor_error saturated field_rate servo_timeout "       \
+    "servo_error servo_stall travel_limit no_engagement no_progress tendon_timeout slack "         \
+    "magnet_missing"
+
 typedef enum {
     HOM_F_NONE = 0,
     HOM_F_ABORTED,        /* hom_abort(): button long press, '!' */
@@ -185,7 +196,7 @@ typedef struct {
 /* Inputs of one step, indexed like the table's tendons and sensors. */
 typedef struct {
     uint32_t now_ms;
-    hom_sensor_in_t sensor[TBL_MAX_SENSORS];
+    hom_sensor_in_t sensor[HOM_MAX_SENSORS];
     hom_servo_in_t servo[TBL_MAX_TENDONS];
 } hom_in_t;
 
@@ -315,9 +326,9 @@ typedef struct {
         uint32_t b;                /* averaged |B - B0|, cuT */
         uint8_t n;                 /* samples averaged */
     } pts[4];                      /* fine: near points for the final fit */
-    uint8_t seen[TBL_MAX_SENSORS]; /* preflight: sample received */
+    uint8_t seen[HOM_MAX_SENSORS]; /* preflight: sample received */
     hom_tendon_t tendon[TBL_MAX_TENDONS];
-    hom_sensor_t sensor[TBL_MAX_SENSORS];
+    hom_sensor_t sensor[HOM_MAX_SENSORS];
     hom_out_t out;
     hom_event_t ev[HOM_EV_CAP];
 } hom_t;

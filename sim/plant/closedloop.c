@@ -139,7 +139,7 @@ int plant_run(const plant_run_cfg_t *rc, plant_run_result_t *res)
             (void)plant_solve(&plant);
         }
         in.now_ms = t;
-        for (k = 0; k < TBL_MAX_SENSORS; k++) {
+        for (k = 0; k < HOM_MAX_SENSORS; k++) {
             hom_sensor_in_t *s = &in.sensor[k];
             s->status = HOM_SENS_NONE;
             if (k >= plant.cfg.n_sensors || (t + 3u * k) % 10u != 0u) {

@@ -117,7 +117,7 @@ int main(int argc, char **argv)
     int abs_mode = 0;
     int new_opts = 0;
     double shift[3] = {0.0, 0.0, 0.0};
-    static int32_t amb[TBL_MAX_SENSORS][3];
+    static int32_t amb[HOM_MAX_SENSORS][3];
 
     if (argc < 2) {
         usage();

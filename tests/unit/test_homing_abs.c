@@ -18,7 +18,7 @@
 static plant_cfg_t g_cfg;
 static tbl_table_t g_tab;
 static plant_run_result_t g_res;
-static int32_t g_amb[TBL_MAX_SENSORS][3];
+static int32_t g_amb[HOM_MAX_SENSORS][3];
 
 static int setup_near(void **state)
 {

@@ -6,6 +6,7 @@
 #include <stdarg.h>
 #include <stddef.h>
 #include <stdint.h>
+#include <math.h>
 #include <string.h>
 
 #include <cmocka.h>
@@ -20,10 +21,10 @@ typedef struct {
     hom_in_t in;
     hom_out_t out;
     int32_t pos[TBL_MAX_TENDONS];
-    int32_t field[TBL_MAX_SENSORS][3];
+    int32_t field[HOM_MAX_SENSORS][3];
     int32_t drift_per_sample; /* added to every field z at each sample */
     int32_t droop;            /* servos stop this many ticks short of their goals */
-    uint8_t sensor_status[TBL_MAX_SENSORS];
+    uint8_t sensor_status[HOM_MAX_SENSORS];
     uint8_t servo_status[TBL_MAX_TENDONS];
     uint8_t hw_error[TBL_MAX_TENDONS];
 } bench_t;
@@ -41,7 +42,7 @@ static void bench_init(bench_t *b, uint32_t t0)
     uint8_t k;
     memset(b, 0, sizeof *b);
     b->in.now_ms = t0;
-    for (k = 0; k < TBL_MAX_SENSORS; k++) {
+    for (k = 0; k < HOM_MAX_SENSORS; k++) {
         b->field[k][0] = g_tab.sensors[k].b_straight_cuT[0];
         b->field[k][1] = g_tab.sensors[k].b_straight_cuT[1];
         b->field[k][2] = g_tab.sensors[k].b_straight_cuT[2] - 4400;
@@ -55,7 +56,7 @@ static int bench_step(bench_t *b, hom_t *h)
     uint8_t k;
     int rc;
     b->in.now_ms++;
-    for (k = 0; k < TBL_MAX_SENSORS; k++) {
+    for (k = 0; k < HOM_MAX_SENSORS; k++) {
         b->in.sensor[k].status = HOM_SENS_NONE;
         if (b->in.now_ms % 10u == 0u) {
             b->field[k][2] += b->drift_per_sample;
@@ -358,7 +359,7 @@ static void test_event_queue_overflow(void **state)
     (void)state;
     big = g_tab;
     big.n_tendons = TBL_MAX_TENDONS;
-    big.n_sensors = TBL_MAX_SENSORS;
+    big.n_sensors = HOM_MAX_SENSORS;
     for (i = 0; i < TBL_MAX_TENDONS; i++) {
         big.tendons[i] = g_tab.tendons[i % 6u];
     }
@@ -390,8 +391,40 @@ static void test_helpers(void **state)
     int f;
     (void)state;
     assert_int_equal(hom_norm3(v1), 5);
-    assert_int_equal(hom_norm3(v2), 850783); /* floor(491200 * sqrt 3) */
+    /* floor(491200 * sqrt 3) = 850783; scaled by 16 beyond 37837 per axis */
+    assert_in_range(hom_norm3(v2), 850783 - 32, 850783);
     assert_int_equal(hom_norm3(v3), 0);
+    {
+        /* seeded random vectors against the exact floor root: exact while
+         * every axis is within 37837, else short by less than three scaled units */
+        uint32_t x = 12345u;
+        int n;
+        for (n = 0; n < 20000; n++) {
+            int32_t v[3];
+            double sum = 0.0;
+            uint32_t top = 0, got, want;
+            int a, sh = 0;
+            for (a = 0; a < 3; a++) {
+                x = x * 1103515245u + 12345u;
+                v[a] = (int32_t)((x >> 8) % 1000001u) - 500000;
+                if (n % 2 == 0) {
+                    v[a] /= 16; /* the exact range */
+                }
+                sum += (double)v[a] * v[a];
+                top |= (uint32_t)(v[a] < 0 ? -v[a] : v[a]);
+            }
+            while ((top >> sh) > 37837u) {
+                sh++;
+            }
+            want = (uint32_t)floor(sqrt(sum));
+            got = hom_norm3(v);
+            if (sh == 0) {
+                assert_int_equal(got, want);
+            } else {
+                assert_in_range(got, want > (3u << sh) ? want - (3u << sh) : 0u, want);
+            }
+        }
+    }
     for (f = 0; f < HOM_F_COUNT; f++) {
         assert_string_not_equal(hom_fault_name(f), "unknown");
     }
