@@ -103,8 +103,21 @@ static void c_write(void *ctx, const char *buf, uint8_t n)
     }
 }
 
-static const app_board_t board = {NULL, b_now_ms, b_now_us, b_button, b_led, b_kick, b_reboot};
-static const con_io_t con_io = {NULL, c_read, c_write};
+static uint16_t c_room(void *ctx)
+{
+    (void)ctx;
+    return uart0_tx_room();
+}
+
+static uint16_t b_rx_lost(void *ctx)
+{
+    (void)ctx;
+    return uart0_rx_overruns();
+}
+
+static const app_board_t board = {NULL,  b_now_ms, b_now_us, b_button,
+                                  b_led, b_kick,   b_reboot, b_rx_lost};
+static const con_io_t con_io = {NULL, c_read, c_write, c_room};
 
 int main(void)
 {

@@ -8,6 +8,7 @@
 static volatile uint8_t rx_buf[UART0_RX_SIZE];
 static volatile uint8_t rx_head, rx_tail;
 static volatile uint16_t rx_overruns;
+static volatile uint8_t rx_gap; /* bytes were lost: mark the gap before the next byte */
 static volatile uint8_t tx_buf[UART0_TX_SIZE];
 static volatile uint8_t tx_head, tx_tail;
 static volatile uart0_rt_hook_fn rt_hook;
@@ -24,8 +25,17 @@ ISR(USART0_RX_vect)
         return;
     }
     uint8_t next = (uint8_t)((rx_head + 1u) & (UART0_RX_SIZE - 1u));
+    if (rx_gap && next != rx_tail) {
+        /* a NUL where bytes were lost: the console refuses the line the gap
+         * cut (a control byte), so two halves never pass as one command */
+        rx_buf[rx_head] = 0u;
+        rx_head = next;
+        next = (uint8_t)((rx_head + 1u) & (UART0_RX_SIZE - 1u));
+        rx_gap = 0;
+    }
     if (next == rx_tail) {
         rx_overruns++;
+        rx_gap = 1;
         return;
     }
     rx_buf[rx_head] = byte;
@@ -68,6 +78,11 @@ int16_t uart0_read(void)
     uint8_t byte = rx_buf[rx_tail];
     rx_tail = (uint8_t)((rx_tail + 1u) & (UART0_RX_SIZE - 1u));
     return byte;
+}
+
+uint16_t uart0_tx_room(void)
+{
+    return (uint16_t)((tx_tail - tx_head - 1u) & (UART0_TX_SIZE - 1u));
 }
 
 uint16_t uart0_rx_overruns(void)

@@ -9,7 +9,13 @@
 
 #include <stdint.h>
 
-#define UART0_RX_SIZE 128u /* power of two */
+/* Power of two. The console's streaming rule (docs/console.md): a host may
+ * send a line while the lines it sent and has no final reply for, this one
+ * included, hold at most UART0_RX_SIZE - 1 bytes; then no byte is ever lost.
+ * Bytes that are lost anyway are counted (uart0_rx_overruns()) and the gap is
+ * marked with a NUL in the stream, which the console refuses as a bad
+ * character, so a line cut in two never runs as a command. */
+#define UART0_RX_SIZE 128u
 /* Power of two, at most 256 (uint8_t indices). 256: a calibration's burst of
  * reports fits, so writing them does not stall the main loop (a full ring
  * drains at 87 us per byte). */
@@ -30,6 +36,9 @@ int16_t uart0_read(void);
 
 /* Bytes dropped because the RX ring was full, since init. */
 uint16_t uart0_rx_overruns(void);
+
+/* Bytes uart0_write() takes now without waiting. */
+uint16_t uart0_tx_room(void);
 
 /* Queues one byte for transmission. */
 void uart0_write(uint8_t byte);

@@ -127,6 +127,11 @@ static const char s_unit[] CON_FLASH = "unit";
 static const char s_min[] CON_FLASH = "min";
 static const char s_max[] CON_FLASH = "max";
 static const char s_default[] CON_FLASH = "default";
+static const char s_overrun[] CON_FLASH = "overrun";
+static const char s_bytes[] CON_FLASH = "bytes";
+static const char s_total[] CON_FLASH = "total";
+static const char s_dropped[] CON_FLASH = "dropped";
+static const char s_reports[] CON_FLASH = "reports";
 
 /* Bus transactions. */
 enum { TX_NONE = 0, TX_POS, TX_HWERR, TX_GOAL, TX_TORQUE, TX_REBOOT, TX_WDOG };
@@ -1655,6 +1660,30 @@ APP_NOINLINE static void led_poll(app_t *a, uint32_t t)
 
 /* ---- superloop ------------------------------------------------------------------ */
 
+/* The console in realtime mode while anything moves (output never waits;
+ * docs/console.md), and the losses reported: console bytes lost to a full
+ * receive buffer at once, report lines dropped once nothing moves. */
+APP_NOINLINE static void console_poll(app_t *a)
+{
+    uint8_t moving = (uint8_t)(a->state == APP_ST_CAL || a->state == APP_ST_MOVE);
+    uint16_t n = a->io->board->rx_lost != NULL ? a->io->board->rx_lost(a->io->board->ctx) : 0u;
+    con_set_realtime(&a->con, moving);
+    if (n != a->rx_lost) {
+        rep_begin(a, s_overrun);
+        rep_int(a, s_bytes, (uint16_t)(n - a->rx_lost));
+        rep_int(a, s_total, n);
+        rep_end(a);
+        a->rx_lost = n;
+    }
+    if (!moving && con_dropped(&a->con) != a->rep_dropped) {
+        a->rep_dropped = con_dropped(&a->con);
+        rep_begin(a, s_dropped);
+        rep_int(a, s_reports, a->rep_dropped);
+        rep_end(a);
+    }
+    (void)con_poll(&a->con, (uint16_t)now_ms(a));
+}
+
 int8_t app_poll(app_t *app)
 {
     app_t *a = app;
@@ -1697,7 +1726,7 @@ int8_t app_poll(app_t *app)
     default:
         break;
     }
-    (void)con_poll(&a->con, (uint16_t)now_ms(a));
+    console_poll(a);
     rest_poll(a);
     store_task(a);
     led_poll(a, t);

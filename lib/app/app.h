@@ -128,7 +128,9 @@ typedef struct {
     uint8_t (*button)(void *ctx);  /* nonzero while the button is pressed (raw level) */
     void (*led)(void *ctx, uint8_t on);
     void (*wdt_kick)(void *ctx);
-    void (*reboot)(void *ctx); /* resets the board (NULL: not available) */
+    void (*reboot)(void *ctx);      /* resets the board (NULL: not available) */
+    uint16_t (*rx_lost)(void *ctx); /* console bytes lost to a full receive buffer, since boot
+                                       (NULL: not counted) */
 } app_board_t;
 
 /* Everything the app is wired to (the caller keeps it for the app's life). Strings marked _f are
@@ -224,6 +226,8 @@ typedef struct {
     uint16_t t_btn_down;
     uint32_t loop_max_us;
     uint32_t loops;
+    uint16_t rx_lost;     /* console bytes lost, last reported */
+    uint16_t rep_dropped; /* reports dropped, last reported */
     /* per tendon and sensor */
     uint8_t ids[TBL_MAX_TENDONS];
     uint8_t hw_err[TBL_MAX_TENDONS];

@@ -6,6 +6,7 @@
 #define ST_CALL    1u /* inside a handler */
 #define ST_PENDING 2u /* handler accepted, waiting for con_complete() */
 #define ST_HELP    3u /* writing the help listing */
+#define ST_HELD    4u /* a final reply waits for room (realtime mode) */
 
 #define F_OVER 0x01u /* line overflowed: discard to its end */
 #define F_BAD  0x02u /* line holds a control or non-ASCII byte */
@@ -67,11 +68,42 @@ static const char *fl_skip(const con_t *c, const char *p, uint16_t n)
 
 /* ---- output ------------------------------------------------------ */
 
+/* In realtime mode output is assembled a line at a time in obuf (see
+ * con_set_realtime()); otherwise it is written at once. */
 static void out(con_t *c, const char *s, uint8_t n)
 {
-    if (n > 0u) {
-        c->io->write(c->io->ctx, s, n);
+    if (!c->realtime) {
+        if (n > 0u) {
+            c->io->write(c->io->ctx, s, n); /* may wait: nothing moves */
+        }
+        return;
     }
+    if (c->olen > CON_OUT_MAX || (uint16_t)c->olen + n > CON_OUT_MAX) {
+        c->olen = CON_OUT_MAX + 1u; /* too long: never written in part */
+        return;
+    }
+    memcpy(&c->obuf[c->olen], s, n);
+    c->olen = (uint8_t)(c->olen + n);
+}
+
+/* Writes the assembled line when it may be written now, keeping `reserve`
+ * bytes of room free in realtime mode. Returns 1 when written (or dropped for
+ * length), 0 when it must wait; the buffer is empty afterwards either way. */
+static uint8_t flush(con_t *c, uint16_t reserve)
+{
+    uint8_t n = c->olen;
+    c->olen = 0;
+    if (n > CON_OUT_MAX) {
+        c->dropped++;
+        return 1;
+    }
+    if (c->realtime && c->io->room != NULL && c->io->room(c->io->ctx) < (uint16_t)(n + reserve)) {
+        return 0;
+    }
+    if (n > 0u) {
+        c->io->write(c->io->ctx, c->obuf, n);
+    }
+    return 1;
 }
 
 static void out_ch(con_t *c, char ch)
@@ -183,13 +215,19 @@ static void out_fixed(con_t *c, int32_t v, uint8_t decimals)
     out(c, buf, (uint8_t)n);
 }
 
-/* The one place a final reply is written. */
+/* The one place a final reply is written; in realtime mode without room it
+ * is held (ST_HELD) and written by a later con_poll(). */
 static void reply(con_t *c, int8_t rc)
 {
     const char *text = con_err_text;
     uint8_t i, code;
+    c->olen = 0;
     if (rc >= 0) {
         out_flash(c, s_ok);
+        if (!flush(c, 0)) {
+            c->held_rc = rc;
+            c->state = ST_HELD;
+        }
         return;
     }
     for (i = 0;; i++) {
@@ -209,12 +247,17 @@ static void reply(con_t *c, int8_t rc)
     out_ch(c, ' ');
     out_flash(c, text);
     out_flash(c, s_crlf);
+    if (!flush(c, 0)) {
+        c->held_rc = rc;
+        c->state = ST_HELD;
+    }
 }
 
 /* ---- reports ----------------------------------------------------- */
 
 void con_report_begin(con_t *con, const char *kind)
 {
+    con->olen = 0;
     out_ch(con, '<');
     out_flash(con, kind);
 }
@@ -260,6 +303,9 @@ void con_report_flash(con_t *con, const char *key, const char *s)
 void con_report_end(con_t *con)
 {
     out_flash(con, s_rep_end);
+    if (!flush(con, con->state == ST_CALL ? CON_RESERVE : 0u)) {
+        con->dropped++;
+    }
 }
 
 /* ---- numbers ----------------------------------------------------- */
@@ -467,14 +513,16 @@ static int8_t check_args(con_t *c, uint8_t cmd, char **tok, uint8_t ntok)
 /* ---- help -------------------------------------------------------- */
 
 /* Writes `<help cmd=NAME args="..." text="...">` for command i, the args
- * shown as names (choices for words) in their brackets. */
-static void help_line(con_t *c, uint8_t i)
+ * shown as names (choices for words) in their brackets. Returns 0 when it
+ * must wait for room (realtime mode). */
+static uint8_t help_line(con_t *c, uint8_t i)
 {
     char syn[CON_SYN_MAX];
     char *q = syn;
     con_spec_t sp;
     uint8_t first = 1;
     const char *p = fl_skip(c, con_cmd_text, (uint16_t)(3u * i));
+    c->olen = 0;
     out_flash(c, s_help_cmd);
     out_flash(c, p);
     out_flash(c, s_help_args);
@@ -491,6 +539,7 @@ static void help_line(con_t *c, uint8_t i)
     out_flash(c, s_help_text);
     out_flash(c, fl_skip(c, p, 2));
     out_flash(c, s_help_end);
+    return flush(c, CON_RESERVE);
 }
 
 /* ---- line handling ----------------------------------------------- */
@@ -653,9 +702,19 @@ int8_t con_poll(con_t *con, uint16_t now_ms)
     if (con->state == ST_CALL) {
         return 1;
     }
+    if (con->state == ST_HELD) {
+        con->state = ST_READ;
+        reply(con, con->held_rc);
+        return con->state == ST_READ ? 0 : 1;
+    }
     if (con->state == ST_HELP) {
         if (con->help_i < CON_CMD_COUNT) {
-            help_line(con, con->help_i++);
+            /* realtime: a line is assembled only when the longest fits, so
+             * a full ring costs no work per pass */
+            if (!con->realtime || con->io->room == NULL ||
+                con->io->room(con->io->ctx) >= CON_OUT_MAX + CON_RESERVE) {
+                con->help_i = (uint8_t)(con->help_i + help_line(con, con->help_i));
+            }
             return 1;
         }
         con->state = ST_READ;
@@ -672,6 +731,16 @@ int8_t con_poll(con_t *con, uint16_t now_ms)
         }
     }
     return (con->state == ST_READ) ? 0 : 1;
+}
+
+void con_set_realtime(con_t *con, uint8_t on)
+{
+    con->realtime = on;
+}
+
+uint16_t con_dropped(const con_t *con)
+{
+    return con->dropped;
 }
 
 int8_t con_complete(con_t *con, int8_t rc)

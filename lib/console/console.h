@@ -93,15 +93,23 @@ enum {
 #define CON_LINE_MAX   48    /* characters in a command line, terminator excluded */
 #define CON_MAX_ARGS   3     /* arguments after the command name */
 #define CON_PENDING_MS 3000u /* default deadline of a pending command */
+#define CON_OUT_MAX    190u  /* realtime mode: longest line, CRLF included (longer: dropped) */
+#define CON_RESERVE                                                                                \
+    64u /* realtime mode: room command output leaves for run reports;                              \
+           CON_OUT_MAX + CON_RESERVE must fit the output ring (255) */
 
 typedef void (*con_copy_fn)(void *dst, const void *src, size_t n);
 
 /* Byte I/O. read() returns the next received byte (0..255) or -1 when none
- * is waiting; write() queues n bytes for transmission. */
+ * is waiting; write() queues n bytes for transmission (it may wait for room).
+ * room() (optional, NULL: unbounded) returns how many bytes write() takes
+ * now without waiting: in realtime mode (con_set_realtime()) the console
+ * never writes more than that, so it never waits on the line. */
 typedef struct {
     void *ctx;
     int16_t (*read)(void *ctx);
     void (*write)(void *ctx, const char *buf, uint8_t n);
+    uint16_t (*room)(void *ctx);
 } con_io_t;
 
 /* Realtime stop state, shared by the RX interrupt and the main loop. The
@@ -143,8 +151,13 @@ typedef struct con_s {
     uint16_t pending_ms; /* deadline of a pending command; 0 = none */
     uint8_t len;
     uint8_t flags;
-    uint8_t state; /* reading, pending, help */
+    uint8_t state; /* reading, pending, help, reply held */
     uint8_t help_i;
+    uint8_t realtime; /* con_set_realtime() */
+    int8_t held_rc;   /* final reply waiting for room */
+    uint8_t olen;     /* bytes in obuf; CON_OUT_MAX + 1 when the line overflowed */
+    uint16_t dropped; /* report lines dropped (con_dropped()) */
+    char obuf[CON_OUT_MAX];
 } con_t;
 
 /* Binds the console. handlers must hold CON_CMD_COUNT entries (the HELP
@@ -164,6 +177,19 @@ int8_t con_poll(con_t *con, uint16_t now_ms);
 /* Sets the deadline of pending commands in ms (1..65535; 0 = wait forever,
  * only for tests). con_init() sets CON_PENDING_MS. */
 void con_set_timeout(con_t *con, uint16_t ms);
+
+/* Realtime mode (on while anything moves): output never waits. Every line
+ * is assembled first and written whole only when io->room() has space for
+ * it: a report line that does not fit is dropped and counted
+ * (con_dropped()); command output (a handler's reports, help lines) also
+ * leaves CON_RESERVE bytes free for the run's own reports, help waits for
+ * room line by line, and a final reply waits (no input is read meanwhile).
+ * A line longer than CON_OUT_MAX is dropped. Off: output is written at once
+ * and write() may wait. */
+void con_set_realtime(con_t *con, uint8_t on);
+
+/* Report lines dropped in realtime mode since con_init() (wraps at 65536). */
+uint16_t con_dropped(const con_t *con);
 
 /* Finishes the pending command with result rc (0 -> `ok`, CON_E_* ->
  * `error:...`; any other negative value -> error:INTERNAL). Returns 0, or

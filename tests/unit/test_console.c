@@ -718,6 +718,148 @@ static void test_one_reply_per_line_random(void **state)
     }
 }
 
+/* ---- realtime mode: output never waits ------------------------------- */
+
+static uint16_t g_room;
+static uint32_t g_over; /* writes larger than the room offered */
+
+static uint16_t fake_room(void *ctx)
+{
+    (void)ctx;
+    return g_room;
+}
+
+static void (*g_fake_write)(void *ctx, const char *buf, uint8_t n);
+
+static void checked_write(void *ctx, const char *buf, uint8_t n)
+{
+    if (n > g_room) {
+        g_over++;
+    }
+    g_room = (uint16_t)(g_room - (n > g_room ? g_room : n));
+    g_fake_write(ctx, buf, n);
+}
+
+static void realtime_setup(uint16_t room)
+{
+    g_room = room;
+    g_over = 0;
+    g_fake_write = fake.io.write;
+    fake.io.write = checked_write;
+    fake.io.room = fake_room;
+    con_set_realtime(&con, 1);
+}
+
+static void test_realtime_drops_reports_without_room(void **state)
+{
+    (void)state;
+    realtime_setup(10);
+    con_report_begin(&con, "progress");
+    con_report_int(&con, "tendon", 3);
+    con_report_end(&con);
+    assert_int_equal(fake.out_len, 0u);
+    assert_int_equal(con_dropped(&con), 1u);
+    g_room = 255;
+    con_report_begin(&con, "progress");
+    con_report_int(&con, "tendon", 3);
+    con_report_end(&con);
+    assert_string_equal(fake.out, "<progress tendon=3>\r\n");
+    assert_int_equal(con_dropped(&con), 1u);
+    assert_int_equal(g_over, 0u);
+}
+
+static void test_realtime_command_output_leaves_reserve(void **state)
+{
+    (void)state;
+    realtime_setup(CON_RESERVE + 10u); /* the reply fits, a report plus reserve not */
+    app.report = 1;
+    assert_string_equal(run("version\n"), "ok\r\n");
+    assert_int_equal(con_dropped(&con), 1u);
+    g_room = 255;
+    assert_string_equal(run("version\n"), "<rep cmd=1>\r\nok\r\n");
+    assert_int_equal(g_over, 0u);
+}
+
+static void test_realtime_reply_waits_for_room(void **state)
+{
+    int i;
+    (void)state;
+    realtime_setup(0);
+    con_fake_puts(&fake, "version\nversion\n");
+    for (i = 0; i < 50; i++) {
+        assert_int_equal(con_poll(&con, clock_ms++), 1); /* held, reads nothing */
+    }
+    assert_int_equal(fake.out_len, 0u);
+    assert_int_equal(app.total, 1);
+    g_room = 255;
+    assert_string_equal(run(""), "ok\r\nok\r\n");
+    assert_int_equal(app.total, 2);
+    assert_int_equal(g_over, 0u);
+}
+
+static void test_realtime_help_waits_line_by_line(void **state)
+{
+    char line[256];
+    int i, n = 0;
+    (void)state;
+    realtime_setup(CON_OUT_MAX + CON_RESERVE - 1u);
+    con_fake_puts(&fake, "help\n");
+    for (i = 0; i < 50; i++) {
+        (void)con_poll(&con, clock_ms++);
+    }
+    assert_int_equal(fake.out_len, 0u);
+    for (i = 0; i < 1000 && n <= CON_CMD_COUNT; i++) {
+        g_room = 255;
+        (void)con_poll(&con, clock_ms++);
+        while (con_fake_line(&fake, line, sizeof line)) {
+            n++;
+        }
+    }
+    assert_int_equal(n, CON_CMD_COUNT + 1); /* every help line, then ok */
+    assert_string_equal(line, "ok");
+    assert_int_equal(g_over, 0u);
+}
+
+/* Seeded random room: every line still gets exactly one final reply, no
+ * write ever exceeds the room offered, and nothing is written in part. */
+static void test_realtime_random_room_one_reply_per_line(void **state)
+{
+    char line[256];
+    uint32_t x = 777u;
+    int i, replies = 0, sent = 0;
+    (void)state;
+    realtime_setup(0);
+    app.report = 1;
+    for (i = 0; i < 300; i++) {
+        if (i % 3 == 0 && sent < 60) {
+            con_fake_puts(&fake, (i % 2) ? "version\n" : "status\n");
+            sent++;
+        }
+        x = x * 1103515245u + 12345u;
+        g_room = (uint16_t)((x >> 16) % 256u);
+        (void)con_poll(&con, clock_ms++);
+    }
+    for (i = 0; i < 5000 && replies < sent; i++) {
+        g_room = 255;
+        (void)con_poll(&con, clock_ms++);
+        while (con_fake_line(&fake, line, sizeof line)) {
+            if (strcmp(line, "ok") == 0) {
+                replies++;
+            } else {
+                assert_true(line[0] == '<' && line[strlen(line) - 1] == '>');
+            }
+        }
+        if (con_fake_unread(&fake) == 0u && replies == sent) {
+            break;
+        }
+    }
+    while (con_fake_line(&fake, line, sizeof line)) {
+        replies += strcmp(line, "ok") == 0;
+    }
+    assert_int_equal(replies, sent);
+    assert_int_equal(g_over, 0u);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -739,6 +881,11 @@ int main(void)
         cmocka_unit_test_setup(test_format_fixed, setup),
         cmocka_unit_test_setup(test_parse_fixed, setup),
         cmocka_unit_test_setup(test_one_reply_per_line_random, setup),
+        cmocka_unit_test_setup(test_realtime_drops_reports_without_room, setup),
+        cmocka_unit_test_setup(test_realtime_command_output_leaves_reserve, setup),
+        cmocka_unit_test_setup(test_realtime_reply_waits_for_room, setup),
+        cmocka_unit_test_setup(test_realtime_help_waits_line_by_line, setup),
+        cmocka_unit_test_setup(test_realtime_random_room_one_reply_per_line, setup),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
