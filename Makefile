@@ -52,9 +52,9 @@ AVR_CFLAGS := -mmcu=$(MCU) -DF_CPU=$(F_CPU) -std=c99 -Os -g -Wall -Wextra -Werro
 AVR_LDFLAGS := -mmcu=$(MCU) -Os -mcall-prologues -fno-inline-small-functions -flto -mrelax -Wl,--gc-sections -Wl,-Map,$(FW_MAP)
 
 # Shell lines that stop a target for an unknown robot or a missing table.
-NO_ROBOT = { echo "make $@: no robot '$(ROBOT)': neither $(ROBOTS_DIR)/$(ROBOT).toml nor $(TABLES_DIR)/$(ROBOT).c exists"; \
+NO_ROBOT = { echo "make $(or $(MAKECMDGOALS),firmware): no robot '$(ROBOT)': neither $(ROBOTS_DIR)/$(ROBOT).toml nor $(TABLES_DIR)/$(ROBOT).c exists"; \
 	echo "robots in $(ROBOTS_DIR): $(or $(ROBOT_NAMES),none)"; exit 2; }
-NO_TABLE = { echo "make $@: robot '$(ROBOT)' has no table $(TABLES_DIR)/$(ROBOT).c: its firmware would boot with table=none and refuse to calibrate"; \
+NO_TABLE = { echo "make $(or $(MAKECMDGOALS),flash): robot '$(ROBOT)' has no table $(TABLES_DIR)/$(ROBOT).c: its firmware would boot with table=none and refuse to calibrate"; \
 	echo "generate it first: $(VENV)/bin/hallhome tables $(ROBOTS_DIR)/$(ROBOT).toml --out-dir $(TABLES_DIR)"; exit 2; }
 
 .PHONY: all firmware size flash fw-path help bootstrap test native-build unit avr-lib fuzz fuzz-smoke host-test lint \
