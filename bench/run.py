@@ -454,7 +454,7 @@ def main(argv=None) -> int:
     p.add_argument("--closedloop", default="build/bench/hh_closedloop")
     p.add_argument("--mc", default="build/bench/hh_mc")
     p.add_argument("--hh-bench", default="build/sim/hh_bench")
-    p.add_argument("--elf", default="build/firmware/hallhome.elf")
+    p.add_argument("--elf", default="build/fw/paper_2seg/hallhome-paper_2seg.elf")
     p.add_argument("--dxl-bench", default="build/native/hh_dxl_bench")
     p.add_argument("--no-simavr", action="store_true")
     p.add_argument("--jobs", type=int, default=2, help="simavr runs at once")

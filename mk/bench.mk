@@ -26,13 +26,13 @@ BENCH_NATIVE_CFLAGS := -std=c99 -O2 -Wall -Wextra -pedantic -Ilib -Isim
 .PHONY: bench bench-check bench-tools
 
 # hh_closedloop links every generated table, as the CMake build does (its -g).
-$(BENCH_CL): tests/tools/closedloop.c $(BENCH_NATIVE_SRCS) $(wildcard lookup_tables/generated/*.c) $(wildcard sim/plant/*.h lib/homing/*.h lib/table/*.h) | $(STAMP)
+$(BENCH_CL): tests/tools/closedloop.c $(BENCH_NATIVE_SRCS) $(wildcard $(TABLES_DIR)/*.c) $(wildcard sim/plant/*.h lib/homing/*.h lib/table/*.h) | $(STAMP)
 	@mkdir -p $(@D)
 	$(CC) $(BENCH_NATIVE_CFLAGS) -o $@ tests/tools/closedloop.c $(BENCH_NATIVE_SRCS) \
-		$(wildcard lookup_tables/generated/*.c) -lm
+		$(wildcard $(TABLES_DIR)/*.c) -lm
 
 # hh_mc links the generated table of $(ROBOT) too (-g: the model-based workflow).
-BENCH_GEN_TABLE := $(wildcard lookup_tables/generated/$(ROBOT).c)
+BENCH_GEN_TABLE := $(wildcard $(TABLES_DIR)/$(ROBOT).c)
 
 $(BENCH_MC): bench/hh_mc.c $(BENCH_NATIVE_SRCS) $(BENCH_GEN_TABLE) $(wildcard sim/plant/*.h lib/homing/*.h lib/table/*.h) | $(STAMP)
 	@mkdir -p $(@D)

@@ -32,13 +32,27 @@ def _load(path):
 @main.command("check")
 @click.argument("robots", nargs=-1, required=True, type=click.Path(exists=True, dir_okay=False))
 def check_cmd(robots):
-    """Validate robot descriptions (TOML) and print a summary of each."""
+    """Validate robot descriptions (TOML) and print a summary of each.
+
+    Fails (exit 1) on an invalid file and on what the firmware cannot use
+    without running the model: more sensors or tendons than it supports, a
+    name longer than it holds, values implausible for their unit. `hallhome
+    tables` checks the rest (saturation, clearance, signal to noise).
+    """
+    from hallhome.usable import firmware_limits, robot_refusals
+
+    limits = firmware_limits()
+    refused = []
     for path in robots:
         r = _load(path)
         seg = ", ".join(f"{s.length * 1e3:g} mm" for s in r.segments)
         click.echo(f"{r.name}: {len(r.segments)} segments ({seg}), {len(r.tendons)} tendons, "
                    f"{len(r.sensors)} sensors, gravity "
                    f"{'none' if r.gravity is None else [round(g, 3) for g in r.gravity]}")
+        refused += robot_refusals(r, limits)
+    if refused:
+        raise click.ClickException("the firmware cannot use this design:\n"
+                                   + "\n".join(f"  {m}" for m in refused))
 
 
 @main.command("tables")
@@ -56,7 +70,10 @@ def check_cmd(robots):
                    "`make firmware ROBOT=<robot>_learned`) and <robot>_learned.json; the "
                    "model's <robot>.c is left alone.")
 @click.option("--quiet", "-q", is_flag=True, help="Print only warnings and errors.")
-def tables_cmd(robots, all_robots, out_dir, learned, quiet):
+@click.option("--force", is_flag=True,
+              help="Write the table even when the firmware cannot use the design (the "
+                   "reasons become warnings, kept in the JSON).")
+def tables_cmd(robots, all_robots, out_dir, learned, quiet, force):
     """Generate the C lookup table and its JSON twin for each robot TOML.
 
     For every tendon alone, the Cosserat model gives the tip pose at each grid
@@ -64,6 +81,15 @@ def tables_cmd(robots, all_robots, out_dir, learned, quiet):
     the target |B(p_T) - B(p_0)| of the most sensitive sensor, the absolute
     targets, and the expected take-up travel. Output is byte-identical on
     every run.
+
+    Exits 1, writing nothing, when the firmware cannot use a design (unless
+    --force): a sensor that saturates, a sensor inside the robot or within
+    the volume it sweeps, more sensors or tendons than the firmware supports,
+    a target below 10 x the sensing noise, a value implausible for its unit,
+    a name longer than the firmware holds. Each reason names the file, the
+    key and the limit (docs/tables.md). A successful run prints, per tendon,
+    the selected sensor, the target at the default tension and its
+    signal-to-noise ratio.
     """
     from rich.console import Console
     from rich.progress import Progress
@@ -71,6 +97,7 @@ def tables_cmd(robots, all_robots, out_dir, learned, quiet):
     from hallhome.paths import GENERATED_DIR
     from hallhome.robot import RobotError, robot_files
     from hallhome.tablegen import TableError, generate
+    from hallhome.usable import FirmwareLimitError, UnusableRobot, summarise, tendon_summary
 
     paths = [Path(p) for p in robots]
     if all_robots:
@@ -89,13 +116,23 @@ def tables_cmd(robots, all_robots, out_dir, learned, quiet):
 
                 def step(n, _task=task):
                     prog.update(_task, completed=n)
-                gen = generate(path, out, progress=step, learned=learned)
+                gen = generate(path, out, progress=step, learned=learned, force=force)
         except RobotError as exc:
             raise click.ClickException("invalid robot description:\n" + str(exc)) from None
-        except TableError as exc:
+        except UnusableRobot as exc:
+            lines = summarise(exc.problems, shown=3)
+            raise click.ClickException(
+                f"{path}: the firmware cannot use this design ({len(exc.problems)} "
+                f"problem(s)); nothing written (--force writes it anyway):\n"
+                + "\n".join(f"  {m}" for m in lines)) from None
+        except (TableError, FirmwareLimitError) as exc:
             raise click.ClickException(str(exc)) from None
-        for w in gen.result.warnings:
-            err.print(f"[yellow]warning:[/yellow] {gen.robot.name}: {w}")
+        warnings = gen.result.warnings
+        if warnings:
+            click.echo(f"{gen.robot.name}: {len(warnings)} warning(s), all listed in "
+                       f"{gen.json_path} (\"warnings\"):", err=True)
+            for w in summarise(warnings):
+                click.echo(f"  warning: {w}", err=True)
         if not quiet:
             extra = ""
             if gen.learned is not None:
@@ -104,6 +141,8 @@ def tables_cmd(robots, all_robots, out_dir, learned, quiet):
             click.echo(f"{gen.robot.name}: wrote {gen.c_path} and {gen.json_path.name} "
                        f"(table_id 0x{gen.table['table_id']:08X}{extra}, "
                        f"{time.perf_counter() - t0:.2f} s)")
+            for line in tendon_summary(gen.result):
+                click.echo(line)
 
 
 @main.command("solve")

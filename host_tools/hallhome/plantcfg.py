@@ -57,16 +57,11 @@ def plant_lines(robot: Robot, seed: int | None = None, perturb: float = 0.0, *,
         return float(rng.uniform(-1.0, 1.0)) if perturb > 0.0 else 0.0
 
     eis = [s.bending_stiffness for s in robot.segments]
-    if len(robot.segments) > 4:
-        raise PlantConfigError(f"segments: the plant has at most 4, got {len(robot.segments)}")
-    for t in robot.tendons:
-        if t.twist != 0.0:
-            raise PlantConfigError(f"tendons[{t.index}].twist: the plant routes tendons straight")
+    problems = plant_problems(robot)
+    if problems:
+        raise PlantConfigError("; ".join(problems))
     m = robot.magnet
-    rot = np.asarray(m.rotation, dtype=float)
-    pol = rot @ np.asarray(m.polarization, dtype=float)
-    if abs(pol[0]) > 1e-9 or abs(pol[1]) > 1e-9 or abs(m.offset[0]) > 1e-12 or abs(m.offset[1]) > 1e-12:
-        raise PlantConfigError("magnet: the plant's dipole sits on the tip axis, moment along it")
+    pol = np.asarray(m.rotation, dtype=float) @ np.asarray(m.polarization, dtype=float)
     moment = float(pol[2]) * m.volume / MU0
     tip_mass = m.mass + robot.segments[-1].disk_mass
 
@@ -127,6 +122,32 @@ def plant_lines(robot: Robot, seed: int | None = None, perturb: float = 0.0, *,
     return lines
 
 
+def plant_problems(robot: Robot) -> list[str]:
+    """What the plant cannot model in ``robot``, each naming the TOML key
+    (1-based indices as in the file): more than 4 segments, helical routing
+    (the plant routes every tendon straight along the backbone), a magnet off
+    the tip axis or magnetised across it. Empty when the plant can run it."""
+    f = robot.path.name
+    out = []
+    if len(robot.segments) > 4:
+        out.append(f"{f}: segments: the bench plant has at most 4 segments, got "
+                   f"{len(robot.segments)}")
+    for t in robot.tendons:
+        if t.twist != 0.0:
+            out.append(f"{f}: tendons[{t.index + 1}].twist_deg_per_mm: the bench plant supports "
+                       f"straight routing only, got {math.degrees(t.twist) * 1e-3:g}")
+    m = robot.magnet
+    pol = np.asarray(m.rotation, dtype=float) @ np.asarray(m.polarization, dtype=float)
+    if abs(pol[0]) > 1e-9 or abs(pol[1]) > 1e-9:
+        out.append(f"{f}: magnet.polarization_T: the bench plant's dipole points along the tip "
+                   f"axis, got {list(m.polarization)} (rotation_deg applied: "
+                   f"{[round(float(x), 6) for x in pol]})")
+    if abs(m.offset[0]) > 1e-12 or abs(m.offset[1]) > 1e-12:
+        out.append(f"{f}: magnet.offset_mm: the bench plant's dipole sits on the tip axis, got "
+                   f"{[x * 1e3 for x in m.offset]}")
+    return out
+
+
 def write_plant_config(robot: Robot, path: str | Path, seed: int | None = None,
                        perturb: float = 0.0, **kwargs) -> Path:
     """Write the plant config of ``robot`` to ``path`` and return the path.
@@ -136,9 +157,42 @@ def write_plant_config(robot: Robot, path: str | Path, seed: int | None = None,
     (``slack_um``, ``friction_mN``, ``friction_mu``, ``backlash_um``,
     ``ambient_uT``, ``servo_tau_ms``) set what the robot TOML does not
     describe. Raises ``PlantConfigError`` for robots the plant cannot model
-    (more than 4 segments, twisted routing, an off-axis magnet).
+    (``plant_problems``).
     """
     path = Path(path)
     path.write_text("\n".join(plant_lines(robot, seed, perturb, **kwargs)) + "\n",
                     encoding="ascii")
     return path
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m hallhome.plantcfg ROBOT.toml OUT.cfg``: the nominal plant
+    config `make sim` runs. Exits 2 with every problem named when the robot
+    is invalid or the plant cannot model it."""
+    import sys
+
+    from hallhome.robot import RobotError, load_robot
+
+    args = sys.argv[1:] if argv is None else argv
+    if len(args) != 2:
+        print("usage: python -m hallhome.plantcfg ROBOT.toml OUT.cfg", file=sys.stderr)
+        return 2
+    try:
+        robot = load_robot(args[0])
+    except RobotError as exc:
+        print(f"invalid robot description:\n{exc}", file=sys.stderr)
+        return 2
+    problems = plant_problems(robot)
+    if problems:
+        print(f"{robot.name} cannot run on the virtual bench: its plant model (sim/plant) "
+              f"supports straight tendon routing and an axial magnet on the tip axis only:",
+              file=sys.stderr)
+        for p in problems:
+            print(f"  {p}", file=sys.stderr)
+        return 2
+    write_plant_config(robot, args[1])
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -9,7 +9,10 @@ models never see a millimetre. docs/model.md describes every key.
 Every problem in a file is reported, each naming the file, the key and what
 was expected, e.g. ``paper_2seg.toml: segments[1].length_mm: expected a
 positive length in mm, got -53``. ``load_robot`` raises ``RobotError`` with
-all of them.
+all of them. Values that are valid but implausible for their unit (a length
+in metres where millimetres are expected, a modulus in Pa where GPa are) are
+kept in ``Robot.doubts`` with the same naming: the generator refuses such a
+robot unless forced (hallhome.usable).
 """
 
 from __future__ import annotations
@@ -209,7 +212,8 @@ class Robot:
     computed at; ``default_tension`` (N) lies on the grid. ``noise``: the
     assumed 1-sigma magnetometer noise per axis (T). ``travel_limit``: safety
     limit on tendon take-up past engagement (m). ``mode``: "delta" or
-    "absolute", the firmware's default target mode.
+    "absolute", the firmware's default target mode. ``doubts``: values outside
+    the plausible range of their unit (see the module docstring).
     """
 
     name: str
@@ -225,6 +229,7 @@ class Robot:
     noise: float
     travel_limit: float
     mode: str
+    doubts: tuple[str, ...] = ()
 
     @property
     def length(self) -> float:
@@ -243,8 +248,8 @@ class Robot:
 
 # --- validation -------------------------------------------------------------------
 
-# The name's length limit belongs to the table format (TBL_NAME_LEN): the
-# generator checks it against lib/table/table.h.
+# The name's length limit belongs to the firmware (TBL_NAME_LEN): hallhome.usable
+# checks it against lib/table/table.h.
 _C_IDENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 
 _TOP_KEYS = {"description", "segments", "tendons", "magnet", "sensors", "sensing", "gravity",
@@ -262,10 +267,30 @@ _GRAVITY_KEYS = {"direction", "g_m_s2"}
 _CALIBRATION_KEYS = {"tension_grid_N", "default_tension_N", "travel_limit_mm", "mode"}
 
 
+# Units a value is often given in by mistake: (factor to this unit, that unit).
+_UNIT_SLIPS = {"mm": ((1e3, "m"), (1e-3, "um")), "GPa": ((1e-9, "Pa"), (1e-3, "MPa")),
+               "kg/m^3": ((1e3, "g/cm^3"),), "g": ((1e3, "kg"),)}
+
+
 class _Checker:
     def __init__(self, path: Path):
         self.file = path.name
         self.problems: list[str] = []
+        self.doubts: list[str] = []
+
+    def plausible(self, name: str, v: Any, lo: float, hi: float, unit: str) -> None:
+        """A doubt when a valid value ``v`` lies outside [lo, hi] (its unit's
+        plausible range for a tendon-driven continuum robot); 0 always passes
+        for optional masses and radii."""
+        if v is None or v == 0 or lo <= abs(v) <= hi:
+            return
+        hint = ""
+        for scale, other in _UNIT_SLIPS.get(unit, ()):
+            if lo <= abs(v) * scale <= hi:
+                hint = f"; a value in {other}?"
+                break
+        self.doubts.append(f"{self.file}: {name}: {v!r} is implausible (expected "
+                           f"{lo:g}..{hi:g} {unit}{hint})")
 
     def fail(self, key: str, expected: str, got: Any = None, show: bool = True) -> None:
         msg = f"{self.file}: {key}: expected {expected}"
@@ -383,6 +408,13 @@ def load_robot(path: str | Path) -> Robot:
             ri = None
         rho = ck.number(t, w, "density_kg_m3", "a density >= 0 in kg/m^3", 0, default=0.0)
         dm = ck.number(t, w, "disk_mass_g", "a mass >= 0 in g", 0, default=0.0)
+        for key, v, lo, hi, unit in (("length_mm", length, 5, 2000, "mm"),
+                                     ("youngs_modulus_GPa", e, 1e-3, 1000, "GPa"),
+                                     ("outer_radius_mm", ro, 0.05, 50, "mm"),
+                                     ("inner_radius_mm", ri, 0.02, 50, "mm"),
+                                     ("density_kg_m3", rho, 100, 25000, "kg/m^3"),
+                                     ("disk_mass_g", dm, 1e-3, 100, "g")):
+            ck.plausible(f"{w}.{key}", v, lo, hi, unit)
         if None not in (length, disks, e, nu, ro, ri, rho, dm):
             segments.append(Segment(i + 1, length * 1e-3, disks, e * 1e9, float(nu), ro * 1e-3,
                                     ri * 1e-3, float(rho), dm * 1e-3))
@@ -412,6 +444,11 @@ def load_robot(path: str | Path) -> Robot:
         ea = ck.number(t, w, "stiffness_EA_N", "a positive axial stiffness EA in N", 0,
                        lo_open=True)
         fl = ck.number(t, w, "free_length_mm", "a length >= 0 in mm", 0)
+        for key, v, lo, hi, unit in (("routing_radius_mm", rr, 0.2, 100, "mm"),
+                                     ("spool_radius_mm", sr, 0.5, 100, "mm"),
+                                     ("stiffness_EA_N", ea, 10, 1e7, "N"),
+                                     ("free_length_mm", fl, 1, 10000, "mm")):
+            ck.plausible(f"{w}.{key}", v, lo, hi, unit)
         if sid is not None:
             if sid in servo_of:
                 ck.fail(f"{w}.servo_id", f"a servo ID not used by another tendon (tendons"
@@ -457,6 +494,8 @@ def load_robot(path: str | Path) -> Robot:
                         f"[{taken[slot] + 1}] is already on {where})", mux if mux is not None
                         else "none")
             taken.setdefault(slot, i)
+        for x in pos or ():
+            ck.plausible(f"{w}.position_mm", x, 0, 2000, "mm")
         if None not in (pos, rot, addr) and mux != -1:
             sensors.append(Sensor(i, tuple(x * 1e-3 for x in pos), _rotation(rot), mux, addr))
 
@@ -465,6 +504,7 @@ def load_robot(path: str | Path) -> Robot:
         n = ck.number(doc["sensing"], "sensing", "noise_uT",
                       "a positive 1-sigma noise in uT, at most 100", 0, 100, lo_open=True,
                       default=0.6)
+        ck.plausible("sensing.noise_uT", n, 0.01, 100, "uT")
         noise = None if n is None else n * 1e-6
 
     gravity = None
@@ -505,6 +545,7 @@ def load_robot(path: str | Path) -> Robot:
             ck.fail(f"{w}.default_tension_N", f"a tension in N inside the grid "
                     f"[{grid[0]}, {grid[-1]}]", default)
         limit = ck.number(c, w, "travel_limit_mm", "a positive travel in mm", 0, lo_open=True)
+        ck.plausible(f"{w}.travel_limit_mm", limit, 0.05, 200, "mm")
         mode = c.get("mode", "delta")
         if mode not in ("delta", "absolute"):
             ck.fail(f"{w}.mode", "\"delta\" or \"absolute\"", mode)
@@ -515,7 +556,7 @@ def load_robot(path: str | Path) -> Robot:
                  segments=tuple(segments), tendons=tuple(tendons), magnet=magnet,
                  sensors=tuple(sensors), gravity=gravity, tension_grid=grid,
                  default_tension=float(default), noise=float(noise),
-                 travel_limit=limit * 1e-3, mode=mode)
+                 travel_limit=limit * 1e-3, mode=mode, doubts=tuple(ck.doubts))
 
 
 def _load_magnet(ck: _Checker, t: dict) -> Magnet | None:
@@ -546,6 +587,13 @@ def _load_magnet(ck: _Checker, t: dict) -> Magnet | None:
     rot = ck.vector(t, w, "rotation_deg", "[rx, ry, rz] xyz Euler angles in degrees",
                     default=(0.0, 0.0, 0.0))
     mass = ck.number(t, w, "mass_g", "a mass >= 0 in g", 0, default=-1.0)
+    for key, v in (("diameter_mm", t.get("diameter_mm")), ("length_mm", t.get("length_mm"))):
+        if isinstance(v, (int, float)) and not isinstance(v, bool) and v > 0:
+            ck.plausible(f"{w}.{key}", v, 0.2, 100, "mm")
+    for x in (dims or ()) if shape == "cuboid" else ():
+        ck.plausible(f"{w}.size_mm", x * 1e3, 0.2, 100, "mm")
+    if mass is not None and mass > 0:
+        ck.plausible(f"{w}.mass_g", mass, 1e-3, 1000, "g")
     if None in (dims, pol, off, rot, mass):
         return None
     mag = Magnet(shape, dims, pol, tuple(x * 1e-3 for x in off), _rotation(rot), 0.0)

@@ -24,11 +24,11 @@ import numpy as np
 from hallhome.field import field_at_sensors, magnet_poses
 from hallhome.model import CosseratModel, Solution
 from hallhome.paths import LIB_DIR, PROJECT_ROOT, ROBOTS_DIR
-from hallhome.robot import SENSOR_SATURATION_T, Robot, load_robot
+from hallhome.robot import Robot, load_robot
+from hallhome.usable import UnusableRobot, check_limits, firmware_limits, robot_refusals
 
 TABLE_HEADER = LIB_DIR / "table" / "table.h"
 SENSITIVITY_STEP_N = 0.01  # central difference for d|dB|/dT at the default tension
-NOISE_FACTOR = 10.0  # warn when a target change is below this many sigma of sensor noise
 MODEL_STEPS = 8  # integration steps per segment (docs/model.md: < 1 um at the tip)
 
 _CTYPES = {"uint8_t": ("B", 0, 0xFF), "int8_t": ("b", -0x80, 0x7F),
@@ -191,7 +191,6 @@ def _tendon_name(robot: Robot, i: int) -> str:
 def _warnings(res: RobotResult) -> list[str]:
     robot = res.robot
     w = []
-    floor = NOISE_FACTOR * robot.noise
     for i, tr in enumerate(res.tendons):
         name = _tendon_name(robot, i)
         sel = tr.selected
@@ -200,10 +199,6 @@ def _warnings(res: RobotResult) -> list[str]:
                      f"({tr.sensitivity[tr.selected] * 1e6:.1f} uT/N), the closest sensor "
                      f"{tr.closest} has {tr.sensitivity[tr.closest] * 1e6:.1f} uT/N; "
                      f"using sensor {tr.selected}")
-        for T, d in zip(robot.tension_grid, tr.delta[:, sel]):
-            if d < floor:
-                w.append(f"{name}: target change {d * 1e6:.2f} uT at {T:g} N on sensor {sel} is "
-                         f"below {NOISE_FACTOR:g}x the sensor noise ({floor * 1e6:.2f} uT)")
         steps = np.diff(tr.delta[:, sel])
         if np.any(steps <= 0):
             k = int(np.nonzero(steps <= 0)[0][0])
@@ -219,16 +214,7 @@ def _warnings(res: RobotResult) -> list[str]:
                 w.append(f"{name}: expected travel {tv * 1e3:.3f} mm at {T:g} N exceeds the "
                          f"travel limit {robot.travel_limit * 1e3:.3f} mm")
                 break
-    poses = [("the straight pose", res.b_straight[None])]
-    for i, tr in enumerate(res.tendons):
-        poses.append((_tendon_name(robot, i), tr.field))
-    for what, B in poses:
-        over = np.abs(B) > SENSOR_SATURATION_T
-        if np.any(over):
-            k, s, _ = np.argwhere(over)[0]
-            at = "" if B.shape[0] == 1 else f" at {robot.tension_grid[k]:g} N"
-            w.append(f"sensor {s} saturates ({np.abs(B[k, s]).max() * 1e6:.0f} uT > "
-                     f"{SENSOR_SATURATION_T * 1e6:.0f} uT per axis) for {what}{at}")
+    # Saturation and targets lost in the noise are refusals (hallhome.usable).
     return w
 
 
@@ -780,15 +766,28 @@ class Generated:
 
 
 def generate(robot_path: str | Path, out_dir: str | Path, progress=None,
-             steps: int = MODEL_STEPS, learned: Sequence[str | Path] = ()) -> Generated:
+             steps: int = MODEL_STEPS, learned: Sequence[str | Path] = (),
+             force: bool = False) -> Generated:
     """Load, compute and write <out_dir>/<robot>.c and .json. Files are only
     rewritten when their content changes. With ``learned`` files (exported by
     `hallhome learn`, applied in order) the learned targets replace the
-    model's and the files are <robot>_learned.c and .json instead."""
+    model's and the files are <robot>_learned.c and .json instead.
+
+    Raises ``UnusableRobot`` listing every reason the firmware cannot use the
+    design (hallhome.usable); with ``force`` they become warnings instead
+    (limits of the table format itself still raise ``TableError``)."""
     spec = parse_table_header()
+    limits = firmware_limits()
     files = [load_learned(p) for p in learned]  # format errors before the model runs
     robot = load_robot(robot_path)
+    early = robot_refusals(robot, limits)
+    if early and not force:
+        raise UnusableRobot(early)  # before the model runs: counts, name, units
     res = compute(robot, steps=steps, progress=progress)
+    refusals = check_limits(robot, res, limits)
+    if refusals and not force:
+        raise UnusableRobot(refusals)
+    res.warnings = [f"forced: {r}" for r in refusals] + res.warnings
     table = build_table(res, spec)
     applied = None
     if files:

@@ -345,6 +345,12 @@ void bench_button(bench_t *b, uint8_t down);
 int world_init(bench_t *b);
 void world_tick(bench_t *b, uint64_t now_us);
 void world_power_cycle(bench_t *b, uint64_t now_us);
-void world_report(bench_t *b, FILE *json, FILE *table);
+/* Writes the per-tendon truth as JSON members to json and/or as the table of
+ * `make sim` to table (a result column: pass/FAIL against tol_pct % of the
+ * target, or "-" when tol_pct < 0). */
+void world_report(bench_t *b, FILE *json, FILE *table, double tol_pct);
+/* Counts the tendons whose true tension is outside tol_pct % of the target;
+ * when any is, writes a reason naming every one of them into reason[n]. */
+int world_check_tension(bench_t *b, double tol_pct, char *reason, size_t n);
 
 #endif /* HALLHOME_BENCH_H */

@@ -509,7 +509,7 @@ static void write_summary(bench_t *b, double wall, double cpu)
                 t->icm[k].resets);
     }
     fprintf(f, "]},\n");
-    world_report(b, f, NULL);
+    world_report(b, f, NULL, -1.0);
     fprintf(f, "\n}\n");
     fclose(f);
 }
@@ -824,25 +824,22 @@ int main(int argc, char **argv)
     double cpu = cpu_now() - cpu_start;
     con_bench_flush(b);
 
-    if (check_pct >= 0.0 && b->have_plant && b->exit_code == BENCH_EXIT_OK) {
-        for (uint8_t i = 0; i < b->bus.n_servos; i++) {
-            double t =
-                plant_tension_at(&b->plant.cfg, i, xl430_shaft_ticks(&b->bus.servo[i])) * 1000.0;
-            if (fabs(t - (double)b->target_mN) > check_pct * 0.01 * (double)b->target_mN) {
-                snprintf(b->reason_buf, sizeof b->reason_buf,
-                         "tendon %u: true tension %.0f mN at home, target %d mN", i, t,
-                         (int)b->target_mN);
-                b->reason = b->reason_buf;
-                b->exit_code = BENCH_EXIT_FAIL;
-                break;
-            }
-        }
+    if (check_pct >= 0.0 && b->have_plant && b->exit_code == BENCH_EXIT_OK &&
+        world_check_tension(b, check_pct, b->reason_buf, sizeof b->reason_buf) > 0) {
+        b->reason = b->reason_buf;
+        b->exit_code = BENCH_EXIT_FAIL;
     }
     if (ee_save(b) != 0 && b->exit_code == BENCH_EXIT_OK) {
         b->exit_code = BENCH_EXIT_FAIL;
     }
-    if (table) {
-        world_report(b, NULL, stdout);
+    /* A run cut short (signal, time limit before --until, firmware stop) has
+     * no homes to judge: a table of it would only show -100 % errors. */
+    if (table && (b->exit_code == BENCH_EXIT_SIGNAL || b->exit_code == BENCH_EXIT_TIMEOUT ||
+                  b->exit_code == BENCH_EXIT_CRASHED)) {
+        printf("\nno table: the run ended before the calibration did (%s)\n",
+               b->reason ? b->reason : "stopped");
+    } else if (table) {
+        world_report(b, NULL, stdout, check_pct);
         if (b->cal_start_us != 0 && b->until_at_us > b->cal_start_us) {
             printf("calibration time %.3f s simulated\n",
                    (double)(b->until_at_us - b->cal_start_us) * 1e-6);
@@ -851,12 +848,12 @@ int main(int argc, char **argv)
     if (b->summary_path != NULL) {
         write_summary(b, wall, cpu);
     }
+    fflush(stdout); /* the table before the verdict on stderr */
     fprintf(
         stderr,
         "hh_bench: %s after %.3f s simulated in %.3f s wall (%.1fx; %.1fx of CPU time), exit %d\n",
         b->reason ? b->reason : "stopped", (double)bench_now_us(b) * 1e-6, wall,
         wall > 0 ? (double)bench_now_us(b) * 1e-6 / wall : 0.0,
         cpu > 0 ? (double)bench_now_us(b) * 1e-6 / cpu : 0.0, b->exit_code);
-    fflush(stdout);
     return b->exit_code;
 }

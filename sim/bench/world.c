@@ -169,9 +169,42 @@ void world_power_cycle(bench_t *b, uint64_t now)
     twi_bench_power_cycle(b);
 }
 
+/* The plant's true tension (mN) of tendon i at the servo's shaft now. */
+static double true_tension_mN(const bench_t *b, uint8_t i)
+{
+    return plant_tension_at(&b->plant.cfg, i, xl430_shaft_ticks(&b->bus.servo[i])) * 1000.0;
+}
+
+static int within_tol(const bench_t *b, double t_mN, double tol_pct)
+{
+    return fabs(t_mN - (double)b->target_mN) <= tol_pct * 0.01 * (double)b->target_mN;
+}
+
+int world_check_tension(bench_t *b, double tol_pct, char *reason, size_t n)
+{
+    char list[64] = "";
+    size_t len = 0;
+    int failed = 0;
+    for (uint8_t i = 0; i < b->bus.n_servos; i++) {
+        if (within_tol(b, true_tension_mN(b, i), tol_pct)) {
+            continue;
+        }
+        if (len < sizeof list) {
+            len += (size_t)snprintf(list + len, sizeof list - len, "%s%u", failed ? ", " : "", i);
+        }
+        failed++;
+    }
+    if (failed > 0) {
+        snprintf(reason, n, "true tension outside %g %% of the %d mN target at the home of %s %s",
+                 tol_pct, (int)b->target_mN, failed > 1 ? "tendons" : "tendon", list);
+    }
+    return failed;
+}
+
 /* Per tendon: the firmware's home (the servo's goal, encoder frame), its
- * take-up past the true engagement, and the plant's truth there. */
-void world_report(bench_t *b, FILE *json, FILE *table)
+ * take-up past the true engagement, the plant's truth there and, with a
+ * tolerance (tol_pct >= 0), whether its true tension is within it. */
+void world_report(bench_t *b, FILE *json, FILE *table, double tol_pct)
 {
     const plant_cfg_t *cfg = &b->plant.cfg;
     if (!b->have_plant) {
@@ -183,7 +216,7 @@ void world_report(bench_t *b, FILE *json, FILE *table)
     if (table) {
         fprintf(table,
                 "\ntendon  id  home_ticks  home_mm  true_home  err_ticks  T_home_mN  target_mN  "
-                "err_mN   err_%%\n");
+                "err_mN   err_%%  result\n");
     }
     if (json) {
         fprintf(json,
@@ -207,9 +240,10 @@ void world_report(bench_t *b, FILE *json, FILE *table)
         int32_t present = xl430_present_position(m);
         double err_mN = t_home - (double)b->target_mN;
         if (table) {
-            fprintf(table, "%6u %3u %11d %8.3f %10.1f %10.1f %10.1f %10d %8.1f %7.1f\n", i,
+            fprintf(table, "%6u %3u %11d %8.3f %10.1f %10.1f %10.1f %10d %8.1f %7.1f  %6s\n", i,
                     m->cfg.id, (int)goal, take_mm, home, shaft - home, t_home, (int)b->target_mN,
-                    err_mN, 100.0 * err_mN / (double)b->target_mN);
+                    err_mN, 100.0 * err_mN / (double)b->target_mN,
+                    tol_pct < 0.0 ? "-" : (within_tol(b, t_home, tol_pct) ? "pass" : "FAIL"));
         }
         if (json) {
             fprintf(

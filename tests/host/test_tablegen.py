@@ -16,6 +16,7 @@ from hallhome.paths import GENERATED_DIR, LIB_DIR, ROBOTS_DIR
 from hallhome.robot import load_robot
 from hallhome.tablegen import (CField, TableError, TableSpec, _pick, build_table,
                                canonical_bytes, compute, generate, parse_table_header)
+from hallhome.usable import result_refusals
 
 from test_model import make_robot
 
@@ -175,20 +176,24 @@ def test_robot_name_longer_than_the_table_allows(tmp_path):
         build_table(res, SPEC)
 
 
-def test_warns_when_target_change_is_below_ten_sigma(tmp_path):
+def test_target_change_below_ten_sigma_is_refused_not_warned(tmp_path):
     r = make_robot(tmp_path, noise=20.0)
     res = compute(r)
-    assert any("below 10x the sensor noise (200.00 uT)" in w for w in res.warnings)
+    assert not any("noise" in w for w in res.warnings)
+    assert any("below 10 x the sensing noise (200.00 uT, sensing.noise_uT = 20)" in m
+               for m in result_refusals(res))
     quiet = compute(make_robot(tmp_path, name="quiet", noise=0.01))
-    assert not any("sensor noise" in w for w in quiet.warnings)
+    assert not any("noise" in m for m in result_refusals(quiet))
 
 
-def test_warns_when_a_sensor_saturates(tmp_path):
+def test_a_saturating_sensor_is_refused_not_warned(tmp_path):
     r = make_robot(tmp_path, sensors=((0.0, 0.0, 104.0), (30.0, 0.0, 100.0)))
     res = compute(r)
-    assert any(w.startswith("sensor 0 saturates") and "the straight pose" in w
-               for w in res.warnings)
-    assert not any(w.startswith("sensor 1 saturates") for w in res.warnings)
+    assert not any("saturates" in w for w in res.warnings)
+    refusals = result_refusals(res)
+    assert any(m.startswith("tiny.toml: sensors[1].position_mm: the sensor saturates")
+               and "the straight pose" in m for m in refusals)
+    assert not any(m.startswith("tiny.toml: sensors[2]") for m in refusals)
 
 
 def test_travel_limit_below_default_travel_is_an_error(tmp_path):

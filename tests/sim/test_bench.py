@@ -1,7 +1,7 @@
 """Virtual bench (build/sim/hh_bench): the firmware ELF on simavr.
 
-Two programs run on the bench here: the real firmware (build/firmware/
-hallhome.elf) and a test fixture, sim/bench/testfw/probe.c, which drives each
+Two programs run on the bench here: the real firmware (build/fw/paper_2seg/
+hallhome-paper_2seg.elf) and a test fixture, sim/bench/testfw/probe.c, which drives each
 simulated peripheral by hand through the real board-support drivers. `make
 sim-test` builds all three before running this file.
 """
@@ -18,7 +18,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
 BENCH = ROOT / "build" / "sim" / "hh_bench"
-FW = ROOT / "build" / "firmware" / "hallhome.elf"
+FW = ROOT / "build" / "fw" / "paper_2seg" / "hallhome-paper_2seg.elf"
 PROBE = ROOT / "build" / "sim" / "testfw" / "probe.elf"
 PLANT = ROOT / "sim" / "plant" / "configs" / "paper_2seg.cfg"
 SCENARIOS = ROOT / "sim" / "bench" / "scenarios"

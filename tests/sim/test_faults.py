@@ -1,4 +1,4 @@
-"""End-to-end fault tests: the real firmware (build/firmware/hallhome.elf)
+"""End-to-end fault tests: the real firmware (build/fw/paper_2seg/hallhome-paper_2seg.elf)
 calibrating the paper_2seg plant on the virtual bench, one fault per run.
 
 Each scenario of sim/bench/scenarios runs with the button pressed at 1 s
@@ -20,7 +20,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
 BENCH = ROOT / "build" / "sim" / "hh_bench"
-FW = ROOT / "build" / "firmware" / "hallhome.elf"
+FW = ROOT / "build" / "fw" / "paper_2seg" / "hallhome-paper_2seg.elf"
 PLANT = ROOT / "sim" / "plant" / "configs" / "paper_2seg.cfg"
 TABLE = ROOT / "lookup_tables" / "generated" / "paper_2seg.c"
 SCENARIOS = ROOT / "sim" / "bench" / "scenarios"

@@ -28,7 +28,7 @@ from hallhome.client import BoardError, BoardReset, Client, Disconnected, LocalE
 from hallhome.paths import PROJECT_ROOT as ROOT
 
 BENCH = ROOT / "build" / "sim" / "hh_bench"
-FW = ROOT / "build" / "firmware" / "hallhome.elf"
+FW = ROOT / "build" / "fw" / "paper_2seg" / "hallhome-paper_2seg.elf"
 PLANT = ROOT / "sim" / "plant" / "configs" / "paper_2seg.cfg"
 SEED = "7"
 

@@ -18,7 +18,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
 BENCH = ROOT / "build" / "sim" / "hh_bench"
-FW = ROOT / "build" / "firmware" / "hallhome.elf"
+FW = ROOT / "build" / "fw" / "paper_2seg" / "hallhome-paper_2seg.elf"
 PLANT = ROOT / "build" / "sim" / "plant" / "paper_2seg.cfg"
 TARGET_MN = 800.0
 # design.md: before a tendon's home is recorded its tension never exceeds this

@@ -1,0 +1,140 @@
+"""Builds that cannot lie: every robot builds in build/fw/<robot>/ with its
+own ELF and HEX, switching ROBOT= rebuilds what depends on it, a robot
+without a table cannot be flashed, and unknown robots are named.
+
+Robots are generated into a temporary ROBOTS_DIR / TABLES_DIR (copies of
+paper_2seg under other names); their build directories are removed after.
+"""
+
+import os
+import re
+import shutil
+import subprocess
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+HALLHOME = ROOT / ".venv" / "bin" / "hallhome"
+PAPER = ROOT / "lookup_tables" / "robots" / "paper_2seg.toml"
+
+
+def make(*args, check=None):
+    r = subprocess.run(["make", "--no-print-directory", *map(str, args)], cwd=ROOT,
+                       capture_output=True, text=True, timeout=300)
+    r.out = r.stdout + r.stderr
+    if check is not None:
+        assert r.returncode == check, r.out
+    return r
+
+
+def fw_path(robot, *extra):
+    r = make("-s", "fw-path", f"ROBOT={robot}", *extra, check=0)
+    return r.stdout
+
+
+def flash_image(hex_path: Path) -> bytes:
+    """The flash content of an Intel HEX file (data records in file order)."""
+    data = bytearray()
+    for line in hex_path.read_text().splitlines():
+        if line.startswith(":") and line[7:9] == "00":
+            data += bytes.fromhex(line[9:9 + 2 * int(line[1:3], 16)])
+    return bytes(data)
+
+
+def name_in_flash(hex_path: Path, name: str) -> bool:
+    """The table's name field: the robot name NUL-padded to TBL_NAME_LEN."""
+    return name.encode() + b"\0" * (16 - len(name)) in flash_image(hex_path)
+
+
+def test_fw_path_is_one_line_per_robot():
+    assert fw_path("paper_2seg") == "build/fw/paper_2seg/hallhome-paper_2seg.elf\n"
+    assert fw_path("trio_3seg") == "build/fw/trio_3seg/hallhome-trio_3seg.elf\n"
+    assert make("fw-path", check=0).stdout == "build/fw/paper_2seg/hallhome-paper_2seg.elf\n"
+
+
+def test_each_robot_compiles_into_its_own_directory_and_flashes_its_own_hex():
+    r = make("-n", "-B", "firmware", "ROBOT=trio_3seg", check=0)
+    main = [ln for ln in r.stdout.splitlines() if "firmware/main.c" in ln]
+    assert len(main) == 1
+    assert "-DHH_ROBOT=trio_3seg" in main[0]
+    assert "-o build/fw/trio_3seg/avr/firmware/main.o" in main[0]
+    assert "build/fw/trio_3seg/avr/table_trio_3seg.o" in r.stdout
+    assert "paper_2seg" not in r.stdout
+    r = make("-n", "flash", "ROBOT=trio_3seg", "PORT=/dev/null", check=0)
+    assert "flash:w:build/fw/trio_3seg/hallhome-trio_3seg.hex:i" in r.stdout
+    assert "paper_2seg" not in r.stdout
+    r = make("-n", "size", "ROBOT=trio_3seg", check=0)
+    assert "scripts/size.sh build/fw/trio_3seg/hallhome-trio_3seg.elf" in r.stdout
+
+
+def test_unknown_robot_is_named_with_the_list_of_robots(tmp_path):
+    for goal in ("sim", "firmware", "flash"):
+        r = make(goal, "ROBOT=nosuch")
+        assert r.returncode == 2, r.out
+        assert "no robot 'nosuch'" in r.out and "No rule to make target" not in r.out
+        assert "robots in lookup_tables/robots: paper_2seg trio_3seg" in r.out
+    (tmp_path / "only_me.toml").write_text(PAPER.read_text())
+    r = make("sim", "ROBOT=nosuch", f"ROBOTS_DIR={tmp_path}")
+    assert r.returncode == 2 and f"robots in {tmp_path}: only_me" in r.out
+
+
+def test_sim_refuses_a_robot_the_plant_cannot_model_before_building():
+    r = make("sim", "ROBOT=trio_3seg")
+    assert r.returncode == 2, r.out
+    assert "supports straight tendon routing" in r.out
+    assert "trio_3seg.toml: tendons[8].twist_deg_per_mm" in r.out
+    assert "avr-gcc" not in r.out and "Traceback" not in r.out
+
+
+@pytest.fixture
+def robots(tmp_path):
+    """Two copies of paper_2seg, mkbot_a (with a table) and mkbot_b (none
+    yet), in a temporary ROBOTS_DIR / TABLES_DIR."""
+    rd, td = tmp_path / "robots", tmp_path / "tables"
+    rd.mkdir()
+    names = ("mkbot_a", "mkbot_b")
+    for n in names:
+        (rd / f"{n}.toml").write_text(PAPER.read_text())
+    subprocess.run([HALLHOME, "tables", "--quiet", "--out-dir", td, rd / "mkbot_a.toml"],
+                   check=True)
+    yield rd, td, (f"ROBOTS_DIR={rd}", f"TABLES_DIR={td}")
+    for n in names:
+        shutil.rmtree(ROOT / "build" / "fw" / n, ignore_errors=True)
+
+
+def test_switching_robots_builds_each_with_its_own_table(robots):
+    rd, td, dirs = robots
+    elf_a = ROOT / fw_path("mkbot_a", *dirs).strip()
+    hex_a, hex_b = elf_a.with_suffix(".hex"), ROOT / fw_path("mkbot_b", *dirs).strip()
+    hex_b = hex_b.with_suffix(".hex")
+    r = make("firmware", "ROBOT=mkbot_a", *dirs, check=0)
+    assert f"robot mkbot_a, table {td}/mkbot_a.c" in r.out
+    assert name_in_flash(hex_a, "mkbot_a")
+    stamp = os.stat(elf_a).st_mtime_ns
+
+    # a robot without a table builds, says so, and cannot be flashed
+    r = make("firmware", "ROBOT=mkbot_b", *dirs, check=0)
+    assert "NO TABLE" in r.out
+    assert not name_in_flash(hex_b, "mkbot_a") and not name_in_flash(hex_b, "mkbot_b")
+    r = make("flash", "ROBOT=mkbot_b", "PORT=/dev/null", *dirs)
+    assert r.returncode == 2 and "has no table" in r.out and "avrdude" not in r.out
+    assert os.stat(elf_a).st_mtime_ns == stamp  # the other robot's image untouched
+
+    # back to mkbot_a: nothing to do
+    r = make("firmware", "ROBOT=mkbot_a", *dirs, check=0)
+    assert "avr-gcc" not in r.out and os.stat(elf_a).st_mtime_ns == stamp
+
+    # mkbot_b's table appears after its objects were built: relinked with it
+    subprocess.run([HALLHOME, "tables", "--quiet", "--out-dir", td, rd / "mkbot_b.toml"],
+                   check=True)
+    r = make("firmware", "ROBOT=mkbot_b", *dirs, check=0)
+    assert f"table {td}/mkbot_b.c" in r.out and name_in_flash(hex_b, "mkbot_b")
+    assert make("-n", "flash", "ROBOT=mkbot_b", "PORT=/dev/null", *dirs,
+                check=0).stdout.count("avrdude") == 1
+
+    # and a table that disappears relinks without it
+    (td / "mkbot_a.c").unlink()
+    r = make("firmware", "ROBOT=mkbot_a", *dirs, check=0)
+    assert "NO TABLE" in r.out and not name_in_flash(hex_a, "mkbot_a")
+    assert re.search(r"avr-gcc .* -o \S*hallhome-mkbot_a\.elf", r.out)

@@ -1,0 +1,47 @@
+"""The per-tendon table `make sim` prints (hh_bench --table): a result column
+against the tolerance, every failing tendon named with the tolerance, and no
+table at all for a run cut short."""
+
+import re
+import subprocess
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+BENCH = ROOT / "build" / "sim" / "hh_bench"
+FW = ROOT / "build" / "fw" / "paper_2seg" / "hallhome-paper_2seg.elf"
+PLANT = ROOT / "sim" / "plant" / "configs" / "paper_2seg.cfg"
+ROW = re.compile(r"^\s+\d+\s+\d+\s+-?\d+\s")
+
+
+def bench(*args):
+    r = subprocess.run([BENCH, FW, "--plant", PLANT, "--seed", "3", "--table", *map(str, args)],
+                       capture_output=True, text=True, timeout=60)
+    rows = [ln.split() for ln in r.stdout.splitlines() if ROW.match(ln)]
+    return r, rows
+
+
+def test_every_failing_tendon_is_named_with_the_tolerance():
+    # 10 ms in, every tendon is still slack: all six fail
+    r, rows = bench("--limit", "10ms", "--check-tension", "10")
+    assert r.returncode == 1
+    assert ("true tension outside 10 % of the 800 mN target at the home of tendons "
+            "0, 1, 2, 3, 4, 5") in r.stderr
+    assert len(rows) == 6 and all(row[-1] == "FAIL" for row in rows)
+    header = [ln for ln in r.stdout.splitlines() if ln.startswith("tendon  id")]
+    assert len(header) == 1 and header[0].split()[-1] == "result"
+
+
+def test_passing_tendons_say_pass_and_without_a_tolerance_a_dash():
+    r, rows = bench("--limit", "20s", "--at", "1s press 100", "--until", "^<done mode=full",
+                    "--linger", "0", "--check-tension", "10")
+    assert r.returncode == 0, r.stderr
+    assert len(rows) == 6 and all(row[-1] == "pass" for row in rows)
+    r, rows = bench("--limit", "10ms")
+    assert r.returncode == 0 and len(rows) == 6 and all(row[-1] == "-" for row in rows)
+
+
+def test_a_run_cut_short_prints_no_table():
+    r, rows = bench("--limit", "50ms", "--until", "^<never", "--check-tension", "10")
+    assert r.returncode == 3  # time limit before --until
+    assert rows == [] and "-100.0" not in r.stdout
+    assert "no table: the run ended before the calibration did (time limit)" in r.stdout
