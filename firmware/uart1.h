@@ -18,7 +18,10 @@
 
 #include "dxl/dxl.h"
 
-#define UART1_RX_SIZE 128u /* power of two; 1.28 ms of bytes at 1 Mbps */
+/* Power of two, at most 256 (uint8_t indices): the replies to one sync read
+ * of every servo (12 x 15 bytes for Present Position) arrive back to back in
+ * about 2 ms and must fit while a main-loop pass runs; 128 lost the tenth. */
+#define UART1_RX_SIZE 256u
 #define UART1_TX_SIZE 128u /* power of two; a whole request fits */
 
 /* Configures UART1 at `baud` (8N1, U2X: 1 Mbps and 2 Mbps are exact at

@@ -1572,6 +1572,14 @@ APP_NOINLINE static void store_task(app_t *a)
 static void short_press(app_t *a)
 {
     int8_t rc;
+    if (a->state == APP_ST_BOOT) {
+        /* pressed before <ready>: the run starts once the bring-up is done,
+         * quick or full as it then offers */
+        a->req_start = 1;
+        a->req_con = 0;
+        a->req_btn = 1;
+        return;
+    }
     if (!idle_state(a)) {
         return; /* a long press aborts */
     }
@@ -1703,9 +1711,15 @@ int8_t app_poll(app_t *app)
         boot_poll(a);
     }
     servo_poll(a);
-    if (a->req_start && store_busy(&a->store) == 0u && !rec_busy(a)) {
+    if (a->req_start && a->state != APP_ST_BOOT && store_busy(&a->store) == 0u && !rec_busy(a)) {
         int8_t rc;
         a->req_start = 0;
+        if (a->req_btn) {
+            a->req_btn = 0;
+            a->req_mode = a->offer_quick ? HOM_MODE_QUICK : HOM_MODE_FULL;
+            a->req_tension = 0;
+            a->req_tendon = 0;
+        }
         rc = run_start(a, a->req_mode, a->req_tension, a->req_tendon);
         if (a->req_con && con_pending(&a->con)) {
             (void)con_complete(&a->con, rc);

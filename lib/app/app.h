@@ -193,6 +193,7 @@ typedef struct {
     uint8_t learn_n;
     uint8_t req_start; /* a run requested while an EEPROM save finishes */
     uint8_t req_con;   /* the request came from a pending `cal` / `rehome` */
+    uint8_t req_btn;   /* the request came from a press during the bring-up */
     uint8_t req_mode;
     uint8_t req_tendon;
     uint8_t reboot_id;
