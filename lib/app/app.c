@@ -132,6 +132,8 @@ static const char s_bytes[] CON_FLASH = "bytes";
 static const char s_total[] CON_FLASH = "total";
 static const char s_dropped[] CON_FLASH = "dropped";
 static const char s_reports[] CON_FLASH = "reports";
+static const char s_not_released[] CON_FLASH = "not_released";
+static const char s_servo_error[] CON_FLASH = "servo_error";
 
 /* Bus transactions. */
 enum { TX_NONE = 0, TX_POS, TX_HWERR, TX_GOAL, TX_TORQUE, TX_REBOOT, TX_WDOG };
@@ -761,7 +763,14 @@ APP_NOINLINE static void servo_done(app_t *a, int8_t rc)
         }
     } else if (a->sv_txn == TX_REBOOT) {
         if (rc != 0 && rc != -DXL_E_ALERT) {
-            if (con_pending(&a->con)) {
+            if (a->auto_release) {
+                a->auto_release = 0; /* named: this tendon may still be taut */
+                for (i = 0; i < a->info.n_tendons; i++) {
+                    if (a->ids[i] == a->reboot_id) {
+                        rep_app_fault(a, s_not_released, CON_E_SERVO_FAULT, HOM_DEV_SERVO, i);
+                    }
+                }
+            } else if (con_pending(&a->con)) {
                 (void)con_complete(&a->con, CON_E_SERVO_FAULT);
             }
             a->reboot_id = 0;
@@ -1274,6 +1283,14 @@ APP_NOINLINE static void cal_step(app_t *a, hom_in_t *in)
         run_done(a);
     } else if (rc < 0) {
         fault_rest(a, in->now_ms);
+        if (a->u.hom.fault == HOM_F_SERVO_ERROR && a->u.hom.fault_index < a->info.n_tendons) {
+            /* a servo in hardware error has its torque off and refused the
+             * release: reboot it (Protocol 2.0 Reboot clears the error), then
+             * release its tendon once the bus is up again */
+            a->reboot_id = a->ids[a->u.hom.fault_index];
+            a->reboot_req = 1;
+            a->auto_release = a->reboot_id;
+        }
     }
 }
 
@@ -1726,6 +1743,15 @@ int8_t app_poll(app_t *app)
         } else if (rc != 0) {
             rep_app_fault(a, s_refused, rc, HOM_DEV_NONE, 0);
         }
+    }
+    if (a->auto_release && a->state == APP_ST_IDLE && a->table_ok) {
+        (void)release_goals(a);
+        rep_begin(a, s_released);
+        con_report_flash(&a->con, s_reason, s_servo_error);
+        rep_int(a, s_id, a->auto_release);
+        rep_end(a);
+        a->auto_release = 0;
+        move_start(a, MOVE_RELEASE);
     }
     switch (a->state) {
     case APP_ST_CAL:

@@ -197,8 +197,9 @@ typedef struct {
     uint8_t req_mode;
     uint8_t req_tendon;
     uint8_t reboot_id;
-    uint8_t reboot_req; /* `reboot` waits for the bus */
-    uint8_t wdog_step;  /* Bus Watchdog writes left after a bring-up (two per servo) */
+    uint8_t reboot_req;   /* `reboot` waits for the bus */
+    uint8_t auto_release; /* ID of a servo in hardware error: reboot it, then release */
+    uint8_t wdog_step;    /* Bus Watchdog writes left after a bring-up (two per servo) */
     uint8_t btn_raw;
     uint8_t btn_state;
     uint8_t btn_long_done;

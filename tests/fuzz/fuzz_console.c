@@ -169,7 +169,7 @@ static int count_lines(const uint8_t *in, size_t n)
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
     static con_handler_fn handlers[CON_CMD_COUNT];
-    con_io_t io = {&fz, fz_read, fz_write};
+    con_io_t io = {&fz, fz_read, fz_write, NULL};
     con_rt_t rt = {0, 0};
     con_t con;
     size_t split;

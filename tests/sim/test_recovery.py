@@ -188,3 +188,23 @@ def test_lines_within_the_streaming_rule_are_all_answered(tmp_path):
     oks = sum(1 for ln in r.out.splitlines() if ln.endswith("] ok"))
     assert not r.of("overrun"), r.context()
     assert oks == 60 * groups, f"{oks} replies to {60 * groups} lines" + r.context()
+
+
+def test_overload_on_the_pulled_tendon_is_rebooted_released_and_recalibrated(tmp_path):
+    """A hardware error (overload) on the servo of the tendon being pulled:
+    its torque is off, so the homing's release cannot move it. The firmware
+    reboots that servo (Protocol 2.0 Reboot), releases the tendon, and the
+    next press calibrates."""
+    r = bench(tmp_path, "--limit", "12s", "--at", "1s press 100",
+              "--at", "2.8s servo-hwerr 0 32")
+    assert r.of("fault") and r.of("fault")[0][1]["reason"] == "servo_error", r.context()
+    rel = [f for _, f in r.of("released") if f.get("id") == "1"]
+    assert rel and rel[0]["reason"] == "servo_error", "servo 1 not named as released" + r.context()
+    for t in r.summary["tendons"]:
+        assert t["tension_now_mN"] < 1.0, f"tendon {t['tendon']} still at {t['tension_now_mN']} mN"
+        assert t["torque"] == 1 and t["hw_error"] == 0
+    base = [f for _, f in r.of("done") if f.get("mode") == "release"]
+    assert base and base[-1]["baseline"] == "1", r.context()
+    r = bench(tmp_path, "--limit", "30s", "--at", "1s press 100", "--at", "2.8s servo-hwerr 0 32",
+              "--at", "6s press 100", "--until", "^<done mode=full")
+    completes(r)
