@@ -128,15 +128,22 @@ static int tbl_bracket(const uint16_t *grid, uint8_t n, uint16_t x)
     return (int)k;
 }
 
-/* Rounded linear interpolation between (x0, y0) and (x1, y1); 64-bit because a
- * field span times a tension span overflows 32 bits. */
-static uint32_t tbl_lerp(uint16_t x0, uint16_t x1, uint32_t y0, uint32_t y1, uint16_t x)
+/* Rounded linear interpolation between (x0, y0) and (x1, y1), half away from
+ * zero, in 32 bits: a field span times a tension span would overflow, so
+ * the span is split into whole multiples of dx and a remainder below dx
+ * (remainder * t < 2^32 for dx, t <= 65535); the result equals the exact
+ * 64-bit rounding. One copy (not inlined): it is called three times. */
+#if defined(__GNUC__)
+__attribute__((noinline))
+#endif
+static uint32_t
+tbl_lerp(uint16_t x0, uint16_t x1, uint32_t y0, uint32_t y1, uint16_t x)
 {
-    int64_t dy = (int64_t)y1 - (int64_t)y0;
-    int64_t dx = (int64_t)x1 - (int64_t)x0;
-    int64_t num = dy * (int64_t)(x - x0);
-    int64_t q = (num >= 0 ? num + dx / 2 : num - dx / 2) / dx;
-    return (uint32_t)((int64_t)y0 + q);
+    uint32_t dx = (uint32_t)x1 - x0;
+    uint32_t t = (uint32_t)x - x0;
+    uint32_t a = y1 >= y0 ? y1 - y0 : y0 - y1;
+    uint32_t q = (a / dx) * t + ((a % dx) * t + dx / 2u) / dx;
+    return y1 >= y0 ? y0 + q : y0 - q;
 }
 
 int tbl_interp(const uint16_t *grid, const uint32_t *y, uint8_t n, uint16_t x, uint32_t *y_out)

@@ -235,6 +235,40 @@ static void test_generated_table(void **state)
     }
 }
 
+/* The 32-bit interpolation equals the exact rounded (half away from zero)
+ * 64-bit result over seeded random spans, down and up, up to the extremes. */
+static void test_interp_matches_64_bit(void **state)
+{
+    uint32_t x = 99u;
+    int n;
+    (void)state;
+    for (n = 0; n < 200000; n++) {
+        uint16_t grid[2];
+        uint32_t y[2], got;
+        int64_t dy, dx, num, q;
+        uint16_t at;
+        x = x * 1664525u + 1013904223u;
+        grid[0] = (uint16_t)(x >> 20);
+        x = x * 1664525u + 1013904223u;
+        grid[1] = (uint16_t)(grid[0] + 1u + ((x >> 16) % (65535u - grid[0])));
+        if (grid[1] <= grid[0]) {
+            continue;
+        }
+        x = x * 1664525u + 1013904223u;
+        y[0] = n % 3 == 0 ? x : x >> 8;
+        x = x * 1664525u + 1013904223u;
+        y[1] = n % 5 == 0 ? x : x >> 8;
+        x = x * 1664525u + 1013904223u;
+        at = (uint16_t)(grid[0] + x % ((uint32_t)grid[1] - grid[0] + 1u));
+        assert_int_equal(tbl_interp(grid, y, 2, at, &got), 0);
+        dy = (int64_t)y[1] - (int64_t)y[0];
+        dx = (int64_t)grid[1] - grid[0];
+        num = dy * (int64_t)(at - grid[0]);
+        q = (num >= 0 ? num + dx / 2 : num - dx / 2) / dx;
+        assert_int_equal(got, (uint32_t)((int64_t)y[0] + q));
+    }
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -247,6 +281,7 @@ int main(void)
         cmocka_unit_test_setup(test_target_errors, setup),
         cmocka_unit_test_setup(test_interp_ram, setup),
         cmocka_unit_test(test_generated_table),
+        cmocka_unit_test(test_interp_matches_64_bit),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
