@@ -354,13 +354,13 @@ static void test_bulk_write_and_signed_values(void **state)
     (void)state;
     rig_init(&R, 2, 0);
     const uint8_t led[1] = {1};
-    const uint8_t vel[4] = {0x2C, 0x01, 0x00, 0x00}; /* 300 */
+    const uint8_t vel[4] = {0xC8, 0x00, 0x00, 0x00}; /* 200, within Velocity Limit 265 */
     const dxl_bulk_item items[2] = {{1, DXL_XL430_LED_ADDR, 1, led},
                                     {2, DXL_XL430_PROFILE_VELOCITY_ADDR, 4, vel}};
     assert_int_equal(dxl_bulk_write(&R.m, items, 2), 1);
     assert_int_equal(run(), 0);
     assert_int_equal(xl430_get(&R.servo[0], DXL_XL430_LED_ADDR, 1), 1);
-    assert_int_equal(xl430_get(&R.servo[1], DXL_XL430_PROFILE_VELOCITY_ADDR, 4), 300);
+    assert_int_equal(xl430_get(&R.servo[1], DXL_XL430_PROFILE_VELOCITY_ADDR, 4), 200);
     assert_int_equal(xl430_get(&R.servo[1], DXL_XL430_LED_ADDR, 1), 0);
 
     dxl_reply r = {1, 0, 0, 4, {0xFE, 0xFF, 0xFF, 0xFF}};
