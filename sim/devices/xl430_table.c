@@ -136,6 +136,8 @@ static uint8_t xl430_value_check(const uint8_t *ct, const xl430_field *f, uint32
     switch (f->kind) {
     case XT_ANY:
         return 0;
+    case XT_PLAIN:
+        return (raw >= (uint32_t)f->min && raw <= (uint32_t)f->max) ? 0u : DXL_ERR_DATA_RANGE;
     case XT_SIGNED:
         return xl430_in(v, f->min, f->max) ? 0u : DXL_ERR_DATA_RANGE;
     case XT_OPMODE:
@@ -157,7 +159,7 @@ static uint8_t xl430_value_check(const uint8_t *ct, const xl430_field *f, uint32
         return (!expired && xl430_in(v, -lim, lim)) ? 0u : DXL_ERR_DATA_RANGE;
     case XT_PROFILE_ACC:
         lim = time_based ? DXL_XL430_PROFILE_MAX_TIME_BASED : DXL_XL430_PROFILE_MAX;
-        return xl430_in(v, 0, lim) ? 0u : DXL_ERR_DATA_RANGE;
+        return raw <= (uint32_t)lim ? 0u : DXL_ERR_DATA_RANGE;
     case XT_PROFILE_VEL:
         lim = time_based ? DXL_XL430_PROFILE_MAX_TIME_BASED : DXL_XL430_PROFILE_MAX;
         if (!time_based) {
@@ -165,7 +167,7 @@ static uint8_t xl430_value_check(const uint8_t *ct, const xl430_field *f, uint32
             int32_t vl = (int32_t)dxl_get_le(&ct[DXL_XL430_VELOCITY_LIMIT_ADDR], 4);
             lim = vl < lim ? vl : lim;
         }
-        return xl430_in(v, 0, lim) ? 0u : DXL_ERR_DATA_RANGE;
+        return raw <= (uint32_t)lim ? 0u : DXL_ERR_DATA_RANGE;
     case XT_GOAL_POS:
         if (expired) {
             return DXL_ERR_DATA_RANGE;
@@ -180,7 +182,7 @@ static uint8_t xl430_value_check(const uint8_t *ct, const xl430_field *f, uint32
                    ? 0u
                    : DXL_ERR_DATA_LIMIT;
     default:
-        return xl430_in(v, f->min, f->max) ? 0u : DXL_ERR_DATA_RANGE;
+        return DXL_ERR_ACCESS;
     }
 }
 
