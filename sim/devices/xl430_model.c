@@ -424,6 +424,9 @@ static uint8_t xl430_write(xl430 *m, uint16_t addr, const uint8_t *data, uint16_
     uint8_t err = xl430_table_check(m->ct, addr, data, n);
     if (err == 0) {
         xl430_write_apply(m, addr, data, n);
+        if (addr < DXL_XL430_TORQUE_ENABLE_ADDR) {
+            m->eeprom_writes++;
+        }
     }
     return err;
 }
