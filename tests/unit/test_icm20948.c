@@ -416,7 +416,7 @@ static void test_overrun_flag_from_dor(void **state)
     d.icm.regs[3][ICM_REG_I2C_SLV0_CTRL] &= (uint8_t)~ICM_REG_SLV_CTRL_EN;
     icm_fake_bus_sleep_us(&d.fb, 25000);
     d.icm.regs[3][ICM_REG_I2C_SLV0_CTRL] |= ICM_REG_SLV_CTRL_EN;
-    icm_fake_bus_sleep_us(&d.fb, 1000);
+    icm_fake_bus_sleep_us(&d.fb, 8000); /* one master period at 137.5 Hz */
     assert_int_equal(read_once(&d.dev, &d.fb, &s), 0);
     assert_true(s.flags & ICM_SAMPLE_NEW);
     assert_true(s.flags & ICM_SAMPLE_OVERRUN);
