@@ -539,7 +539,24 @@ enum {
     DXL_BU_DONE
 };
 
-#define DXL_BU_WRITES 6u
+/* Per-servo configuration, in order. The EEPROM-area fields (Return Delay
+ * Time, Operating Mode) are read first and written only when they differ:
+ * the servo's EEPROM wears with every write, and a bring-up runs at every
+ * boot. Torque goes off first because the EEPROM area refuses writes while it
+ * is on (e-manual XL430-W250, "Control Table Description"). */
+enum {
+    DXL_BU_C_READ,       /* Return Delay Time(9), Drive Mode(10), Operating Mode(11) */
+    DXL_BU_C_TORQUE_OFF, /* Torque Enable(64) = 0 */
+    DXL_BU_C_DELAY,      /* Return Delay Time = DXL_BU_RETURN_DELAY, when it differs */
+    DXL_BU_C_MODE,       /* Operating Mode = extended position, when it differs */
+    DXL_BU_C_ACC,        /* Profile Acceleration(108) */
+    DXL_BU_C_VEL,        /* Profile Velocity(112) */
+    DXL_BU_C_TORQUE_ON,  /* Torque Enable(64) = 1 */
+    DXL_BU_C_STEPS
+};
+
+#define DXL_BU_RETURN_DELAY 0u /* answer at once: the master's timeouts assume it */
+#define DXL_BU_READ_LEN     3u /* addresses 9..11 */
 
 int8_t dxl_bringup_start(dxl_bringup *b, dxl_master *m, const uint8_t *ids, uint8_t count,
                          const dxl_bringup_config *cfg)
@@ -554,7 +571,7 @@ int8_t dxl_bringup_start(dxl_bringup *b, dxl_master *m, const uint8_t *ids, uint
         if (ids[i] > DXL_MAX_ID) {
             return -DXL_E_ARG;
         }
-        b->servo[i] = (dxl_servo_info){ids[i], 0, 0, 0, 0, 0, 0, 0, 0};
+        b->servo[i] = (dxl_servo_info){ids[i], 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0};
     }
     b->m = m;
     b->cfg = *cfg;
@@ -591,17 +608,39 @@ static uint8_t dxl_bu_pinged(dxl_bringup *b, dxl_servo_info *s)
     return 1;
 }
 
-static int8_t dxl_bu_config_write(dxl_bringup *b, uint8_t id)
+static int8_t dxl_bu_config_issue(dxl_bringup *b, uint8_t id)
 {
-    static const uint16_t addr[DXL_BU_WRITES] = {
-        DXL_XL430_TORQUE_ENABLE_ADDR,    DXL_XL430_RETURN_DELAY_ADDR,
-        DXL_XL430_OPERATING_MODE_ADDR,   DXL_XL430_PROFILE_ACCELERATION_ADDR,
-        DXL_XL430_PROFILE_VELOCITY_ADDR, DXL_XL430_TORQUE_ENABLE_ADDR,
-    };
-    static const uint8_t size[DXL_BU_WRITES] = {1, 1, 1, 4, 4, 1};
-    uint32_t value[DXL_BU_WRITES] = {
-        0, 0, DXL_XL430_MODE_EXTENDED, b->cfg.profile_acceleration, b->cfg.profile_velocity, 1};
-    return dxl_write_value(b->m, id, addr[b->sub], value[b->sub], size[b->sub]);
+    switch (b->sub) {
+    case DXL_BU_C_READ:
+        return dxl_read(b->m, id, DXL_XL430_RETURN_DELAY_ADDR, DXL_BU_READ_LEN);
+    case DXL_BU_C_TORQUE_OFF:
+        return dxl_write_value(b->m, id, DXL_XL430_TORQUE_ENABLE_ADDR, 0, 1);
+    case DXL_BU_C_DELAY:
+        return dxl_write_value(b->m, id, DXL_XL430_RETURN_DELAY_ADDR, DXL_BU_RETURN_DELAY, 1);
+    case DXL_BU_C_MODE:
+        return dxl_write_value(b->m, id, DXL_XL430_OPERATING_MODE_ADDR, DXL_XL430_MODE_EXTENDED, 1);
+    case DXL_BU_C_ACC:
+        return dxl_write_value(b->m, id, DXL_XL430_PROFILE_ACCELERATION_ADDR,
+                               b->cfg.profile_acceleration, 4);
+    case DXL_BU_C_VEL:
+        return dxl_write_value(b->m, id, DXL_XL430_PROFILE_VELOCITY_ADDR, b->cfg.profile_velocity,
+                               4);
+    default:
+        return dxl_write_value(b->m, id, DXL_XL430_TORQUE_ENABLE_ADDR, 1, 1);
+    }
+}
+
+/* Next configuration step of servo s, skipping EEPROM writes that would
+ * store the value already there. */
+static void dxl_bu_next_sub(dxl_bringup *b, const dxl_servo_info *s)
+{
+    b->sub++;
+    if (b->sub == DXL_BU_C_DELAY && s->return_delay == DXL_BU_RETURN_DELAY) {
+        b->sub++;
+    }
+    if (b->sub == DXL_BU_C_MODE && s->mode == DXL_XL430_MODE_EXTENDED) {
+        b->sub++;
+    }
 }
 
 /* Starts the transaction the current step needs; each step's result is
@@ -618,7 +657,7 @@ static int8_t dxl_bu_issue(dxl_bringup *b)
     case DXL_BU_REBOOT:
         return dxl_reboot(b->m, s->id);
     case DXL_BU_CONFIG:
-        return dxl_bu_config_write(b, s->id);
+        return dxl_bu_config_issue(b, s->id);
     case DXL_BU_POSITIONS: {
         uint8_t ids[DXL_MAX_IDS];
         for (uint8_t i = 0; i < b->n; i++) {
@@ -704,7 +743,18 @@ static int8_t dxl_bu_after(dxl_bringup *b, int8_t rc)
         if (rc != 0) {
             return dxl_bu_done(b, rc);
         }
-        if (++b->sub < DXL_BU_WRITES) {
+        if (b->sub == DXL_BU_C_READ) {
+            const dxl_reply *r = dxl_reply_for(b->m, s->id);
+            if (r == NULL || r->len < DXL_BU_READ_LEN) {
+                return dxl_bu_done(b, -DXL_E_MALFORMED);
+            }
+            s->return_delay = r->data[0];
+            s->mode = r->data[DXL_XL430_OPERATING_MODE_ADDR - DXL_XL430_RETURN_DELAY_ADDR];
+        } else if (b->sub == DXL_BU_C_DELAY || b->sub == DXL_BU_C_MODE) {
+            s->eeprom_writes++;
+        }
+        dxl_bu_next_sub(b, s);
+        if (b->sub < DXL_BU_C_STEPS) {
             return 1;
         }
         b->sub = 0;

@@ -185,9 +185,11 @@ int32_t dxl_reply_value(const dxl_reply *r, uint8_t size);
  * For a list of IDs: ping all (missing IDs are listed), check the model
  * number (others are flagged, not refused), read the hardware error status of
  * servos whose alert bit is set and reboot them only when asked; then, per
- * servo, torque off, Return Delay 0, Operating Mode 4 (extended position),
- * profile acceleration and velocity, torque on; finally one sync read of all
- * present positions. */
+ * servo, one read of Return Delay Time..Operating Mode, torque off, Return
+ * Delay 0 and Operating Mode 4 (extended position) each written only when the
+ * servo holds another value (EEPROM area: every write wears it), profile
+ * acceleration and velocity, torque on; finally one sync read of all present
+ * positions. A servo already configured gets no EEPROM write. */
 typedef struct {
     uint32_t profile_acceleration; /* 214.577 rev/min^2 units */
     uint32_t profile_velocity;     /* 0.229 rpm units */
@@ -204,7 +206,10 @@ typedef struct {
     uint16_t model;
     uint8_t hw_error; /* Hardware Error Status last read (0 when none) */
     uint8_t rebooted;
-    int32_t position; /* Present Position after bring-up */
+    int32_t position;      /* Present Position after bring-up */
+    uint8_t return_delay;  /* Return Delay Time as read before configuration */
+    uint8_t mode;          /* Operating Mode as read before configuration */
+    uint8_t eeprom_writes; /* EEPROM-area writes this bring-up made (0..2) */
 } dxl_servo_info;
 
 typedef struct {

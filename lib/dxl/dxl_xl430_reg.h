@@ -91,6 +91,14 @@
     48u /* 4 bytes, ticks, default 4095 [Max/Min Position Limit(48, 52)] */
 #define DXL_XL430_MIN_POSITION_ADDR 52u /* 4 bytes, ticks, default 0 */
 
+/* [Velocity Limit(44)] default since firmware 42; the field also caps Goal
+ * Velocity(104) and Profile Velocity(112): a servo answers Data Range Error
+ * to a Profile Velocity above it (velocity-based profile). */
+#define DXL_XL430_VELOCITY_LIMIT_DEFAULT 265u
+
+/* [Startup Configuration(60)]: 1 byte, 0..3. */
+#define DXL_XL430_STARTUP_CONFIG_ADDR 60u
+
 /* [Shutdown(63)]: hardware error bits that switch torque off; default 0x34. */
 #define DXL_XL430_SHUTDOWN_ADDR 63u
 #define DXL_XL430_SHUTDOWN_SIZE 1u
@@ -131,6 +139,7 @@
 #define DXL_XL430_BUS_WATCHDOG_SIZE    1u
 #define DXL_XL430_BUS_WATCHDOG_UNIT_US 20000u
 #define DXL_XL430_BUS_WATCHDOG_EXPIRED 0xFFu
+#define DXL_XL430_BUS_WATCHDOG_MAX     127u /* Range 1..127 (0 disables) */
 
 #define DXL_XL430_GOAL_PWM_ADDR      100u /* 2 bytes, 0.113 % [Goal PWM(100)] */
 #define DXL_XL430_GOAL_VELOCITY_ADDR 104u /* 4 bytes, 0.229 rpm [Goal Velocity(104)] */
@@ -141,6 +150,11 @@
 /* [Profile Velocity(112)]: 4 bytes, 0.229 rpm, 0 = infinite. */
 #define DXL_XL430_PROFILE_VELOCITY_ADDR 112u
 #define DXL_XL430_PROFILE_VELOCITY_SIZE 4u
+/* Range of both profile fields [Profile Acceleration(108)], [Profile
+ * Velocity(112)]: 0..32767 with the velocity-based profile, 0..32737 with the
+ * time-based one; Profile Velocity is further capped by Velocity Limit(44). */
+#define DXL_XL430_PROFILE_MAX            32767L
+#define DXL_XL430_PROFILE_MAX_TIME_BASED 32737L
 /* The two profile units above as floating-point constants, for host-side models only. */
 #define DXL_XL430_VELOCITY_UNIT_RPM 0.229
 #define DXL_XL430_ACCEL_UNIT_RPM2   214.577

@@ -19,8 +19,10 @@ enum {
     IS_RESET,
     IS_WAKE,
     IS_WHO2,
+    IS_SENSORS_OFF,
+    IS_LP,
+    IS_MST_CFG,
     IS_MST_EN,
-    IS_MST_CTRL,
     IS_MST_RST,
     IS_AK_SRST,
     IS_AK_SRST_DONE,
@@ -175,6 +177,7 @@ int8_t icm_init_start(icm_dev_t *dev, uint32_t now_us)
     dev->mag_fail = 0;
     dev->who_am_i = 0;
     dev->mag_id = 0;
+    dev->mag_company = 0;
     dev->have = 0;
     dev->err = 0;
     dev->wait_from_us = now_us;
@@ -256,6 +259,7 @@ static int8_t icm_init_step(icm_dev_t *dev, uint32_t now_us)
 {
     uint8_t v = 0;
     uint8_t slv0[3];
+    uint8_t cfg[3];
     int8_t rc;
 
     switch (dev->step) {
@@ -275,7 +279,7 @@ static int8_t icm_init_step(icm_dev_t *dev, uint32_t now_us)
         if (v != ICM_REG_WHO_AM_I_V) {
             return ICM_E_WHOAMI;
         }
-        dev->step = (dev->step == IS_WHO) ? IS_RESET : IS_MST_EN;
+        dev->step = (dev->step == IS_WHO) ? IS_RESET : IS_SENSORS_OFF;
         return 0;
     case IS_RESET:
         rc = icm_wr1(dev, 0, ICM_REG_PWR_MGMT_1, ICM_REG_PWR_DEVICE_RST);
@@ -290,14 +294,33 @@ static int8_t icm_init_step(icm_dev_t *dev, uint32_t now_us)
             icm_wait(dev, now_us, ICM_WAKE_WAIT_US, IS_WHO2);
         }
         return rc;
-    case IS_MST_EN:
-        rc = icm_wr1(dev, 0, ICM_REG_USER_CTRL, ICM_REG_USER_I2C_MST_EN);
+    case IS_SENSORS_OFF:
+        /* only the magnetometer is used; with the gyro and accelerometer off
+         * the master runs at its own rate (and they draw no current) */
+        rc = icm_wr1(dev, 0, ICM_REG_PWR_MGMT_2, ICM_REG_PWR2_SENSORS_OFF);
         if (rc == 0) {
-            dev->step = IS_MST_CTRL;
+            dev->step = IS_LP;
         }
         return rc;
-    case IS_MST_CTRL:
-        rc = icm_wr1(dev, 3, ICM_REG_I2C_MST_CTRL, ICM_REG_MST_P_NSR | ICM_REG_MST_CLK_345KHZ);
+    case IS_LP:
+        rc = icm_wr1(dev, 0, ICM_REG_LP_CONFIG, ICM_REG_LP_I2C_MST_CYCLE);
+        if (rc == 0) {
+            dev->step = IS_MST_CFG;
+        }
+        return rc;
+    case IS_MST_CFG:
+        /* rate, clock and shadow delay in one burst (bank 3, 0x00..0x02),
+         * all before the master is enabled */
+        cfg[0] = ICM_REG_MST_ODR_137HZ;
+        cfg[1] = ICM_REG_MST_P_NSR | ICM_REG_MST_CLK_345KHZ;
+        cfg[2] = ICM_REG_DELAY_ES_SHADOW;
+        rc = icm_wr(dev, 3, ICM_REG_I2C_MST_ODR_CONFIG, cfg, 3);
+        if (rc == 0) {
+            dev->step = IS_MST_EN;
+        }
+        return rc;
+    case IS_MST_EN:
+        rc = icm_wr1(dev, 0, ICM_REG_USER_CTRL, ICM_REG_USER_I2C_MST_EN);
         if (rc == 0) {
             dev->step = IS_MST_RST;
         }
@@ -325,7 +348,9 @@ static int8_t icm_init_step(icm_dev_t *dev, uint32_t now_us)
         }
         return rc;
     case IS_WIA:
-        rc = icm_slv4_begin(dev, 1, AK_REG_WIA2, 0);
+        /* WIA1 (company) first, then WIA2 (device): mag_company tells which */
+        rc = icm_slv4_begin(dev, 1, dev->mag_company == AK_REG_WIA1_V ? AK_REG_WIA2 : AK_REG_WIA1,
+                            0);
         if (rc == 0) {
             icm_wait(dev, now_us, ICM_SLV4_TIMEOUT_US, IS_WIA_DONE);
         }
@@ -344,8 +369,17 @@ static int8_t icm_init_step(icm_dev_t *dev, uint32_t now_us)
         if (rc != 0) {
             return rc;
         }
+        if (dev->mag_company != AK_REG_WIA1_V) {
+            dev->mag_company = v;
+            if (v != AK_REG_WIA1_V) {
+                return icm_mag_failed(dev, ICM_E_MAG_ID);
+            }
+            dev->step = IS_WIA; /* now WIA2 */
+            return 0;
+        }
         dev->mag_id = v;
         if (v != AK_REG_WIA2_V) {
+            dev->mag_company = 0; /* a retry checks both again */
             return icm_mag_failed(dev, ICM_E_MAG_ID);
         }
         dev->mag_fail = 0;
@@ -377,6 +411,7 @@ static int8_t icm_init_step(icm_dev_t *dev, uint32_t now_us)
         if (rc == 0) {
             dev->state = ICM_ST_RUN;
             dev->last_new_us = now_us;
+            dev->prev_st1 = 0;
             memset(dev->last, 0, sizeof(dev->last));
         }
         return rc;
@@ -471,10 +506,14 @@ int8_t icm_read_fetch(icm_dev_t *dev, uint32_t now_us, icm_sample_t *out)
         return icm_read_failed(dev, rc);
     }
     fresh = (uint8_t)(memcmp(&blk[1], &dev->last[1], AK_REG_BLOCK_LEN - 1u) != 0);
-    if (!fresh && (blk[0] & AK_REG_ST1_DRDY) &&
-        (uint32_t)(now_us - dev->last_new_us) >= ICM_NEW_GAP_US) {
+    /* Unchanged data are a new sample only when DRDY has just appeared: the
+     * master reads faster than the AK09916 samples, so the host sees each
+     * master read, and a read without a new sample carries DRDY clear. A
+     * frozen copy (master stopped, AK09916 gone) never counts again. */
+    if (!fresh && (blk[0] & AK_REG_ST1_DRDY) && !(dev->prev_st1 & AK_REG_ST1_DRDY)) {
         fresh = 1;
     }
+    dev->prev_st1 = blk[0];
     for (i = 0; i < 3u; i++) {
         out->raw[i] = icm_le16(&blk[1u + 2u * i]);
     }

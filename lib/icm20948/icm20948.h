@@ -53,7 +53,7 @@ enum icm_err {
     ICM_E_TIMEOUT = -5,    /* the bus timed out (recovery was attempted) */
     ICM_E_BUS = -6,        /* bus error (recovery was attempted) */
     ICM_E_MAG_ABSENT = -7, /* the AK09916 never answered through SLV4, after retries */
-    ICM_E_MAG_ID = -8,     /* the AK09916 answered with WIA2 != 0x09, after retries */
+    ICM_E_MAG_ID = -8,     /* the AK09916 answered WIA1 != 0x48 or WIA2 != 0x09, after retries */
     ICM_E_STALE = -9,      /* no new sample for longer than the stale limit */
     ICM_E_STATE = -10,     /* call not valid in this state (e.g. read before init) */
     ICM_E_MUX = -11        /* the multiplexer channel could not be selected */
@@ -70,14 +70,15 @@ enum icm_err {
 #define ICM_NO_MUX       0xFFu
 
 #define ICM_STALE_US_DEFAULT 50000u /* five AK09916 periods */
-#define ICM_RESET_WAIT_US    10000u /* after PWR_MGMT_1 DEVICE_RESET */
-#define ICM_WAKE_WAIT_US     1000u  /* after wake, after an I2C master reset */
-#define ICM_AK_RESET_WAIT_US 1000u  /* after the AK09916 soft reset */
-#define ICM_SLV4_TIMEOUT_US  5000u  /* SLV4_DONE deadline */
-#define ICM_MAG_TRIES        5u     /* WIA2 attempts before ICM_E_MAG_* */
-/* A snapshot with DRDY set but unchanged data counts as new only this long
- * after the previous new sample (half an AK09916 period). */
-#define ICM_NEW_GAP_US 5000u
+/* After PWR_MGMT_1 DEVICE_RESET: DS-000189 section 3 (A.C. electrical
+ * characteristics), "Start-up time for register read/write": 11 ms typical,
+ * 100 ms maximum; the maximum is waited. Sensors are initialised side by
+ * side (icm_set.h), so the wait is paid once per boot. */
+#define ICM_RESET_WAIT_US    100000u
+#define ICM_WAKE_WAIT_US     1000u /* after wake, after an I2C master reset */
+#define ICM_AK_RESET_WAIT_US 1000u /* after the AK09916 soft reset */
+#define ICM_SLV4_TIMEOUT_US  5000u /* SLV4_DONE deadline */
+#define ICM_MAG_TRIES        5u    /* WIA2 attempts before ICM_E_MAG_* */
 
 /* One magnetometer sample: raw AK09916 counts (0.15 uT per LSB). */
 typedef struct {
@@ -94,19 +95,21 @@ struct tca;
  * through these functions. */
 typedef struct {
     const icm_bus_t *bus;
-    struct tca *mux;  /* NULL when wired directly */
-    uint8_t channel;  /* mux channel 0..7, or ICM_NO_MUX */
-    uint8_t addr;     /* 7-bit: 0x68 or 0x69 */
-    uint8_t bank;     /* cached REG_BANK_SEL bank, 0xFF = unknown */
-    uint8_t state;    /* internal: ICM_ST_* in icm20948.c */
-    uint8_t step;     /* internal: init step */
-    uint8_t tries;    /* WIA2 attempts so far */
-    int8_t mag_fail;  /* why the last WIA2 attempt failed */
-    uint8_t who_am_i; /* last WHO_AM_I read (0 before any) */
-    uint8_t mag_id;   /* last WIA2 read via SLV4 (0 before any) */
-    uint8_t have;     /* a sample has been fetched since init */
-    int8_t err;       /* last error returned, 0 if none */
-    uint8_t last[9];  /* last ST1..ST2 block */
+    struct tca *mux;     /* NULL when wired directly */
+    uint8_t channel;     /* mux channel 0..7, or ICM_NO_MUX */
+    uint8_t addr;        /* 7-bit: 0x68 or 0x69 */
+    uint8_t bank;        /* cached REG_BANK_SEL bank, 0xFF = unknown */
+    uint8_t state;       /* internal: ICM_ST_* in icm20948.c */
+    uint8_t step;        /* internal: init step */
+    uint8_t tries;       /* WIA2 attempts so far */
+    int8_t mag_fail;     /* why the last WIA2 attempt failed */
+    uint8_t who_am_i;    /* last WHO_AM_I read (0 before any) */
+    uint8_t mag_id;      /* last WIA2 read via SLV4 (0 before any) */
+    uint8_t mag_company; /* last WIA1 read via SLV4 (0 before any) */
+    uint8_t have;        /* a sample has been fetched since init */
+    int8_t err;          /* last error returned, 0 if none */
+    uint8_t last[9];     /* last new ST1..ST2 block */
+    uint8_t prev_st1;    /* ST1 of the previous fetch, new or not */
     uint32_t wait_from_us;
     uint32_t wait_us;
     uint32_t stale_us;
@@ -133,13 +136,14 @@ int8_t icm_set_stale_us(icm_dev_t *dev, uint32_t stale_us);
 int8_t icm_init_start(icm_dev_t *dev, uint32_t now_us);
 
 /* Advances initialisation by one step: bank 0, WHO_AM_I (no ACK ->
- * ICM_E_ABSENT, not 0xEA -> ICM_E_WHOAMI), device reset, wake, I2C master
- * enable and reset, AK09916 soft reset and WIA2 check through SLV4 (up to
- * ICM_MAG_TRIES attempts with a master reset between them, then
- * ICM_E_MAG_ABSENT or ICM_E_MAG_ID), continuous 100 Hz mode, SLV0 reading
- * ST1..ST2. Returns ICM_BUSY while in progress, 0 when the sensor runs, or a
- * negative ICM_E_* (bus errors map to ICM_E_NACK/TIMEOUT/BUS/MUX, ICM_E_STATE
- * without icm_init_start). After an error, icm_init_start() again. */
+ * ICM_E_ABSENT, not 0xEA -> ICM_E_WHOAMI), device reset and its start-up
+ * time, wake, gyro and accelerometer off, I2C master clock, rate (about
+ * 137 Hz) and DELAY_ES_SHADOW set before the master is enabled and reset,
+ * AK09916 soft reset and WIA1/WIA2 check through SLV4 (up to ICM_MAG_TRIES
+ * attempts with a master reset between them, then ICM_E_MAG_ABSENT or
+ * ICM_E_MAG_ID), continuous 100 Hz mode, SLV0 reading ST1..ST2. Returns ICM_BUSY while in progress,
+ * 0 when the sensor runs, or a negative ICM_E_* (bus errors map to ICM_E_NACK/TIMEOUT/BUS/MUX,
+ * ICM_E_STATE without icm_init_start). After an error, icm_init_start() again. */
 int8_t icm_init_poll(icm_dev_t *dev, uint32_t now_us);
 
 /* Nonzero when initialisation has completed and no error has occurred since. */
@@ -154,8 +158,10 @@ int8_t icm_read_start(icm_dev_t *dev, uint32_t now_us);
 /* Second half: reads ST1..ST2 from EXT_SLV_SENS_DATA and decodes it into
  * *out. A sample is new when its data differ from the last one (all zero
  * before the first sample, the register contents after init), or DRDY is
- * set at least ICM_NEW_GAP_US after the last new sample; otherwise it is a
- * repeat (flags without ICM_SAMPLE_NEW). Returns 0 with *out filled,
+ * set and was clear in the previous fetch (the I2C master, at about 137 Hz,
+ * brought a new sample of unchanged value); otherwise it is a repeat (flags
+ * without ICM_SAMPLE_NEW). Fetches must come at least once per master period
+ * (7.27 ms) for the second rule to catch every unchanged sample. Returns 0 with *out filled,
  * ICM_E_STALE with *out filled (a repeat older than the stale limit),
  * ICM_E_STATE when not ready, or a bus error code. Bus errors leave *out
  * alone. ICM_E_ABSENT (the sensor has disappeared) clears icm_ready() until

@@ -38,6 +38,14 @@
 #define ICM_REG_PWR_CLKSEL_AUTO 0x01u /* bits 2:0 = 1: best available clock */
 #define ICM_REG_PWR_RESET_VALUE 0x41u /* 7.1 reset value */
 
+/* PWR_MGMT_2 (8.5): DISABLE_ACCEL bits 5:3, DISABLE_GYRO bits 2:0, reset 0x00
+ * (both on). With both off the I2C master runs at I2C_MST_ODR_CONFIG (11.1);
+ * with the gyro on it follows the gyro ODR, else the accelerometer's. */
+#define ICM_REG_PWR_MGMT_2       0x07u
+#define ICM_REG_PWR2_ACCEL_OFF   0x38u
+#define ICM_REG_PWR2_GYRO_OFF    0x07u
+#define ICM_REG_PWR2_SENSORS_OFF 0x3Fu
+
 #define ICM_REG_INT_PIN_CFG   0x0Fu
 #define ICM_REG_INT_BYPASS_EN 0x02u /* bit 1 */
 
@@ -52,11 +60,21 @@
 #define ICM_REG_EXT_SLV_SENS_LEN     24u
 
 /* --- User bank 3 (DS-000189 section 11) --- */
-#define ICM_REG_I2C_MST_ODR_CONFIG 0x00u /* 1.1 kHz / 2^ODR_CONFIG[3:0] when cycling */
-#define ICM_REG_I2C_MST_CTRL       0x01u
+/* I2C_MST_ODR_CONFIG (11.1): the master polls at 1.1 kHz / 2^ODR_CONFIG[3:0]
+ * when the gyro and accelerometer are off and LP_CONFIG.I2C_MST_CYCLE is set.
+ * 3 gives 137.5 Hz (7.27 ms), the slowest rate above the AK09916's 100 Hz, so
+ * every sample is still read once; 4 (68.75 Hz) would skip samples. */
+#define ICM_REG_I2C_MST_ODR_CONFIG 0x00u
+#define ICM_REG_MST_ODR_BASE_HZ    1100u
+#define ICM_REG_MST_ODR_137HZ      3u
+#define ICM_REG_I2C_MST_CTRL       0x01u /* 11.2 */
 #define ICM_REG_MST_P_NSR          0x10u /* bit 4: stop between slave reads */
 #define ICM_REG_MST_CLK_345KHZ     0x07u /* bits 3:0 = 7: 345.6 kHz, the recommended setting */
+/* I2C_MST_DELAY_CTRL (11.3) bit 7 DELAY_ES_SHADOW: the EXT_SLV_SENS_DATA
+ * copy is updated only once every byte of the slave read has arrived, so a
+ * host read never sees half of one sample and half of the next. */
 #define ICM_REG_I2C_MST_DELAY_CTRL 0x02u
+#define ICM_REG_DELAY_ES_SHADOW    0x80u
 
 #define ICM_REG_I2C_SLV0_ADDR 0x03u /* bit 7 = read */
 #define ICM_REG_I2C_SLV0_REG  0x04u
@@ -75,7 +93,7 @@
 
 /* --- AK09916 behind the auxiliary bus (DS-000189 sections 12 and 13) --- */
 #define AK_REG_ADDR            0x0Cu /* 7-bit address, fixed */
-#define AK_REG_WIA1            0x00u /* company ID, 0x48 */
+#define AK_REG_WIA1            0x00u /* 13.1: company ID, 0x48 */
 #define AK_REG_WIA1_V          0x48u
 #define AK_REG_WIA2            0x01u /* 13.1: device ID, 0x09 */
 #define AK_REG_WIA2_V          0x09u

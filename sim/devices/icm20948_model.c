@@ -125,7 +125,7 @@ static uint8_t akm_read(akm_t *ak, uint8_t reg)
     uint8_t v;
     switch (reg) {
     case AK_REG_WIA1:
-        return AK_REG_WIA1_V;
+        return ak->wia1;
     case AK_REG_WIA2:
         return ak->wia2;
     case AK_REG_ST1:
@@ -190,6 +190,7 @@ void icmm_init(icmm_t *m, uint8_t addr, uint32_t seed)
     icmm_reset_regs(m);
     m->next_mst_us = ICMM_NEVER;
     m->ak.present = 1;
+    m->ak.wia1 = AK_REG_WIA1_V;
     m->ak.wia2 = AK_REG_WIA2_V;
     m->ak.rng = seed ? seed : 1u;
     akm_reset(&m->ak);
@@ -217,10 +218,36 @@ static uint8_t icmm_mst_active(const icmm_t *m)
 
 static uint32_t icmm_mst_period(const icmm_t *m)
 {
+    uint8_t pwr2 = m->regs[0][ICM_REG_PWR_MGMT_2];
+    if ((pwr2 & ICM_REG_PWR2_GYRO_OFF) != ICM_REG_PWR2_GYRO_OFF) {
+        return ICMM_MST_PERIOD_US;
+    }
+    if ((pwr2 & ICM_REG_PWR2_ACCEL_OFF) != ICM_REG_PWR2_ACCEL_OFF) {
+        return ICMM_ACC_PERIOD_US;
+    }
     if (m->regs[0][ICM_REG_LP_CONFIG] & ICM_REG_LP_I2C_MST_CYCLE) {
         return ICMM_MST_PERIOD_US << (m->regs[3][ICM_REG_I2C_MST_ODR_CONFIG] & 0x0Fu);
     }
     return ICMM_MST_PERIOD_US;
+}
+
+/* Moves the bytes of the SLV0 read in flight that have arrived by t into
+ * EXT_SLV_SENS_DATA: one by one, or all at the end with DELAY_ES_SHADOW. */
+static void icmm_ext_commit(icmm_t *m, uint64_t t)
+{
+    uint8_t shadow = (uint8_t)(m->regs[3][ICM_REG_I2C_MST_DELAY_CTRL] & ICM_REG_DELAY_ES_SHADOW);
+    uint8_t total = (uint8_t)(m->ext_done + m->ext_n);
+    while (m->ext_n > 0u) {
+        uint8_t upto = shadow ? total : (uint8_t)(m->ext_done + 1u);
+        if (t < m->ext_t0_us + (uint64_t)(ICMM_SLV0_LEAD + upto) * ICMM_AUX_BYTE_US) {
+            return;
+        }
+        while (m->ext_done < upto) {
+            m->regs[0][ICM_REG_EXT_SLV_SENS_DATA_00 + m->ext_done] = m->ext_new[m->ext_done];
+            m->ext_done++;
+            m->ext_n--;
+        }
+    }
 }
 
 static void icmm_slv0(icmm_t *m)
@@ -239,9 +266,14 @@ static void icmm_slv0(icmm_t *m)
         return;
     }
     if (addr & ICM_REG_SLV_ADDR_READ) {
+        icmm_ext_commit(m, ICMM_NEVER - 1u); /* the previous read has long ended */
         for (i = 0; i < n && i < ICM_REG_EXT_SLV_SENS_LEN; i++) {
-            m->regs[0][ICM_REG_EXT_SLV_SENS_DATA_00 + i] = akm_read(&m->ak, (uint8_t)(reg + i));
+            m->ext_new[i] = akm_read(&m->ak, (uint8_t)(reg + i));
         }
+        m->ext_n = i;
+        m->ext_done = 0;
+        m->ext_t0_us = m->now_us;
+        icmm_ext_commit(m, m->now_us);
     } else {
         akm_write(&m->ak, m->now_us, reg, m->regs[3][ICM_REG_I2C_SLV0_DO]);
     }
@@ -289,6 +321,7 @@ void icmm_advance(icmm_t *m, uint64_t now_us)
         if (t > m->now_us) {
             m->now_us = t;
         }
+        icmm_ext_commit(m, t);
         if (which == 1) {
             akm_measure(&m->ak, t);
         } else if (which == 2) {
@@ -301,6 +334,7 @@ void icmm_advance(icmm_t *m, uint64_t now_us)
     if (now_us > m->now_us) {
         m->now_us = now_us;
     }
+    icmm_ext_commit(m, m->now_us);
     if (!icmm_mst_active(m)) {
         m->next_mst_us = m->now_us + icmm_mst_period(m);
     }
@@ -362,6 +396,10 @@ static void icmm_reg_write(icmm_t *m, uint8_t reg, uint8_t v)
         if (reg == ICM_REG_I2C_SLV4_DI) {
             return;
         }
+        if (reg == ICM_REG_I2C_MST_CTRL &&
+            (m->regs[0][ICM_REG_USER_CTRL] & ICM_REG_USER_I2C_MST_EN)) {
+            m->mst_ctrl_live_writes++;
+        }
         if (reg == ICM_REG_I2C_SLV4_CTRL && (v & ICM_REG_SLV_CTRL_EN)) {
             m->slv4_pending = 1;
             m->slv4_at_us = m->now_us + ICMM_SLV4_US;
@@ -398,6 +436,11 @@ static uint8_t icmm_start(void *ctx, uint8_t addr_byte)
         m->have_ptr = 0;
     } else {
         memcpy(m->ext_view, &m->regs[0][ICM_REG_EXT_SLV_SENS_DATA_00], sizeof(m->ext_view));
+        if (m->ext_n > 0u && m->ext_done > 0u &&
+            memcmp(&m->ext_new[m->ext_done],
+                   &m->regs[0][ICM_REG_EXT_SLV_SENS_DATA_00 + m->ext_done], m->ext_n) != 0) {
+            m->torn_reads++;
+        }
     }
     return 1;
 }

@@ -9,11 +9,19 @@
  * not acknowledge for ICMM_RESET_US), SLEEP, USER_CTRL I2C master enable and
  * reset, I2C_MST_STATUS (clear on read), SLV4 single transfers (done after
  * ICMM_SLV4_US, SLV4_NACK when the AK09916 does not answer), SLV0 block reads
- * into EXT_SLV_SENS_DATA once per master period (a host burst read sees the
- * registers as they were at its START, never half old and half new, as the
- * datasheet's user-facing copy of the sensor registers guarantees), and the
- * master hanging
- * after a reset until I2C_MST_RST (a reported quirk).
+ * into EXT_SLV_SENS_DATA once per master period, and the master hanging after
+ * a reset until I2C_MST_RST (a reported quirk).
+ *
+ * Master period (DS-000189 11.1, I2C_MST_ODR_CONFIG): the gyro ODR (1.1 kHz)
+ * while the gyro is on (PWR_MGMT_2), else the accelerometer ODR (1.125 kHz)
+ * while it is on, else 1.1 kHz / 2^ODR_CONFIG when LP_CONFIG.I2C_MST_CYCLE is
+ * set; sample-rate dividers stay at their reset value 0 (not modelled).
+ * The SLV0 bytes reach EXT_SLV_SENS_DATA as they cross the auxiliary bus
+ * (ICMM_AUX_BYTE_US each) unless I2C_MST_DELAY_CTRL.DELAY_ES_SHADOW is set,
+ * in which case the whole block appears at once (11.3): without it a host
+ * burst read that starts during the transfer sees part of the new sample and
+ * part of the old one (counted in torn_reads). A host burst read sees the
+ * registers as they were at its START.
  *
  * The AK09916: WIA1/WIA2, soft reset, power-down/single/continuous modes
  * (10/20/50/100 Hz of simulated time), DRDY and DOR in ST1, the data
@@ -33,11 +41,15 @@
 
 #define ICMM_RESET_US      2000u /* DEVICE_RESET: no ACK for this long */
 #define ICMM_SLV4_US       200u  /* SLV4 transaction latency */
-#define ICMM_MST_PERIOD_US 909u  /* I2C master period at 1.1 kHz */
+#define ICMM_MST_PERIOD_US 909u  /* I2C master period at 1.1 kHz (gyro ODR, divider 0) */
+#define ICMM_ACC_PERIOD_US 889u  /* at 1.125 kHz (accelerometer ODR, divider 0) */
+#define ICMM_AUX_BYTE_US   26u   /* one byte (9 bits) on the auxiliary bus at 345.6 kHz */
+#define ICMM_SLV0_LEAD     3u    /* bytes before the first data byte: address, register, address */
 #define AKM_SRST_US        100u  /* AK09916 soft reset: no ACK for this long */
 
 typedef struct {
     uint8_t present; /* 0: never acknowledges on the auxiliary bus */
+    uint8_t wia1;    /* company ID answered (0x48 for a real AK09916) */
     uint8_t wia2;    /* device ID answered (0x09 for a real AK09916) */
     uint8_t mode;    /* CNTL2 */
     uint8_t st1;
@@ -68,6 +80,11 @@ typedef struct {
     uint8_t ptr;
     uint8_t nread;        /* bytes read since the last START */
     uint8_t ext_view[24]; /* EXT_SLV_SENS_DATA as of the read START */
+    /* SLV0 read on its way into EXT_SLV_SENS_DATA */
+    uint8_t ext_new[24];
+    uint8_t ext_n;      /* bytes of ext_new not yet visible to the host */
+    uint8_t ext_done;   /* bytes of ext_new already visible */
+    uint64_t ext_t0_us; /* start of that SLV0 read */
     /* time */
     uint64_t now_us;
     uint64_t reset_until_us;
@@ -81,7 +98,9 @@ typedef struct {
     uint32_t resets;
     uint32_t mst_resets;
     uint32_t slv0_reads;
-    uint32_t ext_reads; /* host reads starting at EXT_SLV_SENS_DATA_00 */
+    uint32_t ext_reads;            /* host reads starting at EXT_SLV_SENS_DATA_00 */
+    uint32_t torn_reads;           /* host reads that saw a half-updated EXT block */
+    uint32_t mst_ctrl_live_writes; /* I2C_MST_CTRL written while the master was enabled */
     akm_t ak;
 } icmm_t;
 

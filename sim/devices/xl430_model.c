@@ -1,17 +1,18 @@
 #include "devices/xl430_model.h"
 
+#include "devices/xl430_table.h"
+
 #include <math.h>
 #include <stddef.h>
 #include <string.h>
 
 enum { XL430_WAIT_NONE, XL430_WAIT_STATUS, XL430_WAIT_FAST };
 
-enum { XL430_RO, XL430_EEPROM, XL430_RAM };
-
-#define XL430_TICKS_PER_S_PER_VEL  (DXL_XL430_VELOCITY_UNIT_RPM * 4096.0 / 60.0)
-#define XL430_TICKS_PER_S2_PER_ACC (DXL_XL430_ACCEL_UNIT_RPM2 * 4096.0 / 3600.0)
-#define XL430_MAX_STEP_US          1000u
-#define XL430_FAST_GAP_US          1000u /* idle bus (plus 3 bytes) that ends a fast sync read chain */
+#define XL430_TICKS_PER_S_PER_VEL   (DXL_XL430_VELOCITY_UNIT_RPM * 4096.0 / 60.0)
+#define XL430_TICKS_PER_S2_PER_ACC  (DXL_XL430_ACCEL_UNIT_RPM2 * 4096.0 / 3600.0)
+#define XL430_MAX_STEP_US           1000u
+#define XL430_FW_NO_BROADCAST_RESET 42u /* Protocol 2.0, "Factory Reset" */
+#define XL430_FAST_GAP_US           1000u /* idle bus (plus 3 bytes) that ends a fast sync read chain */
 
 static uint8_t xl430_reached(uint32_t now, uint32_t t)
 {
@@ -34,22 +35,6 @@ uint32_t xl430_get(const xl430 *m, uint16_t addr, uint8_t size)
 static int32_t xl430_get_s32(const xl430 *m, uint16_t addr)
 {
     return (int32_t)xl430_get(m, addr, 4);
-}
-
-/* Access class of one control table byte (e-manual XL430-W250, "Control Table of EEPROM/RAM Area",
- * Access column). */
-static uint8_t xl430_access(uint16_t addr)
-{
-    if (addr < 64u) {
-        if (addr <= DXL_XL430_FIRMWARE_ADDR) {
-            return XL430_RO;
-        }
-        return XL430_EEPROM;
-    }
-    if (addr == DXL_XL430_REGISTERED_ADDR || addr == DXL_XL430_HW_ERROR_ADDR || addr >= 120u) {
-        return XL430_RO;
-    }
-    return XL430_RAM;
 }
 
 void xl430_config_default(xl430_config *cfg, uint8_t id)
@@ -231,7 +216,11 @@ static void xl430_watchdog(xl430 *m)
         return;
     }
     if (m->now - m->last_inst > (uint32_t)wd * DXL_XL430_BUS_WATCHDOG_UNIT_US) {
+        /* [Bus Watchdog(98)] example, step 4: the servo stops and applies
+         * Profile Acceleration and Profile Velocity as 0 */
         m->ct[DXL_XL430_BUS_WATCHDOG_ADDR] = DXL_XL430_BUS_WATCHDOG_EXPIRED;
+        xl430_set(m, DXL_XL430_PROFILE_ACCELERATION_ADDR, 0, 4);
+        xl430_set(m, DXL_XL430_PROFILE_VELOCITY_ADDR, 0, 4);
         m->target = m->shaft;
         m->vel = 0.0;
     }
@@ -397,48 +386,6 @@ static uint8_t xl430_covers(uint16_t addr, uint16_t n, uint16_t field, uint16_t 
     return addr < field + size && field < addr + n;
 }
 
-/* Checks a write as the servo would; returns 0 or the error number. */
-static uint8_t xl430_write_check(const xl430 *m, uint16_t addr, const uint8_t *data, uint16_t n)
-{
-    if (!xl430_range_ok(addr, n)) {
-        return DXL_ERR_ACCESS;
-    }
-    for (uint16_t i = 0; i < n; i++) {
-        uint8_t acc = xl430_access((uint16_t)(addr + i));
-        if (acc == XL430_RO || (acc == XL430_EEPROM && m->ct[DXL_XL430_TORQUE_ENABLE_ADDR])) {
-            return DXL_ERR_ACCESS;
-        }
-    }
-    if (xl430_covers(addr, n, DXL_XL430_GOAL_POSITION_ADDR, 4)) {
-        if (m->ct[DXL_XL430_BUS_WATCHDOG_ADDR] == DXL_XL430_BUS_WATCHDOG_EXPIRED &&
-            !xl430_covers(addr, n, DXL_XL430_BUS_WATCHDOG_ADDR, 1)) {
-            return DXL_ERR_DATA_RANGE;
-        }
-        uint8_t goal[4];
-        memcpy(goal, &m->ct[DXL_XL430_GOAL_POSITION_ADDR], 4);
-        for (uint16_t i = 0; i < n; i++) {
-            uint16_t a = (uint16_t)(addr + i);
-            if (a >= DXL_XL430_GOAL_POSITION_ADDR && a < DXL_XL430_GOAL_POSITION_ADDR + 4u) {
-                goal[a - DXL_XL430_GOAL_POSITION_ADDR] = data[i];
-            }
-        }
-        int32_t g = (int32_t)dxl_get_le(goal, 4);
-        if (m->ct[DXL_XL430_OPERATING_MODE_ADDR] == DXL_XL430_MODE_EXTENDED) {
-            if (g > DXL_XL430_EXTENDED_LIMIT || g < -DXL_XL430_EXTENDED_LIMIT) {
-                return DXL_ERR_DATA_LIMIT;
-            }
-        } else if (g < xl430_get_s32(m, DXL_XL430_MIN_POSITION_ADDR) ||
-                   g > xl430_get_s32(m, DXL_XL430_MAX_POSITION_ADDR)) {
-            return DXL_ERR_DATA_LIMIT;
-        }
-    }
-    if (xl430_covers(addr, n, DXL_XL430_TORQUE_ENABLE_ADDR, 1) &&
-        data[DXL_XL430_TORQUE_ENABLE_ADDR - addr] != 0 && m->ct[DXL_XL430_HW_ERROR_ADDR] != 0) {
-        return DXL_ERR_RESULT_FAIL;
-    }
-    return 0;
-}
-
 static void xl430_goal_to_target(xl430 *m)
 {
     int32_t goal = xl430_get_s32(m, DXL_XL430_GOAL_POSITION_ADDR);
@@ -459,9 +406,7 @@ static void xl430_write_apply(xl430 *m, uint16_t addr, const uint8_t *data, uint
         }
     }
     if (xl430_covers(addr, n, DXL_XL430_TORQUE_ENABLE_ADDR, 1)) {
-        uint8_t on = m->ct[DXL_XL430_TORQUE_ENABLE_ADDR] ? 1u : 0u;
-        m->ct[DXL_XL430_TORQUE_ENABLE_ADDR] = on;
-        if (on && !torque_was) {
+        if (m->ct[DXL_XL430_TORQUE_ENABLE_ADDR] && !torque_was) {
             m->target = m->shaft; /* hold where it is until a goal arrives */
             xl430_set(m, DXL_XL430_GOAL_POSITION_ADDR, (uint32_t)xl430_reported(m), 4);
         }
@@ -476,9 +421,12 @@ static void xl430_write_apply(xl430 *m, uint16_t addr, const uint8_t *data, uint
 /* Returns the error number (0 when written). */
 static uint8_t xl430_write(xl430 *m, uint16_t addr, const uint8_t *data, uint16_t n)
 {
-    uint8_t err = xl430_write_check(m, addr, data, n);
+    uint8_t err = xl430_table_check(m->ct, addr, data, n);
     if (err == 0) {
         xl430_write_apply(m, addr, data, n);
+        if (addr < DXL_XL430_TORQUE_ENABLE_ADDR) {
+            m->eeprom_writes++;
+        }
     }
     return err;
 }
@@ -493,6 +441,14 @@ static int16_t xl430_index_of(const xl430 *m, const uint8_t *list, uint16_t coun
         }
     }
     return -1;
+}
+
+/* The servo goes away after its reply (if any) and powers up again after
+ * its boot time: RAM back to defaults, torque off. */
+static void xl430_reboot(xl430 *m, uint32_t t)
+{
+    m->booting = 1;
+    m->boot_until = t + xl430_delay_us(m) + 200u + m->cfg.boot_us;
 }
 
 static void xl430_factory_reset(xl430 *m, uint8_t mode)
@@ -564,7 +520,9 @@ static void xl430_instruction(xl430 *m, uint8_t id, const uint8_t *body, uint16_
         break;
     }
     case DXL_INST_ACTION: {
-        uint8_t err = 0;
+        /* Protocol 2.0, "Error": Instruction Error also when Action comes
+         * without a Reg Write */
+        uint8_t err = DXL_ERR_INSTRUCTION;
         if (m->ct[DXL_XL430_REGISTERED_ADDR]) {
             err = xl430_write(m, m->reg_addr, m->reg_data, m->reg_n);
             m->ct[DXL_XL430_REGISTERED_ADDR] = 0;
@@ -582,17 +540,22 @@ static void xl430_instruction(xl430 *m, uint8_t id, const uint8_t *body, uint16_
             }
             break;
         }
+        /* Protocol 2.0, "Factory Reset": from X-series firmware 42 a
+         * broadcast Reset All is not executed */
+        if (!mine && p[0] == DXL_RESET_ALL && m->cfg.firmware >= XL430_FW_NO_BROADCAST_RESET) {
+            break;
+        }
         if (answer) {
             xl430_reply(m, 0, NULL, 0, t);
         }
         xl430_factory_reset(m, p[0]);
+        xl430_reboot(m, t); /* the servo restarts with its factory table */
         break;
     case DXL_INST_REBOOT:
         if (answer) {
             xl430_reply(m, 0, NULL, 0, t);
         }
-        m->booting = 1;
-        m->boot_until = t + xl430_delay_us(m) + 200u + m->cfg.boot_us;
+        xl430_reboot(m, t);
         break;
     case DXL_INST_CLEAR: {
         static const uint8_t key[5] = {DXL_CLEAR_MULTITURN, 0x44, 0x58, 0x4C, 0x22};

@@ -94,8 +94,9 @@ typedef struct {
     uint8_t booting;
     uint8_t started;
     /* counters */
-    uint16_t instructions; /* instruction packets addressed to this servo */
-    uint16_t replies;      /* status packets queued */
+    uint16_t instructions;  /* instruction packets addressed to this servo */
+    uint16_t replies;       /* status packets queued */
+    uint16_t eeprom_writes; /* writes stored into the EEPROM area (addresses 0..63) */
 } xl430;
 
 /* Factory defaults for `id` at 1 Mbps, return delay 250 (500 us), 10 bits per

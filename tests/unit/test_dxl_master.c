@@ -354,13 +354,13 @@ static void test_bulk_write_and_signed_values(void **state)
     (void)state;
     rig_init(&R, 2, 0);
     const uint8_t led[1] = {1};
-    const uint8_t vel[4] = {0x2C, 0x01, 0x00, 0x00}; /* 300 */
+    const uint8_t vel[4] = {0xC8, 0x00, 0x00, 0x00}; /* 200, within Velocity Limit 265 */
     const dxl_bulk_item items[2] = {{1, DXL_XL430_LED_ADDR, 1, led},
                                     {2, DXL_XL430_PROFILE_VELOCITY_ADDR, 4, vel}};
     assert_int_equal(dxl_bulk_write(&R.m, items, 2), 1);
     assert_int_equal(run(), 0);
     assert_int_equal(xl430_get(&R.servo[0], DXL_XL430_LED_ADDR, 1), 1);
-    assert_int_equal(xl430_get(&R.servo[1], DXL_XL430_PROFILE_VELOCITY_ADDR, 4), 300);
+    assert_int_equal(xl430_get(&R.servo[1], DXL_XL430_PROFILE_VELOCITY_ADDR, 4), 200);
     assert_int_equal(xl430_get(&R.servo[1], DXL_XL430_LED_ADDR, 1), 0);
 
     dxl_reply r = {1, 0, 0, 4, {0xFE, 0xFF, 0xFF, 0xFF}};
@@ -447,9 +447,61 @@ static void test_bringup_configures_every_servo(void **state)
         assert_int_equal(xl430_get(s, DXL_XL430_TORQUE_ENABLE_ADDR, 1), 1);
         assert_int_equal(xl430_get(s, DXL_XL430_PROFILE_ACCELERATION_ADDR, 4), 20);
         assert_int_equal(xl430_get(s, DXL_XL430_PROFILE_VELOCITY_ADDR, 4), 100);
+        /* factory return delay 250 and position mode: both rewritten once */
+        assert_int_equal(B.servo[i].return_delay, 250);
+        assert_int_equal(B.servo[i].mode, DXL_XL430_MODE_POSITION);
+        assert_int_equal(B.servo[i].eeprom_writes, 2);
+        assert_int_equal(s->eeprom_writes, 2);
     }
     assert_int_equal(R.bus.collisions, 0);
     assert_int_equal(dxl_bringup_poll(&B), 0);
+}
+
+/* The next boot finds the EEPROM fields set and writes none of them; a servo
+ * with only one field off gets only that one. */
+static void test_bringup_skips_eeprom_writes_already_done(void **state)
+{
+    (void)state;
+    rig_init(&R, 3, 250);
+    const uint8_t ids[3] = {1, 2, 3};
+    dxl_bringup_config c = bu_config();
+    assert_int_equal(dxl_bringup_start(&B, &R.m, ids, 3, &c), 1);
+    assert_int_equal(dxl_fakebus_run_bringup(&R.bus, &B, 2000000), 0);
+    for (uint8_t i = 0; i < 3; i++) {
+        assert_int_equal(R.servo[i].eeprom_writes, 2);
+        xl430_power_cycle(&R.servo[i], R.bus.now);
+    }
+    /* servo 3 was switched back to position mode by someone else */
+    R.servo[2].ct[DXL_XL430_OPERATING_MODE_ADDR] = DXL_XL430_MODE_POSITION;
+    assert_int_equal(dxl_bringup_start(&B, &R.m, ids, 3, &c), 1);
+    assert_int_equal(dxl_fakebus_run_bringup(&R.bus, &B, 2000000), 0);
+    for (uint8_t i = 0; i < 3; i++) {
+        const xl430 *s = &R.servo[i];
+        assert_int_equal(B.servo[i].return_delay, 0);
+        assert_int_equal(xl430_get(s, DXL_XL430_OPERATING_MODE_ADDR, 1), DXL_XL430_MODE_EXTENDED);
+        assert_int_equal(xl430_get(s, DXL_XL430_TORQUE_ENABLE_ADDR, 1), 1);
+        assert_int_equal(xl430_get(s, DXL_XL430_PROFILE_VELOCITY_ADDR, 4), 100);
+    }
+    assert_int_equal(B.servo[0].eeprom_writes, 0);
+    assert_int_equal(B.servo[1].eeprom_writes, 0);
+    assert_int_equal(B.servo[2].eeprom_writes, 1);
+    assert_int_equal(R.servo[0].eeprom_writes, 2);
+    assert_int_equal(R.servo[1].eeprom_writes, 2);
+    assert_int_equal(R.servo[2].eeprom_writes, 3);
+}
+
+/* A servo that answers the configuration read with too few bytes stops the
+ * bring-up instead of being configured from garbage. */
+static void test_bringup_read_error_stops(void **state)
+{
+    (void)state;
+    rig_init(&R, 1, 0);
+    const uint8_t ids[1] = {1};
+    dxl_bringup_config c = bu_config();
+    R.servo[0].ct[DXL_XL430_STATUS_RETURN_LEVEL_ADDR] = 0; /* answers ping only */
+    assert_int_equal(dxl_bringup_start(&B, &R.m, ids, 1, &c), 1);
+    assert_int_equal(dxl_fakebus_run_bringup(&R.bus, &B, 2000000), -DXL_E_TIMEOUT);
+    assert_int_equal(R.servo[0].eeprom_writes, 0);
 }
 
 static void test_bringup_reports_missing_ids_by_number(void **state)
@@ -619,6 +671,8 @@ int main(void)
         cmocka_unit_test(test_fast_sync_read_with_silent_servo_times_out),
         cmocka_unit_test(test_57600_baud),
         cmocka_unit_test(test_bringup_configures_every_servo),
+        cmocka_unit_test(test_bringup_skips_eeprom_writes_already_done),
+        cmocka_unit_test(test_bringup_read_error_stops),
         cmocka_unit_test(test_bringup_reports_missing_ids_by_number),
         cmocka_unit_test(test_bringup_warns_on_other_model),
         cmocka_unit_test(test_bringup_hw_error_without_and_with_reboot),

@@ -117,10 +117,24 @@ static void test_init_configures_device(void **state)
     assert_int_equal(icmm_peek(&d.icm, 3, ICM_REG_I2C_SLV0_ADDR), 0x8C);
     assert_int_equal(icmm_peek(&d.icm, 3, ICM_REG_I2C_SLV0_REG), AK_REG_ST1);
     assert_int_equal(icmm_peek(&d.icm, 3, ICM_REG_I2C_SLV0_CTRL), 0x89);
+    assert_int_equal(d.dev.mag_company, 0x48);
+    /* gyro and accelerometer off, master at 1.1 kHz / 2^3 with the shadow
+     * delay, its clock set before it was enabled */
+    assert_int_equal(icmm_peek(&d.icm, 0, ICM_REG_PWR_MGMT_2), 0x3F);
+    assert_int_equal(icmm_peek(&d.icm, 0, ICM_REG_LP_CONFIG), ICM_REG_LP_I2C_MST_CYCLE);
+    assert_int_equal(icmm_peek(&d.icm, 3, ICM_REG_I2C_MST_ODR_CONFIG), 3);
+    assert_int_equal(icmm_peek(&d.icm, 3, ICM_REG_I2C_MST_DELAY_CTRL), ICM_REG_DELAY_ES_SHADOW);
+    assert_int_equal(d.icm.mst_ctrl_live_writes, 0);
+    /* the master now polls the AK09916 at about 137 Hz, not 1.1 kHz */
+    {
+        uint32_t before = d.icm.slv0_reads;
+        icm_fake_bus_sleep_us(&d.fb, 1000000);
+        assert_in_range(d.icm.slv0_reads - before, 130, 145);
+    }
     /* ends in bank 0, and the cache agrees with the device */
     assert_int_equal(d.icm.bank, 0);
     assert_int_equal(d.dev.bank, 0);
-    /* the init waits (reset 10 ms) were honoured by polling, not blocking */
+    /* the init waits (reset 100 ms) were honoured by polling, not blocking */
     assert_true(polls > 100u);
     assert_true(icm_fake_bus_now_us(&d.fb) >= ICM_RESET_WAIT_US);
 }
@@ -277,6 +291,13 @@ static void test_mag_wrong_id(void **state)
     assert_int_equal(run_init(&d.dev, &d.fb, NULL), ICM_E_MAG_ID);
     assert_int_equal(d.dev.mag_id, 0x05);
     assert_int_equal(d.dev.tries, ICM_MAG_TRIES);
+    /* another company's chip with the same device ID is refused too */
+    direct_setup(&d);
+    d.icm.ak.wia1 = 0x47;
+    assert_int_equal(run_init(&d.dev, &d.fb, NULL), ICM_E_MAG_ID);
+    assert_int_equal(d.dev.mag_company, 0x47);
+    assert_int_equal(d.dev.mag_id, 0); /* WIA2 never reached */
+    assert_int_equal(d.dev.tries, ICM_MAG_TRIES);
 }
 
 static void test_master_hang_recovered_by_retry(void **state)
@@ -416,7 +437,7 @@ static void test_overrun_flag_from_dor(void **state)
     d.icm.regs[3][ICM_REG_I2C_SLV0_CTRL] &= (uint8_t)~ICM_REG_SLV_CTRL_EN;
     icm_fake_bus_sleep_us(&d.fb, 25000);
     d.icm.regs[3][ICM_REG_I2C_SLV0_CTRL] |= ICM_REG_SLV_CTRL_EN;
-    icm_fake_bus_sleep_us(&d.fb, 1000);
+    icm_fake_bus_sleep_us(&d.fb, 8000); /* one master period at 137.5 Hz */
     assert_int_equal(read_once(&d.dev, &d.fb, &s), 0);
     assert_true(s.flags & ICM_SAMPLE_NEW);
     assert_true(s.flags & ICM_SAMPLE_OVERRUN);

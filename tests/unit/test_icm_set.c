@@ -122,7 +122,7 @@ static void test_three_sensors_at_100hz(void **state)
     (void)state;
     bench_setup(&b, 3);
     assert_int_equal(icm_set_begin(&b.set, 0), 0);
-    bench_run(&b, 100000);
+    bench_run(&b, 250000); /* 100 ms start-up after the reset */
     assert_true(icm_set_settled(&b.set));
     assert_int_equal(icm_set_ready_count(&b.set), 3);
     /* take samples as the homing loop would, for two seconds */
@@ -184,7 +184,11 @@ static void test_sixteen_sensors(void **state)
     assert_int_equal(icm_set_ready_count(&b.set), 16);
     for (i = 0; i < 16u; i++) {
         assert_int_equal(icm_set_diag(&b.set, i, &d), 0);
-        assert_in_range(d.rate_dhz, 900, 1010);
+        /* noise-free fields: unchanged samples count only by DRDY, and
+         * reads every 10 ms, slower than the master's 7.27 ms, miss many of
+         * them (a real sensor's noise changes the data of every
+         * sample); the default 5 ms period catches every one */
+        assert_in_range(d.rate_dhz, 500, 1010);
         assert_int_equal(d.addr, i < 8u ? 0x69 : 0x68);
         /* each sensor shows its own field: no channel crosstalk */
         assert_in_range(d.field_cuT[0], 1000 * (i + 1) - 400, 1000 * (i + 1) + 400);
