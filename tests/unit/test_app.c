@@ -314,6 +314,8 @@ static void test_settings(void **state)
     cmd(&g_b, "set filter_k 4", "ok");
     cmd(&g_b, "set approach_slow 30", "ok");
     cmd(&g_b, "set approach_fast 90", "ok");
+    /* above the XL430's Velocity Limit a servo would drop the goal silently */
+    cmd(&g_b, "set approach_fast 266", "error:18 setting value out of range");
     cmd(&g_b, "cal 0.9 0", "ok");
     assert_int_equal(g_b.app.u.hom.cfg.avg_samples, 4);
     assert_int_equal(g_b.app.u.hom.cfg.v_fine, 30);
