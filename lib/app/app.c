@@ -1427,9 +1427,31 @@ APP_NOINLINE static void move_step(app_t *a)
     a->led = APP_LED_IDLE;
 }
 
+/* A learned target must stand well above the sensing noise (the table's
+ * rule: ten times it) and rise with tension against the entries already
+ * learned for the tendon by more than twice the noise; a reading taken with
+ * no weight hung, or with the
+ * weights swapped, would make every later calibration fault. */
+static int8_t learn_plausible(const app_t *a, const store_learned_t *l, uint32_t v)
+{
+    uint8_t g;
+    uint32_t m = 2u * (uint32_t)a->info.noise_cuT; /* a rise must exceed the noise */
+    if (v < 10u * (uint32_t)a->info.noise_cuT || v == 0u) {
+        return CON_E_IMPLAUSIBLE;
+    }
+    for (g = 0; g < a->info.n_grid; g++) {
+        if (has(l->grid_mask, g) && ((g < a->learn_grid && l->target_cuT[g] + m >= v) ||
+                                     (g > a->learn_grid && l->target_cuT[g] <= v + m))) {
+            return CON_E_IMPLAUSIBLE;
+        }
+    }
+    return 0;
+}
+
 APP_NOINLINE static void learn_step(app_t *a, const hom_in_t *in)
 {
-    uint8_t k, first, last;
+    uint8_t k, first, last, tdn = a->learn_tendon;
+    uint32_t v = 0;
     uint32_t t = now_ms(a);
     int8_t rc = 0;
     if (a->learn_tendon == LEARN_BASELINE) {
@@ -1490,15 +1512,16 @@ APP_NOINLINE static void learn_step(app_t *a, const hom_in_t *in)
     }
     if (rc == 0) {
         int32_t d[3];
-        uint32_t v;
-        uint8_t s = first, tdn = a->learn_tendon;
         for (k = 0; k < 3u; k++) {
-            d[k] = a->u.idle.acc[s][k] - a->u.idle.b0[s][k];
+            d[k] = a->u.idle.acc[first][k] - a->u.idle.b0[first][k];
         }
         v = hom_norm3(d);
         if (store_learned_load(&a->store, tdn, a->info.table_id, &a->u.idle.rec.learned) != 0) {
             memset(&a->u.idle.rec.learned, 0, sizeof a->u.idle.rec.learned);
         }
+        rc = learn_plausible(a, &a->u.idle.rec.learned, v);
+    }
+    if (rc == 0) {
         a->u.idle.rec.learned.table_id = a->info.table_id;
         a->u.idle.rec.learned.tendon = tdn;
         a->u.idle.rec.learned.n_grid = a->info.n_grid;
@@ -1509,7 +1532,7 @@ APP_NOINLINE static void learn_step(app_t *a, const hom_in_t *in)
         rep_int(a, s_tendon, tdn);
         rep_int(a, s_tension_mN, a->info.grid_mN[a->learn_grid]);
         rep_int(a, s_grid, a->learn_grid);
-        rep_int(a, s_sensor, s);
+        rep_int(a, s_sensor, first);
         con_report_fixed(&a->con, s_dB_uT, (int32_t)v, 2);
         rep_end(a);
     }

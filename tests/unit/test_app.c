@@ -391,6 +391,12 @@ static void test_learn_with_weight(void **state)
     assert_true(app_bench_wait_line(&g_b, "<done mode=release", g_line, sizeof g_line, 3000));
     assert_int_equal(app_bench_field(g_line, "baseline", 0), 1);
     cmd(&g_b, "learn 1 0.75", "error:16 tension outside the table grid");
+    /* no weight hung: the field has not changed, and the reading is refused
+     * rather than stored (it would make every later calibration fault) */
+    cmd(&g_b, "learn 1 0.8",
+        "error:25 implausible reading: not above noise or not rising with "
+        "tension");
+    assert_int_equal(g_b.app.learned_mask, 0);
     assert_int_equal(plant_true_home(&g_b.cfg, 1, 800, &ticks), 0);
     g_b.weight_on = 1;
     g_b.weight_tendon = 1;
@@ -412,6 +418,13 @@ static void test_learn_with_weight(void **state)
         assert_int_equal(eff.target_cuT[3], g_b.table.tendons[1].target_cuT[3]);
     }
     cmd(&g_b, "table", "ok");
+    /* the same weight learned as a higher tension would not rise with it */
+    g_b.weight_on = 1;
+    app_bench_run_ms(&g_b, 100);
+    cmd(&g_b, "learn 1 0.9",
+        "error:25 implausible reading: not above noise or not rising with "
+        "tension");
+    g_b.weight_on = 0;
 }
 
 /* The pace of the AVR (about 2 ms per pass) and a start at an even
