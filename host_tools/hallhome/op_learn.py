@@ -125,7 +125,8 @@ def settle(c: Client, info: TableInfo, t: int, b0, opts: Options) -> bool:
     (the weight is off and the robot hangs straight again). False when the
     operator asks for a new baseline instead."""
     k = info.sensor[t]
-    floor = opts.min_field if opts.min_field is not None else learnfit.NO_WEIGHT_SIGMAS * info.noise_uT
+    # back within the noise (and within --min-field when that is larger)
+    floor = max(learnfit.NO_WEIGHT_SIGMAS * info.noise_uT, opts.min_field or 0.0)
     told = False
     while True:
         deadline = time.monotonic() + SETTLE_WAIT
@@ -133,7 +134,7 @@ def settle(c: Client, info: TableInfo, t: int, b0, opts: Options) -> bool:
         d = float("inf")
         while time.monotonic() < deadline:
             d = change(average_fields(c, 4)[k], b0[k])
-            calm = calm + 1 if d <= max(floor, 1e-9) else 0
+            calm = calm + 1 if d <= floor else 0
             if calm >= 2:
                 return True
             if not told:

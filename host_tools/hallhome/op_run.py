@@ -17,7 +17,7 @@ from hallhome.client import BoardError, BoardReset, Client, HallhomeError, Repor
 from hallhome.op_common import (R, TENDON, TENSION, board_info, cmd, ends_motion, err, fixed3,
                                 json_option, operator_command, out, port_options, print_json,
                                 session, show_table)
-from hallhome.op_status import TableMismatch, missing_text, table_check, table_options
+from hallhome.op_status import TableMismatch, expected, missing_text, table_check, table_options
 
 ABORT_WAIT = 3.0  # seconds to wait for the board's confirmation of an abort
 FAULT_GRACE = 1.5  # seconds to wait for the release report after a fault
@@ -138,7 +138,8 @@ def _f(v) -> Optional[float]:
         return None
 
 
-def follow(c: Client, view: CalView, title: str, run_timeout: float, quiet: bool) -> None:
+def follow(c: Client, view: CalView, title: str, run_timeout: float, quiet: bool,
+           what: str = "calibration", again: str = "calibrate") -> None:
     """Feeds the run's reports to the view until it ends: a live table on a
     terminal, the reports as a log otherwise (nothing with `quiet`). Ctrl-C
     aborts on the board and exits 130."""
@@ -156,8 +157,8 @@ def follow(c: Client, view: CalView, title: str, run_timeout: float, quiet: bool
                 r = c.event(0.25)
                 if r is not None:
                     if r.kind == R.BOOT:
-                        raise BoardReset(c.reset_message(r, "during the run") +
-                                         "; start it again", r)
+                        raise BoardReset(c.reset_message(r, f"during the {what}") +
+                                         f"; run `hallhome {again}` again", r)
                     view.feed(r)
                     if not con.is_terminal and not quiet:
                         click.echo(r.raw)
@@ -275,9 +276,10 @@ def calibrate_cmd(tension, tendon, force, robot, learned, run_timeout, as_json, 
     the board's table is not the one computed from the robot TOML (--force
     overrides). Ctrl-C aborts on the board and releases every tendon."""
     con = out()
+    exp = expected(robot, learned)
     with session(port, timeout) as c:
         info = board_info(c)
-        warn = table_check(info, robot, learned)
+        warn = table_check(info, exp)
         if warn:
             if not force:
                 raise TableMismatch(warn + "; --force calibrates anyway")
@@ -326,7 +328,8 @@ def rehome_cmd(run_timeout, as_json, port, timeout) -> None:
         view = CalView(n, None)
         for r in start(c, cmd("rehome"), as_json):
             view.feed(r)
-        follow(c, view, "quick re-home", run_timeout, quiet=as_json)
+        follow(c, view, "quick re-home", run_timeout, quiet=as_json, what="quick re-home",
+               again="rehome")
         if not as_json:
             show_table(con, "quick re-home", COLUMNS, view.cells())
         finish(c, view, "re-home", as_json, info)

@@ -38,14 +38,20 @@ def table_options(f):
     return f
 
 
-def table_check(info: Dict[str, object], robot: Optional[str], learned: Sequence[str]) -> Optional[str]:
-    """None when the board's table (from `version`) is the one the host
-    computes from the robot TOML, else the warning text."""
-    from hallhome.tableid import TableIdError, expected_table, mismatch
+def expected(robot: Optional[str], learned: Sequence[str]):
+    """The table the host expects (tableid.Expected), computed before the
+    port is opened so the board waits for nothing."""
+    from hallhome.tableid import TableIdError, expected_table
     try:
-        exp = expected_table(robot, learned)
+        return expected_table(robot, learned)
     except TableIdError as e:
         raise HallhomeError(f"cannot compute the expected table: {e}") from None
+
+
+def table_check(info: Dict[str, object], exp) -> Optional[str]:
+    """None when the board's table (from `version`) is the expected one,
+    else the warning text."""
+    from hallhome.tableid import mismatch
     return mismatch(exp, info.get("table"), info.get("table_id"))
 
 
@@ -170,10 +176,11 @@ def status_cmd(robot, learned, as_json, port, timeout) -> None:
     saturated or not running, or a servo is missing or reports a hardware
     error; warns when the board's table is not the one the robot TOML
     gives (table_id compared)."""
+    exp = expected(robot, learned)
     with session(port, timeout) as c:
         d = read_status(c)
     ver, s, sens, servos = d["version"], d["status"], d["sensors"], d["servos"]
-    table_warn = table_check(ver, robot, learned) if ver.get("table") not in (None, "none") else None
+    table_warn = table_check(ver, exp)
     bad = status_problems(sens, servos)
     if as_json:
         print_json({

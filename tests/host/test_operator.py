@@ -226,7 +226,10 @@ def status_board(sensors=SENSORS, version=VERSION):
 
 @pytest.fixture
 def same_table(monkeypatch):
-    monkeypatch.setattr(op_status, "table_check", lambda info, robot, learned: None)
+    monkeypatch.setattr(op_status, "table_check", lambda info, exp: None)
+    monkeypatch.setattr(op_status, "expected", lambda robot, learned: None)
+    monkeypatch.setattr(op_run, "expected", lambda robot, learned: None)
+    monkeypatch.setattr(op_run, "table_check", lambda info, exp: None)
 
 
 def test_status_saturated_sensor_exits_nonzero_with_its_overflows(monkeypatch, same_table):
