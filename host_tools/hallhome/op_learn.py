@@ -202,15 +202,40 @@ def capture(c: Client, info: TableInfo, t: int, tension_N: float, mass_g: Option
     return sample
 
 
-def export_doc(info: TableInfo, samples: List[dict], board_targets, tol: float) -> Tuple[dict, List[str]]:
+def strictly_growing(vals: List[Optional[int]]) -> Tuple[List[Optional[int]], int]:
+    """Keeps the first of equal or falling neighbours (the table generator
+    needs learned targets that grow with tension; a plateau of the fit is
+    one target, not several); returns the values and how many were dropped."""
+    out_: List[Optional[int]] = []
+    last = None
+    dropped = 0
+    for v in vals:
+        if v is not None and last is not None and v <= last:
+            out_.append(None)
+            dropped += 1
+            continue
+        out_.append(v)
+        if v is not None:
+            last = v
+    return out_, dropped
+
+
+def export_doc(info: TableInfo, got: List[dict], board_targets, tol: float) -> Tuple[dict, List[str]]:
     """The learned-targets file: for the tendons learned now, this session's
-    points fitted onto the grid; for the others, the board's learned entries."""
+    loads fitted onto the grid (a load stored on the board counts with the
+    board's own value, so file and board agree); for the others, the board's
+    learned entries. `samples` are the loads at grid tensions (the format's
+    samples sit on the grid), `points` every load as measured."""
     rows, notes = [], []
-    for t in sorted(set(board_targets) | {s["tendon"] for s in samples}):
-        pts = [(s["tension_mN"], s["dB_uT"]) for s in samples if s["tendon"] == t]
+    for t in sorted(set(board_targets) | {s["tendon"] for s in got}):
+        pts = [(s["grid_mN"], s["board_dB_uT"]) if s["stored_on_board"] else (s["tension_mN"], s["dB_uT"])
+               for s in got if s["tendon"] == t]
         if pts:
             fit = learnfit.fit_to_grid(pts, info.grid, tol)
-            vals = [None if v is None else int(round(v * 100)) for v in fit]
+            vals, dropped = strictly_growing([None if v is None else int(round(v * 100)) for v in fit])
+            if dropped:
+                notes.append(f"tendon {t}: the readings do not rise over {dropped} grid tension(s): "
+                             "those keep the compiled target")
             if all(v is None for v in vals):
                 notes.append(f"tendon {t}: the learned tensions span no grid tension; learn at "
                              "least two loads around the grid tensions you calibrate at")
@@ -218,9 +243,10 @@ def export_doc(info: TableInfo, samples: List[dict], board_targets, tol: float) 
             vals = [v if mark == "*" else None for v, mark in board_targets.get(t, [])]
         if any(v is not None for v in vals):
             rows.append({"tendon": t, "target_cuT": vals})
+    samples = [dict(s, tension_mN=s["grid_mN"]) for s in got if s["stored_on_board"]]
     doc = {"format": "hallhome-learned", "format_version": 1, "robot": info.robot,
            "table_id": info.table_id, "grid_mN": info.grid, "g": G, "tendons": rows,
-           "samples": samples}
+           "samples": samples, "points": got}
     return doc, notes
 
 

@@ -39,6 +39,35 @@ def test_fit_to_grid_interpolates_inside_the_learned_span():
     assert learnfit.fit_to_grid([], GRID) == [None] * 4
 
 
+def test_export_targets_grow_strictly():
+    assert op_learn.strictly_growing([None, 100, 100, 120, 110, 130]) == (
+        [None, 100, None, 120, None, 130], 2)
+
+
+def test_export_file_compiles(monkeypatch, tmp_path):
+    """A session's file goes through the table generator's own checks."""
+    from hallhome.paths import ROBOTS_DIR
+    from hallhome.robot import load_robot
+    from hallhome.tablegen import apply_learned, build_table, compute, load_learned, parse_table_header
+    robot = load_robot(ROBOTS_DIR / "paper_2seg.toml")
+    spec = parse_table_header()
+    table = build_table(compute(robot), spec)
+    grid = table["grid_mN"]
+    info = op_learn.TableInfo("paper_2seg", f"0x{table['table_id']:08x}", grid, 800, 0.6, 6, {0: 0})
+    got = [{"tendon": 0, "tension_mN": 490, "dB_uT": 41.0, "stored_on_board": False},
+           {"tendon": 0, "tension_mN": 800, "dB_uT": 99.0, "stored_on_board": True, "grid_mN": 800,
+            "board_dB_uT": 99.5},
+           {"tendon": 0, "tension_mN": 981, "dB_uT": 120.0, "stored_on_board": False}]
+    doc, notes = op_learn.export_doc(info, got, {}, 1.0)
+    assert notes == []
+    vals = doc["tendons"][0]["target_cuT"]
+    assert vals[grid.index(800)] == 9950  # the board's own value
+    p = tmp_path / "learned_paper_2seg.json"
+    p.write_text(json.dumps(doc))
+    applied = apply_learned(table, spec, robot, [load_learned(p)])
+    assert applied.table["tendons"][0]["target_cuT"][grid.index(800)] == 9950
+
+
 def test_nearest_grid():
     assert learnfit.nearest_grid(804, GRID, 1.0) == 800
     assert learnfit.nearest_grid(490, GRID, 1.0) is None
@@ -157,8 +186,8 @@ def test_learn_any_masses_fitted_onto_the_grid(monkeypatch, tmp_path):
     assert doc["tendons"] == [{"tendon": 0, "target_cuT": [None if v is None else round(v * 100)
                                                             for v in fit]}]
     assert doc["tendons"][0]["target_cuT"][1] is not None and doc["tendons"][0]["target_cuT"][2] is not None
-    assert [s["mass_g"] for s in doc["samples"]] == [50, 100]
-    assert not any(s["stored_on_board"] for s in doc["samples"])
+    assert [s["mass_g"] for s in doc["points"]] == [50, 100]
+    assert doc["samples"] == []  # the format's samples sit on the grid: none here
     assert not any(x.startswith("learn") for x in b.sent)  # nothing on the grid: board untouched
     from hallhome.tablegen import load_learned
     assert load_learned(out).targets[0] == tuple(doc["tendons"][0]["target_cuT"])
@@ -185,8 +214,9 @@ def test_learn_refuses_implausible_readings_and_stores_grid_loads(monkeypatch, t
     assert "learn 0 0.800" in b.sent and b.learned == {(0, 2): 4900, (0, 1): 3000}
     assert len(asked) == 7
     doc = json.loads(out.read_text())
-    assert [(s["tension_mN"], s["dB_uT"], s["stored_on_board"]) for s in doc["samples"]] == [
+    assert [(s["tension_mN"], s["dB_uT"], s["stored_on_board"]) for s in doc["points"]] == [
         (800, 49.0, True), (500, 30.0, True)]
+    assert [s["tension_mN"] for s in doc["samples"]] == [800, 500]
     assert doc["tendons"][0]["target_cuT"] == [None, 3000, 4900, None]
 
 

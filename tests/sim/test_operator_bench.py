@@ -347,14 +347,18 @@ def test_learn_dialogue_stores_and_exports(bench, tmp_path):
     assert "3 load(s) learned, 2 stored on the board" in r.stdout
     doc = json.loads(out.read_text())
     assert doc["format"] == "hallhome-learned" and doc["robot"] == "paper_2seg"
-    assert [(s["tendon"], s["tension_mN"], s["stored_on_board"]) for s in doc["samples"]] == [
+    assert [(s["tendon"], s["tension_mN"], s["stored_on_board"]) for s in doc["points"]] == [
         (0, 800, True), (0, 490, False), (3, 800, True)]
+    assert [(s["tendon"], s["tension_mN"]) for s in doc["samples"]] == [(0, 800), (3, 800)]
     grid = doc["grid_mN"]
     by_t = {t["tendon"]: t["target_cuT"] for t in doc["tendons"]}
-    assert [g for g, v in zip(grid, by_t[0]) if v is not None] == [500, 600, 700, 800]
+    # fitted over the span 0.49..0.8 N; noise readings may make it flat, and
+    # a flat stretch keeps one target (learned targets must grow)
+    learned_at = [g for g, v in zip(grid, by_t[0]) if v is not None]
+    assert learned_at and set(learned_at) <= {500, 600, 700, 800}, by_t[0]
     t0 = [v for v in by_t[0] if v is not None]
-    assert t0 == sorted(t0)  # non-decreasing
-    assert by_t[3][grid.index(800)] == round(doc["samples"][2]["dB_uT"] * 100)
+    assert t0 == sorted(set(t0))  # strictly growing
+    assert by_t[3][grid.index(800)] == round(doc["points"][2]["board_dB_uT"] * 100)  # as on the board
     log = b.text()
     assert "learn 0 0.800" not in log  # commands are not echoed; the reports are
     assert len(re.findall(r"<learned tendon=(0|3) tension_mN=800 grid=6 ", log)) == 2
