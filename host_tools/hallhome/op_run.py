@@ -17,6 +17,7 @@ from hallhome.client import BoardError, BoardReset, Client, HallhomeError, Repor
 from hallhome.op_common import (R, TENDON, TENSION, board_info, cmd, ends_motion, err, fixed3,
                                 json_option, operator_command, out, port_options, print_json,
                                 session, show_table)
+from hallhome.op_console import explain
 from hallhome.op_status import TableMismatch, expected, missing_text, table_check, table_options
 
 ABORT_WAIT = 3.0  # seconds to wait for the board's confirmation of an abort
@@ -242,6 +243,8 @@ def start(c: Client, line: str, as_json: bool) -> List[Report]:
         return c.command(line).reports
     except BoardError as e:
         notes = explain_refusal(c, e.reports)
+        if e.name in ("TENSION_RANGE", "BAD_TENDON", "SETTING_RANGE"):
+            notes.append(explain(e, c))  # the range that applies
         if as_json:
             print_json({"ok": False, "error": {"code": e.code, "name": e.name, "text": e.text},
                         "notes": notes})

@@ -89,7 +89,9 @@ def missing_text(m: Report, sensors: Sequence[Report] = ()) -> str:
         return f"sensor {idx}: read errors or overflows"
     why = {1: "absent", 2: "no answer", 4: "servo hardware error"}.get(m.get("why"))
     if m.get("err") is not None:
-        why = f"did not come up (driver error {m.get('err')})"
+        where = (f" on mux channel {m.get('ch')} at {hexaddr(m.get('addr'))}"
+                 if m.get("addr") is not None else "")
+        why = f"did not come up{where} (driver error {m.get('err')})"
     if m.get("hw_error"):
         why = f"hardware error 0x{int(m.get('hw_error')):02x}"
     return f"missing {what}" + (f": {why}" if why else "")

@@ -266,6 +266,18 @@ def test_missing_why3_sensor_is_named_saturated():
     assert op_status.missing_text(m) == "sensor 1: read errors or overflows"
     assert op_status.missing_text(rep("<missing dev=servo index=2 id=3 why=2 bits=0>")) == \
         "missing servo 2 (servo id 3): no answer"
+    assert op_status.missing_text(rep("<missing dev=sensor index=0 ch=0 addr=105 err=-2>")) == \
+        "missing sensor 0: did not come up on mux channel 0 at 0x69 (driver error -2)"
+
+
+def test_calibrate_names_the_grid_when_the_tension_is_off_it(monkeypatch, same_table):
+    b = status_board([SENSORS[0]])
+    b.answers["cal"] = "error:16 tension outside the table grid"
+    b.answers["table"] = ["<table name=paper_2seg table_id=0x1115c2f1 tendons=6 grid_mN=200,300,1500>"]
+    use(monkeypatch, b, op_status, op_run)
+    r = CliRunner().invoke(main, ["calibrate", "-N", "5"])
+    assert r.exit_code == 1
+    assert "TENSION_RANGE): the table's grid spans 0.2..1.5 N" in r.output
 
 
 def test_status_and_calibrate_check_the_table(monkeypatch):

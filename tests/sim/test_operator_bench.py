@@ -462,7 +462,9 @@ def test_unplugged_cable_during_console(bench):
 
 
 def test_board_reset_during_calibration(bench):
-    b = bench("3s wdt-reset")
+    # calibrate computes the expected table (about 2 s) before it connects;
+    # a full run takes about 8 s: the reset falls inside it
+    b = bench("7s wdt-reset")
     r = hh("calibrate", "--port", b.pty, timeout=120)
     assert r.returncode == 4, r.stdout + r.stderr
     assert "the board reset (reset=watchdog) during the calibration" in r.stderr
