@@ -370,7 +370,24 @@ def test_learn_dialogue_stores_and_exports(bench, tmp_path):
     assert r.returncode == 0, r.stderr
     got = sorted((e["tendon"], e["grid"]) for e in json.loads(r.stdout)["learned"])
     assert got == [(0, 6), (3, 6)]
-    # forget: a firmware command added alongside; skipped where this firmware lacks it
+
+
+def test_forget_learned_targets(bench):
+    # `forget` is a firmware command added alongside; skipped, with the
+    # reason, where the firmware or its declarations lack it
+    b = bench()
+    with Client(str(b.pty)) as c:
+        c.command("release")
+        deadline = time.monotonic() + 30
+        while time.monotonic() < deadline:
+            r = c.event(0.5)
+            if r is not None and r.kind == "done":
+                break
+        from hallhome.op_common import wait_saved
+        for t in (0, 3):
+            wait_saved(c, 20)  # the board refuses `learn` while it writes a record
+            c.command(f"learn {t} 0.8", timeout=15)
+        wait_saved(c, 20)
     r = hh("forget", "0", "--port", b.pty)
     if r.returncode != 0 and re.search(r"no `forget` command", r.stderr):
         pytest.skip("this firmware has no `forget` command yet: " + r.stderr.strip()[-200:])
@@ -378,6 +395,8 @@ def test_learn_dialogue_stores_and_exports(bench, tmp_path):
     assert "1 learned target(s) left on the board" in r.stdout
     r = hh("learned", "--port", b.pty, "--json")
     assert [(e["tendon"], e["grid"]) for e in json.loads(r.stdout)["learned"]] == [(3, 6)]
+    r = hh("forget", "all", "--port", b.pty)
+    assert r.returncode == 0 and "0 learned target(s) left" in r.stdout
 
 
 def test_monitor_samples_and_plot(bench, tmp_path):
