@@ -178,22 +178,61 @@ def solve_cmd(robot, tensions, model, no_gravity):
                + " ".join(f"{d * 1e3:.4f}" for d in sol.take_up))
 
 
+RMS_LIMIT = 0.10  # largest rms relative error of a magnet model that explains the data
+
+
+def write_polarization(path: Path, polarization) -> None:
+    """Rewrites `polarization_T = [...]` of the [magnet] table in a robot
+    TOML in place (comments and layout kept), then checks the file still
+    loads; restores it otherwise."""
+    import re
+
+    from hallhome.robot import RobotError, load_robot
+    text = path.read_text(encoding="utf-8")
+    sec = re.search(r"^\[magnet\][^\n]*\n(.*?)(?=^\[|\Z)", text, re.S | re.M)
+    if sec is None:
+        raise click.ClickException(f"{path}: no [magnet] table to write the fit into")
+    body = sec.group(1)
+    vec = "[" + ", ".join(f"{v:.4f}" for v in polarization) + "]"
+    new_body, n = re.subn(r"^(polarization_T\s*=\s*)\[[^\]]*\]", lambda m: m.group(1) + vec, body,
+                          count=1, flags=re.M)
+    if n != 1:
+        raise click.ClickException(f"{path}: no polarization_T line in [magnet] to rewrite")
+    path.write_text(text[:sec.start(1)] + new_body + text[sec.end(1):], encoding="utf-8")
+    try:
+        load_robot(path)
+    except RobotError as exc:
+        path.write_text(text, encoding="utf-8")
+        raise click.ClickException(f"{path}: the fitted polarization is not valid there, file "
+                                   f"left unchanged:\n{exc}") from None
+
+
 @main.command("characterize")
 @click.argument("data", type=click.Path(exists=True, dir_okay=False))
 @click.option("--plot", "plot_path", type=click.Path(dir_okay=False), default=None,
-              help="PNG to write (default: <data>_fit.png beside the data).")
+              help="PNG to write (default: <data>_fit.png beside the data): linear and log-log.")
 @click.option("--robot", type=click.Path(exists=True, dir_okay=False), default=None,
               help="Also fit the magnetization of this robot's magnet model to the data.")
 @click.option("--axis", type=click.Choice(["equatorial", "axial"]), default="equatorial",
               show_default=True,
               help="Where the sensor sat relative to the magnet during the measurement.")
-def characterize_cmd(data, plot_path, robot, axis):
+@click.option("--write", "write_back", is_flag=True,
+              help="With --robot: write the fitted polarization into the robot TOML's [magnet] "
+                   "polarization_T (direction kept), when the model explains the data.")
+def characterize_cmd(data, plot_path, robot, axis, write_back):
     """Fit Field = a * distance^b to measured (distance, field) pairs (the
-    paper's Fig. 1), print a, b and R^2 and save a plot. The CSV header names
-    the units, e.g. 'distance_cm,field_uT'; '#' lines are comments."""
+    paper's Fig. 1), print a, b and R^2 and save a plot (linear and log-log
+    axes). The CSV header names the units, e.g. 'distance_cm,field_uT'; '#'
+    lines are comments. With --robot, exits 1 when the robot's magnet model
+    cannot explain the data (polarization at its physical limit, or rms
+    error above 10 %)."""
+    import numpy as np
+
     from hallhome.field import fit_magnetization, fit_power_law, read_field_csv
     from hallhome.plots import plot_characterization
 
+    if write_back and not robot:
+        raise click.UsageError("--write needs --robot (the TOML to write into)")
     try:
         d = read_field_csv(data)
         fit = fit_power_law(d.distance, d.field)
@@ -204,20 +243,33 @@ def characterize_cmd(data, plot_path, robot, axis):
     click.echo(f"b = {fit.b:.4f}")
     click.echo(f"R^2 = {fit.r2:.5f} ({fit.n} points)")
     mfit = None
+    contradicts = False
     if robot:
         r = _load(robot)
-        mfit = fit_magnetization(r.magnet, d.distance_m, d.field_T, axis=axis)
+        try:
+            mfit = fit_magnetization(r.magnet, d.distance_m, d.field_T, axis=axis)
+        except ValueError as exc:
+            raise click.ClickException(str(exc)) from None
         click.echo(f"magnet model ({r.magnet.shape}, {axis}): polarization |J| = "
                    f"{mfit.polarization:.4f} T, distance offset {mfit.offset * 1e3:+.2f} mm, "
                    f"rms error {mfit.rms_rel * 100:.1f} %")
-        if mfit.at_bound or mfit.rms_rel > 0.10:
-            click.echo("warning: the magnet model does not explain these data (polarization at "
-                       "its physical limit or rms error above 10 %); check the magnet's "
-                       "dimensions, the distance reference and the units", err=True)
+        contradicts = mfit.at_bound or mfit.rms_rel > RMS_LIMIT
     out = Path(plot_path) if plot_path else Path(data).with_name(Path(data).stem + "_fit.png")
     plot_characterization(d, fit, out, magnet=(r.magnet if robot else None), magnet_fit=mfit,
                           axis=axis)
     click.echo(f"plot: {out}")
+    if contradicts:
+        click.echo(f"error: the magnet model of {Path(robot).name} does not explain these data "
+                   f"(polarization at its physical limit or rms error above {RMS_LIMIT:.0%}); "
+                   "check the magnet's dimensions, the distance reference, the axis and the units"
+                   + ("; nothing written" if write_back else ""), err=True)
+        sys.exit(1)
+    if write_back:
+        j = np.array(r.magnet.polarization, float)
+        new = j / np.linalg.norm(j) * mfit.polarization
+        write_polarization(Path(robot), new)
+        click.echo(f"wrote polarization_T = [{', '.join(f'{v:.4f}' for v in new)}] into {robot}; "
+                   "regenerate its table (`make tables`)")
 
 
 @main.command("plot")

@@ -26,6 +26,7 @@ reads the firmware's declarations.
 from __future__ import annotations
 
 import collections
+import errno
 import os
 import time
 from dataclasses import dataclass, field
@@ -131,6 +132,14 @@ class Disconnected(HallhomeError):
 
 class PortNotFound(HallhomeError):
     exit_code = 5
+
+
+class PortBusy(HallhomeError):
+    """Another program (another `hallhome` command) has the port open: the
+    client takes an exclusive lock, so a second session never steals the
+    first one's replies or resets the board under it."""
+
+    exit_code = 6
 
 
 # --- reports and replies --------------------------------------------------------
@@ -261,9 +270,12 @@ class Client:
         self._closed = False
         try:
             ser = serial.serial_for_url(port, do_not_open=True, baudrate=baud, timeout=0.05,
-                                        write_timeout=2.0)
+                                        write_timeout=2.0, exclusive=True)
             ser.open()
         except (serial.SerialException, OSError, ValueError) as e:
+            if getattr(e, "errno", None) in (errno.EAGAIN, errno.EWOULDBLOCK, errno.EBUSY):
+                raise PortBusy(f"port busy: {port} is in use by another program (another "
+                               "hallhome command?); wait until it ends, or stop it") from None
             raise Disconnected(f"cannot open {port}: {_why(e)}") from None
         self.ser = ser
         if sync:
@@ -315,7 +327,7 @@ class Client:
                 try:
                     return raw.decode("ascii")
                 except UnicodeDecodeError:
-                    self._garble(repr(raw))
+                    self._garble(printable(raw))
                     continue
             if time.monotonic() >= deadline:
                 return None
@@ -353,6 +365,7 @@ class Client:
             except protocol.ProtocolError:
                 self._garble(line)
                 continue
+            msg["raw"] = line
             if msg["type"] == "report":
                 rep = Report(msg["kind"], msg["fields"], line, time.monotonic())
                 msg["report"] = rep
@@ -400,7 +413,7 @@ class Client:
             raise ReplyTimeout(
                 f"no answer from a hallhome board on {self.port} within {timeout:g} s "
                 "(is the firmware flashed, is this the right port?)"
-                + (f"; {self.garbled} unreadable lines, last {self.garbled_last!r}: wrong baud rate "
+                + (f"; {self.garbled} unreadable lines, last '{self.garbled_last}': wrong baud rate "
                    "or another program on the port?" if self.garbled else ""))
         while True:
             msg = self._next(time.monotonic() + QUIET)
@@ -467,7 +480,7 @@ class Client:
                 return None
             if msg["type"] == "report":
                 return msg["report"]
-            self._garble(f"unexpected reply {msg}")
+            self._garble(f"{msg['raw']} (a reply with no command waiting for it)")
 
     def abort(self, wait: float = 0.0, until: Callable[[Report], bool] = lambda r: False) -> List[Report]:
         """Sends the realtime stop `!`. With wait > 0, collects reports for up
@@ -491,6 +504,11 @@ class Client:
     def motion_ended(self) -> None:
         """The caller saw the motion it started end (result or fault)."""
         self.motion = None
+
+
+def printable(raw: bytes) -> str:
+    """Bytes as text an operator can read: ASCII kept, anything else as \\xNN."""
+    return "".join(chr(b) if 0x20 <= b < 0x7F else f"\\x{b:02x}" for b in raw)
 
 
 def _why(e: Exception) -> str:

@@ -85,11 +85,11 @@ def plot_robot(res, out_dir: Path) -> list[Path]:
 def plot_characterization(data, fit, path: Path, magnet=None, magnet_fit=None,
                           axis: str = "equatorial") -> Path:
     """Measured points, the power-law fit and (optionally) the fitted magnet
-    model, on linear axes like the paper's Fig. 1B."""
-    fig, ax = plt.subplots(figsize=(7, 5))
-    ax.plot(data.distance, data.field, "o", ms=4, label="measured")
+    model: on linear axes like the paper's Fig. 1B, and on log-log axes,
+    where a power law is a straight line and a misfit at any distance shows."""
+    fig, axes = plt.subplots(1, 2, figsize=(12, 5))
     d = np.linspace(data.distance.min(), data.distance.max(), 200)
-    ax.plot(d, fit(d), "-", label=f"{fit.a:.1f} d^{fit.b:.3f} (R^2 {fit.r2:.4f})")
+    bm = None
     if magnet is not None and magnet_fit is not None:
         from hallhome.robot import Magnet
         j = np.array(magnet.polarization)
@@ -99,9 +99,16 @@ def plot_characterization(data, fit, path: Path, magnet=None, magnet_fit=None,
         scale_d = data.distance_m[0] / data.distance[0]
         scale_f = data.field_T[0] / data.field[0]
         bm = field_magnitude_at(m, d * scale_d + magnet_fit.offset, axis) / scale_f
-        ax.plot(d, bm, "--", label=f"magnet model, |J| {magnet_fit.polarization:.3f} T")
-    ax.set(xlabel=f"distance ({data.distance_unit})", ylabel=f"field ({data.field_unit})",
-           title="field against distance")
-    ax.legend()
+    for ax, log in zip(axes, (False, True)):
+        ax.plot(data.distance, data.field, "o", ms=4, label="measured")
+        ax.plot(d, fit(d), "-", label=f"{fit.a:.1f} d^{fit.b:.3f} (R^2 {fit.r2:.4f})")
+        if bm is not None:
+            ax.plot(d, bm, "--", label=f"magnet model, |J| {magnet_fit.polarization:.3f} T")
+        if log:
+            ax.set_xscale("log")
+            ax.set_yscale("log")
+        ax.set(xlabel=f"distance ({data.distance_unit})", ylabel=f"field ({data.field_unit})",
+               title="field against distance" + (" (log-log)" if log else ""))
+        ax.legend()
     fig.tight_layout()
     return _save(fig, Path(path))

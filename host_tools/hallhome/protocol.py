@@ -35,7 +35,7 @@ CONSOLE_H = LIB_DIR / "console" / "console.h"
 CONSOLE_C = LIB_DIR / "console" / "console.c"
 
 
-def _c_define(path: Path, name: str) -> int:
+def c_define(path: Path, name: str) -> int:
     """Integer value of `#define name <int>` in a C file."""
     m = re.search(r"^#define\s+" + name + r"\s+(\d+)[uUlL]*\b", path.read_text(encoding="ascii"), re.M)
     if not m:
@@ -43,9 +43,9 @@ def _c_define(path: Path, name: str) -> int:
     return int(m.group(1))
 
 
-LINE_MAX = _c_define(CONSOLE_H, "CON_LINE_MAX")  # characters per command line
-MAX_ARGS = _c_define(CONSOLE_H, "CON_MAX_ARGS")  # arguments after the command name
-SYN_MAX = _c_define(CONSOLE_C, "CON_SYN_MAX")    # synopsis buffer, terminator included
+LINE_MAX = c_define(CONSOLE_H, "CON_LINE_MAX")  # characters per command line
+MAX_ARGS = c_define(CONSOLE_H, "CON_MAX_ARGS")  # arguments after the command name
+SYN_MAX = c_define(CONSOLE_C, "CON_SYN_MAX")    # synopsis buffer, terminator included
 MAG_MAX = 2147483647   # largest magnitude a number may have after scaling
 DECIMALS = {"i": 0, "d": 3}
 
@@ -317,17 +317,40 @@ def check_command(line: str) -> Tuple[Command, List[Optional[Value]]]:
             lo = -MAG_MAX if a.min is None else a.min
             hi = MAG_MAX if a.max is None else a.max
             if not lo <= v <= hi:
-                raise CommandError(ERROR_CODES["OUT_OF_RANGE"], t)
+                raise CommandError(ERROR_CODES["OUT_OF_RANGE"],
+                                   f"{a.name} {t} is not in {arg_range_text(a)}")
             values.append(v)
         elif a.kind == "w":
             if t not in a.choices:
-                raise CommandError(ERROR_CODES["BAD_WORD"], t)
+                raise CommandError(ERROR_CODES["BAD_WORD"], f"{a.name} {t} is not one of "
+                                   + ", ".join(a.choices))
             values.append(a.choices.index(t))
         else:
             values.append(t)
     if len(toks) - 1 > len(cmd.args):
         raise CommandError(ERROR_CODES["TOO_MANY_ARGS"])
     return cmd, values
+
+
+def arg_bounds(command: str, arg: str) -> Tuple[float, float]:
+    """(min, max) of a numeric argument in its own unit (newtons for
+    `tension_N`), from the declaration."""
+    cmd = COMMANDS_BY_NAME[command]
+    for a in cmd.args:
+        if a.name == arg:
+            if a.min is None or a.max is None:
+                raise ProtocolError(f"{command} {arg} declares no range")
+            scale = 10 ** DECIMALS[a.kind]
+            return a.min / scale, a.max / scale
+    raise ProtocolError(f"{command} has no argument {arg!r}")
+
+
+def arg_range_text(a: Arg) -> str:
+    """`lo..hi` of a numeric argument as the user types it."""
+    if a.min is None or a.max is None:
+        return "any number"
+    scale = 10 ** DECIMALS[a.kind]
+    return f"{a.min / scale:g}..{a.max / scale:g}"
 
 
 # --- replies and reports ---------------------------------------------------------

@@ -67,7 +67,8 @@ def test_characterize_prints_fit_and_saves_plot(tmp_path):
     png = tmp_path / "fit.png"
     result = CliRunner().invoke(main, ["characterize", EXAMPLE, "--plot", str(png), "--robot",
                                        PAPER])
-    assert result.exit_code == 0, result.output
+    # the paper's fit is not explained by paper_2seg's 3.5 mm magnet: exit 1 (test_cli.py)
+    assert result.exit_code == 1, result.output
     a = float(result.output.split("a = ")[1].split()[0])
     b = float(result.output.split("b = ")[1].split()[0])
     r2 = float(result.output.split("R^2 = ")[1].split()[0])
