@@ -816,7 +816,9 @@ APP_NOINLINE static void servo_next(app_t *a)
     uint8_t data[GOALS_PER_TXN * 12u];
     uint8_t i, n = 0, txn, v, force;
     uint16_t mask, addr;
-    if (a->reboot_req) {
+    if (a->reboot_req && a->goal_due == 0u && a->torque_due == 0u) {
+        /* after the release goals of every other tendon are out: the
+         * bring-up that follows a reboot owns the bus for a while */
         a->reboot_req = 0;
         if (dxl_reboot(&a->dxl, a->reboot_id) > 0) {
             a->sv_txn = TX_REBOOT;
@@ -1018,21 +1020,15 @@ APP_NOINLINE static void rep_event(app_t *a, const hom_event_t *ev)
     case HOM_EV_HOME:
         if (i < a->info.n_tendons) {
             const hom_tendon_t *t = &a->u.hom.tendon[i];
-            const hom_sensor_t *s = &a->u.hom.sensor[t->sensor];
-            int32_t d[3];
-            uint8_t k;
-            for (k = 0; k < 3u; k++) {
-                d[k] = s->last[k] - s->b0[k];
-            }
             rep_begin(a, s_result);
             rep_int(a, s_tendon, i);
             rep_int(a, s_id, a->ids[i]);
             rep_int(a, s_home, ev->a);
             rep_int(a, s_home_um, ticks_um(t->nm_per_tick, ev->a));
-            con_report_fixed(&a->con, s_dB_uT, (int32_t)hom_norm3(d), 2);
+            con_report_fixed(&a->con, s_dB_uT, (int32_t)a->u.hom.home_dB, 2);
             con_report_fixed(&a->con, s_target_uT, (int32_t)t->target_cuT, 2);
             rep_int(a, s_travel_um, ticks_um(t->nm_per_tick, (ev->a - t->engage) * t->dir));
-            rep_int(a, s_time_ms, (int32_t)(ev->t_ms - a->u.hom.t_tendon));
+            rep_int(a, s_time_ms, (int32_t)a->u.hom.tendon_ms);
             rep_word(a, s_target, s_delta_abs, a->run_abs);
             rep_end(a);
         }

@@ -23,6 +23,8 @@ enum {
     ST_FAULT
 };
 
+static int move_done(hom_t *h, int arrived, uint8_t dev, uint8_t index);
+
 /* Functions that measured smaller on the AVR as calls than inlined (each
  * inlined copy of 32- and 64-bit arithmetic costs more than the call). */
 #if defined(__GNUC__)
@@ -995,17 +997,61 @@ HOM_NOINLINE static int32_t fit_or(const hom_t *h, int32_t p, int32_t fallback)
 }
 
 /* The home is found: the fit through the near points of p, or `fallback`
- * (1/256 tick); reported, then the tendon goes back to slack. */
+ * (1/256 tick); the tendon goes back to slack, and the home is recorded and
+ * reported once the field has come back to the baseline there
+ * (release_check()). */
 HOM_NOINLINE static void finish_tendon(hom_t *h, int32_t p, int32_t fallback)
 {
     hom_tendon_t *t = &h->tendon[h->cur];
     int32_t home_q8 = fit_or(h, p, fallback);
     t->home = floor_div256(home_q8);
-    t->have_home = 1;
-    push_event(h, HOM_EV_HOME, 0, h->cur, t->home, home_q8 - t->home * 256);
+    h->home_res = home_q8 - t->home * 256;
+    h->home_dB = delta_of(h, t->sensor, h->sensor[t->sensor].last);
     set_goal(h, h->cur, slack_goal(t), h->cfg.v_release);
     h->state = ST_TENDON_RELEASE;
+    h->settled = 0;
     h->t_phase = h->now_ms;
+}
+
+/* The tendon is back at slack after its home: every tendon slack, the
+ * robot straight, so its selected sensor must read the baseline again
+ * (within the engagement threshold, averaged). A field that stays changed
+ * means something moved that no tendon moves (a magnet, a sensor, iron
+ * nearby) and the home measured against it is wrong: HOM_F_FIELD_STEP, the
+ * home is not recorded. Otherwise the home is recorded and reported. */
+HOM_NOINLINE static void release_check(hom_t *h)
+{
+    hom_tendon_t *t = &h->tendon[h->cur];
+    int32_t avg[3];
+    uint32_t d;
+    if (!h->settled) {
+        if (move_done(h, reached(h, h->cur), HOM_DEV_SERVO, h->cur)) {
+            h->settled = 1;
+            h->t_phase = h->now_ms;
+        }
+        return;
+    }
+    if (h->settled == 1u) {
+        if (since(h, h->t_phase) >= h->cfg.settle_ms) {
+            start_avg(h);
+            h->settled = 2;
+        }
+        return;
+    }
+    if (h->sensor[t->sensor].n_acc < h->cfg.avg_samples) {
+        return;
+    }
+    avg_of(h, t->sensor, avg);
+    d = delta_of(h, t->sensor, avg);
+    if (d > h->engage_cuT) {
+        fail(h, HOM_F_FIELD_STEP, HOM_DEV_SENSOR, t->sensor, (int32_t)d);
+        return;
+    }
+    t->have_home = 1;
+    h->tendon_ms = since(h, h->t_tendon);
+    push_event(h, HOM_EV_HOME, 0, h->cur, t->home, h->home_res);
+    h->settled = 0;
+    begin_tendon(h, next_tendon(h, (uint8_t)(h->cur + 1u)));
 }
 
 /* Remaining travel from a field b to the target along the table's own
@@ -1423,9 +1469,7 @@ int hom_step(hom_t *h, const hom_in_t *in, hom_out_t *out)
                 do_slack_avg(h);
                 break;
             case ST_TENDON_RELEASE:
-                if (move_done(h, reached(h, h->cur), HOM_DEV_SERVO, h->cur)) {
-                    begin_tendon(h, next_tendon(h, (uint8_t)(h->cur + 1u)));
-                }
+                release_check(h);
                 break;
             case ST_FINAL:
                 if (move_done(h, all_reached(h), HOM_DEV_NONE, 0)) {

@@ -107,7 +107,7 @@ typedef enum {
 #define HOM_FAULT_WORDS                                                                            \
     "none aborted preflight sensor_timeout sensor_error saturated field_rate servo_timeout "       \
     "servo_error servo_stall travel_limit no_engagement no_progress tendon_timeout slack "         \
-    "magnet_missing"
+    "magnet_missing field_step"
 
 typedef enum {
     HOM_F_NONE = 0,
@@ -126,6 +126,9 @@ typedef enum {
     HOM_F_TENDON_TIMEOUT, /* one tendon took longer than tendon_timeout_ms */
     HOM_F_SLACK,          /* the field kept changing while releasing: slack not confirmed */
     HOM_F_MAGNET_MISSING, /* baseline field far below the table's straight-pose prediction */
+    HOM_F_FIELD_STEP,     /* with the tendon released after its home, the field did not come
+                             back to the baseline: a magnet, sensor or iron moved (the home is
+                             not recorded) */
     HOM_F_COUNT
 } hom_fault_t;
 
@@ -305,6 +308,11 @@ typedef struct {
     uint32_t t_phase;      /* start of the current wait */
     uint32_t t_tendon;     /* start of the current tendon */
     int32_t pos_at_sample; /* active tendon's position at the previous selected-sensor sample */
+    int32_t home_res;      /* active tendon: sub-tick residue of its home (1/256 tick), reported
+                              once the release check passed */
+    uint32_t home_dB;      /* active tendon: |B - B0| of its selected sensor (cuT) when its home
+                              was found (for the HOM_EV_HOME report) */
+    uint32_t tendon_ms;    /* the last tendon's time from its start to its recorded home */
     int32_t p_prev;        /* fine: previous point (position, |dB|) */
     uint32_t b_prev;
     int32_t mod_goal;    /* re-approach: moderate goal after an overshoot */

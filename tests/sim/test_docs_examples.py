@@ -81,7 +81,9 @@ def fill(cmd: str, tmp: Path) -> list[str]:
     """The command with its placeholders filled in, as argv."""
     subs = [("<robot>", "paper_2seg"), ("<name>", "sensor_unplug"), ("FAULT=...", "FAULT=sensor_unplug"),
             ("PORT=...", "PORT=/dev/null"), ("DIR/", f"{tmp}/"), ("=DIR", f"={tmp}"), ("[--check]", ""),
-            ("[ROBOT.toml]", PAPER), ("ROBOT.toml...", PAPER), ("ROBOT.toml", PAPER),
+            ("ROBOT.toml ...", PAPER), ("ROBOT.toml N ...", f"{PAPER} 0 0 0 1.5 0 0"),
+            ("[ROBOT.toml]", PAPER), ("ROBOT.toml OUT", f"{PAPER} {tmp}/plant.cfg"),
+            ("[--robot R.toml [--write]]", f"--robot {PAPER}"), ("ROBOT.toml...", PAPER), ("ROBOT.toml", PAPER),
             ("T1 T2 ...", "0 0 0 1.5 0 0"), ("--out-dir DIR", f"--out-dir {tmp}"),
             ("DATA.csv", "lookup_tables/examples/paper_fig1_synthetic.csv"),
             ("[--robot R.toml]", f"--robot {PAPER}")]
@@ -207,7 +209,13 @@ def do_characterize(cmd, tmp):
     if "DATA.csv" not in cmd and len(argv) == 2:
         argv.append("lookup_tables/examples/paper_fig1_synthetic.csv")
     r = run([*argv, "--plot", str(tmp / "fit.png")])
-    assert r.returncode == 0 and "R^2" in r.out, r.out
+    if "--robot" in argv:
+        # the paper's figure-1 data contradict the paper robot's magnet (85 % rms):
+        # characterize says so and exits 1 (docs/operator.md); --write is not
+        # run against the committed TOML
+        assert r.returncode == 1 and "does not explain these data" in r.out, r.out
+    else:
+        assert r.returncode == 0 and "R^2" in r.out, r.out
 
 
 def do_bench_option(cmd, tmp):
@@ -272,8 +280,9 @@ RULES = [
     (r"^(\.venv/bin/)?hallhome tables ", ("run into a temporary directory", do_tables)),
     (r"^hallhome (check|solve|plot|bench)(\s|$)", ("run", do_run)),
     (r"^hallhome characterize", ("run, plot into a temporary directory", do_characterize)),
-    (r"^hallhome (ports|console|status|calibrate|learn|history|monitor|export)(\s|\||$)",
-     BOARD_WHY),
+    (r"^hallhome (ports|console|status|calibrate|learn|learned|forget|history|monitor|export|"
+     r"rehome|home|release)(\s|\||$)", BOARD_WHY),
+    (r"^hallhome plant-config", ("run into a temporary directory", do_run)),
     (r"^hallhome$", ("--help", do_help)),
     (r"^(build/sim/)?hh_bench(\s|$)", ("its options exist (the bench runs in test_bench.py)",
                                        do_bench_option)),

@@ -208,3 +208,21 @@ def test_overload_on_the_pulled_tendon_is_rebooted_released_and_recalibrated(tmp
     r = bench(tmp_path, "--limit", "30s", "--at", "1s press 100", "--at", "2.8s servo-hwerr 0 32",
               "--at", "6s press 100", "--until", "^<done mode=full")
     completes(r)
+
+
+@pytest.mark.parametrize("step_uT", ["0 0 50", "0 -50 0", "50 0 0"])
+def test_a_field_step_no_motion_can_make_is_refused(tmp_path, step_uT):
+    """A +-50 uT step on the active sensor (sensor 2) during the last
+    tendon's fine approach once shifted its home by -5 to +8 ticks without a
+    word. Released after its home, the tendon must bring the field back to
+    the baseline; it does not, so the run ends in field_step, the home is
+    not recorded, and every tendon is released."""
+    r = bench(tmp_path, "--limit", "20s", "--at", "1s press 100",
+              "--at", f"9.2s field 2 {step_uT}", "--until", "^<(done|fault)", "--linger", "300ms")
+    faults = r.of("fault")
+    assert faults and faults[0][1]["reason"] == "field_step", r.context()
+    assert faults[0][1]["dev"] == "sensor" and faults[0][1]["index"] == "2"
+    assert [f["tendon"] for _, f in r.of("result")] == ["0", "1", "2", "3", "4"], r.context()
+    assert not r.of("done")
+    for t in r.summary["tendons"]:
+        assert t["tension_now_mN"] < 1.0, f"tendon {t['tendon']} still at {t['tension_now_mN']} mN"
