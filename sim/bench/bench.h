@@ -30,7 +30,7 @@
 #define BENCH_EEPROM_SIZE 4096u
 #define BENCH_MAX_SERVOS  PLANT_MAX_TENDONS
 #define BENCH_MAX_SENSORS PLANT_MAX_SENSORS
-#define BENCH_MAX_EVENTS  256u
+#define BENCH_MAX_EVENTS  1024u
 #define BENCH_MAX_PATTERN 8u
 #define BENCH_LED_LOG     4096u
 #define BENCH_LINE_MAX    512u
@@ -227,6 +227,86 @@ void con_bench_poll_fds(bench_t *b);
 void con_bench_poll_control(bench_t *b);
 void con_bench_flush(bench_t *b);
 
+/* ---- ground truth of the invariants (truth.c, docs/chaos.md) --------------- */
+
+#define TRUTH_MAX_STOPS   64u
+#define TRUTH_MAX_PENDING 512u  /* console lines awaiting their final reply */
+#define TRUTH_SLACK_N     0.001 /* a tendon below 1 mN is released */
+/* A line sent this long before a reset (or the end of the run) may still be
+ * waiting for a held reply (the console's 3 s deadline): not counted lost. */
+#define TRUTH_REPLY_GRACE_US 3500000u
+
+typedef enum {
+    TRUTH_STOP_BANG,     /* a `!` byte reached UART0 */
+    TRUTH_STOP_FAULT,    /* a `<fault` console line */
+    TRUTH_STOP_RELEASED, /* a `<released` console line */
+    TRUTH_STOP_WATCHDOG, /* a watchdog reset (injected or the firmware's own) */
+    TRUTH_STOP_EXTERNAL, /* a reset-pin reset */
+    TRUTH_STOP_POWER     /* a power cycle */
+} truth_stop_kind_t;
+
+typedef struct {
+    uint64_t t_us;
+    uint8_t kind;                        /* truth_stop_kind_t */
+    double tension_N;                    /* highest tendon tension at the stop */
+    uint64_t all_us;                     /* first tick with every tendon released (0 = not yet) */
+    uint64_t slack_us[BENCH_MAX_SERVOS]; /* per tendon, first tick below 1 mN */
+} truth_stop_t;
+
+typedef struct {
+    /* calibration runs: a window per tendon from the run's start report to
+     * its `<result tendon=i` (or the run's end) */
+    uint8_t run_active;
+    uint32_t runs;
+    uint16_t homed_mask;
+    double peak_N[BENCH_MAX_SERVOS]; /* highest tension inside the windows */
+    uint64_t peak_us[BENCH_MAX_SERVOS];
+    double slack_ticks[BENCH_MAX_SERVOS];       /* deepest slack before the true engagement */
+    double start_slack_ticks[BENCH_MAX_SERVOS]; /* deepest slack at a run's start */
+    double paid_out_ticks[BENCH_MAX_SERVOS];    /* total motion in the release direction */
+    double last_shaft[BENCH_MAX_SERVOS];
+    /* baselines: the highest tension between a baseline report and the
+     * next progress report */
+    uint8_t in_baseline;
+    uint32_t baselines, baselines_taut;
+    double baseline_max_N;
+    /* stops and their releases */
+    truth_stop_t stop[TRUTH_MAX_STOPS];
+    uint32_t n_stops, stops_dropped;
+    /* console accounting */
+    uint64_t pending_us[TRUTH_MAX_PENDING];
+    uint32_t pend_head, pend_n;
+    uint8_t last_in;
+    uint64_t lines_sent, replies, extra_replies, lost_at_reset, unanswered, excused_overrun;
+    uint64_t overrun_reports, bangs;
+    /* resets */
+    uint64_t injected_resets, resets;
+    /* motion loop: the longest servo-bus silence while a run is active */
+    uint64_t last_bus_us, max_bus_gap_us, max_bus_gap_at_us;
+} bench_truth_t;
+
+/* ---- step chains (steps.c): events triggered by console lines ------------- */
+
+#define STEPS_MAX 160u
+
+typedef struct {
+    regex_t re;
+    uint8_t has_re;
+    uint64_t within_us; /* give up waiting after this long (0 = never) */
+    uint64_t delay_us;  /* the event runs this long after the match */
+    char event[200];    /* "EVENT ARGS", or "nop" */
+    char pattern[96];
+} bench_step_t;
+
+typedef struct {
+    bench_step_t step[STEPS_MAX];
+    uint16_t n, cur;
+    uint64_t armed_us; /* the current step sees console lines from here */
+    uint64_t fired_us[STEPS_MAX];
+    uint8_t timed_out[STEPS_MAX];
+    uint16_t n_timed_out;
+} bench_steps_t;
+
 /* ---- the bench ---------------------------------------------------------------- */
 
 #define BENCH_RESET_LOG 32u
@@ -309,6 +389,8 @@ struct bench_t {
     uint64_t uart_fixes; /* UART frame times corrected (U2X set after UBRR) */
     uint64_t next_world_us;
     uint64_t timer_at; /* absolute us of the armed service timer */
+    bench_truth_t truth;
+    bench_steps_t steps;
     /* end of run */
     int stop;
     int exit_code;
@@ -346,5 +428,22 @@ int world_init(bench_t *b);
 void world_tick(bench_t *b, uint64_t now_us);
 void world_power_cycle(bench_t *b, uint64_t now_us);
 void world_report(bench_t *b, FILE *json, FILE *table);
+
+/* truth.c: the invariants' measurements (docs/chaos.md) */
+void truth_init(bench_t *b);
+void truth_tick(bench_t *b, uint64_t now_us);
+void truth_line(bench_t *b, const char *line);
+void truth_con_in(bench_t *b, uint8_t byte);
+void truth_bus_byte(bench_t *b, uint64_t now_us);
+void truth_reset(bench_t *b, uint8_t mcusr);
+void truth_report(bench_t *b, FILE *json);
+
+/* steps.c: `step [on REGEX] [within TIME] [+DELAY] EVENT ARGS` script lines */
+int steps_add(bench_t *b, const char *spec);
+void steps_line(bench_t *b, const char *line);
+void steps_poll(bench_t *b, uint64_t now_us);
+void steps_report(bench_t *b, FILE *json);
+/* Places the event line "EVENT ARGS" at at_us (not before now). */
+int scen_add_at(bench_t *b, uint64_t at_us, const char *line);
 
 #endif /* HALLHOME_BENCH_H */
