@@ -64,28 +64,29 @@ enum {
 
 /* Timed scenario events (sim/README.md lists the script syntax). */
 typedef enum {
-    EV_PRESS,         /* button down; arg0 = hold ms (0 = until release) */
-    EV_RELEASE,       /* button up */
-    EV_SEND,          /* console line (text), CR LF appended */
-    EV_SEND_RAW,      /* console bytes (text) as given */
-    EV_POWER_CYCLE,   /* power off and on: EEPROM kept, servos lose multi-turn */
-    EV_POWER_LOSS,    /* stop the run here, EEPROM saved as it is */
-    EV_WDT_RESET,     /* a watchdog reset (MCUSR = WDRF, SRAM kept) */
-    EV_EXT_RESET,     /* reset pin pulse (MCUSR = EXTRF), e.g. a serial DTR */
-    EV_SENSOR_UNPLUG, /* sensor arg0 stops acknowledging */
-    EV_SENSOR_PLUG,   /* sensor arg0 is back (powered up fresh) */
-    EV_MUX_UNPLUG,    /* the TCA9548A stops acknowledging */
-    EV_MUX_PLUG,      /* ... and comes back */
-    EV_I2C_STUCK,     /* a slave holds SDA low; arg0 = SCL clocks it needs to let go */
-    EV_SERVO_SILENT,  /* servo of tendon arg0 stops answering */
-    EV_SERVO_ANSWER,  /* ... and answers again */
-    EV_SERVO_HWERR,   /* servo of tendon arg0 raises hardware error bits arg1 */
-    EV_BUS_NOISE,     /* corrupt bytes on the servo bus with probability farg */
-    EV_MAGNET_REMOVE, /* the tip magnet falls off */
-    EV_FIELD,         /* extra field farg3[0..2] uT at sensor arg0 (ambient change) */
-    EV_SATURATE,      /* 6 mT at sensor arg0 */
-    EV_TENDON_EA,     /* tendon arg0's axial stiffness E*A times farg[0] */
-    EV_QUIT           /* end the run (exit code as if the time limit passed) */
+    EV_PRESS,          /* button down; arg0 = hold ms (0 = until release) */
+    EV_RELEASE,        /* button up */
+    EV_SEND,           /* console line (text), CR LF appended */
+    EV_SEND_RAW,       /* console bytes (text) as given */
+    EV_POWER_CYCLE,    /* power off and on: EEPROM kept, servos lose multi-turn */
+    EV_POWER_LOSS,     /* stop the run here, EEPROM saved as it is */
+    EV_WDT_RESET,      /* a watchdog reset (MCUSR = WDRF, SRAM kept) */
+    EV_EXT_RESET,      /* reset pin pulse (MCUSR = EXTRF), e.g. a serial DTR */
+    EV_SENSOR_UNPLUG,  /* sensor arg0 stops acknowledging */
+    EV_SENSOR_PLUG,    /* sensor arg0 is back (powered up fresh) */
+    EV_MUX_UNPLUG,     /* the TCA9548A stops acknowledging */
+    EV_MUX_PLUG,       /* ... and comes back */
+    EV_I2C_STUCK,      /* a slave holds SDA low; arg0 = SCL clocks it needs to let go */
+    EV_SERVO_SILENT,   /* servo of tendon arg0 stops answering */
+    EV_SERVO_ANSWER,   /* ... and answers again */
+    EV_SERVO_HWERR,    /* servo of tendon arg0 raises hardware error bits arg1 */
+    EV_BUS_NOISE,      /* corrupt bytes on the servo bus with probability farg */
+    EV_MAGNET_REMOVE,  /* the tip magnet falls off */
+    EV_MAGNET_RESTORE, /* ... and is put back */
+    EV_FIELD,          /* extra field farg3[0..2] uT at sensor arg0 (ambient change) */
+    EV_SATURATE,       /* 6 mT at sensor arg0 */
+    EV_TENDON_EA,      /* tendon arg0's axial stiffness E*A times farg[0] */
+    EV_QUIT            /* end the run (exit code as if the time limit passed) */
 } bench_ev_kind_t;
 
 typedef struct {
@@ -301,7 +302,8 @@ typedef struct {
 typedef struct {
     bench_step_t step[STEPS_MAX];
     uint16_t n, cur;
-    uint64_t armed_us; /* the current step sees console lines from here */
+    uint64_t armed_us;     /* the current step sees console lines from here */
+    uint64_t last_fire_us; /* the previous step's event time */
     uint64_t fired_us[STEPS_MAX];
     uint8_t timed_out[STEPS_MAX];
     uint16_t n_timed_out;
@@ -368,6 +370,7 @@ struct bench_t {
     uint8_t fault_seen;      /* fault_tension_N taken */
     int32_t target_mN;
     uint8_t magnet_removed;
+    double magnet_moment_Am2; /* the moment magnet-restore puts back */
     bench_event_t ev[BENCH_MAX_EVENTS];
     uint16_t n_ev, next_ev;
     uint64_t cal_start_us; /* first button press or cal command */

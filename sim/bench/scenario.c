@@ -61,6 +61,7 @@ static const struct {
     {"servo-hwerr", EV_SERVO_HWERR, 1},
     {"bus-noise", EV_BUS_NOISE, 1},
     {"magnet-remove", EV_MAGNET_REMOVE, 0},
+    {"magnet-restore", EV_MAGNET_RESTORE, 0},
     {"field", EV_FIELD, 4},
     {"saturate", EV_SATURATE, 1},
     {"tendon-stiffness", EV_TENDON_EA, 2},
@@ -456,10 +457,17 @@ void scen_run_due(bench_t *b, uint64_t now)
             b->bus.noise_rate = e->farg[0];
             break;
         case EV_MAGNET_REMOVE:
-            b->magnet_removed = 1;
-            if (b->have_plant) {
+            if (b->have_plant && !b->magnet_removed) {
+                b->magnet_moment_Am2 = b->plant.cfg.magnet_moment_Am2;
                 b->plant.cfg.magnet_moment_Am2 = 0.0;
             }
+            b->magnet_removed = 1;
+            break;
+        case EV_MAGNET_RESTORE:
+            if (b->have_plant && b->magnet_removed) {
+                b->plant.cfg.magnet_moment_Am2 = b->magnet_moment_Am2;
+            }
+            b->magnet_removed = 0;
             break;
         case EV_FIELD:
         case EV_SATURATE:

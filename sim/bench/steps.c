@@ -7,12 +7,15 @@
  *     step [on REGEX] [within TIME] [+DELAY] EVENT [ARGS]
  *
  * The steps run in order. A step waits for a console line matching REGEX
- * (POSIX extended, no spaces: write `.` or `[^0-9]` for them), seen from the
- * time the previous step's event ran; its event then runs DELAY after that
- * line. Without `on` the event runs DELAY after the previous one. `within`
- * bounds the wait: when no line matched in that time the event runs anyway
- * (counted as timed out), so a stuck firmware does not stop the rest of the
- * script. EVENT is any timed event (docs/bench.md) or `nop`.
+ * (POSIX extended, no spaces: write `.` or `[^0-9]` for them) that comes
+ * after the line the previous step matched (or after the previous event,
+ * when that step had no pattern or gave up); its event then runs DELAY
+ * after that line, and never before the previous step's event. Without `on`
+ * the event runs DELAY after the previous one. `within` bounds the wait,
+ * counted from the previous event: when no line matched in that time the
+ * event runs anyway (counted as timed out), so a stuck firmware does not
+ * stop the rest of the script. EVENT is any timed event (docs/bench.md) or
+ * `nop`.
  */
 #define _POSIX_C_SOURCE 200809L
 #include <string.h>
@@ -97,12 +100,16 @@ int steps_add(bench_t *b, const char *spec)
     return 0;
 }
 
-/* The current step's event runs at at_us; the next step is armed then. */
+/* The current step matched (or gave up waiting) at at_us: its event runs
+ * DELAY later, never before the previous step's event. */
 static void fire(bench_t *b, uint64_t at_us, uint8_t timed_out)
 {
     bench_steps_t *c = &b->steps;
     bench_step_t *s = &c->step[c->cur];
     uint64_t t = at_us + s->delay_us;
+    if (t < c->last_fire_us) {
+        t = c->last_fire_us;
+    }
     if (strncmp(s->event, "nop", 3) != 0 && scen_add_at(b, t, s->event) != 0) {
         fprintf(stderr, "hh_bench: step %u: event table full\n", c->cur);
     }
@@ -110,18 +117,21 @@ static void fire(bench_t *b, uint64_t at_us, uint8_t timed_out)
     c->timed_out[c->cur] = timed_out;
     c->n_timed_out = (uint16_t)(c->n_timed_out + timed_out);
     c->cur++;
-    c->armed_us = t;
+    /* the next step sees the lines after this match (those during this
+     * step's delay too: a run that ends before the event is not missed) */
+    c->armed_us = s->has_re && !timed_out ? at_us : t;
+    c->last_fire_us = t;
 }
 
 /* Steps without a pattern, and timed-out waits, fire here. */
 void steps_poll(bench_t *b, uint64_t now)
 {
     bench_steps_t *c = &b->steps;
-    while (c->cur < c->n && now >= c->armed_us) {
+    while (c->cur < c->n) {
         bench_step_t *s = &c->step[c->cur];
         if (!s->has_re) {
-            fire(b, c->armed_us, 0);
-        } else if (s->within_us != 0 && now >= c->armed_us + s->within_us) {
+            fire(b, c->last_fire_us, 0);
+        } else if (s->within_us != 0 && now >= c->last_fire_us + s->within_us) {
             fire(b, now, 1);
         } else {
             break;
