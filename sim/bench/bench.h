@@ -255,11 +255,13 @@ typedef struct {
 } truth_stop_t;
 
 typedef struct {
-    /* calibration runs: a window per tendon from the run's start report to
-     * its `<result tendon=i` (or the run's end) */
+    /* calibration runs: a window per tendon from its first slack reading
+     * after the run's start report to its `<result tendon=i` (or the run's
+     * end) */
     uint8_t run_active;
     uint32_t runs;
     uint16_t homed_mask;
+    uint16_t open_mask;              /* tendons slack since the run's start: window open */
     double peak_N[BENCH_MAX_SERVOS]; /* highest tension inside the windows */
     uint64_t peak_us[BENCH_MAX_SERVOS];
     double slack_ticks[BENCH_MAX_SERVOS];       /* deepest slack before the true engagement */
@@ -279,6 +281,7 @@ typedef struct {
     uint32_t pend_head, pend_n;
     uint8_t last_in;
     uint64_t lines_sent, replies, extra_replies, lost_at_reset, unanswered, excused_overrun;
+    uint64_t first_unanswered_us; /* when the first line never answered was sent */
     uint64_t overrun_reports, bangs;
     /* resets */
     uint64_t injected_resets, resets;

@@ -4,7 +4,9 @@
  * definitions; tests/chaos checks them):
  *
  * - peak tension per tendon before its home is recorded: inside a window
- *   that opens at a run's `<progress state=start` and closes at that
+ *   that opens once the tendon is slack (below 1 mN) after a run's
+ *   `<progress state=start` (the tension it was left with by the last
+ *   calibration's final move is not this run's pull) and closes at that
  *   tendon's `<result tendon=i` or at the run's end (`<done`, `<fault`,
  *   `<released`, a reset);
  * - every stop (a `!` reaching UART0, a `<fault` or `<released` line, a
@@ -89,7 +91,11 @@ void truth_tick(bench_t *b, uint64_t now)
         if (-take > t->slack_ticks[i]) {
             t->slack_ticks[i] = -take;
         }
-        if (t->run_active && !(t->homed_mask & (1u << i)) && tension > t->peak_N[i]) {
+        if (t->run_active && tension < TRUTH_SLACK_N) {
+            t->open_mask |= (uint16_t)(1u << i); /* this run's pull starts from slack */
+        }
+        if (t->run_active && (t->open_mask & ~t->homed_mask & (1u << i)) &&
+            tension > t->peak_N[i]) {
             t->peak_N[i] = tension;
             t->peak_us[i] = now;
         }
@@ -153,6 +159,7 @@ void truth_line(bench_t *b, const char *line)
         if (strstr(line, "state=start") != NULL) {
             t->run_active = 1;
             t->homed_mask = 0;
+            t->open_mask = 0;
             t->runs++;
             for (uint8_t i = 0; i < b->bus.n_servos && b->have_plant; i++) {
                 double slack = -take_up_ticks(b, i);
@@ -224,7 +231,9 @@ static void settle_pending(bench_truth_t *t, uint64_t now, uint8_t at_reset)
     while (t->pend_n > 0) {
         uint64_t sent = t->pending_us[t->pend_head];
         if (sent + TRUTH_REPLY_GRACE_US < now) {
-            t->unanswered++;
+            if (t->unanswered++ == 0) {
+                t->first_unanswered_us = sent;
+            }
         } else if (at_reset) {
             t->lost_at_reset++;
         } else {
@@ -265,12 +274,14 @@ void truth_report(bench_t *b, FILE *f)
             t->runs, t->baselines, t->baselines_taut, t->baseline_max_N * 1000.0);
     fprintf(f,
             "    \"console\": {\"lines_sent\": %llu, \"replies\": %llu, \"extra_replies\": %llu, "
-            "\"unanswered\": %llu, \"pending\": %u, \"lost_at_reset\": %llu, "
+            "\"unanswered\": %llu, \"first_unanswered_s\": %.6f, \"pending\": %u, "
+            "\"lost_at_reset\": %llu, "
             "\"overrun_reports\": %llu, \"excused_overrun\": %llu, \"bangs\": %llu},\n",
             (unsigned long long)t->lines_sent, (unsigned long long)t->replies,
-            (unsigned long long)t->extra_replies, (unsigned long long)t->unanswered, t->pend_n,
-            (unsigned long long)t->lost_at_reset, (unsigned long long)t->overrun_reports,
-            (unsigned long long)t->excused_overrun, (unsigned long long)t->bangs);
+            (unsigned long long)t->extra_replies, (unsigned long long)t->unanswered,
+            (double)t->first_unanswered_us * 1e-6, t->pend_n, (unsigned long long)t->lost_at_reset,
+            (unsigned long long)t->overrun_reports, (unsigned long long)t->excused_overrun,
+            (unsigned long long)t->bangs);
     fprintf(f,
             "    \"resets\": {\"total\": %llu, \"injected\": %llu},\n"
             "    \"max_bus_gap_ms\": %.3f, \"max_bus_gap_at_s\": %.6f,\n",

@@ -107,7 +107,10 @@ def check(sch, summary: dict, out: str) -> Verdict:
         t0 = steps[idx][0]
         a = first_attempt(attempts, console, t0)
         if a is None:
-            v.add("recovery", f"{tag} at {t0:.2f}s: no calibration started")
+            said = [ln for t, ln in console if t0 <= t <= t0 + 6.0
+                    and ln.startswith(("error:", "<fault", "<missing"))]
+            v.add("recovery", f"{tag} at {t0:.2f}s: no calibration started"
+                  + (f" ({said[0]})" if said else ""))
             continue
         if a["end"] is None or not a["end"].startswith("<done"):
             v.add("recovery", f"{tag} at {t0:.2f}s: {a['end'] or 'did not end'}")
@@ -154,8 +157,9 @@ def check(sch, summary: dict, out: str) -> Verdict:
     v.fig("lines_sent", c.get("lines_sent", 0))
     v.fig("replies", c.get("replies", 0))
     if c.get("unanswered", 0):
-        v.add("replies", f"{c['unanswered']} of {c['lines_sent']} lines never answered "
-              f"({c['replies']} replies, {c.get('overrun_reports', 0)} overrun reports)")
+        v.add("replies", f"{c['unanswered']} of {c['lines_sent']} lines never answered, the "
+              f"first sent at {c.get('first_unanswered_s', 0):.3f}s ({c['replies']} replies, "
+              f"{c.get('overrun_reports', 0)} overrun reports)")
     if c.get("extra_replies", 0):
         v.add("replies", f"{c['extra_replies']} replies to no line")
 

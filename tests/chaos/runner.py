@@ -63,7 +63,7 @@ def run_one(seed: int, pool: list, echo: bool = False) -> dict:
     verdict = chk.check(sch, summary, p.stdout)
     res = {"seed": seed, "robot": robot.describe(), "faults": sch.faults,
            "violations": verdict.violations, "figures": verdict.figures, "wall_s": wall,
-           "sim_s": summary.get("sim_s", 0.0), "timed_out_steps": summary.get("steps", {}).get(
+           "sim_s": summary.get("sim_s", 0.0), "cpu_s": summary.get("cpu_s", 0.0), "timed_out_steps": summary.get("steps", {}).get(
                "timed_out", 0)}
     (rundir / "verdict.json").write_text(json.dumps(res, indent=1) + "\n")
     return res
@@ -98,8 +98,10 @@ def report(results: list[dict], wall: float, jobs: int) -> int:
     print(f"\n=== chaos: {len(results)} schedules, {sum(faults.values())} faults injected, "
           f"{sum(len(v) for r in results for v in r['violations'].values())} invariant "
           f"violations in {len(failing)} schedules")
+    cpu = sum(r.get("cpu_s", 0.0) for r in results)
     print(f"time: {wall:.0f} s wall with {jobs} jobs ({wall / max(1, len(results)):.1f} s per "
-          f"schedule), {sim:.0f} s simulated")
+          f"schedule), {sim:.0f} s simulated, {cpu:.0f} s of bench CPU time "
+          f"({cpu / max(1, len(results)):.1f} s per schedule)")
     print("faults by type:  " + ", ".join(f"{k} {v}" for k, v in sorted(faults.items())))
     print("faults by phase: " + ", ".join(f"{k} {v}" for k, v in sorted(phases.items())))
     print("schedules violating each invariant: " + (", ".join(
