@@ -202,6 +202,8 @@ def check(sch, summary: dict, out: str) -> Verdict:
               + "; ".join(fields(b).get("reset", "?") for b in boots[1:]))
     if summary.get("exit_code") == 2 or "no summary" in summary.get("reason", ""):
         v.add("harness", f"bench refused the schedule: {summary.get('reason')}")
+    elif summary.get("exit_code") == 5:
+        v.add("harness", "bench interrupted by a signal (run it again)")
     elif summary.get("exit_code") not in (0, 3):
         v.add("resets", f"bench ended: {summary.get('reason')}")
     return v

@@ -50,7 +50,12 @@ def run_one(seed: int, pool: list, echo: bool = False) -> dict:
     cmd = bench_cmd(sch, robot, rundir)
     (rundir / "command.txt").write_text(shlex.join(cmd) + "\n")
     t0 = time.time()
-    p = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
+    for _ in range(2):  # once more when something outside killed the bench
+        for stale in ("eeprom.bin", "summary.json"):
+            (rundir / stale).unlink(missing_ok=True)
+        p = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
+        if p.returncode != 5:
+            break
     wall = time.time() - t0
     (rundir / "console.txt").write_text(p.stdout)
     (rundir / "stderr.txt").write_text(p.stderr)
