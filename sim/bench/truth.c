@@ -75,6 +75,28 @@ static void end_run(bench_truth_t *t)
     t->in_baseline = 0;
 }
 
+/* Replies come in the order of the lines, so a line lost silently leaves the
+ * newest line without a reply once the traffic pauses: a line waiting
+ * longer than the grace was never answered. At a reset the lines sent within
+ * the grace were cut off. */
+static void settle_pending(bench_truth_t *t, uint64_t now, uint8_t at_reset)
+{
+    while (t->pend_n > 0) {
+        uint64_t sent = t->pending_us[t->pend_head];
+        if (sent + TRUTH_REPLY_GRACE_US < now) {
+            if (t->unanswered++ == 0) {
+                t->first_unanswered_us = sent;
+            }
+        } else if (at_reset) {
+            t->lost_at_reset++;
+        } else {
+            break; /* still within its deadline at the end of the run */
+        }
+        t->pend_head = (t->pend_head + 1u) % TRUTH_MAX_PENDING;
+        t->pend_n--;
+    }
+}
+
 void truth_tick(bench_t *b, uint64_t now)
 {
     bench_truth_t *t = &b->truth;
@@ -103,6 +125,8 @@ void truth_tick(bench_t *b, uint64_t now)
             t->baseline_max_N = tension;
         }
     }
+    /* a line left without its reply for longer than any held reply takes */
+    settle_pending(t, now, 0);
     for (uint32_t k = 0; k < t->n_stops; k++) {
         truth_stop_t *s = &t->stop[k];
         if (s->all_us != 0) {
@@ -222,26 +246,6 @@ void truth_bus_byte(bench_t *b, uint64_t now)
         t->max_bus_gap_at_us = now;
     }
     t->last_bus_us = now;
-}
-
-/* Lines still waiting at a reset (or the end) were cut off when they were
- * sent within the reply grace; older ones were never answered. */
-static void settle_pending(bench_truth_t *t, uint64_t now, uint8_t at_reset)
-{
-    while (t->pend_n > 0) {
-        uint64_t sent = t->pending_us[t->pend_head];
-        if (sent + TRUTH_REPLY_GRACE_US < now) {
-            if (t->unanswered++ == 0) {
-                t->first_unanswered_us = sent;
-            }
-        } else if (at_reset) {
-            t->lost_at_reset++;
-        } else {
-            break; /* still within its deadline at the end of the run */
-        }
-        t->pend_head = (t->pend_head + 1u) % TRUTH_MAX_PENDING;
-        t->pend_n--;
-    }
 }
 
 void truth_reset(bench_t *b, uint8_t mcusr)

@@ -162,6 +162,8 @@ def _disturbance(rng, sch: Schedule, robot, kind: str) -> None:
         # after the EEPROM save the attempt has ended already
         wait = "" if phase == "eeprom_save" else f"on {RUN_END} within {run_within(robot)} "
         _step(sch, f"{wait}+{rng.uniform(0.1, 0.6):.3f}s " + (heal.format(**args) if heal else "nop"))
+        if kind == "abort_button":
+            _step(sch, "+2.6s nop")  # the long press (2.5 s) is over before the next step
         return
     if phase != "eeprom_save":
         _step(sch, f"on {RUN_END} within {run_within(robot)} +{rng.uniform(0.1, 0.6):.3f}s nop")
