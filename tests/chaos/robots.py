@@ -3,7 +3,8 @@ lookup table, its plant config and a firmware ELF with that table built in.
 
 Everything is cached under build/chaos/robots/<name>/ where the name carries
 a hash of the TOML's content, so a pool is built once and reused; a change
-of the generator gives new names (and new builds).
+of the generator gives new names (and new builds). The firmware is brought
+up to date with the tree (lib/, firmware/) by make each time the suite runs.
 
 Robots stay inside what the plant models: straight routing only (no helical
 twist), 1 to 3 segments, 3 to 12 tendons (at least one per segment), 1 to 4
@@ -144,27 +145,33 @@ _locks: dict[str, threading.Lock] = {}
 _locks_lock = threading.Lock()
 
 
+_made: set[str] = set()
+
+
 def build(r: Robot) -> Robot:
-    """Table, plant config and firmware of r, unless built already (one
-    build per robot at a time)."""
+    """Table and plant config of r unless made already; its firmware brought
+    up to date with the tree (make rebuilds what changed) once per process;
+    one build per robot at a time."""
     with _locks_lock:
         lock = _locks.setdefault(r.name, threading.Lock())
     with lock:
-        if not r.built():
-            _build(r)
+        if r.name not in _made:
+            log = r.dir / "build.log"
+            log.write_text("")
+            if not (r.table_c.exists() and r.plant.exists()):
+                _generate(r, log)
+            build_firmware(r, log)
+            _made.add(r.name)
     return r
 
 
-def _build(r: Robot) -> None:
-    log = r.dir / "build.log"
-    log.write_text("")
+def _generate(r: Robot, log: Path) -> None:
     _run([str(PY), "-m", "hallhome", "tables", "--quiet", "--out-dir",
           str(r.dir / "tables"), str(r.toml)], log)
     _run([str(PY), "-c", "import sys; from hallhome.robot import load_robot; "
           "from hallhome.plantcfg import write_plant_config; "
           "write_plant_config(load_robot(sys.argv[1]), sys.argv[2])", str(r.toml),
           str(r.plant)], log)
-    build_firmware(r, log)
 
 
 # The pool the suite draws from: every segment count, tendon counts from the
