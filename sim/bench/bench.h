@@ -30,7 +30,7 @@
 #define BENCH_EEPROM_SIZE 4096u
 #define BENCH_MAX_SERVOS  PLANT_MAX_TENDONS
 #define BENCH_MAX_SENSORS PLANT_MAX_SENSORS
-#define BENCH_MAX_EVENTS  256u
+#define BENCH_MAX_EVENTS  1024u
 #define BENCH_MAX_PATTERN 8u
 #define BENCH_LED_LOG     4096u
 #define BENCH_LINE_MAX    512u
@@ -64,28 +64,29 @@ enum {
 
 /* Timed scenario events (sim/README.md lists the script syntax). */
 typedef enum {
-    EV_PRESS,         /* button down; arg0 = hold ms (0 = until release) */
-    EV_RELEASE,       /* button up */
-    EV_SEND,          /* console line (text), CR LF appended */
-    EV_SEND_RAW,      /* console bytes (text) as given */
-    EV_POWER_CYCLE,   /* power off and on: EEPROM kept, servos lose multi-turn */
-    EV_POWER_LOSS,    /* stop the run here, EEPROM saved as it is */
-    EV_WDT_RESET,     /* a watchdog reset (MCUSR = WDRF, SRAM kept) */
-    EV_EXT_RESET,     /* reset pin pulse (MCUSR = EXTRF), e.g. a serial DTR */
-    EV_SENSOR_UNPLUG, /* sensor arg0 stops acknowledging */
-    EV_SENSOR_PLUG,   /* sensor arg0 is back (powered up fresh) */
-    EV_MUX_UNPLUG,    /* the TCA9548A stops acknowledging */
-    EV_MUX_PLUG,      /* ... and comes back */
-    EV_I2C_STUCK,     /* a slave holds SDA low; arg0 = SCL clocks it needs to let go */
-    EV_SERVO_SILENT,  /* servo of tendon arg0 stops answering */
-    EV_SERVO_ANSWER,  /* ... and answers again */
-    EV_SERVO_HWERR,   /* servo of tendon arg0 raises hardware error bits arg1 */
-    EV_BUS_NOISE,     /* corrupt bytes on the servo bus with probability farg */
-    EV_MAGNET_REMOVE, /* the tip magnet falls off */
-    EV_FIELD,         /* extra field farg3[0..2] uT at sensor arg0 (ambient change) */
-    EV_SATURATE,      /* 6 mT at sensor arg0 */
-    EV_TENDON_EA,     /* tendon arg0's axial stiffness E*A times farg[0] */
-    EV_QUIT           /* end the run (exit code as if the time limit passed) */
+    EV_PRESS,          /* button down; arg0 = hold ms (0 = until release) */
+    EV_RELEASE,        /* button up */
+    EV_SEND,           /* console line (text), CR LF appended */
+    EV_SEND_RAW,       /* console bytes (text) as given */
+    EV_POWER_CYCLE,    /* power off and on: EEPROM kept, servos lose multi-turn */
+    EV_POWER_LOSS,     /* stop the run here, EEPROM saved as it is */
+    EV_WDT_RESET,      /* a watchdog reset (MCUSR = WDRF, SRAM kept) */
+    EV_EXT_RESET,      /* reset pin pulse (MCUSR = EXTRF), e.g. a serial DTR */
+    EV_SENSOR_UNPLUG,  /* sensor arg0 stops acknowledging */
+    EV_SENSOR_PLUG,    /* sensor arg0 is back (powered up fresh) */
+    EV_MUX_UNPLUG,     /* the TCA9548A stops acknowledging */
+    EV_MUX_PLUG,       /* ... and comes back */
+    EV_I2C_STUCK,      /* a slave holds SDA low; arg0 = SCL clocks it needs to let go */
+    EV_SERVO_SILENT,   /* servo of tendon arg0 stops answering */
+    EV_SERVO_ANSWER,   /* ... and answers again */
+    EV_SERVO_HWERR,    /* servo of tendon arg0 raises hardware error bits arg1 */
+    EV_BUS_NOISE,      /* corrupt bytes on the servo bus with probability farg */
+    EV_MAGNET_REMOVE,  /* the tip magnet falls off */
+    EV_MAGNET_RESTORE, /* ... and is put back */
+    EV_FIELD,          /* extra field farg3[0..2] uT at sensor arg0 (ambient change) */
+    EV_SATURATE,       /* 6 mT at sensor arg0 */
+    EV_TENDON_EA,      /* tendon arg0's axial stiffness E*A times farg[0] */
+    EV_QUIT            /* end the run (exit code as if the time limit passed) */
 } bench_ev_kind_t;
 
 typedef struct {
@@ -227,6 +228,90 @@ void con_bench_poll_fds(bench_t *b);
 void con_bench_poll_control(bench_t *b);
 void con_bench_flush(bench_t *b);
 
+/* ---- ground truth of the invariants (truth.c, docs/chaos.md) --------------- */
+
+#define TRUTH_MAX_STOPS   64u
+#define TRUTH_MAX_PENDING 512u  /* console lines awaiting their final reply */
+#define TRUTH_SLACK_N     0.001 /* a tendon below 1 mN is released */
+/* A line sent this long before a reset (or the end of the run) may still be
+ * waiting for a held reply (the console's 3 s deadline): not counted lost. */
+#define TRUTH_REPLY_GRACE_US 3500000u
+
+typedef enum {
+    TRUTH_STOP_BANG,     /* a `!` byte reached UART0 */
+    TRUTH_STOP_FAULT,    /* a `<fault` console line */
+    TRUTH_STOP_RELEASED, /* a `<released` console line */
+    TRUTH_STOP_WATCHDOG, /* a watchdog reset (injected or the firmware's own) */
+    TRUTH_STOP_EXTERNAL, /* a reset-pin reset */
+    TRUTH_STOP_POWER     /* a power cycle */
+} truth_stop_kind_t;
+
+typedef struct {
+    uint64_t t_us;
+    uint8_t kind;                        /* truth_stop_kind_t */
+    double tension_N;                    /* highest tendon tension at the stop */
+    uint64_t all_us;                     /* first tick with every tendon released (0 = not yet) */
+    uint64_t slack_us[BENCH_MAX_SERVOS]; /* per tendon, first tick below 1 mN */
+} truth_stop_t;
+
+typedef struct {
+    /* calibration runs: a window per tendon from its first slack reading
+     * after the run's start report to its `<result tendon=i` (or the run's
+     * end) */
+    uint8_t run_active;
+    uint32_t runs;
+    uint16_t homed_mask;
+    uint16_t open_mask;              /* tendons slack since the run's start: window open */
+    double peak_N[BENCH_MAX_SERVOS]; /* highest tension inside the windows */
+    uint64_t peak_us[BENCH_MAX_SERVOS];
+    double slack_ticks[BENCH_MAX_SERVOS];       /* deepest slack before the true engagement */
+    double start_slack_ticks[BENCH_MAX_SERVOS]; /* deepest slack at a run's start */
+    double paid_out_ticks[BENCH_MAX_SERVOS];    /* total motion in the release direction */
+    double last_shaft[BENCH_MAX_SERVOS];
+    /* baselines: the highest tension between a baseline report and the
+     * next progress report */
+    uint8_t in_baseline;
+    uint32_t baselines, baselines_taut;
+    double baseline_max_N;
+    /* stops and their releases */
+    truth_stop_t stop[TRUTH_MAX_STOPS];
+    uint32_t n_stops, stops_dropped;
+    /* console accounting */
+    uint64_t pending_us[TRUTH_MAX_PENDING];
+    uint32_t pend_head, pend_n;
+    uint8_t last_in;
+    uint64_t lines_sent, replies, extra_replies, lost_at_reset, unanswered, excused_overrun;
+    uint64_t first_unanswered_us; /* when the first line never answered was sent */
+    uint64_t overrun_reports, bangs;
+    /* resets */
+    uint64_t injected_resets, resets;
+    /* motion loop: the longest servo-bus silence while a run is active */
+    uint64_t last_bus_us, max_bus_gap_us, max_bus_gap_at_us;
+} bench_truth_t;
+
+/* ---- step chains (steps.c): events triggered by console lines ------------- */
+
+#define STEPS_MAX 160u
+
+typedef struct {
+    regex_t re;
+    uint8_t has_re;
+    uint64_t within_us; /* give up waiting after this long (0 = never) */
+    uint64_t delay_us;  /* the event runs this long after the match */
+    char event[200];    /* "EVENT ARGS", or "nop" */
+    char pattern[96];
+} bench_step_t;
+
+typedef struct {
+    bench_step_t step[STEPS_MAX];
+    uint16_t n, cur;
+    uint64_t armed_us;     /* the current step sees console lines from here */
+    uint64_t last_fire_us; /* the previous step's event time */
+    uint64_t fired_us[STEPS_MAX];
+    uint8_t timed_out[STEPS_MAX];
+    uint16_t n_timed_out;
+} bench_steps_t;
+
 /* ---- the bench ---------------------------------------------------------------- */
 
 #define BENCH_RESET_LOG 32u
@@ -288,6 +373,7 @@ struct bench_t {
     uint8_t fault_seen;      /* fault_tension_N taken */
     int32_t target_mN;
     uint8_t magnet_removed;
+    double magnet_moment_Am2; /* the moment magnet-restore puts back */
     bench_event_t ev[BENCH_MAX_EVENTS];
     uint16_t n_ev, next_ev;
     uint64_t cal_start_us; /* first button press or cal command */
@@ -309,6 +395,8 @@ struct bench_t {
     uint64_t uart_fixes; /* UART frame times corrected (U2X set after UBRR) */
     uint64_t next_world_us;
     uint64_t timer_at; /* absolute us of the armed service timer */
+    bench_truth_t truth;
+    bench_steps_t steps;
     /* end of run */
     int stop;
     int exit_code;
@@ -352,5 +440,22 @@ void world_report(bench_t *b, FILE *json, FILE *table, double tol_pct);
 /* Counts the tendons whose true tension is outside tol_pct % of the target;
  * when any is, writes a reason naming every one of them into reason[n]. */
 int world_check_tension(bench_t *b, double tol_pct, char *reason, size_t n);
+
+/* truth.c: the invariants' measurements (docs/chaos.md) */
+void truth_init(bench_t *b);
+void truth_tick(bench_t *b, uint64_t now_us);
+void truth_line(bench_t *b, const char *line);
+void truth_con_in(bench_t *b, uint8_t byte);
+void truth_bus_byte(bench_t *b, uint64_t now_us);
+void truth_reset(bench_t *b, uint8_t mcusr);
+void truth_report(bench_t *b, FILE *json);
+
+/* steps.c: `step [on REGEX] [within TIME] [+DELAY] EVENT ARGS` script lines */
+int steps_add(bench_t *b, const char *spec);
+void steps_line(bench_t *b, const char *line);
+void steps_poll(bench_t *b, uint64_t now_us);
+void steps_report(bench_t *b, FILE *json);
+/* Places the event line "EVENT ARGS" at at_us (not before now). */
+int scen_add_at(bench_t *b, uint64_t at_us, const char *line);
 
 #endif /* HALLHOME_BENCH_H */

@@ -198,6 +198,7 @@ static void bus_mcu_byte(avr_irq_t *irq, uint32_t value, void *param)
         return;
     }
     s->mcu_bytes++;
+    truth_bus_byte(b, now);
     s->mcu_q[s->mcu_head] = (uint8_t)value;
     s->mcu_start[s->mcu_head] = start;
     s->mcu_head++;

@@ -111,6 +111,7 @@ void con_bench_pump(bench_t *b)
     }
     while (!c->xoff && c->in_pos < c->in_len) {
         c->bytes_in++;
+        truth_con_in(b, c->in[c->in_pos]);
         avr_raise_irq(c->rx_irq, c->in[c->in_pos++]);
     }
 }

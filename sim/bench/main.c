@@ -75,6 +75,8 @@ void bench_console_line(bench_t *b, const char *line)
         }
         fflush(stdout);
     }
+    truth_line(b, line);
+    steps_line(b, line);
     if (b->fault_at_us == 0 && strncmp(line, "<fault", 6) == 0) {
         b->fault_at_us = bench_now_us(b);
         b->released_at_us = 0;
@@ -336,6 +338,7 @@ static void after_reset(bench_t *b)
     if (b->avr->data[BENCH_MCUSR] & 0x08u) {
         b->wdt_resets++;
     }
+    truth_reset(b, b->avr->data[BENCH_MCUSR]);
     b->timer_at = 0;
     b->bus.dir_tx = 0;
     b->bus.mcu_head = b->bus.mcu_tail = 0;
@@ -509,6 +512,7 @@ static void write_summary(bench_t *b, double wall, double cpu)
                 t->icm[k].resets);
     }
     fprintf(f, "]},\n");
+    truth_report(b, f);
     world_report(b, f, NULL, -1.0);
     fprintf(f, "\n}\n");
     fclose(f);

@@ -61,6 +61,7 @@ static const struct {
     {"servo-hwerr", EV_SERVO_HWERR, 1},
     {"bus-noise", EV_BUS_NOISE, 1},
     {"magnet-remove", EV_MAGNET_REMOVE, 0},
+    {"magnet-restore", EV_MAGNET_RESTORE, 0},
     {"field", EV_FIELD, 4},
     {"saturate", EV_SATURATE, 1},
     {"tendon-stiffness", EV_TENDON_EA, 2},
@@ -163,6 +164,9 @@ static int scen_pattern_line(bench_t *b, const char *line, int *rc)
 static int scen_add_line(bench_t *b, const char *line)
 {
     int prc = 0;
+    if (strncmp(line, "step ", 5) == 0) {
+        return steps_add(b, line + 5);
+    }
     if (line[0] != '#' && scen_pattern_line(b, line, &prc)) {
         return prc;
     }
@@ -315,8 +319,15 @@ int scen_add_spec(bench_t *b, const char *spec)
  * event is placed after every event already due. Returns 0 or -1. */
 int scen_add_now(bench_t *b, const char *line)
 {
+    return scen_add_at(b, bench_now_us(b), line);
+}
+
+/* The same at a later time (a step of a chain, steps.c): placed after every
+ * event due at or before it. */
+int scen_add_at(bench_t *b, uint64_t at_us, const char *line)
+{
     char buf[256];
-    uint64_t now = bench_now_us(b);
+    uint64_t now = bench_now_us(b) > at_us ? bench_now_us(b) : at_us;
     int n = snprintf(buf, sizeof buf, "0 %s", line);
     uint16_t before = b->n_ev;
     if (n < 0 || (size_t)n >= sizeof buf || scen_add_line(b, buf) < 0) {
@@ -380,6 +391,7 @@ void scen_run_due(bench_t *b, uint64_t now)
         b->button_release_us = 0;
         bench_button(b, 0);
     }
+    steps_poll(b, now);
     while (b->next_ev < b->n_ev && b->ev[b->next_ev].at_us <= now) {
         bench_event_t *e = &b->ev[b->next_ev++];
         switch (e->kind) {
@@ -407,6 +419,7 @@ void scen_run_due(bench_t *b, uint64_t now)
         case EV_WDT_RESET:
         case EV_EXT_RESET:
             b->pending_reset = (uint8_t)e->kind;
+            b->truth.injected_resets++;
             return; /* the main loop resets; later events wait for it */
         case EV_POWER_LOSS:
             bench_finish(b, BENCH_EXIT_OK, "power-loss");
@@ -444,10 +457,17 @@ void scen_run_due(bench_t *b, uint64_t now)
             b->bus.noise_rate = e->farg[0];
             break;
         case EV_MAGNET_REMOVE:
-            b->magnet_removed = 1;
-            if (b->have_plant) {
+            if (b->have_plant && !b->magnet_removed) {
+                b->magnet_moment_Am2 = b->plant.cfg.magnet_moment_Am2;
                 b->plant.cfg.magnet_moment_Am2 = 0.0;
             }
+            b->magnet_removed = 1;
+            break;
+        case EV_MAGNET_RESTORE:
+            if (b->have_plant && b->magnet_removed) {
+                b->plant.cfg.magnet_moment_Am2 = b->magnet_moment_Am2;
+            }
+            b->magnet_removed = 0;
             break;
         case EV_FIELD:
         case EV_SATURATE:

@@ -94,6 +94,7 @@ int world_init(bench_t *b)
         }
     }
     b->next_world_us = 0;
+    truth_init(b);
     world_tick(b, 0);
     return 0;
 }
@@ -159,6 +160,7 @@ void world_tick(bench_t *b, uint64_t now)
         icmm_set_field_cuT(&b->twi.icm[k], (int32_t)lround(f[0] * 100.0),
                            (int32_t)lround(f[1] * 100.0), (int32_t)lround(f[2] * 100.0));
     }
+    truth_tick(b, now);
     twi_bench_advance(b, now);
     b->next_world_us = now + WORLD_TICK_US;
 }

@@ -1,0 +1,1 @@
+"""The randomized fault suite (docs/chaos.md)."""

@@ -1,0 +1,211 @@
+"""The invariants of the chaos suite, checked on one schedule's console log
+and the bench's summary (ground truth, sim/bench/truth.c). docs/chaos.md
+defines each one and its bound."""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+
+RELEASE_MS = 100.0          # every stop releases every tendon within this
+PULL_FACTOR = 1.25          # bounded pull: true tension <= 1.25 x target + 0.1 N
+PULL_OFFSET_MN = 100.0
+ACCURACY = 0.15             # final calibration: true tension within 15 % of target
+# The motion loop never leaves the servos alone longer while a calibration
+# runs: clean calibrations of the pool's robots measure 8-24 ms.
+BUS_GAP_MS = 50.0
+# Stops the release bound applies to. A power cycle is not one: the servos
+# lose power and the robot rests where it was (at its homes after a
+# calibration, which the quick re-home relies on).
+RELEASE_STOPS = {"bang", "fault", "released", "watchdog", "external"}
+
+LINE = re.compile(r"^\[\s*([0-9.]+)\] (.*)$")
+FIELDS = re.compile(r'(\w+)=("[^"]*"|\S+?)(?=\s|>|$)')
+
+
+def max_takeup_mm() -> float:
+    """The firmware's take-up search for a tendon's starting slack
+    (hom_config_t.max_takeup_um, set in lib/homing/homing.c)."""
+    m = re.search(r"max_takeup_um\s*=\s*(\d+)", (ROOT / "lib/homing/homing.c").read_text())
+    return int(m.group(1)) / 1000.0 if m else 4.0
+
+
+@dataclass
+class Verdict:
+    violations: dict[str, list[str]] = field(default_factory=dict)
+    figures: dict[str, float] = field(default_factory=dict)
+
+    def add(self, inv: str, msg: str) -> None:
+        self.violations.setdefault(inv, []).append(msg)
+
+    def fig(self, name: str, v: float, worst=max) -> None:
+        self.figures[name] = v if name not in self.figures else worst(self.figures[name], v)
+
+
+def parse_console(out: str) -> list[tuple[float, str]]:
+    lines = []
+    for ln in out.splitlines():
+        m = LINE.match(ln)
+        if m:
+            lines.append((float(m.group(1)), m.group(2)))
+    return lines
+
+
+def fields(line: str) -> dict[str, str]:
+    return dict(FIELDS.findall(line))
+
+
+def runs(console: list[tuple[float, str]]) -> list[dict]:
+    """Calibration attempts: from a start report to its end line (done,
+    fault, released) or a reboot; results seen on the way."""
+    out, cur = [], None
+    for t, ln in console:
+        if ln.startswith("<progress state=start"):
+            cur = {"t": t, "end": None, "end_t": None, "results": {}, "mode": fields(ln).get("mode")}
+            out.append(cur)
+        elif cur is not None and cur["end"] is None:
+            if ln.startswith("<result "):
+                f = fields(ln)
+                cur["results"][int(f.get("tendon", -1))] = int(f.get("home", -1))
+            elif ln.startswith(("<done", "<fault", "<released", "<boot")):
+                cur["end"], cur["end_t"] = ln, t
+    return out
+
+
+def first_attempt(attempts: list[dict], console, t0: float, within: float = 6.0):
+    """The calibration a press or `cal` at t0 started: its start report, or a
+    fault that refused it, within `within` s."""
+    for t, ln in console:
+        if t < t0:
+            continue
+        if t > t0 + within:
+            return None
+        if ln.startswith("<progress state=start"):
+            return next(a for a in attempts if a["t"] == t)
+        if ln.startswith("<fault"):
+            return {"t": t, "end": ln, "end_t": t, "results": {}, "mode": None}
+    return None
+
+
+def check(sch, summary: dict, out: str) -> Verdict:
+    v = Verdict()
+    console = parse_console(out)
+    tr = summary.get("truth", {})
+    target = float(summary.get("target_mN", 800))
+    attempts = runs(console)
+    steps = summary.get("steps", {}).get("log", [])
+
+    # --- recovery: every clean attempt after a disturbance completes
+    for n, idx in enumerate(sch.clean_steps):
+        final = n == len(sch.clean_steps) - 1
+        tag = "final calibration" if final else f"recovery attempt {n + 1}"
+        if idx >= len(steps):
+            v.add("recovery", f"{tag}: never started (the script stalled at step "
+                  f"{len(steps)} of {summary.get('steps', {}).get('count')})")
+            continue
+        t0 = steps[idx][0]
+        a = first_attempt(attempts, console, t0)
+        if a is None:
+            said = [ln for t, ln in console if t0 <= t <= t0 + 6.0
+                    and ln.startswith(("error:", "<fault", "<missing"))]
+            v.add("recovery", f"{tag} at {t0:.2f}s: no calibration started"
+                  + (f" ({said[0]})" if said else ""))
+            continue
+        if a["end"] is None or not a["end"].startswith("<done"):
+            v.add("recovery", f"{tag} at {t0:.2f}s: {a['end'] or 'did not end'}")
+    limit = max_takeup_mm()
+    for t in tr.get("tendons", []):
+        v.fig("max_start_slack_mm", t["max_start_slack_mm"])
+        v.fig("max_paid_out_mm", t["paid_out_mm"])
+        if t["max_start_slack_mm"] > limit:
+            v.add("recovery", f"tendon {t['tendon']}: {t['max_start_slack_mm']:.2f} mm slack at a "
+                  f"run's start, beyond the {limit:.1f} mm the take-up search covers")
+
+    # --- bounded pull before each tendon's home is recorded
+    bound = PULL_FACTOR * target + PULL_OFFSET_MN
+    for t in tr.get("tendons", []):
+        v.fig("peak_ratio", t["peak_before_home_mN"] / target)
+        if t["peak_before_home_mN"] > bound:
+            v.add("bounded_pull", f"tendon {t['tendon']}: {t['peak_before_home_mN']:.0f} mN "
+                  f"({t['peak_before_home_mN'] / target:.2f}x target) at {t['peak_at_s']:.2f}s, "
+                  f"bound {bound:.0f} mN")
+
+    # --- release after every stop, no baseline while taut
+    excused = set()
+    for t, ln in console:
+        if "not_released" in ln or "unreleased" in ln:
+            f = fields(ln)
+            for key in ("tendon", "index"):
+                if key in f and f[key].isdigit():
+                    excused.add(int(f[key]))
+    for s in tr.get("stops", []):
+        lat = [ms for i, ms in enumerate(s["tendon_ms"]) if i not in excused]
+        worst = -1.0 if any(ms < 0 for ms in lat) else max(lat, default=0.0)
+        if s["kind"] in RELEASE_STOPS:
+            v.fig("release_ms", worst if worst >= 0 else 1e9)
+            if worst < 0 or worst > RELEASE_MS:
+                v.add("release", f"{s['kind']} at {s['t_s']:.3f}s ({s['tension_mN']:.0f} mN): "
+                      + ("never released" if worst < 0 else f"released after {worst:.1f} ms"))
+    if tr.get("baselines_taut", 0):
+        v.add("release", f"{tr['baselines_taut']} baseline(s) taken with a tendon taut "
+              f"(up to {tr['baseline_max_mN']:.1f} mN)")
+    v.fig("baseline_max_mN", tr.get("baseline_max_mN", 0.0))
+
+    # --- replies: exactly one final reply per line
+    c = tr.get("console", {})
+    v.fig("lines_sent", c.get("lines_sent", 0))
+    v.fig("replies", c.get("replies", 0))
+    if c.get("unanswered", 0):
+        v.add("replies", f"{c['unanswered']} of {c['lines_sent']} lines never answered, the "
+              f"first sent at {c.get('first_unanswered_s', 0):.3f}s ({c['replies']} replies, "
+              f"{c.get('overrun_reports', 0)} overrun reports)")
+    if c.get("extra_replies", 0):
+        v.add("replies", f"{c['extra_replies']} replies to no line")
+
+    # --- timing: the motion loop keeps talking to the servos
+    gap = tr.get("max_bus_gap_ms", 0.0)
+    v.fig("bus_gap_ms", gap)
+    if gap > BUS_GAP_MS:
+        v.add("timing", f"servo bus silent {gap:.0f} ms during a run (at {tr['max_bus_gap_at_s']:.2f}s)")
+
+    # --- final calibration: accuracy, EEPROM records, resets
+    final = None
+    if sch.clean_steps and sch.clean_steps[-1] < len(steps):
+        final = first_attempt(attempts, console, steps[sch.clean_steps[-1]][0])
+    if final and final["end"] and final["end"].startswith("<done"):
+        for t in summary.get("tendons", []):
+            err = (t["tension_at_home_mN"] - target) / target
+            v.fig("final_err_pct", abs(err) * 100.0)
+            if abs(err) > ACCURACY:
+                v.add("accuracy", f"tendon {t['tendon']}: {t['tension_at_home_mN']:.0f} mN at home, "
+                      f"target {target:.0f} mN ({err * 100:+.1f} %)")
+        count = fields(final["end"]).get("count")
+        ready = [ln for t, ln in console if t > final["end_t"] and ln.startswith("<ready")]
+        hist = [ln for t, ln in console if t > final["end_t"] and ln.startswith("<hist age=0")]
+        if not ready:
+            v.add("eeprom", "no boot after the final calibration")
+        else:
+            f = fields(ready[-1])
+            if f.get("homes") != "stored" or f.get("count") != count:
+                v.add("eeprom", f"after the final calibration (count={count}) the boot reports "
+                      f"homes={f.get('homes')} count={f.get('count')}")
+            elif final["mode"] == "full" and len(final["results"]) == len(summary["tendons"]):
+                want = ",".join(str(final["results"][i]) for i in sorted(final["results"]))
+                got = fields(hist[-1]).get("homes") if hist else None
+                if got != want:
+                    v.add("eeprom", f"stored homes {got}, calibrated {want}")
+    resets = tr.get("resets", {})
+    if resets.get("total", 0) > resets.get("injected", 0):
+        boots = [ln for t, ln in console if ln.startswith("<boot")]
+        v.add("resets", f"{resets['total'] - resets['injected']} unexpected reset(s): "
+              + "; ".join(fields(b).get("reset", "?") for b in boots[1:]))
+    if summary.get("exit_code") == 2 or "no summary" in summary.get("reason", ""):
+        v.add("harness", f"bench refused the schedule: {summary.get('reason')}")
+    elif summary.get("exit_code") == 5:
+        v.add("harness", "bench interrupted by a signal (run it again)")
+    elif summary.get("exit_code") not in (0, 3):
+        v.add("resets", f"bench ended: {summary.get('reason')}")
+    return v

@@ -1,0 +1,218 @@
+"""Runs chaos schedules on the virtual bench and reports (docs/chaos.md).
+
+    python -m tests.chaos run [-n N] [--seed0 S] [--jobs J]   N schedules
+    python -m tests.chaos replay SEED                         one, console shown
+    python -m tests.chaos seeds FILE                          the seeds listed in FILE
+    python -m tests.chaos recheck [-n N] [--seed0 S]          the checks again on earlier runs
+
+Each schedule's files go to build/chaos/runs/<seed>/: the script
+(schedule.scn), the console log, the bench summary and the verdict. Seeds
+that fail are added to tests/chaos/regression_seeds.txt.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shlex
+import subprocess
+import sys
+import time
+from collections import Counter
+from concurrent.futures import ThreadPoolExecutor, as_completed
+from pathlib import Path
+
+from . import check as chk
+from . import robots as rb
+from . import schedule as sc
+
+ROOT = rb.ROOT
+BENCH = ROOT / "build" / "sim" / "hh_bench"
+RUNS = rb.BUILD / "runs"
+REGRESSION = Path(__file__).with_name("regression_seeds.txt")
+
+
+def bench_cmd(sch, robot, rundir: Path) -> list[str]:
+    return [str(BENCH), str(robot.elf), "--plant", str(robot.plant), "--seed", str(sch.bench_seed),
+            "--eeprom", str(rundir / "eeprom.bin"), "--timestamps", "--summary",
+            str(rundir / "summary.json"), "--limit", f"{sch.limit_s:.0f}s",
+            "--scenario", str(rundir / "schedule.scn")]
+
+
+def run_one(seed: int, pool: list, echo: bool = False) -> dict:
+    sch, robot = sc.generate(seed, pool)
+    rb.build(robot)
+    rundir = RUNS / str(seed)
+    rundir.mkdir(parents=True, exist_ok=True)
+    for stale in ("eeprom.bin", "summary.json"):
+        (rundir / stale).unlink(missing_ok=True)
+    (rundir / "schedule.scn").write_text(sch.script())
+    cmd = bench_cmd(sch, robot, rundir)
+    (rundir / "command.txt").write_text(shlex.join(cmd) + "\n")
+    t0 = time.time()
+    p = None
+    for _ in range(2):  # once more when something outside killed the bench
+        for stale in ("eeprom.bin", "summary.json"):
+            (rundir / stale).unlink(missing_ok=True)
+        p = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
+        if p.returncode != 5:
+            break
+    (rundir / "console.txt").write_text(p.stdout)
+    (rundir / "stderr.txt").write_text(p.stderr)
+    (rundir / "wall_s.txt").write_text(f"{time.time() - t0:.3f}\n")
+    if echo:
+        sys.stdout.write(p.stdout)
+    return judge(seed, pool)
+
+
+def judge(seed: int, pool: list) -> dict:
+    """The verdict on a schedule run earlier, from its files (the checks may
+    have changed since)."""
+    sch, robot = sc.generate(seed, pool)
+    rundir = RUNS / str(seed)
+    out = (rundir / "console.txt").read_text()
+    try:
+        summary = json.loads((rundir / "summary.json").read_text())
+    except (OSError, ValueError):
+        err = (rundir / "stderr.txt").read_text() if (rundir / "stderr.txt").exists() else ""
+        summary = {"exit_code": 2, "reason": "no summary: " + err[-300:]}
+    try:
+        wall = float((rundir / "wall_s.txt").read_text())
+    except (OSError, ValueError):
+        wall = 0.0
+    verdict = chk.check(sch, summary, out)
+    res = {"seed": seed, "robot": robot.describe(), "faults": sch.faults,
+           "violations": verdict.violations, "figures": verdict.figures, "wall_s": wall,
+           "sim_s": summary.get("sim_s", 0.0), "cpu_s": summary.get("cpu_s", 0.0), "timed_out_steps": summary.get("steps", {}).get(
+               "timed_out", 0)}
+    (rundir / "verdict.json").write_text(json.dumps(res, indent=1) + "\n")
+    return res
+
+
+def replay_line(seed: int) -> str:
+    return f"make chaos-replay SEED={seed}"
+
+
+def one_line(r: dict) -> str:
+    inv = ", ".join(f"{k}: {v[0]}" + (f" (+{len(v) - 1})" if len(v) > 1 else "")
+                    for k, v in r["violations"].items())
+    return f"seed {r['seed']} [{r['robot']}] {inv}"
+
+
+WORST = [("peak_ratio", "worst peak tension before home / target", "{:.2f}x (bound 1.25x + 0.1 N)"),
+         ("release_ms", "worst release after a stop", "{:.1f} ms (bound 100 ms)"),
+         ("baseline_max_mN", "highest tension during a baseline", "{:.1f} mN"),
+         ("bus_gap_ms", "longest servo-bus silence in a run", "{:.1f} ms (bound 50 ms)"),
+         ("max_start_slack_mm", "deepest slack at a run's start", "{:.2f} mm (search covers "
+          f"{chk.max_takeup_mm():.1f} mm)"),
+         ("max_paid_out_mm", "most tendon paid out in one schedule", "{:.1f} mm"),
+         ("final_err_pct", "worst final tension error", "{:.1f} % (bound 15 %)")]
+
+
+def report(results: list[dict], wall: float, jobs: int) -> int:
+    faults = Counter(k for r in results for k, _ in r["faults"])
+    phases = Counter(p for r in results for _, p in r["faults"])
+    by_inv = Counter(k for r in results for k in r["violations"])
+    failing = [r for r in results if r["violations"]]
+    sim = sum(r["sim_s"] for r in results)
+    print(f"\n=== chaos: {len(results)} schedules, {sum(faults.values())} faults injected, "
+          f"{sum(len(v) for r in results for v in r['violations'].values())} invariant "
+          f"violations in {len(failing)} schedules")
+    cpu = sum(r.get("cpu_s", 0.0) for r in results)
+    if jobs:
+        print(f"time: {wall:.0f} s wall with {jobs} jobs ({wall / max(1, len(results)):.1f} s "
+              "per schedule)")
+    print(f"simulated {sim:.0f} s, bench CPU time {cpu:.0f} s ({cpu / max(1, len(results)):.1f} s "
+          "per schedule)")
+    print("faults by type:  " + ", ".join(f"{k} {v}" for k, v in sorted(faults.items())))
+    print("faults by phase: " + ", ".join(f"{k} {v}" for k, v in sorted(phases.items())))
+    print("schedules violating each invariant: " + (", ".join(
+        f"{k} {v}" for k, v in sorted(by_inv.items())) or "none"))
+    for key, text, fmt in WORST:
+        vals = [r["figures"][key] for r in results if key in r["figures"]]
+        if vals:
+            worst = max(vals)
+            # 1e9: a tendon that never read slack again
+            print(f"  {text}: " + (fmt.format(worst) if worst < 1e9 else
+                                   "never: a tendon stayed taut" + fmt[fmt.index(" ("):]))
+    sent = sum(r["figures"].get("lines_sent", 0) for r in results)
+    rep = sum(r["figures"].get("replies", 0) for r in results)
+    print(f"  console: {sent:.0f} lines sent, {rep:.0f} final replies")
+    stalled = sum(1 for r in results if r["timed_out_steps"])
+    if stalled:
+        print(f"  {stalled} schedules waited out a step (a phase that never came)")
+    if failing:
+        print("\nfailing schedules (replay with the command shown):")
+        for r in failing:
+            print(f"  {one_line(r)}\n      {replay_line(r['seed'])}")
+        old = set(load_seeds(REGRESSION)) if REGRESSION.exists() else set()
+        new = [r["seed"] for r in failing if r["seed"] not in old]
+        if new:
+            with open(REGRESSION, "a") as f:
+                for s in new:
+                    f.write(f"{s}\n")
+            print(f"{len(new)} new failing seed(s) added to {REGRESSION.relative_to(ROOT)}")
+    return 1 if failing else 0
+
+
+def load_seeds(path: Path) -> list[int]:
+    return [int(ln.split("#")[0]) for ln in path.read_text().splitlines()
+            if ln.split("#")[0].strip()]
+
+
+def run_many(seeds: list[int], jobs: int, quiet: bool = False) -> list[dict]:
+    pool = rb.pool()
+    results = []
+    with ThreadPoolExecutor(max_workers=jobs) as ex:
+        futures = [ex.submit(run_one, s, pool) for s in seeds]
+        for n, fut in enumerate(as_completed(futures), 1):
+            r = fut.result()
+            results.append(r)
+            if not quiet:
+                state = "ok" if not r["violations"] else "FAIL " + ",".join(r["violations"])
+                print(f"[{n}/{len(seeds)}] seed {r['seed']}: {state} ({r['sim_s']:.0f} s sim, "
+                      f"{r['wall_s']:.0f} s wall)", flush=True)
+    return sorted(results, key=lambda r: r["seed"])
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m tests.chaos", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = ap.add_subparsers(dest="cmd", required=True)
+    a = sub.add_parser("run", help="N schedules from seed0 on")
+    a.add_argument("-n", type=int, default=20)
+    a.add_argument("--seed0", type=int, default=1)
+    a.add_argument("--jobs", type=int, default=os.cpu_count() or 2)
+    b = sub.add_parser("replay", help="one schedule, console shown")
+    b.add_argument("seed", type=int)
+    d = sub.add_parser("recheck", help="check N earlier runs again (no bench run)")
+    d.add_argument("-n", type=int, default=20)
+    d.add_argument("--seed0", type=int, default=1)
+    c = sub.add_parser("seeds", help="the seeds listed in a file")
+    c.add_argument("file", type=Path)
+    c.add_argument("--jobs", type=int, default=os.cpu_count() or 2)
+    args = ap.parse_args(argv)
+    if not BENCH.exists():
+        print(f"{BENCH} missing: run `make sim-build` first", file=sys.stderr)
+        return 2
+    t0 = time.time()
+    if args.cmd == "replay":
+        r = run_one(args.seed, rb.pool(), echo=True)
+        rundir = RUNS / str(args.seed)
+        print(f"\nschedule {rundir / 'schedule.scn'}; bench command in {rundir / 'command.txt'}")
+        print("faults: " + ", ".join(f"{k}@{p}" for k, p in r["faults"]))
+        print(one_line(r) if r["violations"] else f"seed {args.seed}: every invariant holds")
+        for k, msgs in r["violations"].items():
+            for m in msgs:
+                print(f"  {k}: {m}")
+        return 1 if r["violations"] else 0
+    if args.cmd == "recheck":
+        pool = rb.pool()
+        seeds = [s for s in range(args.seed0, args.seed0 + args.n)
+                 if (RUNS / str(s) / "console.txt").exists()]
+        return report([judge(s, pool) for s in seeds], 0.0, 0)
+    seeds = (list(range(args.seed0, args.seed0 + args.n)) if args.cmd == "run"
+             else load_seeds(args.file))
+    results = run_many(seeds, args.jobs)
+    return report(results, time.time() - t0, args.jobs)
