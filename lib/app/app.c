@@ -373,6 +373,18 @@ APP_NOINLINE static void win_set(app_t *a, uint8_t i, int32_t lo, int32_t hi, ui
     w->crc = win_crc(w);
 }
 
+/* Notes in the kept copy whether anything moves: a watchdog or reset-pin
+ * reset in the middle of a run leaves tendons taut, and the next boot
+ * releases them. */
+APP_NOINLINE static void win_moving(app_t *a, uint8_t on)
+{
+    app_win_t *w = a->io->win;
+    if (w != NULL && w->moving != on) {
+        w->moving = on;
+        w->crc = win_crc(w);
+    }
+}
+
 /* Takes the windows a run changed into the kept copy. */
 APP_NOINLINE static void win_take(app_t *a)
 {
@@ -411,6 +423,7 @@ int8_t app_init(app_t *app, const app_io_t *io)
     (void)store_settings_load(&app->store, &app->set);
     load_table(app);
     win_check(app);
+    app->reset_release = (uint8_t)(io->win != NULL && io->win->moving && app->table_ok);
     hom_init(&app->u.hom, NULL);
     dxl_config_default(&dc, app_bus_baud(app), io->servo_bits != 0u ? io->servo_bits : 10u);
     dxl_master_init(&app->dxl, &io->servo_port, &dc);
@@ -1062,6 +1075,7 @@ APP_NOINLINE static void rep_event(app_t *a, const hom_event_t *ev)
  * frame, so the offsets become 0), count it and queue the records. */
 APP_NOINLINE static void run_done(app_t *a)
 {
+    win_moving(a, 0);
     uint8_t i, k;
     uint32_t t = now_ms(a);
     a->amb_ok |= a->u.hom.amb_capture; /* read before u.idle reuses the storage */
@@ -1219,6 +1233,7 @@ static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon
     a->t_run = now_ms(a);
     a->servo_fresh = 0;
     a->state = APP_ST_CAL;
+    win_moving(a, 1);
     a->led = APP_LED_RUN;
     a->rest_due = 0;
     return 0;
@@ -1228,6 +1243,7 @@ static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon
  * servos have stopped. */
 APP_NOINLINE static void fault_rest(app_t *a, uint32_t t)
 {
+    win_moving(a, 0); /* the release goals are out: the servos finish them */
     a->state = APP_ST_FAULT;
     a->led = APP_LED_FAULT;
     a->rest_due = 1;
@@ -1294,6 +1310,7 @@ APP_NOINLINE static void cal_step(app_t *a, hom_in_t *in)
 
 static void move_start(app_t *a, uint8_t kind)
 {
+    win_moving(a, 1);
     a->move_kind = kind;
     a->t_move = now_ms(a);
     a->servo_fresh = 0;
@@ -1411,6 +1428,7 @@ APP_NOINLINE static void move_step(app_t *a)
     }
     a->rest_due = 1;
     a->t_rest = (uint16_t)t;
+    win_moving(a, 0);
     if (a->move_kind == MOVE_RELEASE) {
         learn_begin(a, LEARN_BASELINE); /* the robot stands straight: capture B0 */
         return;
@@ -1762,6 +1780,14 @@ int8_t app_poll(app_t *app)
         } else if (rc != 0) {
             rep_app_fault(a, s_refused, rc, HOM_DEV_NONE, 0);
         }
+    }
+    if (a->reset_release && a->state == APP_ST_IDLE) {
+        a->reset_release = 0;
+        (void)release_goals(a);
+        rep_begin(a, s_released);
+        con_report_flash(&a->con, s_reason, s_reset);
+        rep_end(a);
+        move_start(a, MOVE_RELEASE);
     }
     if (a->auto_release && a->state == APP_ST_IDLE && a->table_ok) {
         (void)release_goals(a);

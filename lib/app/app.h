@@ -112,6 +112,7 @@ enum {
 typedef struct {
     uint16_t magic; /* APP_WIN_MAGIC */
     uint16_t mask;  /* bit i: lo[i], hi[i] valid */
+    uint8_t moving; /* a run or move was under way: a reset then releases at boot */
     uint32_t table_id;
     int32_t lo[TBL_MAX_TENDONS];
     int32_t hi[TBL_MAX_TENDONS];
@@ -197,9 +198,10 @@ typedef struct {
     uint8_t req_mode;
     uint8_t req_tendon;
     uint8_t reboot_id;
-    uint8_t reboot_req;   /* `reboot` waits for the bus */
-    uint8_t auto_release; /* ID of a servo in hardware error: reboot it, then release */
-    uint8_t wdog_step;    /* Bus Watchdog writes left after a bring-up (two per servo) */
+    uint8_t reboot_req;    /* `reboot` waits for the bus */
+    uint8_t auto_release;  /* ID of a servo in hardware error: reboot it, then release */
+    uint8_t reset_release; /* a reset cut a run or move: release once the bus is up */
+    uint8_t wdog_step;     /* Bus Watchdog writes left after a bring-up (two per servo) */
     uint8_t btn_raw;
     uint8_t btn_state;
     uint8_t btn_long_done;

@@ -258,25 +258,42 @@ static void reply(con_t *c, int8_t rc)
 void con_report_begin(con_t *con, const char *kind)
 {
     con->olen = 0;
+    con->mute = 0;
+    if (con->realtime && con->io->room != NULL &&
+        con->io->room(con->io->ctx) <
+            (con->state == ST_CALL ? CON_OUT_MAX + CON_RESERVE : CON_MIN_ROOM)) {
+        con->mute = 1; /* dropped: assembling it would only cost time */
+        return;
+    }
     out_ch(con, '<');
     out_flash(con, kind);
 }
 
 void con_report_int(con_t *con, const char *key, int32_t v)
 {
+    if (con->mute) {
+        return;
+    }
     out_key(con, key);
     out_fixed(con, v, 0);
 }
 
 void con_report_fixed(con_t *con, const char *key, int32_t v, uint8_t decimals)
 {
+    if (con->mute) {
+        return;
+    }
     out_key(con, key);
     out_fixed(con, v, decimals);
 }
 
 void con_report_str(con_t *con, const char *key, const char *s)
 {
-    uint8_t q = needs_quotes(con, s, 0);
+    uint8_t q;
+    if (con->mute) {
+        return;
+    }
+    q = needs_quotes(con, s, 0);
     out_key(con, key);
     if (q) {
         out_ch(con, '"');
@@ -289,7 +306,11 @@ void con_report_str(con_t *con, const char *key, const char *s)
 
 void con_report_flash(con_t *con, const char *key, const char *s)
 {
-    uint8_t q = needs_quotes(con, s, 1);
+    uint8_t q;
+    if (con->mute) {
+        return;
+    }
+    q = needs_quotes(con, s, 1);
     out_key(con, key);
     if (q) {
         out_ch(con, '"');
@@ -302,6 +323,11 @@ void con_report_flash(con_t *con, const char *key, const char *s)
 
 void con_report_end(con_t *con)
 {
+    if (con->mute) {
+        con->mute = 0;
+        con->dropped++;
+        return;
+    }
     out_flash(con, s_rep_end);
     if (!flush(con, con->state == ST_CALL ? CON_RESERVE : 0u)) {
         con->dropped++;
@@ -721,12 +747,16 @@ int8_t con_poll(con_t *con, uint16_t now_ms)
         reply(con, 0);
         return 0;
     }
+    if (con->realtime && (uint16_t)(now_ms - con->t_line) < CON_RT_LINE_MS) {
+        return 0; /* realtime: one line per CON_RT_LINE_MS, the rest waits in the ring */
+    }
     for (n = 0; n < CON_POLL_BYTES; n++) {
         int16_t b = con->io->read(con->io->ctx);
         if (b < 0) {
             break;
         }
         if (take_byte(con, (uint8_t)b)) {
+            con->t_line = now_ms;
             break;
         }
     }

@@ -93,6 +93,8 @@ enum {
 #define CON_LINE_MAX   48    /* characters in a command line, terminator excluded */
 #define CON_MAX_ARGS   3     /* arguments after the command name */
 #define CON_PENDING_MS 3000u /* default deadline of a pending command */
+#define CON_RT_LINE_MS 25u   /* realtime mode: at most one command line per this many ms */
+#define CON_MIN_ROOM   48u   /* realtime mode: a run report starts only with this much room */
 #define CON_OUT_MAX    190u  /* realtime mode: longest line, CRLF included (longer: dropped) */
 #define CON_RESERVE                                                                                \
     64u /* realtime mode: room command output leaves for run reports;                              \
@@ -149,6 +151,7 @@ typedef struct con_s {
     uint16_t now;        /* ms, from the last con_poll() */
     uint16_t t_pending;  /* ms when the pending command was accepted */
     uint16_t pending_ms; /* deadline of a pending command; 0 = none */
+    uint16_t t_line;     /* ms when the last line was read */
     uint8_t len;
     uint8_t flags;
     uint8_t state; /* reading, pending, help, reply held */
@@ -156,6 +159,7 @@ typedef struct con_s {
     uint8_t realtime; /* con_set_realtime() */
     int8_t held_rc;   /* final reply waiting for room */
     uint8_t olen;     /* bytes in obuf; CON_OUT_MAX + 1 when the line overflowed */
+    uint8_t mute;     /* the report being assembled is dropped already (no room) */
     uint16_t dropped; /* report lines dropped (con_dropped()) */
     char obuf[CON_OUT_MAX];
 } con_t;
@@ -184,7 +188,13 @@ void con_set_timeout(con_t *con, uint16_t ms);
  * (con_dropped()); command output (a handler's reports, help lines) also
  * leaves CON_RESERVE bytes free for the run's own reports, help waits for
  * room line by line, and a final reply waits (no input is read meanwhile).
- * A line longer than CON_OUT_MAX is dropped. Off: output is written at once
+ * Command lines are read at most one per CON_RT_LINE_MS, so a burst of
+ * commands cannot take the loop's time from the motion (the rest waits in the
+ * receive buffer: the streaming rule still holds). A report that cannot fit
+ * is known at con_report_begin() (command output
+ * needs CON_OUT_MAX + CON_RESERVE free, a run report CON_MIN_ROOM): it is
+ * dropped there and its fields cost nothing. A line longer than CON_OUT_MAX
+ * is dropped. Off: output is written at once
  * and write() may wait. */
 void con_set_realtime(con_t *con, uint8_t on);
 

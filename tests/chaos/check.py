@@ -4,6 +4,7 @@ defines each one and its bound."""
 
 from __future__ import annotations
 
+import json
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -31,6 +32,18 @@ def max_takeup_mm() -> float:
     (hom_config_t.max_takeup_um, set in lib/homing/homing.c)."""
     m = re.search(r"max_takeup_um\s*=\s*(\d+)", (ROOT / "lib/homing/homing.c").read_text())
     return int(m.group(1)) / 1000.0 if m else 4.0
+
+
+def search_covers_mm(robot: str) -> list[float]:
+    """Per tendon, the slack the firmware's take-up finds from where a run
+    may leave it: what a tendon of unknown state is released by before its
+    engagement window is known (1.5 x the top-grid travel + the 0.6 mm slack
+    margin, docs/app.md "Recovery") plus the search past the window
+    (max_takeup_um). Repeated stops add nothing to it."""
+    from .robots import ROBOTS  # local: robots imports this module's callers
+    table = json.loads((ROBOTS / robot / "tables" / f"{robot}.json").read_text())["table"]
+    return [max_takeup_mm() + 1.5 * t["travel_um"][-1] / 1000.0 + 0.6 + 0.05
+            for t in table["tendons"][: table["n_tendons"]]]
 
 
 @dataclass
@@ -116,8 +129,9 @@ def check(sch, summary: dict, out: str) -> Verdict:
             continue
         if a["end"] is None or not a["end"].startswith("<done"):
             v.add("recovery", f"{tag} at {t0:.2f}s: {a['end'] or 'did not end'}")
-    limit = max_takeup_mm()
+    covers = search_covers_mm(sch.robot)
     for t in tr.get("tendons", []):
+        limit = covers[t["tendon"]]
         v.fig("max_start_slack_mm", t["max_start_slack_mm"])
         v.fig("max_paid_out_mm", t["paid_out_mm"])
         if t["max_start_slack_mm"] > limit:
