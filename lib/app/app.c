@@ -1064,6 +1064,13 @@ APP_NOINLINE static void rep_event(app_t *a, const hom_event_t *ev)
     case HOM_EV_RELEASED:
         rep_begin(a, s_released);
         rep_word(a, s_reason, s_fault_words, (uint8_t)ev->a);
+        if ((ev->a == HOM_F_SERVO_TIMEOUT || ev->a == HOM_F_SERVO_ERROR) &&
+            a->u.hom.fault_index < a->info.n_tendons) {
+            /* a servo that does not answer, or has its torque off, cannot
+             * take the release: named (a hardware error is rebooted next) */
+            rep_int(a, s_not_released, a->ids[a->u.hom.fault_index]);
+            rep_int(a, s_index, a->u.hom.fault_index);
+        }
         rep_end(a);
         break;
     default:

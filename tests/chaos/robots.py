@@ -132,11 +132,16 @@ def _run(cmd: list[str], log: Path) -> None:
         raise RuntimeError(f"{' '.join(map(str, cmd[:3]))}... failed, see {log}")
 
 
+_make_lock = threading.Lock()  # builds share build/fw/include: one make at a time
+
+
 def build_firmware(r: Robot, log: Path) -> None:
     """The firmware of robot r with its table built in: the one place that
     knows how the Makefile builds a firmware for another robot."""
-    _run(["make", "--no-print-directory", f"-j{os.cpu_count() or 2}", "firmware",
-          f"ROBOT={r.name}", f"ROBOTS_DIR={r.dir}", f"TABLES_DIR={r.table_c.parent}"], log)
+    with _make_lock:
+        _run(["make", "--no-print-directory", f"-j{os.cpu_count() or 2}", "firmware",
+              f"ROBOT={r.name}", f"ROBOTS_DIR={r.dir}", f"TABLES_DIR={r.table_c.parent}"],
+             log)
 
 
 _locks: dict[str, threading.Lock] = {}
