@@ -129,9 +129,10 @@ def check(sch, summary: dict, out: str) -> Verdict:
             continue
         if a["end"] is None or not a["end"].startswith("<done"):
             v.add("recovery", f"{tag} at {t0:.2f}s: {a['end'] or 'did not end'}")
-    covers = search_covers_mm(sch.robot)
+    robot = getattr(sch, "robot", None)
+    covers = search_covers_mm(robot) if robot else None
     for t in tr.get("tendons", []):
-        limit = covers[t["tendon"]]
+        limit = covers[t["tendon"]] if covers else max_takeup_mm()
         v.fig("max_start_slack_mm", t["max_start_slack_mm"])
         v.fig("max_paid_out_mm", t["paid_out_mm"])
         if t["max_start_slack_mm"] > limit:
