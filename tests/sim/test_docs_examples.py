@@ -149,6 +149,18 @@ def do_dry(cmd, tmp):
     return r
 
 
+def do_dry_chaos(cmd, tmp):
+    # a table row: the target, its VAR=value settings (brackets mark optional
+    # ones, shown with their defaults), then prose
+    words = cmd.replace("[", " ").replace("]", " ").split()
+    argv = [w for w in words[:2] if w in ("make",) or w.startswith("chaos")]
+    argv += [w for w in words[2:] if re.fullmatch(r"[A-Z0-9]+=\d+", w)]
+    argv += ["SEED=1"] if "chaos-replay" in argv and not any(w.startswith("SEED=") for w in argv) \
+        else []
+    r = run([argv[0], "-n", *argv[1:]], timeout=120)
+    assert r.returncode == 0 and "No rule to make target" not in r.out, r.out[-3000:]
+
+
 def do_dry_flash(cmd, tmp):
     r = do_dry(cmd, tmp)
     robot = re.search(r"ROBOT=(\S+)", " ".join(fill(cmd, tmp)))
@@ -266,6 +278,8 @@ RULES = [
     (r"^make sim(\s|$)", ("run (3-10 s), SEED=3 when none is shown", do_make_sim)),
     (r"^make (sim-test|test|bench|bench-check|unit|host-test|lint|fuzz|tables-check)(\s|$)",
      DRY_WHY),
+    (r"^make chaos(-\w+)?(\s|$)", ("runs for minutes to hours on the bench: dry run",
+                                   do_dry_chaos)),
     (r"^make format$", ("rewrites every C file in place: dry run", do_dry)),
     (r"^make tables$", ("rewrites the committed tables (make tables-check runs for real): dry run",
                         do_dry)),
