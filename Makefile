@@ -45,11 +45,15 @@ TABLE_OBJ := $(if $(TABLE_SRC),$(AVR_DIR)/table_$(ROBOT).o)
 ROBOT_KNOWN := $(or $(wildcard $(ROBOTS_DIR)/$(ROBOT).toml),$(TABLE_SRC))
 FW_SRCS  := $(wildcard firmware/*.c) $(wildcard lib/*/*.c)
 FW_OBJS  := $(patsubst %.c,$(AVR_DIR)/%.o,$(FW_SRCS)) $(TABLE_OBJ)
+# Interprocedural passes that clone functions for constant arguments or
+# split their parameters grow the AVR image; one LTO partition lets the
+# linker see every caller (measured: -0.4 KB).
+AVR_SIZE_OPT := -fno-ipa-sra -fno-ipa-cp-clone -flto-partition=none
 AVR_CFLAGS := -mmcu=$(MCU) -DF_CPU=$(F_CPU) -std=c99 -Os -g -Wall -Wextra -Werror -pedantic \
 	-Wshadow -Wstrict-prototypes -Wmissing-prototypes -ffunction-sections -fdata-sections \
-	-mcall-prologues -mstrict-X -fno-inline-small-functions -flto -mrelax -Ilib -Ifirmware -I$(FW_GEN_DIR) -DTBL_FLASH=__attribute__\(\(__progmem__\)\) \
+	-mcall-prologues -mstrict-X -fno-inline-small-functions $(AVR_SIZE_OPT) -flto -mrelax -Ilib -Ifirmware -I$(FW_GEN_DIR) -DTBL_FLASH=__attribute__\(\(__progmem__\)\) \
 	-DHH_ROBOT=$(ROBOT) -MMD -MP
-AVR_LDFLAGS := -mmcu=$(MCU) -Os -mcall-prologues -mstrict-X -fno-inline-small-functions -flto -mrelax -Wl,--gc-sections -Wl,-Map,$(FW_MAP)
+AVR_LDFLAGS := -mmcu=$(MCU) -Os -mcall-prologues -mstrict-X -fno-inline-small-functions $(AVR_SIZE_OPT) -flto -mrelax -Wl,--gc-sections -Wl,-Map,$(FW_MAP)
 
 # Shell lines that stop a target for an unknown robot or a missing table.
 NO_ROBOT = { echo "make $(or $(MAKECMDGOALS),firmware): no robot '$(ROBOT)': neither $(ROBOTS_DIR)/$(ROBOT).toml nor $(TABLES_DIR)/$(ROBOT).c exists"; \

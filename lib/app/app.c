@@ -1599,7 +1599,10 @@ APP_NOINLINE static void store_task(app_t *a)
     if (store_busy(&a->store)) {
         int8_t rc = store_poll(&a->store, idle);
         if (rc <= 0) {
-            if (a->save_now == SAVE_SETTINGS && con_pending(&a->con)) {
+            if ((a->save_now == SAVE_SETTINGS ||
+                 (a->save_now == SAVE_LEARNED && a->forgetting && a->forget_mask == 0u)) &&
+                con_pending(&a->con)) {
+                a->forgetting = 0;
                 (void)con_complete(&a->con, rc == 0 ? 0 : CON_E_EEPROM);
             } else if (rc < 0) {
                 rep_app_fault(a, s_eeprom, CON_E_EEPROM, HOM_DEV_NONE, a->save_now);
@@ -1607,6 +1610,20 @@ APP_NOINLINE static void store_task(app_t *a)
             a->save_now = 0;
         }
         return;
+    }
+    if (idle && a->forget_mask != 0u && !rec_busy(a)) {
+        /* `forget`: an empty learned record per tendon, one at a time */
+        uint8_t t = 0;
+        while (has(a->forget_mask, t) == 0u) {
+            t++;
+        }
+        memset(&a->u.idle.rec.learned, 0, sizeof a->u.idle.rec.learned);
+        a->u.idle.rec.learned.table_id = a->info.table_id;
+        a->u.idle.rec.learned.tendon = t;
+        a->u.idle.rec.learned.n_grid = a->info.n_grid;
+        a->forget_mask &= (uint16_t)~bit16(t);
+        a->learned_mask &= (uint16_t)~bit16(t);
+        save_queue(a, SAVE_LEARNED);
     }
     if (!idle || a->save_due == 0u) {
         return;
@@ -1619,7 +1636,9 @@ APP_NOINLINE static void store_task(app_t *a)
         (void)store_save_hist(&a->store, &a->u.idle.rec.hist);
     } else if (a->save_due & SAVE_LEARNED) {
         a->save_now = SAVE_LEARNED;
-        a->learned_mask |= bit16(a->u.idle.rec.learned.tendon);
+        if (a->u.idle.rec.learned.grid_mask != 0u) {
+            a->learned_mask |= bit16(a->u.idle.rec.learned.tendon);
+        }
         (void)store_save_learned(&a->store, &a->u.idle.rec.learned);
     } else {
         a->save_now = SAVE_SETTINGS;
@@ -2086,6 +2105,40 @@ static int8_t h_learn(con_t *con, const con_args_t *args, void *ctx)
     return CON_PENDING;
 }
 
+/* `forget T|all`: the learned targets of tendon T, or of every tendon, are
+ * erased (empty records saved); the compiled table's targets apply again. */
+static int8_t h_forget(con_t *con, const con_args_t *args, void *ctx)
+{
+    app_t *a = ctx;
+    const char *w = args->s[0];
+    uint16_t m = 0;
+    (void)con;
+    if (!a->table_ok) {
+        return CON_E_NO_TABLE;
+    }
+    if (!idle_state(a) || rec_busy(a) || a->forget_mask != 0u) {
+        return CON_E_BUSY;
+    }
+    if (strcmp(w, "all") == 0) {
+        m = all_mask(a);
+    } else {
+        uint8_t t = 0;
+        for (; *w != '\0'; w++) {
+            if (*w < '0' || *w > '9' || t > 20u) {
+                return CON_E_BAD_TENDON;
+            }
+            t = (uint8_t)(t * 10u + (uint8_t)(*w - '0'));
+        }
+        if (t >= a->info.n_tendons) {
+            return CON_E_BAD_TENDON;
+        }
+        m = bit16(t);
+    }
+    a->forget_mask = m & a->learned_mask;
+    a->forgetting = (uint8_t)(a->forget_mask != 0u);
+    return a->forgetting ? CON_PENDING : 0;
+}
+
 static int8_t h_table(con_t *con, const con_args_t *args, void *ctx)
 {
     app_t *a = ctx;
@@ -2225,6 +2278,10 @@ static int8_t h_set(con_t *con, const con_args_t *args, void *ctx)
     if ((a->save_due & SAVE_SETTINGS) || a->save_now == SAVE_SETTINGS) {
         return CON_E_BUSY; /* the record is being written */
     }
+    if (f == STORE_SET_CAL_TENSION && a->table_ok &&
+        (args->v[1] < a->info.grid_mN[0] || args->v[1] > a->info.grid_mN[a->info.n_grid - 1u])) {
+        return CON_E_TENSION_RANGE; /* every press would be refused */
+    }
     rc = store_setting_set(&a->store, &a->set, (uint8_t)f, args->v[1]);
     if (rc != 0) {
         return CON_E_SETTING_RANGE;
@@ -2266,4 +2323,5 @@ const con_handler_fn app_handlers[CON_CMD_COUNT] CON_FLASH = {
     [CON_CMD_HOME] = h_home,       [CON_CMD_RELEASE] = h_release, [CON_CMD_LEARN] = h_learn,
     [CON_CMD_TABLE] = h_table,     [CON_CMD_HISTORY] = h_history, [CON_CMD_GET] = h_get,
     [CON_CMD_SET] = h_set,         [CON_CMD_SAVE] = h_save,       [CON_CMD_REBOOT] = h_reboot,
+    [CON_CMD_FORGET] = h_forget,
 };

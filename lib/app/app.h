@@ -219,6 +219,8 @@ typedef struct {
     uint16_t run_tension;
     uint16_t req_tension;
     uint16_t learned_mask; /* bit t: tendon t has a learned record for this table */
+    uint16_t forget_mask;  /* bit t: `forget` still has to erase tendon t's record */
+    uint8_t forgetting;    /* a `forget` waits for its records to be written */
     uint16_t acc;          /* profile acceleration of every goal */
     const struct app_io_s *io;
     /* times */

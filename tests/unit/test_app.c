@@ -298,7 +298,11 @@ static void test_settings(void **state)
     boot(&g_b, 1);
     cmd(&g_b, "set cal_tension 900", "ok");
     cmd(&g_b, "set nope 1", "error:17 unknown setting");
-    cmd(&g_b, "set cal_tension 1", "error:18 setting value out of range");
+    cmd(&g_b, "set cal_tension 1", "error:16 tension outside the table grid");
+    cmd(&g_b, "set filter_k 99", "error:18 setting value out of range");
+    /* inside the setting's range but outside the table's grid (200..1500) */
+    cmd(&g_b, "set cal_tension 100", "error:16 tension outside the table grid");
+    cmd(&g_b, "set cal_tension 1600", "error:16 tension outside the table grid");
     cmd(&g_b, "save", "ok");
     app_bench_restart(&g_b, 0);
     assert_true(app_bench_wait_line(&g_b, "<ready ", g_line, sizeof g_line, 4000));
@@ -425,6 +429,17 @@ static void test_learn_with_weight(void **state)
         "error:25 implausible reading: not above noise or not rising with "
         "tension");
     g_b.weight_on = 0;
+    /* forget: the compiled target applies again, and survives a restart */
+    cmd(&g_b, "forget 12", "error:15 no such tendon");
+    cmd(&g_b, "forget x", "error:15 no such tendon");
+    cmd(&g_b, "forget 1", "ok");
+    assert_int_equal(g_b.app.learned_mask, 0);
+    assert_int_equal(tbl_tendon(&g_b.app.htab, 1, &eff), 0);
+    assert_int_equal(eff.target_cuT[4], g_b.table.tendons[1].target_cuT[4]);
+    cmd(&g_b, "forget all", "ok"); /* nothing left: at once */
+    app_bench_restart(&g_b, 0);
+    assert_true(app_bench_wait_line(&g_b, "<ready ", g_line, sizeof g_line, 4000));
+    assert_int_equal(g_b.app.learned_mask, 0);
 }
 
 /* The pace of the AVR (about 2 ms per pass) and a start at an even

@@ -125,7 +125,7 @@ static void test_every_command_dispatches(void **state)
             snprintf(line, sizeof(line), "%s 2 0.5\n", name);
         } else if (i == CON_CMD_SET) {
             snprintf(line, sizeof(line), "%s filter_k 4\n", name);
-        } else if (i == CON_CMD_REBOOT) {
+        } else if (i == CON_CMD_REBOOT || i == CON_CMD_FORGET) {
             snprintf(line, sizeof(line), "%s 3\n", name);
         } else {
             snprintf(line, sizeof(line), "%s\n", name);
