@@ -20,6 +20,8 @@ from . import schedule as sc
 FIXED = [3, 5, 9, 10, 187]
 # seed: what fails on the firmware of this commit (docs/chaos.md)
 KNOWN_FAILING = {
+    3: "tendon 5 pulled to about 1.6x its target in a fine approach under 1e-4 bus noise and "
+       "console traffic (passes or fails with small timing changes of the build; not analysed)",
     5: "3-segment robot: the bench plant and the generated table disagree on the segment-3 "
        "tendon (travel_limit even in a clean calibration), which is pulled to 3-4x its target "
        "before the travel limit stops it",
