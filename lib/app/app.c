@@ -881,7 +881,9 @@ APP_NOINLINE static void servo_next(app_t *a)
         if (a->hwerr_due || (!force && (a->sv_cycle % APP_HWERR_EVERY) == 0u)) {
             a->hwerr_due = 0;
         } else {
-            if (!force && (a->sv_cycle % APP_GOAL_REFRESH_EVERY) == APP_GOAL_REFRESH_EVERY / 2u) {
+            /* even between forced position reads: a lost goal is worse
+             * than a late position */
+            if ((a->sv_cycle % APP_GOAL_REFRESH_EVERY) == APP_GOAL_REFRESH_EVERY / 2u) {
                 a->goal_due = off_goal(a); /* this cycle refreshes goals instead */
             }
             addr = DXL_XL430_PRESENT_POSITION_ADDR;

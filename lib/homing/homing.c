@@ -1355,6 +1355,13 @@ HOM_NOINLINE static void do_tendon(hom_t *h, const hom_in_t *in)
     if (beyond_limit(h, p)) {
         return;
     }
+    if (t->engaged && pull(t, p - h->out.goal[h->cur]) > HOM_DROOP_TICKS &&
+        since(h, h->moved_ms[h->cur]) >= 10u) {
+        /* pulling past the goal last sent: the servo missed that goal (a
+         * sync write gets no status) and still runs to an older one; send
+         * it again, every 10 ms until it takes */
+        set_goal(h, h->cur, h->out.goal[h->cur], h->out.vel[h->cur]);
+    }
     switch (h->state) {
     case ST_TAKEUP:
         if (fresh && !t->engaged && b >= h->engage_cuT) {
