@@ -129,21 +129,9 @@ uint32_t hom_norm3(const int32_t v[3])
 
 const char *hom_fault_name(int fault)
 {
-    /* the words of HOM_FAULT_WORDS, split once into a buffer of its own */
-    static char words[sizeof HOM_FAULT_WORDS];
-    static const char *names[HOM_F_COUNT];
-    if (names[0] == NULL) {
-        char *p = words;
-        int n = 0;
-        memcpy(words, HOM_FAULT_WORDS, sizeof words);
-        names[n++] = p;
-        for (; *p != '\0' && n < (int)HOM_F_COUNT; p++) {
-            if (*p == ' ') {
-                *p = '\0';
-                names[n++] = p + 1;
-            }
-        }
-    }
+#define HOM_FAULT_NAME(id, word) word,
+    static const char *const names[HOM_F_COUNT] = {HOM_FAULTS(HOM_FAULT_NAME)};
+#undef HOM_FAULT_NAME
     if (fault < 0 || fault >= (int)HOM_F_COUNT) {
         return "unknown";
     }

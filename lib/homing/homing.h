@@ -101,36 +101,40 @@ typedef enum {
     HOM_MODE_DRY = 3
 } hom_mode_t;
 
-/* Why a run ended in a fault. hom_fault_name() gives the console word, the
- * n-th word of HOM_FAULT_WORDS (the one declaration of the words: firmware
- * keeps it in flash). */
-#define HOM_FAULT_WORDS                                                                            \
-    "none aborted preflight sensor_timeout sensor_error saturated field_rate servo_timeout "       \
-    "servo_error servo_stall travel_limit no_engagement no_progress tendon_timeout slack "         \
-    "magnet_missing field_step"
+/* Why a run ended in a fault, declared once: the enum (HOM_F_<ID>), the
+ * console words hom_fault_name() returns, and HOM_FAULT_WORDS (the words in
+ * enum order separated by spaces, which the firmware keeps in flash) all
+ * come from this list. */
+#define HOM_FAULTS(X)                                                                              \
+    X(NONE, "none")                                                                                \
+    X(ABORTED, "aborted")               /* hom_abort(): button long press, '!' */                  \
+    X(PREFLIGHT, "preflight")           /* devices missing or faulty before motion */              \
+    X(SENSOR_TIMEOUT, "sensor_timeout") /* a sensor gave no sample for sensor_timeout_ms */        \
+    X(SENSOR_ERROR, "sensor_error")     /* a sensor reported read errors 3 times in a row */       \
+    X(SATURATED, "saturated")           /* a sensor overflowed (HOFL) or read beyond sat_cuT */    \
+    X(FIELD_RATE, "field_rate")         /* a field jumped more than rate_limit_cuT per sample */   \
+    X(SERVO_TIMEOUT, "servo_timeout")   /* a servo did not answer for servo_timeout_ms */          \
+    X(SERVO_ERROR, "servo_error")       /* a servo reported a hardware error */                    \
+    X(SERVO_STALL, "servo_stall")       /* a servo did not reach its goal in time */               \
+    X(TRAVEL_LIMIT, "travel_limit")     /* the target lies beyond the travel limit */              \
+    X(NO_ENGAGEMENT, "no_engagement")   /* no field change within the take-up search */            \
+    X(NO_PROGRESS, "no_progress")       /* the field does not rise towards the target */           \
+    X(TENDON_TIMEOUT, "tendon_timeout") /* one tendon took longer than tendon_timeout_ms */        \
+    X(SLACK, "slack")                   /* the field kept changing while releasing */              \
+    X(MAGNET_MISSING, "magnet_missing") /* baseline far below the straight-pose prediction */      \
+    X(FIELD_STEP, "field_step")         /* released after its home, the tendon did not bring the   \
+                                           field back to the baseline: a magnet, sensor or iron    \
+                                           moved (the home is not recorded) */
 
 typedef enum {
-    HOM_F_NONE = 0,
-    HOM_F_ABORTED,        /* hom_abort(): button long press, '!' */
-    HOM_F_PREFLIGHT,      /* devices missing or faulty before motion (see HOM_EV_MISSING) */
-    HOM_F_SENSOR_TIMEOUT, /* a sensor delivered no sample for sensor_timeout_ms */
-    HOM_F_SENSOR_ERROR,   /* a sensor reported read errors 3 times in a row */
-    HOM_F_SATURATED,      /* a sensor overflowed (HOFL) or read beyond sat_cuT */
-    HOM_F_FIELD_RATE,     /* a sensor's field jumped more than rate_limit_cuT between samples */
-    HOM_F_SERVO_TIMEOUT,  /* a servo did not answer for servo_timeout_ms */
-    HOM_F_SERVO_ERROR,    /* a servo reported a hardware error */
-    HOM_F_SERVO_STALL,    /* a servo did not reach its goal in time */
-    HOM_F_TRAVEL_LIMIT,   /* the target lies beyond the travel limit past engagement */
-    HOM_F_NO_ENGAGEMENT,  /* no field change within max_takeup_um (tendon, magnet) */
-    HOM_F_NO_PROGRESS,    /* the field does not rise towards the target (unreachable) */
-    HOM_F_TENDON_TIMEOUT, /* one tendon took longer than tendon_timeout_ms */
-    HOM_F_SLACK,          /* the field kept changing while releasing: slack not confirmed */
-    HOM_F_MAGNET_MISSING, /* baseline field far below the table's straight-pose prediction */
-    HOM_F_FIELD_STEP,     /* with the tendon released after its home, the field did not come
-                             back to the baseline: a magnet, sensor or iron moved (the home is
-                             not recorded) */
-    HOM_F_COUNT
+#define HOM_FAULT_ENUM(id, word) HOM_F_##id,
+    HOM_FAULTS(HOM_FAULT_ENUM)
+#undef HOM_FAULT_ENUM
+        HOM_F_COUNT
 } hom_fault_t;
+
+#define HOM_FAULT_WORD(id, word) word " "
+#define HOM_FAULT_WORDS          HOM_FAULTS(HOM_FAULT_WORD)
 
 /* Device kinds named in events. */
 enum { HOM_DEV_NONE = 0, HOM_DEV_SENSOR = 1, HOM_DEV_SERVO = 2, HOM_DEV_TENDON = 3 };
