@@ -283,6 +283,7 @@ typedef struct {
     uint64_t lines_sent, replies, extra_replies, lost_at_reset, unanswered, excused_overrun;
     uint64_t first_unanswered_us; /* when the first line never answered was sent */
     uint64_t overrun_reports, bangs;
+    uint32_t overrun_budget; /* lines an overrun may have cost, not yet seen unanswered */
     /* resets */
     uint64_t injected_resets, resets;
     /* motion loop: the longest servo-bus silence while a run is active */
