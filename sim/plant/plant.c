@@ -46,6 +46,14 @@ static double compliance(const plant_cfg_t *c, uint8_t i, uint8_t m)
            (di[0] * dm[0] + di[1] * dm[1]);
 }
 
+double plant_path_compliance(const plant_cfg_t *cfg, uint8_t i, uint8_t m)
+{
+    if (cfg == NULL || i >= cfg->n_tendons || m >= cfg->n_tendons) {
+        return 0.0;
+    }
+    return compliance(cfg, i, m);
+}
+
 /* Gravity curvature of segment j (1/m, body-frame vector, small-deflection):
  * the tip mass's lateral weight times the lever from the segment's middle. */
 static void gravity_curv(const plant_cfg_t *c, uint8_t j, double k[2])

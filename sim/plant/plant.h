@@ -203,6 +203,12 @@ int plant_true_home(const plant_cfg_t *cfg, uint8_t i, uint16_t tension_mN, doub
  * Returns 0, PLANT_E_ARG or PLANT_E_SOLVE. */
 int plant_true_engagement(const plant_cfg_t *cfg, uint8_t i, double *ticks);
 
+/* Path compliance of the plant: how far tendon i's path shortens per newton
+ * of tip-side tension in tendon m (m/N), from the segments both span; the
+ * diagonal is a tendon's own bending shortening (sim/plant/pose.h uses it).
+ * 0 for an index out of range. */
+double plant_path_compliance(const plant_cfg_t *cfg, uint8_t i, uint8_t m);
+
 /* The model-free analogue of the host's table generator, the plant playing the
  * part of hanging weights: for every tendon and grid tension, pulls the plant
  * (noise-free) to the true home and records |B - B0| at every sensor, the
