@@ -11,7 +11,7 @@ What the robot TOML does not describe is set from keyword arguments: initial
 slack, friction along the tendon path, spool backlash, ambient field, the
 simple servo's time constant. With ``perturb > 0`` the physical values are
 perturbed with a seeded generator the same way ``plant_cfg_perturb()`` does in
-C (every stiffness (each segment's EI), free length, friction, backlash and the magnet moment
+C (every stiffness (each segment's EI and EA), free length, friction, backlash and the magnet moment
 times ``1 + perturb * u``, radii and segment lengths ``1 + 0.2 perturb u``,
 angles ``+- 5 deg * perturb``, sensor positions ``+- 1 mm * perturb``, slack
 ``+- 500 um * perturb``; ``u`` uniform in [-1, 1]), so the file describes "the
@@ -119,6 +119,10 @@ def plant_lines(robot: Robot, seed: int | None = None, perturb: float = 0.0, *,
             p + f"mux = {TBL_NO_MUX if s.mux_channel is None else s.mux_channel}",
             p + f"addr = {s.i2c_address:#04x}",
         ]
+    # drawn last, so the draws above stay what they were before this key
+    ei_at = next(k for k, ln in enumerate(lines) if ln.startswith("segment_ei_Nm2")) + 1
+    lines.insert(ei_at, "segment_ea_N = " + " ".join(
+        _fmt(s.axial_stiffness * (1.0 + perturb * u())) for s in robot.segments))
     return lines
 
 

@@ -105,14 +105,11 @@ def straight_shift_um(robot: Robot, grid_N, model: CosseratModel | None = None) 
     return out
 
 
-def straight_stiffness_N_per_m(robot: Robot, tension_N: float,
-                               model: CosseratModel | None = None,
-                               step_N: float = 0.02) -> np.ndarray:
-    """dT_i/du_i at the pose of every tendon at T, the other spools held
-    still: how much tension one tendon gains per metre of its own take-up in
-    the straight pose. The take-up per tension is A = diag((path + free) / EA)
-    + dd/dtau (central differences of the Cosserat model around T 1); with the
-    other take-ups fixed, dT_i = [A^-1]_ii du_i. This one depends on EA."""
+def straight_compliance(robot: Robot, tension_N: float, model: CosseratModel | None = None,
+                        step_N: float = 0.02) -> np.ndarray:
+    """A = d(take-up)/d(tension) at the pose of every tendon at T, m/N,
+    (n, n): diag((path + free) / EA) plus the path's response dd/dtau
+    (central differences of the Cosserat model around T 1). Depends on EA."""
     m = _model(robot, model)
     n = len(robot.tendons)
     base = np.full(n, float(tension_N))
@@ -123,15 +120,29 @@ def straight_stiffness_N_per_m(robot: Robot, tension_N: float,
         up[k] += step_N
         dn[k] -= step_N
         a[:, k] = (m.solve(up).take_up - m.solve(dn).take_up) / (2.0 * step_N)
-    return np.diag(np.linalg.inv(a))
+    return a
+
+
+def straight_stiffness_N_per_m(robot: Robot, tension_N: float,
+                               model: CosseratModel | None = None,
+                               common: bool = False) -> np.ndarray:
+    """Tension gained per metre of take-up in the straight pose, per tendon:
+    with common=False dT_i/du_i with the other spools held still
+    ([A^-1]_ii, A from ``straight_compliance``); with common=True the gain of
+    each tendon when every spool takes up the same length (A^-1 1), the mode a
+    systematic error of every home excites. The second is stiffer: the
+    tendons cancel each other's bending, only stretch and compression
+    remain."""
+    inv = np.linalg.inv(straight_compliance(robot, tension_N, model))
+    return inv.sum(axis=1) if common else np.diag(inv)
 
 
 def tolerance_ticks(robot: Robot, tension_N: float, tol_N: float = 0.05,
-                    model: CosseratModel | None = None) -> np.ndarray:
+                    model: CosseratModel | None = None, common: bool = False) -> np.ndarray:
     """Per tendon, how many encoder ticks of its own spool move its tension
-    in the straight pose by tol_N (the others held): the encoder floor of a
-    tension tolerance."""
-    k = straight_stiffness_N_per_m(robot, tension_N, model)
+    in the straight pose by tol_N (the others held; with common=True every
+    spool by as many ticks): the encoder floor of a tension tolerance."""
+    k = straight_stiffness_N_per_m(robot, tension_N, model, common)
     mpt = np.array([t.metres_per_tick for t in robot.tendons])
     return tol_N / k / mpt
 
@@ -175,7 +186,11 @@ def main(argv: list[str] | None = None) -> int:
               + f"   {p.tip_deviation_mm:.4f}")
         if args.tolerance:
             tk = tolerance_ticks(robot, t, args.tolerance, model)
-            print(f"  +-{args.tolerance:g} N in ticks: " + " ".join(f"{v:7.2f}" for v in tk))
+            tc = tolerance_ticks(robot, t, args.tolerance, model, common=True)
+            print(f"  +-{args.tolerance:g} N, one tendon (ticks):  "
+                  + " ".join(f"{v:7.2f}" for v in tk))
+            print(f"  +-{args.tolerance:g} N, all together (ticks): "
+                  + " ".join(f"{v:7.2f}" for v in tc))
     return 0
 
 

@@ -9,7 +9,9 @@
  *     tendon that ends at or beyond it (tendons coupled across segments),
  *     curvature = sum(T_tip * r * direction) / EI (EI per segment), plus an
  *     optional gravity term;
- *   - tendon path shortening r * (direction . curvature) * L per segment;
+ *   - tendon path shortening r * (direction . curvature) * L per segment,
+ *     plus the backbone's axial compression L * (sum of the tip tensions of
+ *     the tendons through the segment) / EA when a segment's EA is given;
  *   - tendon elasticity k = EA / L_free and slack (no compression);
  *   - friction along the tendon path as a play operator between spool-side
  *     and tip-side tension (dead band f0 + mu * T: hysteresis);
@@ -92,6 +94,7 @@ typedef struct {
     double seg_len_mm[PLANT_MAX_SEGMENTS];
     double ei_Nm2;                         /* backbone bending stiffness */
     double seg_ei_Nm2[PLANT_MAX_SEGMENTS]; /* per segment, when > 0 (else ei_Nm2) */
+    double seg_ea_N[PLANT_MAX_SEGMENTS];   /* backbone axial stiffness, 0 = inextensible */
     double nm_per_tick;                    /* spool take-up per encoder tick */
     double magnet_moment_Am2;   /* dipole moment along the tip's z axis (0 = magnet missing) */
     double magnet_offset_mm;    /* magnet centre beyond the tip along tip z */

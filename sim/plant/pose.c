@@ -121,3 +121,64 @@ int plant_straight_homes(const plant_cfg_t *cfg, uint16_t tension_mN, double tic
     }
     return PLANT_E_SOLVE;
 }
+
+/* |B - b0| (cuT) at sensor k with tendon i alone at take-up take_um. */
+static double field_change(const plant_cfg_t *cfg, uint8_t i, uint8_t k, const double b0[3],
+                           double take_um)
+{
+    plant_t p;
+    double b[3];
+    double s = 0.0;
+    uint8_t m;
+    int a;
+    (void)plant_init(&p, cfg, 0);
+    for (m = 0; m < cfg->n_tendons; m++) {
+        (void)plant_set_motor(&p, m, take_to_ticks(cfg, m, cfg->tendon[m].slack_um - 20000.0));
+    }
+    (void)plant_solve(&p);
+    (void)plant_set_motor(&p, i, take_to_ticks(cfg, i, take_um));
+    (void)plant_solve(&p);
+    plant_field_true(&p, k, b);
+    for (a = 0; a < 3; a++) {
+        s += (b[a] - b0[a]) * (b[a] - b0[a]);
+    }
+    return sqrt(s) * 100.0;
+}
+
+int plant_field_home(const plant_cfg_t *cfg, uint8_t i, uint8_t k, double target_cuT, double *ticks)
+{
+    plant_t p;
+    double b0[3];
+    double lo;
+    double hi;
+    uint8_t m;
+    int n;
+    if (cfg == NULL || ticks == NULL || plant_cfg_check(cfg) != 0 || i >= cfg->n_tendons ||
+        k >= cfg->n_sensors || !(target_cuT > 0.0)) {
+        return PLANT_E_ARG;
+    }
+    (void)plant_init(&p, cfg, 0);
+    for (m = 0; m < cfg->n_tendons; m++) {
+        (void)plant_set_motor(&p, m, take_to_ticks(cfg, m, cfg->tendon[m].slack_um - 20000.0));
+    }
+    (void)plant_solve(&p);
+    plant_field_true(&p, k, b0);
+    lo = cfg->tendon[i].slack_um - 5000.0;
+    hi = cfg->tendon[i].slack_um;
+    for (n = 0; n < 40 && field_change(cfg, i, k, b0, hi) <= target_cuT; n++) {
+        hi += 1000.0;
+    }
+    if (n == 40 || field_change(cfg, i, k, b0, lo) > target_cuT) {
+        return PLANT_E_SOLVE;
+    }
+    for (n = 0; n < 50; n++) {
+        double mid = 0.5 * (lo + hi);
+        if (field_change(cfg, i, k, b0, mid) > target_cuT) {
+            hi = mid;
+        } else {
+            lo = mid;
+        }
+    }
+    *ticks = take_to_ticks(cfg, i, 0.5 * (lo + hi));
+    return 0;
+}

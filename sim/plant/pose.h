@@ -50,4 +50,12 @@ int plant_pose_ramp(const plant_cfg_t *cfg, const double ticks[], plant_pose_res
  * last iterate). */
 int plant_straight_homes(const plant_cfg_t *cfg, uint16_t tension_mN, double ticks[]);
 
+/* The home a field-target calibration measures, noise-free: the motor
+ * position where tendon i, pulled from slack with the others slack, brings
+ * |B - B0| at sensor k (B0: every tendon slack) to target_cuT, i.e. where the
+ * table's target for a tension meets the plant. Returns 0, PLANT_E_ARG or
+ * PLANT_E_SOLVE (the field never reaches the target within 40 mm). */
+int plant_field_home(const plant_cfg_t *cfg, uint8_t i, uint8_t k, double target_cuT,
+                     double *ticks);
+
 #endif /* HALLHOME_PLANT_POSE_H */
