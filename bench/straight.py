@@ -151,12 +151,23 @@ def study(robot: Robot, tensions, seeds: int, perturb: float, tmp: Path, out=pri
         sensors = [tr.selected for tr in res.tendons]
         for kind in ("field", "true"):
             kw = dict(targets_cuT=targets, sensors=sensors) if kind == "field" else {}
-            cases = [run_case(cfg, T, sp.shift_um, 1, 0.0, **kw)]
-            cases += [run_case(cfg, T, sp.shift_um, s, perturb, **kw)
-                      for s in range(1, seeds + 1)]
+            cases, lost = [], 0
+            for s in range(0, seeds + 1):
+                try:
+                    cases.append(run_case(cfg, T, sp.shift_um, max(s, 1),
+                                          perturb if s else 0.0, **kw))
+                except RuntimeError:  # a plant the field target never reaches
+                    if s == 0:
+                        cases.append(None)
+                    lost += 1
             for label, cs in (("nominal", cases[:1]), (f"+-{perturb:.0%}", cases[1:])):
+                cs = [c for c in cs if c is not None]
                 if not cs:
+                    out(f"| {robot.name} ({shape}) | {T:.1f} | {label} | {kind} | "
+                        "no home: the field never reaches the target |")
                     continue
+                if label != "nominal" and lost:
+                    label += f" ({lost} of {seeds} without a home)"
                 e_st = np.concatenate([c.straight_err_N for c in cs])
                 e_si = np.concatenate([c.single_err_N for c in cs])
                 e_al = np.concatenate([c.alone_err_N for c in cs])

@@ -158,8 +158,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--tension", "-t", type=float, action="append",
                     help="tension in N (repeatable; default: the robot's grid)")
     ap.add_argument("--list", action="store_true",
-                    help="print only the shifts of the first tension, comma-separated "
-                         "(the form hh_bench --straight-um takes)")
+                    help="print only the shifts at the first tension (default: the robot's "
+                         "default tension), comma-separated (the form hh_bench --straight-um "
+                         "takes)")
     ap.add_argument("--tolerance", type=float, metavar="N",
                     help="also print the encoder ticks that move a tendon's tension by N "
                          "in the straight pose")
@@ -169,7 +170,7 @@ def main(argv: list[str] | None = None) -> int:
     except (OSError, RobotError) as e:
         print(f"hallhome.straight: {e}", file=sys.stderr)
         return 2
-    grid = args.tension or list(robot.tension_grid)
+    grid = args.tension or ([robot.default_tension] if args.list else list(robot.tension_grid))
     if any(not t > 0.0 for t in grid):
         print("hallhome.straight: tensions must be > 0 N", file=sys.stderr)
         return 2
