@@ -55,6 +55,11 @@ int world_init(bench_t *b)
         return -1;
     }
     b->have_plant = 1;
+    if (b->have_straight != 0 && b->have_straight != cfg.n_tendons) {
+        fprintf(stderr, "hh_bench: --straight-um has %u values for %u tendons\n", b->have_straight,
+                cfg.n_tendons);
+        return -1;
+    }
     b->target_mN = b->tension_N > 0.0 ? (int32_t)lround(b->tension_N * 1000.0) : cfg.default_mN;
     uint64_t rng = 0x243F6A8885A308D3ull ^ ((uint64_t)b->seed * 0x9E3779B97F4A7C15ull);
     if (rng == 0) {
