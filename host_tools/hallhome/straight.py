@@ -105,6 +105,23 @@ def straight_shift_um(robot: Robot, grid_N, model: CosseratModel | None = None) 
     return out
 
 
+INT16_MAX = 32767
+
+
+def straight_um_table(robot: Robot, grid_N, model: CosseratModel | None = None) -> np.ndarray:
+    """``straight_shift_um`` rounded to whole um as the table's signed int16
+    ``straight_um`` carries it (int array, same shape); ValueError naming the
+    tendon and tension when a shift does not fit."""
+    shifts = straight_shift_um(robot, grid_N, model)
+    out = np.rint(shifts).astype(np.int64)
+    bad = np.argwhere(np.abs(out) > INT16_MAX)
+    if bad.size:
+        i, g = (int(x) for x in bad[0])
+        raise ValueError(f"{robot.name}: tendon {i} at {float(np.atleast_1d(grid_N)[g]):g} N: "
+                         f"straight shift {shifts[i, g]:.0f} um outside int16")
+    return out.astype(np.int16)
+
+
 def straight_compliance(robot: Robot, tension_N: float, model: CosseratModel | None = None,
                         step_N: float = 0.02) -> np.ndarray:
     """A = d(take-up)/d(tension) at the pose of every tendon at T, m/N,

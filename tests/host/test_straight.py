@@ -15,7 +15,7 @@ from hallhome.paths import ROBOTS_DIR
 from hallhome.plantcfg import write_plant_config
 from hallhome.robot import load_robot
 from hallhome.straight import (MODEL_STEPS, main, straight_pose, straight_shift_um,
-                               tolerance_ticks)
+                               straight_um_table, tolerance_ticks)
 from hallhome.tablegen import compute
 
 from test_model import tiny_robot_toml
@@ -93,6 +93,14 @@ def test_an_unbalanced_robot_is_not_straight_and_needs_no_shift(tmp_path):
     p = straight_pose(r, 0.5)
     assert abs(p.shift_um[0]) < 1e-9
     assert p.tip_deviation_mm > 0.5
+
+
+def test_int16_table_form(paper, paper_shifts):
+    t = straight_um_table(paper, paper.tension_grid)
+    assert t.dtype == np.int16 and np.array_equal(t, np.rint(paper_shifts))
+    # about 730 um per newton at segment 2: 60 N would need 44 mm
+    with pytest.raises(ValueError, match="tendon 3 at 60 N"):
+        straight_um_table(paper, [0.8, 60.0])
 
 
 def test_bad_tension_refused(paper):
