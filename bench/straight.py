@@ -131,7 +131,7 @@ def study(robot: Robot, tensions, seeds: int, perturb: float, tmp: Path, out=pri
           plant_kw=None):
     cfg = tmp / f"{robot.name}.cfg"
     try:
-        write_plant_config(robot, cfg, **(plant_kw or {}))
+        write_plant_config(robot, cfg, compression=True, **(plant_kw or {}))
     except PlantConfigError as e:
         out(f"| {robot.name} | - | - | - | not on the plant: {e} |")
         return []

@@ -155,7 +155,8 @@ def parse(out):
 
 @pytest.fixture(scope="module")
 def paper_plant(tmp_path_factory, paper):
-    return write_plant_config(paper, tmp_path_factory.mktemp("plant") / "paper.cfg")
+    return write_plant_config(paper, tmp_path_factory.mktemp("plant") / "paper.cfg",
+                              compression=True)
 
 
 @pytest.fixture(scope="module")
