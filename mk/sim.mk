@@ -83,6 +83,8 @@ sim: $(if $(SIM_ROBOT_KNOWN),$(SIM_PLANT) $(BENCH) firmware,sim-no-robot)
 		ls sim/bench/scenarios | sed 's/\.scn$$//; s/^/  /'; exit 2; }
 	@mkdir -p $(SIM_DIR)/eeprom
 	@echo "make sim: ROBOT=$(ROBOT) SEED=$(SEED) TENSION=$(or $(TENSION),default) FAULT=$(or $(FAULT),none)"
+	@# the straight-pose shifts of the robot description (T_straight in the table)
+	S=$$($(if $(wildcard $(ROBOT_TOML)),$(PY) -m hallhome.straight $(ROBOT_TOML) --list $(if $(TENSION),-t $(TENSION)),true) || true); \
 	$(BENCH) $(FW_ELF) --plant $(SIM_PLANT) --seed $(SEED) --eeprom $(SIM_STATE) \
 		--summary $(SIM_DIR)/summary.json --timestamps --table --linger 3s \
 		$(if $(TENSION),--tension $(TENSION) --at "0.3s send set cal_tension $(shell awk 'BEGIN{printf "%d", $(TENSION)*1000}')") \
@@ -90,7 +92,7 @@ sim: $(if $(SIM_ROBOT_KNOWN),$(SIM_PLANT) $(BENCH) firmware,sim-no-robot)
 			--limit $(SIM_LIMIT) --at "1s press 100" \
 			$(if $(FAULT),--scenario $(SIM_SCN), \
 				--until '$(SIM_UNTIL)' --fail-on '$(SIM_FAIL)' --check-tension $(SIM_TOL))) \
-		$(SIM_ARGS)
+		$${S:+--straight-um $$S} $(SIM_ARGS)
 
 # The suites run the default robot's firmware (paper_2seg), whatever ROBOT is.
 SIM_TEST_ROBOT := paper_2seg

@@ -11,7 +11,7 @@ What the robot TOML does not describe is set from keyword arguments: initial
 slack, friction along the tendon path, spool backlash, ambient field, the
 simple servo's time constant. With ``perturb > 0`` the physical values are
 perturbed with a seeded generator the same way ``plant_cfg_perturb()`` does in
-C (every stiffness (each segment's EI), free length, friction, backlash and the magnet moment
+C (every stiffness (each segment's EI, and EA with ``compression``), free length, friction, backlash and the magnet moment
 times ``1 + perturb * u``, radii and segment lengths ``1 + 0.2 perturb u``,
 angles ``+- 5 deg * perturb``, sensor positions ``+- 1 mm * perturb``, slack
 ``+- 500 um * perturb``; ``u`` uniform in [-1, 1]), so the file describes "the
@@ -47,7 +47,7 @@ def _vec(v) -> str:
 def plant_lines(robot: Robot, seed: int | None = None, perturb: float = 0.0, *,
                 slack_um: float = 1000.0, friction_mN: float = 10.0, friction_mu: float = 0.02,
                 backlash_um: float = 30.0, ambient_uT=EARTH_FIELD_UT,
-                servo_tau_ms: float = 4.0) -> list[str]:
+                servo_tau_ms: float = 4.0, compression: bool = False) -> list[str]:
     """The plant config as a list of lines (see ``write_plant_config``)."""
     if perturb < 0.0:
         raise PlantConfigError(f"perturb: expected >= 0, got {perturb}")
@@ -119,6 +119,11 @@ def plant_lines(robot: Robot, seed: int | None = None, perturb: float = 0.0, *,
             p + f"mux = {TBL_NO_MUX if s.mux_channel is None else s.mux_channel}",
             p + f"addr = {s.i2c_address:#04x}",
         ]
+    if compression:
+        # drawn last, so the draws above stay what they were without this key
+        ei_at = next(k for k, ln in enumerate(lines) if ln.startswith("segment_ei_Nm2")) + 1
+        lines.insert(ei_at, "segment_ea_N = " + " ".join(
+            _fmt(s.axial_stiffness * (1.0 + perturb * u())) for s in robot.segments))
     return lines
 
 
@@ -156,7 +161,10 @@ def write_plant_config(robot: Robot, path: str | Path, seed: int | None = None,
     physical parameters reproducibly; other keyword arguments
     (``slack_um``, ``friction_mN``, ``friction_mu``, ``backlash_um``,
     ``ambient_uT``, ``servo_tau_ms``) set what the robot TOML does not
-    describe. Raises ``PlantConfigError`` for robots the plant cannot model
+    describe; ``compression=True`` adds the backbone's axial stiffness
+    (``segment_ea_N``: the plant then compresses the backbone under the
+    tendons, as the straight-pose proof needs; off by default, so the
+    bench, the chaos robots and their recorded outcomes stay as they were). Raises ``PlantConfigError`` for robots the plant cannot model
     (``plant_problems``).
     """
     path = Path(path)

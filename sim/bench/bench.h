@@ -347,6 +347,8 @@ struct bench_t {
     double perturb;
     uint8_t servo_baud_index; /* Baud Rate field the servos power up with (3 = 1 Mbps) */
     double tension_N;
+    double straight_um[BENCH_MAX_SERVOS]; /* --straight-um: shift to the straight-pose home */
+    uint8_t have_straight;
     double start_slack_min_mm, start_slack_max_mm;
     uint8_t realtime;
     uint8_t quiet_stats;
@@ -441,6 +443,22 @@ void world_report(bench_t *b, FILE *json, FILE *table, double tol_pct);
 /* Counts the tendons whose true tension is outside tol_pct % of the target;
  * when any is, writes a reason naming every one of them into reason[n]. */
 int world_check_tension(bench_t *b, double tol_pct, char *reason, size_t n);
+
+/* poses.c: the final pose's truth and the straight pose computed from the
+ * homes (docs/homing.md, "Straight-pose homes") */
+typedef struct {
+    double tip_dev_mm;                  /* tip distance from straight */
+    double tension_N[BENCH_MAX_SERVOS]; /* spool-side tension */
+} bench_pose_t;
+/* The plant as it stands now (after the final move: every tendon at its
+ * single-tendon home) into *now; with --straight-um, every tendon at its home
+ * (the servo's goal, in the plant's frame) minus its shift, reached together
+ * from slack (plant_pose_ramp), into *straight. Returns 1 when *straight was
+ * computed, 0 when not (no shifts), negative on a plant error. */
+int poses_report(bench_t *b, bench_pose_t *now, bench_pose_t *straight);
+/* Parses --straight-um: comma-separated um, one per tendon of the plant
+ * (checked at the report). Returns 0 or -1. */
+int poses_parse(bench_t *b, const char *list);
 
 /* truth.c: the invariants' measurements (docs/chaos.md) */
 void truth_init(bench_t *b);

@@ -543,6 +543,8 @@ static void usage(FILE *f)
         "  --slack MIN:MAX       start slack before engagement in mm (0.3:2)\n"
         "  --tension N           calibration tension for the truth table (plant default)\n"
         "  --table               print the per-tendon table at exit\n"
+        "  --straight-um U0,U1.. per tendon, um to pay out from its home to its straight-pose\n"
+        "                        home: the table adds the tensions of that pose (computed)\n"
         "  --check-tension PCT   exit 1 unless every tendon's true tension at home is within "
         "PCT%%\n"
         "exit: 0 ok, 1 fail-on/check, 2 usage, 3 time limit before --until, 4 firmware stopped, "
@@ -685,6 +687,12 @@ int main(int argc, char **argv)
         } else if (strcmp(a, "--tension") == 0) {
             NEEDV();
             b->tension_N = strtod(v, NULL);
+        } else if (strcmp(a, "--straight-um") == 0) {
+            NEEDV();
+            if (poses_parse(b, v) != 0) {
+                fprintf(stderr, "hh_bench: bad --straight-um %s\n", v);
+                return BENCH_EXIT_USAGE;
+            }
         } else if (strcmp(a, "--trace-bus") == 0) {
             b->bus.trace = 1;
         } else if (strcmp(a, "--table") == 0) {

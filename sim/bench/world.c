@@ -55,6 +55,11 @@ int world_init(bench_t *b)
         return -1;
     }
     b->have_plant = 1;
+    if (b->have_straight != 0 && b->have_straight != cfg.n_tendons) {
+        fprintf(stderr, "hh_bench: --straight-um has %u values for %u tendons\n", b->have_straight,
+                cfg.n_tendons);
+        return -1;
+    }
     b->target_mN = b->tension_N > 0.0 ? (int32_t)lround(b->tension_N * 1000.0) : cfg.default_mN;
     uint64_t rng = 0x243F6A8885A308D3ull ^ ((uint64_t)b->seed * 0x9E3779B97F4A7C15ull);
     if (rng == 0) {
@@ -209,16 +214,20 @@ int world_check_tension(bench_t *b, double tol_pct, char *reason, size_t n)
 void world_report(bench_t *b, FILE *json, FILE *table, double tol_pct)
 {
     const plant_cfg_t *cfg = &b->plant.cfg;
+    bench_pose_t now;
+    bench_pose_t straight;
+    int have_straight;
     if (!b->have_plant) {
         if (json) {
             fprintf(json, "  \"tendons\": []");
         }
         return;
     }
+    have_straight = poses_report(b, &now, &straight) == 1;
     if (table) {
         fprintf(table,
                 "\ntendon  id  home_ticks  home_mm  true_home  err_ticks  T_home_mN  target_mN  "
-                "err_mN   err_%%  result\n");
+                "err_mN   err_%%  T_final_mN  T_straight_mN  result\n");
     }
     if (json) {
         fprintf(json,
@@ -228,6 +237,11 @@ void world_report(bench_t *b, FILE *json, FILE *table, double tol_pct)
                 b->fault_at_us && b->released_at_us >= b->fault_at_us
                     ? (double)(b->released_at_us - b->fault_at_us) * 1e-3
                     : -1.0);
+        fprintf(json,
+                "  \"final_pose\": {\"tip_dev_mm\": %.4f},\n"
+                "  \"straight_pose\": {\"computed\": %s, \"tip_dev_mm\": %.4f},\n",
+                now.tip_dev_mm, have_straight ? "true" : "false",
+                have_straight ? straight.tip_dev_mm : -1.0);
         fprintf(json, "  \"target_mN\": %d,\n  \"tendons\": [", (int)b->target_mN);
     }
     for (uint8_t i = 0; i < b->bus.n_servos; i++) {
@@ -242,9 +256,14 @@ void world_report(bench_t *b, FILE *json, FILE *table, double tol_pct)
         int32_t present = xl430_present_position(m);
         double err_mN = t_home - (double)b->target_mN;
         if (table) {
-            fprintf(table, "%6u %3u %11d %8.3f %10.1f %10.1f %10.1f %10d %8.1f %7.1f  %6s\n", i,
-                    m->cfg.id, (int)goal, take_mm, home, shaft - home, t_home, (int)b->target_mN,
-                    err_mN, 100.0 * err_mN / (double)b->target_mN,
+            char st[16] = "-";
+            if (have_straight) {
+                snprintf(st, sizeof st, "%.1f", straight.tension_N[i] * 1000.0);
+            }
+            fprintf(table,
+                    "%6u %3u %11d %8.3f %10.1f %10.1f %10.1f %10d %8.1f %7.1f %11.1f %14s  %6s\n",
+                    i, m->cfg.id, (int)goal, take_mm, home, shaft - home, t_home, (int)b->target_mN,
+                    err_mN, 100.0 * err_mN / (double)b->target_mN, now.tension_N[i] * 1000.0, st,
                     tol_pct < 0.0 ? "-" : (within_tol(b, t_home, tol_pct) ? "pass" : "FAIL"));
         }
         if (json) {
@@ -255,17 +274,34 @@ void world_report(bench_t *b, FILE *json, FILE *table, double tol_pct)
                 "\"torque\": %u, \"hw_error\": %u, \"shaft_ticks\": %.2f, \"take_up_mm\": %.4f, "
                 "\"true_engagement_ticks\": %.2f, \"true_home_ticks\": %.2f, \"err_ticks\": %.2f, "
                 "\"tension_at_home_mN\": %.1f, \"tension_now_mN\": %.1f, \"err_mN\": %.1f, "
-                "\"max_tension_mN\": %.1f, \"max_take_up_mm\": %.4f, \"last_move_s\": %.6f}",
+                "\"max_tension_mN\": %.1f, \"max_take_up_mm\": %.4f, \"last_move_s\": %.6f, "
+                "\"tension_straight_mN\": %.1f}",
                 i ? "," : "", i, m->cfg.id, (int)cfg->tendon[i].pull_dir, (int)goal, (int)present,
                 (unsigned)xl430_get(m, DXL_XL430_TORQUE_ENABLE_ADDR, 1),
                 (unsigned)xl430_get(m, DXL_XL430_HW_ERROR_ADDR, 1), shaft, take_mm, eng,
                 isnan(home) ? -1.0 : home, isnan(home) ? 0.0 : shaft - home, t_home,
                 b->plant.tension_N[i] * 1000.0, err_mN, b->max_tension_N[i] * 1000.0,
-                b->max_take_up_ticks[i] * cfg->nm_per_tick / 1e6,
-                (double)b->last_move_us[i] * 1e-6);
+                b->max_take_up_ticks[i] * cfg->nm_per_tick / 1e6, (double)b->last_move_us[i] * 1e-6,
+                have_straight ? straight.tension_N[i] * 1000.0 : -1.0);
         }
     }
     if (json) {
         fprintf(json, "\n  ]");
+    }
+    if (table) {
+        fprintf(table,
+                "T_home: the tendon alone at its single-tendon home (others slack), the "
+                "calibration's definition; result judges it\n"
+                "T_final: every tendon at its single-tendon home together, the plant now (tip "
+                "%.3f mm from straight)\n",
+                now.tip_dev_mm);
+        if (have_straight) {
+            fprintf(table,
+                    "T_straight: every tendon at its home minus its straight-pose shift together "
+                    "(computed on the plant from these homes, tip %.3f mm from straight)\n",
+                    straight.tip_dev_mm);
+        } else {
+            fprintf(table, "T_straight: - (no straight-pose shifts given: --straight-um)\n");
+        }
     }
 }

@@ -28,12 +28,14 @@ static double seg_ei(const plant_cfg_t *c, uint8_t j)
 }
 
 /* Path compliance between tendons i and m: how far tendon i's path shortens
- * per newton at the tip of tendon m (m/N), from the segments both span. */
+ * per newton at the tip of tendon m (m/N), from the segments both span:
+ * bending, and the backbone's compression when its EA is given. */
 static double compliance(const plant_cfg_t *c, uint8_t i, uint8_t m)
 {
     double di[2];
     double dm[2];
     double len = 0.0;
+    double axial = 0.0;
     uint8_t j;
     uint8_t top =
         c->tendon[i].segment < c->tendon[m].segment ? c->tendon[i].segment : c->tendon[m].segment;
@@ -41,9 +43,22 @@ static double compliance(const plant_cfg_t *c, uint8_t i, uint8_t m)
     tendon_dir(c, m, dm);
     for (j = 0; j < top; j++) {
         len += c->seg_len_mm[j] * 1e-3 / seg_ei(c, j);
+        /* every tendon through segment j compresses it, shortening every path */
+        if (c->seg_ea_N[j] > 0.0) {
+            axial += c->seg_len_mm[j] * 1e-3 / c->seg_ea_N[j];
+        }
     }
     return len * c->tendon[i].radius_mm * 1e-3 * c->tendon[m].radius_mm * 1e-3 *
-           (di[0] * dm[0] + di[1] * dm[1]);
+               (di[0] * dm[0] + di[1] * dm[1]) +
+           axial;
+}
+
+double plant_path_compliance(const plant_cfg_t *cfg, uint8_t i, uint8_t m)
+{
+    if (cfg == NULL || i >= cfg->n_tendons || m >= cfg->n_tendons) {
+        return 0.0;
+    }
+    return compliance(cfg, i, m);
 }
 
 /* Gravity curvature of segment j (1/m, body-frame vector, small-deflection):

@@ -9,7 +9,9 @@
  *     tendon that ends at or beyond it (tendons coupled across segments),
  *     curvature = sum(T_tip * r * direction) / EI (EI per segment), plus an
  *     optional gravity term;
- *   - tendon path shortening r * (direction . curvature) * L per segment;
+ *   - tendon path shortening r * (direction . curvature) * L per segment,
+ *     plus the backbone's axial compression L * (sum of the tip tensions of
+ *     the tendons through the segment) / EA when a segment's EA is given;
  *   - tendon elasticity k = EA / L_free and slack (no compression);
  *   - friction along the tendon path as a play operator between spool-side
  *     and tip-side tension (dead band f0 + mu * T: hysteresis);
@@ -92,6 +94,7 @@ typedef struct {
     double seg_len_mm[PLANT_MAX_SEGMENTS];
     double ei_Nm2;                         /* backbone bending stiffness */
     double seg_ei_Nm2[PLANT_MAX_SEGMENTS]; /* per segment, when > 0 (else ei_Nm2) */
+    double seg_ea_N[PLANT_MAX_SEGMENTS];   /* backbone axial stiffness, 0 = inextensible */
     double nm_per_tick;                    /* spool take-up per encoder tick */
     double magnet_moment_Am2;   /* dipole moment along the tip's z axis (0 = magnet missing) */
     double magnet_offset_mm;    /* magnet centre beyond the tip along tip z */
@@ -202,6 +205,12 @@ int plant_true_home(const plant_cfg_t *cfg, uint8_t i, uint16_t tension_mN, doub
  * with the others slack, starts to move the tip (tip-side tension > 0).
  * Returns 0, PLANT_E_ARG or PLANT_E_SOLVE. */
 int plant_true_engagement(const plant_cfg_t *cfg, uint8_t i, double *ticks);
+
+/* Path compliance of the plant: how far tendon i's path shortens per newton
+ * of tip-side tension in tendon m (m/N), from the segments both span; the
+ * diagonal is a tendon's own bending shortening (sim/plant/pose.h uses it).
+ * 0 for an index out of range. */
+double plant_path_compliance(const plant_cfg_t *cfg, uint8_t i, uint8_t m);
 
 /* The model-free analogue of the host's table generator, the plant playing the
  * part of hanging weights: for every tendon and grid tension, pulls the plant

@@ -345,6 +345,18 @@ static int parse_line(plant_cfg_t *cfg, char *line)
         }
         return 0;
     }
+    if (strcmp(key, "segment_ea_N") == 0) {
+        if (n > (int)PLANT_MAX_SEGMENTS) {
+            return PLANT_E_RANGE;
+        }
+        for (i = 0; i < n; i++) {
+            if (v[i] < 0.0) {
+                return PLANT_E_RANGE;
+            }
+            cfg->seg_ea_N[i] = v[i];
+        }
+        return 0;
+    }
     if (strcmp(key, "grid_mN") == 0) {
         for (i = 0; i < n; i++) {
             if (v[i] <= 0.0 || v[i] > 65535.0) {
@@ -474,6 +486,10 @@ int plant_cfg_perturb(plant_cfg_t *cfg, uint32_t seed, double frac)
         for (a = 0; a < 3; a++) {
             cfg->sensor[i].pos_mm[a] += frac * perturb_u(&s);
         }
+    }
+    /* drawn last, so the draws above stay what they were before the key */
+    for (i = 0; i < cfg->n_segments; i++) {
+        cfg->seg_ea_N[i] *= 1.0 + frac * perturb_u(&s);
     }
     return 0;
 }

@@ -1,6 +1,8 @@
 """The per-tendon table `make sim` prints (hh_bench --table): a result column
-against the tolerance, every failing tendon named with the tolerance, and no
-table at all for a run cut short."""
+against the tolerance, every failing tendon named with the tolerance, both
+final-pose tensions (every tendon at its single-tendon home, and the
+straight pose computed from the homes with --straight-um) with the tip's
+deviation from straight, and no table at all for a run cut short."""
 
 import re
 import subprocess
@@ -31,13 +33,33 @@ def test_every_failing_tendon_is_named_with_the_tolerance():
     assert len(header) == 1 and header[0].split()[-1] == "result"
 
 
+# hallhome.straight's shifts of paper_2seg at 0.8 N (python -m hallhome.straight
+# lookup_tables/robots/paper_2seg.toml --list)
+SHIFTS = "291.6,291.6,291.6,583.9,583.9,583.9"
+
+
 def test_passing_tendons_say_pass_and_without_a_tolerance_a_dash():
     r, rows = bench("--limit", "20s", "--at", "1s press 100", "--until", "^<done mode=full",
-                    "--linger", "0", "--check-tension", "10")
+                    "--linger", "0", "--check-tension", "10", "--straight-um", SHIFTS)
     assert r.returncode == 0, r.stderr
     assert len(rows) == 6 and all(row[-1] == "pass" for row in rows)
+    header = [ln.split() for ln in r.stdout.splitlines() if ln.startswith("tendon  id")][0]
+    final = [float(row[header.index("T_final_mN")]) for row in rows]
+    straight = [float(row[header.index("T_straight_mN")]) for row in rows]
+    # today's final pose: 3.5-5.9 N; the straight pose near the 800 mN target
+    assert all(3000.0 < t < 6500.0 for t in final), final
+    assert all(abs(t - 800.0) < 150.0 for t in straight), straight
+    tips = re.findall(r"tip (\d+\.\d+) mm from straight", r.stdout)
+    assert len(tips) == 2 and float(tips[1]) < 0.5
+    assert "T_home: the tendon alone at its single-tendon home" in r.stdout
     r, rows = bench("--limit", "10ms")
     assert r.returncode == 0 and len(rows) == 6 and all(row[-1] == "-" for row in rows)
+    assert all(row[-2] == "-" for row in rows)  # no shifts: no straight pose
+    assert "no straight-pose shifts given" in r.stdout
+    r, _ = bench("--limit", "10ms", "--straight-um", "1,2,x")
+    assert r.returncode == 2 and "bad --straight-um" in r.stderr
+    r, _ = bench("--limit", "10ms", "--straight-um", "1,2,3")
+    assert r.returncode == 2 and "has 3 values for 6 tendons" in r.stderr
 
 
 def test_a_run_cut_short_prints_no_table():
