@@ -12,8 +12,7 @@
  * per sensor in cuT (int32, one AK09916 LSB = 15 cuT) with a status saying
  * whether the sample is new. The machine captures its own straight-pose
  * baseline B0 (the two agreeing averages of the slack check, every tendon
- * slack) and computes |B - B0| with integer arithmetic. It needs nothing from
- * lib/field.
+ * slack) and computes |B - B0| with 32-bit integer arithmetic.
  *
  * Sequence (full calibration; docs/homing.md has the state diagram):
  *   1. preflight: every servo and sensor of the table must answer and be
