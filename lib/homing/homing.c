@@ -188,16 +188,56 @@ int hom_home(const hom_t *h, uint8_t i, int32_t *ticks)
     return 0;
 }
 
-/* a * b / c truncated towards zero, through 64 bits and saturated to int32.
- * The one place with 64-bit multiply and divide: on the AVR each inline
- * 64-bit expression costs hundreds of bytes of code. c must not be 0. */
+/* a * b / c truncated towards zero and saturated to int32, in 32-bit
+ * arithmetic only (64-bit expressions cost hundreds of bytes of code per use
+ * on the AVR, and a library 64-bit division is slow): the quotient and the
+ * remainder of |a| * |b| / |c| are built one bit of |a| at a time (double,
+ * then add |b| / |c| and |b| % |c| for a set bit), the remainder staying below
+ * |c| <= 2^31 so nothing overflows. Exactly the result a 64-bit a * b / c
+ * gives. c must not be 0. */
 HOM_NOINLINE static int32_t muldiv(int32_t a, int32_t b, int32_t c)
 {
-    int64_t q = (int64_t)a * (int64_t)b / (int64_t)c;
-    if (q > INT32_MAX) {
-        return INT32_MAX;
+    uint32_t ua = a < 0 ? (uint32_t)0 - (uint32_t)a : (uint32_t)a;
+    uint32_t ub = b < 0 ? (uint32_t)0 - (uint32_t)b : (uint32_t)b;
+    uint32_t uc = c < 0 ? (uint32_t)0 - (uint32_t)c : (uint32_t)c;
+    uint32_t bq = ub / uc;
+    uint32_t br = ub % uc;
+    uint32_t q = 0;
+    uint32_t r = 0;
+    uint8_t k;
+    for (k = 0; k < 32u; k++) {
+        if (q >= 0x80000000u) {
+            q = 0xFFFFFFFFu; /* beyond 32 bits: saturated below */
+            break;
+        }
+        q <<= 1;
+        r <<= 1;
+        if (r >= uc) {
+            r -= uc;
+            q++;
+        }
+        if (ua & 0x80000000u) {
+            uint32_t t = q + bq;
+            if (t < q) {
+                q = 0xFFFFFFFFu;
+                break;
+            }
+            q = t;
+            r += br;
+            if (r >= uc) {
+                r -= uc;
+                if (q == 0xFFFFFFFFu) {
+                    break;
+                }
+                q++;
+            }
+        }
+        ua <<= 1;
     }
-    return q < INT32_MIN ? INT32_MIN : (int32_t)q;
+    if ((a < 0) ^ (b < 0) ^ (c < 0)) {
+        return q >= 0x80000000u ? INT32_MIN : -(int32_t)q;
+    }
+    return q > (uint32_t)INT32_MAX ? INT32_MAX : (int32_t)q;
 }
 
 /* um to ticks, rounded up so margins are never smaller than asked */
@@ -935,20 +975,25 @@ static void keep_point(hom_t *h, int32_t p, uint32_t b, uint8_t n)
  * target counts, not only the last two points', which matters where one
  * tick is worth little more than the sensor noise. Returns the fitted
  * crossing in 1/256 tick, or `fallback` when fewer than two positions, a
- * non-rising line, or a crossing more than a tick outside the points. */
+ * non-rising line, or a crossing more than a tick outside the points.
+ * 32-bit arithmetic: the crossing does not change when every y is scaled by
+ * the same factor, so sums of y beyond what the products below hold in 32
+ * bits (|sy| >= 2^21: points 164 uT or more from the target on average) are
+ * halved together until they fit; below that the result is exact. */
 HOM_NOINLINE static int32_t fit_or(const hom_t *h, int32_t p, int32_t fallback)
 {
     const hom_tendon_t *t = &h->tendon[h->cur];
     /* at most 4 points of at most 32 samples with |x| <= 4: the sums without
-     * y fit 16 bits (|sx| <= 512, sxx <= 2048); with |y| < 2^20 the others
-     * fit 32 */
+     * y fit 16 bits (|sx| <= 512, sxx <= 2048, d < 2^18); with |y| < 2^20
+     * the others fit 32; |sy| < 2^21 and |sxy| < 2^23 keep each product of
+     * snum below 2^30 */
     int16_t sn = 0;
     int16_t sx = 0;
     int16_t sxx = 0;
     int32_t sy = 0;
     int32_t sxy = 0;
     int32_t d;
-    int64_t snum;
+    int32_t snum;
     int32_t x_q8;
     int16_t lo = 0;
     int16_t hi = 0;
@@ -970,14 +1015,23 @@ HOM_NOINLINE static int32_t fit_or(const hom_t *h, int32_t p, int32_t fallback)
         sy += n * y;
         sxy += nx * y;
     }
+    while (sy >= (1L << 21) || sy <= -(1L << 21) || sxy >= (1L << 23) || sxy <= -(1L << 23)) {
+        sy /= 2;
+        sxy /= 2;
+    }
     d = (int32_t)sn * sxx - (int32_t)sx * sx;
-    snum = (int64_t)sn * sxy - (int64_t)sx * sy;
+    snum = (int32_t)sn * sxy - (int32_t)sx * sy;
     if (hi == lo || d <= 0 || snum <= 0) {
         return fallback;
     }
     /* y = a + s x with s = snum / d; the crossing y = 0 lies at
-     * x = (sx - sy d / snum) / sn */
-    x_q8 = (int32_t)(((int64_t)sx * 256 - (int64_t)sy * d * 256 / snum) / sn);
+     * x = (sx - sy d / snum) / sn. A quotient beyond 2^20 puts the crossing
+     * far outside the points (|sx * 256| <= 2^17, sn * 5 * 256 < 2^18). */
+    x_q8 = muldiv(sy, d * 256, snum);
+    if (x_q8 > (1L << 20) || x_q8 < -(1L << 20)) {
+        return fallback;
+    }
+    x_q8 = ((int32_t)sx * 256 - x_q8) / sn;
     if (x_q8 < (lo - 1) * 256 || x_q8 > (hi + 1) * 256) {
         return fallback;
     }
@@ -1333,7 +1387,8 @@ HOM_NOINLINE static void do_tendon(hom_t *h, const hom_in_t *in)
     uint8_t sel = t->sensor;
     int fresh = in->sensor[sel].status == HOM_SENS_NEW;
     uint32_t b = fresh ? delta_of(h, sel, in->sensor[sel].b_cuT) : 0u;
-    uint32_t m = fresh ? meas_of(h, sel, in->sensor[sel].b_cuT) : 0u;
+    /* delta mode: the approach quantity is |B - B0| itself, one norm */
+    uint32_t m = fresh && h->amb != NULL ? meas_of(h, sel, in->sensor[sel].b_cuT) : b;
     int32_t p = h->present[h->cur];
 
     if (since(h, h->t_tendon) > h->cfg.tendon_timeout_ms) {
