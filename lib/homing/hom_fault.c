@@ -54,31 +54,36 @@ HOM_NOINLINE int hom_check_sensors(hom_t *h, const hom_in_t *in)
 {
     uint8_t k;
     int a;
+    hom_fault_t f;
+    int32_t detail;
     for (k = 0; k < h->n_sensors; k++) {
         const hom_sensor_in_t *s = &in->sensor[k];
         hom_sensor_t *st = &h->sensor[k];
+        f = HOM_F_SATURATED;
+        detail = 0;
         if (s->status == HOM_SENS_OVERFLOW) {
-            hom_fail(h, HOM_F_SATURATED, HOM_DEV_SENSOR, k, 0);
-            return 1;
+            goto fault;
         }
         if (s->status == HOM_SENS_ERROR || s->status == HOM_SENS_ABSENT) {
+            f = HOM_F_SENSOR_ERROR;
+            detail = s->status;
             if (++st->err_run >= 3u) {
-                hom_fail(h, HOM_F_SENSOR_ERROR, HOM_DEV_SENSOR, k, s->status);
-                return 1;
+                goto fault;
             }
         } else if (s->status == HOM_SENS_NEW) {
             st->err_run = 0;
             for (a = 0; a < 3; a++) {
                 int32_t v = s->b_cuT[a];
+                detail = v;
                 if (v >= (int32_t)h->cfg.sat_cuT || v <= -(int32_t)h->cfg.sat_cuT) {
-                    hom_fail(h, HOM_F_SATURATED, HOM_DEV_SENSOR, k, v);
-                    return 1;
+                    goto fault;
                 }
                 if (st->have_last) {
-                    int32_t d = v - st->last[a];
-                    if (d > (int32_t)h->cfg.rate_limit_cuT || d < -(int32_t)h->cfg.rate_limit_cuT) {
-                        hom_fail(h, HOM_F_FIELD_RATE, HOM_DEV_SENSOR, k, d);
-                        return 1;
+                    detail = v - st->last[a];
+                    if (detail > (int32_t)h->cfg.rate_limit_cuT ||
+                        detail < -(int32_t)h->cfg.rate_limit_cuT) {
+                        f = HOM_F_FIELD_RATE;
+                        goto fault;
                     }
                 }
             }
@@ -92,13 +97,16 @@ HOM_NOINLINE int hom_check_sensors(hom_t *h, const hom_in_t *in)
                 st->n_acc++;
             }
         }
-        if (hom_since(h, st->last_ms) > h->cfg.sensor_timeout_ms) {
-            hom_fail(h, HOM_F_SENSOR_TIMEOUT, HOM_DEV_SENSOR, k,
-                     (int32_t)hom_since(h, st->last_ms));
-            return 1;
+        detail = (int32_t)hom_since(h, st->last_ms);
+        if ((uint32_t)detail > h->cfg.sensor_timeout_ms) {
+            f = HOM_F_SENSOR_TIMEOUT;
+            goto fault;
         }
     }
     return 0;
+fault: /* one exit for every fault: the call is set up once */
+    hom_fail(h, f, HOM_DEV_SENSOR, k, detail);
+    return 1;
 }
 
 HOM_NOINLINE int hom_check_servos(hom_t *h, const hom_in_t *in)
