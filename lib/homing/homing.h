@@ -63,11 +63,11 @@
  * a negative HOM_E_* code.
  *
  * Integer arithmetic only (the AVR has no FPU); per step the work is bounded
- * by the number of tendons and sensors. One 64-bit integer square root per
- * new sample of the selected sensor, a few 64-bit multiply-divides per fine
- * point. The table must stay readable (and its copy function valid) until
- * the run ends: the magnet check, the start of each tendon and the fine
- * approach read it.
+ * by the number of tendons and sensors; no 64-bit type anywhere. One 32-bit
+ * integer square root per new sample of the selected sensor, a few 32-bit
+ * multiply-divides per fine point. The table must stay readable (and its
+ * copy function valid) until the run ends: the magnet check, the start of
+ * each tendon and the fine approach read it.
  */
 #ifndef HALLHOME_HOMING_H
 #define HALLHOME_HOMING_H
@@ -418,7 +418,8 @@ int hom_home(const hom_t *h, uint8_t i, int32_t *ticks);
  * caller last cleared the bit. */
 int hom_window(const hom_t *h, uint8_t i, int32_t *lo, int32_t *hi);
 
-/* |v| for a 3-axis integer vector (64-bit integer square root). */
+/* |v| for a 3-axis integer vector, in 32-bit arithmetic (each axis scaled so
+ * the sum of squares fits; exact below 378 uT per axis). */
 uint32_t hom_norm3(const int32_t v[3]);
 
 #endif /* HALLHOME_HOMING_H */
