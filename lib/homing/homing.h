@@ -418,8 +418,7 @@ int hom_home(const hom_t *h, uint8_t i, int32_t *ticks);
  * caller last cleared the bit. */
 int hom_window(const hom_t *h, uint8_t i, int32_t *lo, int32_t *hi);
 
-/* |v| for a 3-axis integer vector, in 32-bit arithmetic (each axis scaled so
- * the sum of squares fits; exact below 378 uT per axis). */
+/* |v| for a 3-axis integer vector (64-bit integer square root). */
 uint32_t hom_norm3(const int32_t v[3]);
 
 #endif /* HALLHOME_HOMING_H */
