@@ -12,8 +12,7 @@
  * per sensor in cuT (int32, one AK09916 LSB = 15 cuT) with a status saying
  * whether the sample is new. The machine captures its own straight-pose
  * baseline B0 (the two agreeing averages of the slack check, every tendon
- * slack) and computes |B - B0| with integer arithmetic. It needs nothing from
- * lib/field.
+ * slack) and computes |B - B0| with 32-bit integer arithmetic.
  *
  * Sequence (full calibration; docs/homing.md has the state diagram):
  *   1. preflight: every servo and sensor of the table must answer and be
@@ -64,11 +63,11 @@
  * a negative HOM_E_* code.
  *
  * Integer arithmetic only (the AVR has no FPU); per step the work is bounded
- * by the number of tendons and sensors. One 64-bit integer square root per
- * new sample of the selected sensor, a few 64-bit multiply-divides per fine
- * point. The table must stay readable (and its copy function valid) until
- * the run ends: the magnet check, the start of each tendon and the fine
- * approach read it.
+ * by the number of tendons and sensors; no 64-bit type anywhere. One 32-bit
+ * integer square root per new sample of the selected sensor, a few 32-bit
+ * multiply-divides per fine point. The table must stay readable (and its
+ * copy function valid) until the run ends: the magnet check, the start of
+ * each tendon and the fine approach read it.
  */
 #ifndef HALLHOME_HOMING_H
 #define HALLHOME_HOMING_H

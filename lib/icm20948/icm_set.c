@@ -3,6 +3,8 @@
 #include <stddef.h>
 #include <string.h>
 
+#include "icm20948/icm20948_reg.h"
+
 int8_t icm_set_setup(icm_set_t *set, const icm_bus_t *bus, uint8_t mux_addr, icm_set_slot_t *slots,
                      uint8_t cap)
 {
@@ -251,13 +253,13 @@ int8_t icm_set_diag(const icm_set_t *set, uint8_t idx, icm_diag_t *d)
     d->channel = s->dev.channel;
     d->addr = s->dev.addr;
     d->who_am_i = s->dev.who_am_i;
-    d->present = (uint8_t)(s->dev.who_am_i == 0xEAu);
+    d->present = (uint8_t)(s->dev.who_am_i == ICM_REG_WHO_AM_I_V);
     d->mag_ready = (uint8_t)(s->state == ICM_SET_S_RUN);
     d->mag_id = s->dev.mag_id;
     d->last_err = s->last_err;
     d->rate_dhz = s->rate_dhz;
     for (i = 0; i < 3u; i++) {
-        d->field_cuT[i] = (int32_t)s->last.raw[i] * 15;
+        d->field_cuT[i] = (int32_t)s->last.raw[i] * AK_REG_LSB_CUT;
     }
     d->samples = s->dev.new_count;
     d->overflow_count = s->dev.overflow_count;

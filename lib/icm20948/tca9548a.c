@@ -2,22 +2,6 @@
 
 #include <stddef.h>
 
-static int8_t tca_map(int8_t bus_rc)
-{
-    switch (bus_rc) {
-    case ICM_BUS_OK:
-        return 0;
-    case ICM_BUS_E_ADDR_NACK:
-        return TCA_E_ABSENT;
-    case ICM_BUS_E_DATA_NACK:
-        return TCA_E_NACK;
-    case ICM_BUS_E_TIMEOUT:
-        return TCA_E_TIMEOUT;
-    default:
-        return TCA_E_BUS;
-    }
-}
-
 int8_t tca_setup(tca_t *mux, const icm_bus_t *bus, uint8_t addr)
 {
     if (mux == NULL || bus == NULL || bus->write == NULL || addr < 0x70u || addr > 0x77u) {
@@ -39,7 +23,7 @@ static int8_t tca_write_ctrl(tca_t *mux, uint8_t ctrl)
     if (rc != ICM_BUS_OK) {
         mux->valid = 0;
         mux->errors++;
-        return tca_map(rc);
+        return icm_bus_error(rc);
     }
     mux->ctrl = ctrl;
     mux->valid = 1;

@@ -19,12 +19,14 @@
 #define TCA_ADDR_DEFAULT 0x70u
 #define TCA_CHANNELS     8u
 
+/* The bus errors are the sensor driver's (icm_bus_error() maps a bus result
+ * for both), so a failed select reads the same wherever it surfaces. */
 enum tca_err {
-    TCA_E_ARG = -1,     /* NULL pointer, address outside 0x70..0x77, channel > 7 */
-    TCA_E_ABSENT = -2,  /* the multiplexer did not acknowledge its address */
-    TCA_E_NACK = -3,    /* the control byte was refused */
-    TCA_E_TIMEOUT = -4, /* the bus timed out */
-    TCA_E_BUS = -5      /* bus error */
+    TCA_E_ARG = ICM_E_ARG,         /* NULL pointer, address outside 0x70..0x77, channel > 7 */
+    TCA_E_ABSENT = ICM_E_ABSENT,   /* the multiplexer did not acknowledge its address */
+    TCA_E_NACK = ICM_E_NACK,       /* the control byte was refused */
+    TCA_E_TIMEOUT = ICM_E_TIMEOUT, /* the bus timed out */
+    TCA_E_BUS = ICM_E_BUS          /* bus error */
 };
 
 typedef struct tca {

@@ -6,6 +6,7 @@
  */
 #include "table/table.h"
 
+#include <stddef.h>
 #include <string.h>
 
 void tbl_copy_ram(void *dst, const void *src, size_t n)
@@ -132,7 +133,8 @@ static int tbl_bracket(const uint16_t *grid, uint8_t n, uint16_t x)
  * zero, in 32 bits: a field span times a tension span would overflow, so
  * the span is split into whole multiples of dx and a remainder below dx
  * (remainder * t < 2^32 for dx, t <= 65535); the result equals the exact
- * 64-bit rounding. One copy (not inlined): it is called three times. */
+ * 64-bit rounding. One copy (not inlined): tbl_interp() and tbl_target()
+ * both call it. */
 #if defined(__GNUC__)
 __attribute__((noinline))
 #endif
@@ -160,32 +162,43 @@ int tbl_interp(const uint16_t *grid, const uint32_t *y, uint8_t n, uint16_t x, u
     return 0;
 }
 
+/* The three per-grid arrays of a tendon lie back to back (checked below), so
+ * one loop interpolates them all. */
+typedef char tbl_rows_adjacent_t[(offsetof(tbl_tendon_t, abs_target_cuT) ==
+                                      offsetof(tbl_tendon_t, target_cuT) + TBL_MAX_GRID * 4u &&
+                                  offsetof(tbl_tendon_t, travel_um) ==
+                                      offsetof(tbl_tendon_t, abs_target_cuT) + TBL_MAX_GRID * 4u)
+                                     ? 1
+                                     : -1];
+
 int tbl_target(const tbl_src_t *src, uint8_t tendon, uint16_t tension_mN, tbl_point_t *out)
 {
-    uint16_t grid[TBL_MAX_GRID];
-    uint8_t n;
+    tbl_info_t info;
+    uint32_t v[3];
     uint32_t y[2];
+    const uint32_t *row;
+    uint8_t a;
     int k;
 
-    if (!tbl_src_ok(src) || out == NULL || tendon >= tbl_count(src, 1) ||
+    if (out == NULL || tbl_info(src, &info) != 0 || tendon >= info.n_tendons ||
         tendon >= TBL_MAX_TENDONS) {
         return TBL_E_ARG;
     }
-    src->copy(&n, TBL_FIELD_ADDR(src, n_grid), 1);
-    if (n > TBL_MAX_GRID) {
+    if (info.n_grid > TBL_MAX_GRID) {
         return TBL_E_RANGE;
     }
-    src->copy(grid, TBL_FIELD_ADDR(src, grid_mN), sizeof grid);
-    k = tbl_bracket(grid, n, tension_mN);
+    k = tbl_bracket(info.grid_mN, info.n_grid, tension_mN);
     if (k < 0) {
         return TBL_E_RANGE;
     }
+    row = &src->table->tendons[tendon].target_cuT[k]; /* address only, never dereferenced */
+    for (a = 0; a < 3u; a++) {
+        src->copy(y, row + a * TBL_MAX_GRID, sizeof y);
+        v[a] = tbl_lerp(info.grid_mN[k], info.grid_mN[k + 1], y[0], y[1], tension_mN);
+    }
     out->tension_mN = tension_mN;
-    src->copy(y, TBL_FIELD_ADDR(src, tendons[tendon].target_cuT[k]), sizeof y);
-    out->target_cuT = tbl_lerp(grid[k], grid[k + 1], y[0], y[1], tension_mN);
-    src->copy(y, TBL_FIELD_ADDR(src, tendons[tendon].abs_target_cuT[k]), sizeof y);
-    out->abs_target_cuT = tbl_lerp(grid[k], grid[k + 1], y[0], y[1], tension_mN);
-    src->copy(y, TBL_FIELD_ADDR(src, tendons[tendon].travel_um[k]), sizeof y);
-    out->travel_um = tbl_lerp(grid[k], grid[k + 1], y[0], y[1], tension_mN);
+    out->target_cuT = v[0];
+    out->abs_target_cuT = v[1];
+    out->travel_um = v[2];
     return 0;
 }

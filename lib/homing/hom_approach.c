@@ -1,0 +1,223 @@
+/*
+ * homing, one tendon's take-up to engagement and the moderate approach, the travel limit, the
+ * per-step dispatch of a tendon (see hom_priv.h, homing.h and docs/homing.md).
+ */
+#include "homing/hom_priv.h"
+
+#include <stddef.h>
+
+/* Where the take-up search for engagement ends: the most slack a tendon may
+ * have started with past the high end of its engagement window (what every
+ * earlier release paid out lies behind it), at least two ticks on. */
+HOM_NOINLINE static int32_t search_goal(const hom_t *h, uint8_t i)
+{
+    const hom_tendon_t *t = &h->tendon[i];
+    int32_t g = t->eng_hi + hom_pull(t, hom_um_ticks_cur(h, i, h->cfg.max_takeup_um));
+    return hom_further_back(t, g, h->present[i] + hom_pull(t, 2)) == g
+               ? h->present[i] + hom_pull(t, 2)
+               : g;
+}
+
+HOM_NOINLINE void hom_begin_tendon(hom_t *h, uint8_t i)
+{
+    hom_tendon_t *t;
+    int32_t g;
+    if (i >= h->n_tendons) {
+        hom_begin_final(h);
+        return;
+    }
+    t = &h->tendon[i];
+    h->cur = i;
+    h->t_tendon = h->now_ms;
+    h->have_prev = 0;
+    h->near = 0;
+    h->n_pts = 0;
+    h->steps = 0;
+    h->slope_q8 = hom_table_slope(h, i);
+    h->pos_at_sample = h->present[i];
+    t->engaged = 0;
+    t->retries = 0;
+    hom_push_event(h, HOM_EV_PHASE, HOM_PH_TENDON, i, 0, 0);
+    h->quick_leg = 0;
+    if (h->mode == HOM_MODE_QUICK) {
+        /* straight to just short of the stored home: a tenth of the expected
+         * travel (at least 3 ticks) leaves room for the fine steps */
+        int32_t guard = t->travel_ticks / 10 < 3 ? 3 : t->travel_ticks / 10;
+        g = t->est_home - hom_pull(t, guard);
+        if (hom_pull(t, g - h->present[i]) > 0) {
+            h->quick_leg = 1;
+            hom_set_goal(h, i, g, h->cfg.v_fast);
+            h->state = ST_TAKEUP;
+            return;
+        }
+    }
+    hom_set_goal(h, i, search_goal(h, i),
+                 h->mode == HOM_MODE_QUICK ? h->cfg.v_moderate : h->cfg.v_fast);
+    h->state = ST_TAKEUP;
+}
+
+/* Faults when position x of the engaged tendon lies beyond its travel limit
+ * past engagement. Returns 1 if it did. */
+HOM_NOINLINE static int beyond_limit(hom_t *h, int32_t x)
+{
+    const hom_tendon_t *t = &h->tendon[h->cur];
+    int32_t d;
+    if (!t->engaged) {
+        return 0;
+    }
+    d = hom_pull(t, x - t->engage);
+    if (d > t->limit_ticks) {
+        hom_fail_tendon(h, HOM_F_TRAVEL_LIMIT, d);
+        return 1;
+    }
+    return 0;
+}
+
+/* A goal in the pull direction, refused beyond the travel limit. */
+HOM_NOINLINE int hom_pull_to(hom_t *h, int32_t g, uint16_t v)
+{
+    if (beyond_limit(h, g)) {
+        return -1;
+    }
+    hom_set_goal(h, h->cur, g, v);
+    return 0;
+}
+
+HOM_NOINLINE static void begin_moderate(hom_t *h)
+{
+    hom_tendon_t *t = &h->tendon[h->cur];
+    int32_t g;
+    if (t->retries != 0u) {
+        g = h->mod_goal;
+    } else {
+        g = t->engage + hom_pull(t, hom_muldiv(t->travel_ticks, h->cfg.near_permille, 1000));
+    }
+    if (hom_pull(t, g - t->engage) > t->limit_ticks) {
+        g = t->engage + hom_pull(t, t->limit_ticks);
+    }
+    if (hom_pull(t, g - h->present[h->cur]) < 2) {
+        g = h->present[h->cur] + hom_pull(t, 2);
+    }
+    if (hom_pull_to(h, g, h->cfg.v_moderate) == 0) {
+        h->state = ST_MODERATE;
+    }
+}
+
+HOM_NOINLINE void hom_begin_fine_move(hom_t *h)
+{
+    h->state = ST_FINE_MOVE;
+    h->t_phase = h->now_ms;
+}
+
+/* The field b has come within permille of the target. */
+HOM_NOINLINE static int near_target(const hom_tendon_t *t, uint32_t b, uint16_t permille)
+{
+    return (int32_t)b >= hom_muldiv((int32_t)t->target_cuT, permille, 1000);
+}
+
+/* Close to the target while moving: stop two ticks on from the present
+ * position p (unless the goal is nearer) and go on with fine points. */
+HOM_NOINLINE static void stop_short(hom_t *h, int32_t p)
+{
+    const hom_tendon_t *t = &h->tendon[h->cur];
+    uint8_t state = h->state;
+    int32_t g = p + hom_pull(t, 2);
+    if (hom_pull(t, h->out.goal[h->cur] - g) > 0) {
+        (void)hom_pull_to(h, g, h->cfg.v_moderate);
+    }
+    if (h->state == state) {
+        hom_begin_fine_move(h);
+    }
+}
+
+HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
+{
+    hom_tendon_t *t = &h->tendon[h->cur];
+    uint8_t sel = t->sensor;
+    int fresh = in->sensor[sel].status == HOM_SENS_NEW;
+    uint32_t b = fresh ? hom_delta_of(h, sel, in->sensor[sel].b_cuT) : 0u;
+    /* delta mode: the approach quantity is |B - B0| itself, one norm */
+    uint32_t m = fresh && h->amb != NULL ? hom_meas_of(h, sel, in->sensor[sel].b_cuT) : b;
+    int32_t p = h->present[h->cur];
+
+    if (hom_since(h, h->t_tendon) > h->cfg.tendon_timeout_ms) {
+        hom_fail_tendon(h, HOM_F_TENDON_TIMEOUT, (int32_t)hom_since(h, h->t_tendon));
+        return;
+    }
+    if (beyond_limit(h, p)) {
+        return;
+    }
+    if (t->engaged && hom_pull(t, p - h->out.goal[h->cur]) > HOM_DROOP_TICKS &&
+        hom_since(h, h->moved_ms[h->cur]) >= 10u) {
+        /* pulling past the goal last sent: the servo missed that goal (a
+         * sync write gets no status) and still runs to an older one; send
+         * it again, every 10 ms until it takes */
+        hom_set_goal(h, h->cur, h->out.goal[h->cur], h->out.vel[h->cur]);
+    }
+    switch (h->state) {
+    case ST_TAKEUP:
+        if (fresh && !t->engaged && b >= h->engage_cuT) {
+            t->engaged = 1;
+            t->engage = h->pos_at_sample; /* the last position seen slack */
+            t->eng_lo = t->engage;
+            t->eng_hi = t->engage;
+            h->win_changed |= (uint16_t)(1u << h->cur);
+            hom_push_event(h, HOM_EV_ENGAGED, 0, h->cur, t->engage, (int32_t)b);
+            if (!h->quick_leg) {
+                begin_moderate(h);
+                break;
+            }
+        }
+        if (fresh && !t->engaged) {
+            h->pos_at_sample = p;
+        }
+        if (h->quick_leg && t->engaged && fresh && near_target(t, m, HOM_QUICK_STOP_PERMILLE)) {
+            stop_short(h, p); /* the stored home is further than the field says */
+        } else if (hom_reached(h, h->cur)) {
+            if (h->quick_leg && t->engaged) {
+                hom_begin_fine_move(h);
+            } else if (h->quick_leg) {
+                /* no engagement where the stored home put it: search as usual */
+                h->quick_leg = 0;
+                hom_set_goal(h, h->cur, search_goal(h, h->cur), h->cfg.v_moderate);
+            } else {
+                hom_fail_tendon(h, HOM_F_NO_ENGAGEMENT, hom_pull(t, p - h->pos_at_sample));
+            }
+        }
+        break;
+    case ST_MODERATE:
+        /* a re-approach goes to a point measured short of the target: only
+         * the target itself stops it early */
+        if (fresh && near_target(t, m, t->retries != 0u ? 1000u : h->cfg.near_permille)) {
+            stop_short(h, p);
+        } else if (hom_reached(h, h->cur)) {
+            hom_begin_fine_move(h);
+        }
+        break;
+    case ST_FINE_MOVE: {
+        int32_t err = p - h->out.goal[h->cur];
+        if (hom_since(h, h->t_phase) >= h->cfg.settle_ms &&
+            hom_since(h, h->moved_ms[h->cur]) >= h->cfg.settle_ms / 2u &&
+            ((err >= -1 && err <= 1) || hom_reached(h, h->cur))) {
+            hom_start_avg(h);
+            h->state = ST_FINE_AVG;
+        } else if (hom_since(h, h->t_phase) > h->cfg.move_timeout_ms) {
+            hom_fail(h, HOM_F_SERVO_STALL, HOM_DEV_SERVO, h->cur, err);
+        }
+        break;
+    }
+    case ST_FINE_AVG:
+        /* points within a few ticks of the target decide the home: more samples */
+        if (h->sensor[sel].n_acc >= (h->near ? h->n_near : h->cfg.avg_samples)) {
+            hom_fine_point(h);
+        }
+        break;
+    case ST_BACKOFF:
+        if (hom_reached(h, h->cur)) {
+            begin_moderate(h);
+        }
+        break;
+    default:
+        break;
+    }
+}

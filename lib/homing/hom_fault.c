@@ -1,0 +1,134 @@
+/*
+ * homing, faults: ending a run with every tendon released, the health checks of sensors and servos
+ * each step, fault names (see hom_priv.h, homing.h and docs/homing.md).
+ */
+#include "homing/hom_priv.h"
+
+#include <string.h>
+
+const char *hom_fault_name(int fault)
+{
+#define HOM_FAULT_NAME(id, word) word,
+    static const char *const names[HOM_F_COUNT] = {HOM_FAULTS(HOM_FAULT_NAME)};
+#undef HOM_FAULT_NAME
+    if (fault < 0 || fault >= (int)HOM_F_COUNT) {
+        return "unknown";
+    }
+    return names[fault];
+}
+
+/* Ends the run in a fault: the release goals go out in this very step. A
+ * tendon that engaged goes back to the margin beyond its engagement; any
+ * other goes back the margin from where it is (or keeps a release already
+ * under way if that is further). Nothing moves if nothing had moved. */
+HOM_NOINLINE void hom_fail(hom_t *h, hom_fault_t f, uint8_t dev, uint8_t index, int32_t detail)
+{
+    uint8_t i;
+    h->fault = (uint8_t)f;
+    h->fault_dev = dev;
+    h->fault_index = index;
+    hom_push_event(h, HOM_EV_FAULT, (uint8_t)f, index, dev, detail);
+    if (h->moved) {
+        for (i = 0; i < h->n_tendons; i++) {
+            const hom_tendon_t *t = &h->tendon[i];
+            /* the slack margin before the engagement window (this run's
+             * engagement when it engaged: the window is narrowed to it), a
+             * release already going further, and never a pull */
+            int32_t g = t->eng_lo - hom_pull(t, t->margin_ticks);
+            g = hom_further_back(t, g, h->out.goal[i]);
+            hom_set_goal(h, i, hom_further_back(t, h->present[i], g), h->cfg.v_release);
+        }
+        hom_push_event(h, HOM_EV_RELEASED, 0, 0, (int32_t)f, 0);
+    }
+    h->state = ST_FAULT;
+}
+
+/* hom_fail() naming the tendon being calibrated. */
+HOM_NOINLINE void hom_fail_tendon(hom_t *h, hom_fault_t f, int32_t detail)
+{
+    hom_fail(h, f, HOM_DEV_TENDON, h->cur, detail);
+}
+
+/* Sensor bookkeeping and health checks of one step. Returns 1 if it failed. */
+HOM_NOINLINE int hom_check_sensors(hom_t *h, const hom_in_t *in)
+{
+    uint8_t k;
+    int a;
+    hom_fault_t f;
+    int32_t detail;
+    for (k = 0; k < h->n_sensors; k++) {
+        const hom_sensor_in_t *s = &in->sensor[k];
+        hom_sensor_t *st = &h->sensor[k];
+        f = HOM_F_SATURATED;
+        detail = 0;
+        if (s->status == HOM_SENS_OVERFLOW) {
+            goto fault;
+        }
+        if (s->status == HOM_SENS_ERROR || s->status == HOM_SENS_ABSENT) {
+            f = HOM_F_SENSOR_ERROR;
+            detail = s->status;
+            if (++st->err_run >= 3u) {
+                goto fault;
+            }
+        } else if (s->status == HOM_SENS_NEW) {
+            st->err_run = 0;
+            for (a = 0; a < 3; a++) {
+                int32_t v = s->b_cuT[a];
+                detail = v;
+                if (v >= (int32_t)h->cfg.sat_cuT || v <= -(int32_t)h->cfg.sat_cuT) {
+                    goto fault;
+                }
+                if (st->have_last) {
+                    detail = v - st->last[a];
+                    if (detail > (int32_t)h->cfg.rate_limit_cuT ||
+                        detail < -(int32_t)h->cfg.rate_limit_cuT) {
+                        f = HOM_F_FIELD_RATE;
+                        goto fault;
+                    }
+                }
+            }
+            memcpy(st->last, s->b_cuT, sizeof st->last);
+            st->have_last = 1;
+            st->last_ms = h->now_ms;
+            if (st->n_acc < HOM_MAX_AVG) {
+                for (a = 0; a < 3; a++) {
+                    st->acc[a] += s->b_cuT[a];
+                }
+                st->n_acc++;
+            }
+        }
+        detail = (int32_t)hom_since(h, st->last_ms);
+        if ((uint32_t)detail > h->cfg.sensor_timeout_ms) {
+            f = HOM_F_SENSOR_TIMEOUT;
+            goto fault;
+        }
+    }
+    return 0;
+fault: /* one exit for every fault: the call is set up once */
+    hom_fail(h, f, HOM_DEV_SENSOR, k, detail);
+    return 1;
+}
+
+HOM_NOINLINE int hom_check_servos(hom_t *h, const hom_in_t *in)
+{
+    uint8_t i;
+    for (i = 0; i < h->n_tendons; i++) {
+        const hom_servo_in_t *s = &in->servo[i];
+        if (s->status == HOM_SERVO_OK) {
+            if (s->hw_error != 0u) {
+                hom_fail(h, HOM_F_SERVO_ERROR, HOM_DEV_SERVO, i, s->hw_error);
+                return 1;
+            }
+            if (s->pos != h->present[i]) {
+                h->moved_ms[i] = h->now_ms;
+            }
+            h->present[i] = s->pos;
+            h->servo_ok_ms[i] = h->now_ms;
+        } else if (hom_since(h, h->servo_ok_ms[i]) > h->cfg.servo_timeout_ms) {
+            hom_fail(h, HOM_F_SERVO_TIMEOUT, HOM_DEV_SERVO, i,
+                     (int32_t)hom_since(h, h->servo_ok_ms[i]));
+            return 1;
+        }
+    }
+    return 0;
+}

@@ -1,0 +1,340 @@
+/*
+ * homing, the fine approach to the target (table curve, measured slope, averaged points), the
+ * least-squares home and the final move (see hom_priv.h, homing.h and docs/homing.md).
+ */
+#include "homing/hom_priv.h"
+
+/* The table's local slope of |dB| over travel around the tension (a 100 mN
+ * window clipped to the grid), cuT per tick with 8 fractional bits: the
+ * first fine step's estimate before two points of its own exist. */
+HOM_NOINLINE int32_t hom_table_slope(const hom_t *h, uint8_t i)
+{
+    const tbl_src_t *table = &h->table;
+    uint32_t nm_per_tick = h->tendon[i].nm_per_tick;
+    tbl_info_t info;
+    tbl_point_t lo;
+    tbl_point_t hi;
+    uint16_t t = h->tension_mN;
+    uint16_t t0;
+    uint16_t t1;
+    int32_t dticks;
+    int32_t s;
+    (void)tbl_info(table, &info);
+    t0 = (uint16_t)(t >= info.grid_mN[0] + 50u ? t - 50u : info.grid_mN[0]);
+    t1 = (uint16_t)(t + 50u <= info.grid_mN[info.n_grid - 1u] ? t + 50u
+                                                              : info.grid_mN[info.n_grid - 1u]);
+    hom_work_point(h, i, t0, &lo);
+    hom_work_point(h, i, t1, &hi);
+    dticks = hom_muldiv((int32_t)hi.travel_um - (int32_t)lo.travel_um, 1000, (int32_t)nm_per_tick);
+    if (dticks <= 0 || hi.target_cuT <= lo.target_cuT) {
+        dticks = hom_muldiv((int32_t)hi.travel_um, 1000, (int32_t)nm_per_tick);
+        s = dticks > 0 ? hom_muldiv((int32_t)hi.target_cuT, 256, dticks) : 256;
+    } else {
+        s = hom_muldiv((int32_t)(hi.target_cuT - lo.target_cuT), 256, dticks);
+    }
+    return s < 1 ? 1 : s;
+}
+
+/* Distance of tendon i to its goal in the final move: its home (measured or
+ * stored), else where it was sent last. */
+HOM_NOINLINE static int32_t final_dist(const hom_t *h, uint8_t i, int32_t *goal)
+{
+    const hom_tendon_t *t = &h->tendon[i];
+    int32_t d;
+    *goal = t->have_home == 1u ? t->home : (t->have_home == 2u ? t->est_home : h->out.goal[i]);
+    d = *goal - h->present[i];
+    return d < 0 ? -d : d;
+}
+
+HOM_NOINLINE void hom_begin_final(hom_t *h)
+{
+    uint8_t i;
+    int32_t dmax = 1;
+    int32_t g;
+    hom_push_event(h, HOM_EV_PHASE, HOM_PH_FINAL, 0, 0, 0);
+    for (i = 0; i < h->n_tendons; i++) {
+        int32_t d = final_dist(h, i, &g);
+        if (d > dmax) {
+            dmax = d;
+        }
+    }
+    /* the same profile shape for all, velocities in proportion to distance,
+     * so every tendon arrives at the same moment */
+    for (i = 0; i < h->n_tendons; i++) {
+        if (h->tendon[i].have_home != 0u) {
+            uint32_t d = (uint32_t)final_dist(h, i, &g);
+            uint32_t v = ((uint32_t)h->cfg.v_final * d + (uint32_t)dmax - 1u) / (uint32_t)dmax;
+            hom_set_goal(h, i, g, (uint16_t)(v == 0u ? 1u : v));
+        }
+    }
+    h->state = ST_FINAL;
+    h->t_phase = h->now_ms;
+}
+
+/* Samples to average at a point near the target: enough that the noise of
+ * the average (table noise per axis / sqrt n) is at most a seventh of the
+ * field change of one tick; at least twice avg_samples, at most HOM_MAX_AVG.
+ * A weak field (sensors far from the magnet, a high tension where |dB|
+ * flattens) needs many; a strong one needs the minimum. */
+HOM_NOINLINE static uint8_t near_samples(const hom_t *h, int32_t s_q8)
+{
+    int32_t q = ((int32_t)h->noise_cuT * 7 * 256 + s_q8 - 1) / s_q8; /* ceil(7 noise / slope) */
+    int32_t n = q > 6 ? (int32_t)HOM_MAX_AVG : q * q;
+    int32_t lo = 2 * (int32_t)h->cfg.avg_samples;
+    if (n < lo) {
+        n = lo;
+    }
+    return (uint8_t)(n > (int32_t)HOM_MAX_AVG ? (int32_t)HOM_MAX_AVG : n);
+}
+
+/* Keeps a point averaged near the target for the final fit (the newest
+ * HOM_FIT_POINTS). */
+static void keep_point(hom_t *h, int32_t p, uint32_t b, uint8_t n)
+{
+    uint8_t k;
+    if (h->n_pts == HOM_FIT_POINTS) {
+        for (k = 1; k < HOM_FIT_POINTS; k++) {
+            h->pts[k - 1u] = h->pts[k];
+        }
+        h->n_pts--;
+    }
+    h->pts[h->n_pts].p = p;
+    h->pts[h->n_pts].b = b;
+    h->pts[h->n_pts].n = n;
+    h->n_pts++;
+}
+
+/* The home from a weighted least-squares line through the near points within
+ * 4 ticks of p (weights: samples averaged): every sample taken near the
+ * target counts, not only the last two points', which matters where one
+ * tick is worth little more than the sensor noise. Returns the fitted
+ * crossing in 1/256 tick, or `fallback` when fewer than two positions, a
+ * non-rising line, or a crossing more than a tick outside the points.
+ * 32-bit arithmetic: the crossing does not change when every y is scaled by
+ * the same factor, so sums of y beyond what the products below hold in 32
+ * bits (|sy| >= 2^21: points 164 uT or more from the target on average) are
+ * halved together until they fit; below that the result is exact. */
+HOM_NOINLINE static int32_t fit_or(const hom_t *h, int32_t p, int32_t fallback)
+{
+    const hom_tendon_t *t = &h->tendon[h->cur];
+    /* at most 4 points of at most 32 samples with |x| <= 4: the sums without
+     * y fit 16 bits (|sx| <= 512, sxx <= 2048, d < 2^18); with |y| < 2^20
+     * the others fit 32; |sy| < 2^21 and |sxy| < 2^23 keep each product of
+     * snum below 2^30 */
+    int16_t sn = 0;
+    int16_t sx = 0;
+    int16_t sxx = 0;
+    int32_t sy = 0;
+    int32_t sxy = 0;
+    int32_t d;
+    int32_t snum;
+    int32_t x_q8;
+    int16_t lo = 0;
+    int16_t hi = 0;
+    uint8_t k;
+    for (k = 0; k < h->n_pts; k++) {
+        int32_t x = hom_pull(t, h->pts[k].p - p); /* pull-direction ticks from p */
+        int32_t y = (int32_t)h->pts[k].b - (int32_t)t->target_cuT;
+        int16_t n = h->pts[k].n;
+        int16_t nx;
+        if (x < -4 || x > 4 || y >= (1L << 20) || y <= -(1L << 20)) {
+            continue;
+        }
+        nx = (int16_t)(n * x);
+        lo = x < lo ? (int16_t)x : lo;
+        hi = x > hi ? (int16_t)x : hi;
+        sn = (int16_t)(sn + n);
+        sx = (int16_t)(sx + nx);
+        sxx = (int16_t)(sxx + nx * x);
+        sy += n * y;
+        sxy += nx * y;
+    }
+    while (sy >= (1L << 21) || sy <= -(1L << 21) || sxy >= (1L << 23) || sxy <= -(1L << 23)) {
+        sy /= 2;
+        sxy /= 2;
+    }
+    d = (int32_t)sn * sxx - (int32_t)sx * sx;
+    snum = (int32_t)sn * sxy - (int32_t)sx * sy;
+    if (hi == lo || d <= 0 || snum <= 0) {
+        return fallback;
+    }
+    /* y = a + s x with s = snum / d; the crossing y = 0 lies at
+     * x = (sx - sy d / snum) / sn. A quotient beyond 2^20 puts the crossing
+     * far outside the points (|sx * 256| <= 2^17, sn * 5 * 256 < 2^18). */
+    x_q8 = hom_muldiv(sy, d * 256, snum);
+    if (x_q8 > (1L << 20) || x_q8 < -(1L << 20)) {
+        return fallback;
+    }
+    x_q8 = ((int32_t)sx * 256 - x_q8) / sn;
+    if (x_q8 < (lo - 1) * 256 || x_q8 > (hi + 1) * 256) {
+        return fallback;
+    }
+    return p * 256 + hom_pull(t, x_q8);
+}
+
+/* The home is found: the fit through the near points of p, or `fallback`
+ * (1/256 tick); the tendon goes back to slack, and the home is recorded and
+ * reported once the field has come back to the baseline there
+ * (hom_release_check()). */
+HOM_NOINLINE static void finish_tendon(hom_t *h, int32_t p, int32_t fallback)
+{
+    hom_tendon_t *t = &h->tendon[h->cur];
+    int32_t home_q8 = fit_or(h, p, fallback);
+    t->home = hom_floor_div256(home_q8);
+    h->home_res = home_q8 - t->home * 256;
+    h->home_dB = hom_delta_of(h, t->sensor, h->sensor[t->sensor].last);
+    hom_set_goal(h, h->cur, hom_slack_goal(t), h->cfg.v_release);
+    h->state = ST_TENDON_RELEASE;
+    h->settled = 0;
+    h->t_phase = h->now_ms;
+}
+
+/* Remaining travel from a field b to the target along the table's own
+ * field-travel curve (inverse interpolation over the grid, engagement as the
+ * origin), 1/256 tick; 0 when the table cannot say. The field is not linear
+ * in travel (it flattens as the tip moves away), so from a point well short of
+ * the target this beats any one slope. */
+HOM_NOINLINE static int32_t table_remaining_q8(const hom_t *h, uint32_t b)
+{
+    tbl_tendon_t row;
+    tbl_info_t info;
+    const hom_tendon_t *t = &h->tendon[h->cur];
+    uint32_t x0 = 0;
+    uint32_t y0 = 0;
+    int32_t travel_b = -1;
+    int32_t travel_t;
+    uint8_t g;
+    if (tbl_tendon(&h->table, h->cur, &row) != 0 || tbl_info(&h->table, &info) != 0) {
+        return 0;
+    }
+    for (g = 0; g < info.n_grid && travel_b < 0; g++) {
+        uint32_t x1 = row.travel_um[g];
+        uint32_t y1 = hom_work_target(h, t->sensor, row.target_cuT[g], row.abs_target_cuT[g]);
+        if (b < y1 && y1 > y0) {
+            travel_b = (int32_t)x0 * 256 +
+                       hom_muldiv((int32_t)(b - y0), (int32_t)(x1 - x0) * 256, (int32_t)(y1 - y0));
+        }
+        x0 = x1;
+        y0 = y1;
+    }
+    if (travel_b < 0) {
+        return 0;
+    }
+    travel_t = hom_muldiv(t->travel_ticks * 256, (int32_t)t->nm_per_tick, 1000); /* um * 256 */
+    if (travel_t <= travel_b) {
+        return 0;
+    }
+    return hom_muldiv(travel_t - travel_b, 1000, (int32_t)t->nm_per_tick);
+}
+
+/* One averaged fine point at the present position. Finishes by interpolation
+ * when the target is bracketed by two points at most 3 ticks apart, or by
+ * extrapolation with the local slope when it is less than half a tick away
+ * and the point was averaged with the doubled sample count (a slope measured
+ * over a wider step overstates the local one, so longer extrapolations are
+ * replaced by a one-tick step and a bracket). Otherwise it steps towards the
+ * target: the whole predicted distance when it is 3 ticks or less (rounded
+ * down, at least one), three quarters of it beyond, so the approach stays on
+ * the slack side of the target. A wide overshoot backs off to slack and comes
+ * again to the last point known to be short of it. */
+void hom_fine_point(hom_t *h)
+{
+    hom_tendon_t *t = &h->tendon[h->cur];
+    int32_t avg[3];
+    int32_t p = h->present[h->cur];
+    uint32_t b;
+    int32_t s_q8;
+    int32_t r_q8;
+    int32_t step;
+    int32_t room;
+    int32_t dp;
+
+    hom_avg_of(h, t->sensor, avg);
+    b = hom_meas_of(h, t->sensor, avg);
+    dp = h->have_prev ? hom_pull(t, p - h->p_prev) : 0;
+    if (h->near) {
+        keep_point(h, p, b, h->sensor[t->sensor].n_acc);
+    }
+    if (b >= t->target_cuT) {
+        if (h->have_prev && dp == 0) {
+            /* the same position averaged again h->now_ms reads at or past the
+             * target: the target is here, within the noise */
+            finish_tendon(h, p, p * 256);
+            return;
+        }
+        if (h->have_prev && b > h->b_prev && dp >= 1 && dp <= 3) {
+            int32_t f = hom_muldiv((int32_t)(t->target_cuT - h->b_prev), (p - h->p_prev) * 256,
+                                   (int32_t)(b - h->b_prev));
+            finish_tendon(h, p, h->p_prev * 256 + f);
+            return;
+        }
+        if (++t->retries > 2u) {
+            hom_fail_tendon(h, HOM_F_NO_PROGRESS, (int32_t)b);
+            return;
+        }
+        if (h->have_prev) {
+            /* the secant across the crossing is the slope to come back with */
+            if (dp > 0 && b > h->b_prev) {
+                h->slope_q8 = hom_muldiv((int32_t)(b - h->b_prev), 256, dp);
+            }
+            h->mod_goal = h->p_prev;
+        } else {
+            /* scale the travel by how far the field overshot (the take-up can
+             * cross a low target within one sample), then keep a margin */
+            h->mod_goal = t->engage +
+                          hom_muldiv(hom_muldiv(p - t->engage, (int32_t)t->target_cuT, (int32_t)b),
+                                     h->cfg.near_permille, 1000);
+        }
+        h->have_prev = 0;
+        h->n_pts = 0;
+        hom_set_goal(h, h->cur, hom_slack_goal(t), h->cfg.v_release);
+        h->state = ST_BACKOFF;
+        return;
+    }
+    /* a slope measured over 3 ticks or more replaces the estimate; one over
+     * fewer ticks is too noisy and the last good one is kept */
+    if (h->have_prev && dp >= 3 && b > h->b_prev) {
+        h->slope_q8 = hom_muldiv((int32_t)(b - h->b_prev), 256, dp);
+    }
+    s_q8 = h->slope_q8;
+    if (s_q8 < 1) {
+        s_q8 = 1;
+    }
+    r_q8 = hom_muldiv((int32_t)(t->target_cuT - b), 65536, s_q8);
+    if (!h->have_prev && t->retries == 0u) {
+        /* first point: the table's own curve says how far the target is */
+        int32_t rt = table_remaining_q8(h, b);
+        if (rt > 0) {
+            r_q8 = rt;
+        }
+    }
+    if (r_q8 < 128 && h->near) {
+        finish_tendon(h, p, p * 256 + hom_pull(t, (int32_t)r_q8));
+        return;
+    }
+    room = (t->limit_ticks - hom_pull(t, p - t->engage)) * 256;
+    if (r_q8 > room) {
+        /* the target lies beyond the travel limit: unreachable, stop here */
+        hom_fail_tendon(h, HOM_F_TRAVEL_LIMIT, hom_pull(t, p - t->engage) + r_q8 / 256);
+        return;
+    }
+    if (++h->steps > h->cfg.fine_max_steps) {
+        hom_fail_tendon(h, HOM_F_NO_PROGRESS, (int32_t)b);
+        return;
+    }
+    step = r_q8 <= 3 * 256 ? r_q8 >> 8 : (r_q8 / 4 * 3) >> 8;
+    if (r_q8 >= 128 && step < 1) {
+        step = 1; /* half a tick or more: bracket it rather than extrapolate */
+    }
+    h->near = (uint8_t)(r_q8 <= 4 * 256);
+    h->n_near = near_samples(h, s_q8);
+    if (step > t->limit_ticks + 1) {
+        step = t->limit_ticks + 1; /* refused below as beyond the limit */
+    }
+    h->p_prev = p;
+    h->b_prev = b;
+    h->have_prev = 1;
+    if (hom_pull_to(h, p + hom_pull(t, (int32_t)step), h->cfg.v_fine) == 0) {
+        hom_begin_fine_move(h);
+    }
+}

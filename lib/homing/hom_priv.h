@@ -1,0 +1,97 @@
+/*
+ * hom_priv: what the files of the homing module share and nobody else may
+ * use (the public API is homing.h). The state machine is split by phase,
+ * one room per concern:
+ *   homing.c: the public API (start, step, events, results) and the helpers every phase uses:
+ * goals, arrival, averages, norms, 32-bit muldiv hom_fault.c: faults: ending a run with every
+ * tendon released, the health checks of sensors and servos each step, fault names hom_slack.c:
+ * preflight, the release of every tendon, the slack check and baseline, and the release check after
+ * each home hom_approach.c: one tendon's take-up to engagement and the moderate approach, the
+ * travel limit, the per-step dispatch of a tendon hom_fine.c: the fine approach to the target
+ * (table curve, measured slope, averaged points), the least-squares home and the final move
+ * Everything declared here is internal: names carry the hom_ prefix only to
+ * keep the firmware's global namespace clean.
+ */
+#ifndef HALLHOME_HOM_PRIV_H
+#define HALLHOME_HOM_PRIV_H
+
+#include <stdint.h>
+
+#include "homing/homing.h"
+
+enum {
+    ST_IDLE = 0,
+    ST_PREFLIGHT,
+    ST_RELEASE_ALL, /* moving every tendon to its release goal */
+    ST_SLACK_AVG,   /* settle, then average every sensor */
+    ST_TENDON_START,
+    ST_TAKEUP,   /* fast (then moderate) search for engagement */
+    ST_MODERATE, /* engagement to near the target */
+    ST_FINE_MOVE,
+    ST_FINE_AVG,
+    ST_BACKOFF, /* overshot on the first fine point: back to slack, re-approach */
+    ST_TENDON_RELEASE,
+    ST_FINAL,
+    ST_DONE,
+    ST_FAULT
+};
+
+/* Functions that measured smaller on the AVR as calls than inlined (each
+ * inlined copy of 32-bit arithmetic costs more than the call). */
+#if defined(__GNUC__)
+#define HOM_NOINLINE __attribute__((noinline))
+#else
+#define HOM_NOINLINE
+#endif
+
+#define HOM_MAX_AVG             32u
+#define HOM_QUICK_STOP_PERMILLE 975u /* quick leg: stop when the field is this close */
+#define HOM_DROOP_TICKS         8    /* a servo stopped this close counts as arrived ... */
+#define HOM_STILL_MS            100u /* ... after this long without motion */
+#define HOM_FIT_POINTS          4u   /* near points kept for the final fit (hom_t.pts) */
+
+/* ---- homing.c: API and shared helpers ---- */
+void hom_push_event(hom_t *h, uint8_t type, uint8_t code, uint8_t index, int32_t a, int32_t b);
+int32_t hom_muldiv(int32_t a, int32_t b, int32_t c);
+int32_t hom_um_to_ticks(uint32_t um, uint32_t nm_per_tick);
+int32_t hom_unwrap_home(int32_t stored, int32_t present);
+uint32_t hom_work_target(const hom_t *h, uint8_t k, uint32_t d, uint32_t abs_t);
+void hom_work_point(const hom_t *h, uint8_t i, uint16_t mN, tbl_point_t *pt);
+int32_t hom_pull(const hom_tendon_t *t, int32_t d);
+int32_t hom_slack_goal(const hom_tendon_t *t);
+uint32_t hom_since(const hom_t *h, uint32_t t);
+void hom_set_goal(hom_t *h, uint8_t i, int32_t goal, uint16_t vel);
+int hom_reached(const hom_t *h, uint8_t i);
+void hom_start_avg(hom_t *h);
+void hom_avg_of(const hom_t *h, uint8_t k, int32_t out[3]);
+uint32_t hom_delta_of(const hom_t *h, uint8_t k, const int32_t b[3]);
+uint32_t hom_meas_of(const hom_t *h, uint8_t k, const int32_t b[3]);
+int32_t hom_floor_div256(int32_t q8);
+int32_t hom_further_back(const hom_tendon_t *t, int32_t g, int32_t x);
+int32_t hom_um_ticks_cur(const hom_t *h, uint8_t i, uint32_t um);
+uint8_t hom_next_tendon(const hom_t *h, uint8_t from);
+int hom_move_done(hom_t *h, int arrived, uint8_t dev, uint8_t index);
+
+/* ---- hom_fault.c: faults and health checks ---- */
+void hom_fail(hom_t *h, hom_fault_t f, uint8_t dev, uint8_t index, int32_t detail);
+void hom_fail_tendon(hom_t *h, hom_fault_t f, int32_t detail);
+int hom_check_sensors(hom_t *h, const hom_in_t *in);
+int hom_check_servos(hom_t *h, const hom_in_t *in);
+
+/* ---- hom_slack.c: preflight, release, slack check, baseline ---- */
+void hom_do_preflight(hom_t *h, const hom_in_t *in);
+void hom_release_check(hom_t *h);
+void hom_do_slack_avg(hom_t *h);
+
+/* ---- hom_approach.c: take-up and approach ---- */
+void hom_begin_tendon(hom_t *h, uint8_t i);
+int hom_pull_to(hom_t *h, int32_t g, uint16_t v);
+void hom_begin_fine_move(hom_t *h);
+void hom_do_tendon(hom_t *h, const hom_in_t *in);
+
+/* ---- hom_fine.c: fine approach, fit, final move ---- */
+int32_t hom_table_slope(const hom_t *h, uint8_t i);
+void hom_begin_final(hom_t *h);
+void hom_fine_point(hom_t *h);
+
+#endif /* HALLHOME_HOM_PRIV_H */

@@ -1,0 +1,277 @@
+/*
+ * homing, preflight, the release of every tendon, the slack check and baseline, and the release
+ * check after each home (see hom_priv.h, homing.h and docs/homing.md).
+ */
+#include "homing/hom_priv.h"
+
+#include <string.h>
+
+/* Where a run releases tendon i to before its slack check: the margin
+ * before its engagement window (quick mode: before the engagement the stored
+ * home implies). The slack check's further steps count from here, not from
+ * where the tendon stands, so runs after stops do not pay out more. */
+HOM_NOINLINE static int32_t release_base(const hom_t *h, uint8_t i)
+{
+    const hom_tendon_t *t = &h->tendon[i];
+    if (h->mode == HOM_MODE_QUICK) {
+        return t->est_home - hom_pull(t, t->travel_ticks + t->margin_ticks);
+    }
+    return t->eng_lo - hom_pull(t, t->margin_ticks);
+}
+
+/* Preflight: every device must answer within preflight_ms; each one that does
+ * not, or reports an error, is named before the refusal. */
+void hom_do_preflight(hom_t *h, const hom_in_t *in)
+{
+    uint8_t i;
+    int missing = 0;
+    int all = 1;
+    if (!h->pf_started) {
+        h->pf_started = 1;
+        h->t_phase = h->now_ms;
+        h->t_start = h->now_ms;
+        hom_push_event(h, HOM_EV_START, h->mode, 0, h->tension_mN, 0);
+        hom_push_event(h, HOM_EV_PHASE, HOM_PH_PREFLIGHT, 0, 0, 0);
+        memset(h->seen, 0, sizeof h->seen);
+        for (i = 0; i < h->n_tendons; i++) {
+            h->servo_ok_ms[i] = 0xFFFFFFFFu; /* not yet answered */
+        }
+    }
+    for (i = 0; i < h->n_sensors; i++) {
+        uint8_t st = in->sensor[i].status;
+        if (st == HOM_SENS_NEW) {
+            h->seen[i] |= 1u;
+            memcpy(h->sensor[i].last, in->sensor[i].b_cuT, sizeof h->sensor[i].last);
+            h->sensor[i].have_last = 1;
+        } else if (st == HOM_SENS_ERROR || st == HOM_SENS_OVERFLOW || st == HOM_SENS_ABSENT) {
+            h->seen[i] |= (uint8_t)(st == HOM_SENS_ABSENT ? 2u : 4u);
+        }
+        if (h->seen[i] != 1u) {
+            all = 0; /* not sampled yet, or an error reported earlier */
+        }
+    }
+    for (i = 0; i < h->n_tendons; i++) {
+        const hom_servo_in_t *s = &in->servo[i];
+        if (s->status == HOM_SERVO_OK && s->hw_error == 0u) {
+            h->servo_ok_ms[i] = h->now_ms;
+            h->present[i] = s->pos;
+        } else if (s->status == HOM_SERVO_OK || s->status == HOM_SERVO_ABSENT) {
+            h->servo_ok_ms[i] = 0xFFFFFFFEu; /* faulty: hardware error or absent */
+        }
+        if (h->servo_ok_ms[i] >= 0xFFFFFFFEu) {
+            all = 0;
+        }
+    }
+    if (all) {
+        for (i = 0; i < h->n_sensors; i++) {
+            h->sensor[i].last_ms = h->now_ms;
+        }
+        hom_push_event(h, HOM_EV_PHASE, HOM_PH_RELEASE, 0, 0, 0);
+        for (i = 0; i < h->n_tendons; i++) {
+            hom_tendon_t *t = &h->tendon[i];
+            int32_t g;
+            t->est_home = hom_unwrap_home(t->est_home, h->present[i]);
+            if (h->mode == HOM_MODE_DRY) {
+                continue;
+            }
+            if (!((h->win_known >> i) & 1u)) {
+                /* nothing known: the engagement may lie up to the release
+                 * that frees a tendon left at the top of the grid behind the
+                 * present position, or (slack) ahead of it */
+                t->eng_hi = h->present[i];
+                t->eng_lo =
+                    h->present[i] -
+                    hom_pull(t, hom_um_to_ticks(h->release_um, t->nm_per_tick) - t->margin_ticks);
+                if (h->mode == HOM_MODE_QUICK) {
+                    t->eng_hi = t->est_home - hom_pull(t, t->travel_ticks);
+                    t->eng_lo = t->eng_hi;
+                }
+                h->win_known |= (uint16_t)(1u << i);
+                h->win_changed |= (uint16_t)(1u << i);
+            }
+            g = release_base(h, i);
+            hom_set_goal(h, i, hom_further_back(t, h->present[i], g), h->cfg.v_release);
+        }
+        /* a dry run moves nothing: straight to the baseline average */
+        h->state = h->mode == HOM_MODE_DRY ? ST_SLACK_AVG : ST_RELEASE_ALL;
+        h->t_phase = h->now_ms;
+        h->steps = 0;
+        return;
+    }
+    if (hom_since(h, h->t_phase) < h->cfg.preflight_ms) {
+        return;
+    }
+    for (i = 0; i < h->n_sensors; i++) {
+        if (h->seen[i] != 1u) {
+            int32_t why = (h->seen[i] & 2u) ? 1 : ((h->seen[i] & 4u) ? 3 : 2);
+            hom_push_event(h, HOM_EV_MISSING, HOM_DEV_SENSOR, i, why, 0);
+            missing++;
+        }
+    }
+    for (i = 0; i < h->n_tendons; i++) {
+        if (h->servo_ok_ms[i] >= 0xFFFFFFFEu) {
+            const hom_servo_in_t *s = &in->servo[i];
+            int32_t why = s->status == HOM_SERVO_ABSENT ? 1 : (s->hw_error != 0u ? 4 : 2);
+            hom_push_event(h, HOM_EV_MISSING, HOM_DEV_SERVO, i, why, s->hw_error);
+            missing++;
+        }
+    }
+    hom_fail(h, HOM_F_PREFLIGHT, HOM_DEV_NONE, 0, missing);
+}
+
+/* The tendon is back at slack after its home: every tendon slack, the
+ * robot straight, so its selected sensor must read the baseline again
+ * (within the engagement threshold, averaged). A field that stays changed
+ * means something moved that no tendon moves (a magnet, a sensor, iron
+ * nearby) and the home measured against it is wrong: HOM_F_FIELD_STEP, the
+ * home is not recorded. Otherwise the home is recorded and reported. */
+HOM_NOINLINE void hom_release_check(hom_t *h)
+{
+    hom_tendon_t *t = &h->tendon[h->cur];
+    int32_t avg[3];
+    uint32_t d;
+    if (!h->settled) {
+        if (hom_move_done(h, hom_reached(h, h->cur), HOM_DEV_SERVO, h->cur)) {
+            h->settled = 1;
+            h->t_phase = h->now_ms;
+        }
+        return;
+    }
+    if (h->settled == 1u) {
+        if (hom_since(h, h->t_phase) >= h->cfg.settle_ms) {
+            hom_start_avg(h);
+            h->settled = 2;
+        }
+        return;
+    }
+    if (h->sensor[t->sensor].n_acc < h->cfg.avg_samples) {
+        return;
+    }
+    hom_avg_of(h, t->sensor, avg);
+    d = hom_delta_of(h, t->sensor, avg);
+    if (d > h->engage_cuT) {
+        hom_fail(h, HOM_F_FIELD_STEP, HOM_DEV_SENSOR, t->sensor, (int32_t)d);
+        return;
+    }
+    t->have_home = 1;
+    h->tendon_ms = hom_since(h, h->t_tendon);
+    hom_push_event(h, HOM_EV_HOME, 0, h->cur, t->home, h->home_res);
+    h->settled = 0;
+    hom_begin_tendon(h, hom_next_tendon(h, (uint8_t)(h->cur + 1u)));
+}
+
+static void slack_done(hom_t *h)
+{
+    uint8_t k;
+    uint8_t i;
+    if (h->mode != HOM_MODE_DRY && h->steps > 1u) {
+        /* the slack check had to release further: the engagement lies
+         * behind the window, which now starts a margin past the confirmed
+         * slack (later releases go no further than here) */
+        for (i = 0; i < h->n_tendons; i++) {
+            hom_tendon_t *t = &h->tendon[i];
+            int32_t lo = h->present[i] + hom_pull(t, t->margin_ticks);
+            if (hom_further_back(t, lo, t->eng_lo) == lo) {
+                t->eng_lo = lo;
+                h->win_changed |= (uint16_t)(1u << i);
+            }
+        }
+    }
+    for (k = 0; k < h->n_sensors; k++) {
+        tbl_sensor_t s;
+        uint32_t pred;
+        (void)tbl_sensor(&h->table, k, &s);
+        pred = hom_norm3(s.b_straight_cuT); /* the table's straight-pose |B| */
+        if (h->amb_capture) {
+            int a;
+            for (a = 0; a < 3; a++) {
+                h->amb[k][a] = h->sensor[k].b0[a] - s.b_straight_cuT[a];
+            }
+        }
+        if (pred >= 10000u && hom_norm3(h->sensor[k].b0) < pred / 2u) {
+            hom_fail(h, HOM_F_MAGNET_MISSING, HOM_DEV_SENSOR, k,
+                     (int32_t)hom_norm3(h->sensor[k].b0));
+            return;
+        }
+    }
+    hom_push_event(h, HOM_EV_PHASE, HOM_PH_BASELINE, 0, 0, 0);
+    if (h->mode == HOM_MODE_DRY) {
+        for (i = 0; i < h->n_tendons; i++) {
+            hom_push_event(
+                h, HOM_EV_TARGET, 0, i, (int32_t)h->tendon[i].target_cuT,
+                hom_muldiv(h->tendon[i].travel_ticks, (int32_t)h->tendon[i].nm_per_tick, 1000));
+        }
+        hom_push_event(h, HOM_EV_DONE, 0, 0, (int32_t)hom_since(h, h->t_start), 0);
+        h->state = ST_DONE;
+        return;
+    }
+    hom_begin_tendon(h, hom_next_tendon(h, 0));
+}
+
+/* Averages every sensor after a settle time; compares with the previous
+ * average; releases further until nothing changes. */
+HOM_NOINLINE void hom_do_slack_avg(hom_t *h)
+{
+    uint8_t k;
+    uint8_t i;
+    uint32_t worst = 0;
+    int done;
+    if (!h->settled) {
+        if (hom_since(h, h->t_phase) < h->cfg.settle_ms) {
+            return;
+        }
+        hom_start_avg(h);
+        h->settled = 1;
+        return;
+    }
+    for (k = 0; k < h->n_sensors; k++) {
+        if (h->sensor[k].n_acc < h->cfg.baseline_samples) {
+            return;
+        }
+    }
+    h->settled = 0;
+    /* until the slack is confirmed, b0 holds the previous average */
+    for (k = 0; k < h->n_sensors; k++) {
+        int32_t avg[3];
+        int32_t d[3];
+        uint32_t n;
+        int a;
+        hom_avg_of(h, k, avg);
+        for (a = 0; a < 3; a++) {
+            d[a] = avg[a] - h->sensor[k].b0[a];
+        }
+        n = hom_norm3(d);
+        if (n > worst) {
+            worst = n;
+        }
+    }
+    done = h->mode == HOM_MODE_DRY || (h->steps > 0u && worst <= h->engage_cuT);
+    for (k = 0; k < h->n_sensors; k++) {
+        int32_t avg[3];
+        int a;
+        hom_avg_of(h, k, avg);
+        for (a = 0; a < 3; a++) {
+            /* the baseline when this average confirms the slack: both
+             * averages then saw the same straight pose, so it takes both */
+            int32_t *b0 = &h->sensor[k].b0[a];
+            *b0 = done && h->steps > 0u ? avg[a] - (avg[a] - *b0) / 2 : avg[a];
+        }
+    }
+    if (done) {
+        slack_done(h);
+        return;
+    }
+    if (h->steps >= h->cfg.slack_max_steps) {
+        hom_fail(h, HOM_F_SLACK, HOM_DEV_NONE, 0, (int32_t)worst);
+        return;
+    }
+    h->steps++;
+    for (i = 0; i < h->n_tendons; i++) {
+        hom_tendon_t *t = &h->tendon[i];
+        int32_t g = release_base(h, i) -
+                    hom_pull(t, h->steps * hom_um_ticks_cur(h, i, h->cfg.slack_step_um));
+        hom_set_goal(h, i, hom_further_back(t, h->present[i], g), h->cfg.v_release);
+    }
+    h->state = ST_RELEASE_ALL;
+    h->t_phase = h->now_ms;
+}
