@@ -77,7 +77,8 @@ class FitResult:
     message: str
     refused: str | None
     stiffness: bool
-    curves: dict = dataclasses.field(default_factory=dict)  # per tendon, for plots
+    # per tendon (take-up (n,), measured and modelled field changes (n, n_s, 3), engagement)
+    curves: dict = dataclasses.field(default_factory=dict)
 
     def value(self, name: str) -> float:
         return float(self.values[[p.name for p in self.params].index(name)])
@@ -290,8 +291,7 @@ def fit(robot: Robot, survey: Survey, *, sigma_uT: float = 1.0,
     per_tendon, curves = {}, {}
     for pr, p in zip(preds, survey.pulls):
         per_tendon[p.tendon] = float(np.sqrt(np.mean((pr - p.delta) ** 2)) * 1e6)
-        curves[p.tendon] = (p.take_up, np.linalg.norm(p.delta, axis=-1),
-                            np.linalg.norm(pr, axis=-1), engage[p.tendon])
+        curves[p.tendon] = (p.take_up, p.delta, pr, engage[p.tendon])
     wrms = [float(np.sqrt(np.mean((wp - w.delta) ** 2)) * 1e6)
             for wp, w in zip(wpred, survey.weights)]
     rms = float(np.sqrt(np.mean(res ** 2)) * sigma_uT)
