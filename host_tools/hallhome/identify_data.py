@@ -147,8 +147,9 @@ def synthetic_survey(robot: Robot, *, seed: int = 1, noise_uT: float = 0.3,
                      top_tension: float = 1.5, step_ticks: int = 4, slack_mm: float = 0.5,
                      weights: tuple[tuple[int, float], ...] = (),
                      ambient_uT=(18.0, 2.0, -44.0)) -> dict:
-    """A survey of ``robot`` made by the host's Cosserat model (no gravity),
-    in the file format: each tendon starts ``slack_mm`` (varied by up to 50 %
+    """A survey of ``robot`` made by the host's Cosserat model, in the file
+    format (the pulls without gravity, as the fit models them; the weights
+    with it): each tendon starts ``slack_mm`` (varied by up to 50 %
     with the seed) before engagement and is pulled to ``top_tension``;
     readings carry Gaussian noise ``noise_uT`` per axis, an ambient field and
     the 0.15 uT quantisation. ``weights``: (tendon, grams) records."""
@@ -187,12 +188,15 @@ def synthetic_survey(robot: Robot, *, seed: int = 1, noise_uT: float = 0.3,
         pulls.append({"tendon": i, "baseline_cuT": reading(b0), "steps": steps,
                       "engagement_um": round((slack / mpt) * mpt * 1e6, 3)})
     wrec = []
+    heavy = CosseratModel(robot, steps_per_segment=8)  # a hung weight: gravity too
+    s0 = heavy.solve(np.zeros(nt))
+    w0 = field_at_sensors(robot, s0.tip_position, s0.tip_rotation)[0]
     for i, grams in weights:
         tau = np.zeros(nt)
         tau[i] = grams * 1e-3 * G
-        s = model.solve(tau)
+        s = heavy.solve(tau)
         b = field_at_sensors(robot, s.tip_position, s.tip_rotation)[0]
-        wrec.append({"tendon": i, "mass_g": grams, "baseline_cuT": reading(b0),
+        wrec.append({"tendon": i, "mass_g": grams, "baseline_cuT": reading(w0),
                      "field_cuT": reading(b)})
     return {"format": "hallhome-survey", "version": 1, "source": "synthetic (host model)",
             "robot": robot.name, "seed": seed, "field_unit": "cuT", "step_ticks": step_ticks,

@@ -29,8 +29,8 @@ def identified_path(robot: Robot) -> Path:
     return robot.path.with_name(f"{robot.name}_id.toml")
 
 
-def _vec(v) -> str:
-    return "[" + ", ".join(f"{x:.6g}" for x in v) + "]"
+def _vec(v, fmt: str = ".6g") -> str:
+    return "[" + ", ".join(f"{x:{fmt}}" for x in v) + "]"
 
 
 def _edits(res: FitResult, nominal: Robot) -> dict:
@@ -61,7 +61,7 @@ def _edits(res: FitResult, nominal: Robot) -> dict:
     for k, s in enumerate(fitted.sensors):
         names = [f"sensor{k}_{a}" for a in "xyz"]
         if all(n in rows for n in names):
-            out[("sensors", k, "position_mm")] = (_vec(np.array(s.position) * 1e3),
+            out[("sensors", k, "position_mm")] = (_vec(np.array(s.position) * 1e3, ".4f"),
                                                   note(*names).replace("; ", ", "))
     del nominal
     return out
