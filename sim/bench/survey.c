@@ -26,6 +26,7 @@
 #define SURVEY_BASE_SAMPLES 16u   /* readings averaged for a baseline */
 #define SURVEY_ENGAGE_UT    3.0   /* field change that marks the engagement: ~10 sigma of a step */
 #define SURVEY_MAX_STEPS    4000u /* 100 mm: a pull that never engages is given up */
+#define SURVEY_RELEASE_MM   3.0   /* the other tendons' release before a pull */
 
 /* Averaged reading of every sensor, cuT in the sensor frame. */
 static void read_avg(plant_t *p, unsigned n, double out[][3])
@@ -54,14 +55,20 @@ static void put_fields(FILE *f, uint8_t n, double v[][3])
     fputc(']', f);
 }
 
-/* A plant with every motor where the bench started it. */
-static int start_plant(const bench_t *b, plant_t *p, uint32_t seed)
+/* A plant with tendon `keep` where the bench started it and every other
+ * tendon released SURVEY_RELEASE_MM further: bending away from a tendon
+ * lengthens its path, and a tendon left with little slack would engage and
+ * hold the robot back during another's pull (the firmware releases the others
+ * before it pulls one the same way). */
+static int start_plant(const bench_t *b, plant_t *p, uint32_t seed, uint8_t keep)
 {
-    if (plant_init(p, &b->plant.cfg, seed) != 0) {
+    const plant_cfg_t *c = &b->plant.cfg;
+    if (plant_init(p, c, seed) != 0) {
         return -1;
     }
-    for (uint8_t m = 0; m < b->plant.cfg.n_tendons; m++) {
-        (void)plant_set_motor(p, m, b->moved_from[m]);
+    for (uint8_t m = 0; m < c->n_tendons; m++) {
+        double release = m == keep ? 0.0 : SURVEY_RELEASE_MM * 1e6 / plant_nm_per_tick(c, m);
+        (void)plant_set_motor(p, m, b->moved_from[m] - (double)c->tendon[m].pull_dir * release);
     }
     return plant_solve(p);
 }
@@ -98,7 +105,7 @@ static int survey_pull(const bench_t *b, FILE *f, uint8_t i)
     double start = floor(b->moved_from[i] + 0.5);
     double travel_ticks = survey_bound(b, i);
     long engaged_at = -1;
-    if (start_plant(b, &p, b->seed * 31u + i) != 0) {
+    if (start_plant(b, &p, b->seed * 31u + i, i) != 0) {
         return -1;
     }
     read_avg(&p, SURVEY_BASE_SAMPLES, base);
@@ -144,7 +151,7 @@ static void survey_weights(const bench_t *b, FILE *f)
         uint8_t i;
         for (i = 0; i < c->n_tendons && c->tendon[i].segment != j; i++) {
         }
-        if (i == c->n_tendons || start_plant(b, &p, b->seed * 57u + j) != 0) {
+        if (i == c->n_tendons || start_plant(b, &p, b->seed * 57u + j, i) != 0) {
             continue;
         }
         read_avg(&p, SURVEY_BASE_SAMPLES, base);
