@@ -135,3 +135,30 @@ def test_survey_needs_a_plant_and_a_writable_file(tmp_path):
                            "--survey", str(tmp_path / "y.json")],
                           capture_output=True, text=True, timeout=60, cwd=ROOT)
     assert proc.returncode == 2
+
+
+def test_fit_of_a_bench_survey_beats_the_nominal_targets(tmp_path):
+    """The plant is not the host's model (constant curvature with friction,
+    a point dipole, backlash): the fit must still converge, stay near the
+    truth and give better targets than the nominal description."""
+    import numpy as np
+
+    from hallhome.identify import fit
+    from hallhome.identify_data import load_survey
+    from hallhome.identify_eval import tension_errors, truth_values
+    from hallhome.robot import load_robot
+
+    proc, out = survey(tmp_path, "--seed", 3, "--survey-weight", 80)
+    assert proc.returncode == 0, proc.stderr
+    robot = load_robot(ROOT / "lookup_tables" / "robots" / "paper_2seg.toml")
+    sv = load_survey(out, robot)
+    res = fit(robot, sv)
+    assert res.refused is None, res.refused
+    truth = truth_values(robot, sv)
+    assert res.value("magnet_J") == pytest.approx(truth["magnet_J"], rel=0.03)
+    for i in range(6):
+        assert res.value(f"engage{i}") == pytest.approx(truth[f"engage{i}"], abs=20.0)
+    nominal = np.abs(tension_errors(robot, sv.truth))
+    identified = np.abs(tension_errors(res.robot, sv.truth))
+    assert identified.max() < 0.03 and identified.max() < nominal.max()
+    assert identified.mean() < 0.5 * nominal.mean()
