@@ -242,6 +242,10 @@ def fit(robot: Robot, survey: Survey, *, sigma_uT: float = 1.0,
         stiffness: bool | None = None, mechanics: bool = True) -> FitResult:
     """Fits ``robot`` to ``survey`` (see the module docstring). ``stiffness``
     (default: when the survey has weight records) adds the segments' EI."""
+    twisted = [t.index for t in robot.tendons if t.twist != 0.0]
+    if twisted:
+        raise IdentifyError(f"tendons {twisted} have helical routing: the fit models straight "
+                            "routing only")
     if stiffness is None:
         stiffness = bool(survey.weights)
     params = _params(robot, survey, stiffness, mechanics)
@@ -308,11 +312,8 @@ def _refusal(res: FitResult, sol, lo, hi) -> str | None:
     """The reason to refuse a fit, or None."""
     if not sol.success or sol.status <= 0:
         return f"the fit did not converge ({sol.message})"
-    for p, z, v in zip(res.params, sol.x, res.values):
-        if p.prior is None:
-            continue
-        span = hi[res.params.index(p)] - lo[res.params.index(p)]
-        if min(z - lo[res.params.index(p)], hi[res.params.index(p)] - z) < 1e-3 * span:
+    for p, z, v, a, b in zip(res.params, sol.x, res.values, lo, hi):
+        if p.prior is not None and min(z - a, b - z) < 1e-3 * (b - a):
             return (f"{p.name} = {v:.4g} {p.unit} reached the edge of its plausible range "
                     f"{p.lo:.4g}..{p.hi:.4g} {p.unit} (nominal {p.nominal:.4g}): the "
                     "description does not fit this robot")

@@ -116,6 +116,7 @@ def study(robot_path: Path, seeds, perturb: float, weight_g: float, bench: Path,
     robot = load_robot(robot_path)
     rows = {"nominal": [], "survey": [], "weights": []}
     refused = {"survey": 0, "weights": 0}
+    recovery: dict[str, dict[str, list]] = {}  # parameter -> {"nominal"|mode: errors}
     with tempfile.TemporaryDirectory() as tmp:
         for seed in seeds:
             path = Path(tmp) / f"s{seed}.json"
@@ -136,11 +137,24 @@ def study(robot_path: Path, seeds, perturb: float, weight_g: float, bench: Path,
                     rows[mode].append(rows["nominal"][-1])
                     continue
                 rows[mode].append(tension_errors(res.robot, truth))
+                tv = truth_values(robot, s)
+                for r in res.table():
+                    if r["name"] in tv and not r["name"].startswith("engage"):
+                        rec = recovery.setdefault(r["name"], {})
+                        rec.setdefault(mode, []).append(r["value"] - tv[r["name"]])
+                        if mode == "weights":
+                            rec.setdefault("nominal", []).append(r["nominal"] - tv[r["name"]])
+                    elif r["name"].startswith("engage"):
+                        recovery.setdefault("engage", {}).setdefault(mode, []).append(
+                            r["value"] - tv[r["name"]])
             log(f"seed {seed}: worst |error| nominal {np.abs(rows['nominal'][-1]).max():.3f} N, "
                 f"survey {np.abs(rows['survey'][-1]).max():.3f} N, "
                 f"weights {np.abs(rows['weights'][-1]).max():.3f} N")
+    rms = {name: {k: float(np.sqrt(np.mean(np.square(v)))) for k, v in d.items()}
+           for name, d in recovery.items()}
     return {"robot": robot.name, "seeds": list(seeds), "perturb": perturb, "weight_g": weight_g,
-            "refused": refused, **{k: _summary(v) for k, v in rows.items()}}
+            "refused": refused, **{k: _summary(v) for k, v in rows.items()},
+            "parameter_rms_error": rms}
 
 
 def main(argv=None) -> int:

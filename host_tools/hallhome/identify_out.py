@@ -33,7 +33,7 @@ def _vec(v, fmt: str = ".6g") -> str:
     return "[" + ", ".join(f"{x:{fmt}}" for x in v) + "]"
 
 
-def _edits(res: FitResult, nominal: Robot) -> dict:
+def _edits(res: FitResult) -> dict:
     """{(table, index, key): (new value text, comment)} for every fitted value."""
     rows = {r["name"]: r for r in res.table()}
 
@@ -41,8 +41,9 @@ def _edits(res: FitResult, nominal: Robot) -> dict:
         parts = []
         for n in names:
             r = rows[n]
-            parts.append(f"{r['value']:.4g} +- {r['sigma']:.2g} {r['unit']} (nominal {r['nominal']:.4g}"
-                         + ("" if r["from_data"] else ", mostly the prior") + ")")
+            prior = "" if r["from_data"] else ", mostly the prior"
+            parts.append(f"{r['value']:.4g} +- {r['sigma']:.2g} {r['unit']} "
+                         f"(nominal {r['nominal']:.4g}{prior})")
         return "# identified: " + "; ".join(parts)
 
     fitted = res.robot
@@ -52,7 +53,8 @@ def _edits(res: FitResult, nominal: Robot) -> dict:
             out[("segments", j, "length_mm")] = (f"{s.length * 1e3:.4f}", note(f"length_{j + 1}"))
         if f"EI_{j + 1}" in rows:
             out[("segments", j, "youngs_modulus_GPa")] = (
-                f"{s.youngs_modulus * 1e-9:.4f}", note(f"EI_{j + 1}") + ", as E with the TOML's radii")
+                f"{s.youngs_modulus * 1e-9:.4f}",
+                note(f"EI_{j + 1}") + ", as E with the TOML's radii")
     if "radius" in rows:
         for i, t in enumerate(fitted.tendons):
             out[("tendons", i, "routing_radius_mm")] = (f"{t.routing_radius * 1e3:.4f}",
@@ -63,14 +65,13 @@ def _edits(res: FitResult, nominal: Robot) -> dict:
         if all(n in rows for n in names):
             out[("sensors", k, "position_mm")] = (_vec(np.array(s.position) * 1e3, ".4f"),
                                                   note(*names).replace("; ", ", "))
-    del nominal
     return out
 
 
 def render_identified(res: FitResult, nominal: Robot, survey_name: str, when=None) -> str:
     """The identified TOML text (see the module docstring)."""
     when = when or _dt.datetime.now(_dt.timezone.utc)
-    edits = _edits(res, nominal)
+    edits = _edits(res)
     counts: dict[str, int] = {}
     table, index = None, 0
     done = set()
@@ -126,7 +127,8 @@ def write_identified(res: FitResult, nominal: Robot, survey_name: str,
     checks = [(b.length, f.length) for b, f in zip(back.segments, fitted.segments)]
     checks += [(b.bending_stiffness, f.bending_stiffness)
                for b, f in zip(back.segments, fitted.segments)]
-    checks += [(np.linalg.norm(back.magnet.polarization), np.linalg.norm(fitted.magnet.polarization))]
+    checks += [(np.linalg.norm(back.magnet.polarization),
+                np.linalg.norm(fitted.magnet.polarization))]
     checks += [(b.routing_radius, f.routing_radius) for b, f in zip(back.tendons, fitted.tendons)]
     if any(abs(a - b) > 1e-3 * abs(b) for a, b in checks):
         raise IdentifyError(f"{out}: read back, the values differ from the fit")

@@ -31,7 +31,8 @@ def perturbed(r):
     segment 2 1.5 % short and 7 % softer, tendons 3 % further out, sensor 0
     0.5 mm off."""
     s1, s2 = r.segments
-    segs = (dataclasses.replace(s1, length=s1.length * 1.02, youngs_modulus=s1.youngs_modulus * 1.08),
+    segs = (dataclasses.replace(s1, length=s1.length * 1.02,
+                                youngs_modulus=s1.youngs_modulus * 1.08),
             dataclasses.replace(s2, length=s2.length * 0.985,
                                 youngs_modulus=s2.youngs_modulus * 0.93))
     J = tuple(np.array(r.magnet.polarization) * 1.06)
@@ -136,6 +137,15 @@ def test_fit_of_another_robot_is_refused(nominal):
         nominal.magnet, polarization=(0.0, 0.0, 3.9)))
     res = fit(nominal, survey_from_dict(synthetic_survey(strong, seed=3), nominal))
     assert res.refused is not None and "magnet_J" in res.refused
+
+
+def test_helical_routing_is_not_fitted(nominal, survey_dict):
+    trio = load_robot(ROOT / "lookup_tables" / "robots" / "trio_3seg.toml")
+    twisted = dataclasses.replace(nominal, tendons=(dataclasses.replace(
+        nominal.tendons[0], twist=0.01),) + nominal.tendons[1:])
+    assert any(t.twist for t in trio.tendons)
+    with pytest.raises(IdentifyError, match="helical"):
+        fit(twisted, survey_from_dict(survey_dict, nominal))
 
 
 def test_scrambled_data_are_refused(nominal, survey_dict):
