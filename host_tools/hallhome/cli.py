@@ -356,3 +356,6 @@ def plant_config_cmd(robot, out, seed, perturb):
 
 from hallhome.operator import register as _register_operator  # noqa: E402
 _register_operator(main)
+
+from hallhome.identify_cli import identify_group  # noqa: E402
+main.add_command(identify_group)

@@ -34,6 +34,7 @@
 #define BENCH_MAX_PATTERN 8u
 #define BENCH_LED_LOG     4096u
 #define BENCH_LINE_MAX    512u
+#define BENCH_G           9.80665 /* standard gravity, m/s^2: grams to newtons */
 
 /* ATmega2560 I/O addresses (data space) the bench touches directly
  * (datasheet 2549Q, "Register Summary"). */
@@ -86,6 +87,7 @@ typedef enum {
     EV_FIELD,          /* extra field farg3[0..2] uT at sensor arg0 (ambient change) */
     EV_SATURATE,       /* 6 mT at sensor arg0 */
     EV_TENDON_EA,      /* tendon arg0's axial stiffness E*A times farg[0] */
+    EV_WEIGHT,         /* farg[0] grams hung on tendon arg0 at the spool side (0 = off) */
     EV_QUIT            /* end the run (exit code as if the time limit passed) */
 } bench_ev_kind_t;
 
@@ -341,8 +343,11 @@ struct bench_t {
     const char *eeprom_path;
     const char *summary_path;
     const char *plant_path;
-    const char *table_path; /* --table: per-tendon table on stdout at exit */
-    uint64_t limit_us;      /* 0 = none */
+    const char *table_path;  /* --table: per-tendon table on stdout at exit */
+    const char *survey_path; /* --survey: write the identification survey, then exit */
+    double survey_travel_mm; /* survey pull past the detected engagement */
+    double survey_weight_g;  /* mass hung on one tendon per segment (0 = none) */
+    uint64_t limit_us;       /* 0 = none */
     uint32_t seed;
     double perturb;
     uint8_t servo_baud_index; /* Baud Rate field the servos power up with (3 = 1 Mbps) */
@@ -433,6 +438,12 @@ void scen_run_due(bench_t *b, uint64_t now_us);
 void bench_button(bench_t *b, uint8_t down);
 
 /* world.c: the plant and the models behind the pins */
+/* survey.c: the identification survey of the bench's robot (docs/identify.md):
+ * each tendon pulled alone, encoder ticks and sensor readings as the firmware
+ * sees them, optional hanging weights, and the plant's truth apart. Returns 0
+ * or -1 (file, plant). */
+int survey_write(bench_t *b, const char *path);
+
 int world_init(bench_t *b);
 void world_tick(bench_t *b, uint64_t now_us);
 void world_power_cycle(bench_t *b, uint64_t now_us);

@@ -541,6 +541,10 @@ static void usage(FILE *f)
         "  --seed N              seed of the perturbation, the start state and all noise\n"
         "  --perturb FRAC        relative perturbation of the robot's parameters (0.05)\n"
         "  --slack MIN:MAX       start slack before engagement in mm (0.3:2)\n"
+        "  --survey FILE         write the identification survey of the plant (JSON) and exit\n"
+        "  --survey-travel MM    survey pull past the detected engagement (default: the travel\n"
+        "                        the unperturbed robot needs for the top grid tension)\n"
+        "  --survey-weight G     survey: hang G grams on one tendon per segment (0: none)\n"
         "  --tension N           calibration tension for the truth table (plant default)\n"
         "  --table               print the per-tendon table at exit\n"
         "  --straight-um U0,U1.. per tendon, um to pay out from its home to its straight-pose\n"
@@ -684,6 +688,23 @@ int main(int argc, char **argv)
                 fprintf(stderr, "hh_bench: bad --slack %s\n", v);
                 return BENCH_EXIT_USAGE;
             }
+        } else if (strcmp(a, "--survey") == 0) {
+            NEEDV();
+            b->survey_path = v;
+        } else if (strcmp(a, "--survey-travel") == 0) {
+            NEEDV();
+            b->survey_travel_mm = strtod(v, NULL);
+            if (!(b->survey_travel_mm > 0.0 && b->survey_travel_mm <= 10.0)) {
+                fprintf(stderr, "hh_bench: --survey-travel takes 0 < mm <= 10\n");
+                return BENCH_EXIT_USAGE;
+            }
+        } else if (strcmp(a, "--survey-weight") == 0) {
+            NEEDV();
+            b->survey_weight_g = strtod(v, NULL);
+            if (!(b->survey_weight_g >= 0.0 && b->survey_weight_g <= 10000.0)) {
+                fprintf(stderr, "hh_bench: --survey-weight takes 0 <= grams <= 10000\n");
+                return BENCH_EXIT_USAGE;
+            }
         } else if (strcmp(a, "--tension") == 0) {
             NEEDV();
             b->tension_N = strtod(v, NULL);
@@ -750,6 +771,12 @@ int main(int argc, char **argv)
     avr_register_io_write(b->avr, BENCH_EECR, eecr_write, b);
     if (ee_load(b) != 0 || world_init(b) != 0) {
         return BENCH_EXIT_USAGE;
+    }
+    if (b->survey_path != NULL) {
+        /* the survey needs the plant as the run would start it, nothing more */
+        int rc = survey_write(b, b->survey_path);
+        fprintf(stderr, "hh_bench: survey %s %s\n", b->survey_path, rc == 0 ? "written" : "failed");
+        return rc == 0 ? BENCH_EXIT_OK : BENCH_EXIT_USAGE;
     }
     twi_bench_attach(b);
     b->avr->data[BENCH_MCUSR] = 0x01u; /* PORF: this run is a power-up */

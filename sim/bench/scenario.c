@@ -65,6 +65,7 @@ static const struct {
     {"field", EV_FIELD, 4},
     {"saturate", EV_SATURATE, 1},
     {"tendon-stiffness", EV_TENDON_EA, 2},
+    {"weight", EV_WEIGHT, 2},
     {"quit", EV_QUIT, 0},
 };
 
@@ -262,6 +263,13 @@ static int scen_add_line(bench_t *b, const char *line)
     case EV_TENDON_EA:
         e->farg[0] = v[1];
         if (!(v[1] > 0.0 && v[1] <= 100.0)) {
+            return -1;
+        }
+        break;
+    case EV_WEIGHT:
+        /* grams; 0 takes the weight off; 10 kg is far beyond any tendon */
+        e->farg[0] = v[1];
+        if (!(v[1] >= 0.0 && v[1] <= 10000.0)) {
             return -1;
         }
         break;
@@ -492,6 +500,21 @@ void scen_run_due(bench_t *b, uint64_t now)
             }
             b->plant.cfg.tendon[e->arg0].ea_N *= e->farg[0];
             (void)plant_solve(&b->plant);
+            break;
+        case EV_WEIGHT:
+            /* a known mass on the tendon at the spool side, its servo slack:
+             * the model-free procedure's hanging weight */
+            if (!b->have_plant || e->arg0 < 0 || e->arg0 >= b->plant.cfg.n_tendons) {
+                fprintf(stderr, "hh_bench: no tendon %d in the plant\n", (int)e->arg0);
+                break;
+            }
+            (void)plant_set_weight(&b->plant, (uint8_t)e->arg0, e->farg[0] * 1e-3 * BENCH_G);
+            (void)plant_solve(&b->plant);
+            for (uint8_t i = 0; i < b->plant.cfg.n_tendons; i++) {
+                if (b->plant.tension_N[i] > b->max_tension_N[i]) {
+                    b->max_tension_N[i] = b->plant.tension_N[i];
+                }
+            }
             break;
         case EV_QUIT:
             bench_finish(b, b->n_until ? BENCH_EXIT_TIMEOUT : BENCH_EXIT_OK, "quit");

@@ -211,6 +211,23 @@ static void tendon_solve(const plant_tendon_cfg_t *t, double e, double cii, doub
     }
 }
 
+/* Tendon i held by a hanging force w at the spool side: the spool-side
+ * tension is w whatever the path does (the mass moves), and the tip-side
+ * tension is the friction play's state pushed into [w (1 - mu) - f0,
+ * w (1 + mu) + f0]: hung from slack the tip sees w (1 - mu) - f0. */
+static void weight_solve(const plant_tendon_cfg_t *t, double w, double prev, double *ts, double *tt)
+{
+    double mu = t->friction_mu;
+    double f0 = t->friction_mN * 1e-3;
+    double lo = w * (1.0 - mu) - f0;
+    double hi = w * (1.0 + mu) + f0;
+    *ts = w;
+    *tt = prev < lo ? lo : (prev > hi ? hi : prev);
+    if (*tt < 0.0) {
+        *tt = 0.0;
+    }
+}
+
 static void backlash_update(plant_t *p, uint8_t i)
 {
     double half = 0.5 * p->cfg.tendon[i].backlash_um;
@@ -271,6 +288,9 @@ int plant_solve(plant_t *p)
                 }
             }
             tendon_solve(t, e, cmat[i][i], k, prev[i], &ts, &tt);
+            if (p->weight_N[i] > ts) {
+                weight_solve(t, p->weight_N[i], prev[i], &ts, &tt);
+            }
             change += fabs(tt - p->tip_tension_N[i]) + fabs(ts - p->tension_N[i]);
             p->tension_N[i] = ts;
             p->tip_tension_N[i] = tt;
@@ -417,6 +437,15 @@ int plant_set_motor(plant_t *p, uint8_t i, double ticks)
     return 0;
 }
 
+int plant_set_weight(plant_t *p, uint8_t i, double newtons)
+{
+    if (p == NULL || i >= p->cfg.n_tendons || !(newtons >= 0.0) || isinf(newtons)) {
+        return PLANT_E_ARG;
+    }
+    p->weight_N[i] = newtons;
+    return 0;
+}
+
 double plant_motor_ticks(const plant_t *p, uint8_t i)
 {
     if (p == NULL || i >= p->cfg.n_tendons) {
@@ -446,6 +475,14 @@ static double pull_from_slack(const plant_cfg_t *cfg, uint8_t i, double ticks, i
     (void)plant_set_motor(p, i, ticks);
     (void)plant_solve(p);
     return tip ? p->tip_tension_N[i] : p->tension_N[i];
+}
+
+int plant_pull_alone(const plant_cfg_t *cfg, uint8_t i, double ticks, plant_t *p)
+{
+    if (cfg == NULL || p == NULL || i >= cfg->n_tendons) {
+        return PLANT_E_ARG;
+    }
+    return pull_from_slack(cfg, i, ticks, 0, p) < 0.0 ? PLANT_E_ARG : 0;
 }
 
 double plant_tension_at(const plant_cfg_t *cfg, uint8_t i, double ticks)

@@ -127,6 +127,7 @@ typedef struct {
     double curv[PLANT_MAX_SEGMENTS][2];      /* curvature vector per segment, 1/m */
     plant_pose_t tip;
     double extra_uT[PLANT_MAX_SENSORS][3]; /* injected disturbance per sensor */
+    double weight_N[PLANT_MAX_TENDONS];    /* known force hung on the tendon, spool side */
     uint32_t iterations;                   /* Gauss-Seidel sweeps of the last solve */
 } plant_t;
 
@@ -169,6 +170,15 @@ double plant_nm_per_tick(const plant_cfg_t *cfg, uint8_t i);
  * the next plant_solve(). Returns 0 or PLANT_E_ARG. */
 int plant_set_motor(plant_t *p, uint8_t i, double ticks);
 
+/* Hangs a known force (newtons, m g of a mass) on tendon i at the spool side,
+ * as the model-free procedure hangs a weight on a slack servo's tendon; 0
+ * takes it off. While the servo's own pull is weaker, the spool-side tension
+ * is the force and the tip receives it through the friction play (pulling:
+ * force (1 - mu) - f0); a servo pulling harder takes over. Takes effect at
+ * the next plant_solve(). Returns 0 or PLANT_E_ARG (index, negative or not
+ * finite force). */
+int plant_set_weight(plant_t *p, uint8_t i, double newtons);
+
 /* Motor angle of tendon i in ticks (the inverse of plant_set_motor). */
 double plant_motor_ticks(const plant_t *p, uint8_t i);
 
@@ -195,6 +205,12 @@ int plant_read_sensor(plant_t *p, uint8_t k, int32_t out_cuT[3]);
  * position `ticks` with every other tendon slack: the calibration's definition
  * of the tension at a home. Returns the tension in newtons. */
 double plant_tension_at(const plant_cfg_t *cfg, uint8_t i, double ticks);
+
+/* Puts *p in the calibration's single-tendon state: a fresh plant of cfg with
+ * every other tendon far slack and tendon i pulled from slack to motor
+ * position `ticks` (a far-slack `ticks` gives the straight pose). Returns 0 or
+ * PLANT_E_ARG. */
+int plant_pull_alone(const plant_cfg_t *cfg, uint8_t i, double ticks, plant_t *p);
 
 /* The true home: the fractional motor position where tendon i, pulled from
  * slack with the others slack, reaches tension_mN at the spool. Returns 0,

@@ -268,6 +268,17 @@ def do_interactive(cmd, tmp):
     assert "quit" in out and "console pty: /dev/pts/" in out
 
 
+def do_identify(cmd, tmp):
+    """`hallhome identify [fit]`: the subcommand and every option shown exist
+    (tests/host/test_identify.py runs the fit on synthetic surveys)."""
+    argv = fill(cmd, tmp)
+    sub = ["fit"] if len(argv) > 2 and argv[2] == "fit" else []
+    r = run([str(HALLHOME), "identify", *sub, "--help"])
+    assert r.returncode == 0 and "Usage:" in r.out, r.out
+    for opt in re.findall(r"(?:^|\s|\[)(--[A-Za-z][\w-]*)", cmd):
+        assert re.search(rf"(^|[\s,/]){re.escape(opt)}\b", r.out), opt
+
+
 DRY_WHY = ("a suite of `make test` or longer than a test should take: dry run", do_dry)
 BOARD_WHY = ("talks to a board on a serial port (tests/sim/test_operator_bench.py runs the "
              "operator tools against the virtual bench): --help", do_help)
@@ -297,6 +308,8 @@ RULES = [
     (r"^hallhome (ports|console|status|calibrate|learn|learned|forget|history|monitor|export|"
      r"rehome|home|release)(\s|\||$)", BOARD_WHY),
     (r"^hallhome plant-config", ("run into a temporary directory", do_run)),
+    (r"^(\.venv/bin/)?hallhome identify(\s|$)", ("needs a survey: its options exist",
+                                                 do_identify)),
     (r"^hallhome$", ("--help", do_help)),
     (r"^(build/sim/)?hh_bench(\s|$)", ("its options exist (the bench runs in test_bench.py)",
                                        do_bench_option)),

@@ -1,0 +1,328 @@
+"""Identify the robot as built from a survey (docs/identify.md).
+
+The fit adjusts the robot description until the host's model reproduces the
+survey: for every tendon pulled alone, the field change at every sensor
+against the spool's take-up; for every weight record, the field change a
+known force caused. Parameters (each with its nominal value from the TOML
+and a prior spread that keeps ill-determined directions near the
+description):
+
+- ``magnet_J``: |polarization| of the tip magnet, T (its direction stays
+  the TOML's);
+- ``length_<j>``: length of segment j, mm;
+- ``radius``: routing radius of every tendon (one common factor), mm;
+- ``sensor<k>_<x|y|z>``: sensor k's position, mm (its rotation stays);
+- ``engage<i>``: take-up from the pull's first step to the tendon's
+  engagement, um (no prior: the slack at the start is unknown);
+- ``EI_<j>``: bending stiffness of segment j, mN m^2, only with weight
+  records (or ``stiffness=True``); without them it stays nominal.
+
+The model is the host's constant-curvature model (no gravity) and field
+model: cheap enough for finite-difference Jacobians, and within a few um of
+the Cosserat model the tables use on straight-routed robots. The magnet
+field change is compared, so ambient fields cancel. ``scipy.optimize.
+least_squares`` minimises the residuals (field / ``sigma_uT``) plus the
+priors; the 1-sigma uncertainties come from the Jacobian at the solution,
+scaled up by the reduced chi-square when the model does not explain the
+data to the noise. A fit that does not converge, lands on a bound or
+outside the plausible range of a parameter, or leaves residuals far above
+the signal is refused with the reason (``FitResult.refused``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.interpolate import CubicSpline
+from scipy.optimize import least_squares
+
+from hallhome.field import field_at_sensors
+from hallhome.identify_data import IdentifyError, Survey
+from hallhome.model import CosseratModel
+from hallhome.robot import Robot
+from hallhome.tablegen import MODEL_STEPS
+
+TENSION_GRID = np.linspace(0.0, 3.0, 16)  # N: the model's sweep per tendon
+
+
+@dataclass(frozen=True)
+class Param:
+    """One fitted quantity in display units: nominal value, prior 1-sigma
+    (None: no prior), plausible range (the fit is refused outside it)."""
+
+    name: str
+    unit: str
+    nominal: float
+    prior: float | None
+    lo: float
+    hi: float
+    scale: float  # optimiser unit: value = nominal + scale * z
+
+
+@dataclass
+class FitResult:
+    params: list[Param]
+    values: np.ndarray
+    sigmas: np.ndarray
+    robot: Robot  # the identified description (SI)
+    rms_uT: float
+    signal_uT: float  # rms of the measured field changes
+    tendon_rms_uT: dict[int, float]
+    weight_rms_uT: list[float]
+    chi2_red: float
+    n_data: int
+    converged: bool
+    message: str
+    refused: str | None
+    stiffness: bool
+    # per tendon (take-up (n,), measured and modelled field changes (n, n_s, 3), engagement)
+    curves: dict = dataclasses.field(default_factory=dict)
+
+    def value(self, name: str) -> float:
+        return float(self.values[[p.name for p in self.params].index(name)])
+
+    def table(self) -> list[dict]:
+        """Fitted against nominal, one row per parameter."""
+        rows = []
+        for p, v, s in zip(self.params, self.values, self.sigmas):
+            constrained = p.prior is None or s < 0.5 * p.prior
+            rows.append({"name": p.name, "unit": p.unit, "nominal": p.nominal, "value": float(v),
+                         "sigma": float(s), "from_data": bool(constrained)})
+        return rows
+
+
+def _params(robot: Robot, survey: Survey, stiffness: bool, mechanics: bool) -> list[Param]:
+    out = []
+    J = float(np.linalg.norm(robot.magnet.polarization))
+    out.append(Param("magnet_J", "T", J, 0.15 * J, 0.5 * J, 1.5 * J, 0.05 * J))
+    for j, s in enumerate(robot.segments if mechanics else ()):
+        L = s.length * 1e3
+        out.append(Param(f"length_{j + 1}", "mm", L, 0.05 * L, 0.8 * L, 1.2 * L, 0.01 * L))
+    r = float(np.mean([t.routing_radius for t in robot.tendons])) * 1e3
+    if mechanics:
+        out.append(Param("radius", "mm", r, 0.05 * r, 0.7 * r, 1.3 * r, 0.01 * r))
+    for k, s in enumerate(robot.sensors):
+        for a, ax in enumerate("xyz"):
+            q = s.position[a] * 1e3
+            out.append(Param(f"sensor{k}_{ax}", "mm", q, 1.0, q - 5.0, q + 5.0, 0.2))
+    for p in survey.pulls:
+        e0 = _engagement_guess(p, robot.noise) * 1e6
+        out.append(Param(f"engage{p.tendon}", "um", e0, None, -1e3, p.take_up[-1] * 1e6, 50.0))
+    if stiffness:
+        for j, s in enumerate(robot.segments):
+            ei = s.bending_stiffness * 1e3
+            out.append(Param(f"EI_{j + 1}", "mN m^2", ei, 0.3 * ei, 0.25 * ei, 4.0 * ei,
+                             0.05 * ei))
+    return out
+
+
+def _engagement_guess(pull, noise: float) -> float:
+    """Take-up where the field change first exceeds 10 sigma of the noise."""
+    mag = np.max(np.linalg.norm(pull.delta, axis=-1), axis=-1)
+    above = np.nonzero(mag > 10 * noise)[0]
+    return float(pull.take_up[max(above[0] - 1, 0)]) if len(above) else 0.0
+
+
+def apply(robot: Robot, params: list[Param], values) -> Robot:
+    """``robot`` with the fitted values in place (SI units)."""
+    v = {p.name: float(x) for p, x in zip(params, values)}
+    segs = []
+    for j, s in enumerate(robot.segments):
+        e = s.youngs_modulus
+        if f"EI_{j + 1}" in v:
+            e = v[f"EI_{j + 1}"] * 1e-3 / s.second_moment
+        segs.append(dataclasses.replace(s, length=v.get(f"length_{j + 1}", s.length * 1e3) * 1e-3,
+                                        youngs_modulus=e))
+    r_nom = float(np.mean([t.routing_radius for t in robot.tendons]))
+    f = v["radius"] * 1e-3 / r_nom if "radius" in v else 1.0
+    tendons = [dataclasses.replace(t, routing_radius=t.routing_radius * f) for t in robot.tendons]
+    J = np.array(robot.magnet.polarization)
+    magnet = dataclasses.replace(robot.magnet,
+                                 polarization=tuple(J / np.linalg.norm(J) * v["magnet_J"]))
+    sensors = [dataclasses.replace(s, position=tuple(v[f"sensor{k}_{a}"] * 1e-3 for a in "xyz"))
+               for k, s in enumerate(robot.sensors)]
+    return dataclasses.replace(robot, segments=tuple(segs), tendons=tuple(tendons),
+                               magnet=magnet, sensors=tuple(sensors))
+
+
+def cc_single(robot: Robot, i: int, tensions) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Tendon ``i`` pulled alone: the host's constant-curvature model
+    (``ConstantCurvatureModel``, straight routing) in closed form, vectorised
+    over ``tensions`` (N). Returns tip positions (n, 3) m, tip rotations
+    (n, 3, 3) and the take-up (n,) m (path shortening plus stretch).
+    tests/host/test_identify.py checks it against the model itself."""
+    t = robot.tendons[i]
+    T = np.asarray(tensions, float)
+    n = len(T)
+    c, s = np.cos(t.routing_angle), np.sin(t.routing_angle)
+    K = np.array([[0.0, 0.0, c], [0.0, 0.0, s], [-c, -s, 0.0]])  # [axis]x
+    R = np.tile(np.eye(3), (n, 1, 1))
+    p = np.zeros((n, 3))
+    path = np.zeros(n)
+    for seg in robot.segments[:t.segment]:
+        kap = T * t.routing_radius / seg.bending_stiffness
+        th = kap * seg.length
+        path += seg.length * (1.0 - kap * t.routing_radius)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            lx = np.where(kap > 0, (1.0 - np.cos(th)) / np.where(kap > 0, kap, 1.0), 0.0)
+            lz = np.where(kap > 0, np.sin(th) / np.where(kap > 0, kap, 1.0), seg.length)
+        local_p = lx[:, None] * np.array([c, s, 0.0]) + lz[:, None] * np.array([0.0, 0.0, 1.0])
+        st, ct = np.sin(th)[:, None, None], np.cos(th)[:, None, None]
+        local_R = np.eye(3) + st * K + (1.0 - ct) * (K @ K)
+        p = p + np.einsum("nij,nj->ni", R, local_p)
+        R = R @ local_R
+    for seg in robot.segments[t.segment:]:
+        p = p + R[:, :, 2] * seg.length
+    straight = robot.segment_end(t.segment)
+    take = (straight - path) + T * (path + t.free_length) / t.stiffness_ea
+    return p, R, take
+
+
+class _Model:
+    """Tip poses per tendon over TENSION_GRID, cached on the parameters the
+    mechanics depend on (the field and engagement parameters reuse them)."""
+
+    def __init__(self, robot: Robot, survey: Survey):
+        self.robot, self.survey = robot, survey
+        self.key = None
+
+    def poses(self, r: Robot):
+        key = (tuple(s.length for s in r.segments), tuple(s.youngs_modulus for s in r.segments),
+               r.tendons[0].routing_radius)
+        if key != self.key:
+            pos, rot, take = [], [], []
+            for p in self.survey.pulls:
+                a, b, c = cc_single(r, p.tendon, TENSION_GRID)
+                pos.append(a)
+                rot.append(b)
+                take.append(c)
+            a, b, _ = cc_single(r, 0, [0.0])
+            pos.append(a)
+            rot.append(b)
+            if self.survey.weights:
+                # the weights fix the stiffness, so they get the model the
+                # tables are generated with (Cosserat, gravity: an upright
+                # robot's own weight adds to its bending)
+                cos = CosseratModel(r, steps_per_segment=MODEL_STEPS)
+                nt = len(r.tendons)
+                for tau in [np.zeros(nt)] + [np.eye(nt)[w.tendon] * w.force
+                                             for w in self.survey.weights]:
+                    sol = cos.solve(tau)
+                    pos.append(sol.tip_position[None])
+                    rot.append(sol.tip_rotation[None])
+            self.cached = (np.concatenate(pos), np.concatenate(rot), np.concatenate(take))
+            self.key = key
+        return self.cached
+
+    def predict(self, r: Robot, engage: dict[int, float]):
+        """Predicted field changes: a list per pull (n, n_s, 3) and an array
+        of the weight records (n_w, n_s, 3), tesla."""
+        pos, rot, take = self.poses(r)
+        B = field_at_sensors(r, pos, rot)
+        ng = len(TENSION_GRID)
+        npull = len(self.survey.pulls) * ng
+        b0 = B[npull]
+        out = []
+        for n, p in enumerate(self.survey.pulls):
+            Bg = B[n * ng:(n + 1) * ng] - b0[None]
+            tg = take[n * ng:(n + 1) * ng]
+            x = p.take_up - engage[p.tendon]
+            pred = np.zeros_like(p.delta)
+            on = x > 0
+            if np.any(on):
+                pred[on] = CubicSpline(tg, Bg, axis=0)(x[on])
+            out.append(pred)
+        wpred = B[npull + 2:] - B[npull + 1][None] if self.survey.weights else B[:0]
+        return out, wpred
+
+
+def fit(robot: Robot, survey: Survey, *, sigma_uT: float = 1.0,
+        stiffness: bool | None = None, mechanics: bool = True) -> FitResult:
+    """Fits ``robot`` to ``survey`` (see the module docstring). ``stiffness``
+    (default: when the survey has weight records) adds the segments' EI."""
+    twisted = [t.index for t in robot.tendons if t.twist != 0.0]
+    if twisted:
+        raise IdentifyError(f"tendons {twisted} have helical routing: the fit models straight "
+                            "routing only")
+    if stiffness is None:
+        stiffness = bool(survey.weights)
+    params = _params(robot, survey, stiffness, mechanics)
+    names = [p.name for p in params]
+    model = _Model(robot, survey)
+    sigma = sigma_uT * 1e-6
+    lo = np.array([(p.lo - p.nominal) / p.scale for p in params])
+    hi = np.array([(p.hi - p.nominal) / p.scale for p in params])
+    n_prior = sum(p.prior is not None for p in params)
+
+    def values(z):
+        return np.array([p.nominal + p.scale * zz for p, zz in zip(params, z)])
+
+    def unpack(z):
+        v = values(z)
+        r = apply(robot, params, v)
+        engage = {p.tendon: v[names.index(f"engage{p.tendon}")] * 1e-6 for p in survey.pulls}
+        return r, engage
+
+    def resid(z):
+        r, engage = unpack(z)
+        preds, wpred = model.predict(r, engage)
+        parts = [((pr - p.delta) / sigma).ravel() for pr, p in zip(preds, survey.pulls)]
+        parts += [((wp - w.delta) / sigma).ravel() for wp, w in zip(wpred, survey.weights)]
+        v = values(z)
+        parts.append(np.array([(v[k] - p.nominal) / p.prior for k, p in enumerate(params)
+                               if p.prior is not None]))
+        return np.concatenate(parts)
+
+    z0 = np.clip(np.zeros(len(params)), lo + 1e-9, hi - 1e-9)
+    try:
+        sol = least_squares(resid, z0, bounds=(lo, hi), x_scale=1.0, method="trf",
+                            max_nfev=200 * len(params))
+    except (ValueError, np.linalg.LinAlgError) as exc:
+        raise IdentifyError(f"the fit failed: {exc}") from None
+    v = values(sol.x)
+    r_fit, engage = unpack(sol.x)
+    res = sol.fun[:len(sol.fun) - n_prior]
+    n_data = len(res)
+    chi2 = float(np.sum(res ** 2) / max(n_data - len(params), 1))
+    try:
+        cov_z = np.linalg.inv(sol.jac.T @ sol.jac) * max(chi2, 1.0)
+        sig = np.sqrt(np.clip(np.diag(cov_z), 0, None)) * np.array([p.scale for p in params])
+    except np.linalg.LinAlgError:
+        sig = np.full(len(params), np.inf)
+    preds, wpred = model.predict(r_fit, engage)
+    per_tendon, curves = {}, {}
+    for pr, p in zip(preds, survey.pulls):
+        per_tendon[p.tendon] = float(np.sqrt(np.mean((pr - p.delta) ** 2)) * 1e6)
+        curves[p.tendon] = (p.take_up, p.delta, pr, engage[p.tendon])
+    wrms = [float(np.sqrt(np.mean((wp - w.delta) ** 2)) * 1e6)
+            for wp, w in zip(wpred, survey.weights)]
+    rms = float(np.sqrt(np.mean(res ** 2)) * sigma_uT)
+    data = np.concatenate([p.delta.ravel() for p in survey.pulls] +
+                          [w.delta.ravel() for w in survey.weights])
+    signal = float(np.sqrt(np.mean(data ** 2)) * 1e6)
+    out = FitResult(params, v, sig, r_fit, rms, signal, per_tendon, wrms, chi2, n_data,
+                    bool(sol.success), sol.message, None, stiffness, curves)
+    out.refused = _refusal(out, sol, lo, hi)
+    return out
+
+
+def _refusal(res: FitResult, sol, lo, hi) -> str | None:
+    """The reason to refuse a fit, or None."""
+    if not sol.success or sol.status <= 0:
+        return f"the fit did not converge ({sol.message})"
+    for p, z, v, a, b in zip(res.params, sol.x, res.values, lo, hi):
+        if p.prior is not None and min(z - a, b - z) < 1e-3 * (b - a):
+            return (f"{p.name} = {v:.4g} {p.unit} reached the edge of its plausible range "
+                    f"{p.lo:.4g}..{p.hi:.4g} {p.unit} (nominal {p.nominal:.4g}): the "
+                    "description does not fit this robot")
+    for p, v in zip(res.params, res.values):
+        if p.name.startswith("engage") and not p.lo < v < p.hi:
+            return f"{p.name}: no engagement inside the pull ({v:.0f} um)"
+    if not np.all(np.isfinite(res.sigmas)):
+        return "the parameters are not determined by these data (singular Jacobian)"
+    if res.rms_uT > max(0.1 * res.signal_uT, 5.0):
+        return (f"the model does not explain the data: residual {res.rms_uT:.1f} uT rms "
+                f"against {res.signal_uT:.1f} uT of signal")
+    return None

@@ -1,0 +1,203 @@
+"""Survey records for `hallhome identify` (docs/identify.md): reading them and
+making synthetic ones.
+
+A survey file is JSON (``"format": "hallhome-survey"``), as the virtual bench
+writes it (``hh_bench --survey``) and as the firmware will stream it: what
+the board sees, nothing more. Per tendon, pulled alone with the others
+slack, a baseline field and a list of steps ``[ticks, [[bx, by, bz] per
+sensor]]``: the servo's encoder position and each sensor's reading in its
+own frame, in cuT (10 nT; the firmware's unit). Optional weight records:
+``{"tendon", "mass_g", "baseline_cuT", "field_cuT"}`` with every servo slack.
+An optional ``"truth"`` object (the bench plant's true parameters) is kept
+for evaluation and never used by the fit.
+
+Here the records become SI: take-up past the pull's first step (m, from the
+robot description's spool and pull direction) and the field change from the
+baseline (T), so the earth's field and nearby iron cancel as they do in the
+firmware's delta mode.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from scipy.interpolate import CubicSpline
+
+from hallhome.field import field_at_sensors
+from hallhome.model import CosseratModel
+from hallhome.robot import Robot
+
+CUT = 1e-8  # one cuT in tesla
+G = 9.80665  # standard gravity, m/s^2: the mass of a weight record to newtons
+
+
+class IdentifyError(ValueError):
+    """A survey or fit refused; the message gives the reason."""
+
+
+@dataclass(frozen=True)
+class Pull:
+    """One tendon pulled alone: ``take_up`` (n,) m past the first step,
+    ``delta`` (n, n_sensors, 3) T, the field change from the baseline in
+    each sensor's frame."""
+
+    tendon: int
+    take_up: np.ndarray
+    delta: np.ndarray
+
+
+@dataclass(frozen=True)
+class WeightRecord:
+    """A known mass (kg) hung on ``tendon`` with every servo slack; ``delta``
+    (n_sensors, 3) T, the field change it caused."""
+
+    tendon: int
+    mass: float
+    delta: np.ndarray
+
+    @property
+    def force(self) -> float:
+        """m g, N."""
+        return self.mass * G
+
+
+@dataclass(frozen=True)
+class Survey:
+    pulls: tuple[Pull, ...]
+    weights: tuple[WeightRecord, ...]
+    truth: dict | None
+    source: str
+    meta: dict
+
+
+def _fields(value, n_sensors: int, where: str) -> np.ndarray:
+    a = np.asarray(value, dtype=float)
+    if a.shape != (n_sensors, 3) or not np.all(np.isfinite(a)):
+        raise IdentifyError(f"{where}: expected {n_sensors} sensors x 3 finite values")
+    return a
+
+
+def survey_from_dict(d: dict, robot: Robot) -> Survey:
+    """Validates a survey object against ``robot`` and converts it to SI.
+    Raises IdentifyError naming the first problem."""
+    if not isinstance(d, dict) or d.get("format") != "hallhome-survey":
+        raise IdentifyError('not a survey: expected "format": "hallhome-survey"')
+    if d.get("field_unit", "cuT") != "cuT":
+        raise IdentifyError(f"field_unit {d.get('field_unit')!r}: expected cuT")
+    ns, nt = len(robot.sensors), len(robot.tendons)
+    pulls, seen, first = [], set(), {}
+    for n, p in enumerate(d.get("pulls") or []):
+        where = f"pulls[{n}]"
+        i = p.get("tendon") if isinstance(p, dict) else None
+        if not isinstance(i, int) or not 0 <= i < nt or i in seen:
+            raise IdentifyError(f"{where}: tendon must be a new index 0..{nt - 1}")
+        seen.add(i)
+        base = _fields(p.get("baseline_cuT"), ns, f"{where}.baseline_cuT")
+        steps = p.get("steps") or []
+        if len(steps) < 8:
+            raise IdentifyError(f"{where}: {len(steps)} steps, at least 8 needed")
+        ticks = np.array([s[0] for s in steps], dtype=float)
+        field = np.array([_fields(s[1], ns, f"{where}.steps[{k}]") for k, s in enumerate(steps)])
+        t = robot.tendons[i]
+        take_up = (ticks - ticks[0]) * t.pull_dir * t.metres_per_tick
+        if np.any(np.diff(take_up) <= 0):
+            raise IdentifyError(f"{where}: the steps do not pull (take-up must grow; pull_dir "
+                                f"{t.pull_dir:+d} in the robot description)")
+        delta = (field - base[None]) * CUT
+        if np.max(np.linalg.norm(delta[-1], axis=-1)) < 20 * robot.noise:
+            raise IdentifyError(f"{where}: tendon {i} never changed the field beyond the noise "
+                                "(magnet missing, tendon not engaged, wrong robot?)")
+        pulls.append(Pull(i, take_up, delta))
+        first[i] = float(ticks[0])
+    if not pulls:
+        raise IdentifyError("no pulls in the survey")
+    weights = []
+    for n, w in enumerate(d.get("weights") or []):
+        where = f"weights[{n}]"
+        i, m = w.get("tendon"), w.get("mass_g")
+        if not isinstance(i, int) or not 0 <= i < nt:
+            raise IdentifyError(f"{where}: tendon must be 0..{nt - 1}")
+        if not isinstance(m, (int, float)) or not 0 < m <= 10000:
+            raise IdentifyError(f"{where}: mass_g must be in (0, 10000]")
+        delta = (_fields(w.get("field_cuT"), ns, where) -
+                 _fields(w.get("baseline_cuT"), ns, where)) * CUT
+        weights.append(WeightRecord(i, m * 1e-3, delta))
+    meta = {k: d[k] for k in ("robot", "seed", "perturb", "source") if k in d}
+    meta["first_ticks"] = first
+    return Survey(tuple(pulls), tuple(weights), d.get("truth"), d.get("source", "?"), meta)
+
+
+def load_survey(path: str | Path, robot: Robot) -> Survey:
+    """Reads a survey JSON file (see the module docstring)."""
+    try:
+        d = json.loads(Path(path).read_text())
+    except (OSError, ValueError) as exc:
+        raise IdentifyError(f"{path}: {exc}") from None
+    try:
+        return survey_from_dict(d, robot)
+    except IdentifyError as exc:
+        raise IdentifyError(f"{path}: {exc}") from None
+
+
+def synthetic_survey(robot: Robot, *, seed: int = 1, noise_uT: float = 0.3,
+                     top_tension: float = 1.5, step_ticks: int = 4, slack_mm: float = 0.5,
+                     weights: tuple[tuple[int, float], ...] = (),
+                     ambient_uT=(18.0, 2.0, -44.0)) -> dict:
+    """A survey of ``robot`` made by the host's Cosserat model, in the file
+    format (the pulls without gravity, as the fit models them; the weights
+    with it): each tendon starts ``slack_mm`` (varied by up to 50 %
+    with the seed) before engagement and is pulled to ``top_tension``;
+    readings carry Gaussian noise ``noise_uT`` per axis, an ambient field and
+    the 0.15 uT quantisation. ``weights``: (tendon, grams) records."""
+    rng = np.random.default_rng(seed)
+    model = CosseratModel(robot, steps_per_segment=8, gravity=False)
+    nt = len(robot.tendons)
+    straight = model.solve(np.zeros(nt))
+    b0 = field_at_sensors(robot, straight.tip_position, straight.tip_rotation)[0]
+    amb = np.array([np.array(s.rotation).T @ np.array(ambient_uT) * 1e-6 for s in robot.sensors])
+
+    def reading(b):
+        v = (b + amb) / 1e-6 + rng.normal(0.0, noise_uT, b.shape)
+        return (np.round(v / 0.15) * 15).tolist()  # cuT, whole LSBs
+
+    pulls = []
+    for i, t in enumerate(robot.tendons):
+        grid = np.linspace(0.0, top_tension * 1.05, 25)
+        sols = []
+        for T in grid:
+            tau = np.zeros(nt)
+            tau[i] = T
+            sols.append(model.solve(tau))
+        take = np.array([s.take_up[i] for s in sols])
+        B = field_at_sensors(robot, np.array([s.tip_position for s in sols]),
+                             np.array([s.tip_rotation for s in sols]))
+        spline = CubicSpline(take, B, axis=0)
+        slack = slack_mm * 1e-3 * (1.0 + 0.5 * rng.uniform(-1, 1))
+        mpt = t.metres_per_tick
+        start = int(rng.integers(-5000, 5000))
+        n_steps = int(math.ceil((slack + take[-1]) / (step_ticks * mpt)))
+        steps = []
+        for k in range(n_steps + 1):
+            x = k * step_ticks * mpt - slack
+            b = b0 if x <= 0 else spline(x)
+            steps.append([start + t.pull_dir * k * step_ticks, reading(b)])
+        pulls.append({"tendon": i, "baseline_cuT": reading(b0), "steps": steps,
+                      "engagement_um": round((slack / mpt) * mpt * 1e6, 3)})
+    wrec = []
+    heavy = CosseratModel(robot, steps_per_segment=8)  # a hung weight: gravity too
+    s0 = heavy.solve(np.zeros(nt))
+    w0 = field_at_sensors(robot, s0.tip_position, s0.tip_rotation)[0]
+    for i, grams in weights:
+        tau = np.zeros(nt)
+        tau[i] = grams * 1e-3 * G
+        s = heavy.solve(tau)
+        b = field_at_sensors(robot, s.tip_position, s.tip_rotation)[0]
+        wrec.append({"tendon": i, "mass_g": grams, "baseline_cuT": reading(w0),
+                     "field_cuT": reading(b)})
+    return {"format": "hallhome-survey", "version": 1, "source": "synthetic (host model)",
+            "robot": robot.name, "seed": seed, "field_unit": "cuT", "step_ticks": step_ticks,
+            "pulls": pulls, "weights": wrec}

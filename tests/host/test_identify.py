@@ -1,0 +1,236 @@
+"""hallhome identify: survey records, the fit, its refusals, the identified
+TOML and the command (docs/identify.md)."""
+
+import copy
+import dataclasses
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from hallhome.cli import main
+from hallhome.identify import cc_single, fit
+from hallhome.identify_data import IdentifyError, Survey, survey_from_dict, synthetic_survey
+from hallhome.identify_out import identified_path, render_identified, write_identified
+from hallhome.model import ConstantCurvatureModel
+from hallhome.robot import load_robot
+
+ROOT = Path(__file__).resolve().parents[2]
+PAPER = ROOT / "lookup_tables" / "robots" / "paper_2seg.toml"
+
+
+@pytest.fixture(scope="module")
+def nominal():
+    return load_robot(PAPER)
+
+
+def perturbed(r):
+    """A robot as built: magnet +6 %, segment 1 +2 % long and 8 % stiffer,
+    segment 2 1.5 % short and 7 % softer, tendons 3 % further out, sensor 0
+    0.5 mm off."""
+    s1, s2 = r.segments
+    segs = (dataclasses.replace(s1, length=s1.length * 1.02,
+                                youngs_modulus=s1.youngs_modulus * 1.08),
+            dataclasses.replace(s2, length=s2.length * 0.985,
+                                youngs_modulus=s2.youngs_modulus * 0.93))
+    J = tuple(np.array(r.magnet.polarization) * 1.06)
+    return dataclasses.replace(
+        r, segments=segs, magnet=dataclasses.replace(r.magnet, polarization=J),
+        tendons=tuple(dataclasses.replace(t, routing_radius=t.routing_radius * 1.03)
+                      for t in r.tendons),
+        sensors=(dataclasses.replace(r.sensors[0], position=(0.0225, 0.0003, 0.1215)),)
+        + r.sensors[1:])
+
+
+@pytest.fixture(scope="module")
+def true_robot(nominal):
+    return perturbed(nominal)
+
+
+@pytest.fixture(scope="module")
+def survey_dict(true_robot):
+    return synthetic_survey(true_robot, seed=2, weights=((0, 80.0), (3, 80.0)))
+
+
+@pytest.fixture(scope="module")
+def weighted_fit(nominal, survey_dict):
+    return fit(nominal, survey_from_dict(survey_dict, nominal))
+
+
+def test_closed_form_is_the_constant_curvature_model(nominal, true_robot):
+    for r in (nominal, true_robot):
+        cc = ConstantCurvatureModel(r, samples_per_segment=3)
+        for i in range(len(r.tendons)):
+            T = [0.0, 0.4, 1.7]
+            p, R, take = cc_single(r, i, T)
+            for k, t in enumerate(T):
+                tau = np.zeros(len(r.tendons))
+                tau[i] = t
+                s = cc.solve(tau)
+                assert np.allclose(p[k], s.tip_position, atol=1e-12)
+                assert np.allclose(R[k], s.tip_rotation, atol=1e-12)
+                assert take[k] == pytest.approx(s.take_up[i], abs=1e-12)
+
+
+def test_fit_with_weights_recovers_the_robot_as_built(weighted_fit, true_robot, survey_dict):
+    res = weighted_fit
+    assert res.refused is None, res.refused
+    assert res.stiffness
+    J_true = np.linalg.norm(true_robot.magnet.polarization)
+    assert res.value("magnet_J") == pytest.approx(J_true, rel=0.03)
+    for j, s in enumerate(true_robot.segments):
+        assert res.value(f"EI_{j + 1}") == pytest.approx(s.bending_stiffness * 1e3, rel=0.03)
+        assert res.value(f"length_{j + 1}") == pytest.approx(s.length * 1e3, rel=0.03)
+    assert res.value("radius") == pytest.approx(true_robot.tendons[0].routing_radius * 1e3,
+                                                rel=0.01)
+    assert res.value("sensor0_x") == pytest.approx(22.5, abs=0.3)
+    for p in survey_dict["pulls"]:
+        assert res.value(f"engage{p['tendon']}") == pytest.approx(p["engagement_um"], abs=5.0)
+    # the nominal values are far from the truth where it was perturbed: the fit moved them
+    assert abs(res.value("magnet_J") - 1.3) > 0.04
+    # residuals at the noise of an averaged reading, per tendon and per weight
+    assert res.rms_uT < 1.0 and max(res.tendon_rms_uT.values()) < 1.0
+    assert len(res.weight_rms_uT) == 2 and max(res.weight_rms_uT) < 1.0
+    assert all(np.isfinite(res.sigmas)) and all(res.sigmas > 0)
+
+
+def test_uncertainty_shrinks_with_weights(nominal, survey_dict, weighted_fit):
+    """EI is not fitted without weights; with them it is, and the data
+    (not the 30 % prior) determine it."""
+    rows = {r["name"]: r for r in weighted_fit.table()}
+    assert rows["EI_1"]["from_data"] and rows["EI_1"]["sigma"] < 0.1 * rows["EI_1"]["nominal"]
+    d = dict(survey_dict, weights=[])
+    res = fit(nominal, survey_from_dict(d, nominal))
+    assert not res.stiffness and "EI_1" not in [p.name for p in res.params]
+    assert res.refused is None
+
+
+def test_survey_records_are_checked(nominal, survey_dict):
+    def bad(change, match):
+        d = copy.deepcopy(survey_dict)
+        change(d)
+        with pytest.raises(IdentifyError, match=match):
+            survey_from_dict(d, nominal)
+
+    bad(lambda d: d.update(format="csv"), "not a survey")
+    bad(lambda d: d.update(pulls=[]), "no pulls")
+    bad(lambda d: d["pulls"][1].update(tendon=0), "new index")
+    bad(lambda d: d["pulls"][0].update(tendon=6), "new index")
+    bad(lambda d: d["pulls"][0]["steps"][3][1].pop(), "3 sensors")
+    bad(lambda d: d["pulls"][0]["steps"].reverse(), "do not pull")
+    bad(lambda d: d["pulls"][0].update(steps=d["pulls"][0]["steps"][:5]), "at least 8")
+    bad(lambda d: d["weights"][0].update(mass_g=-1), "mass_g")
+    bad(lambda d: d["pulls"][2]["steps"][5][1][0].__setitem__(0, float("nan")), "finite")
+
+    def flat(d):  # a pull that never moves the tip: the readings stay at the baseline
+        for s in d["pulls"][4]["steps"]:
+            s[1] = d["pulls"][4]["baseline_cuT"]
+    bad(flat, "never changed the field")
+
+
+def test_fit_of_another_robot_is_refused(nominal):
+    """A magnet three times stronger than described: the fit runs into the
+    plausible range and says which parameter."""
+    strong = dataclasses.replace(nominal, magnet=dataclasses.replace(
+        nominal.magnet, polarization=(0.0, 0.0, 3.9)))
+    res = fit(nominal, survey_from_dict(synthetic_survey(strong, seed=3), nominal))
+    assert res.refused is not None and "magnet_J" in res.refused
+
+
+def test_helical_routing_is_not_fitted(nominal, survey_dict):
+    trio = load_robot(ROOT / "lookup_tables" / "robots" / "trio_3seg.toml")
+    twisted = dataclasses.replace(nominal, tendons=(dataclasses.replace(
+        nominal.tendons[0], twist=0.01),) + nominal.tendons[1:])
+    assert any(t.twist for t in trio.tendons)
+    with pytest.raises(IdentifyError, match="helical"):
+        fit(twisted, survey_from_dict(survey_dict, nominal))
+
+
+def test_scrambled_data_are_refused(nominal, survey_dict):
+    d = copy.deepcopy(survey_dict)
+    rng = np.random.default_rng(1)
+    for p in d["pulls"]:
+        fields = [s[1] for s in p["steps"]]
+        order = rng.permutation(len(fields))
+        for s, k in zip(p["steps"], order):
+            s[1] = fields[k]
+    res = fit(nominal, survey_from_dict(d, nominal))
+    assert res.refused is not None
+    assert "does not explain" in res.refused or "range" in res.refused
+
+
+def test_identified_toml_loads_with_the_fitted_values(tmp_path, nominal, weighted_fit):
+    out, back = write_identified(weighted_fit, nominal, "synthetic.json", tmp_path / "p_id.toml")
+    text = out.read_text()
+    assert text.startswith("# Identified ") and "synthetic.json" in text
+    assert "# identified: " in text and "+-" in text
+    fitted = weighted_fit.robot
+    assert back.segments[0].length == pytest.approx(fitted.segments[0].length, rel=1e-5)
+    assert back.segments[1].bending_stiffness == pytest.approx(
+        fitted.segments[1].bending_stiffness, rel=1e-4)
+    assert back.sensors[0].position == pytest.approx(fitted.sensors[0].position, abs=1e-7)
+    assert np.linalg.norm(back.magnet.polarization) == pytest.approx(
+        weighted_fit.value("magnet_J"), rel=1e-5)
+    # what was not fitted is unchanged, comments included
+    assert back.tendons[2].stiffness_ea == nominal.tendons[2].stiffness_ea
+    assert "# NiTi" in text
+    assert identified_path(nominal).name == "paper_2seg_id.toml"
+
+
+def test_refused_fit_and_the_original_are_not_written(tmp_path, nominal, weighted_fit):
+    refused = dataclasses.replace(weighted_fit, refused="for the test")
+    with pytest.raises(IdentifyError, match="refused"):
+        write_identified(refused, nominal, "s.json", tmp_path / "x.toml")
+    assert not (tmp_path / "x.toml").exists()
+    with pytest.raises(IdentifyError, match="overwrite"):
+        write_identified(weighted_fit, nominal, "s.json", nominal.path)
+
+
+def test_values_without_their_key_in_the_file_are_refused(tmp_path, nominal, weighted_fit):
+    src = tmp_path / "paper_2seg.toml"
+    src.write_text("\n".join(l for l in PAPER.read_text().splitlines()
+                             if not l.startswith("position_mm")) + "\n")
+    crippled = dataclasses.replace(nominal, path=src)
+    with pytest.raises(IdentifyError, match="position_mm"):
+        render_identified(weighted_fit, crippled, "s.json")
+
+
+def test_command_fits_writes_and_plots(tmp_path, survey_dict):
+    robot = tmp_path / "paper_2seg.toml"
+    robot.write_text(PAPER.read_text())
+    sv = tmp_path / "survey.json"
+    sv.write_text(json.dumps(survey_dict))
+    res = CliRunner().invoke(main, ["identify", "fit", str(robot), str(sv), "--plots",
+                                    str(tmp_path / "plots"), "--json"])
+    assert res.exit_code == 0, res.output
+    out = json.loads(res.stdout)
+    assert out["refused"] is None and out["written"].endswith("paper_2seg_id.toml")
+    assert (tmp_path / "paper_2seg_id.toml").exists()
+    for p in out["plots"]:
+        assert Path(p).stat().st_size > 10000
+    names = [r["name"] for r in out["parameters"]]
+    assert "magnet_J" in names and "EI_2" in names
+
+
+def test_command_refuses_garbage_and_writes_nothing(tmp_path, survey_dict):
+    robot = tmp_path / "paper_2seg.toml"
+    robot.write_text(PAPER.read_text())
+    d = copy.deepcopy(survey_dict)
+    d["pulls"][0]["steps"] = d["pulls"][0]["steps"][:3]
+    sv = tmp_path / "survey.json"
+    sv.write_text(json.dumps(d))
+    res = CliRunner().invoke(main, ["identify", "fit", str(robot), str(sv)])
+    assert res.exit_code == 1 and "at least 8" in res.output
+    assert not (tmp_path / "paper_2seg_id.toml").exists()
+    sv.write_text("{not json")
+    res = CliRunner().invoke(main, ["identify", "fit", str(robot), str(sv)])
+    assert res.exit_code == 1 and "survey.json" in res.output
+
+
+def test_help_documents_the_procedure():
+    res = CliRunner().invoke(main, ["identify", "--help"])
+    assert res.exit_code == 0
+    for word in ("Survey", "Weights", "Fit", "Install", "--survey"):
+        assert word in res.output
