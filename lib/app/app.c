@@ -389,13 +389,13 @@ APP_NOINLINE static void win_moving(app_t *a, uint8_t on)
 APP_NOINLINE static void win_take(app_t *a)
 {
     uint8_t i;
+    uint16_t m = hom_win_take_changed(&a->u.hom);
     for (i = 0; i < a->info.n_tendons; i++) {
         int32_t lo, hi;
-        if (has(a->u.hom.win_changed, i) && hom_window(&a->u.hom, i, &lo, &hi) == 0) {
+        if (has(m, i) && hom_window(&a->u.hom, i, &lo, &hi) == 0) {
             win_set(a, i, lo, hi, 1);
         }
     }
-    a->u.hom.win_changed = 0;
 }
 
 static int32_t home_cur(const app_t *a, uint8_t i)
@@ -816,7 +816,7 @@ static uint16_t off_goal(const app_t *a)
     uint16_t m = 0;
     while (i-- > 0u) {
         m = (uint16_t)(m << 1);
-        if ((uint32_t)(a->present[i] - a->u.hom.out.goal[i]) + 1u > 2u) {
+        if ((uint32_t)(a->present[i] - hom_goal(&a->u.hom, i)) + 1u > 2u) {
             m |= 1u;
         }
     }
@@ -909,8 +909,8 @@ APP_NOINLINE static void servo_next(app_t *a)
         }
         ids[n++] = a->ids[i];
         put32(p, a->acc);
-        put32(p + 4, a->u.hom.out.vel[i]);
-        put32(p + 8, (uint32_t)a->u.hom.out.goal[i]);
+        put32(p + 4, hom_goal_vel(&a->u.hom, i));
+        put32(p + 8, (uint32_t)hom_goal(&a->u.hom, i));
     }
     if (n > 0u &&
         dxl_sync_write(&a->dxl, DXL_XL430_PROFILE_ACCELERATION_ADDR, 12u, ids, data, n) > 0) {
@@ -940,8 +940,7 @@ APP_NOINLINE static void servo_poll(app_t *a)
 /* Queues a goal for tendon i. */
 APP_NOINLINE static void set_goal(app_t *a, uint8_t i, int32_t goal, uint16_t vel, uint16_t acc)
 {
-    a->u.hom.out.goal[i] = goal;
-    a->u.hom.out.vel[i] = vel;
+    hom_set_goal(&a->u.hom, i, goal, vel);
     a->acc = acc;
     a->goal_due |= bit16(i);
     if (has(a->torque_on, i) == 0u) {
@@ -1034,16 +1033,16 @@ APP_NOINLINE static void rep_event(app_t *a, const hom_event_t *ev)
         break;
     case HOM_EV_HOME:
         if (i < a->info.n_tendons) {
-            const hom_tendon_t *t = &a->u.hom.tendon[i];
+            const hom_tendon_t *t = hom_tendon(&a->u.hom, i);
             rep_begin(a, s_result);
             rep_int(a, s_tendon, i);
             rep_int(a, s_id, a->ids[i]);
             rep_int(a, s_home, ev->a);
             rep_int(a, s_home_um, ticks_um(t->nm_per_tick, ev->a));
-            con_report_fixed(&a->con, s_dB_uT, (int32_t)a->u.hom.home_dB, 2);
+            con_report_fixed(&a->con, s_dB_uT, (int32_t)hom_home_dB(&a->u.hom), 2);
             con_report_fixed(&a->con, s_target_uT, (int32_t)t->target_cuT, 2);
             rep_int(a, s_travel_um, ticks_um(t->nm_per_tick, (ev->a - t->engage) * t->dir));
-            rep_int(a, s_time_ms, (int32_t)a->u.hom.tendon_ms);
+            rep_int(a, s_time_ms, (int32_t)hom_tendon_ms(&a->u.hom));
             rep_word(a, s_target, s_delta_abs, a->run_abs);
             rep_end(a);
         }
@@ -1067,11 +1066,11 @@ APP_NOINLINE static void rep_event(app_t *a, const hom_event_t *ev)
         rep_begin(a, s_released);
         rep_word(a, s_reason, s_fault_words, (uint8_t)ev->a);
         if ((ev->a == HOM_F_SERVO_TIMEOUT || ev->a == HOM_F_SERVO_ERROR) &&
-            a->u.hom.fault_index < a->info.n_tendons) {
+            hom_fault_index(&a->u.hom) < a->info.n_tendons) {
             /* a servo that does not answer, or has its torque off, cannot
              * take the release: named (a hardware error is rebooted next) */
-            rep_int(a, s_not_released, a->ids[a->u.hom.fault_index]);
-            rep_int(a, s_index, a->u.hom.fault_index);
+            rep_int(a, s_not_released, a->ids[hom_fault_index(&a->u.hom)]);
+            rep_int(a, s_index, hom_fault_index(&a->u.hom));
         }
         rep_end(a);
         break;
@@ -1087,7 +1086,7 @@ APP_NOINLINE static void run_done(app_t *a)
     win_moving(a, 0);
     uint8_t i, k;
     uint32_t t = now_ms(a);
-    a->amb_ok |= a->u.hom.amb_capture; /* read before u.idle reuses the storage */
+    a->amb_ok |= hom_amb_captured(&a->u.hom); /* read before u.idle reuses the storage */
     a->homes.table_id = a->info.table_id;
     a->homes.n_tendons = a->info.n_tendons;
     a->homes.tension_mN = a->run_tension;
@@ -1105,7 +1104,7 @@ APP_NOINLINE static void run_done(app_t *a)
      * here on the homing's storage is reused (u.idle overlaps its first
      * bytes only: the homes and baselines above were read first). */
     for (k = 0; k < a->info.n_sensors; k++) {
-        memcpy(a->u.idle.b0[k], a->u.hom.sensor[k].b0, sizeof a->u.idle.b0[k]);
+        memcpy(a->u.idle.b0[k], hom_baseline(&a->u.hom, k), sizeof a->u.idle.b0[k]);
     }
     a->have_b0 = 1;
     memset(&a->u.idle.rec.hist, 0, sizeof a->u.idle.rec.hist);
@@ -1277,16 +1276,8 @@ APP_NOINLINE static void cal_step(app_t *a, hom_in_t *in)
         s->pos = a->present[i];
     }
     a->servo_fresh = 0;
-    if (a->u.hom.t_phase == 0u && (in->now_ms & 1u) == 0u) {
-        /* The homing's preflight starts its clock at now | 1 and checks it
-         * in the same step: an even start time would read as a wrapped,
-         * expired wait. Its first step is given an odd time (1 ms early). */
-        in->now_ms--;
-    }
     rc = hom_step(&a->u.hom, in, &out);
-    if (a->u.hom.win_changed != 0u) {
-        win_take(a);
-    }
+    win_take(a);
     for (i = 0; i < a->info.n_tendons; i++) {
         if (has(out.changed, i)) {
             a->acc = out.acc[i]; /* one profile acceleration for every move */
@@ -1304,11 +1295,12 @@ APP_NOINLINE static void cal_step(app_t *a, hom_in_t *in)
         run_done(a);
     } else if (rc < 0) {
         fault_rest(a, in->now_ms);
-        if (a->u.hom.fault == HOM_F_SERVO_ERROR && a->u.hom.fault_index < a->info.n_tendons) {
+        uint8_t f = hom_fault_index(&a->u.hom);
+        if (hom_fault(&a->u.hom) == HOM_F_SERVO_ERROR && f < a->info.n_tendons) {
             /* a servo in hardware error has its torque off and refused the
              * release: reboot it (Protocol 2.0 Reboot clears the error), then
              * release its tendon once the bus is up again */
-            a->reboot_id = a->ids[a->u.hom.fault_index];
+            a->reboot_id = a->ids[f];
             a->reboot_req = 1;
             a->auto_release = a->reboot_id;
         }
@@ -1416,7 +1408,7 @@ APP_NOINLINE static void move_step(app_t *a)
     uint8_t i, arrived = 1;
     uint32_t t = now_ms(a);
     for (i = 0; i < a->info.n_tendons; i++) {
-        int32_t d = a->present[i] - a->u.hom.out.goal[i];
+        int32_t d = a->present[i] - hom_goal(&a->u.hom, i);
         if (has(a->servo_absent, i)) {
             continue;
         }
