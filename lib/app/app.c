@@ -1,139 +1,11 @@
 /*
  * app: the superloop that turns the modules into the product (app.h).
  */
-#include "app/app.h"
-
 #include <stddef.h>
 #include <string.h>
 
+#include "app/app_priv.h"
 #include "dxl/dxl_xl430_reg.h"
-
-/* Flash is the scarce resource on the AVR: the tasks called from one place
- * stay functions of their own rather than being merged into their caller,
- * which costs more code (-0.8 KB measured). */
-#if defined(__GNUC__)
-#define APP_NOINLINE __attribute__((noinline))
-#else
-#define APP_NOINLINE
-#endif
-
-/* Report kinds, keys and words, each once in console-flash memory (program
- * memory on the AVR, where CON_FLASH is __progmem__). */
-static const char s_full_quick_single_dry[] CON_FLASH = "full quick single dry";
-static const char s_delta_abs[] CON_FLASH = "delta abs";
-static const char s_fault_words[] CON_FLASH = HOM_FAULT_WORDS;
-static const char s_target[] CON_FLASH = "target";
-static const char s_boot_idle_cal_move_lea[] CON_FLASH = "boot idle cal move learn fault";
-static const char s_none_sensor_servo_tend[] CON_FLASH = "none sensor servo tendon";
-static const char s_preflight_release_base[] CON_FLASH =
-    "- preflight release baseline tendon final";
-static const char s_fault[] CON_FLASH = "fault";
-static const char s_reason[] CON_FLASH = "reason";
-static const char s_error[] CON_FLASH = "error";
-static const char s_dev[] CON_FLASH = "dev";
-static const char s_index[] CON_FLASH = "index";
-static const char s_boot[] CON_FLASH = "boot";
-static const char s_name[] CON_FLASH = "name";
-static const char s_hallhome[] CON_FLASH = "hallhome";
-static const char s_version[] CON_FLASH = "version";
-static const char s_board[] CON_FLASH = "board";
-static const char s_reset[] CON_FLASH = "reset";
-static const char s_missing[] CON_FLASH = "missing";
-static const char s_sensor[] CON_FLASH = "sensor";
-static const char s_ch[] CON_FLASH = "ch";
-static const char s_addr[] CON_FLASH = "addr";
-static const char s_err[] CON_FLASH = "err";
-static const char s_servo[] CON_FLASH = "servo";
-static const char s_id[] CON_FLASH = "id";
-static const char s_hw_error[] CON_FLASH = "hw_error";
-static const char s_tendon[] CON_FLASH = "tendon";
-static const char s_found[] CON_FLASH = "found";
-static const char s_model[] CON_FLASH = "model";
-static const char s_fw[] CON_FLASH = "fw";
-static const char s_pos[] CON_FLASH = "pos";
-static const char s_cal_pos[] CON_FLASH = "cal_pos";
-static const char s_ready[] CON_FLASH = "ready";
-static const char s_table[] CON_FLASH = "table";
-static const char s_table_id[] CON_FLASH = "table_id";
-static const char s_none[] CON_FLASH = "none";
-static const char s_sensors[] CON_FLASH = "sensors";
-static const char s_sensors_expected[] CON_FLASH = "sensors_expected";
-static const char s_servos[] CON_FLASH = "servos";
-static const char s_servos_expected[] CON_FLASH = "servos_expected";
-static const char s_homes[] CON_FLASH = "homes";
-static const char s_moved[] CON_FLASH = "moved";
-static const char s_stored[] CON_FLASH = "stored";
-static const char s_count[] CON_FLASH = "count";
-static const char s_other_table[] CON_FLASH = "other_table";
-static const char s_rehome[] CON_FLASH = "rehome";
-static const char s_progress[] CON_FLASH = "progress";
-static const char s_state[] CON_FLASH = "state";
-static const char s_start[] CON_FLASH = "start";
-static const char s_mode[] CON_FLASH = "mode";
-static const char s_tension_mN[] CON_FLASH = "tension_mN";
-static const char s_why[] CON_FLASH = "why";
-static const char s_bits[] CON_FLASH = "bits";
-static const char s_engaged[] CON_FLASH = "engaged";
-static const char s_result[] CON_FLASH = "result";
-static const char s_home[] CON_FLASH = "home";
-static const char s_home_um[] CON_FLASH = "home_um";
-static const char s_dB_uT[] CON_FLASH = "dB_uT";
-static const char s_target_uT[] CON_FLASH = "target_uT";
-static const char s_travel_um[] CON_FLASH = "travel_um";
-static const char s_time_ms[] CON_FLASH = "time_ms";
-static const char s_code[] CON_FLASH = "code";
-static const char s_detail[] CON_FLASH = "detail";
-static const char s_released[] CON_FLASH = "released";
-static const char s_done[] CON_FLASH = "done";
-static const char s_aborted[] CON_FLASH = "aborted";
-static const char s_servo_stall[] CON_FLASH = "servo_stall";
-static const char s_release[] CON_FLASH = "release";
-static const char s_baseline[] CON_FLASH = "baseline";
-static const char s_learned[] CON_FLASH = "learned";
-static const char s_grid[] CON_FLASH = "grid";
-static const char s_eeprom[] CON_FLASH = "eeprom";
-static const char s_refused[] CON_FLASH = "refused";
-static const char s_tendons[] CON_FLASH = "tendons";
-static const char s_status[] CON_FLASH = "status";
-static const char s_homes_now[] CON_FLASH = "homes_now";
-static const char s_saving[] CON_FLASH = "saving";
-static const char s_loop_max_us[] CON_FLASH = "loop_max_us";
-static const char s_loops[] CON_FLASH = "loops";
-static const char s_rest[] CON_FLASH = "rest";
-static const char s_usable[] CON_FLASH = "usable";
-static const char s_now[] CON_FLASH = "now";
-static const char s_ok[] CON_FLASH = "ok";
-static const char s_who[] CON_FLASH = "who";
-static const char s_mag[] CON_FLASH = "mag";
-static const char s_rate_Hz[] CON_FLASH = "rate_Hz";
-static const char s_bx_uT[] CON_FLASH = "bx_uT";
-static const char s_by_uT[] CON_FLASH = "by_uT";
-static const char s_bz_uT[] CON_FLASH = "bz_uT";
-static const char s_ovf[] CON_FLASH = "ovf";
-static const char s_last_err[] CON_FLASH = "last_err";
-static const char s_reinits[] CON_FLASH = "reinits";
-static const char s_grid_mN[] CON_FLASH = "grid_mN";
-static const char s_default_mN[] CON_FLASH = "default_mN";
-static const char s_noise_cuT[] CON_FLASH = "noise_cuT";
-static const char s_dir[] CON_FLASH = "dir";
-static const char s_segment[] CON_FLASH = "segment";
-static const char s_limit_um[] CON_FLASH = "limit_um";
-static const char s_target_cuT[] CON_FLASH = "target_cuT";
-static const char s_hist[] CON_FLASH = "hist";
-static const char s_age[] CON_FLASH = "age";
-static const char s_setting[] CON_FLASH = "setting";
-static const char s_value[] CON_FLASH = "value";
-static const char s_unit[] CON_FLASH = "unit";
-static const char s_min[] CON_FLASH = "min";
-static const char s_max[] CON_FLASH = "max";
-static const char s_default[] CON_FLASH = "default";
-static const char s_overrun[] CON_FLASH = "overrun";
-static const char s_bytes[] CON_FLASH = "bytes";
-static const char s_total[] CON_FLASH = "total";
-static const char s_dropped[] CON_FLASH = "dropped";
-static const char s_reports[] CON_FLASH = "reports";
-static const char s_not_released[] CON_FLASH = "not_released";
-static const char s_servo_error[] CON_FLASH = "servo_error";
 
 /* Bus transactions. */
 enum { TX_NONE = 0, TX_POS, TX_HWERR, TX_GOAL, TX_TORQUE, TX_REBOOT, TX_WDOG };
@@ -150,123 +22,33 @@ enum { MOVE_HOME = 1, MOVE_RELEASE = 2 };
 #define LEARN_WAIT_MS  1000u
 #define SETTLE_MS      300u
 
-static uint32_t now_ms(const app_t *a)
+uint32_t app_now_ms(const app_t *a)
 {
     return a->io->board->now_ms(a->io->board->ctx);
 }
 
-static uint32_t now_us(const app_t *a)
+uint32_t app_now_us(const app_t *a)
 {
     return a->io->board->now_us(a->io->board->ctx);
 }
 
-APP_NOINLINE static uint16_t bit16(uint8_t i)
+APP_NOINLINE uint16_t app_bit16(uint8_t i)
 {
     return (uint16_t)(1u << i);
 }
 
 /* Bit i of m (one routine: a variable shift is a loop on the AVR). */
-static uint8_t has(uint16_t m, uint8_t i)
+uint8_t app_has(uint16_t m, uint8_t i)
 {
     return (uint8_t)((m >> i) & 1u);
 }
 
-APP_NOINLINE static uint16_t all_mask(const app_t *a)
+APP_NOINLINE uint16_t app_all_mask(const app_t *a)
 {
     return (uint16_t)((1u << a->info.n_tendons) - 1u);
 }
 
 /* ---- reports ------------------------------------------------------------- */
-
-static void rep_begin(app_t *a, const char *kind)
-{
-    con_report_begin(&a->con, kind);
-}
-
-static void rep_int(app_t *a, const char *key, int32_t v)
-{
-    con_report_int(&a->con, key, v);
-}
-
-static void rep_end(app_t *a)
-{
-    con_report_end(&a->con);
-}
-
-/* Hex words (table_id) without a printf. */
-static void rep_hex(app_t *a, const char *key, uint32_t v)
-{
-    char buf[11];
-    uint8_t i;
-    buf[0] = '0';
-    buf[1] = 'x';
-    for (i = 0; i < 8u; i++) {
-        uint8_t d = (uint8_t)((v >> (28u - 4u * i)) & 0xFu);
-        buf[2u + i] = (char)(d < 10u ? (char)('0' + d) : (char)('a' + d - 10u));
-    }
-    buf[10] = '\0';
-    con_report_str(&a->con, key, buf);
-}
-
-/* Appends the decimal v and a separator to buf at *pos (capacity cap). */
-static void list_add(char *buf, uint8_t cap, uint8_t *pos, int32_t v, char mark)
-{
-    char tmp[13];
-    int8_t n = con_format_fixed(tmp, sizeof tmp, v, 0);
-    if (n < 0 || (uint16_t)*pos + (uint16_t)n + 3u > cap) {
-        return;
-    }
-    if (*pos > 0u) {
-        buf[(*pos)++] = ',';
-    }
-    memcpy(&buf[*pos], tmp, (size_t)n);
-    *pos = (uint8_t)(*pos + (uint8_t)n);
-    if (mark != '\0') {
-        buf[(*pos)++] = mark;
-    }
-    buf[*pos] = '\0';
-}
-
-/* Writes key=<word i of the flash list words_f> (space-separated; "?" past
- * its end): one routine instead of a table of string pointers in RAM. */
-static void rep_word(app_t *a, const char *key, const char *words_f, uint8_t i)
-{
-    char buf[16], c;
-    uint8_t n = 0;
-    for (;;) {
-        a->io->con_copy(&c, words_f++, 1);
-        if (c == '\0' || c == ' ') {
-            if (i == 0u || c == '\0') {
-                break;
-            }
-            i--;
-        } else if (i == 0u && n < sizeof buf - 1u) {
-            buf[n++] = c;
-        }
-    }
-    if (i != 0u || n == 0u) {
-        buf[n++] = '?';
-    }
-    buf[n] = '\0';
-    con_report_str(&a->con, key, buf);
-}
-
-#define MODE_WORDS  s_full_quick_single_dry
-#define STATE_WORDS s_boot_idle_cal_move_lea
-#define DEV_WORDS   s_none_sensor_servo_tend
-#define PHASE_WORDS s_preflight_release_base
-
-/* A fault the app itself detects (moves, learn, EEPROM), in the same shape
- * as the homing's: reason word, console error code, device. */
-static void rep_app_fault(app_t *a, const char *reason_f, int8_t err, uint8_t dev, uint8_t index)
-{
-    rep_begin(a, s_fault);
-    con_report_flash(&a->con, s_reason, reason_f);
-    rep_int(a, s_error, -err);
-    rep_word(a, s_dev, DEV_WORDS, dev);
-    rep_int(a, s_index, index);
-    rep_end(a);
-}
 
 /* ---- table ------------------------------------------------------------------- */
 
@@ -281,7 +63,7 @@ void app_table_copy(app_t *app, void *dst, const void *src, size_t n)
         uintptr_t lo, s0 = (uintptr_t)src, s1 = (uintptr_t)src + n;
         store_learned_t l;
         uint8_t g;
-        if (has(app->learned_mask, t) == 0u) {
+        if (app_has(app->learned_mask, t) == 0u) {
             continue;
         }
         lo = (uintptr_t)&app->io->table->tendons[t].target_cuT[0];
@@ -293,7 +75,7 @@ void app_table_copy(app_t *app, void *dst, const void *src, size_t n)
         }
         for (g = 0; g < l.n_grid && g < TBL_MAX_GRID; g++) {
             uintptr_t w = lo + sizeof(uint32_t) * g;
-            if (has(l.grid_mask, g) != 0u && w >= s0 && w + sizeof(uint32_t) <= s1) {
+            if (app_has(l.grid_mask, g) != 0u && w >= s0 && w + sizeof(uint32_t) <= s1) {
                 memcpy((uint8_t *)dst + (w - s0), &l.target_cuT[g], sizeof(uint32_t));
             }
         }
@@ -333,13 +115,6 @@ static int32_t um_ticks(uint32_t npt, uint32_t um)
     return (int32_t)((um * 1000u + npt / 2u) / npt);
 }
 
-/* Ticks to um, split so that the products stay in 32 bits for any
- * extended-position value (+-256 turns). */
-APP_NOINLINE static int32_t ticks_um(uint32_t npt, int32_t ticks)
-{
-    return ticks * (int32_t)(npt / 1000u) + ticks * (int32_t)(npt % 1000u) / 1000;
-}
-
 /* ---- engagement windows (app_win_t) ------------------------------------------ */
 
 static uint16_t win_crc(const app_win_t *w)
@@ -367,7 +142,7 @@ APP_NOINLINE static void win_set(app_t *a, uint8_t i, int32_t lo, int32_t hi, ui
     if (w == NULL) {
         return;
     }
-    w->mask = (uint16_t)(keep ? (w->mask | bit16(i)) : (w->mask & ~bit16(i)));
+    w->mask = (uint16_t)(keep ? (w->mask | app_bit16(i)) : (w->mask & ~app_bit16(i)));
     w->lo[i] = lo;
     w->hi[i] = hi;
     w->crc = win_crc(w);
@@ -392,7 +167,7 @@ APP_NOINLINE static void win_take(app_t *a)
     uint16_t m = hom_win_take_changed(&a->u.hom);
     for (i = 0; i < a->info.n_tendons; i++) {
         int32_t lo, hi;
-        if (has(m, i) && hom_window(&a->u.hom, i, &lo, &hi) == 0) {
+        if (app_has(m, i) && hom_window(&a->u.hom, i, &lo, &hi) == 0) {
             win_set(a, i, lo, hi, 1);
         }
     }
@@ -437,26 +212,26 @@ int8_t app_init(app_t *app, const app_io_t *io)
             store_learned_t l;
             if (store_learned_load(&app->store, t, app->info.table_id, &l) == 0 &&
                 l.grid_mask != 0u) {
-                app->learned_mask |= bit16(t);
+                app->learned_mask |= app_bit16(t);
             }
         }
     }
     app->state = APP_ST_BOOT;
-    app->t_boot = now_ms(app);
+    app->t_boot = app_now_ms(app);
     app->btn_raw = 0;
     app->led = APP_LED_BOOT;
-    rep_begin(app, s_boot);
-    con_report_flash(&app->con, s_name, s_hallhome);
+    app_rep_begin(app, app_w_boot);
+    con_report_flash(&app->con, app_w_name, app_w_hallhome);
     if (io->version_f != NULL) {
-        con_report_flash(&app->con, s_version, io->version_f);
+        con_report_flash(&app->con, app_w_version, io->version_f);
     }
     if (io->board_f != NULL) {
-        con_report_flash(&app->con, s_board, io->board_f);
+        con_report_flash(&app->con, app_w_board, io->board_f);
     }
     if (io->reset_f != NULL) {
-        con_report_flash(&app->con, s_reset, io->reset_f);
+        con_report_flash(&app->con, app_w_reset, io->reset_f);
     }
-    rep_end(app);
+    app_rep_end(app);
     return 0;
 }
 
@@ -473,7 +248,7 @@ APP_NOINLINE static void boot_start(app_t *a)
     dxl_bringup_config bc;
     a->state = APP_ST_BOOT;
     a->boot_step = 0;
-    a->t_boot = now_ms(a);
+    a->t_boot = app_now_ms(a);
     if (!a->table_ok) {
         return;
     }
@@ -485,7 +260,7 @@ APP_NOINLINE static void boot_start(app_t *a)
             (void)icm_set_add(&a->sens, a->io->mux_addr == ICM_NO_MUX ? ICM_NO_MUX : s.mux_channel,
                               s.i2c_addr);
         }
-        (void)icm_set_begin(&a->sens, now_us(a));
+        (void)icm_set_begin(&a->sens, app_now_us(a));
     }
     memset(&bc, 0, sizeof bc);
     bc.profile_velocity = 0;
@@ -513,59 +288,22 @@ APP_NOINLINE static void recover_homes(app_t *a)
     for (i = 0; i < a->info.n_tendons; i++) {
         int32_t pos;
         int8_t rc;
-        if (has(a->homes.valid_mask, i) == 0u || has(a->servo_seen, i) == 0u) {
+        if (app_has(a->homes.valid_mask, i) == 0u || app_has(a->servo_seen, i) == 0u) {
             continue;
         }
         rc = store_recover_position(&a->homes.t[i], a->present[i],
                                     (uint16_t)a->set.v[STORE_SET_REST_TOL], &pos);
         if (rc == 0) {
             a->offset[i] = pos - a->present[i];
-            a->home_now |= bit16(i);
+            a->home_now |= app_bit16(i);
         } else if (a->recover_rc == 0) {
             a->recover_rc = rc;
         }
     }
 }
 
-/* One `<missing ...>` per sensor that is not sampling and per servo that is
- * absent or reports a hardware error. Returns CON_E_SENSOR_FAULT when a
- * sensor is missing, else CON_E_SERVO_FAULT when a servo is, else 0. */
-static int8_t rep_missing(app_t *a)
-{
-    uint8_t i;
-    int8_t rc = 0;
-    for (i = 0; i < a->info.n_sensors; i++) {
-        icm_diag_t d;
-        (void)icm_set_diag(&a->sens, i, &d);
-        if (d.state != ICM_SET_S_RUN) {
-            rep_begin(a, s_missing);
-            con_report_flash(&a->con, s_dev, s_sensor);
-            rep_int(a, s_index, i);
-            rep_int(a, s_ch, d.channel);
-            rep_int(a, s_addr, d.addr);
-            rep_int(a, s_err, d.last_err);
-            rep_end(a);
-            rc = CON_E_SENSOR_FAULT;
-        }
-    }
-    for (i = 0; i < a->info.n_tendons; i++) {
-        if (has(a->servo_absent, i) || a->hw_err[i] != 0u) {
-            rep_begin(a, s_missing);
-            con_report_flash(&a->con, s_dev, s_servo);
-            rep_int(a, s_index, i);
-            rep_int(a, s_id, a->ids[i]);
-            rep_int(a, s_hw_error, a->hw_err[i]);
-            rep_end(a);
-            if (rc == 0) {
-                rc = CON_E_SERVO_FAULT;
-            }
-        }
-    }
-    return rc;
-}
-
 /* The bring-up's entry for servo id, or NULL. */
-APP_NOINLINE static const dxl_servo_info *bring_info(const app_t *a, uint8_t id)
+APP_NOINLINE const dxl_servo_info *app_boot_servo_info(const app_t *a, uint8_t id)
 {
     uint8_t j;
     for (j = 0; j < a->u.bring.n; j++) {
@@ -582,16 +320,16 @@ APP_NOINLINE static void boot_finish(app_t *a)
     a->n_servo_found = 0;
     a->servo_seen = 0;
     for (i = 0; i < a->info.n_tendons; i++) {
-        const dxl_servo_info *s = bring_info(a, a->ids[i]);
-        if (has(a->servo_absent, i) == 0u && s != NULL && s->present) {
+        const dxl_servo_info *s = app_boot_servo_info(a, a->ids[i]);
+        if (app_has(a->servo_absent, i) == 0u && s != NULL && s->present) {
             a->n_servo_found++;
             a->hw_err[i] = s->hw_error;
             if (a->u.bring.result == 0) {
                 a->present[i] = s->position;
-                a->servo_seen |= bit16(i);
+                a->servo_seen |= app_bit16(i);
             }
         } else {
-            a->servo_absent |= bit16(i);
+            a->servo_absent |= app_bit16(i);
         }
     }
     a->goal_due = 0;
@@ -603,64 +341,42 @@ APP_NOINLINE static void boot_finish(app_t *a)
         (void)icm_set_diag(&a->sens, k, &d);
         a->sens_err[k] = (uint8_t)d.error_count;
     }
-    (void)rep_missing(a);
+    (void)app_rep_missing(a);
     /* Positions not read by the bring-up (it stopped on a missing servo)
      * arrive with the first cycles; homes are recovered once they have. */
     a->boot_step = 2;
 }
 
-/* One `<servo ...>` line per tendon: what the bus knows of its servo. */
-static void servo_lines(app_t *a, uint8_t with_model)
-{
-    uint8_t i;
-    for (i = 0; i < a->info.n_tendons; i++) {
-        rep_begin(a, s_servo);
-        rep_int(a, s_tendon, i);
-        rep_int(a, s_id, a->ids[i]);
-        rep_int(a, s_found, has(a->servo_absent, i) == 0u);
-        if (with_model) {
-            const dxl_servo_info *s = bring_info(a, a->ids[i]);
-            if (s != NULL) {
-                rep_int(a, s_model, s->model);
-                rep_int(a, s_fw, s->firmware);
-            }
-        }
-        rep_int(a, s_pos, a->present[i]);
-        rep_int(a, s_cal_pos, a->present[i] + a->offset[i]);
-        rep_int(a, s_hw_error, a->hw_err[i]);
-        rep_end(a);
-    }
-}
-
 APP_NOINLINE static void boot_ready(app_t *a)
 {
     recover_homes(a);
-    a->offer_quick = (uint8_t)(a->table_ok && a->home_now != 0u && a->home_now == all_mask(a) &&
+    a->offer_quick = (uint8_t)(a->table_ok && a->home_now != 0u && a->home_now == app_all_mask(a) &&
                                a->servo_absent == 0u);
-    rep_begin(a, s_ready);
+    app_rep_begin(a, app_w_ready);
     if (a->table_ok) {
-        con_report_str(&a->con, s_table, a->info.name);
-        rep_hex(a, s_table_id, a->info.table_id);
+        con_report_str(&a->con, app_w_table, a->info.name);
+        app_rep_hex(a, app_w_table_id, a->info.table_id);
     } else {
-        con_report_flash(&a->con, s_table, s_none);
+        con_report_flash(&a->con, app_w_table, app_w_none);
     }
-    rep_int(a, s_sensors, a->n_sens_found);
-    rep_int(a, s_sensors_expected, a->info.n_sensors);
-    rep_int(a, s_servos, a->n_servo_found);
-    rep_int(a, s_servos_expected, a->info.n_tendons);
+    app_rep_int(a, app_w_sensors, a->n_sens_found);
+    app_rep_int(a, app_w_sensors_expected, a->info.n_sensors);
+    app_rep_int(a, app_w_servos, a->n_servo_found);
+    app_rep_int(a, app_w_servos_expected, a->info.n_tendons);
     if (a->homes_rc == 0) {
-        con_report_flash(&a->con, s_homes, a->recover_rc == STORE_E_MOVED ? s_moved : s_stored);
-        rep_int(a, s_count, (int32_t)a->homes.cal_count);
+        con_report_flash(&a->con, app_w_homes,
+                         a->recover_rc == STORE_E_MOVED ? app_w_moved : app_w_stored);
+        app_rep_int(a, app_w_count, (int32_t)a->homes.cal_count);
     } else {
-        con_report_flash(&a->con, s_homes,
-                         a->homes_rc == STORE_E_OTHER_TABLE ? s_other_table : s_none);
+        con_report_flash(&a->con, app_w_homes,
+                         a->homes_rc == STORE_E_OTHER_TABLE ? app_w_other_table : app_w_none);
     }
-    rep_int(a, s_rehome, a->offer_quick);
-    rep_end(a);
+    app_rep_int(a, app_w_rehome, a->offer_quick);
+    app_rep_end(a);
     a->state = APP_ST_IDLE;
     a->boot_step = 3;
     if (a->boot_con && con_pending(&a->con)) {
-        servo_lines(a, 1);
+        app_rep_servos(a, 1);
         (void)con_complete(&a->con, 0);
     }
     a->boot_con = 0;
@@ -669,7 +385,7 @@ APP_NOINLINE static void boot_ready(app_t *a)
 
 APP_NOINLINE static void boot_poll(app_t *a)
 {
-    uint32_t t = now_ms(a);
+    uint32_t t = app_now_ms(a);
     if (a->boot_step == 0u) {
         if (a->reboot_id != 0u && t - a->t_boot < APP_SERVO_REBOOT_MS) {
             return;
@@ -689,7 +405,7 @@ APP_NOINLINE static void boot_poll(app_t *a)
                 if (i < a->u.bring.n && a->u.bring.servo[i].present) {
                     ids[n++] = a->ids[i];
                 } else {
-                    a->servo_absent |= bit16(i);
+                    a->servo_absent |= app_bit16(i);
                 }
             }
             if (n > 0u && dxl_bringup_start(&a->u.bring, &a->dxl, ids, n, &a->u.bring.cfg) > 0) {
@@ -709,7 +425,7 @@ APP_NOINLINE static void boot_poll(app_t *a)
         return;
     }
     /* step 2: every found servo's position and Bus Watchdog, then ready */
-    if (((a->servo_seen | a->servo_absent) != all_mask(a) || a->wdog_step != 0u ||
+    if (((a->servo_seen | a->servo_absent) != app_all_mask(a) || a->wdog_step != 0u ||
          a->sv_txn == TX_WDOG) &&
         t - a->t_boot < APP_PREFLIGHT_MS) {
         return;
@@ -724,9 +440,9 @@ static uint8_t present_ids(const app_t *a, uint8_t *ids, uint16_t *mask)
     uint8_t i, n = 0;
     *mask = 0;
     for (i = 0; i < a->info.n_tendons; i++) {
-        if (has(a->servo_absent, i) == 0u) {
+        if (app_has(a->servo_absent, i) == 0u) {
             ids[n++] = a->ids[i];
-            *mask |= bit16(i);
+            *mask |= app_bit16(i);
         }
     }
     return n;
@@ -747,7 +463,7 @@ APP_NOINLINE static void servo_done(app_t *a, int8_t rc)
     if (a->sv_txn == TX_POS || a->sv_txn == TX_HWERR) {
         for (i = 0; i < a->info.n_tendons; i++) {
             const dxl_reply *r;
-            if (has(a->txn_mask, i) == 0u) {
+            if (app_has(a->txn_mask, i) == 0u) {
                 continue;
             }
             r = dxl_reply_for(&a->dxl, a->ids[i]);
@@ -756,9 +472,9 @@ APP_NOINLINE static void servo_done(app_t *a, int8_t rc)
             }
             if (a->sv_txn == TX_POS && r->len >= 4u) {
                 a->present[i] = dxl_reply_value(r, 4);
-                got |= bit16(i);
-                a->servo_fresh |= bit16(i);
-                a->servo_seen |= bit16(i);
+                got |= app_bit16(i);
+                a->servo_fresh |= app_bit16(i);
+                a->servo_seen |= app_bit16(i);
             } else if (a->sv_txn == TX_HWERR && r->len >= 1u) {
                 a->hw_err[i] = r->data[0];
             }
@@ -780,7 +496,7 @@ APP_NOINLINE static void servo_done(app_t *a, int8_t rc)
                 a->auto_release = 0; /* named: this tendon may still be taut */
                 for (i = 0; i < a->info.n_tendons; i++) {
                     if (a->ids[i] == a->reboot_id) {
-                        rep_app_fault(a, s_not_released, CON_E_SERVO_FAULT, HOM_DEV_SERVO, i);
+                        app_rep_fault(a, app_w_not_released, CON_E_SERVO_FAULT, HOM_DEV_SERVO, i);
                     }
                 }
             } else if (con_pending(&a->con)) {
@@ -796,7 +512,7 @@ APP_NOINLINE static void servo_done(app_t *a, int8_t rc)
                     win_set(a, i, 0, 0, 0);
                 }
             }
-            a->t_boot = now_ms(a);
+            a->t_boot = app_now_ms(a);
             a->boot_con = 1;
             a->boot_step = 0;
             a->state = APP_ST_BOOT;
@@ -847,17 +563,17 @@ APP_NOINLINE static void servo_next(app_t *a)
              * period arms it */
             v = a->wdog_step--;
             i = (uint8_t)((v - 1u) >> 1);
-            if (has(a->servo_absent, i)) {
+            if (app_has(a->servo_absent, i)) {
                 return;
             }
             v = (v & 1u) ? APP_BUS_WATCHDOG : 0u;
             addr = DXL_XL430_BUS_WATCHDOG_ADDR;
             txn = TX_WDOG;
         } else {
-            for (i = 0; has(a->torque_due, i) == 0u; i++) {
+            for (i = 0; app_has(a->torque_due, i) == 0u; i++) {
             }
-            a->torque_due &= (uint16_t)~bit16(i);
-            v = has(a->torque_on, i);
+            a->torque_due &= (uint16_t)~app_bit16(i);
+            v = app_has(a->torque_on, i);
             addr = DXL_XL430_TORQUE_ENABLE_ADDR;
             txn = TX_TORQUE;
         }
@@ -900,11 +616,11 @@ APP_NOINLINE static void servo_next(app_t *a)
     }
     for (i = 0; i < a->info.n_tendons && n < GOALS_PER_TXN; i++) {
         uint8_t *p = &data[n * 12u];
-        if (has(a->goal_due, i) == 0u) {
+        if (app_has(a->goal_due, i) == 0u) {
             continue;
         }
-        a->goal_due &= (uint16_t)~bit16(i);
-        if (has(a->servo_absent, i)) {
+        a->goal_due &= (uint16_t)~app_bit16(i);
+        if (app_has(a->servo_absent, i)) {
             continue;
         }
         ids[n++] = a->ids[i];
@@ -942,10 +658,10 @@ APP_NOINLINE static void set_goal(app_t *a, uint8_t i, int32_t goal, uint16_t ve
 {
     hom_set_goal(&a->u.hom, i, goal, vel);
     a->acc = acc;
-    a->goal_due |= bit16(i);
-    if (has(a->torque_on, i) == 0u) {
-        a->torque_on |= bit16(i);
-        a->torque_due |= bit16(i);
+    a->goal_due |= app_bit16(i);
+    if (app_has(a->torque_on, i) == 0u) {
+        a->torque_on |= app_bit16(i);
+        a->torque_due |= app_bit16(i);
     }
 }
 
@@ -992,100 +708,13 @@ static void save_queue(app_t *a, uint8_t what)
     a->save_due |= what;
 }
 
-APP_NOINLINE static void rep_event(app_t *a, const hom_event_t *ev)
-{
-    uint8_t i = ev->index;
-    switch (ev->type) {
-    case HOM_EV_START:
-        rep_begin(a, s_progress);
-        con_report_flash(&a->con, s_state, s_start);
-        rep_word(a, s_mode, MODE_WORDS, ev->code);
-        rep_int(a, s_tension_mN, ev->a);
-        rep_end(a);
-        break;
-    case HOM_EV_PHASE: {
-        rep_begin(a, s_progress);
-        rep_word(a, s_state, PHASE_WORDS, ev->code);
-        if (ev->code == HOM_PH_TENDON && i < TBL_MAX_TENDONS) {
-            rep_int(a, s_tendon, i);
-            rep_int(a, s_id, a->ids[i]);
-        }
-        rep_end(a);
-        break;
-    }
-    case HOM_EV_MISSING:
-        rep_begin(a, s_missing);
-        rep_word(a, s_dev, DEV_WORDS, ev->code);
-        rep_int(a, s_index, i);
-        if (ev->code == HOM_DEV_SERVO && i < TBL_MAX_TENDONS) {
-            rep_int(a, s_id, a->ids[i]);
-        }
-        rep_int(a, s_why, ev->a);
-        rep_int(a, s_bits, ev->b);
-        rep_end(a);
-        break;
-    case HOM_EV_ENGAGED:
-        rep_begin(a, s_progress);
-        con_report_flash(&a->con, s_state, s_engaged);
-        rep_int(a, s_tendon, i);
-        rep_int(a, s_pos, ev->a);
-        rep_end(a);
-        break;
-    case HOM_EV_HOME:
-        if (i < a->info.n_tendons) {
-            const hom_tendon_t *t = hom_tendon(&a->u.hom, i);
-            rep_begin(a, s_result);
-            rep_int(a, s_tendon, i);
-            rep_int(a, s_id, a->ids[i]);
-            rep_int(a, s_home, ev->a);
-            rep_int(a, s_home_um, ticks_um(t->nm_per_tick, ev->a));
-            con_report_fixed(&a->con, s_dB_uT, (int32_t)hom_home_dB(&a->u.hom), 2);
-            con_report_fixed(&a->con, s_target_uT, (int32_t)t->target_cuT, 2);
-            rep_int(a, s_travel_um, ticks_um(t->nm_per_tick, (ev->a - t->engage) * t->dir));
-            rep_int(a, s_time_ms, (int32_t)hom_tendon_ms(&a->u.hom));
-            rep_word(a, s_target, s_delta_abs, a->run_abs);
-            rep_end(a);
-        }
-        break;
-    case HOM_EV_DONE:
-        break; /* reported by run_done() with the count */
-    case HOM_EV_FAULT:
-        a->last_fault = ev->code;
-        rep_begin(a, s_fault);
-        rep_word(a, s_reason, s_fault_words, ev->code);
-        rep_int(a, s_code, ev->code);
-        rep_word(a, s_dev, DEV_WORDS, (uint8_t)ev->a);
-        rep_int(a, s_index, i);
-        if ((ev->a == HOM_DEV_SERVO || ev->a == HOM_DEV_TENDON) && i < TBL_MAX_TENDONS) {
-            rep_int(a, s_id, a->ids[i]);
-        }
-        rep_int(a, s_detail, ev->b);
-        rep_end(a);
-        break;
-    case HOM_EV_RELEASED:
-        rep_begin(a, s_released);
-        rep_word(a, s_reason, s_fault_words, (uint8_t)ev->a);
-        if ((ev->a == HOM_F_SERVO_TIMEOUT || ev->a == HOM_F_SERVO_ERROR) &&
-            hom_fault_index(&a->u.hom) < a->info.n_tendons) {
-            /* a servo that does not answer, or has its torque off, cannot
-             * take the release: named (a hardware error is rebooted next) */
-            rep_int(a, s_not_released, a->ids[hom_fault_index(&a->u.hom)]);
-            rep_int(a, s_index, hom_fault_index(&a->u.hom));
-        }
-        rep_end(a);
-        break;
-    default:
-        break;
-    }
-}
-
 /* A run finished: keep its homes (calibration frame = this power cycle's
  * frame, so the offsets become 0), count it and queue the records. */
 APP_NOINLINE static void run_done(app_t *a)
 {
     win_moving(a, 0);
     uint8_t i, k;
-    uint32_t t = now_ms(a);
+    uint32_t t = app_now_ms(a);
     a->amb_ok |= hom_amb_captured(&a->u.hom); /* read before u.idle reuses the storage */
     a->homes.table_id = a->info.table_id;
     a->homes.n_tendons = a->info.n_tendons;
@@ -1093,11 +722,11 @@ APP_NOINLINE static void run_done(app_t *a)
     a->homes.cal_count++;
     for (i = 0; i < a->info.n_tendons; i++) {
         int32_t h;
-        if (has(a->run_mask, i) && hom_home(&a->u.hom, i, &h) == 0) {
+        if (app_has(a->run_mask, i) && hom_home(&a->u.hom, i, &h) == 0) {
             store_home_set(&a->homes.t[i], h, h);
             a->offset[i] = 0;
-            a->homes.valid_mask |= bit16(i);
-            a->home_now |= bit16(i);
+            a->homes.valid_mask |= app_bit16(i);
+            a->home_now |= app_bit16(i);
         }
     }
     /* The run's baseline is the learn baseline until the next release. From
@@ -1120,13 +749,13 @@ APP_NOINLINE static void run_done(app_t *a)
     a->recover_rc = 0;
     save_queue(a, SAVE_HOMES | SAVE_HIST);
     a->offer_quick = 0;
-    rep_begin(a, s_done);
-    rep_word(a, s_mode, MODE_WORDS, a->run_mode);
-    rep_word(a, s_target, s_delta_abs, a->run_abs);
-    rep_int(a, s_time_ms, (int32_t)(t - a->t_run));
-    rep_int(a, s_tension_mN, a->run_tension);
-    rep_int(a, s_count, (int32_t)a->homes.cal_count);
-    rep_end(a);
+    app_rep_begin(a, app_w_done);
+    app_rep_word(a, app_w_mode, app_w_mode_words, a->run_mode);
+    app_rep_word(a, app_w_target, app_w_target_words, a->run_abs);
+    app_rep_int(a, app_w_time_ms, (int32_t)(t - a->t_run));
+    app_rep_int(a, app_w_tension_mN, a->run_tension);
+    app_rep_int(a, app_w_count, (int32_t)a->homes.cal_count);
+    app_rep_end(a);
     a->led = APP_LED_DONE;
     a->state = APP_ST_IDLE;
 }
@@ -1139,10 +768,10 @@ APP_NOINLINE static int8_t check_devices(app_t *a)
     if (!a->table_ok) {
         return CON_E_NO_TABLE;
     }
-    return rep_missing(a);
+    return app_rep_missing(a);
 }
 
-static uint8_t idle_state(const app_t *a)
+uint8_t app_idle_state(const app_t *a)
 {
     return (uint8_t)(a->state == APP_ST_IDLE || a->state == APP_ST_FAULT);
 }
@@ -1151,10 +780,10 @@ static uint8_t idle_state(const app_t *a)
  * CON_E_NOT_HOMED or CON_E_MOVED (a spool turned while powered off). */
 APP_NOINLINE static int8_t homes_usable(const app_t *a)
 {
-    if (a->homes_rc != 0 || a->homes.valid_mask != all_mask(a)) {
+    if (a->homes_rc != 0 || a->homes.valid_mask != app_all_mask(a)) {
         return CON_E_NOT_HOMED;
     }
-    return a->home_now != all_mask(a) ? CON_E_MOVED : 0;
+    return a->home_now != app_all_mask(a) ? CON_E_MOVED : 0;
 }
 
 /* Starts a homing run. Returns 0 or a CON_E_* code (nothing moves then). */
@@ -1165,7 +794,7 @@ static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon
     int rc;
     uint8_t i;
     int8_t e;
-    if (!idle_state(a)) {
+    if (!app_idle_state(a)) {
         return CON_E_BUSY;
     }
     e = check_devices(a);
@@ -1203,9 +832,9 @@ static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon
     cmd.tension_mN = tension;
     cmd.tendon = tendon;
     for (i = 0; i < a->info.n_tendons; i++) {
-        if (has(a->home_now, i)) {
+        if (app_has(a->home_now, i)) {
             cmd.stored_home[i] = home_cur(a, i);
-            cmd.stored_mask |= bit16(i);
+            cmd.stored_mask |= app_bit16(i);
         }
     }
     if (a->io->win != NULL) {
@@ -1237,8 +866,8 @@ static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon
     }
     a->run_mode = mode;
     a->run_tension = tension;
-    a->run_mask = mode == HOM_MODE_SINGLE ? bit16(tendon) : all_mask(a);
-    a->t_run = now_ms(a);
+    a->run_mask = mode == HOM_MODE_SINGLE ? app_bit16(tendon) : app_all_mask(a);
+    a->t_run = app_now_ms(a);
     a->servo_fresh = 0;
     a->state = APP_ST_CAL;
     win_moving(a, 1);
@@ -1264,13 +893,13 @@ APP_NOINLINE static void cal_step(app_t *a, hom_in_t *in)
     hom_event_t ev;
     uint8_t i;
     int rc;
-    in->now_ms = now_ms(a);
+    in->now_ms = app_now_ms(a);
     for (i = 0; i < a->info.n_tendons; i++) {
         hom_servo_in_t *s = &in->servo[i];
-        if (has(a->servo_absent, i)) {
+        if (app_has(a->servo_absent, i)) {
             s->status = HOM_SERVO_ABSENT;
         } else {
-            s->status = has(a->servo_fresh, i) ? HOM_SERVO_OK : HOM_SERVO_NOREPLY;
+            s->status = app_has(a->servo_fresh, i) ? HOM_SERVO_OK : HOM_SERVO_NOREPLY;
         }
         s->hw_error = a->hw_err[i];
         s->pos = a->present[i];
@@ -1279,24 +908,25 @@ APP_NOINLINE static void cal_step(app_t *a, hom_in_t *in)
     rc = hom_step(&a->u.hom, in, &out);
     win_take(a);
     for (i = 0; i < a->info.n_tendons; i++) {
-        if (has(out.changed, i)) {
+        if (app_has(out.changed, i)) {
             a->acc = out.acc[i]; /* one profile acceleration for every move */
-            a->goal_due |= bit16(i);
-            if ((out.torque[i] != 0u) != (has(a->torque_on, i) != 0u)) {
-                a->torque_on ^= bit16(i);
-                a->torque_due |= bit16(i);
+            a->goal_due |= app_bit16(i);
+            if ((out.torque[i] != 0u) != (app_has(a->torque_on, i) != 0u)) {
+                a->torque_on ^= app_bit16(i);
+                a->torque_due |= app_bit16(i);
             }
         }
     }
     while (hom_event_pop(&a->u.hom, &ev)) {
-        rep_event(a, &ev);
+        app_rep_event(a, &ev);
     }
     if (rc == 0) {
         run_done(a);
     } else if (rc < 0) {
-        fault_rest(a, in->now_ms);
         uint8_t f = hom_fault_index(&a->u.hom);
-        if (hom_fault(&a->u.hom) == HOM_F_SERVO_ERROR && f < a->info.n_tendons) {
+        fault_rest(a, in->now_ms);
+        a->last_fault = hom_fault(&a->u.hom);
+        if (a->last_fault == HOM_F_SERVO_ERROR && f < a->info.n_tendons) {
             /* a servo in hardware error has its torque off and refused the
              * release: reboot it (Protocol 2.0 Reboot clears the error), then
              * release its tendon once the bus is up again */
@@ -1313,7 +943,7 @@ static void move_start(app_t *a, uint8_t kind)
 {
     win_moving(a, 1);
     a->move_kind = kind;
-    a->t_move = now_ms(a);
+    a->t_move = app_now_ms(a);
     a->servo_fresh = 0;
     a->state = APP_ST_MOVE;
     a->led = APP_LED_RUN;
@@ -1334,15 +964,15 @@ static uint8_t release_goals(app_t *a)
         tbl_point_t pt;
         tbl_tendon_t row;
         int32_t g, dir, lo, hi;
-        if (has(a->servo_absent, i)) {
+        if (app_has(a->servo_absent, i)) {
             continue;
         }
         (void)tbl_tendon(&a->tab, i, &row);
         dir = row.pull_dir < 0 ? -1 : 1;
-        if (a->io->win != NULL && has(a->io->win->mask, i)) {
+        if (a->io->win != NULL && app_has(a->io->win->mask, i)) {
             lo = a->io->win->lo[i];
         } else {
-            if (has(a->home_now, i)) {
+            if (app_has(a->home_now, i)) {
                 uint32_t trav = 0;
                 if (tbl_target(&a->tab, i, a->homes.tension_mN, &pt) == 0) {
                     trav = pt.travel_um;
@@ -1387,9 +1017,9 @@ void app_abort(app_t *app)
         return;
     }
     (void)release_goals(app);
-    rep_begin(app, s_released);
-    con_report_flash(&app->con, s_reason, s_aborted);
-    rep_end(app);
+    app_rep_begin(app, app_w_released);
+    con_report_flash(&app->con, app_w_reason, app_w_aborted);
+    app_rep_end(app);
     move_start(app, MOVE_RELEASE);
 }
 
@@ -1399,27 +1029,27 @@ static void learn_begin(app_t *a, uint8_t tendon)
     a->learn_n = 0;
     memset(a->u.idle.acc, 0, sizeof a->u.idle.acc);
     memset(a->u.idle.cnt, 0, sizeof a->u.idle.cnt);
-    a->t_move = now_ms(a);
+    a->t_move = app_now_ms(a);
     a->state = APP_ST_LEARN;
 }
 
 APP_NOINLINE static void move_step(app_t *a)
 {
     uint8_t i, arrived = 1;
-    uint32_t t = now_ms(a);
+    uint32_t t = app_now_ms(a);
     for (i = 0; i < a->info.n_tendons; i++) {
         int32_t d = a->present[i] - hom_goal(&a->u.hom, i);
-        if (has(a->servo_absent, i)) {
+        if (app_has(a->servo_absent, i)) {
             continue;
         }
-        if (has(a->servo_fresh, i) == 0u || a->goal_due != 0u || d > APP_MOVE_TOL_TICKS ||
+        if (app_has(a->servo_fresh, i) == 0u || a->goal_due != 0u || d > APP_MOVE_TOL_TICKS ||
             d < -APP_MOVE_TOL_TICKS) {
             arrived = 0;
         }
     }
     if (!arrived) {
         if (t - a->t_move > APP_MOVE_TIMEOUT_MS) {
-            rep_app_fault(a, s_servo_stall, CON_E_TIMEOUT, HOM_DEV_SERVO, 0);
+            app_rep_fault(a, app_w_servo_stall, CON_E_TIMEOUT, HOM_DEV_SERVO, 0);
             fault_rest(a, t);
             if (a->move_kind == MOVE_HOME) {
                 (void)release_goals(a);
@@ -1434,10 +1064,10 @@ APP_NOINLINE static void move_step(app_t *a)
         learn_begin(a, LEARN_BASELINE); /* the robot stands straight: capture B0 */
         return;
     }
-    rep_begin(a, s_done);
-    con_report_flash(&a->con, s_mode, s_home);
-    rep_int(a, s_time_ms, (int32_t)(t - a->t_move));
-    rep_end(a);
+    app_rep_begin(a, app_w_done);
+    con_report_flash(&a->con, app_w_mode, app_w_home);
+    app_rep_int(a, app_w_time_ms, (int32_t)(t - a->t_move));
+    app_rep_end(a);
     a->state = APP_ST_IDLE;
     a->led = APP_LED_IDLE;
 }
@@ -1455,8 +1085,8 @@ static int8_t learn_plausible(const app_t *a, const store_learned_t *l, uint32_t
         return CON_E_IMPLAUSIBLE;
     }
     for (g = 0; g < a->info.n_grid; g++) {
-        if (has(l->grid_mask, g) && ((g < a->learn_grid && l->target_cuT[g] + m >= v) ||
-                                     (g > a->learn_grid && l->target_cuT[g] <= v + m))) {
+        if (app_has(l->grid_mask, g) && ((g < a->learn_grid && l->target_cuT[g] + m >= v) ||
+                                         (g > a->learn_grid && l->target_cuT[g] <= v + m))) {
             return CON_E_IMPLAUSIBLE;
         }
     }
@@ -1467,7 +1097,7 @@ APP_NOINLINE static void learn_step(app_t *a, const hom_in_t *in)
 {
     uint8_t k, first, last, tdn = a->learn_tendon;
     uint32_t v = 0;
-    uint32_t t = now_ms(a);
+    uint32_t t = app_now_ms(a);
     int8_t rc = 0;
     if (a->learn_tendon == LEARN_BASELINE) {
         first = 0;
@@ -1516,11 +1146,11 @@ APP_NOINLINE static void learn_step(app_t *a, const hom_in_t *in)
             memcpy(a->u.idle.b0, a->u.idle.acc, sizeof a->u.idle.b0);
             a->have_b0 = 1;
         }
-        rep_begin(a, s_done);
-        con_report_flash(&a->con, s_mode, s_release);
-        rep_int(a, s_time_ms, (int32_t)(t - a->t_move));
-        rep_int(a, s_baseline, rc == 0);
-        rep_end(a);
+        app_rep_begin(a, app_w_done);
+        con_report_flash(&a->con, app_w_mode, app_w_release);
+        app_rep_int(a, app_w_time_ms, (int32_t)(t - a->t_move));
+        app_rep_int(a, app_w_baseline, rc == 0);
+        app_rep_end(a);
         a->state = APP_ST_IDLE;
         a->led = APP_LED_IDLE;
         return;
@@ -1541,15 +1171,15 @@ APP_NOINLINE static void learn_step(app_t *a, const hom_in_t *in)
         a->u.idle.rec.learned.tendon = tdn;
         a->u.idle.rec.learned.n_grid = a->info.n_grid;
         a->u.idle.rec.learned.target_cuT[a->learn_grid] = v;
-        a->u.idle.rec.learned.grid_mask |= bit16(a->learn_grid);
+        a->u.idle.rec.learned.grid_mask |= app_bit16(a->learn_grid);
         save_queue(a, SAVE_LEARNED);
-        rep_begin(a, s_learned);
-        rep_int(a, s_tendon, tdn);
-        rep_int(a, s_tension_mN, a->info.grid_mN[a->learn_grid]);
-        rep_int(a, s_grid, a->learn_grid);
-        rep_int(a, s_sensor, first);
-        con_report_fixed(&a->con, s_dB_uT, (int32_t)v, 2);
-        rep_end(a);
+        app_rep_begin(a, app_w_learned);
+        app_rep_int(a, app_w_tendon, tdn);
+        app_rep_int(a, app_w_tension_mN, a->info.grid_mN[a->learn_grid]);
+        app_rep_int(a, app_w_grid, a->learn_grid);
+        app_rep_int(a, app_w_sensor, first);
+        con_report_fixed(&a->con, app_w_dB_uT, (int32_t)v, 2);
+        app_rep_end(a);
     }
     if (con_pending(&a->con)) {
         (void)con_complete(&a->con, rc);
@@ -1564,15 +1194,15 @@ APP_NOINLINE static void learn_step(app_t *a, const hom_in_t *in)
 APP_NOINLINE static void rest_poll(app_t *a)
 {
     uint8_t i, changed = 0;
-    if (!a->rest_due || !idle_state(a) ||
-        (uint16_t)((uint16_t)now_ms(a) - a->t_rest) < REST_DELAY_MS || (a->save_due & SAVE_HOMES) ||
-        a->save_now == SAVE_HOMES) {
+    if (!a->rest_due || !app_idle_state(a) ||
+        (uint16_t)((uint16_t)app_now_ms(a) - a->t_rest) < REST_DELAY_MS ||
+        (a->save_due & SAVE_HOMES) || a->save_now == SAVE_HOMES) {
         return;
     }
     a->rest_due = 0;
     for (i = 0; i < a->info.n_tendons; i++) {
         int32_t rest, d;
-        if (has(a->home_now, i) == 0u || has(a->servo_seen, i) == 0u) {
+        if (app_has(a->home_now, i) == 0u || app_has(a->servo_seen, i) == 0u) {
             continue;
         }
         rest = a->present[i] + a->offset[i];
@@ -1589,7 +1219,7 @@ APP_NOINLINE static void rest_poll(app_t *a)
 
 APP_NOINLINE static void store_task(app_t *a)
 {
-    uint8_t idle = idle_state(a);
+    uint8_t idle = app_idle_state(a);
     if (store_busy(&a->store)) {
         int8_t rc = store_poll(&a->store, idle);
         if (rc <= 0) {
@@ -1599,7 +1229,7 @@ APP_NOINLINE static void store_task(app_t *a)
                 a->forgetting = 0;
                 (void)con_complete(&a->con, rc == 0 ? 0 : CON_E_EEPROM);
             } else if (rc < 0) {
-                rep_app_fault(a, s_eeprom, CON_E_EEPROM, HOM_DEV_NONE, a->save_now);
+                app_rep_fault(a, app_w_eeprom, CON_E_EEPROM, HOM_DEV_NONE, a->save_now);
             }
             a->save_now = 0;
         }
@@ -1608,15 +1238,15 @@ APP_NOINLINE static void store_task(app_t *a)
     if (idle && a->forget_mask != 0u && !rec_busy(a)) {
         /* `forget`: an empty learned record per tendon, one at a time */
         uint8_t t = 0;
-        while (has(a->forget_mask, t) == 0u) {
+        while (app_has(a->forget_mask, t) == 0u) {
             t++;
         }
         memset(&a->u.idle.rec.learned, 0, sizeof a->u.idle.rec.learned);
         a->u.idle.rec.learned.table_id = a->info.table_id;
         a->u.idle.rec.learned.tendon = t;
         a->u.idle.rec.learned.n_grid = a->info.n_grid;
-        a->forget_mask &= (uint16_t)~bit16(t);
-        a->learned_mask &= (uint16_t)~bit16(t);
+        a->forget_mask &= (uint16_t)~app_bit16(t);
+        a->learned_mask &= (uint16_t)~app_bit16(t);
         save_queue(a, SAVE_LEARNED);
     }
     if (!idle || a->save_due == 0u) {
@@ -1631,7 +1261,7 @@ APP_NOINLINE static void store_task(app_t *a)
     } else if (a->save_due & SAVE_LEARNED) {
         a->save_now = SAVE_LEARNED;
         if (a->u.idle.rec.learned.grid_mask != 0u) {
-            a->learned_mask |= bit16(a->u.idle.rec.learned.tendon);
+            a->learned_mask |= app_bit16(a->u.idle.rec.learned.tendon);
         }
         (void)store_save_learned(&a->store, &a->u.idle.rec.learned);
     } else {
@@ -1654,7 +1284,7 @@ static void short_press(app_t *a)
         a->req_btn = 1;
         return;
     }
-    if (!idle_state(a)) {
+    if (!app_idle_state(a)) {
         return; /* a long press aborts */
     }
     a->led = APP_LED_IDLE;
@@ -1668,7 +1298,7 @@ static void short_press(app_t *a)
     }
     rc = run_start(a, a->offer_quick ? HOM_MODE_QUICK : HOM_MODE_FULL, 0, 0);
     if (rc != 0) {
-        rep_app_fault(a, s_refused, rc, HOM_DEV_NONE, 0);
+        app_rep_fault(a, app_w_refused, rc, HOM_DEV_NONE, 0);
         a->led = APP_LED_FAULT;
     }
 }
@@ -1751,26 +1381,26 @@ APP_NOINLINE static void console_poll(app_t *a)
     uint16_t n = a->io->board->rx_lost != NULL ? a->io->board->rx_lost(a->io->board->ctx) : 0u;
     con_set_realtime(&a->con, moving);
     if (n != a->rx_lost) {
-        rep_begin(a, s_overrun);
-        rep_int(a, s_bytes, (uint16_t)(n - a->rx_lost));
-        rep_int(a, s_total, n);
-        rep_end(a);
+        app_rep_begin(a, app_w_overrun);
+        app_rep_int(a, app_w_bytes, (uint16_t)(n - a->rx_lost));
+        app_rep_int(a, app_w_total, n);
+        app_rep_end(a);
         a->rx_lost = n;
     }
     if (!moving && con_dropped(&a->con) != a->rep_dropped) {
         a->rep_dropped = con_dropped(&a->con);
-        rep_begin(a, s_dropped);
-        rep_int(a, s_reports, a->rep_dropped);
-        rep_end(a);
+        app_rep_begin(a, app_w_dropped);
+        app_rep_int(a, app_w_reports, a->rep_dropped);
+        app_rep_end(a);
     }
-    (void)con_poll(&a->con, (uint16_t)now_ms(a));
+    (void)con_poll(&a->con, (uint16_t)app_now_ms(a));
 }
 
 int8_t app_poll(app_t *app)
 {
     app_t *a = app;
     hom_in_t in;
-    uint32_t t0 = now_us(a), t = now_ms(a), dt;
+    uint32_t t0 = app_now_us(a), t = app_now_ms(a), dt;
     a->io->board->wdt_kick(a->io->board->ctx);
     if (con_rt_take(a->io->rt)) {
         app_abort(a);
@@ -1798,23 +1428,23 @@ int8_t app_poll(app_t *app)
         if (a->req_con && con_pending(&a->con)) {
             (void)con_complete(&a->con, rc);
         } else if (rc != 0) {
-            rep_app_fault(a, s_refused, rc, HOM_DEV_NONE, 0);
+            app_rep_fault(a, app_w_refused, rc, HOM_DEV_NONE, 0);
         }
     }
     if (a->reset_release && a->state == APP_ST_IDLE) {
         a->reset_release = 0;
         (void)release_goals(a);
-        rep_begin(a, s_released);
-        con_report_flash(&a->con, s_reason, s_reset);
-        rep_end(a);
+        app_rep_begin(a, app_w_released);
+        con_report_flash(&a->con, app_w_reason, app_w_reset);
+        app_rep_end(a);
         move_start(a, MOVE_RELEASE);
     }
     if (a->auto_release && a->state == APP_ST_IDLE && a->table_ok) {
         (void)release_goals(a);
-        rep_begin(a, s_released);
-        con_report_flash(&a->con, s_reason, s_servo_error);
-        rep_int(a, s_id, a->auto_release);
-        rep_end(a);
+        app_rep_begin(a, app_w_released);
+        con_report_flash(&a->con, app_w_reason, app_w_servo_error);
+        app_rep_int(a, app_w_id, a->auto_release);
+        app_rep_end(a);
         a->auto_release = 0;
         move_start(a, MOVE_RELEASE);
     }
@@ -1836,7 +1466,7 @@ int8_t app_poll(app_t *app)
     store_task(a);
     led_poll(a, t);
     a->loops++;
-    dt = now_us(a) - t0;
+    dt = app_now_us(a) - t0;
     if (dt > a->loop_max_us) {
         a->loop_max_us = dt;
     }
@@ -1858,23 +1488,23 @@ static int8_t h_version(con_t *con, const con_args_t *args, void *ctx)
     app_t *a = ctx;
     (void)con;
     (void)args;
-    rep_begin(a, s_version);
-    con_report_flash(&a->con, s_name, s_hallhome);
+    app_rep_begin(a, app_w_version);
+    con_report_flash(&a->con, app_w_name, app_w_hallhome);
     if (a->io->version_f != NULL) {
-        con_report_flash(&a->con, s_version, a->io->version_f);
+        con_report_flash(&a->con, app_w_version, a->io->version_f);
     }
     if (a->io->board_f != NULL) {
-        con_report_flash(&a->con, s_board, a->io->board_f);
+        con_report_flash(&a->con, app_w_board, a->io->board_f);
     }
     if (a->table_ok) {
-        con_report_str(&a->con, s_table, a->info.name);
-        rep_hex(a, s_table_id, a->info.table_id);
-        rep_int(a, s_tendons, a->info.n_tendons);
-        rep_int(a, s_sensors, a->info.n_sensors);
+        con_report_str(&a->con, app_w_table, a->info.name);
+        app_rep_hex(a, app_w_table_id, a->info.table_id);
+        app_rep_int(a, app_w_tendons, a->info.n_tendons);
+        app_rep_int(a, app_w_sensors, a->info.n_sensors);
     } else {
-        con_report_flash(&a->con, s_table, s_none);
+        con_report_flash(&a->con, app_w_table, app_w_none);
     }
-    rep_end(a);
+    app_rep_end(a);
     return 0;
 }
 
@@ -1884,40 +1514,40 @@ static int8_t h_status(con_t *con, const con_args_t *args, void *ctx)
     uint8_t i;
     (void)con;
     (void)args;
-    rep_begin(a, s_status);
-    rep_word(a, s_state, STATE_WORDS, a->state);
+    app_rep_begin(a, app_w_status);
+    app_rep_word(a, app_w_state, app_w_state_words, a->state);
     if (a->table_ok) {
-        con_report_str(&a->con, s_table, a->info.name);
+        con_report_str(&a->con, app_w_table, a->info.name);
     } else {
-        con_report_flash(&a->con, s_table, s_none);
+        con_report_flash(&a->con, app_w_table, app_w_none);
     }
-    rep_int(a, s_sensors, icm_set_ready_count(&a->sens));
-    rep_int(a, s_servos, a->n_servo_found);
-    rep_hex(a, s_homes, a->homes.valid_mask);
-    rep_hex(a, s_homes_now, a->home_now);
-    rep_int(a, s_rehome, a->offer_quick);
-    rep_int(a, s_tension_mN, a->homes.tension_mN);
-    rep_int(a, s_count, (int32_t)a->homes.cal_count);
-    rep_word(a, s_fault, s_fault_words, a->last_fault);
-    rep_int(a, s_learned, a->learned_mask);
-    rep_int(a, s_baseline, a->have_b0);
-    rep_int(a, s_saving, store_busy(&a->store) || a->save_due != 0u);
-    rep_int(a, s_loop_max_us, (int32_t)a->loop_max_us);
-    rep_int(a, s_loops, (int32_t)a->loops);
-    rep_end(a);
+    app_rep_int(a, app_w_sensors, icm_set_ready_count(&a->sens));
+    app_rep_int(a, app_w_servos, a->n_servo_found);
+    app_rep_hex(a, app_w_homes, a->homes.valid_mask);
+    app_rep_hex(a, app_w_homes_now, a->home_now);
+    app_rep_int(a, app_w_rehome, a->offer_quick);
+    app_rep_int(a, app_w_tension_mN, a->homes.tension_mN);
+    app_rep_int(a, app_w_count, (int32_t)a->homes.cal_count);
+    app_rep_word(a, app_w_fault, app_w_fault_words, a->last_fault);
+    app_rep_int(a, app_w_learned, a->learned_mask);
+    app_rep_int(a, app_w_baseline, a->have_b0);
+    app_rep_int(a, app_w_saving, store_busy(&a->store) || a->save_due != 0u);
+    app_rep_int(a, app_w_loop_max_us, (int32_t)a->loop_max_us);
+    app_rep_int(a, app_w_loops, (int32_t)a->loops);
+    app_rep_end(a);
     for (i = 0; i < a->info.n_tendons; i++) {
-        if (has(a->homes.valid_mask, i) == 0u) {
+        if (app_has(a->homes.valid_mask, i) == 0u) {
             continue;
         }
-        rep_begin(a, s_home);
-        rep_int(a, s_tendon, i);
-        rep_int(a, s_home, a->homes.t[i].home_ticks);
-        rep_int(a, s_rest, a->homes.t[i].rest_ticks);
-        rep_int(a, s_usable, has(a->home_now, i));
-        if (has(a->home_now, i)) {
-            rep_int(a, s_now, home_cur(a, i));
+        app_rep_begin(a, app_w_home);
+        app_rep_int(a, app_w_tendon, i);
+        app_rep_int(a, app_w_home, a->homes.t[i].home_ticks);
+        app_rep_int(a, app_w_rest, a->homes.t[i].rest_ticks);
+        app_rep_int(a, app_w_usable, app_has(a->home_now, i));
+        if (app_has(a->home_now, i)) {
+            app_rep_int(a, app_w_now, home_cur(a, i));
         }
-        rep_end(a);
+        app_rep_end(a);
     }
     return 0;
 }
@@ -1937,22 +1567,22 @@ static int8_t h_sensors(con_t *con, const con_args_t *args, void *ctx)
     for (k = 0; k < a->info.n_sensors; k++) {
         icm_diag_t d;
         (void)icm_set_diag(&a->sens, k, &d);
-        rep_begin(a, s_sensor);
-        rep_int(a, s_index, k);
-        rep_int(a, s_ch, d.channel);
-        rep_int(a, s_addr, d.addr);
-        rep_int(a, s_ok, d.state == ICM_SET_S_RUN);
-        rep_int(a, s_who, d.who_am_i);
-        rep_int(a, s_mag, d.mag_ready);
-        con_report_fixed(&a->con, s_rate_Hz, d.rate_dhz, 1);
-        con_report_fixed(&a->con, s_bx_uT, d.field_cuT[0], 2);
-        con_report_fixed(&a->con, s_by_uT, d.field_cuT[1], 2);
-        con_report_fixed(&a->con, s_bz_uT, d.field_cuT[2], 2);
-        rep_int(a, s_ovf, d.overflow_count);
-        rep_int(a, s_err, d.error_count);
-        rep_int(a, s_last_err, d.last_err);
-        rep_int(a, s_reinits, d.reinits);
-        rep_end(a);
+        app_rep_begin(a, app_w_sensor);
+        app_rep_int(a, app_w_index, k);
+        app_rep_int(a, app_w_ch, d.channel);
+        app_rep_int(a, app_w_addr, d.addr);
+        app_rep_int(a, app_w_ok, d.state == ICM_SET_S_RUN);
+        app_rep_int(a, app_w_who, d.who_am_i);
+        app_rep_int(a, app_w_mag, d.mag_ready);
+        con_report_fixed(&a->con, app_w_rate_Hz, d.rate_dhz, 1);
+        con_report_fixed(&a->con, app_w_bx_uT, d.field_cuT[0], 2);
+        con_report_fixed(&a->con, app_w_by_uT, d.field_cuT[1], 2);
+        con_report_fixed(&a->con, app_w_bz_uT, d.field_cuT[2], 2);
+        app_rep_int(a, app_w_ovf, d.overflow_count);
+        app_rep_int(a, app_w_err, d.error_count);
+        app_rep_int(a, app_w_last_err, d.last_err);
+        app_rep_int(a, app_w_reinits, d.reinits);
+        app_rep_end(a);
     }
     return 0;
 }
@@ -1968,10 +1598,10 @@ static int8_t h_servos(con_t *con, const con_args_t *args, void *ctx)
         return CON_E_BUSY;
     }
     if ((args->given & 1u) && args->v[0] != 0) {
-        servo_lines(a, 0); /* pos, err: the live cycle keeps both fresh */
+        app_rep_servos(a, 0); /* pos, err: the live cycle keeps both fresh */
         return 0;
     }
-    if (!idle_state(a) || rec_busy(a)) {
+    if (!app_idle_state(a) || rec_busy(a)) {
         return CON_E_BUSY; /* the bring-up reuses the record's storage */
     }
     a->boot_con = 1;
@@ -1982,7 +1612,7 @@ static int8_t h_servos(con_t *con, const con_args_t *args, void *ctx)
 
 static int8_t start_or_defer(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon)
 {
-    if (idle_state(a) && (store_busy(&a->store) || rec_busy(a))) {
+    if (app_idle_state(a) && (store_busy(&a->store) || rec_busy(a))) {
         a->req_start = 1;
         a->req_con = 1;
         a->req_mode = mode;
@@ -2022,7 +1652,7 @@ static int8_t h_home(con_t *con, const con_args_t *args, void *ctx)
     int8_t e;
     (void)con;
     (void)args;
-    if (!idle_state(a)) {
+    if (!app_idle_state(a)) {
         return CON_E_BUSY;
     }
     e = check_devices(a);
@@ -2052,7 +1682,7 @@ static int8_t h_release(con_t *con, const con_args_t *args, void *ctx)
     if (a->state == APP_ST_BOOT) {
         return CON_E_BUSY;
     }
-    if (!idle_state(a)) {
+    if (!app_idle_state(a)) {
         app_abort(a);
         return 0;
     }
@@ -2069,7 +1699,7 @@ static int8_t h_learn(con_t *con, const con_args_t *args, void *ctx)
     if (!a->table_ok) {
         return CON_E_NO_TABLE;
     }
-    if (!idle_state(a) || (a->save_due & (SAVE_HIST | SAVE_LEARNED)) != 0u ||
+    if (!app_idle_state(a) || (a->save_due & (SAVE_HIST | SAVE_LEARNED)) != 0u ||
         a->save_now == SAVE_HIST || a->save_now == SAVE_LEARNED) {
         return CON_E_BUSY;
     }
@@ -2110,11 +1740,11 @@ static int8_t h_forget(con_t *con, const con_args_t *args, void *ctx)
     if (!a->table_ok) {
         return CON_E_NO_TABLE;
     }
-    if (!idle_state(a) || rec_busy(a) || a->forget_mask != 0u) {
+    if (!app_idle_state(a) || rec_busy(a) || a->forget_mask != 0u) {
         return CON_E_BUSY;
     }
     if (strcmp(w, "all") == 0) {
-        m = all_mask(a);
+        m = app_all_mask(a);
     } else {
         uint8_t t = 0;
         for (; *w != '\0'; w++) {
@@ -2126,7 +1756,7 @@ static int8_t h_forget(con_t *con, const con_args_t *args, void *ctx)
         if (t >= a->info.n_tendons) {
             return CON_E_BAD_TENDON;
         }
-        m = bit16(t);
+        m = app_bit16(t);
     }
     a->forget_mask = m & a->learned_mask;
     a->forgetting = (uint8_t)(a->forget_mask != 0u);
@@ -2146,39 +1776,39 @@ static int8_t h_table(con_t *con, const con_args_t *args, void *ctx)
     if (!a->table_ok) {
         return CON_E_NO_TABLE;
     }
-    rep_begin(a, s_table);
-    con_report_str(&a->con, s_name, a->info.name);
-    rep_hex(a, s_table_id, a->info.table_id);
-    rep_int(a, s_tendons, a->info.n_tendons);
-    rep_int(a, s_sensors, a->info.n_sensors);
+    app_rep_begin(a, app_w_table);
+    con_report_str(&a->con, app_w_name, a->info.name);
+    app_rep_hex(a, app_w_table_id, a->info.table_id);
+    app_rep_int(a, app_w_tendons, a->info.n_tendons);
+    app_rep_int(a, app_w_sensors, a->info.n_sensors);
     pos = 0;
     buf[0] = '\0';
     for (g = 0; g < a->info.n_grid; g++) {
-        list_add(buf, sizeof buf, &pos, a->info.grid_mN[g], '\0');
+        app_list_add(buf, sizeof buf, &pos, a->info.grid_mN[g], '\0');
     }
-    con_report_str(&a->con, s_grid_mN, buf);
-    rep_int(a, s_default_mN, a->info.default_mN);
-    rep_int(a, s_noise_cuT, a->info.noise_cuT);
-    rep_end(a);
+    con_report_str(&a->con, app_w_grid_mN, buf);
+    app_rep_int(a, app_w_default_mN, a->info.default_mN);
+    app_rep_int(a, app_w_noise_cuT, a->info.noise_cuT);
+    app_rep_end(a);
     for (i = 0; i < a->info.n_tendons; i++) {
         tbl_tendon_t row, eff;
         (void)tbl_tendon(&a->tab, i, &row);
         (void)tbl_tendon(&a->htab, i, &eff);
-        rep_begin(a, s_tendon);
-        rep_int(a, s_tendon, i);
-        rep_int(a, s_id, row.servo_id);
-        rep_int(a, s_dir, row.pull_dir);
-        rep_int(a, s_segment, row.segment);
-        rep_int(a, s_sensor, row.sensor);
-        rep_int(a, s_limit_um, (int32_t)row.travel_limit_um);
+        app_rep_begin(a, app_w_tendon);
+        app_rep_int(a, app_w_tendon, i);
+        app_rep_int(a, app_w_id, row.servo_id);
+        app_rep_int(a, app_w_dir, row.pull_dir);
+        app_rep_int(a, app_w_segment, row.segment);
+        app_rep_int(a, app_w_sensor, row.sensor);
+        app_rep_int(a, app_w_limit_um, (int32_t)row.travel_limit_um);
         pos = 0;
         buf[0] = '\0';
         for (g = 0; g < a->info.n_grid; g++) {
-            list_add(buf, sizeof buf, &pos, (int32_t)eff.target_cuT[g],
-                     eff.target_cuT[g] != row.target_cuT[g] ? '*' : '\0');
+            app_list_add(buf, sizeof buf, &pos, (int32_t)eff.target_cuT[g],
+                         eff.target_cuT[g] != row.target_cuT[g] ? '*' : '\0');
         }
-        con_report_str(&a->con, s_target_cuT, buf);
-        rep_end(a);
+        con_report_str(&a->con, app_w_target_cuT, buf);
+        app_rep_end(a);
     }
     return 0;
 }
@@ -2199,18 +1829,19 @@ static int8_t h_history(con_t *con, const con_args_t *args, void *ctx)
         if (store_hist_get(&a->store, age, &e) != 0) {
             break;
         }
-        rep_begin(a, s_hist);
-        rep_int(a, s_age, age);
-        rep_int(a, s_count, (int32_t)e.cal_count);
-        rep_hex(a, s_table_id, e.table_id);
-        rep_int(a, s_tension_mN, e.tension_mN);
+        app_rep_begin(a, app_w_hist);
+        app_rep_int(a, app_w_age, age);
+        app_rep_int(a, app_w_count, (int32_t)e.cal_count);
+        app_rep_hex(a, app_w_table_id, e.table_id);
+        app_rep_int(a, app_w_tension_mN, e.tension_mN);
         pos = 0;
         buf[0] = '\0';
         for (i = 0; i < e.n_tendons && i < TBL_MAX_TENDONS; i++) {
-            list_add(buf, sizeof buf, &pos, e.home_ticks[i], has(e.valid_mask, i) ? 0 : '?');
+            app_list_add(buf, sizeof buf, &pos, e.home_ticks[i],
+                         app_has(e.valid_mask, i) ? 0 : '?');
         }
-        con_report_str(&a->con, s_homes, buf);
-        rep_end(a);
+        con_report_str(&a->con, app_w_homes, buf);
+        app_rep_end(a);
     }
     return 0;
 }
@@ -2220,16 +1851,16 @@ static void setting_line(app_t *a, uint8_t id)
     char buf[24];
     store_setting_info_t inf;
     (void)store_setting_info(&a->store, id, &inf);
-    rep_begin(a, s_setting);
+    app_rep_begin(a, app_w_setting);
     (void)store_setting_text(&a->store, id, 0, buf, sizeof buf);
-    con_report_str(&a->con, s_name, buf);
-    rep_int(a, s_value, a->set.v[id]);
+    con_report_str(&a->con, app_w_name, buf);
+    app_rep_int(a, app_w_value, a->set.v[id]);
     (void)store_setting_text(&a->store, id, 1, buf, sizeof buf);
-    con_report_str(&a->con, s_unit, buf);
-    rep_int(a, s_min, inf.min);
-    rep_int(a, s_max, inf.max);
-    rep_int(a, s_default, inf.def);
-    rep_end(a);
+    con_report_str(&a->con, app_w_unit, buf);
+    app_rep_int(a, app_w_min, inf.min);
+    app_rep_int(a, app_w_max, inf.max);
+    app_rep_int(a, app_w_default, inf.def);
+    app_rep_end(a);
 }
 
 static int8_t find_setting(app_t *a, const con_args_t *args)
@@ -2291,7 +1922,7 @@ static int8_t h_save(con_t *con, const con_args_t *args, void *ctx)
     app_t *a = ctx;
     (void)con;
     (void)args;
-    if (!idle_state(a) || (a->save_due & SAVE_SETTINGS) || a->save_now == SAVE_SETTINGS) {
+    if (!app_idle_state(a) || (a->save_due & SAVE_SETTINGS) || a->save_now == SAVE_SETTINGS) {
         return CON_E_BUSY; /* EEPROM writes happen only while nothing moves */
     }
     save_queue(a, SAVE_SETTINGS);
@@ -2302,7 +1933,7 @@ static int8_t h_reboot(con_t *con, const con_args_t *args, void *ctx)
 {
     app_t *a = ctx;
     (void)con;
-    if (!idle_state(a) || rec_busy(a)) {
+    if (!app_idle_state(a) || rec_busy(a)) {
         return CON_E_BUSY;
     }
     a->reboot_id = (uint8_t)args->v[0];

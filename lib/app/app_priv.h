@@ -1,0 +1,209 @@
+/*
+ * app_priv: what the rooms of lib/app share, and nothing outside lib/app
+ * includes. Each room is one file that owns one part of app_t (app.h):
+ *
+ *   app.c         the superloop (app_poll) and the small helpers every room uses
+ *   app_boot.c    app_init, the table, device bring-up and <ready>        (app_t.boot)
+ *   app_bus.c     the servo-bus scheduler: one transaction at a time      (app_t.bus)
+ *   app_sense.c   the sensor set and its samples for the homing           (app_t.sense)
+ *   app_run.c     runs (cal, rehome), app moves (home, release), aborts,
+ *                 the kept engagement windows                             (app_t.run)
+ *   app_learn.c   learn, forget and the learned-target table copy         (app_t.learn)
+ *   app_rec.c     the EEPROM records: homes, rest positions, history,
+ *                 settings, written one byte per pass while idle          (app_t.rec)
+ *   app_cmd.c     the console: its poll and the command handlers          (app_t.cmd)
+ *   app_report.c  report lines and the flash words they use
+ *   app_panel.c   button and LED                                          (app_t.panel)
+ *
+ * A room writes its own sub-struct; the others read it, or call the room's
+ * functions declared here. The shared storage app_t.u belongs to one
+ * activity at a time (app.h).
+ *
+ * Functions here follow the app's convention: 0 done, negative error (a
+ * CON_E_* code), positive in progress, unless they say otherwise.
+ */
+#ifndef HALLHOME_APP_PRIV_H
+#define HALLHOME_APP_PRIV_H
+
+#include "app/app.h"
+
+/* Flash is the scarce resource on the AVR: the tasks called from one place
+ * stay functions of their own rather than being merged into their caller,
+ * which costs more code (-0.8 KB measured). The firmware is linked as one
+ * LTO unit, so functions shared between the rooms cost no more than the
+ * static functions of one file did. */
+#if defined(__GNUC__)
+#define APP_NOINLINE __attribute__((noinline))
+#else
+#define APP_NOINLINE
+#endif
+
+/* Report kinds, keys and words, each once in console-flash memory (program
+ * memory on the AVR, where CON_FLASH is __progmem__): app_w_<id>. W(id) is
+ * the word "id" itself; WS(id, text) any other text. The *_words entries are
+ * space-separated lists read by app_rep_word(). */
+#define APP_WORDS(W, WS)                                                                           \
+    WS(mode_words, "full quick single dry")                                                        \
+    WS(target_words, "delta abs")                                                                  \
+    WS(fault_words, HOM_FAULT_WORDS)                                                               \
+    W(target)                                                                                      \
+    WS(state_words, "boot idle cal move learn fault")                                              \
+    WS(dev_words, "none sensor servo tendon")                                                      \
+    WS(phase_words, "- preflight release baseline tendon final")                                   \
+    W(fault)                                                                                       \
+    W(reason)                                                                                      \
+    W(error)                                                                                       \
+    W(dev)                                                                                         \
+    W(index)                                                                                       \
+    W(boot)                                                                                        \
+    W(name)                                                                                        \
+    W(hallhome)                                                                                    \
+    W(version)                                                                                     \
+    W(board)                                                                                       \
+    W(reset)                                                                                       \
+    W(missing)                                                                                     \
+    W(sensor)                                                                                      \
+    W(ch)                                                                                          \
+    W(addr)                                                                                        \
+    W(err)                                                                                         \
+    W(servo)                                                                                       \
+    W(id)                                                                                          \
+    W(hw_error)                                                                                    \
+    W(tendon)                                                                                      \
+    W(found)                                                                                       \
+    W(model)                                                                                       \
+    W(fw)                                                                                          \
+    W(pos)                                                                                         \
+    W(cal_pos)                                                                                     \
+    W(ready)                                                                                       \
+    W(table)                                                                                       \
+    W(table_id)                                                                                    \
+    W(none)                                                                                        \
+    W(sensors)                                                                                     \
+    W(sensors_expected)                                                                            \
+    W(servos)                                                                                      \
+    W(servos_expected)                                                                             \
+    W(homes)                                                                                       \
+    W(moved)                                                                                       \
+    W(stored)                                                                                      \
+    W(count)                                                                                       \
+    W(other_table)                                                                                 \
+    W(rehome)                                                                                      \
+    W(progress)                                                                                    \
+    W(state)                                                                                       \
+    W(start)                                                                                       \
+    W(mode)                                                                                        \
+    W(tension_mN)                                                                                  \
+    W(why)                                                                                         \
+    W(bits)                                                                                        \
+    W(engaged)                                                                                     \
+    W(result)                                                                                      \
+    W(home)                                                                                        \
+    W(home_um)                                                                                     \
+    W(dB_uT)                                                                                       \
+    W(target_uT)                                                                                   \
+    W(travel_um)                                                                                   \
+    W(time_ms)                                                                                     \
+    W(code)                                                                                        \
+    W(detail)                                                                                      \
+    W(released)                                                                                    \
+    W(done)                                                                                        \
+    W(aborted)                                                                                     \
+    W(servo_stall)                                                                                 \
+    W(release)                                                                                     \
+    W(baseline)                                                                                    \
+    W(learned)                                                                                     \
+    W(grid)                                                                                        \
+    W(eeprom)                                                                                      \
+    W(refused)                                                                                     \
+    W(tendons)                                                                                     \
+    W(status)                                                                                      \
+    W(homes_now)                                                                                   \
+    W(saving)                                                                                      \
+    W(loop_max_us)                                                                                 \
+    W(loops)                                                                                       \
+    W(rest)                                                                                        \
+    W(usable)                                                                                      \
+    W(now)                                                                                         \
+    W(ok)                                                                                          \
+    W(who)                                                                                         \
+    W(mag)                                                                                         \
+    W(rate_Hz)                                                                                     \
+    W(bx_uT)                                                                                       \
+    W(by_uT)                                                                                       \
+    W(bz_uT)                                                                                       \
+    W(ovf)                                                                                         \
+    W(last_err)                                                                                    \
+    W(reinits)                                                                                     \
+    W(grid_mN)                                                                                     \
+    W(default_mN)                                                                                  \
+    W(noise_cuT)                                                                                   \
+    W(dir)                                                                                         \
+    W(segment)                                                                                     \
+    W(limit_um)                                                                                    \
+    W(target_cuT)                                                                                  \
+    W(hist)                                                                                        \
+    W(age)                                                                                         \
+    W(setting)                                                                                     \
+    W(value)                                                                                       \
+    W(unit)                                                                                        \
+    W(min)                                                                                         \
+    W(max)                                                                                         \
+    W(default)                                                                                     \
+    W(overrun)                                                                                     \
+    W(bytes)                                                                                       \
+    W(total)                                                                                       \
+    W(dropped)                                                                                     \
+    W(reports)                                                                                     \
+    W(not_released)                                                                                \
+    W(servo_error)
+
+#define APP_W_DECL(id)        extern const char app_w_##id[];
+#define APP_WS_DECL(id, text) extern const char app_w_##id[];
+APP_WORDS(APP_W_DECL, APP_WS_DECL)
+#undef APP_W_DECL
+#undef APP_WS_DECL
+
+/* ---- app.c: helpers of every room ------------------------------------------ */
+
+uint32_t app_now_ms(const app_t *a);
+uint32_t app_now_us(const app_t *a);
+/* 1 << i and bit i of m (one routine each: a variable shift is a loop on the AVR) */
+uint16_t app_bit16(uint8_t i);
+uint8_t app_has(uint16_t m, uint8_t i);
+/* every tendon of the table */
+uint16_t app_all_mask(const app_t *a);
+/* nothing moves, nothing is captured (APP_ST_IDLE or APP_ST_FAULT) */
+uint8_t app_idle_state(const app_t *a);
+
+/* ---- app_report.c: report lines -------------------------------------------- */
+
+void app_rep_begin(app_t *a, const char *kind);
+void app_rep_int(app_t *a, const char *key, int32_t v);
+void app_rep_end(app_t *a);
+/* key=0x%08x (table_id) without a printf */
+void app_rep_hex(app_t *a, const char *key, uint32_t v);
+/* key=<word i of the flash list words_f> ("?" past its end) */
+void app_rep_word(app_t *a, const char *key, const char *words_f, uint8_t i);
+/* Appends the decimal v (and mark unless '\0') to the comma list in buf at
+ * *pos (capacity cap); a value that does not fit is left out. */
+void app_list_add(char *buf, uint8_t cap, uint8_t *pos, int32_t v, char mark);
+/* A fault the app itself detects (moves, learn, EEPROM), in the same shape as
+ * the homing's: reason word, console error code, device, index. */
+void app_rep_fault(app_t *a, const char *reason_f, int8_t err, uint8_t dev, uint8_t index);
+/* One <missing ...> per sensor not sampling and per servo absent or in
+ * hardware error. Returns CON_E_SENSOR_FAULT when a sensor is missing, else
+ * CON_E_SERVO_FAULT when a servo is, else 0. */
+int8_t app_rep_missing(app_t *a);
+/* One <servo ...> per tendon (with_model: model and firmware of the bring-up). */
+void app_rep_servos(app_t *a, uint8_t with_model);
+/* A homing event as a console report. */
+void app_rep_event(app_t *a, const hom_event_t *ev);
+
+/* ---- app_boot.c: bring-up ------------------------------------------------- */
+
+/* The bring-up's entry for servo id, or NULL (valid until the shared storage
+ * is reused by a run or a record). */
+const dxl_servo_info *app_boot_servo_info(const app_t *a, uint8_t id);
+
+#endif /* HALLHOME_APP_PRIV_H */
