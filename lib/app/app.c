@@ -56,21 +56,21 @@ void app_table_copy(app_t *app, void *dst, const void *src, size_t n)
 {
     uint8_t t;
     app->io->table_copy(dst, src, n);
-    if (app->io->table == NULL || app->learned_mask == 0u) {
+    if (app->io->table == NULL || app->learn.mask == 0u) {
         return;
     }
     for (t = 0; t < TBL_MAX_TENDONS; t++) {
         uintptr_t lo, s0 = (uintptr_t)src, s1 = (uintptr_t)src + n;
         store_learned_t l;
         uint8_t g;
-        if (app_has(app->learned_mask, t) == 0u) {
+        if (app_has(app->learn.mask, t) == 0u) {
             continue;
         }
         lo = (uintptr_t)&app->io->table->tendons[t].target_cuT[0];
         if (lo >= s1 || lo + sizeof(uint32_t) * TBL_MAX_GRID <= s0) {
             continue;
         }
-        if (store_learned_load(&app->store, t, app->info.table_id, &l) != 0) {
+        if (store_learned_load(&app->rec.store, t, app->info.table_id, &l) != 0) {
             continue;
         }
         for (g = 0; g < l.n_grid && g < TBL_MAX_GRID; g++) {
@@ -100,7 +100,7 @@ APP_NOINLINE static void load_table(app_t *a)
     for (i = 0; i < a->info.n_tendons; i++) {
         tbl_tendon_t row;
         (void)tbl_tendon(&a->tab, i, &row);
-        a->ids[i] = row.servo_id;
+        a->bus.ids[i] = row.servo_id;
     }
     a->table_ok = 1;
 }
@@ -175,7 +175,7 @@ APP_NOINLINE static void win_take(app_t *a)
 
 static int32_t home_cur(const app_t *a, uint8_t i)
 {
-    return a->homes.t[i].home_ticks - a->offset[i];
+    return a->rec.homes.t[i].home_ticks - a->rec.offset[i];
 }
 
 /* ---- init ---------------------------------------------------------------- */
@@ -193,43 +193,43 @@ int8_t app_init(app_t *app, const app_io_t *io)
     }
     memset(app, 0, sizeof *app);
     app->io = io;
-    (void)con_init(&app->con, io->console, app_handlers, app, io->con_copy, io->rt);
-    (void)store_init(&app->store, io->eeprom, io->store_copy);
-    (void)store_settings_load(&app->store, &app->set);
+    (void)con_init(&app->cmd.con, io->console, app_handlers, app, io->con_copy, io->rt);
+    (void)store_init(&app->rec.store, io->eeprom, io->store_copy);
+    (void)store_settings_load(&app->rec.store, &app->rec.set);
     load_table(app);
     win_check(app);
-    app->reset_release = (uint8_t)(io->win != NULL && io->win->moving && app->table_ok);
+    app->run.reset_release = (uint8_t)(io->win != NULL && io->win->moving && app->table_ok);
     hom_init(&app->u.hom, NULL);
     dxl_config_default(&dc, app_bus_baud(app), io->servo_bits != 0u ? io->servo_bits : 10u);
-    dxl_master_init(&app->dxl, &io->servo_port, &dc);
-    app->homes_rc = STORE_E_EMPTY;
+    dxl_master_init(&app->bus.dxl, &io->servo_port, &dc);
+    app->rec.homes_rc = STORE_E_EMPTY;
     if (app->table_ok) {
-        app->homes_rc = store_homes_load(&app->store, app->info.table_id, &app->homes);
-        if (app->homes_rc != 0 || app->homes.n_tendons != app->info.n_tendons) {
-            memset(&app->homes, 0, sizeof app->homes);
+        app->rec.homes_rc = store_homes_load(&app->rec.store, app->info.table_id, &app->rec.homes);
+        if (app->rec.homes_rc != 0 || app->rec.homes.n_tendons != app->info.n_tendons) {
+            memset(&app->rec.homes, 0, sizeof app->rec.homes);
         }
         for (t = 0; t < app->info.n_tendons; t++) {
             store_learned_t l;
-            if (store_learned_load(&app->store, t, app->info.table_id, &l) == 0 &&
+            if (store_learned_load(&app->rec.store, t, app->info.table_id, &l) == 0 &&
                 l.grid_mask != 0u) {
-                app->learned_mask |= app_bit16(t);
+                app->learn.mask |= app_bit16(t);
             }
         }
     }
     app->state = APP_ST_BOOT;
-    app->t_boot = app_now_ms(app);
-    app->btn_raw = 0;
-    app->led = APP_LED_BOOT;
+    app->boot.t_start = app_now_ms(app);
+    app->panel.raw = 0;
+    app->panel.led = APP_LED_BOOT;
     app_rep_begin(app, app_w_boot);
-    con_report_flash(&app->con, app_w_name, app_w_hallhome);
+    con_report_flash(&app->cmd.con, app_w_name, app_w_hallhome);
     if (io->version_f != NULL) {
-        con_report_flash(&app->con, app_w_version, io->version_f);
+        con_report_flash(&app->cmd.con, app_w_version, io->version_f);
     }
     if (io->board_f != NULL) {
-        con_report_flash(&app->con, app_w_board, io->board_f);
+        con_report_flash(&app->cmd.con, app_w_board, io->board_f);
     }
     if (io->reset_f != NULL) {
-        con_report_flash(&app->con, app_w_reset, io->reset_f);
+        con_report_flash(&app->cmd.con, app_w_reset, io->reset_f);
     }
     app_rep_end(app);
     return 0;
@@ -237,7 +237,7 @@ int8_t app_init(app_t *app, const app_io_t *io)
 
 uint32_t app_bus_baud(const app_t *app)
 {
-    return (uint32_t)app->set.v[STORE_SET_BUS_BAUD];
+    return (uint32_t)app->rec.set.v[STORE_SET_BUS_BAUD];
 }
 
 /* ---- boot preflight ------------------------------------------------------- */
@@ -247,57 +247,59 @@ APP_NOINLINE static void boot_start(app_t *a)
     uint8_t k;
     dxl_bringup_config bc;
     a->state = APP_ST_BOOT;
-    a->boot_step = 0;
-    a->t_boot = app_now_ms(a);
+    a->boot.step = 0;
+    a->boot.t_start = app_now_ms(a);
     if (!a->table_ok) {
         return;
     }
-    if (a->sens.n == 0u) {
-        (void)icm_set_setup(&a->sens, a->io->sensor_bus, a->io->mux_addr, a->slot, APP_MAX_SENSORS);
+    if (a->sense.set.n == 0u) {
+        (void)icm_set_setup(&a->sense.set, a->io->sensor_bus, a->io->mux_addr, a->sense.slot,
+                            APP_MAX_SENSORS);
         for (k = 0; k < a->info.n_sensors; k++) {
             tbl_sensor_t s;
             (void)tbl_sensor(&a->tab, k, &s);
-            (void)icm_set_add(&a->sens, a->io->mux_addr == ICM_NO_MUX ? ICM_NO_MUX : s.mux_channel,
+            (void)icm_set_add(&a->sense.set,
+                              a->io->mux_addr == ICM_NO_MUX ? ICM_NO_MUX : s.mux_channel,
                               s.i2c_addr);
         }
-        (void)icm_set_begin(&a->sens, app_now_us(a));
+        (void)icm_set_begin(&a->sense.set, app_now_us(a));
     }
     memset(&bc, 0, sizeof bc);
     bc.profile_velocity = 0;
     bc.profile_acceleration = 0;
     bc.reboot_on_hw_error = 0;
     bc.reboot_wait_us = 500000u;
-    dxl_abort(&a->dxl);
-    a->sv_txn = TX_NONE;
-    a->servo_absent = 0;
-    a->torque_on = 0; /* goals of the old frames must never be sent again */
-    a->have_b0 = 0;   /* the bring-up reuses the baseline's storage */
-    (void)dxl_bringup_start(&a->u.bring, &a->dxl, a->ids, a->info.n_tendons, &bc);
-    a->boot_step = 1;
+    dxl_abort(&a->bus.dxl);
+    a->bus.txn = TX_NONE;
+    a->bus.absent = 0;
+    a->bus.torque_on = 0; /* goals of the old frames must never be sent again */
+    a->learn.have_b0 = 0; /* the bring-up reuses the baseline's storage */
+    (void)dxl_bringup_start(&a->u.bring, &a->bus.dxl, a->bus.ids, a->info.n_tendons, &bc);
+    a->boot.step = 1;
 }
 
 /* Maps the stored homes into this power cycle's servo frames. */
 APP_NOINLINE static void recover_homes(app_t *a)
 {
     uint8_t i;
-    a->home_now = 0;
-    a->recover_rc = 0;
-    if (a->homes_rc != 0) {
+    a->rec.home_now = 0;
+    a->boot.recover_rc = 0;
+    if (a->rec.homes_rc != 0) {
         return;
     }
     for (i = 0; i < a->info.n_tendons; i++) {
         int32_t pos;
         int8_t rc;
-        if (app_has(a->homes.valid_mask, i) == 0u || app_has(a->servo_seen, i) == 0u) {
+        if (app_has(a->rec.homes.valid_mask, i) == 0u || app_has(a->bus.seen, i) == 0u) {
             continue;
         }
-        rc = store_recover_position(&a->homes.t[i], a->present[i],
-                                    (uint16_t)a->set.v[STORE_SET_REST_TOL], &pos);
+        rc = store_recover_position(&a->rec.homes.t[i], a->bus.present[i],
+                                    (uint16_t)a->rec.set.v[STORE_SET_REST_TOL], &pos);
         if (rc == 0) {
-            a->offset[i] = pos - a->present[i];
-            a->home_now |= app_bit16(i);
-        } else if (a->recover_rc == 0) {
-            a->recover_rc = rc;
+            a->rec.offset[i] = pos - a->bus.present[i];
+            a->rec.home_now |= app_bit16(i);
+        } else if (a->boot.recover_rc == 0) {
+            a->boot.recover_rc = rc;
         }
     }
 }
@@ -317,77 +319,77 @@ APP_NOINLINE const dxl_servo_info *app_boot_servo_info(const app_t *a, uint8_t i
 APP_NOINLINE static void boot_finish(app_t *a)
 {
     uint8_t i, k;
-    a->n_servo_found = 0;
-    a->servo_seen = 0;
+    a->boot.n_servos = 0;
+    a->bus.seen = 0;
     for (i = 0; i < a->info.n_tendons; i++) {
-        const dxl_servo_info *s = app_boot_servo_info(a, a->ids[i]);
-        if (app_has(a->servo_absent, i) == 0u && s != NULL && s->present) {
-            a->n_servo_found++;
-            a->hw_err[i] = s->hw_error;
+        const dxl_servo_info *s = app_boot_servo_info(a, a->bus.ids[i]);
+        if (app_has(a->bus.absent, i) == 0u && s != NULL && s->present) {
+            a->boot.n_servos++;
+            a->bus.hw_err[i] = s->hw_error;
             if (a->u.bring.result == 0) {
-                a->present[i] = s->position;
-                a->servo_seen |= app_bit16(i);
+                a->bus.present[i] = s->position;
+                a->bus.seen |= app_bit16(i);
             }
         } else {
-            a->servo_absent |= app_bit16(i);
+            a->bus.absent |= app_bit16(i);
         }
     }
-    a->goal_due = 0;
-    a->torque_due = 0;
-    a->wdog_step = (uint8_t)(2u * a->info.n_tendons);
-    a->n_sens_found = icm_set_ready_count(&a->sens);
+    a->bus.goal_due = 0;
+    a->bus.torque_due = 0;
+    a->bus.wdog_step = (uint8_t)(2u * a->info.n_tendons);
+    a->boot.n_sensors = icm_set_ready_count(&a->sense.set);
     for (k = 0; k < a->info.n_sensors; k++) {
         icm_diag_t d;
-        (void)icm_set_diag(&a->sens, k, &d);
-        a->sens_err[k] = (uint8_t)d.error_count;
+        (void)icm_set_diag(&a->sense.set, k, &d);
+        a->sense.err[k] = (uint8_t)d.error_count;
     }
     (void)app_rep_missing(a);
     /* Positions not read by the bring-up (it stopped on a missing servo)
      * arrive with the first cycles; homes are recovered once they have. */
-    a->boot_step = 2;
+    a->boot.step = 2;
 }
 
 APP_NOINLINE static void boot_ready(app_t *a)
 {
     recover_homes(a);
-    a->offer_quick = (uint8_t)(a->table_ok && a->home_now != 0u && a->home_now == app_all_mask(a) &&
-                               a->servo_absent == 0u);
+    a->boot.offer_quick = (uint8_t)(a->table_ok && a->rec.home_now != 0u &&
+                                    a->rec.home_now == app_all_mask(a) && a->bus.absent == 0u);
     app_rep_begin(a, app_w_ready);
     if (a->table_ok) {
-        con_report_str(&a->con, app_w_table, a->info.name);
+        con_report_str(&a->cmd.con, app_w_table, a->info.name);
         app_rep_hex(a, app_w_table_id, a->info.table_id);
     } else {
-        con_report_flash(&a->con, app_w_table, app_w_none);
+        con_report_flash(&a->cmd.con, app_w_table, app_w_none);
     }
-    app_rep_int(a, app_w_sensors, a->n_sens_found);
+    app_rep_int(a, app_w_sensors, a->boot.n_sensors);
     app_rep_int(a, app_w_sensors_expected, a->info.n_sensors);
-    app_rep_int(a, app_w_servos, a->n_servo_found);
+    app_rep_int(a, app_w_servos, a->boot.n_servos);
     app_rep_int(a, app_w_servos_expected, a->info.n_tendons);
-    if (a->homes_rc == 0) {
-        con_report_flash(&a->con, app_w_homes,
-                         a->recover_rc == STORE_E_MOVED ? app_w_moved : app_w_stored);
-        app_rep_int(a, app_w_count, (int32_t)a->homes.cal_count);
+    if (a->rec.homes_rc == 0) {
+        con_report_flash(&a->cmd.con, app_w_homes,
+                         a->boot.recover_rc == STORE_E_MOVED ? app_w_moved : app_w_stored);
+        app_rep_int(a, app_w_count, (int32_t)a->rec.homes.cal_count);
     } else {
-        con_report_flash(&a->con, app_w_homes,
-                         a->homes_rc == STORE_E_OTHER_TABLE ? app_w_other_table : app_w_none);
+        con_report_flash(&a->cmd.con, app_w_homes,
+                         a->rec.homes_rc == STORE_E_OTHER_TABLE ? app_w_other_table : app_w_none);
     }
-    app_rep_int(a, app_w_rehome, a->offer_quick);
+    app_rep_int(a, app_w_rehome, a->boot.offer_quick);
     app_rep_end(a);
     a->state = APP_ST_IDLE;
-    a->boot_step = 3;
-    if (a->boot_con && con_pending(&a->con)) {
+    a->boot.step = 3;
+    if (a->boot.con_wait && con_pending(&a->cmd.con)) {
         app_rep_servos(a, 1);
-        (void)con_complete(&a->con, 0);
+        (void)con_complete(&a->cmd.con, 0);
     }
-    a->boot_con = 0;
-    a->reboot_id = 0;
+    a->boot.con_wait = 0;
+    a->bus.reboot_id = 0;
 }
 
 APP_NOINLINE static void boot_poll(app_t *a)
 {
     uint32_t t = app_now_ms(a);
-    if (a->boot_step == 0u) {
-        if (a->reboot_id != 0u && t - a->t_boot < APP_SERVO_REBOOT_MS) {
+    if (a->boot.step == 0u) {
+        if (a->bus.reboot_id != 0u && t - a->boot.t_start < APP_SERVO_REBOOT_MS) {
             return;
         }
         boot_start(a);
@@ -396,38 +398,39 @@ APP_NOINLINE static void boot_poll(app_t *a)
         }
         return;
     }
-    if (a->boot_step == 1u) {
+    if (a->boot.step == 1u) {
         int8_t rc = dxl_bringup_poll(&a->u.bring);
-        if (rc == -DXL_E_MISSING && a->servo_absent == 0u) {
+        if (rc == -DXL_E_MISSING && a->bus.absent == 0u) {
             /* set up the servos that answered; the missing ones stay named */
             uint8_t ids[TBL_MAX_TENDONS], i, n = 0;
             for (i = 0; i < a->info.n_tendons; i++) {
                 if (i < a->u.bring.n && a->u.bring.servo[i].present) {
-                    ids[n++] = a->ids[i];
+                    ids[n++] = a->bus.ids[i];
                 } else {
-                    a->servo_absent |= app_bit16(i);
+                    a->bus.absent |= app_bit16(i);
                 }
             }
-            if (n > 0u && dxl_bringup_start(&a->u.bring, &a->dxl, ids, n, &a->u.bring.cfg) > 0) {
+            if (n > 0u &&
+                dxl_bringup_start(&a->u.bring, &a->bus.dxl, ids, n, &a->u.bring.cfg) > 0) {
                 return;
             }
         }
-        if (rc > 0 && t - a->t_boot < APP_PREFLIGHT_MS) {
+        if (rc > 0 && t - a->boot.t_start < APP_PREFLIGHT_MS) {
             return;
         }
         if (rc > 0) {
-            dxl_abort(&a->dxl);
+            dxl_abort(&a->bus.dxl);
         }
-        if (!icm_set_settled(&a->sens) && t - a->t_boot < APP_PREFLIGHT_MS) {
+        if (!icm_set_settled(&a->sense.set) && t - a->boot.t_start < APP_PREFLIGHT_MS) {
             return;
         }
         boot_finish(a);
         return;
     }
     /* step 2: every found servo's position and Bus Watchdog, then ready */
-    if (((a->servo_seen | a->servo_absent) != app_all_mask(a) || a->wdog_step != 0u ||
-         a->sv_txn == TX_WDOG) &&
-        t - a->t_boot < APP_PREFLIGHT_MS) {
+    if (((a->bus.seen | a->bus.absent) != app_all_mask(a) || a->bus.wdog_step != 0u ||
+         a->bus.txn == TX_WDOG) &&
+        t - a->boot.t_start < APP_PREFLIGHT_MS) {
         return;
     }
     boot_ready(a);
@@ -440,8 +443,8 @@ static uint8_t present_ids(const app_t *a, uint8_t *ids, uint16_t *mask)
     uint8_t i, n = 0;
     *mask = 0;
     for (i = 0; i < a->info.n_tendons; i++) {
-        if (app_has(a->servo_absent, i) == 0u) {
-            ids[n++] = a->ids[i];
+        if (app_has(a->bus.absent, i) == 0u) {
+            ids[n++] = a->bus.ids[i];
             *mask |= app_bit16(i);
         }
     }
@@ -460,65 +463,65 @@ APP_NOINLINE static void servo_done(app_t *a, int8_t rc)
 {
     uint8_t i;
     uint16_t got = 0;
-    if (a->sv_txn == TX_POS || a->sv_txn == TX_HWERR) {
+    if (a->bus.txn == TX_POS || a->bus.txn == TX_HWERR) {
         for (i = 0; i < a->info.n_tendons; i++) {
             const dxl_reply *r;
-            if (app_has(a->txn_mask, i) == 0u) {
+            if (app_has(a->bus.txn_mask, i) == 0u) {
                 continue;
             }
-            r = dxl_reply_for(&a->dxl, a->ids[i]);
+            r = dxl_reply_for(&a->bus.dxl, a->bus.ids[i]);
             if (r == NULL || (r->result != 0 && r->result != -DXL_E_ALERT)) {
                 continue;
             }
-            if (a->sv_txn == TX_POS && r->len >= 4u) {
-                a->present[i] = dxl_reply_value(r, 4);
+            if (a->bus.txn == TX_POS && r->len >= 4u) {
+                a->bus.present[i] = dxl_reply_value(r, 4);
                 got |= app_bit16(i);
-                a->servo_fresh |= app_bit16(i);
-                a->servo_seen |= app_bit16(i);
-            } else if (a->sv_txn == TX_HWERR && r->len >= 1u) {
-                a->hw_err[i] = r->data[0];
+                a->bus.fresh |= app_bit16(i);
+                a->bus.seen |= app_bit16(i);
+            } else if (a->bus.txn == TX_HWERR && r->len >= 1u) {
+                a->bus.hw_err[i] = r->data[0];
             }
-            if (r->result == -DXL_E_ALERT && a->sv_txn == TX_POS) {
-                a->hwerr_due = 1;
-            }
-        }
-        if (a->sv_txn == TX_POS) {
-            if (got == a->txn_mask) {
-                a->pos_streak = 0;
-            } else if (a->pos_streak < APP_POS_RETRIES) {
-                a->pos_streak++;
-                a->pos_force = 1;
+            if (r->result == -DXL_E_ALERT && a->bus.txn == TX_POS) {
+                a->bus.hwerr_due = 1;
             }
         }
-    } else if (a->sv_txn == TX_REBOOT) {
+        if (a->bus.txn == TX_POS) {
+            if (got == a->bus.txn_mask) {
+                a->bus.pos_streak = 0;
+            } else if (a->bus.pos_streak < APP_POS_RETRIES) {
+                a->bus.pos_streak++;
+                a->bus.pos_force = 1;
+            }
+        }
+    } else if (a->bus.txn == TX_REBOOT) {
         if (rc != 0 && rc != -DXL_E_ALERT) {
-            if (a->auto_release) {
-                a->auto_release = 0; /* named: this tendon may still be taut */
+            if (a->run.auto_release) {
+                a->run.auto_release = 0; /* named: this tendon may still be taut */
                 for (i = 0; i < a->info.n_tendons; i++) {
-                    if (a->ids[i] == a->reboot_id) {
+                    if (a->bus.ids[i] == a->bus.reboot_id) {
                         app_rep_fault(a, app_w_not_released, CON_E_SERVO_FAULT, HOM_DEV_SERVO, i);
                     }
                 }
-            } else if (con_pending(&a->con)) {
-                (void)con_complete(&a->con, CON_E_SERVO_FAULT);
+            } else if (con_pending(&a->cmd.con)) {
+                (void)con_complete(&a->cmd.con, CON_E_SERVO_FAULT);
             }
-            a->reboot_id = 0;
+            a->bus.reboot_id = 0;
         } else {
             /* the servo lost its multi-turn count: bring the bus up again
              * and recover the homes as after a power cycle; its engagement
              * window is in the old frame */
             for (i = 0; i < a->info.n_tendons; i++) {
-                if (a->ids[i] == a->reboot_id) {
+                if (a->bus.ids[i] == a->bus.reboot_id) {
                     win_set(a, i, 0, 0, 0);
                 }
             }
-            a->t_boot = app_now_ms(a);
-            a->boot_con = 1;
-            a->boot_step = 0;
+            a->boot.t_start = app_now_ms(a);
+            a->boot.con_wait = 1;
+            a->boot.step = 0;
             a->state = APP_ST_BOOT;
         }
     }
-    a->sv_txn = TX_NONE;
+    a->bus.txn = TX_NONE;
 }
 
 /* Tendons whose servo stands more than a tick from the goal last sent. A
@@ -532,11 +535,11 @@ static uint16_t off_goal(const app_t *a)
     uint16_t m = 0;
     while (i-- > 0u) {
         m = (uint16_t)(m << 1);
-        if ((uint32_t)(a->present[i] - hom_goal(&a->u.hom, i)) + 1u > 2u) {
+        if ((uint32_t)(a->bus.present[i] - hom_goal(&a->u.hom, i)) + 1u > 2u) {
             m |= 1u;
         }
     }
-    return m & a->torque_on;
+    return m & a->bus.torque_on;
 }
 
 APP_NOINLINE static void servo_next(app_t *a)
@@ -545,70 +548,70 @@ APP_NOINLINE static void servo_next(app_t *a)
     uint8_t data[GOALS_PER_TXN * 12u];
     uint8_t i, n = 0, txn, v, force;
     uint16_t mask, addr;
-    if (a->reboot_req && a->goal_due == 0u && a->torque_due == 0u) {
+    if (a->bus.reboot_req && a->bus.goal_due == 0u && a->bus.torque_due == 0u) {
         /* after the release goals of every other tendon are out: the
          * bring-up that follows a reboot owns the bus for a while */
-        a->reboot_req = 0;
-        if (dxl_reboot(&a->dxl, a->reboot_id) > 0) {
-            a->sv_txn = TX_REBOOT;
-        } else if (con_pending(&a->con)) {
-            (void)con_complete(&a->con, CON_E_INTERNAL);
+        a->bus.reboot_req = 0;
+        if (dxl_reboot(&a->bus.dxl, a->bus.reboot_id) > 0) {
+            a->bus.txn = TX_REBOOT;
+        } else if (con_pending(&a->cmd.con)) {
+            (void)con_complete(&a->cmd.con, CON_E_INTERNAL);
         }
         return;
     }
-    if (a->wdog_step != 0u || a->torque_due != 0u) {
-        if (a->wdog_step != 0u) {
+    if (a->bus.wdog_step != 0u || a->bus.torque_due != 0u) {
+        if (a->bus.wdog_step != 0u) {
             /* two writes per servo, from the last: 0 clears an expired
              * watchdog (the servo refuses goals until then), then the
              * period arms it */
-            v = a->wdog_step--;
+            v = a->bus.wdog_step--;
             i = (uint8_t)((v - 1u) >> 1);
-            if (app_has(a->servo_absent, i)) {
+            if (app_has(a->bus.absent, i)) {
                 return;
             }
             v = (v & 1u) ? APP_BUS_WATCHDOG : 0u;
             addr = DXL_XL430_BUS_WATCHDOG_ADDR;
             txn = TX_WDOG;
         } else {
-            for (i = 0; app_has(a->torque_due, i) == 0u; i++) {
+            for (i = 0; app_has(a->bus.torque_due, i) == 0u; i++) {
             }
-            a->torque_due &= (uint16_t)~app_bit16(i);
-            v = app_has(a->torque_on, i);
+            a->bus.torque_due &= (uint16_t)~app_bit16(i);
+            v = app_has(a->bus.torque_on, i);
             addr = DXL_XL430_TORQUE_ENABLE_ADDR;
             txn = TX_TORQUE;
         }
-        if (dxl_write_value(&a->dxl, a->ids[i], addr, v, 1) > 0) {
-            a->sv_txn = txn;
+        if (dxl_write_value(&a->bus.dxl, a->bus.ids[i], addr, v, 1) > 0) {
+            a->bus.txn = txn;
         }
         return;
     }
-    if (a->goal_due == 0u) {
+    if (a->bus.goal_due == 0u) {
         n = present_ids(a, ids, &mask);
         if (n == 0u) {
             return;
         }
-        a->txn_mask = mask;
-        a->sv_cycle++;
-        force = a->pos_force;
-        a->pos_force = 0;
+        a->bus.txn_mask = mask;
+        a->bus.cycle++;
+        force = a->bus.pos_force;
+        a->bus.pos_force = 0;
         addr = DXL_XL430_HW_ERROR_ADDR;
         v = 1;
         txn = TX_HWERR;
-        if (a->hwerr_due || (!force && (a->sv_cycle % APP_HWERR_EVERY) == 0u)) {
-            a->hwerr_due = 0;
+        if (a->bus.hwerr_due || (!force && (a->bus.cycle % APP_HWERR_EVERY) == 0u)) {
+            a->bus.hwerr_due = 0;
         } else {
             /* even between forced position reads: a lost goal is worse
              * than a late position */
-            if ((a->sv_cycle % APP_GOAL_REFRESH_EVERY) == APP_GOAL_REFRESH_EVERY / 2u) {
-                a->goal_due = off_goal(a); /* this cycle refreshes goals instead */
+            if ((a->bus.cycle % APP_GOAL_REFRESH_EVERY) == APP_GOAL_REFRESH_EVERY / 2u) {
+                a->bus.goal_due = off_goal(a); /* this cycle refreshes goals instead */
             }
             addr = DXL_XL430_PRESENT_POSITION_ADDR;
             v = 4;
             txn = TX_POS;
         }
-        if (a->goal_due == 0u) {
-            if (dxl_sync_read(&a->dxl, addr, v, ids, n) > 0) {
-                a->sv_txn = txn;
+        if (a->bus.goal_due == 0u) {
+            if (dxl_sync_read(&a->bus.dxl, addr, v, ids, n) > 0) {
+                a->bus.txn = txn;
             }
             return;
         }
@@ -616,39 +619,39 @@ APP_NOINLINE static void servo_next(app_t *a)
     }
     for (i = 0; i < a->info.n_tendons && n < GOALS_PER_TXN; i++) {
         uint8_t *p = &data[n * 12u];
-        if (app_has(a->goal_due, i) == 0u) {
+        if (app_has(a->bus.goal_due, i) == 0u) {
             continue;
         }
-        a->goal_due &= (uint16_t)~app_bit16(i);
-        if (app_has(a->servo_absent, i)) {
+        a->bus.goal_due &= (uint16_t)~app_bit16(i);
+        if (app_has(a->bus.absent, i)) {
             continue;
         }
-        ids[n++] = a->ids[i];
-        put32(p, a->acc);
+        ids[n++] = a->bus.ids[i];
+        put32(p, a->bus.acc);
         put32(p + 4, hom_goal_vel(&a->u.hom, i));
         put32(p + 8, (uint32_t)hom_goal(&a->u.hom, i));
     }
     if (n > 0u &&
-        dxl_sync_write(&a->dxl, DXL_XL430_PROFILE_ACCELERATION_ADDR, 12u, ids, data, n) > 0) {
-        a->sv_txn = TX_GOAL;
+        dxl_sync_write(&a->bus.dxl, DXL_XL430_PROFILE_ACCELERATION_ADDR, 12u, ids, data, n) > 0) {
+        a->bus.txn = TX_GOAL;
     }
 }
 
 APP_NOINLINE static void servo_poll(app_t *a)
 {
-    if (a->state == APP_ST_BOOT && a->boot_step != 2u) {
+    if (a->state == APP_ST_BOOT && a->boot.step != 2u) {
         return; /* the bring-up owns the bus */
     }
-    if (dxl_busy(&a->dxl)) {
-        int8_t rc = dxl_poll(&a->dxl);
+    if (dxl_busy(&a->bus.dxl)) {
+        int8_t rc = dxl_poll(&a->bus.dxl);
         if (rc > 0) {
             return;
         }
         servo_done(a, rc);
-    } else if (a->sv_txn != TX_NONE) {
-        servo_done(a, dxl_poll(&a->dxl));
+    } else if (a->bus.txn != TX_NONE) {
+        servo_done(a, dxl_poll(&a->bus.dxl));
     }
-    if (a->state != APP_ST_BOOT || a->boot_step == 2u) {
+    if (a->state != APP_ST_BOOT || a->boot.step == 2u) {
         servo_next(a);
     }
 }
@@ -657,11 +660,11 @@ APP_NOINLINE static void servo_poll(app_t *a)
 APP_NOINLINE static void set_goal(app_t *a, uint8_t i, int32_t goal, uint16_t vel, uint16_t acc)
 {
     hom_set_goal(&a->u.hom, i, goal, vel);
-    a->acc = acc;
-    a->goal_due |= app_bit16(i);
-    if (app_has(a->torque_on, i) == 0u) {
-        a->torque_on |= app_bit16(i);
-        a->torque_due |= app_bit16(i);
+    a->bus.acc = acc;
+    a->bus.goal_due |= app_bit16(i);
+    if (app_has(a->bus.torque_on, i) == 0u) {
+        a->bus.torque_on |= app_bit16(i);
+        a->bus.torque_due |= app_bit16(i);
     }
 }
 
@@ -671,12 +674,12 @@ APP_NOINLINE static void set_goal(app_t *a, uint8_t i, int32_t goal, uint16_t ve
 APP_NOINLINE static void sensors_take(app_t *a, hom_in_t *in)
 {
     uint8_t k;
-    for (k = 0; k < a->info.n_sensors && a->sens.n > 0u; k++) {
+    for (k = 0; k < a->info.n_sensors && a->sense.set.n > 0u; k++) {
         icm_sample_t s;
         hom_sensor_in_t *o = &in->sensor[k];
-        int8_t rc = icm_set_take(&a->sens, k, &s);
+        int8_t rc = icm_set_take(&a->sense.set, k, &s);
         icm_diag_t d;
-        (void)icm_set_diag(&a->sens, k, &d);
+        (void)icm_set_diag(&a->sense.set, k, &d);
         if (rc == 1) {
             o->status = (s.flags & ICM_SAMPLE_OVERFLOW) ? HOM_SENS_OVERFLOW : HOM_SENS_NEW;
             o->b_cuT[0] = (int32_t)s.raw[0] * 15;
@@ -684,12 +687,12 @@ APP_NOINLINE static void sensors_take(app_t *a, hom_in_t *in)
             o->b_cuT[2] = (int32_t)s.raw[2] * 15;
         } else if (d.state == ICM_SET_S_FAIL && !d.present) {
             o->status = HOM_SENS_ABSENT;
-        } else if ((uint8_t)d.error_count != a->sens_err[k]) {
+        } else if ((uint8_t)d.error_count != a->sense.err[k]) {
             o->status = HOM_SENS_ERROR;
         } else {
             o->status = HOM_SENS_NONE;
         }
-        a->sens_err[k] = (uint8_t)d.error_count;
+        a->sense.err[k] = (uint8_t)d.error_count;
     }
 }
 
@@ -699,13 +702,13 @@ APP_NOINLINE static void sensors_take(app_t *a, hom_in_t *in)
  * must not reuse that storage until it is written. */
 static uint8_t rec_busy(const app_t *a)
 {
-    return (uint8_t)((a->save_due & (SAVE_HIST | SAVE_LEARNED)) != 0u || a->save_now == SAVE_HIST ||
-                     a->save_now == SAVE_LEARNED);
+    return (uint8_t)((a->rec.save_due & (SAVE_HIST | SAVE_LEARNED)) != 0u ||
+                     a->rec.save_now == SAVE_HIST || a->rec.save_now == SAVE_LEARNED);
 }
 
 static void save_queue(app_t *a, uint8_t what)
 {
-    a->save_due |= what;
+    a->rec.save_due |= what;
 }
 
 /* A run finished: keep its homes (calibration frame = this power cycle's
@@ -715,18 +718,18 @@ APP_NOINLINE static void run_done(app_t *a)
     win_moving(a, 0);
     uint8_t i, k;
     uint32_t t = app_now_ms(a);
-    a->amb_ok |= hom_amb_captured(&a->u.hom); /* read before u.idle reuses the storage */
-    a->homes.table_id = a->info.table_id;
-    a->homes.n_tendons = a->info.n_tendons;
-    a->homes.tension_mN = a->run_tension;
-    a->homes.cal_count++;
+    a->run.amb_ok |= hom_amb_captured(&a->u.hom); /* read before u.idle reuses the storage */
+    a->rec.homes.table_id = a->info.table_id;
+    a->rec.homes.n_tendons = a->info.n_tendons;
+    a->rec.homes.tension_mN = a->run.tension;
+    a->rec.homes.cal_count++;
     for (i = 0; i < a->info.n_tendons; i++) {
         int32_t h;
-        if (app_has(a->run_mask, i) && hom_home(&a->u.hom, i, &h) == 0) {
-            store_home_set(&a->homes.t[i], h, h);
-            a->offset[i] = 0;
-            a->homes.valid_mask |= app_bit16(i);
-            a->home_now |= app_bit16(i);
+        if (app_has(a->run.mask, i) && hom_home(&a->u.hom, i, &h) == 0) {
+            store_home_set(&a->rec.homes.t[i], h, h);
+            a->rec.offset[i] = 0;
+            a->rec.homes.valid_mask |= app_bit16(i);
+            a->rec.home_now |= app_bit16(i);
         }
     }
     /* The run's baseline is the learn baseline until the next release. From
@@ -735,28 +738,28 @@ APP_NOINLINE static void run_done(app_t *a)
     for (k = 0; k < a->info.n_sensors; k++) {
         memcpy(a->u.idle.b0[k], hom_baseline(&a->u.hom, k), sizeof a->u.idle.b0[k]);
     }
-    a->have_b0 = 1;
+    a->learn.have_b0 = 1;
     memset(&a->u.idle.rec.hist, 0, sizeof a->u.idle.rec.hist);
-    a->u.idle.rec.hist.cal_count = a->homes.cal_count;
-    a->u.idle.rec.hist.table_id = a->homes.table_id;
-    a->u.idle.rec.hist.tension_mN = a->homes.tension_mN;
-    a->u.idle.rec.hist.valid_mask = a->homes.valid_mask;
-    a->u.idle.rec.hist.n_tendons = a->homes.n_tendons;
+    a->u.idle.rec.hist.cal_count = a->rec.homes.cal_count;
+    a->u.idle.rec.hist.table_id = a->rec.homes.table_id;
+    a->u.idle.rec.hist.tension_mN = a->rec.homes.tension_mN;
+    a->u.idle.rec.hist.valid_mask = a->rec.homes.valid_mask;
+    a->u.idle.rec.hist.n_tendons = a->rec.homes.n_tendons;
     for (i = 0; i < a->info.n_tendons; i++) {
-        a->u.idle.rec.hist.home_ticks[i] = a->homes.t[i].home_ticks;
+        a->u.idle.rec.hist.home_ticks[i] = a->rec.homes.t[i].home_ticks;
     }
-    a->homes_rc = 0;
-    a->recover_rc = 0;
+    a->rec.homes_rc = 0;
+    a->boot.recover_rc = 0;
     save_queue(a, SAVE_HOMES | SAVE_HIST);
-    a->offer_quick = 0;
+    a->boot.offer_quick = 0;
     app_rep_begin(a, app_w_done);
-    app_rep_word(a, app_w_mode, app_w_mode_words, a->run_mode);
-    app_rep_word(a, app_w_target, app_w_target_words, a->run_abs);
-    app_rep_int(a, app_w_time_ms, (int32_t)(t - a->t_run));
-    app_rep_int(a, app_w_tension_mN, a->run_tension);
-    app_rep_int(a, app_w_count, (int32_t)a->homes.cal_count);
+    app_rep_word(a, app_w_mode, app_w_mode_words, a->run.mode);
+    app_rep_word(a, app_w_target, app_w_target_words, a->run.abs);
+    app_rep_int(a, app_w_time_ms, (int32_t)(t - a->run.t_start));
+    app_rep_int(a, app_w_tension_mN, a->run.tension);
+    app_rep_int(a, app_w_count, (int32_t)a->rec.homes.cal_count);
     app_rep_end(a);
-    a->led = APP_LED_DONE;
+    a->panel.led = APP_LED_DONE;
     a->state = APP_ST_IDLE;
 }
 
@@ -780,10 +783,10 @@ uint8_t app_idle_state(const app_t *a)
  * CON_E_NOT_HOMED or CON_E_MOVED (a spool turned while powered off). */
 APP_NOINLINE static int8_t homes_usable(const app_t *a)
 {
-    if (a->homes_rc != 0 || a->homes.valid_mask != app_all_mask(a)) {
+    if (a->rec.homes_rc != 0 || a->rec.homes.valid_mask != app_all_mask(a)) {
         return CON_E_NOT_HOMED;
     }
-    return a->home_now != app_all_mask(a) ? CON_E_MOVED : 0;
+    return a->rec.home_now != app_all_mask(a) ? CON_E_MOVED : 0;
 }
 
 /* Starts a homing run. Returns 0 or a CON_E_* code (nothing moves then). */
@@ -805,7 +808,7 @@ static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon
         return CON_E_BAD_TENDON;
     }
     if (tension == 0u) {
-        tension = (uint16_t)a->set.v[STORE_SET_CAL_TENSION];
+        tension = (uint16_t)a->rec.set.v[STORE_SET_CAL_TENSION];
     }
     if (tension < a->info.grid_mN[0] || tension > a->info.grid_mN[a->info.n_grid - 1u]) {
         return CON_E_TENSION_RANGE;
@@ -815,24 +818,24 @@ static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon
         if (e != 0) {
             return e;
         }
-        tension = a->homes.tension_mN;
+        tension = a->rec.homes.tension_mN;
     }
-    if (store_busy(&a->store) || rec_busy(a)) {
+    if (store_busy(&a->rec.store) || rec_busy(a)) {
         return CON_E_BUSY; /* finishes within a few hundred ms */
     }
     memset(&cmd, 0, sizeof cmd);
-    a->run_abs = a->set.v[STORE_SET_TARGET_MODE] != 0;
-    if (a->run_abs) {
+    a->run.abs = a->rec.set.v[STORE_SET_TARGET_MODE] != 0;
+    if (a->run.abs) {
         /* the first absolute run takes A from its own straight-pose
          * baseline (a dry run stands wherever the robot is: never) */
-        cmd.ambient_cuT = a->amb;
-        cmd.ambient_capture = (uint8_t)(!a->amb_ok && mode != HOM_MODE_DRY);
+        cmd.ambient_cuT = a->run.amb;
+        cmd.ambient_capture = (uint8_t)(!a->run.amb_ok && mode != HOM_MODE_DRY);
     }
     cmd.mode = (hom_mode_t)mode;
     cmd.tension_mN = tension;
     cmd.tendon = tendon;
     for (i = 0; i < a->info.n_tendons; i++) {
-        if (app_has(a->home_now, i)) {
+        if (app_has(a->rec.home_now, i)) {
             cmd.stored_home[i] = home_cur(a, i);
             cmd.stored_mask |= app_bit16(i);
         }
@@ -847,13 +850,13 @@ static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon
      * point while the servo stands still (near the target at least twice as
      * many). A moving average of the stream ahead of the homing would lag
      * during the take-up and delay the engagement it detects. */
-    cfg.v_fast = (uint16_t)a->set.v[STORE_SET_APPROACH_FAST];
-    cfg.v_fine = (uint16_t)a->set.v[STORE_SET_APPROACH_SLOW];
-    cfg.avg_samples = (uint8_t)a->set.v[STORE_SET_FILTER_K];
+    cfg.v_fast = (uint16_t)a->rec.set.v[STORE_SET_APPROACH_FAST];
+    cfg.v_fine = (uint16_t)a->rec.set.v[STORE_SET_APPROACH_SLOW];
+    cfg.avg_samples = (uint8_t)a->rec.set.v[STORE_SET_FILTER_K];
     cfg.servo_timeout_ms = APP_SERVO_TIMEOUT_MS;
-    a->have_b0 = 0; /* its storage goes to the homing */
+    a->learn.have_b0 = 0; /* its storage goes to the homing */
     hom_init(&a->u.hom, &cfg);
-    a->torque_on = 0; /* the goals were cleared: nothing to refresh until set */
+    a->bus.torque_on = 0; /* the goals were cleared: nothing to refresh until set */
     rc = hom_start(&a->u.hom, &a->htab, &cmd);
     if (rc == HOM_E_TENSION) {
         return CON_E_TENSION_RANGE;
@@ -864,15 +867,15 @@ static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon
     if (rc != 0) {
         return CON_E_INTERNAL;
     }
-    a->run_mode = mode;
-    a->run_tension = tension;
-    a->run_mask = mode == HOM_MODE_SINGLE ? app_bit16(tendon) : app_all_mask(a);
-    a->t_run = app_now_ms(a);
-    a->servo_fresh = 0;
+    a->run.mode = mode;
+    a->run.tension = tension;
+    a->run.mask = mode == HOM_MODE_SINGLE ? app_bit16(tendon) : app_all_mask(a);
+    a->run.t_start = app_now_ms(a);
+    a->bus.fresh = 0;
     a->state = APP_ST_CAL;
     win_moving(a, 1);
-    a->led = APP_LED_RUN;
-    a->rest_due = 0;
+    a->panel.led = APP_LED_RUN;
+    a->rec.rest_due = 0;
     return 0;
 }
 
@@ -882,9 +885,9 @@ APP_NOINLINE static void fault_rest(app_t *a, uint32_t t)
 {
     win_moving(a, 0); /* the release goals are out: the servos finish them */
     a->state = APP_ST_FAULT;
-    a->led = APP_LED_FAULT;
-    a->rest_due = 1;
-    a->t_rest = (uint16_t)t;
+    a->panel.led = APP_LED_FAULT;
+    a->rec.rest_due = 1;
+    a->rec.t_rest = (uint16_t)t;
 }
 
 APP_NOINLINE static void cal_step(app_t *a, hom_in_t *in)
@@ -896,24 +899,24 @@ APP_NOINLINE static void cal_step(app_t *a, hom_in_t *in)
     in->now_ms = app_now_ms(a);
     for (i = 0; i < a->info.n_tendons; i++) {
         hom_servo_in_t *s = &in->servo[i];
-        if (app_has(a->servo_absent, i)) {
+        if (app_has(a->bus.absent, i)) {
             s->status = HOM_SERVO_ABSENT;
         } else {
-            s->status = app_has(a->servo_fresh, i) ? HOM_SERVO_OK : HOM_SERVO_NOREPLY;
+            s->status = app_has(a->bus.fresh, i) ? HOM_SERVO_OK : HOM_SERVO_NOREPLY;
         }
-        s->hw_error = a->hw_err[i];
-        s->pos = a->present[i];
+        s->hw_error = a->bus.hw_err[i];
+        s->pos = a->bus.present[i];
     }
-    a->servo_fresh = 0;
+    a->bus.fresh = 0;
     rc = hom_step(&a->u.hom, in, &out);
     win_take(a);
     for (i = 0; i < a->info.n_tendons; i++) {
         if (app_has(out.changed, i)) {
-            a->acc = out.acc[i]; /* one profile acceleration for every move */
-            a->goal_due |= app_bit16(i);
-            if ((out.torque[i] != 0u) != (app_has(a->torque_on, i) != 0u)) {
-                a->torque_on ^= app_bit16(i);
-                a->torque_due |= app_bit16(i);
+            a->bus.acc = out.acc[i]; /* one profile acceleration for every move */
+            a->bus.goal_due |= app_bit16(i);
+            if ((out.torque[i] != 0u) != (app_has(a->bus.torque_on, i) != 0u)) {
+                a->bus.torque_on ^= app_bit16(i);
+                a->bus.torque_due |= app_bit16(i);
             }
         }
     }
@@ -925,14 +928,14 @@ APP_NOINLINE static void cal_step(app_t *a, hom_in_t *in)
     } else if (rc < 0) {
         uint8_t f = hom_fault_index(&a->u.hom);
         fault_rest(a, in->now_ms);
-        a->last_fault = hom_fault(&a->u.hom);
-        if (a->last_fault == HOM_F_SERVO_ERROR && f < a->info.n_tendons) {
+        a->run.last_fault = hom_fault(&a->u.hom);
+        if (a->run.last_fault == HOM_F_SERVO_ERROR && f < a->info.n_tendons) {
             /* a servo in hardware error has its torque off and refused the
              * release: reboot it (Protocol 2.0 Reboot clears the error), then
              * release its tendon once the bus is up again */
-            a->reboot_id = a->ids[f];
-            a->reboot_req = 1;
-            a->auto_release = a->reboot_id;
+            a->bus.reboot_id = a->bus.ids[f];
+            a->bus.reboot_req = 1;
+            a->run.auto_release = a->bus.reboot_id;
         }
     }
 }
@@ -942,11 +945,11 @@ APP_NOINLINE static void cal_step(app_t *a, hom_in_t *in)
 static void move_start(app_t *a, uint8_t kind)
 {
     win_moving(a, 1);
-    a->move_kind = kind;
-    a->t_move = app_now_ms(a);
-    a->servo_fresh = 0;
+    a->run.move_kind = kind;
+    a->run.t_move = app_now_ms(a);
+    a->bus.fresh = 0;
     a->state = APP_ST_MOVE;
-    a->led = APP_LED_RUN;
+    a->panel.led = APP_LED_RUN;
 }
 
 /* Release goals computed by the app when no run is active: the slack margin
@@ -964,7 +967,7 @@ static uint8_t release_goals(app_t *a)
         tbl_point_t pt;
         tbl_tendon_t row;
         int32_t g, dir, lo, hi;
-        if (app_has(a->servo_absent, i)) {
+        if (app_has(a->bus.absent, i)) {
             continue;
         }
         (void)tbl_tendon(&a->tab, i, &row);
@@ -972,23 +975,23 @@ static uint8_t release_goals(app_t *a)
         if (a->io->win != NULL && app_has(a->io->win->mask, i)) {
             lo = a->io->win->lo[i];
         } else {
-            if (app_has(a->home_now, i)) {
+            if (app_has(a->rec.home_now, i)) {
                 uint32_t trav = 0;
-                if (tbl_target(&a->tab, i, a->homes.tension_mN, &pt) == 0) {
+                if (tbl_target(&a->tab, i, a->rec.homes.tension_mN, &pt) == 0) {
                     trav = pt.travel_um;
                 }
                 hi = home_cur(a, i) - dir * um_ticks(row.nm_per_tick, trav);
                 lo = hi;
             } else {
-                hi = a->present[i];
+                hi = a->bus.present[i];
                 lo = hi -
                      dir * um_ticks(row.nm_per_tick, row.travel_um[a->info.n_grid - 1u] * 3u / 2u);
             }
             win_set(a, i, lo, hi, 1);
         }
         g = lo - dir * um_ticks(row.nm_per_tick, cfg.slack_margin_um);
-        if (dir * (g - a->present[i]) > 0) {
-            g = a->present[i]; /* already slacker than the release point */
+        if (dir * (g - a->bus.present[i]) > 0) {
+            g = a->bus.present[i]; /* already slacker than the release point */
         }
         set_goal(a, i, g, cfg.v_release, cfg.acc);
         moved = 1;
@@ -1001,35 +1004,35 @@ void app_abort(app_t *app)
     if (app == NULL || app->state == APP_ST_BOOT) {
         return;
     }
-    if (app->req_start && app->req_con && con_pending(&app->con)) {
-        (void)con_complete(&app->con, CON_E_ABORTED);
+    if (app->run.req_start && app->run.req_con && con_pending(&app->cmd.con)) {
+        (void)con_complete(&app->cmd.con, CON_E_ABORTED);
     }
-    app->req_start = 0;
+    app->run.req_start = 0;
     if (app->state == APP_ST_CAL) {
         hom_abort(&app->u.hom);
         return;
     }
-    if (app->state == APP_ST_LEARN && app->learn_tendon != LEARN_BASELINE &&
-        con_pending(&app->con)) {
-        (void)con_complete(&app->con, CON_E_ABORTED);
+    if (app->state == APP_ST_LEARN && app->learn.tendon != LEARN_BASELINE &&
+        con_pending(&app->cmd.con)) {
+        (void)con_complete(&app->cmd.con, CON_E_ABORTED);
     }
     if (!app->table_ok) {
         return;
     }
     (void)release_goals(app);
     app_rep_begin(app, app_w_released);
-    con_report_flash(&app->con, app_w_reason, app_w_aborted);
+    con_report_flash(&app->cmd.con, app_w_reason, app_w_aborted);
     app_rep_end(app);
     move_start(app, MOVE_RELEASE);
 }
 
 static void learn_begin(app_t *a, uint8_t tendon)
 {
-    a->learn_tendon = tendon;
-    a->learn_n = 0;
+    a->learn.tendon = tendon;
+    a->learn.n = 0;
     memset(a->u.idle.acc, 0, sizeof a->u.idle.acc);
     memset(a->u.idle.cnt, 0, sizeof a->u.idle.cnt);
-    a->t_move = app_now_ms(a);
+    a->learn.t_start = app_now_ms(a);
     a->state = APP_ST_LEARN;
 }
 
@@ -1038,38 +1041,38 @@ APP_NOINLINE static void move_step(app_t *a)
     uint8_t i, arrived = 1;
     uint32_t t = app_now_ms(a);
     for (i = 0; i < a->info.n_tendons; i++) {
-        int32_t d = a->present[i] - hom_goal(&a->u.hom, i);
-        if (app_has(a->servo_absent, i)) {
+        int32_t d = a->bus.present[i] - hom_goal(&a->u.hom, i);
+        if (app_has(a->bus.absent, i)) {
             continue;
         }
-        if (app_has(a->servo_fresh, i) == 0u || a->goal_due != 0u || d > APP_MOVE_TOL_TICKS ||
+        if (app_has(a->bus.fresh, i) == 0u || a->bus.goal_due != 0u || d > APP_MOVE_TOL_TICKS ||
             d < -APP_MOVE_TOL_TICKS) {
             arrived = 0;
         }
     }
     if (!arrived) {
-        if (t - a->t_move > APP_MOVE_TIMEOUT_MS) {
+        if (t - a->run.t_move > APP_MOVE_TIMEOUT_MS) {
             app_rep_fault(a, app_w_servo_stall, CON_E_TIMEOUT, HOM_DEV_SERVO, 0);
             fault_rest(a, t);
-            if (a->move_kind == MOVE_HOME) {
+            if (a->run.move_kind == MOVE_HOME) {
                 (void)release_goals(a);
             }
         }
         return;
     }
-    a->rest_due = 1;
-    a->t_rest = (uint16_t)t;
+    a->rec.rest_due = 1;
+    a->rec.t_rest = (uint16_t)t;
     win_moving(a, 0);
-    if (a->move_kind == MOVE_RELEASE) {
+    if (a->run.move_kind == MOVE_RELEASE) {
         learn_begin(a, LEARN_BASELINE); /* the robot stands straight: capture B0 */
         return;
     }
     app_rep_begin(a, app_w_done);
-    con_report_flash(&a->con, app_w_mode, app_w_home);
-    app_rep_int(a, app_w_time_ms, (int32_t)(t - a->t_move));
+    con_report_flash(&a->cmd.con, app_w_mode, app_w_home);
+    app_rep_int(a, app_w_time_ms, (int32_t)(t - a->run.t_move));
     app_rep_end(a);
     a->state = APP_ST_IDLE;
-    a->led = APP_LED_IDLE;
+    a->panel.led = APP_LED_IDLE;
 }
 
 /* A learned target must stand well above the sensing noise (the table's
@@ -1085,8 +1088,8 @@ static int8_t learn_plausible(const app_t *a, const store_learned_t *l, uint32_t
         return CON_E_IMPLAUSIBLE;
     }
     for (g = 0; g < a->info.n_grid; g++) {
-        if (app_has(l->grid_mask, g) && ((g < a->learn_grid && l->target_cuT[g] + m >= v) ||
-                                         (g > a->learn_grid && l->target_cuT[g] <= v + m))) {
+        if (app_has(l->grid_mask, g) && ((g < a->learn.grid && l->target_cuT[g] + m >= v) ||
+                                         (g > a->learn.grid && l->target_cuT[g] <= v + m))) {
             return CON_E_IMPLAUSIBLE;
         }
     }
@@ -1095,18 +1098,18 @@ static int8_t learn_plausible(const app_t *a, const store_learned_t *l, uint32_t
 
 APP_NOINLINE static void learn_step(app_t *a, const hom_in_t *in)
 {
-    uint8_t k, first, last, tdn = a->learn_tendon;
+    uint8_t k, first, last, tdn = a->learn.tendon;
     uint32_t v = 0;
     uint32_t t = app_now_ms(a);
     int8_t rc = 0;
-    if (a->learn_tendon == LEARN_BASELINE) {
+    if (a->learn.tendon == LEARN_BASELINE) {
         first = 0;
         last = a->info.n_sensors;
-        if (t - a->t_move < SETTLE_MS) {
+        if (t - a->learn.t_start < SETTLE_MS) {
             return;
         }
     } else {
-        first = a->learn_sensor;
+        first = a->learn.sensor;
         last = (uint8_t)(first + 1u);
     }
     for (k = first; k < last; k++) {
@@ -1127,12 +1130,12 @@ APP_NOINLINE static void learn_step(app_t *a, const hom_in_t *in)
                 least = a->u.idle.cnt[k];
             }
         }
-        a->learn_n = least;
-        if (least < APP_LEARN_SAMPLES && t - a->t_move > LEARN_WAIT_MS + SETTLE_MS) {
+        a->learn.n = least;
+        if (least < APP_LEARN_SAMPLES && t - a->learn.t_start > LEARN_WAIT_MS + SETTLE_MS) {
             rc = CON_E_TIMEOUT;
         }
     }
-    if (rc == 0 && a->learn_n < APP_LEARN_SAMPLES) {
+    if (rc == 0 && a->learn.n < APP_LEARN_SAMPLES) {
         return;
     }
     if (rc == 0) {
@@ -1141,18 +1144,18 @@ APP_NOINLINE static void learn_step(app_t *a, const hom_in_t *in)
             sum[k] /= (int32_t)APP_LEARN_SAMPLES; /* sums become averages */
         }
     }
-    if (a->learn_tendon == LEARN_BASELINE) {
+    if (a->learn.tendon == LEARN_BASELINE) {
         if (rc == 0) {
             memcpy(a->u.idle.b0, a->u.idle.acc, sizeof a->u.idle.b0);
-            a->have_b0 = 1;
+            a->learn.have_b0 = 1;
         }
         app_rep_begin(a, app_w_done);
-        con_report_flash(&a->con, app_w_mode, app_w_release);
-        app_rep_int(a, app_w_time_ms, (int32_t)(t - a->t_move));
+        con_report_flash(&a->cmd.con, app_w_mode, app_w_release);
+        app_rep_int(a, app_w_time_ms, (int32_t)(t - a->learn.t_start));
         app_rep_int(a, app_w_baseline, rc == 0);
         app_rep_end(a);
         a->state = APP_ST_IDLE;
-        a->led = APP_LED_IDLE;
+        a->panel.led = APP_LED_IDLE;
         return;
     }
     if (rc == 0) {
@@ -1161,7 +1164,7 @@ APP_NOINLINE static void learn_step(app_t *a, const hom_in_t *in)
             d[k] = a->u.idle.acc[first][k] - a->u.idle.b0[first][k];
         }
         v = hom_norm3(d);
-        if (store_learned_load(&a->store, tdn, a->info.table_id, &a->u.idle.rec.learned) != 0) {
+        if (store_learned_load(&a->rec.store, tdn, a->info.table_id, &a->u.idle.rec.learned) != 0) {
             memset(&a->u.idle.rec.learned, 0, sizeof a->u.idle.rec.learned);
         }
         rc = learn_plausible(a, &a->u.idle.rec.learned, v);
@@ -1170,19 +1173,19 @@ APP_NOINLINE static void learn_step(app_t *a, const hom_in_t *in)
         a->u.idle.rec.learned.table_id = a->info.table_id;
         a->u.idle.rec.learned.tendon = tdn;
         a->u.idle.rec.learned.n_grid = a->info.n_grid;
-        a->u.idle.rec.learned.target_cuT[a->learn_grid] = v;
-        a->u.idle.rec.learned.grid_mask |= app_bit16(a->learn_grid);
+        a->u.idle.rec.learned.target_cuT[a->learn.grid] = v;
+        a->u.idle.rec.learned.grid_mask |= app_bit16(a->learn.grid);
         save_queue(a, SAVE_LEARNED);
         app_rep_begin(a, app_w_learned);
         app_rep_int(a, app_w_tendon, tdn);
-        app_rep_int(a, app_w_tension_mN, a->info.grid_mN[a->learn_grid]);
-        app_rep_int(a, app_w_grid, a->learn_grid);
+        app_rep_int(a, app_w_tension_mN, a->info.grid_mN[a->learn.grid]);
+        app_rep_int(a, app_w_grid, a->learn.grid);
         app_rep_int(a, app_w_sensor, first);
-        con_report_fixed(&a->con, app_w_dB_uT, (int32_t)v, 2);
+        con_report_fixed(&a->cmd.con, app_w_dB_uT, (int32_t)v, 2);
         app_rep_end(a);
     }
-    if (con_pending(&a->con)) {
-        (void)con_complete(&a->con, rc);
+    if (con_pending(&a->cmd.con)) {
+        (void)con_complete(&a->cmd.con, rc);
     }
     a->state = APP_ST_IDLE;
 }
@@ -1194,21 +1197,21 @@ APP_NOINLINE static void learn_step(app_t *a, const hom_in_t *in)
 APP_NOINLINE static void rest_poll(app_t *a)
 {
     uint8_t i, changed = 0;
-    if (!a->rest_due || !app_idle_state(a) ||
-        (uint16_t)((uint16_t)app_now_ms(a) - a->t_rest) < REST_DELAY_MS ||
-        (a->save_due & SAVE_HOMES) || a->save_now == SAVE_HOMES) {
+    if (!a->rec.rest_due || !app_idle_state(a) ||
+        (uint16_t)((uint16_t)app_now_ms(a) - a->rec.t_rest) < REST_DELAY_MS ||
+        (a->rec.save_due & SAVE_HOMES) || a->rec.save_now == SAVE_HOMES) {
         return;
     }
-    a->rest_due = 0;
+    a->rec.rest_due = 0;
     for (i = 0; i < a->info.n_tendons; i++) {
         int32_t rest, d;
-        if (app_has(a->home_now, i) == 0u || app_has(a->servo_seen, i) == 0u) {
+        if (app_has(a->rec.home_now, i) == 0u || app_has(a->bus.seen, i) == 0u) {
             continue;
         }
-        rest = a->present[i] + a->offset[i];
-        d = rest - a->homes.t[i].rest_ticks;
+        rest = a->bus.present[i] + a->rec.offset[i];
+        d = rest - a->rec.homes.t[i].rest_ticks;
         if (d > 2 || d < -2) {
-            store_home_set(&a->homes.t[i], a->homes.t[i].home_ticks, rest);
+            store_home_set(&a->rec.homes.t[i], a->rec.homes.t[i].home_ticks, rest);
             changed = 1;
         }
     }
@@ -1220,55 +1223,56 @@ APP_NOINLINE static void rest_poll(app_t *a)
 APP_NOINLINE static void store_task(app_t *a)
 {
     uint8_t idle = app_idle_state(a);
-    if (store_busy(&a->store)) {
-        int8_t rc = store_poll(&a->store, idle);
+    if (store_busy(&a->rec.store)) {
+        int8_t rc = store_poll(&a->rec.store, idle);
         if (rc <= 0) {
-            if ((a->save_now == SAVE_SETTINGS ||
-                 (a->save_now == SAVE_LEARNED && a->forgetting && a->forget_mask == 0u)) &&
-                con_pending(&a->con)) {
-                a->forgetting = 0;
-                (void)con_complete(&a->con, rc == 0 ? 0 : CON_E_EEPROM);
+            if ((a->rec.save_now == SAVE_SETTINGS ||
+                 (a->rec.save_now == SAVE_LEARNED && a->learn.forgetting &&
+                  a->learn.forget == 0u)) &&
+                con_pending(&a->cmd.con)) {
+                a->learn.forgetting = 0;
+                (void)con_complete(&a->cmd.con, rc == 0 ? 0 : CON_E_EEPROM);
             } else if (rc < 0) {
-                app_rep_fault(a, app_w_eeprom, CON_E_EEPROM, HOM_DEV_NONE, a->save_now);
+                app_rep_fault(a, app_w_eeprom, CON_E_EEPROM, HOM_DEV_NONE, a->rec.save_now);
             }
-            a->save_now = 0;
+            a->rec.save_now = 0;
         }
         return;
     }
-    if (idle && a->forget_mask != 0u && !rec_busy(a)) {
+    if (idle && a->learn.forget != 0u && !rec_busy(a)) {
         /* `forget`: an empty learned record per tendon, one at a time */
         uint8_t t = 0;
-        while (app_has(a->forget_mask, t) == 0u) {
+        while (app_has(a->learn.forget, t) == 0u) {
             t++;
         }
         memset(&a->u.idle.rec.learned, 0, sizeof a->u.idle.rec.learned);
         a->u.idle.rec.learned.table_id = a->info.table_id;
         a->u.idle.rec.learned.tendon = t;
         a->u.idle.rec.learned.n_grid = a->info.n_grid;
-        a->forget_mask &= (uint16_t)~app_bit16(t);
-        a->learned_mask &= (uint16_t)~app_bit16(t);
+        a->learn.forget &= (uint16_t)~app_bit16(t);
+        a->learn.mask &= (uint16_t)~app_bit16(t);
         save_queue(a, SAVE_LEARNED);
     }
-    if (!idle || a->save_due == 0u) {
+    if (!idle || a->rec.save_due == 0u) {
         return;
     }
-    if (a->save_due & SAVE_HOMES) {
-        a->save_now = SAVE_HOMES;
-        (void)store_save_homes(&a->store, &a->homes);
-    } else if (a->save_due & SAVE_HIST) {
-        a->save_now = SAVE_HIST;
-        (void)store_save_hist(&a->store, &a->u.idle.rec.hist);
-    } else if (a->save_due & SAVE_LEARNED) {
-        a->save_now = SAVE_LEARNED;
+    if (a->rec.save_due & SAVE_HOMES) {
+        a->rec.save_now = SAVE_HOMES;
+        (void)store_save_homes(&a->rec.store, &a->rec.homes);
+    } else if (a->rec.save_due & SAVE_HIST) {
+        a->rec.save_now = SAVE_HIST;
+        (void)store_save_hist(&a->rec.store, &a->u.idle.rec.hist);
+    } else if (a->rec.save_due & SAVE_LEARNED) {
+        a->rec.save_now = SAVE_LEARNED;
         if (a->u.idle.rec.learned.grid_mask != 0u) {
-            a->learned_mask |= app_bit16(a->u.idle.rec.learned.tendon);
+            a->learn.mask |= app_bit16(a->u.idle.rec.learned.tendon);
         }
-        (void)store_save_learned(&a->store, &a->u.idle.rec.learned);
+        (void)store_save_learned(&a->rec.store, &a->u.idle.rec.learned);
     } else {
-        a->save_now = SAVE_SETTINGS;
-        (void)store_save_settings(&a->store, &a->set);
+        a->rec.save_now = SAVE_SETTINGS;
+        (void)store_save_settings(&a->rec.store, &a->rec.set);
     }
-    a->save_due &= (uint8_t)~a->save_now;
+    a->rec.save_due &= (uint8_t)~a->rec.save_now;
 }
 
 /* ---- button and LED ----------------------------------------------------------- */
@@ -1279,48 +1283,49 @@ static void short_press(app_t *a)
     if (a->state == APP_ST_BOOT) {
         /* pressed before <ready>: the run starts once the bring-up is done,
          * quick or full as it then offers */
-        a->req_start = 1;
-        a->req_con = 0;
-        a->req_btn = 1;
+        a->run.req_start = 1;
+        a->run.req_con = 0;
+        a->run.req_btn = 1;
         return;
     }
     if (!app_idle_state(a)) {
         return; /* a long press aborts */
     }
-    a->led = APP_LED_IDLE;
-    if (store_busy(&a->store) || rec_busy(a)) {
-        a->req_start = 1; /* starts once the EEPROM write in flight is done */
-        a->req_con = 0;
-        a->req_mode = a->offer_quick ? HOM_MODE_QUICK : HOM_MODE_FULL;
-        a->req_tension = 0;
-        a->req_tendon = 0;
+    a->panel.led = APP_LED_IDLE;
+    if (store_busy(&a->rec.store) || rec_busy(a)) {
+        a->run.req_start = 1; /* starts once the EEPROM write in flight is done */
+        a->run.req_con = 0;
+        a->run.req_mode = a->boot.offer_quick ? HOM_MODE_QUICK : HOM_MODE_FULL;
+        a->run.req_tension = 0;
+        a->run.req_tendon = 0;
         return;
     }
-    rc = run_start(a, a->offer_quick ? HOM_MODE_QUICK : HOM_MODE_FULL, 0, 0);
+    rc = run_start(a, a->boot.offer_quick ? HOM_MODE_QUICK : HOM_MODE_FULL, 0, 0);
     if (rc != 0) {
         app_rep_fault(a, app_w_refused, rc, HOM_DEV_NONE, 0);
-        a->led = APP_LED_FAULT;
+        a->panel.led = APP_LED_FAULT;
     }
 }
 
 APP_NOINLINE static void button_poll(app_t *a, uint16_t t)
 {
     uint8_t raw = a->io->board->button(a->io->board->ctx) ? 1u : 0u;
-    if (raw != a->btn_raw) {
-        a->btn_raw = raw;
-        a->t_btn_change = t;
+    if (raw != a->panel.raw) {
+        a->panel.raw = raw;
+        a->panel.t_change = t;
     }
-    if ((uint16_t)(t - a->t_btn_change) >= APP_DEBOUNCE_MS && a->btn_state != a->btn_raw) {
-        a->btn_state = a->btn_raw;
-        if (a->btn_state) {
-            a->t_btn_down = t;
-            a->btn_long_done = 0;
-        } else if (!a->btn_long_done) {
+    if ((uint16_t)(t - a->panel.t_change) >= APP_DEBOUNCE_MS && a->panel.state != a->panel.raw) {
+        a->panel.state = a->panel.raw;
+        if (a->panel.state) {
+            a->panel.t_down = t;
+            a->panel.long_done = 0;
+        } else if (!a->panel.long_done) {
             short_press(a);
         }
     }
-    if (a->btn_state && !a->btn_long_done && (uint16_t)(t - a->t_btn_down) >= APP_LONG_PRESS_MS) {
-        a->btn_long_done = 1;
+    if (a->panel.state && !a->panel.long_done &&
+        (uint16_t)(t - a->panel.t_down) >= APP_LONG_PRESS_MS) {
+        a->panel.long_done = 1;
         app_abort(a);
     }
 }
@@ -1337,7 +1342,8 @@ uint8_t app_led_pattern(const app_t *app)
     case APP_ST_FAULT:
         return APP_LED_FAULT;
     default:
-        return app->led == APP_LED_DONE || app->led == APP_LED_FAULT ? app->led : APP_LED_IDLE;
+        return app->panel.led == APP_LED_DONE || app->panel.led == APP_LED_FAULT ? app->panel.led
+                                                                                 : APP_LED_IDLE;
     }
 }
 
@@ -1361,11 +1367,11 @@ APP_NOINLINE static void led_poll(app_t *a, uint32_t t)
         break;
     default:
         p = t % 2000u;
-        on = (uint8_t)(p < 50u || (a->offer_quick && p >= 200u && p < 250u));
+        on = (uint8_t)(p < 50u || (a->boot.offer_quick && p >= 200u && p < 250u));
         break;
     }
-    if (on != a->led_on || a->loops == 0u) {
-        a->led_on = on;
+    if (on != a->panel.led_on || a->loops == 0u) {
+        a->panel.led_on = on;
         a->io->board->led(a->io->board->ctx, on);
     }
 }
@@ -1379,21 +1385,21 @@ APP_NOINLINE static void console_poll(app_t *a)
 {
     uint8_t moving = (uint8_t)(a->state == APP_ST_CAL || a->state == APP_ST_MOVE);
     uint16_t n = a->io->board->rx_lost != NULL ? a->io->board->rx_lost(a->io->board->ctx) : 0u;
-    con_set_realtime(&a->con, moving);
-    if (n != a->rx_lost) {
+    con_set_realtime(&a->cmd.con, moving);
+    if (n != a->cmd.rx_lost) {
         app_rep_begin(a, app_w_overrun);
-        app_rep_int(a, app_w_bytes, (uint16_t)(n - a->rx_lost));
+        app_rep_int(a, app_w_bytes, (uint16_t)(n - a->cmd.rx_lost));
         app_rep_int(a, app_w_total, n);
         app_rep_end(a);
-        a->rx_lost = n;
+        a->cmd.rx_lost = n;
     }
-    if (!moving && con_dropped(&a->con) != a->rep_dropped) {
-        a->rep_dropped = con_dropped(&a->con);
+    if (!moving && con_dropped(&a->cmd.con) != a->cmd.dropped) {
+        a->cmd.dropped = con_dropped(&a->cmd.con);
         app_rep_begin(a, app_w_dropped);
-        app_rep_int(a, app_w_reports, a->rep_dropped);
+        app_rep_int(a, app_w_reports, a->cmd.dropped);
         app_rep_end(a);
     }
-    (void)con_poll(&a->con, (uint16_t)app_now_ms(a));
+    (void)con_poll(&a->cmd.con, (uint16_t)app_now_ms(a));
 }
 
 int8_t app_poll(app_t *app)
@@ -1407,45 +1413,46 @@ int8_t app_poll(app_t *app)
     }
     button_poll(a, (uint16_t)t);
     memset(&in, 0, sizeof in);
-    if (a->sens.n > 0u) {
-        (void)icm_set_poll(&a->sens, t0);
+    if (a->sense.set.n > 0u) {
+        (void)icm_set_poll(&a->sense.set, t0);
         sensors_take(a, &in);
     }
     if (a->state == APP_ST_BOOT) {
         boot_poll(a);
     }
     servo_poll(a);
-    if (a->req_start && a->state != APP_ST_BOOT && store_busy(&a->store) == 0u && !rec_busy(a)) {
+    if (a->run.req_start && a->state != APP_ST_BOOT && store_busy(&a->rec.store) == 0u &&
+        !rec_busy(a)) {
         int8_t rc;
-        a->req_start = 0;
-        if (a->req_btn) {
-            a->req_btn = 0;
-            a->req_mode = a->offer_quick ? HOM_MODE_QUICK : HOM_MODE_FULL;
-            a->req_tension = 0;
-            a->req_tendon = 0;
+        a->run.req_start = 0;
+        if (a->run.req_btn) {
+            a->run.req_btn = 0;
+            a->run.req_mode = a->boot.offer_quick ? HOM_MODE_QUICK : HOM_MODE_FULL;
+            a->run.req_tension = 0;
+            a->run.req_tendon = 0;
         }
-        rc = run_start(a, a->req_mode, a->req_tension, a->req_tendon);
-        if (a->req_con && con_pending(&a->con)) {
-            (void)con_complete(&a->con, rc);
+        rc = run_start(a, a->run.req_mode, a->run.req_tension, a->run.req_tendon);
+        if (a->run.req_con && con_pending(&a->cmd.con)) {
+            (void)con_complete(&a->cmd.con, rc);
         } else if (rc != 0) {
             app_rep_fault(a, app_w_refused, rc, HOM_DEV_NONE, 0);
         }
     }
-    if (a->reset_release && a->state == APP_ST_IDLE) {
-        a->reset_release = 0;
+    if (a->run.reset_release && a->state == APP_ST_IDLE) {
+        a->run.reset_release = 0;
         (void)release_goals(a);
         app_rep_begin(a, app_w_released);
-        con_report_flash(&a->con, app_w_reason, app_w_reset);
+        con_report_flash(&a->cmd.con, app_w_reason, app_w_reset);
         app_rep_end(a);
         move_start(a, MOVE_RELEASE);
     }
-    if (a->auto_release && a->state == APP_ST_IDLE && a->table_ok) {
+    if (a->run.auto_release && a->state == APP_ST_IDLE && a->table_ok) {
         (void)release_goals(a);
         app_rep_begin(a, app_w_released);
-        con_report_flash(&a->con, app_w_reason, app_w_servo_error);
-        app_rep_int(a, app_w_id, a->auto_release);
+        con_report_flash(&a->cmd.con, app_w_reason, app_w_servo_error);
+        app_rep_int(a, app_w_id, a->run.auto_release);
         app_rep_end(a);
-        a->auto_release = 0;
+        a->run.auto_release = 0;
         move_start(a, MOVE_RELEASE);
     }
     switch (a->state) {
@@ -1489,20 +1496,20 @@ static int8_t h_version(con_t *con, const con_args_t *args, void *ctx)
     (void)con;
     (void)args;
     app_rep_begin(a, app_w_version);
-    con_report_flash(&a->con, app_w_name, app_w_hallhome);
+    con_report_flash(&a->cmd.con, app_w_name, app_w_hallhome);
     if (a->io->version_f != NULL) {
-        con_report_flash(&a->con, app_w_version, a->io->version_f);
+        con_report_flash(&a->cmd.con, app_w_version, a->io->version_f);
     }
     if (a->io->board_f != NULL) {
-        con_report_flash(&a->con, app_w_board, a->io->board_f);
+        con_report_flash(&a->cmd.con, app_w_board, a->io->board_f);
     }
     if (a->table_ok) {
-        con_report_str(&a->con, app_w_table, a->info.name);
+        con_report_str(&a->cmd.con, app_w_table, a->info.name);
         app_rep_hex(a, app_w_table_id, a->info.table_id);
         app_rep_int(a, app_w_tendons, a->info.n_tendons);
         app_rep_int(a, app_w_sensors, a->info.n_sensors);
     } else {
-        con_report_flash(&a->con, app_w_table, app_w_none);
+        con_report_flash(&a->cmd.con, app_w_table, app_w_none);
     }
     app_rep_end(a);
     return 0;
@@ -1517,34 +1524,34 @@ static int8_t h_status(con_t *con, const con_args_t *args, void *ctx)
     app_rep_begin(a, app_w_status);
     app_rep_word(a, app_w_state, app_w_state_words, a->state);
     if (a->table_ok) {
-        con_report_str(&a->con, app_w_table, a->info.name);
+        con_report_str(&a->cmd.con, app_w_table, a->info.name);
     } else {
-        con_report_flash(&a->con, app_w_table, app_w_none);
+        con_report_flash(&a->cmd.con, app_w_table, app_w_none);
     }
-    app_rep_int(a, app_w_sensors, icm_set_ready_count(&a->sens));
-    app_rep_int(a, app_w_servos, a->n_servo_found);
-    app_rep_hex(a, app_w_homes, a->homes.valid_mask);
-    app_rep_hex(a, app_w_homes_now, a->home_now);
-    app_rep_int(a, app_w_rehome, a->offer_quick);
-    app_rep_int(a, app_w_tension_mN, a->homes.tension_mN);
-    app_rep_int(a, app_w_count, (int32_t)a->homes.cal_count);
-    app_rep_word(a, app_w_fault, app_w_fault_words, a->last_fault);
-    app_rep_int(a, app_w_learned, a->learned_mask);
-    app_rep_int(a, app_w_baseline, a->have_b0);
-    app_rep_int(a, app_w_saving, store_busy(&a->store) || a->save_due != 0u);
+    app_rep_int(a, app_w_sensors, icm_set_ready_count(&a->sense.set));
+    app_rep_int(a, app_w_servos, a->boot.n_servos);
+    app_rep_hex(a, app_w_homes, a->rec.homes.valid_mask);
+    app_rep_hex(a, app_w_homes_now, a->rec.home_now);
+    app_rep_int(a, app_w_rehome, a->boot.offer_quick);
+    app_rep_int(a, app_w_tension_mN, a->rec.homes.tension_mN);
+    app_rep_int(a, app_w_count, (int32_t)a->rec.homes.cal_count);
+    app_rep_word(a, app_w_fault, app_w_fault_words, a->run.last_fault);
+    app_rep_int(a, app_w_learned, a->learn.mask);
+    app_rep_int(a, app_w_baseline, a->learn.have_b0);
+    app_rep_int(a, app_w_saving, store_busy(&a->rec.store) || a->rec.save_due != 0u);
     app_rep_int(a, app_w_loop_max_us, (int32_t)a->loop_max_us);
     app_rep_int(a, app_w_loops, (int32_t)a->loops);
     app_rep_end(a);
     for (i = 0; i < a->info.n_tendons; i++) {
-        if (app_has(a->homes.valid_mask, i) == 0u) {
+        if (app_has(a->rec.homes.valid_mask, i) == 0u) {
             continue;
         }
         app_rep_begin(a, app_w_home);
         app_rep_int(a, app_w_tendon, i);
-        app_rep_int(a, app_w_home, a->homes.t[i].home_ticks);
-        app_rep_int(a, app_w_rest, a->homes.t[i].rest_ticks);
-        app_rep_int(a, app_w_usable, app_has(a->home_now, i));
-        if (app_has(a->home_now, i)) {
+        app_rep_int(a, app_w_home, a->rec.homes.t[i].home_ticks);
+        app_rep_int(a, app_w_rest, a->rec.homes.t[i].rest_ticks);
+        app_rep_int(a, app_w_usable, app_has(a->rec.home_now, i));
+        if (app_has(a->rec.home_now, i)) {
             app_rep_int(a, app_w_now, home_cur(a, i));
         }
         app_rep_end(a);
@@ -1566,7 +1573,7 @@ static int8_t h_sensors(con_t *con, const con_args_t *args, void *ctx)
     }
     for (k = 0; k < a->info.n_sensors; k++) {
         icm_diag_t d;
-        (void)icm_set_diag(&a->sens, k, &d);
+        (void)icm_set_diag(&a->sense.set, k, &d);
         app_rep_begin(a, app_w_sensor);
         app_rep_int(a, app_w_index, k);
         app_rep_int(a, app_w_ch, d.channel);
@@ -1574,10 +1581,10 @@ static int8_t h_sensors(con_t *con, const con_args_t *args, void *ctx)
         app_rep_int(a, app_w_ok, d.state == ICM_SET_S_RUN);
         app_rep_int(a, app_w_who, d.who_am_i);
         app_rep_int(a, app_w_mag, d.mag_ready);
-        con_report_fixed(&a->con, app_w_rate_Hz, d.rate_dhz, 1);
-        con_report_fixed(&a->con, app_w_bx_uT, d.field_cuT[0], 2);
-        con_report_fixed(&a->con, app_w_by_uT, d.field_cuT[1], 2);
-        con_report_fixed(&a->con, app_w_bz_uT, d.field_cuT[2], 2);
+        con_report_fixed(&a->cmd.con, app_w_rate_Hz, d.rate_dhz, 1);
+        con_report_fixed(&a->cmd.con, app_w_bx_uT, d.field_cuT[0], 2);
+        con_report_fixed(&a->cmd.con, app_w_by_uT, d.field_cuT[1], 2);
+        con_report_fixed(&a->cmd.con, app_w_bz_uT, d.field_cuT[2], 2);
         app_rep_int(a, app_w_ovf, d.overflow_count);
         app_rep_int(a, app_w_err, d.error_count);
         app_rep_int(a, app_w_last_err, d.last_err);
@@ -1604,20 +1611,20 @@ static int8_t h_servos(con_t *con, const con_args_t *args, void *ctx)
     if (!app_idle_state(a) || rec_busy(a)) {
         return CON_E_BUSY; /* the bring-up reuses the record's storage */
     }
-    a->boot_con = 1;
-    a->boot_step = 0;
+    a->boot.con_wait = 1;
+    a->boot.step = 0;
     a->state = APP_ST_BOOT;
     return CON_PENDING;
 }
 
 static int8_t start_or_defer(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon)
 {
-    if (app_idle_state(a) && (store_busy(&a->store) || rec_busy(a))) {
-        a->req_start = 1;
-        a->req_con = 1;
-        a->req_mode = mode;
-        a->req_tension = tension;
-        a->req_tendon = tendon;
+    if (app_idle_state(a) && (store_busy(&a->rec.store) || rec_busy(a))) {
+        a->run.req_start = 1;
+        a->run.req_con = 1;
+        a->run.req_mode = mode;
+        a->run.req_tension = tension;
+        a->run.req_tendon = tendon;
         return CON_PENDING;
     }
     return run_start(a, mode, tension, tendon);
@@ -1699,8 +1706,8 @@ static int8_t h_learn(con_t *con, const con_args_t *args, void *ctx)
     if (!a->table_ok) {
         return CON_E_NO_TABLE;
     }
-    if (!app_idle_state(a) || (a->save_due & (SAVE_HIST | SAVE_LEARNED)) != 0u ||
-        a->save_now == SAVE_HIST || a->save_now == SAVE_LEARNED) {
+    if (!app_idle_state(a) || (a->rec.save_due & (SAVE_HIST | SAVE_LEARNED)) != 0u ||
+        a->rec.save_now == SAVE_HIST || a->rec.save_now == SAVE_LEARNED) {
         return CON_E_BUSY;
     }
     if (t >= a->info.n_tendons) {
@@ -1711,20 +1718,20 @@ static int8_t h_learn(con_t *con, const con_args_t *args, void *ctx)
     if (g >= a->info.n_grid) {
         return CON_E_TENSION_RANGE; /* learned targets sit on the table's grid */
     }
-    if (!a->have_b0) {
+    if (!a->learn.have_b0) {
         return CON_E_NOT_HOMED; /* no straight-pose baseline yet: `release` first */
     }
     {
         icm_diag_t d;
         tbl_tendon_t row;
         (void)tbl_tendon(&a->tab, t, &row);
-        a->learn_sensor = row.sensor;
-        (void)icm_set_diag(&a->sens, row.sensor, &d);
+        a->learn.sensor = row.sensor;
+        (void)icm_set_diag(&a->sense.set, row.sensor, &d);
         if (d.state != ICM_SET_S_RUN) {
             return CON_E_SENSOR_FAULT;
         }
     }
-    a->learn_grid = g;
+    a->learn.grid = g;
     learn_begin(a, t);
     return CON_PENDING;
 }
@@ -1740,7 +1747,7 @@ static int8_t h_forget(con_t *con, const con_args_t *args, void *ctx)
     if (!a->table_ok) {
         return CON_E_NO_TABLE;
     }
-    if (!app_idle_state(a) || rec_busy(a) || a->forget_mask != 0u) {
+    if (!app_idle_state(a) || rec_busy(a) || a->learn.forget != 0u) {
         return CON_E_BUSY;
     }
     if (strcmp(w, "all") == 0) {
@@ -1758,9 +1765,9 @@ static int8_t h_forget(con_t *con, const con_args_t *args, void *ctx)
         }
         m = app_bit16(t);
     }
-    a->forget_mask = m & a->learned_mask;
-    a->forgetting = (uint8_t)(a->forget_mask != 0u);
-    return a->forgetting ? CON_PENDING : 0;
+    a->learn.forget = m & a->learn.mask;
+    a->learn.forgetting = (uint8_t)(a->learn.forget != 0u);
+    return a->learn.forgetting ? CON_PENDING : 0;
 }
 
 static int8_t h_table(con_t *con, const con_args_t *args, void *ctx)
@@ -1777,7 +1784,7 @@ static int8_t h_table(con_t *con, const con_args_t *args, void *ctx)
         return CON_E_NO_TABLE;
     }
     app_rep_begin(a, app_w_table);
-    con_report_str(&a->con, app_w_name, a->info.name);
+    con_report_str(&a->cmd.con, app_w_name, a->info.name);
     app_rep_hex(a, app_w_table_id, a->info.table_id);
     app_rep_int(a, app_w_tendons, a->info.n_tendons);
     app_rep_int(a, app_w_sensors, a->info.n_sensors);
@@ -1786,7 +1793,7 @@ static int8_t h_table(con_t *con, const con_args_t *args, void *ctx)
     for (g = 0; g < a->info.n_grid; g++) {
         app_list_add(buf, sizeof buf, &pos, a->info.grid_mN[g], '\0');
     }
-    con_report_str(&a->con, app_w_grid_mN, buf);
+    con_report_str(&a->cmd.con, app_w_grid_mN, buf);
     app_rep_int(a, app_w_default_mN, a->info.default_mN);
     app_rep_int(a, app_w_noise_cuT, a->info.noise_cuT);
     app_rep_end(a);
@@ -1807,7 +1814,7 @@ static int8_t h_table(con_t *con, const con_args_t *args, void *ctx)
             app_list_add(buf, sizeof buf, &pos, (int32_t)eff.target_cuT[g],
                          eff.target_cuT[g] != row.target_cuT[g] ? '*' : '\0');
         }
-        con_report_str(&a->con, app_w_target_cuT, buf);
+        con_report_str(&a->cmd.con, app_w_target_cuT, buf);
         app_rep_end(a);
     }
     return 0;
@@ -1824,9 +1831,9 @@ static int8_t h_history(con_t *con, const con_args_t *args, void *ctx)
     store_hist_t e;
     (void)con;
     (void)args;
-    n = store_hist_count(&a->store);
+    n = store_hist_count(&a->rec.store);
     for (age = 0; age < n; age++) {
-        if (store_hist_get(&a->store, age, &e) != 0) {
+        if (store_hist_get(&a->rec.store, age, &e) != 0) {
             break;
         }
         app_rep_begin(a, app_w_hist);
@@ -1840,7 +1847,7 @@ static int8_t h_history(con_t *con, const con_args_t *args, void *ctx)
             app_list_add(buf, sizeof buf, &pos, e.home_ticks[i],
                          app_has(e.valid_mask, i) ? 0 : '?');
         }
-        con_report_str(&a->con, app_w_homes, buf);
+        con_report_str(&a->cmd.con, app_w_homes, buf);
         app_rep_end(a);
     }
     return 0;
@@ -1850,13 +1857,13 @@ static void setting_line(app_t *a, uint8_t id)
 {
     char buf[24];
     store_setting_info_t inf;
-    (void)store_setting_info(&a->store, id, &inf);
+    (void)store_setting_info(&a->rec.store, id, &inf);
     app_rep_begin(a, app_w_setting);
-    (void)store_setting_text(&a->store, id, 0, buf, sizeof buf);
-    con_report_str(&a->con, app_w_name, buf);
-    app_rep_int(a, app_w_value, a->set.v[id]);
-    (void)store_setting_text(&a->store, id, 1, buf, sizeof buf);
-    con_report_str(&a->con, app_w_unit, buf);
+    (void)store_setting_text(&a->rec.store, id, 0, buf, sizeof buf);
+    con_report_str(&a->cmd.con, app_w_name, buf);
+    app_rep_int(a, app_w_value, a->rec.set.v[id]);
+    (void)store_setting_text(&a->rec.store, id, 1, buf, sizeof buf);
+    con_report_str(&a->cmd.con, app_w_unit, buf);
     app_rep_int(a, app_w_min, inf.min);
     app_rep_int(a, app_w_max, inf.max);
     app_rep_int(a, app_w_default, inf.def);
@@ -1866,7 +1873,7 @@ static void setting_line(app_t *a, uint8_t id)
 static int8_t find_setting(app_t *a, const con_args_t *args)
 {
     const char *n = args->s[0];
-    return store_setting_find(&a->store, n, (uint8_t)strlen(n));
+    return store_setting_find(&a->rec.store, n, (uint8_t)strlen(n));
 }
 
 static int8_t h_get(con_t *con, const con_args_t *args, void *ctx)
@@ -1900,19 +1907,19 @@ static int8_t h_set(con_t *con, const con_args_t *args, void *ctx)
     if (f < 0) {
         return CON_E_UNKNOWN_SETTING;
     }
-    if ((a->save_due & SAVE_SETTINGS) || a->save_now == SAVE_SETTINGS) {
+    if ((a->rec.save_due & SAVE_SETTINGS) || a->rec.save_now == SAVE_SETTINGS) {
         return CON_E_BUSY; /* the record is being written */
     }
     if (f == STORE_SET_CAL_TENSION && a->table_ok &&
         (args->v[1] < a->info.grid_mN[0] || args->v[1] > a->info.grid_mN[a->info.n_grid - 1u])) {
         return CON_E_TENSION_RANGE; /* every press would be refused */
     }
-    rc = store_setting_set(&a->store, &a->set, (uint8_t)f, args->v[1]);
+    rc = store_setting_set(&a->rec.store, &a->rec.set, (uint8_t)f, args->v[1]);
     if (rc != 0) {
         return CON_E_SETTING_RANGE;
     }
     if (f == STORE_SET_TARGET_MODE) {
-        a->amb_ok = 0; /* the next absolute calibration captures the ambient again */
+        a->run.amb_ok = 0; /* the next absolute calibration captures the ambient again */
     }
     return 0;
 }
@@ -1922,7 +1929,8 @@ static int8_t h_save(con_t *con, const con_args_t *args, void *ctx)
     app_t *a = ctx;
     (void)con;
     (void)args;
-    if (!app_idle_state(a) || (a->save_due & SAVE_SETTINGS) || a->save_now == SAVE_SETTINGS) {
+    if (!app_idle_state(a) || (a->rec.save_due & SAVE_SETTINGS) ||
+        a->rec.save_now == SAVE_SETTINGS) {
         return CON_E_BUSY; /* EEPROM writes happen only while nothing moves */
     }
     save_queue(a, SAVE_SETTINGS);
@@ -1936,8 +1944,8 @@ static int8_t h_reboot(con_t *con, const con_args_t *args, void *ctx)
     if (!app_idle_state(a) || rec_busy(a)) {
         return CON_E_BUSY;
     }
-    a->reboot_id = (uint8_t)args->v[0];
-    a->reboot_req = 1;
+    a->bus.reboot_id = (uint8_t)args->v[0];
+    a->bus.reboot_req = 1;
     return CON_PENDING;
 }
 

@@ -15,17 +15,17 @@ APP_WORDS(APP_W_DEF, APP_WS_DEF)
 
 void app_rep_begin(app_t *a, const char *kind)
 {
-    con_report_begin(&a->con, kind);
+    con_report_begin(&a->cmd.con, kind);
 }
 
 void app_rep_int(app_t *a, const char *key, int32_t v)
 {
-    con_report_int(&a->con, key, v);
+    con_report_int(&a->cmd.con, key, v);
 }
 
 void app_rep_end(app_t *a)
 {
-    con_report_end(&a->con);
+    con_report_end(&a->cmd.con);
 }
 
 /* Hex words (table_id) without a printf. */
@@ -40,7 +40,7 @@ void app_rep_hex(app_t *a, const char *key, uint32_t v)
         buf[2u + i] = (char)(d < 10u ? (char)('0' + d) : (char)('a' + d - 10u));
     }
     buf[10] = '\0';
-    con_report_str(&a->con, key, buf);
+    con_report_str(&a->cmd.con, key, buf);
 }
 
 /* Appends the decimal v and a separator to buf at *pos (capacity cap). */
@@ -83,7 +83,7 @@ void app_rep_word(app_t *a, const char *key, const char *words_f, uint8_t i)
         buf[n++] = '?';
     }
     buf[n] = '\0';
-    con_report_str(&a->con, key, buf);
+    con_report_str(&a->cmd.con, key, buf);
 }
 
 /* A fault the app itself detects (moves, learn, EEPROM), in the same shape
@@ -91,7 +91,7 @@ void app_rep_word(app_t *a, const char *key, const char *words_f, uint8_t i)
 void app_rep_fault(app_t *a, const char *reason_f, int8_t err, uint8_t dev, uint8_t index)
 {
     app_rep_begin(a, app_w_fault);
-    con_report_flash(&a->con, app_w_reason, reason_f);
+    con_report_flash(&a->cmd.con, app_w_reason, reason_f);
     app_rep_int(a, app_w_error, -err);
     app_rep_word(a, app_w_dev, app_w_dev_words, dev);
     app_rep_int(a, app_w_index, index);
@@ -107,10 +107,10 @@ int8_t app_rep_missing(app_t *a)
     int8_t rc = 0;
     for (i = 0; i < a->info.n_sensors; i++) {
         icm_diag_t d;
-        (void)icm_set_diag(&a->sens, i, &d);
+        (void)icm_set_diag(&a->sense.set, i, &d);
         if (d.state != ICM_SET_S_RUN) {
             app_rep_begin(a, app_w_missing);
-            con_report_flash(&a->con, app_w_dev, app_w_sensor);
+            con_report_flash(&a->cmd.con, app_w_dev, app_w_sensor);
             app_rep_int(a, app_w_index, i);
             app_rep_int(a, app_w_ch, d.channel);
             app_rep_int(a, app_w_addr, d.addr);
@@ -120,12 +120,12 @@ int8_t app_rep_missing(app_t *a)
         }
     }
     for (i = 0; i < a->info.n_tendons; i++) {
-        if (app_has(a->servo_absent, i) || a->hw_err[i] != 0u) {
+        if (app_has(a->bus.absent, i) || a->bus.hw_err[i] != 0u) {
             app_rep_begin(a, app_w_missing);
-            con_report_flash(&a->con, app_w_dev, app_w_servo);
+            con_report_flash(&a->cmd.con, app_w_dev, app_w_servo);
             app_rep_int(a, app_w_index, i);
-            app_rep_int(a, app_w_id, a->ids[i]);
-            app_rep_int(a, app_w_hw_error, a->hw_err[i]);
+            app_rep_int(a, app_w_id, a->bus.ids[i]);
+            app_rep_int(a, app_w_hw_error, a->bus.hw_err[i]);
             app_rep_end(a);
             if (rc == 0) {
                 rc = CON_E_SERVO_FAULT;
@@ -142,18 +142,18 @@ void app_rep_servos(app_t *a, uint8_t with_model)
     for (i = 0; i < a->info.n_tendons; i++) {
         app_rep_begin(a, app_w_servo);
         app_rep_int(a, app_w_tendon, i);
-        app_rep_int(a, app_w_id, a->ids[i]);
-        app_rep_int(a, app_w_found, app_has(a->servo_absent, i) == 0u);
+        app_rep_int(a, app_w_id, a->bus.ids[i]);
+        app_rep_int(a, app_w_found, app_has(a->bus.absent, i) == 0u);
         if (with_model) {
-            const dxl_servo_info *s = app_boot_servo_info(a, a->ids[i]);
+            const dxl_servo_info *s = app_boot_servo_info(a, a->bus.ids[i]);
             if (s != NULL) {
                 app_rep_int(a, app_w_model, s->model);
                 app_rep_int(a, app_w_fw, s->firmware);
             }
         }
-        app_rep_int(a, app_w_pos, a->present[i]);
-        app_rep_int(a, app_w_cal_pos, a->present[i] + a->offset[i]);
-        app_rep_int(a, app_w_hw_error, a->hw_err[i]);
+        app_rep_int(a, app_w_pos, a->bus.present[i]);
+        app_rep_int(a, app_w_cal_pos, a->bus.present[i] + a->rec.offset[i]);
+        app_rep_int(a, app_w_hw_error, a->bus.hw_err[i]);
         app_rep_end(a);
     }
 }
@@ -171,7 +171,7 @@ APP_NOINLINE void app_rep_event(app_t *a, const hom_event_t *ev)
     switch (ev->type) {
     case HOM_EV_START:
         app_rep_begin(a, app_w_progress);
-        con_report_flash(&a->con, app_w_state, app_w_start);
+        con_report_flash(&a->cmd.con, app_w_state, app_w_start);
         app_rep_word(a, app_w_mode, app_w_mode_words, ev->code);
         app_rep_int(a, app_w_tension_mN, ev->a);
         app_rep_end(a);
@@ -181,7 +181,7 @@ APP_NOINLINE void app_rep_event(app_t *a, const hom_event_t *ev)
         app_rep_word(a, app_w_state, app_w_phase_words, ev->code);
         if (ev->code == HOM_PH_TENDON && i < TBL_MAX_TENDONS) {
             app_rep_int(a, app_w_tendon, i);
-            app_rep_int(a, app_w_id, a->ids[i]);
+            app_rep_int(a, app_w_id, a->bus.ids[i]);
         }
         app_rep_end(a);
         break;
@@ -191,7 +191,7 @@ APP_NOINLINE void app_rep_event(app_t *a, const hom_event_t *ev)
         app_rep_word(a, app_w_dev, app_w_dev_words, ev->code);
         app_rep_int(a, app_w_index, i);
         if (ev->code == HOM_DEV_SERVO && i < TBL_MAX_TENDONS) {
-            app_rep_int(a, app_w_id, a->ids[i]);
+            app_rep_int(a, app_w_id, a->bus.ids[i]);
         }
         app_rep_int(a, app_w_why, ev->a);
         app_rep_int(a, app_w_bits, ev->b);
@@ -199,7 +199,7 @@ APP_NOINLINE void app_rep_event(app_t *a, const hom_event_t *ev)
         break;
     case HOM_EV_ENGAGED:
         app_rep_begin(a, app_w_progress);
-        con_report_flash(&a->con, app_w_state, app_w_engaged);
+        con_report_flash(&a->cmd.con, app_w_state, app_w_engaged);
         app_rep_int(a, app_w_tendon, i);
         app_rep_int(a, app_w_pos, ev->a);
         app_rep_end(a);
@@ -209,14 +209,14 @@ APP_NOINLINE void app_rep_event(app_t *a, const hom_event_t *ev)
             const hom_tendon_t *t = hom_tendon(&a->u.hom, i);
             app_rep_begin(a, app_w_result);
             app_rep_int(a, app_w_tendon, i);
-            app_rep_int(a, app_w_id, a->ids[i]);
+            app_rep_int(a, app_w_id, a->bus.ids[i]);
             app_rep_int(a, app_w_home, ev->a);
             app_rep_int(a, app_w_home_um, ticks_um(t->nm_per_tick, ev->a));
-            con_report_fixed(&a->con, app_w_dB_uT, (int32_t)hom_home_dB(&a->u.hom), 2);
-            con_report_fixed(&a->con, app_w_target_uT, (int32_t)t->target_cuT, 2);
+            con_report_fixed(&a->cmd.con, app_w_dB_uT, (int32_t)hom_home_dB(&a->u.hom), 2);
+            con_report_fixed(&a->cmd.con, app_w_target_uT, (int32_t)t->target_cuT, 2);
             app_rep_int(a, app_w_travel_um, ticks_um(t->nm_per_tick, (ev->a - t->engage) * t->dir));
             app_rep_int(a, app_w_time_ms, (int32_t)hom_tendon_ms(&a->u.hom));
-            app_rep_word(a, app_w_target, app_w_target_words, a->run_abs);
+            app_rep_word(a, app_w_target, app_w_target_words, a->run.abs);
             app_rep_end(a);
         }
         break;
@@ -229,7 +229,7 @@ APP_NOINLINE void app_rep_event(app_t *a, const hom_event_t *ev)
         app_rep_word(a, app_w_dev, app_w_dev_words, (uint8_t)ev->a);
         app_rep_int(a, app_w_index, i);
         if ((ev->a == HOM_DEV_SERVO || ev->a == HOM_DEV_TENDON) && i < TBL_MAX_TENDONS) {
-            app_rep_int(a, app_w_id, a->ids[i]);
+            app_rep_int(a, app_w_id, a->bus.ids[i]);
         }
         app_rep_int(a, app_w_detail, ev->b);
         app_rep_end(a);
@@ -241,7 +241,7 @@ APP_NOINLINE void app_rep_event(app_t *a, const hom_event_t *ev)
             hom_fault_index(&a->u.hom) < a->info.n_tendons) {
             /* a servo that does not answer, or has its torque off, cannot
              * take the release: named (a hardware error is rebooted next) */
-            app_rep_int(a, app_w_not_released, a->ids[hom_fault_index(&a->u.hom)]);
+            app_rep_int(a, app_w_not_released, a->bus.ids[hom_fault_index(&a->u.hom)]);
             app_rep_int(a, app_w_index, hom_fault_index(&a->u.hom));
         }
         app_rep_end(a);
