@@ -218,8 +218,7 @@ int8_t app_init(app_t *app, const app_io_t *io)
     }
     app->state = APP_ST_BOOT;
     app->boot.t_start = app_now_ms(app);
-    app->panel.raw = 0;
-    app->panel.led = APP_LED_BOOT;
+    app_panel_set(app, APP_LED_BOOT);
     app_rep_begin(app, app_w_boot);
     con_report_flash(&app->cmd.con, app_w_name, app_w_hallhome);
     if (io->version_f != NULL) {
@@ -759,7 +758,7 @@ APP_NOINLINE static void run_done(app_t *a)
     app_rep_int(a, app_w_tension_mN, a->run.tension);
     app_rep_int(a, app_w_count, (int32_t)a->rec.homes.cal_count);
     app_rep_end(a);
-    a->panel.led = APP_LED_DONE;
+    app_panel_set(a, APP_LED_DONE);
     a->state = APP_ST_IDLE;
 }
 
@@ -874,7 +873,7 @@ static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon
     a->bus.fresh = 0;
     a->state = APP_ST_CAL;
     win_moving(a, 1);
-    a->panel.led = APP_LED_RUN;
+    app_panel_set(a, APP_LED_RUN);
     a->rec.rest_due = 0;
     return 0;
 }
@@ -885,7 +884,7 @@ APP_NOINLINE static void fault_rest(app_t *a, uint32_t t)
 {
     win_moving(a, 0); /* the release goals are out: the servos finish them */
     a->state = APP_ST_FAULT;
-    a->panel.led = APP_LED_FAULT;
+    app_panel_set(a, APP_LED_FAULT);
     a->rec.rest_due = 1;
     a->rec.t_rest = (uint16_t)t;
 }
@@ -949,7 +948,7 @@ static void move_start(app_t *a, uint8_t kind)
     a->run.t_move = app_now_ms(a);
     a->bus.fresh = 0;
     a->state = APP_ST_MOVE;
-    a->panel.led = APP_LED_RUN;
+    app_panel_set(a, APP_LED_RUN);
 }
 
 /* Release goals computed by the app when no run is active: the slack margin
@@ -1072,7 +1071,7 @@ APP_NOINLINE static void move_step(app_t *a)
     app_rep_int(a, app_w_time_ms, (int32_t)(t - a->run.t_move));
     app_rep_end(a);
     a->state = APP_ST_IDLE;
-    a->panel.led = APP_LED_IDLE;
+    app_panel_set(a, APP_LED_IDLE);
 }
 
 /* A learned target must stand well above the sensing noise (the table's
@@ -1155,7 +1154,7 @@ APP_NOINLINE static void learn_step(app_t *a, const hom_in_t *in)
         app_rep_int(a, app_w_baseline, rc == 0);
         app_rep_end(a);
         a->state = APP_ST_IDLE;
-        a->panel.led = APP_LED_IDLE;
+        app_panel_set(a, APP_LED_IDLE);
         return;
     }
     if (rc == 0) {
@@ -1277,7 +1276,7 @@ APP_NOINLINE static void store_task(app_t *a)
 
 /* ---- button and LED ----------------------------------------------------------- */
 
-static void short_press(app_t *a)
+void app_run_press(app_t *a)
 {
     int8_t rc;
     if (a->state == APP_ST_BOOT) {
@@ -1291,7 +1290,7 @@ static void short_press(app_t *a)
     if (!app_idle_state(a)) {
         return; /* a long press aborts */
     }
-    a->panel.led = APP_LED_IDLE;
+    app_panel_set(a, APP_LED_IDLE);
     if (store_busy(&a->rec.store) || rec_busy(a)) {
         a->run.req_start = 1; /* starts once the EEPROM write in flight is done */
         a->run.req_con = 0;
@@ -1303,76 +1302,7 @@ static void short_press(app_t *a)
     rc = run_start(a, a->boot.offer_quick ? HOM_MODE_QUICK : HOM_MODE_FULL, 0, 0);
     if (rc != 0) {
         app_rep_fault(a, app_w_refused, rc, HOM_DEV_NONE, 0);
-        a->panel.led = APP_LED_FAULT;
-    }
-}
-
-APP_NOINLINE static void button_poll(app_t *a, uint16_t t)
-{
-    uint8_t raw = a->io->board->button(a->io->board->ctx) ? 1u : 0u;
-    if (raw != a->panel.raw) {
-        a->panel.raw = raw;
-        a->panel.t_change = t;
-    }
-    if ((uint16_t)(t - a->panel.t_change) >= APP_DEBOUNCE_MS && a->panel.state != a->panel.raw) {
-        a->panel.state = a->panel.raw;
-        if (a->panel.state) {
-            a->panel.t_down = t;
-            a->panel.long_done = 0;
-        } else if (!a->panel.long_done) {
-            short_press(a);
-        }
-    }
-    if (a->panel.state && !a->panel.long_done &&
-        (uint16_t)(t - a->panel.t_down) >= APP_LONG_PRESS_MS) {
-        a->panel.long_done = 1;
-        app_abort(a);
-    }
-}
-
-uint8_t app_led_pattern(const app_t *app)
-{
-    switch (app->state) {
-    case APP_ST_BOOT:
-        return APP_LED_BOOT;
-    case APP_ST_CAL:
-    case APP_ST_MOVE:
-    case APP_ST_LEARN:
-        return APP_LED_RUN;
-    case APP_ST_FAULT:
-        return APP_LED_FAULT;
-    default:
-        return app->panel.led == APP_LED_DONE || app->panel.led == APP_LED_FAULT ? app->panel.led
-                                                                                 : APP_LED_IDLE;
-    }
-}
-
-APP_NOINLINE static void led_poll(app_t *a, uint32_t t)
-{
-    uint8_t on;
-    uint32_t p;
-    switch (app_led_pattern(a)) {
-    case APP_LED_BOOT:
-        on = (uint8_t)((t / 100u) & 1u);
-        break;
-    case APP_LED_RUN:
-        on = (uint8_t)((t / 125u) & 1u);
-        break;
-    case APP_LED_DONE:
-        on = 1;
-        break;
-    case APP_LED_FAULT:
-        p = t % 1000u;
-        on = (uint8_t)(p < 300u && ((p / 50u) & 1u) == 0u);
-        break;
-    default:
-        p = t % 2000u;
-        on = (uint8_t)(p < 50u || (a->boot.offer_quick && p >= 200u && p < 250u));
-        break;
-    }
-    if (on != a->panel.led_on || a->loops == 0u) {
-        a->panel.led_on = on;
-        a->io->board->led(a->io->board->ctx, on);
+        app_panel_set(a, APP_LED_FAULT);
     }
 }
 
@@ -1411,7 +1341,7 @@ int8_t app_poll(app_t *app)
     if (con_rt_take(a->io->rt)) {
         app_abort(a);
     }
-    button_poll(a, (uint16_t)t);
+    app_panel_button(a, (uint16_t)t);
     memset(&in, 0, sizeof in);
     if (a->sense.set.n > 0u) {
         (void)icm_set_poll(&a->sense.set, t0);
@@ -1471,7 +1401,7 @@ int8_t app_poll(app_t *app)
     console_poll(a);
     rest_poll(a);
     store_task(a);
-    led_poll(a, t);
+    app_panel_led(a, t);
     a->loops++;
     dt = app_now_us(a) - t0;
     if (dt > a->loop_max_us) {

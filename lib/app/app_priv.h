@@ -206,4 +206,24 @@ void app_rep_event(app_t *a, const hom_event_t *ev);
  * is reused by a run or a record). */
 const dxl_servo_info *app_boot_servo_info(const app_t *a, uint8_t id);
 
+/* ---- app_panel.c: button and LED ------------------------------------------ */
+
+/* Debounces the button (t: 16-bit ms): a short press calls app_run_press(), a
+ * press held for APP_LONG_PRESS_MS calls app_abort(). */
+void app_panel_button(app_t *a, uint16_t t);
+/* Drives the LED with app_led_pattern() at time t (ms). */
+void app_panel_led(app_t *a, uint32_t t);
+/* The pattern a room asks for (APP_LED_*); app_led_pattern() shows it while
+ * the state allows. */
+static inline void app_panel_set(app_t *a, uint8_t pattern)
+{
+    a->panel.led = pattern;
+}
+
+/* ---- app_run.c: runs and moves -------------------------------------------- */
+
+/* A short press: the run the board offers (quick re-home or full), deferred
+ * while the bring-up or an EEPROM write finishes; a refusal is reported. */
+void app_run_press(app_t *a);
+
 #endif /* HALLHOME_APP_PRIV_H */
