@@ -7,20 +7,10 @@
 #include "app/app_priv.h"
 #include "dxl/dxl_xl430_reg.h"
 
-/* Bus transactions. */
-enum { TX_NONE = 0, TX_POS, TX_HWERR, TX_GOAL, TX_TORQUE, TX_REBOOT, TX_WDOG };
-
-/* Records waiting for the EEPROM. */
-enum { SAVE_HOMES = 1, SAVE_HIST = 2, SAVE_LEARNED = 4, SAVE_SETTINGS = 8 };
-
-/* App-driven moves. */
-enum { MOVE_HOME = 1, MOVE_RELEASE = 2 };
-
-#define LEARN_BASELINE 0xFFu /* learn_tendon: capturing the straight-pose baseline */
-#define GOALS_PER_TXN  6u    /* 12-byte entries of one sync write that fit DXL_TX_CAP */
-#define REST_DELAY_MS  1000u
-#define LEARN_WAIT_MS  1000u
-#define SETTLE_MS      300u
+#define GOALS_PER_TXN 6u /* 12-byte entries of one sync write that fit DXL_TX_CAP */
+#define REST_DELAY_MS 1000u
+#define LEARN_WAIT_MS 1000u
+#define SETTLE_MS     300u
 
 uint32_t app_now_ms(const app_t *a)
 {
@@ -123,7 +113,7 @@ static uint16_t win_crc(const app_win_t *w)
 }
 
 /* Checks the kept windows at boot: wrong magic, table or CRC clears them. */
-static void win_check(app_t *a)
+void app_win_check(app_t *a)
 {
     app_win_t *w = a->io->win;
     if (w != NULL && (w->magic != APP_WIN_MAGIC || w->table_id != a->info.table_id ||
@@ -136,7 +126,7 @@ static void win_check(app_t *a)
 }
 
 /* Sets tendon i's window (or forgets it with keep 0). */
-APP_NOINLINE static void win_set(app_t *a, uint8_t i, int32_t lo, int32_t hi, uint8_t keep)
+APP_NOINLINE void app_win_set(app_t *a, uint8_t i, int32_t lo, int32_t hi, uint8_t keep)
 {
     app_win_t *w = a->io->win;
     if (w == NULL) {
@@ -151,7 +141,7 @@ APP_NOINLINE static void win_set(app_t *a, uint8_t i, int32_t lo, int32_t hi, ui
 /* Notes in the kept copy whether anything moves: a watchdog or reset-pin
  * reset in the middle of a run leaves tendons taut, and the next boot
  * releases them. */
-APP_NOINLINE static void win_moving(app_t *a, uint8_t on)
+APP_NOINLINE void app_win_moving(app_t *a, uint8_t on)
 {
     app_win_t *w = a->io->win;
     if (w != NULL && w->moving != on) {
@@ -168,12 +158,12 @@ APP_NOINLINE static void win_take(app_t *a)
     for (i = 0; i < a->info.n_tendons; i++) {
         int32_t lo, hi;
         if (app_has(m, i) && hom_window(&a->u.hom, i, &lo, &hi) == 0) {
-            win_set(a, i, lo, hi, 1);
+            app_win_set(a, i, lo, hi, 1);
         }
     }
 }
 
-static int32_t home_cur(const app_t *a, uint8_t i)
+int32_t app_rec_home(const app_t *a, uint8_t i)
 {
     return a->rec.homes.t[i].home_ticks - a->rec.offset[i];
 }
@@ -197,7 +187,7 @@ int8_t app_init(app_t *app, const app_io_t *io)
     (void)store_init(&app->rec.store, io->eeprom, io->store_copy);
     (void)store_settings_load(&app->rec.store, &app->rec.set);
     load_table(app);
-    win_check(app);
+    app_win_check(app);
     app->run.reset_release = (uint8_t)(io->win != NULL && io->win->moving && app->table_ok);
     hom_init(&app->u.hom, NULL);
     dxl_config_default(&dc, app_bus_baud(app), io->servo_bits != 0u ? io->servo_bits : 10u);
@@ -269,7 +259,7 @@ APP_NOINLINE static void boot_start(app_t *a)
     bc.reboot_on_hw_error = 0;
     bc.reboot_wait_us = 500000u;
     dxl_abort(&a->bus.dxl);
-    a->bus.txn = TX_NONE;
+    a->bus.txn = APP_TX_NONE;
     a->bus.absent = 0;
     a->bus.torque_on = 0; /* goals of the old frames must never be sent again */
     a->learn.have_b0 = 0; /* the bring-up reuses the baseline's storage */
@@ -278,7 +268,7 @@ APP_NOINLINE static void boot_start(app_t *a)
 }
 
 /* Maps the stored homes into this power cycle's servo frames. */
-APP_NOINLINE static void recover_homes(app_t *a)
+APP_NOINLINE void app_rec_recover(app_t *a)
 {
     uint8_t i;
     a->rec.home_now = 0;
@@ -350,7 +340,7 @@ APP_NOINLINE static void boot_finish(app_t *a)
 
 APP_NOINLINE static void boot_ready(app_t *a)
 {
-    recover_homes(a);
+    app_rec_recover(a);
     a->boot.offer_quick = (uint8_t)(a->table_ok && a->rec.home_now != 0u &&
                                     a->rec.home_now == app_all_mask(a) && a->bus.absent == 0u);
     app_rep_begin(a, app_w_ready);
@@ -384,7 +374,15 @@ APP_NOINLINE static void boot_ready(app_t *a)
     a->bus.reboot_id = 0;
 }
 
-APP_NOINLINE static void boot_poll(app_t *a)
+void app_boot_again(app_t *a)
+{
+    a->boot.t_start = app_now_ms(a);
+    a->boot.con_wait = 1;
+    a->boot.step = 0;
+    a->state = APP_ST_BOOT;
+}
+
+APP_NOINLINE void app_boot_poll(app_t *a)
 {
     uint32_t t = app_now_ms(a);
     if (a->boot.step == 0u) {
@@ -428,7 +426,7 @@ APP_NOINLINE static void boot_poll(app_t *a)
     }
     /* step 2: every found servo's position and Bus Watchdog, then ready */
     if (((a->bus.seen | a->bus.absent) != app_all_mask(a) || a->bus.wdog_step != 0u ||
-         a->bus.txn == TX_WDOG) &&
+         a->bus.txn == APP_TX_WDOG) &&
         t - a->boot.t_start < APP_PREFLIGHT_MS) {
         return;
     }
@@ -462,7 +460,7 @@ APP_NOINLINE static void servo_done(app_t *a, int8_t rc)
 {
     uint8_t i;
     uint16_t got = 0;
-    if (a->bus.txn == TX_POS || a->bus.txn == TX_HWERR) {
+    if (a->bus.txn == APP_TX_POS || a->bus.txn == APP_TX_HWERR) {
         for (i = 0; i < a->info.n_tendons; i++) {
             const dxl_reply *r;
             if (app_has(a->bus.txn_mask, i) == 0u) {
@@ -472,19 +470,19 @@ APP_NOINLINE static void servo_done(app_t *a, int8_t rc)
             if (r == NULL || (r->result != 0 && r->result != -DXL_E_ALERT)) {
                 continue;
             }
-            if (a->bus.txn == TX_POS && r->len >= 4u) {
+            if (a->bus.txn == APP_TX_POS && r->len >= 4u) {
                 a->bus.present[i] = dxl_reply_value(r, 4);
                 got |= app_bit16(i);
                 a->bus.fresh |= app_bit16(i);
                 a->bus.seen |= app_bit16(i);
-            } else if (a->bus.txn == TX_HWERR && r->len >= 1u) {
+            } else if (a->bus.txn == APP_TX_HWERR && r->len >= 1u) {
                 a->bus.hw_err[i] = r->data[0];
             }
-            if (r->result == -DXL_E_ALERT && a->bus.txn == TX_POS) {
+            if (r->result == -DXL_E_ALERT && a->bus.txn == APP_TX_POS) {
                 a->bus.hwerr_due = 1;
             }
         }
-        if (a->bus.txn == TX_POS) {
+        if (a->bus.txn == APP_TX_POS) {
             if (got == a->bus.txn_mask) {
                 a->bus.pos_streak = 0;
             } else if (a->bus.pos_streak < APP_POS_RETRIES) {
@@ -492,7 +490,7 @@ APP_NOINLINE static void servo_done(app_t *a, int8_t rc)
                 a->bus.pos_force = 1;
             }
         }
-    } else if (a->bus.txn == TX_REBOOT) {
+    } else if (a->bus.txn == APP_TX_REBOOT) {
         if (rc != 0 && rc != -DXL_E_ALERT) {
             if (a->run.auto_release) {
                 a->run.auto_release = 0; /* named: this tendon may still be taut */
@@ -511,16 +509,13 @@ APP_NOINLINE static void servo_done(app_t *a, int8_t rc)
              * window is in the old frame */
             for (i = 0; i < a->info.n_tendons; i++) {
                 if (a->bus.ids[i] == a->bus.reboot_id) {
-                    win_set(a, i, 0, 0, 0);
+                    app_win_set(a, i, 0, 0, 0);
                 }
             }
-            a->boot.t_start = app_now_ms(a);
-            a->boot.con_wait = 1;
-            a->boot.step = 0;
-            a->state = APP_ST_BOOT;
+            app_boot_again(a);
         }
     }
-    a->bus.txn = TX_NONE;
+    a->bus.txn = APP_TX_NONE;
 }
 
 /* Tendons whose servo stands more than a tick from the goal last sent. A
@@ -552,7 +547,7 @@ APP_NOINLINE static void servo_next(app_t *a)
          * bring-up that follows a reboot owns the bus for a while */
         a->bus.reboot_req = 0;
         if (dxl_reboot(&a->bus.dxl, a->bus.reboot_id) > 0) {
-            a->bus.txn = TX_REBOOT;
+            a->bus.txn = APP_TX_REBOOT;
         } else if (con_pending(&a->cmd.con)) {
             (void)con_complete(&a->cmd.con, CON_E_INTERNAL);
         }
@@ -570,14 +565,14 @@ APP_NOINLINE static void servo_next(app_t *a)
             }
             v = (v & 1u) ? APP_BUS_WATCHDOG : 0u;
             addr = DXL_XL430_BUS_WATCHDOG_ADDR;
-            txn = TX_WDOG;
+            txn = APP_TX_WDOG;
         } else {
             for (i = 0; app_has(a->bus.torque_due, i) == 0u; i++) {
             }
             a->bus.torque_due &= (uint16_t)~app_bit16(i);
             v = app_has(a->bus.torque_on, i);
             addr = DXL_XL430_TORQUE_ENABLE_ADDR;
-            txn = TX_TORQUE;
+            txn = APP_TX_TORQUE;
         }
         if (dxl_write_value(&a->bus.dxl, a->bus.ids[i], addr, v, 1) > 0) {
             a->bus.txn = txn;
@@ -595,7 +590,7 @@ APP_NOINLINE static void servo_next(app_t *a)
         a->bus.pos_force = 0;
         addr = DXL_XL430_HW_ERROR_ADDR;
         v = 1;
-        txn = TX_HWERR;
+        txn = APP_TX_HWERR;
         if (a->bus.hwerr_due || (!force && (a->bus.cycle % APP_HWERR_EVERY) == 0u)) {
             a->bus.hwerr_due = 0;
         } else {
@@ -606,7 +601,7 @@ APP_NOINLINE static void servo_next(app_t *a)
             }
             addr = DXL_XL430_PRESENT_POSITION_ADDR;
             v = 4;
-            txn = TX_POS;
+            txn = APP_TX_POS;
         }
         if (a->bus.goal_due == 0u) {
             if (dxl_sync_read(&a->bus.dxl, addr, v, ids, n) > 0) {
@@ -632,11 +627,17 @@ APP_NOINLINE static void servo_next(app_t *a)
     }
     if (n > 0u &&
         dxl_sync_write(&a->bus.dxl, DXL_XL430_PROFILE_ACCELERATION_ADDR, 12u, ids, data, n) > 0) {
-        a->bus.txn = TX_GOAL;
+        a->bus.txn = APP_TX_GOAL;
     }
 }
 
-APP_NOINLINE static void servo_poll(app_t *a)
+void app_bus_reboot(app_t *a, uint8_t id)
+{
+    a->bus.reboot_id = id;
+    a->bus.reboot_req = 1;
+}
+
+APP_NOINLINE void app_bus_poll(app_t *a)
 {
     if (a->state == APP_ST_BOOT && a->boot.step != 2u) {
         return; /* the bring-up owns the bus */
@@ -647,7 +648,7 @@ APP_NOINLINE static void servo_poll(app_t *a)
             return;
         }
         servo_done(a, rc);
-    } else if (a->bus.txn != TX_NONE) {
+    } else if (a->bus.txn != APP_TX_NONE) {
         servo_done(a, dxl_poll(&a->bus.dxl));
     }
     if (a->state != APP_ST_BOOT || a->boot.step == 2u) {
@@ -656,7 +657,7 @@ APP_NOINLINE static void servo_poll(app_t *a)
 }
 
 /* Queues a goal for tendon i. */
-APP_NOINLINE static void set_goal(app_t *a, uint8_t i, int32_t goal, uint16_t vel, uint16_t acc)
+APP_NOINLINE void app_bus_goal(app_t *a, uint8_t i, int32_t goal, uint16_t vel, uint16_t acc)
 {
     hom_set_goal(&a->u.hom, i, goal, vel);
     a->bus.acc = acc;
@@ -670,7 +671,7 @@ APP_NOINLINE static void set_goal(app_t *a, uint8_t i, int32_t goal, uint16_t ve
 /* ---- sensors -------------------------------------------------------------- */
 
 /* Takes this pass's samples into in->sensor[] (and the learn accumulator). */
-APP_NOINLINE static void sensors_take(app_t *a, hom_in_t *in)
+APP_NOINLINE void app_sense_take(app_t *a, hom_in_t *in)
 {
     uint8_t k;
     for (k = 0; k < a->info.n_sensors && a->sense.set.n > 0u; k++) {
@@ -699,13 +700,13 @@ APP_NOINLINE static void sensors_take(app_t *a, hom_in_t *in)
 
 /* A history or learned record waits in u.idle: the homing and the bring-up
  * must not reuse that storage until it is written. */
-static uint8_t rec_busy(const app_t *a)
+uint8_t app_rec_busy(const app_t *a)
 {
-    return (uint8_t)((a->rec.save_due & (SAVE_HIST | SAVE_LEARNED)) != 0u ||
-                     a->rec.save_now == SAVE_HIST || a->rec.save_now == SAVE_LEARNED);
+    return (uint8_t)((a->rec.save_due & (APP_SAVE_HIST | APP_SAVE_LEARNED)) != 0u ||
+                     a->rec.save_now == APP_SAVE_HIST || a->rec.save_now == APP_SAVE_LEARNED);
 }
 
-static void save_queue(app_t *a, uint8_t what)
+void app_rec_queue(app_t *a, uint8_t what)
 {
     a->rec.save_due |= what;
 }
@@ -714,7 +715,7 @@ static void save_queue(app_t *a, uint8_t what)
  * frame, so the offsets become 0), count it and queue the records. */
 APP_NOINLINE static void run_done(app_t *a)
 {
-    win_moving(a, 0);
+    app_win_moving(a, 0);
     uint8_t i, k;
     uint32_t t = app_now_ms(a);
     a->run.amb_ok |= hom_amb_captured(&a->u.hom); /* read before u.idle reuses the storage */
@@ -749,7 +750,7 @@ APP_NOINLINE static void run_done(app_t *a)
     }
     a->rec.homes_rc = 0;
     a->boot.recover_rc = 0;
-    save_queue(a, SAVE_HOMES | SAVE_HIST);
+    app_rec_queue(a, APP_SAVE_HOMES | APP_SAVE_HIST);
     a->boot.offer_quick = 0;
     app_rep_begin(a, app_w_done);
     app_rep_word(a, app_w_mode, app_w_mode_words, a->run.mode);
@@ -762,7 +763,7 @@ APP_NOINLINE static void run_done(app_t *a)
     a->state = APP_ST_IDLE;
 }
 
-APP_NOINLINE static int8_t check_devices(app_t *a)
+APP_NOINLINE int8_t app_run_check(app_t *a)
 {
     if (a->state == APP_ST_BOOT) {
         return CON_E_BUSY;
@@ -780,7 +781,7 @@ uint8_t app_idle_state(const app_t *a)
 
 /* 0 when every tendon has a stored home usable in this power cycle, else
  * CON_E_NOT_HOMED or CON_E_MOVED (a spool turned while powered off). */
-APP_NOINLINE static int8_t homes_usable(const app_t *a)
+APP_NOINLINE int8_t app_rec_usable(const app_t *a)
 {
     if (a->rec.homes_rc != 0 || a->rec.homes.valid_mask != app_all_mask(a)) {
         return CON_E_NOT_HOMED;
@@ -788,8 +789,13 @@ APP_NOINLINE static int8_t homes_usable(const app_t *a)
     return a->rec.home_now != app_all_mask(a) ? CON_E_MOVED : 0;
 }
 
+void app_run_ambient_reset(app_t *a)
+{
+    a->run.amb_ok = 0;
+}
+
 /* Starts a homing run. Returns 0 or a CON_E_* code (nothing moves then). */
-static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon)
+int8_t app_run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon)
 {
     hom_config_t cfg;
     hom_cmd_t cmd;
@@ -799,7 +805,7 @@ static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon
     if (!app_idle_state(a)) {
         return CON_E_BUSY;
     }
-    e = check_devices(a);
+    e = app_run_check(a);
     if (e != 0) {
         return e;
     }
@@ -813,13 +819,13 @@ static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon
         return CON_E_TENSION_RANGE;
     }
     if (mode == HOM_MODE_QUICK) {
-        e = homes_usable(a);
+        e = app_rec_usable(a);
         if (e != 0) {
             return e;
         }
         tension = a->rec.homes.tension_mN;
     }
-    if (store_busy(&a->rec.store) || rec_busy(a)) {
+    if (store_busy(&a->rec.store) || app_rec_busy(a)) {
         return CON_E_BUSY; /* finishes within a few hundred ms */
     }
     memset(&cmd, 0, sizeof cmd);
@@ -835,7 +841,7 @@ static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon
     cmd.tendon = tendon;
     for (i = 0; i < a->info.n_tendons; i++) {
         if (app_has(a->rec.home_now, i)) {
-            cmd.stored_home[i] = home_cur(a, i);
+            cmd.stored_home[i] = app_rec_home(a, i);
             cmd.stored_mask |= app_bit16(i);
         }
     }
@@ -872,7 +878,7 @@ static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon
     a->run.t_start = app_now_ms(a);
     a->bus.fresh = 0;
     a->state = APP_ST_CAL;
-    win_moving(a, 1);
+    app_win_moving(a, 1);
     app_panel_set(a, APP_LED_RUN);
     a->rec.rest_due = 0;
     return 0;
@@ -882,14 +888,14 @@ static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon
  * servos have stopped. */
 APP_NOINLINE static void fault_rest(app_t *a, uint32_t t)
 {
-    win_moving(a, 0); /* the release goals are out: the servos finish them */
+    app_win_moving(a, 0); /* the release goals are out: the servos finish them */
     a->state = APP_ST_FAULT;
     app_panel_set(a, APP_LED_FAULT);
     a->rec.rest_due = 1;
     a->rec.t_rest = (uint16_t)t;
 }
 
-APP_NOINLINE static void cal_step(app_t *a, hom_in_t *in)
+APP_NOINLINE void app_run_step(app_t *a, hom_in_t *in)
 {
     hom_out_t out;
     hom_event_t ev;
@@ -941,9 +947,9 @@ APP_NOINLINE static void cal_step(app_t *a, hom_in_t *in)
 
 /* ---- app moves: home, release, baseline, learn ------------------------------ */
 
-static void move_start(app_t *a, uint8_t kind)
+void app_run_move(app_t *a, uint8_t kind)
 {
-    win_moving(a, 1);
+    app_win_moving(a, 1);
     a->run.move_kind = kind;
     a->run.t_move = app_now_ms(a);
     a->bus.fresh = 0;
@@ -957,7 +963,7 @@ static void move_start(app_t *a, uint8_t kind)
  * known, the homing's own assumption (anywhere up to the release that frees
  * a tendon left at the top of the grid). Never pulls, and repeated releases
  * go no further (the window stays). */
-static uint8_t release_goals(app_t *a)
+uint8_t app_run_release_goals(app_t *a)
 {
     hom_config_t cfg;
     uint8_t i, moved = 0;
@@ -979,20 +985,20 @@ static uint8_t release_goals(app_t *a)
                 if (tbl_target(&a->tab, i, a->rec.homes.tension_mN, &pt) == 0) {
                     trav = pt.travel_um;
                 }
-                hi = home_cur(a, i) - dir * um_ticks(row.nm_per_tick, trav);
+                hi = app_rec_home(a, i) - dir * um_ticks(row.nm_per_tick, trav);
                 lo = hi;
             } else {
                 hi = a->bus.present[i];
                 lo = hi -
                      dir * um_ticks(row.nm_per_tick, row.travel_um[a->info.n_grid - 1u] * 3u / 2u);
             }
-            win_set(a, i, lo, hi, 1);
+            app_win_set(a, i, lo, hi, 1);
         }
         g = lo - dir * um_ticks(row.nm_per_tick, cfg.slack_margin_um);
         if (dir * (g - a->bus.present[i]) > 0) {
             g = a->bus.present[i]; /* already slacker than the release point */
         }
-        set_goal(a, i, g, cfg.v_release, cfg.acc);
+        app_bus_goal(a, i, g, cfg.v_release, cfg.acc);
         moved = 1;
     }
     return moved;
@@ -1011,21 +1017,21 @@ void app_abort(app_t *app)
         hom_abort(&app->u.hom);
         return;
     }
-    if (app->state == APP_ST_LEARN && app->learn.tendon != LEARN_BASELINE &&
+    if (app->state == APP_ST_LEARN && app->learn.tendon != APP_LEARN_BASELINE &&
         con_pending(&app->cmd.con)) {
         (void)con_complete(&app->cmd.con, CON_E_ABORTED);
     }
     if (!app->table_ok) {
         return;
     }
-    (void)release_goals(app);
+    (void)app_run_release_goals(app);
     app_rep_begin(app, app_w_released);
     con_report_flash(&app->cmd.con, app_w_reason, app_w_aborted);
     app_rep_end(app);
-    move_start(app, MOVE_RELEASE);
+    app_run_move(app, APP_MOVE_RELEASE);
 }
 
-static void learn_begin(app_t *a, uint8_t tendon)
+void app_learn_begin(app_t *a, uint8_t tendon)
 {
     a->learn.tendon = tendon;
     a->learn.n = 0;
@@ -1035,7 +1041,7 @@ static void learn_begin(app_t *a, uint8_t tendon)
     a->state = APP_ST_LEARN;
 }
 
-APP_NOINLINE static void move_step(app_t *a)
+APP_NOINLINE void app_run_move_step(app_t *a)
 {
     uint8_t i, arrived = 1;
     uint32_t t = app_now_ms(a);
@@ -1053,17 +1059,17 @@ APP_NOINLINE static void move_step(app_t *a)
         if (t - a->run.t_move > APP_MOVE_TIMEOUT_MS) {
             app_rep_fault(a, app_w_servo_stall, CON_E_TIMEOUT, HOM_DEV_SERVO, 0);
             fault_rest(a, t);
-            if (a->run.move_kind == MOVE_HOME) {
-                (void)release_goals(a);
+            if (a->run.move_kind == APP_MOVE_HOME) {
+                (void)app_run_release_goals(a);
             }
         }
         return;
     }
     a->rec.rest_due = 1;
     a->rec.t_rest = (uint16_t)t;
-    win_moving(a, 0);
-    if (a->run.move_kind == MOVE_RELEASE) {
-        learn_begin(a, LEARN_BASELINE); /* the robot stands straight: capture B0 */
+    app_win_moving(a, 0);
+    if (a->run.move_kind == APP_MOVE_RELEASE) {
+        app_learn_begin(a, APP_LEARN_BASELINE); /* the robot stands straight: capture B0 */
         return;
     }
     app_rep_begin(a, app_w_done);
@@ -1095,13 +1101,35 @@ static int8_t learn_plausible(const app_t *a, const store_learned_t *l, uint32_t
     return 0;
 }
 
-APP_NOINLINE static void learn_step(app_t *a, const hom_in_t *in)
+int8_t app_learn_start(app_t *a, uint8_t tendon, uint8_t grid)
+{
+    icm_diag_t d;
+    tbl_tendon_t row;
+    (void)tbl_tendon(&a->tab, tendon, &row);
+    a->learn.sensor = row.sensor;
+    (void)icm_set_diag(&a->sense.set, row.sensor, &d);
+    if (d.state != ICM_SET_S_RUN) {
+        return CON_E_SENSOR_FAULT;
+    }
+    a->learn.grid = grid;
+    app_learn_begin(a, tendon);
+    return CON_PENDING;
+}
+
+int8_t app_learn_forget(app_t *a, uint16_t mask)
+{
+    a->learn.forget = mask & a->learn.mask;
+    a->learn.forgetting = (uint8_t)(a->learn.forget != 0u);
+    return a->learn.forgetting ? CON_PENDING : 0;
+}
+
+APP_NOINLINE void app_learn_step(app_t *a, const hom_in_t *in)
 {
     uint8_t k, first, last, tdn = a->learn.tendon;
     uint32_t v = 0;
     uint32_t t = app_now_ms(a);
     int8_t rc = 0;
-    if (a->learn.tendon == LEARN_BASELINE) {
+    if (a->learn.tendon == APP_LEARN_BASELINE) {
         first = 0;
         last = a->info.n_sensors;
         if (t - a->learn.t_start < SETTLE_MS) {
@@ -1143,7 +1171,7 @@ APP_NOINLINE static void learn_step(app_t *a, const hom_in_t *in)
             sum[k] /= (int32_t)APP_LEARN_SAMPLES; /* sums become averages */
         }
     }
-    if (a->learn.tendon == LEARN_BASELINE) {
+    if (a->learn.tendon == APP_LEARN_BASELINE) {
         if (rc == 0) {
             memcpy(a->u.idle.b0, a->u.idle.acc, sizeof a->u.idle.b0);
             a->learn.have_b0 = 1;
@@ -1174,7 +1202,7 @@ APP_NOINLINE static void learn_step(app_t *a, const hom_in_t *in)
         a->u.idle.rec.learned.n_grid = a->info.n_grid;
         a->u.idle.rec.learned.target_cuT[a->learn.grid] = v;
         a->u.idle.rec.learned.grid_mask |= app_bit16(a->learn.grid);
-        save_queue(a, SAVE_LEARNED);
+        app_rec_queue(a, APP_SAVE_LEARNED);
         app_rep_begin(a, app_w_learned);
         app_rep_int(a, app_w_tendon, tdn);
         app_rep_int(a, app_w_tension_mN, a->info.grid_mN[a->learn.grid]);
@@ -1193,12 +1221,12 @@ APP_NOINLINE static void learn_step(app_t *a, const hom_in_t *in)
 
 /* Records the rest positions once the servos have stopped after a release or
  * a fault, so a power cycle can find the multi-turn position again. */
-APP_NOINLINE static void rest_poll(app_t *a)
+APP_NOINLINE void app_rec_rest_poll(app_t *a)
 {
     uint8_t i, changed = 0;
     if (!a->rec.rest_due || !app_idle_state(a) ||
         (uint16_t)((uint16_t)app_now_ms(a) - a->rec.t_rest) < REST_DELAY_MS ||
-        (a->rec.save_due & SAVE_HOMES) || a->rec.save_now == SAVE_HOMES) {
+        (a->rec.save_due & APP_SAVE_HOMES) || a->rec.save_now == APP_SAVE_HOMES) {
         return;
     }
     a->rec.rest_due = 0;
@@ -1215,18 +1243,18 @@ APP_NOINLINE static void rest_poll(app_t *a)
         }
     }
     if (changed) {
-        save_queue(a, SAVE_HOMES);
+        app_rec_queue(a, APP_SAVE_HOMES);
     }
 }
 
-APP_NOINLINE static void store_task(app_t *a)
+APP_NOINLINE void app_rec_poll(app_t *a)
 {
     uint8_t idle = app_idle_state(a);
     if (store_busy(&a->rec.store)) {
         int8_t rc = store_poll(&a->rec.store, idle);
         if (rc <= 0) {
-            if ((a->rec.save_now == SAVE_SETTINGS ||
-                 (a->rec.save_now == SAVE_LEARNED && a->learn.forgetting &&
+            if ((a->rec.save_now == APP_SAVE_SETTINGS ||
+                 (a->rec.save_now == APP_SAVE_LEARNED && a->learn.forgetting &&
                   a->learn.forget == 0u)) &&
                 con_pending(&a->cmd.con)) {
                 a->learn.forgetting = 0;
@@ -1238,7 +1266,7 @@ APP_NOINLINE static void store_task(app_t *a)
         }
         return;
     }
-    if (idle && a->learn.forget != 0u && !rec_busy(a)) {
+    if (idle && a->learn.forget != 0u && !app_rec_busy(a)) {
         /* `forget`: an empty learned record per tendon, one at a time */
         uint8_t t = 0;
         while (app_has(a->learn.forget, t) == 0u) {
@@ -1250,25 +1278,25 @@ APP_NOINLINE static void store_task(app_t *a)
         a->u.idle.rec.learned.n_grid = a->info.n_grid;
         a->learn.forget &= (uint16_t)~app_bit16(t);
         a->learn.mask &= (uint16_t)~app_bit16(t);
-        save_queue(a, SAVE_LEARNED);
+        app_rec_queue(a, APP_SAVE_LEARNED);
     }
     if (!idle || a->rec.save_due == 0u) {
         return;
     }
-    if (a->rec.save_due & SAVE_HOMES) {
-        a->rec.save_now = SAVE_HOMES;
+    if (a->rec.save_due & APP_SAVE_HOMES) {
+        a->rec.save_now = APP_SAVE_HOMES;
         (void)store_save_homes(&a->rec.store, &a->rec.homes);
-    } else if (a->rec.save_due & SAVE_HIST) {
-        a->rec.save_now = SAVE_HIST;
+    } else if (a->rec.save_due & APP_SAVE_HIST) {
+        a->rec.save_now = APP_SAVE_HIST;
         (void)store_save_hist(&a->rec.store, &a->u.idle.rec.hist);
-    } else if (a->rec.save_due & SAVE_LEARNED) {
-        a->rec.save_now = SAVE_LEARNED;
+    } else if (a->rec.save_due & APP_SAVE_LEARNED) {
+        a->rec.save_now = APP_SAVE_LEARNED;
         if (a->u.idle.rec.learned.grid_mask != 0u) {
             a->learn.mask |= app_bit16(a->u.idle.rec.learned.tendon);
         }
         (void)store_save_learned(&a->rec.store, &a->u.idle.rec.learned);
     } else {
-        a->rec.save_now = SAVE_SETTINGS;
+        a->rec.save_now = APP_SAVE_SETTINGS;
         (void)store_save_settings(&a->rec.store, &a->rec.set);
     }
     a->rec.save_due &= (uint8_t)~a->rec.save_now;
@@ -1291,7 +1319,7 @@ void app_run_press(app_t *a)
         return; /* a long press aborts */
     }
     app_panel_set(a, APP_LED_IDLE);
-    if (store_busy(&a->rec.store) || rec_busy(a)) {
+    if (store_busy(&a->rec.store) || app_rec_busy(a)) {
         a->run.req_start = 1; /* starts once the EEPROM write in flight is done */
         a->run.req_con = 0;
         a->run.req_mode = a->boot.offer_quick ? HOM_MODE_QUICK : HOM_MODE_FULL;
@@ -1299,7 +1327,7 @@ void app_run_press(app_t *a)
         a->run.req_tendon = 0;
         return;
     }
-    rc = run_start(a, a->boot.offer_quick ? HOM_MODE_QUICK : HOM_MODE_FULL, 0, 0);
+    rc = app_run_start(a, a->boot.offer_quick ? HOM_MODE_QUICK : HOM_MODE_FULL, 0, 0);
     if (rc != 0) {
         app_rep_fault(a, app_w_refused, rc, HOM_DEV_NONE, 0);
         app_panel_set(a, APP_LED_FAULT);
@@ -1307,30 +1335,6 @@ void app_run_press(app_t *a)
 }
 
 /* ---- superloop ------------------------------------------------------------------ */
-
-/* The console in realtime mode while anything moves (output never waits;
- * docs/console.md), and the losses reported: console bytes lost to a full
- * receive buffer at once, report lines dropped once nothing moves. */
-APP_NOINLINE static void console_poll(app_t *a)
-{
-    uint8_t moving = (uint8_t)(a->state == APP_ST_CAL || a->state == APP_ST_MOVE);
-    uint16_t n = a->io->board->rx_lost != NULL ? a->io->board->rx_lost(a->io->board->ctx) : 0u;
-    con_set_realtime(&a->cmd.con, moving);
-    if (n != a->cmd.rx_lost) {
-        app_rep_begin(a, app_w_overrun);
-        app_rep_int(a, app_w_bytes, (uint16_t)(n - a->cmd.rx_lost));
-        app_rep_int(a, app_w_total, n);
-        app_rep_end(a);
-        a->cmd.rx_lost = n;
-    }
-    if (!moving && con_dropped(&a->cmd.con) != a->cmd.dropped) {
-        a->cmd.dropped = con_dropped(&a->cmd.con);
-        app_rep_begin(a, app_w_dropped);
-        app_rep_int(a, app_w_reports, a->cmd.dropped);
-        app_rep_end(a);
-    }
-    (void)con_poll(&a->cmd.con, (uint16_t)app_now_ms(a));
-}
 
 int8_t app_poll(app_t *app)
 {
@@ -1345,14 +1349,14 @@ int8_t app_poll(app_t *app)
     memset(&in, 0, sizeof in);
     if (a->sense.set.n > 0u) {
         (void)icm_set_poll(&a->sense.set, t0);
-        sensors_take(a, &in);
+        app_sense_take(a, &in);
     }
     if (a->state == APP_ST_BOOT) {
-        boot_poll(a);
+        app_boot_poll(a);
     }
-    servo_poll(a);
+    app_bus_poll(a);
     if (a->run.req_start && a->state != APP_ST_BOOT && store_busy(&a->rec.store) == 0u &&
-        !rec_busy(a)) {
+        !app_rec_busy(a)) {
         int8_t rc;
         a->run.req_start = 0;
         if (a->run.req_btn) {
@@ -1361,7 +1365,7 @@ int8_t app_poll(app_t *app)
             a->run.req_tension = 0;
             a->run.req_tendon = 0;
         }
-        rc = run_start(a, a->run.req_mode, a->run.req_tension, a->run.req_tendon);
+        rc = app_run_start(a, a->run.req_mode, a->run.req_tension, a->run.req_tendon);
         if (a->run.req_con && con_pending(&a->cmd.con)) {
             (void)con_complete(&a->cmd.con, rc);
         } else if (rc != 0) {
@@ -1370,37 +1374,37 @@ int8_t app_poll(app_t *app)
     }
     if (a->run.reset_release && a->state == APP_ST_IDLE) {
         a->run.reset_release = 0;
-        (void)release_goals(a);
+        (void)app_run_release_goals(a);
         app_rep_begin(a, app_w_released);
         con_report_flash(&a->cmd.con, app_w_reason, app_w_reset);
         app_rep_end(a);
-        move_start(a, MOVE_RELEASE);
+        app_run_move(a, APP_MOVE_RELEASE);
     }
     if (a->run.auto_release && a->state == APP_ST_IDLE && a->table_ok) {
-        (void)release_goals(a);
+        (void)app_run_release_goals(a);
         app_rep_begin(a, app_w_released);
         con_report_flash(&a->cmd.con, app_w_reason, app_w_servo_error);
         app_rep_int(a, app_w_id, a->run.auto_release);
         app_rep_end(a);
         a->run.auto_release = 0;
-        move_start(a, MOVE_RELEASE);
+        app_run_move(a, APP_MOVE_RELEASE);
     }
     switch (a->state) {
     case APP_ST_CAL:
-        cal_step(a, &in);
+        app_run_step(a, &in);
         break;
     case APP_ST_MOVE:
-        move_step(a);
+        app_run_move_step(a);
         break;
     case APP_ST_LEARN:
-        learn_step(a, &in);
+        app_learn_step(a, &in);
         break;
     default:
         break;
     }
-    console_poll(a);
-    rest_poll(a);
-    store_task(a);
+    app_cmd_poll(a);
+    app_rec_rest_poll(a);
+    app_rec_poll(a);
     app_panel_led(a, t);
     a->loops++;
     dt = app_now_us(a) - t0;
@@ -1410,146 +1414,9 @@ int8_t app_poll(app_t *app)
     return (int8_t)a->state;
 }
 
-/* ---- console handlers ------------------------------------------------------------ */
-
-/* Console output waits for the UART0 ring (128 bytes, 11 ms per ring at
- * 115200): listings of several lines would hold the loop for tens of ms,
- * longer than the homing's servo deadline, so they wait until nothing moves. */
-static int8_t quiet_needed(const app_t *a)
+int8_t app_run_request(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon)
 {
-    return (a->state == APP_ST_IDLE || a->state == APP_ST_FAULT) ? 0 : CON_E_BUSY;
-}
-
-static int8_t h_version(con_t *con, const con_args_t *args, void *ctx)
-{
-    app_t *a = ctx;
-    (void)con;
-    (void)args;
-    app_rep_begin(a, app_w_version);
-    con_report_flash(&a->cmd.con, app_w_name, app_w_hallhome);
-    if (a->io->version_f != NULL) {
-        con_report_flash(&a->cmd.con, app_w_version, a->io->version_f);
-    }
-    if (a->io->board_f != NULL) {
-        con_report_flash(&a->cmd.con, app_w_board, a->io->board_f);
-    }
-    if (a->table_ok) {
-        con_report_str(&a->cmd.con, app_w_table, a->info.name);
-        app_rep_hex(a, app_w_table_id, a->info.table_id);
-        app_rep_int(a, app_w_tendons, a->info.n_tendons);
-        app_rep_int(a, app_w_sensors, a->info.n_sensors);
-    } else {
-        con_report_flash(&a->cmd.con, app_w_table, app_w_none);
-    }
-    app_rep_end(a);
-    return 0;
-}
-
-static int8_t h_status(con_t *con, const con_args_t *args, void *ctx)
-{
-    app_t *a = ctx;
-    uint8_t i;
-    (void)con;
-    (void)args;
-    app_rep_begin(a, app_w_status);
-    app_rep_word(a, app_w_state, app_w_state_words, a->state);
-    if (a->table_ok) {
-        con_report_str(&a->cmd.con, app_w_table, a->info.name);
-    } else {
-        con_report_flash(&a->cmd.con, app_w_table, app_w_none);
-    }
-    app_rep_int(a, app_w_sensors, icm_set_ready_count(&a->sense.set));
-    app_rep_int(a, app_w_servos, a->boot.n_servos);
-    app_rep_hex(a, app_w_homes, a->rec.homes.valid_mask);
-    app_rep_hex(a, app_w_homes_now, a->rec.home_now);
-    app_rep_int(a, app_w_rehome, a->boot.offer_quick);
-    app_rep_int(a, app_w_tension_mN, a->rec.homes.tension_mN);
-    app_rep_int(a, app_w_count, (int32_t)a->rec.homes.cal_count);
-    app_rep_word(a, app_w_fault, app_w_fault_words, a->run.last_fault);
-    app_rep_int(a, app_w_learned, a->learn.mask);
-    app_rep_int(a, app_w_baseline, a->learn.have_b0);
-    app_rep_int(a, app_w_saving, store_busy(&a->rec.store) || a->rec.save_due != 0u);
-    app_rep_int(a, app_w_loop_max_us, (int32_t)a->loop_max_us);
-    app_rep_int(a, app_w_loops, (int32_t)a->loops);
-    app_rep_end(a);
-    for (i = 0; i < a->info.n_tendons; i++) {
-        if (app_has(a->rec.homes.valid_mask, i) == 0u) {
-            continue;
-        }
-        app_rep_begin(a, app_w_home);
-        app_rep_int(a, app_w_tendon, i);
-        app_rep_int(a, app_w_home, a->rec.homes.t[i].home_ticks);
-        app_rep_int(a, app_w_rest, a->rec.homes.t[i].rest_ticks);
-        app_rep_int(a, app_w_usable, app_has(a->rec.home_now, i));
-        if (app_has(a->rec.home_now, i)) {
-            app_rep_int(a, app_w_now, home_cur(a, i));
-        }
-        app_rep_end(a);
-    }
-    return 0;
-}
-
-static int8_t h_sensors(con_t *con, const con_args_t *args, void *ctx)
-{
-    app_t *a = ctx;
-    if (quiet_needed(a) != 0) {
-        return CON_E_BUSY;
-    }
-    uint8_t k;
-    (void)con;
-    (void)args;
-    if (!a->table_ok) {
-        return CON_E_NO_TABLE;
-    }
-    for (k = 0; k < a->info.n_sensors; k++) {
-        icm_diag_t d;
-        (void)icm_set_diag(&a->sense.set, k, &d);
-        app_rep_begin(a, app_w_sensor);
-        app_rep_int(a, app_w_index, k);
-        app_rep_int(a, app_w_ch, d.channel);
-        app_rep_int(a, app_w_addr, d.addr);
-        app_rep_int(a, app_w_ok, d.state == ICM_SET_S_RUN);
-        app_rep_int(a, app_w_who, d.who_am_i);
-        app_rep_int(a, app_w_mag, d.mag_ready);
-        con_report_fixed(&a->cmd.con, app_w_rate_Hz, d.rate_dhz, 1);
-        con_report_fixed(&a->cmd.con, app_w_bx_uT, d.field_cuT[0], 2);
-        con_report_fixed(&a->cmd.con, app_w_by_uT, d.field_cuT[1], 2);
-        con_report_fixed(&a->cmd.con, app_w_bz_uT, d.field_cuT[2], 2);
-        app_rep_int(a, app_w_ovf, d.overflow_count);
-        app_rep_int(a, app_w_err, d.error_count);
-        app_rep_int(a, app_w_last_err, d.last_err);
-        app_rep_int(a, app_w_reinits, d.reinits);
-        app_rep_end(a);
-    }
-    return 0;
-}
-
-static int8_t h_servos(con_t *con, const con_args_t *args, void *ctx)
-{
-    app_t *a = ctx;
-    (void)con;
-    if (!a->table_ok) {
-        return CON_E_NO_TABLE;
-    }
-    if (quiet_needed(a) != 0) {
-        return CON_E_BUSY;
-    }
-    if ((args->given & 1u) && args->v[0] != 0) {
-        app_rep_servos(a, 0); /* pos, err: the live cycle keeps both fresh */
-        return 0;
-    }
-    if (!app_idle_state(a) || rec_busy(a)) {
-        return CON_E_BUSY; /* the bring-up reuses the record's storage */
-    }
-    a->boot.con_wait = 1;
-    a->boot.step = 0;
-    a->state = APP_ST_BOOT;
-    return CON_PENDING;
-}
-
-static int8_t start_or_defer(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon)
-{
-    if (app_idle_state(a) && (store_busy(&a->rec.store) || rec_busy(a))) {
+    if (app_idle_state(a) && (store_busy(&a->rec.store) || app_rec_busy(a))) {
         a->run.req_start = 1;
         a->run.req_con = 1;
         a->run.req_mode = mode;
@@ -1557,334 +1424,5 @@ static int8_t start_or_defer(app_t *a, uint8_t mode, uint16_t tension, uint8_t t
         a->run.req_tendon = tendon;
         return CON_PENDING;
     }
-    return run_start(a, mode, tension, tendon);
+    return app_run_start(a, mode, tension, tendon);
 }
-
-static int8_t h_cal(con_t *con, const con_args_t *args, void *ctx)
-{
-    app_t *a = ctx;
-    uint16_t tension = (args->given & 1u) ? (uint16_t)args->v[0] : 0u;
-    (void)con;
-    if (args->given & 2u) {
-        if (a->table_ok && args->v[1] >= a->info.n_tendons) {
-            return CON_E_BAD_TENDON;
-        }
-        return start_or_defer(a, HOM_MODE_SINGLE, tension, (uint8_t)args->v[1]);
-    }
-    return start_or_defer(a, HOM_MODE_FULL, tension, 0);
-}
-
-static int8_t h_rehome(con_t *con, const con_args_t *args, void *ctx)
-{
-    (void)con;
-    (void)args;
-    return start_or_defer(ctx, HOM_MODE_QUICK, 0, 0);
-}
-
-static int8_t h_home(con_t *con, const con_args_t *args, void *ctx)
-{
-    app_t *a = ctx;
-    hom_config_t cfg;
-    uint8_t i;
-    int8_t e;
-    (void)con;
-    (void)args;
-    if (!app_idle_state(a)) {
-        return CON_E_BUSY;
-    }
-    e = check_devices(a);
-    if (e != 0) {
-        return e;
-    }
-    e = homes_usable(a);
-    if (e != 0) {
-        return e;
-    }
-    hom_config_default(&cfg);
-    for (i = 0; i < a->info.n_tendons; i++) {
-        set_goal(a, i, home_cur(a, i), cfg.v_final, cfg.acc);
-    }
-    move_start(a, MOVE_HOME);
-    return 0;
-}
-
-static int8_t h_release(con_t *con, const con_args_t *args, void *ctx)
-{
-    app_t *a = ctx;
-    (void)con;
-    (void)args;
-    if (!a->table_ok) {
-        return CON_E_NO_TABLE;
-    }
-    if (a->state == APP_ST_BOOT) {
-        return CON_E_BUSY;
-    }
-    if (!app_idle_state(a)) {
-        app_abort(a);
-        return 0;
-    }
-    (void)release_goals(a);
-    move_start(a, MOVE_RELEASE);
-    return 0;
-}
-
-static int8_t h_learn(con_t *con, const con_args_t *args, void *ctx)
-{
-    app_t *a = ctx;
-    uint8_t g, t = (uint8_t)args->v[0];
-    (void)con;
-    if (!a->table_ok) {
-        return CON_E_NO_TABLE;
-    }
-    if (!app_idle_state(a) || (a->rec.save_due & (SAVE_HIST | SAVE_LEARNED)) != 0u ||
-        a->rec.save_now == SAVE_HIST || a->rec.save_now == SAVE_LEARNED) {
-        return CON_E_BUSY;
-    }
-    if (t >= a->info.n_tendons) {
-        return CON_E_BAD_TENDON;
-    }
-    for (g = 0; g < a->info.n_grid && a->info.grid_mN[g] != (uint16_t)args->v[1]; g++) {
-    }
-    if (g >= a->info.n_grid) {
-        return CON_E_TENSION_RANGE; /* learned targets sit on the table's grid */
-    }
-    if (!a->learn.have_b0) {
-        return CON_E_NOT_HOMED; /* no straight-pose baseline yet: `release` first */
-    }
-    {
-        icm_diag_t d;
-        tbl_tendon_t row;
-        (void)tbl_tendon(&a->tab, t, &row);
-        a->learn.sensor = row.sensor;
-        (void)icm_set_diag(&a->sense.set, row.sensor, &d);
-        if (d.state != ICM_SET_S_RUN) {
-            return CON_E_SENSOR_FAULT;
-        }
-    }
-    a->learn.grid = g;
-    learn_begin(a, t);
-    return CON_PENDING;
-}
-
-/* `forget T|all`: the learned targets of tendon T, or of every tendon, are
- * erased (empty records saved); the compiled table's targets apply again. */
-static int8_t h_forget(con_t *con, const con_args_t *args, void *ctx)
-{
-    app_t *a = ctx;
-    const char *w = args->s[0];
-    uint16_t m = 0;
-    (void)con;
-    if (!a->table_ok) {
-        return CON_E_NO_TABLE;
-    }
-    if (!app_idle_state(a) || rec_busy(a) || a->learn.forget != 0u) {
-        return CON_E_BUSY;
-    }
-    if (strcmp(w, "all") == 0) {
-        m = app_all_mask(a);
-    } else {
-        uint8_t t = 0;
-        for (; *w != '\0'; w++) {
-            if (*w < '0' || *w > '9' || t > 20u) {
-                return CON_E_BAD_TENDON;
-            }
-            t = (uint8_t)(t * 10u + (uint8_t)(*w - '0'));
-        }
-        if (t >= a->info.n_tendons) {
-            return CON_E_BAD_TENDON;
-        }
-        m = app_bit16(t);
-    }
-    a->learn.forget = m & a->learn.mask;
-    a->learn.forgetting = (uint8_t)(a->learn.forget != 0u);
-    return a->learn.forgetting ? CON_PENDING : 0;
-}
-
-static int8_t h_table(con_t *con, const con_args_t *args, void *ctx)
-{
-    app_t *a = ctx;
-    if (quiet_needed(a) != 0) {
-        return CON_E_BUSY;
-    }
-    char buf[TBL_MAX_GRID * 12u + 1u];
-    uint8_t i, g, pos;
-    (void)con;
-    (void)args;
-    if (!a->table_ok) {
-        return CON_E_NO_TABLE;
-    }
-    app_rep_begin(a, app_w_table);
-    con_report_str(&a->cmd.con, app_w_name, a->info.name);
-    app_rep_hex(a, app_w_table_id, a->info.table_id);
-    app_rep_int(a, app_w_tendons, a->info.n_tendons);
-    app_rep_int(a, app_w_sensors, a->info.n_sensors);
-    pos = 0;
-    buf[0] = '\0';
-    for (g = 0; g < a->info.n_grid; g++) {
-        app_list_add(buf, sizeof buf, &pos, a->info.grid_mN[g], '\0');
-    }
-    con_report_str(&a->cmd.con, app_w_grid_mN, buf);
-    app_rep_int(a, app_w_default_mN, a->info.default_mN);
-    app_rep_int(a, app_w_noise_cuT, a->info.noise_cuT);
-    app_rep_end(a);
-    for (i = 0; i < a->info.n_tendons; i++) {
-        tbl_tendon_t row, eff;
-        (void)tbl_tendon(&a->tab, i, &row);
-        (void)tbl_tendon(&a->htab, i, &eff);
-        app_rep_begin(a, app_w_tendon);
-        app_rep_int(a, app_w_tendon, i);
-        app_rep_int(a, app_w_id, row.servo_id);
-        app_rep_int(a, app_w_dir, row.pull_dir);
-        app_rep_int(a, app_w_segment, row.segment);
-        app_rep_int(a, app_w_sensor, row.sensor);
-        app_rep_int(a, app_w_limit_um, (int32_t)row.travel_limit_um);
-        pos = 0;
-        buf[0] = '\0';
-        for (g = 0; g < a->info.n_grid; g++) {
-            app_list_add(buf, sizeof buf, &pos, (int32_t)eff.target_cuT[g],
-                         eff.target_cuT[g] != row.target_cuT[g] ? '*' : '\0');
-        }
-        con_report_str(&a->cmd.con, app_w_target_cuT, buf);
-        app_rep_end(a);
-    }
-    return 0;
-}
-
-static int8_t h_history(con_t *con, const con_args_t *args, void *ctx)
-{
-    app_t *a = ctx;
-    if (quiet_needed(a) != 0) {
-        return CON_E_BUSY;
-    }
-    uint8_t n, age, i, pos;
-    char buf[TBL_MAX_TENDONS * 12u + 1u];
-    store_hist_t e;
-    (void)con;
-    (void)args;
-    n = store_hist_count(&a->rec.store);
-    for (age = 0; age < n; age++) {
-        if (store_hist_get(&a->rec.store, age, &e) != 0) {
-            break;
-        }
-        app_rep_begin(a, app_w_hist);
-        app_rep_int(a, app_w_age, age);
-        app_rep_int(a, app_w_count, (int32_t)e.cal_count);
-        app_rep_hex(a, app_w_table_id, e.table_id);
-        app_rep_int(a, app_w_tension_mN, e.tension_mN);
-        pos = 0;
-        buf[0] = '\0';
-        for (i = 0; i < e.n_tendons && i < TBL_MAX_TENDONS; i++) {
-            app_list_add(buf, sizeof buf, &pos, e.home_ticks[i],
-                         app_has(e.valid_mask, i) ? 0 : '?');
-        }
-        con_report_str(&a->cmd.con, app_w_homes, buf);
-        app_rep_end(a);
-    }
-    return 0;
-}
-
-static void setting_line(app_t *a, uint8_t id)
-{
-    char buf[24];
-    store_setting_info_t inf;
-    (void)store_setting_info(&a->rec.store, id, &inf);
-    app_rep_begin(a, app_w_setting);
-    (void)store_setting_text(&a->rec.store, id, 0, buf, sizeof buf);
-    con_report_str(&a->cmd.con, app_w_name, buf);
-    app_rep_int(a, app_w_value, a->rec.set.v[id]);
-    (void)store_setting_text(&a->rec.store, id, 1, buf, sizeof buf);
-    con_report_str(&a->cmd.con, app_w_unit, buf);
-    app_rep_int(a, app_w_min, inf.min);
-    app_rep_int(a, app_w_max, inf.max);
-    app_rep_int(a, app_w_default, inf.def);
-    app_rep_end(a);
-}
-
-static int8_t find_setting(app_t *a, const con_args_t *args)
-{
-    const char *n = args->s[0];
-    return store_setting_find(&a->rec.store, n, (uint8_t)strlen(n));
-}
-
-static int8_t h_get(con_t *con, const con_args_t *args, void *ctx)
-{
-    app_t *a = ctx;
-    if (quiet_needed(a) != 0) {
-        return CON_E_BUSY;
-    }
-    uint8_t id;
-    (void)con;
-    if (args->given & 1u) {
-        int8_t f = find_setting(a, args);
-        if (f < 0) {
-            return CON_E_UNKNOWN_SETTING;
-        }
-        setting_line(a, (uint8_t)f);
-        return 0;
-    }
-    for (id = 0; id < STORE_SETTING_COUNT; id++) {
-        setting_line(a, id);
-    }
-    return 0;
-}
-
-static int8_t h_set(con_t *con, const con_args_t *args, void *ctx)
-{
-    app_t *a = ctx;
-    int8_t f, rc;
-    (void)con;
-    f = find_setting(a, args);
-    if (f < 0) {
-        return CON_E_UNKNOWN_SETTING;
-    }
-    if ((a->rec.save_due & SAVE_SETTINGS) || a->rec.save_now == SAVE_SETTINGS) {
-        return CON_E_BUSY; /* the record is being written */
-    }
-    if (f == STORE_SET_CAL_TENSION && a->table_ok &&
-        (args->v[1] < a->info.grid_mN[0] || args->v[1] > a->info.grid_mN[a->info.n_grid - 1u])) {
-        return CON_E_TENSION_RANGE; /* every press would be refused */
-    }
-    rc = store_setting_set(&a->rec.store, &a->rec.set, (uint8_t)f, args->v[1]);
-    if (rc != 0) {
-        return CON_E_SETTING_RANGE;
-    }
-    if (f == STORE_SET_TARGET_MODE) {
-        a->run.amb_ok = 0; /* the next absolute calibration captures the ambient again */
-    }
-    return 0;
-}
-
-static int8_t h_save(con_t *con, const con_args_t *args, void *ctx)
-{
-    app_t *a = ctx;
-    (void)con;
-    (void)args;
-    if (!app_idle_state(a) || (a->rec.save_due & SAVE_SETTINGS) ||
-        a->rec.save_now == SAVE_SETTINGS) {
-        return CON_E_BUSY; /* EEPROM writes happen only while nothing moves */
-    }
-    save_queue(a, SAVE_SETTINGS);
-    return CON_PENDING;
-}
-
-static int8_t h_reboot(con_t *con, const con_args_t *args, void *ctx)
-{
-    app_t *a = ctx;
-    (void)con;
-    if (!app_idle_state(a) || rec_busy(a)) {
-        return CON_E_BUSY;
-    }
-    a->bus.reboot_id = (uint8_t)args->v[0];
-    a->bus.reboot_req = 1;
-    return CON_PENDING;
-}
-
-const con_handler_fn app_handlers[CON_CMD_COUNT] CON_FLASH = {
-    [CON_CMD_HELP] = NULL, /* built into the console */
-    [CON_CMD_VERSION] = h_version, [CON_CMD_STATUS] = h_status,   [CON_CMD_SENSORS] = h_sensors,
-    [CON_CMD_SERVOS] = h_servos,   [CON_CMD_CAL] = h_cal,         [CON_CMD_REHOME] = h_rehome,
-    [CON_CMD_HOME] = h_home,       [CON_CMD_RELEASE] = h_release, [CON_CMD_LEARN] = h_learn,
-    [CON_CMD_TABLE] = h_table,     [CON_CMD_HISTORY] = h_history, [CON_CMD_GET] = h_get,
-    [CON_CMD_SET] = h_set,         [CON_CMD_SAVE] = h_save,       [CON_CMD_REBOOT] = h_reboot,
-    [CON_CMD_FORGET] = h_forget,
-};

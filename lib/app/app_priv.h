@@ -202,9 +202,120 @@ void app_rep_event(app_t *a, const hom_event_t *ev);
 
 /* ---- app_boot.c: bring-up ------------------------------------------------- */
 
+/* One step of the bring-up (state APP_ST_BOOT): servos pinged and set up,
+ * sensors started, then `<missing ...>` and `<ready ...>`. */
+void app_boot_poll(app_t *a);
 /* The bring-up's entry for servo id, or NULL (valid until the shared storage
  * is reused by a run or a record). */
 const dxl_servo_info *app_boot_servo_info(const app_t *a, uint8_t id);
+/* Brings the bus up again (`servos` scan, or after a servo reboot); the
+ * pending console line is answered with the servo lines once it is done. */
+void app_boot_again(app_t *a);
+
+/* ---- app_bus.c: the servo bus ------------------------------------------------ */
+
+/* Bus transactions (app_bus_t.txn). */
+enum {
+    APP_TX_NONE = 0,
+    APP_TX_POS,
+    APP_TX_HWERR,
+    APP_TX_GOAL,
+    APP_TX_TORQUE,
+    APP_TX_REBOOT,
+    APP_TX_WDOG
+};
+
+/* One step of the bus: the reply of the transaction in flight taken, the next
+ * one started (torque, Bus Watchdog, goals, hardware-error or position reads). */
+void app_bus_poll(app_t *a);
+/* Queues a goal for tendon i (torque on first when it is off). */
+void app_bus_goal(app_t *a, uint8_t i, int32_t goal, uint16_t vel, uint16_t acc);
+/* Reboots servo id once the goals queued before it are out; the bus is then
+ * brought up again and the pending console line answered. */
+void app_bus_reboot(app_t *a, uint8_t id);
+
+/* ---- app_sense.c: the sensors ---------------------------------------------- */
+
+/* Takes this pass's samples into in->sensor[]. */
+void app_sense_take(app_t *a, hom_in_t *in);
+
+/* ---- app_run.c: runs, moves and the kept windows ----------------------------- */
+
+/* App-driven moves (app_run_t.move_kind). */
+enum { APP_MOVE_HOME = 1, APP_MOVE_RELEASE = 2 };
+
+/* Starts a homing run. Returns 0 or a CON_E_* code (nothing moves then). */
+int8_t app_run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon);
+/* app_run_start(), or CON_PENDING when an EEPROM write must finish first
+ * (the pending console line is answered when the run starts). */
+int8_t app_run_request(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon);
+/* A short press: the run the board offers (quick re-home or full), deferred
+ * while the bring-up or an EEPROM write finishes; a refusal is reported. */
+void app_run_press(app_t *a);
+/* 0 when a run or move may start: the bring-up is over, a table is loaded
+ * and no device is missing (each missing one reported); else CON_E_*. */
+int8_t app_run_check(app_t *a);
+/* One step of a run (state APP_ST_CAL) on this pass's samples. */
+void app_run_step(app_t *a, hom_in_t *in);
+/* Starts an app move (APP_MOVE_*) whose goals are queued. */
+void app_run_move(app_t *a, uint8_t kind);
+/* One step of an app move (state APP_ST_MOVE). */
+void app_run_move_step(app_t *a);
+/* Queues the release goals of every tendon that answered (never a pull; a
+ * tendon without a window gets one). Returns nonzero when any was queued. */
+uint8_t app_run_release_goals(app_t *a);
+/* Engagement windows kept across resets (app_win_t): checked at boot, set
+ * (keep 0: forgotten) per tendon, and marked while anything moves. */
+void app_win_check(app_t *a);
+/* The target mode changed: the next absolute run captures the ambient again. */
+void app_run_ambient_reset(app_t *a);
+void app_win_set(app_t *a, uint8_t i, int32_t lo, int32_t hi, uint8_t keep);
+void app_win_moving(app_t *a, uint8_t on);
+
+/* ---- app_learn.c: learn and forget -------------------------------------------- */
+
+#define APP_LEARN_BASELINE 0xFFu /* learn.tendon: capturing the straight-pose baseline */
+
+/* Starts averaging samples for tendon (or APP_LEARN_BASELINE). */
+void app_learn_begin(app_t *a, uint8_t tendon);
+/* One step of a capture (state APP_ST_LEARN) on this pass's samples. */
+void app_learn_step(app_t *a, const hom_in_t *in);
+/* `learn`: starts averaging tendon's sensor for grid point grid. Returns
+ * CON_PENDING (answered when done) or CON_E_SENSOR_FAULT. */
+int8_t app_learn_start(app_t *a, uint8_t tendon, uint8_t grid);
+/* `forget`: erases the learned records of the tendons in mask that have one.
+ * Returns CON_PENDING (answered once written) or 0 when none has. */
+int8_t app_learn_forget(app_t *a, uint16_t mask);
+
+/* ---- app_rec.c: EEPROM records and homes ---------------------------------------- */
+
+/* Records waiting for the EEPROM (rec.save_due, rec.save_now). */
+enum { APP_SAVE_HOMES = 1, APP_SAVE_HIST = 2, APP_SAVE_LEARNED = 4, APP_SAVE_SETTINGS = 8 };
+
+/* Queues records (APP_SAVE_*) for the EEPROM. */
+void app_rec_queue(app_t *a, uint8_t what);
+/* A history or learned record waits in u.idle: the homing and the bring-up
+ * must not reuse that storage until it is written. */
+uint8_t app_rec_busy(const app_t *a);
+/* One EEPROM step (one byte while nothing moves), the queued records started
+ * in turn, and `save` / `forget` answered when theirs is written. */
+void app_rec_poll(app_t *a);
+/* Records the rest positions once the servos have stopped after a release
+ * or a fault. */
+void app_rec_rest_poll(app_t *a);
+/* Maps the stored homes into this power cycle's servo frames (rec.home_now). */
+void app_rec_recover(app_t *a);
+/* Tendon i's stored home in this power cycle's frame (valid with home_now). */
+int32_t app_rec_home(const app_t *a, uint8_t i);
+/* 0 when every tendon has a stored home usable in this power cycle, else
+ * CON_E_NOT_HOMED or CON_E_MOVED (a spool turned while powered off). */
+int8_t app_rec_usable(const app_t *a);
+
+/* ---- app_cmd.c: the console ----------------------------------------------------- */
+
+/* The console's step: realtime mode while anything moves, lost bytes and
+ * dropped reports reported, one byte or line handled. */
+void app_cmd_poll(app_t *a);
 
 /* ---- app_panel.c: button and LED ------------------------------------------ */
 
@@ -219,11 +330,5 @@ static inline void app_panel_set(app_t *a, uint8_t pattern)
 {
     a->panel.led = pattern;
 }
-
-/* ---- app_run.c: runs and moves -------------------------------------------- */
-
-/* A short press: the run the board offers (quick re-home or full), deferred
- * while the bring-up or an EEPROM write finishes; a refusal is reported. */
-void app_run_press(app_t *a);
 
 #endif /* HALLHOME_APP_PRIV_H */
