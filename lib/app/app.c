@@ -226,7 +226,6 @@ int8_t app_init(app_t *app, const app_io_t *io)
 
 APP_NOINLINE static void boot_start(app_t *a)
 {
-    uint8_t k;
     dxl_bringup_config bc;
     a->state = APP_ST_BOOT;
     a->boot.step = 0;
@@ -234,18 +233,7 @@ APP_NOINLINE static void boot_start(app_t *a)
     if (!a->table_ok) {
         return;
     }
-    if (a->sense.set.n == 0u) {
-        (void)icm_set_setup(&a->sense.set, a->io->sensor_bus, a->io->mux_addr, a->sense.slot,
-                            APP_MAX_SENSORS);
-        for (k = 0; k < a->info.n_sensors; k++) {
-            tbl_sensor_t s;
-            (void)tbl_sensor(&a->tab, k, &s);
-            (void)icm_set_add(&a->sense.set,
-                              a->io->mux_addr == ICM_NO_MUX ? ICM_NO_MUX : s.mux_channel,
-                              s.i2c_addr);
-        }
-        (void)icm_set_begin(&a->sense.set, app_now_us(a));
-    }
+    app_sense_start(a);
     memset(&bc, 0, sizeof bc);
     bc.profile_velocity = 0;
     bc.profile_acceleration = 0;
@@ -300,7 +288,7 @@ APP_NOINLINE const dxl_servo_info *app_boot_servo_info(const app_t *a, uint8_t i
 
 APP_NOINLINE static void boot_finish(app_t *a)
 {
-    uint8_t i, k;
+    uint8_t i;
     a->boot.n_servos = 0;
     a->bus.seen = 0;
     for (i = 0; i < a->info.n_tendons; i++) {
@@ -319,12 +307,7 @@ APP_NOINLINE static void boot_finish(app_t *a)
     a->bus.goal_due = 0;
     a->bus.torque_due = 0;
     a->bus.wdog_step = (uint8_t)(2u * a->info.n_tendons);
-    a->boot.n_sensors = icm_set_ready_count(&a->sense.set);
-    for (k = 0; k < a->info.n_sensors; k++) {
-        icm_diag_t d;
-        (void)icm_set_diag(&a->sense.set, k, &d);
-        a->sense.err[k] = (uint8_t)d.error_count;
-    }
+    a->boot.n_sensors = app_sense_settled(a);
     (void)app_rep_missing(a);
     /* Positions not read by the bring-up (it stopped on a missing servo)
      * arrive with the first cycles; homes are recovered once they have. */
@@ -429,32 +412,6 @@ APP_NOINLINE void app_boot_poll(app_t *a)
 /* ---- servo bus ------------------------------------------------------------ */
 
 /* ---- sensors -------------------------------------------------------------- */
-
-/* Takes this pass's samples into in->sensor[] (and the learn accumulator). */
-APP_NOINLINE void app_sense_take(app_t *a, hom_in_t *in)
-{
-    uint8_t k;
-    for (k = 0; k < a->info.n_sensors && a->sense.set.n > 0u; k++) {
-        icm_sample_t s;
-        hom_sensor_in_t *o = &in->sensor[k];
-        int8_t rc = icm_set_take(&a->sense.set, k, &s);
-        icm_diag_t d;
-        (void)icm_set_diag(&a->sense.set, k, &d);
-        if (rc == 1) {
-            o->status = (s.flags & ICM_SAMPLE_OVERFLOW) ? HOM_SENS_OVERFLOW : HOM_SENS_NEW;
-            o->b_cuT[0] = (int32_t)s.raw[0] * 15;
-            o->b_cuT[1] = (int32_t)s.raw[1] * 15;
-            o->b_cuT[2] = (int32_t)s.raw[2] * 15;
-        } else if (d.state == ICM_SET_S_FAIL && !d.present) {
-            o->status = HOM_SENS_ABSENT;
-        } else if ((uint8_t)d.error_count != a->sense.err[k]) {
-            o->status = HOM_SENS_ERROR;
-        } else {
-            o->status = HOM_SENS_NONE;
-        }
-        a->sense.err[k] = (uint8_t)d.error_count;
-    }
-}
 
 /* ---- runs ------------------------------------------------------------------- */
 
@@ -1107,10 +1064,7 @@ int8_t app_poll(app_t *app)
     }
     app_panel_button(a, (uint16_t)t);
     memset(&in, 0, sizeof in);
-    if (a->sense.set.n > 0u) {
-        (void)icm_set_poll(&a->sense.set, t0);
-        app_sense_take(a, &in);
-    }
+    app_sense_poll(a, &in, t0);
     if (a->state == APP_ST_BOOT) {
         app_boot_poll(a);
     }

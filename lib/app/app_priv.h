@@ -236,8 +236,15 @@ void app_bus_reboot(app_t *a, uint8_t id);
 
 /* ---- app_sense.c: the sensors ---------------------------------------------- */
 
-/* Takes this pass's samples into in->sensor[]. */
-void app_sense_take(app_t *a, hom_in_t *in);
+/* One step of the sensor set (now_us: the pass's start), and this pass's
+ * samples into in->sensor[] for the homing and `learn`. */
+void app_sense_poll(app_t *a, hom_in_t *in, uint32_t now_us);
+/* Sets the sensors of the table up and starts them (once; nothing when the
+ * set already runs). */
+void app_sense_start(app_t *a);
+/* The bring-up is over: the error counts so far are taken as seen. Returns
+ * the number of sensors sampling. */
+uint8_t app_sense_settled(app_t *a);
 
 /* ---- app_run.c: runs, moves and the kept windows ----------------------------- */
 
