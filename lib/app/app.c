@@ -6,7 +6,6 @@
 
 #include "app/app_priv.h"
 
-#define REST_DELAY_MS 1000u
 #define LEARN_WAIT_MS 1000u
 #define SETTLE_MS     300u
 
@@ -161,11 +160,6 @@ APP_NOINLINE static void win_take(app_t *a)
     }
 }
 
-int32_t app_rec_home(const app_t *a, uint8_t i)
-{
-    return a->rec.homes.t[i].home_ticks - a->rec.offset[i];
-}
-
 /* ---- init ---------------------------------------------------------------- */
 
 int8_t app_init(app_t *app, const app_io_t *io)
@@ -248,32 +242,6 @@ APP_NOINLINE static void boot_start(app_t *a)
     a->boot.step = 1;
 }
 
-/* Maps the stored homes into this power cycle's servo frames. */
-APP_NOINLINE void app_rec_recover(app_t *a)
-{
-    uint8_t i;
-    a->rec.home_now = 0;
-    a->boot.recover_rc = 0;
-    if (a->rec.homes_rc != 0) {
-        return;
-    }
-    for (i = 0; i < a->info.n_tendons; i++) {
-        int32_t pos;
-        int8_t rc;
-        if (app_has(a->rec.homes.valid_mask, i) == 0u || app_has(a->bus.seen, i) == 0u) {
-            continue;
-        }
-        rc = store_recover_position(&a->rec.homes.t[i], a->bus.present[i],
-                                    (uint16_t)a->rec.set.v[STORE_SET_REST_TOL], &pos);
-        if (rc == 0) {
-            a->rec.offset[i] = pos - a->bus.present[i];
-            a->rec.home_now |= app_bit16(i);
-        } else if (a->boot.recover_rc == 0) {
-            a->boot.recover_rc = rc;
-        }
-    }
-}
-
 /* The bring-up's entry for servo id, or NULL. */
 APP_NOINLINE const dxl_servo_info *app_boot_servo_info(const app_t *a, uint8_t id)
 {
@@ -316,7 +284,7 @@ APP_NOINLINE static void boot_finish(app_t *a)
 
 APP_NOINLINE static void boot_ready(app_t *a)
 {
-    app_rec_recover(a);
+    a->boot.recover_rc = app_rec_recover(a);
     a->boot.offer_quick = (uint8_t)(a->table_ok && a->rec.home_now != 0u &&
                                     a->rec.home_now == app_all_mask(a) && a->bus.absent == 0u);
     app_rep_begin(a, app_w_ready);
@@ -415,19 +383,6 @@ APP_NOINLINE void app_boot_poll(app_t *a)
 
 /* ---- runs ------------------------------------------------------------------- */
 
-/* A history or learned record waits in u.idle: the homing and the bring-up
- * must not reuse that storage until it is written. */
-uint8_t app_rec_busy(const app_t *a)
-{
-    return (uint8_t)((a->rec.save_due & (APP_SAVE_HIST | APP_SAVE_LEARNED)) != 0u ||
-                     a->rec.save_now == APP_SAVE_HIST || a->rec.save_now == APP_SAVE_LEARNED);
-}
-
-void app_rec_queue(app_t *a, uint8_t what)
-{
-    a->rec.save_due |= what;
-}
-
 /* A run finished: keep its homes (calibration frame = this power cycle's
  * frame, so the offsets become 0), count it and queue the records. */
 APP_NOINLINE static void run_done(app_t *a)
@@ -494,16 +449,6 @@ APP_NOINLINE int8_t app_run_check(app_t *a)
 uint8_t app_idle_state(const app_t *a)
 {
     return (uint8_t)(a->state == APP_ST_IDLE || a->state == APP_ST_FAULT);
-}
-
-/* 0 when every tendon has a stored home usable in this power cycle, else
- * CON_E_NOT_HOMED or CON_E_MOVED (a spool turned while powered off). */
-APP_NOINLINE int8_t app_rec_usable(const app_t *a)
-{
-    if (a->rec.homes_rc != 0 || a->rec.homes.valid_mask != app_all_mask(a)) {
-        return CON_E_NOT_HOMED;
-    }
-    return a->rec.home_now != app_all_mask(a) ? CON_E_MOVED : 0;
 }
 
 void app_run_ambient_reset(app_t *a)
@@ -840,6 +785,33 @@ int8_t app_learn_forget(app_t *a, uint16_t mask)
     return a->learn.forgetting ? CON_PENDING : 0;
 }
 
+void app_learn_forget_next(app_t *a)
+{
+    uint8_t t = 0;
+    if (a->learn.forget == 0u) {
+        return;
+    }
+    while (app_has(a->learn.forget, t) == 0u) {
+        t++;
+    }
+    memset(&a->u.idle.rec.learned, 0, sizeof a->u.idle.rec.learned);
+    a->u.idle.rec.learned.table_id = a->info.table_id;
+    a->u.idle.rec.learned.tendon = t;
+    a->u.idle.rec.learned.n_grid = a->info.n_grid;
+    a->learn.forget &= (uint16_t)~app_bit16(t);
+    a->learn.mask &= (uint16_t)~app_bit16(t);
+    app_rec_queue(a, APP_SAVE_LEARNED);
+}
+
+uint8_t app_learn_forgotten(app_t *a)
+{
+    if (!a->learn.forgetting || a->learn.forget != 0u) {
+        return 0;
+    }
+    a->learn.forgetting = 0;
+    return 1;
+}
+
 APP_NOINLINE void app_learn_step(app_t *a, const hom_in_t *in)
 {
     uint8_t k, first, last, tdn = a->learn.tendon;
@@ -935,89 +907,6 @@ APP_NOINLINE void app_learn_step(app_t *a, const hom_in_t *in)
 }
 
 /* ---- store ------------------------------------------------------------------- */
-
-/* Records the rest positions once the servos have stopped after a release or
- * a fault, so a power cycle can find the multi-turn position again. */
-APP_NOINLINE void app_rec_rest_poll(app_t *a)
-{
-    uint8_t i, changed = 0;
-    if (!a->rec.rest_due || !app_idle_state(a) ||
-        (uint16_t)((uint16_t)app_now_ms(a) - a->rec.t_rest) < REST_DELAY_MS ||
-        (a->rec.save_due & APP_SAVE_HOMES) || a->rec.save_now == APP_SAVE_HOMES) {
-        return;
-    }
-    a->rec.rest_due = 0;
-    for (i = 0; i < a->info.n_tendons; i++) {
-        int32_t rest, d;
-        if (app_has(a->rec.home_now, i) == 0u || app_has(a->bus.seen, i) == 0u) {
-            continue;
-        }
-        rest = a->bus.present[i] + a->rec.offset[i];
-        d = rest - a->rec.homes.t[i].rest_ticks;
-        if (d > 2 || d < -2) {
-            store_home_set(&a->rec.homes.t[i], a->rec.homes.t[i].home_ticks, rest);
-            changed = 1;
-        }
-    }
-    if (changed) {
-        app_rec_queue(a, APP_SAVE_HOMES);
-    }
-}
-
-APP_NOINLINE void app_rec_poll(app_t *a)
-{
-    uint8_t idle = app_idle_state(a);
-    if (store_busy(&a->rec.store)) {
-        int8_t rc = store_poll(&a->rec.store, idle);
-        if (rc <= 0) {
-            if ((a->rec.save_now == APP_SAVE_SETTINGS ||
-                 (a->rec.save_now == APP_SAVE_LEARNED && a->learn.forgetting &&
-                  a->learn.forget == 0u)) &&
-                con_pending(&a->cmd.con)) {
-                a->learn.forgetting = 0;
-                (void)con_complete(&a->cmd.con, rc == 0 ? 0 : CON_E_EEPROM);
-            } else if (rc < 0) {
-                app_rep_fault(a, app_w_eeprom, CON_E_EEPROM, HOM_DEV_NONE, a->rec.save_now);
-            }
-            a->rec.save_now = 0;
-        }
-        return;
-    }
-    if (idle && a->learn.forget != 0u && !app_rec_busy(a)) {
-        /* `forget`: an empty learned record per tendon, one at a time */
-        uint8_t t = 0;
-        while (app_has(a->learn.forget, t) == 0u) {
-            t++;
-        }
-        memset(&a->u.idle.rec.learned, 0, sizeof a->u.idle.rec.learned);
-        a->u.idle.rec.learned.table_id = a->info.table_id;
-        a->u.idle.rec.learned.tendon = t;
-        a->u.idle.rec.learned.n_grid = a->info.n_grid;
-        a->learn.forget &= (uint16_t)~app_bit16(t);
-        a->learn.mask &= (uint16_t)~app_bit16(t);
-        app_rec_queue(a, APP_SAVE_LEARNED);
-    }
-    if (!idle || a->rec.save_due == 0u) {
-        return;
-    }
-    if (a->rec.save_due & APP_SAVE_HOMES) {
-        a->rec.save_now = APP_SAVE_HOMES;
-        (void)store_save_homes(&a->rec.store, &a->rec.homes);
-    } else if (a->rec.save_due & APP_SAVE_HIST) {
-        a->rec.save_now = APP_SAVE_HIST;
-        (void)store_save_hist(&a->rec.store, &a->u.idle.rec.hist);
-    } else if (a->rec.save_due & APP_SAVE_LEARNED) {
-        a->rec.save_now = APP_SAVE_LEARNED;
-        if (a->u.idle.rec.learned.grid_mask != 0u) {
-            a->learn.mask |= app_bit16(a->u.idle.rec.learned.tendon);
-        }
-        (void)store_save_learned(&a->rec.store, &a->u.idle.rec.learned);
-    } else {
-        a->rec.save_now = APP_SAVE_SETTINGS;
-        (void)store_save_settings(&a->rec.store, &a->rec.set);
-    }
-    a->rec.save_due &= (uint8_t)~a->rec.save_now;
-}
 
 /* ---- button and LED ----------------------------------------------------------- */
 

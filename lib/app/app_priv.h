@@ -293,6 +293,12 @@ int8_t app_learn_start(app_t *a, uint8_t tendon, uint8_t grid);
 /* `forget`: erases the learned records of the tendons in mask that have one.
  * Returns CON_PENDING (answered once written) or 0 when none has. */
 int8_t app_learn_forget(app_t *a, uint16_t mask);
+/* `forget`, called by app_rec_poll() while the EEPROM and the record
+ * storage are free: the next tendon's empty learned record is queued. */
+void app_learn_forget_next(app_t *a);
+/* The learned record just written was the last one of a `forget`: returns 1
+ * (once) so that its console line is answered. */
+uint8_t app_learn_forgotten(app_t *a);
 
 /* ---- app_rec.c: EEPROM records and homes ---------------------------------------- */
 
@@ -310,8 +316,9 @@ void app_rec_poll(app_t *a);
 /* Records the rest positions once the servos have stopped after a release
  * or a fault. */
 void app_rec_rest_poll(app_t *a);
-/* Maps the stored homes into this power cycle's servo frames (rec.home_now). */
-void app_rec_recover(app_t *a);
+/* Maps the stored homes into this power cycle's servo frames (rec.home_now).
+ * Returns 0, or the first store_recover_position() error of a tendon. */
+int8_t app_rec_recover(app_t *a);
 /* Tendon i's stored home in this power cycle's frame (valid with home_now). */
 int32_t app_rec_home(const app_t *a, uint8_t i);
 /* 0 when every tendon has a stored home usable in this power cycle, else
