@@ -259,6 +259,8 @@ int8_t app_run_request(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon)
 /* A short press: the run the board offers (quick re-home or full), deferred
  * while the bring-up or an EEPROM write finishes; a refusal is reported. */
 void app_run_press(app_t *a);
+/* Each pass before the steps: deferred run requests and owed releases. */
+void app_run_poll(app_t *a);
 /* 0 when a run or move may start: the bring-up is over, a table is loaded
  * and no device is missing (each missing one reported); else CON_E_*. */
 int8_t app_run_check(app_t *a);
