@@ -249,3 +249,34 @@ APP_NOINLINE void app_bus_goal(app_t *a, uint8_t i, int32_t goal, uint16_t vel, 
         a->bus.torque_due |= app_bit16(i);
     }
 }
+
+void app_bus_stop(app_t *a)
+{
+    dxl_abort(&a->bus.dxl);
+    a->bus.txn = APP_TX_NONE;
+    a->bus.absent = 0;
+    a->bus.torque_on = 0; /* goals of the old frames must never be sent again */
+}
+
+uint8_t app_bus_found(app_t *a)
+{
+    uint8_t i, n = 0;
+    a->bus.seen = 0;
+    for (i = 0; i < a->info.n_tendons; i++) {
+        const dxl_servo_info *s = app_boot_servo_info(a, a->bus.ids[i]);
+        if (app_has(a->bus.absent, i) == 0u && s != NULL && s->present) {
+            n++;
+            a->bus.hw_err[i] = s->hw_error;
+            if (a->u.bring.result == 0) {
+                a->bus.present[i] = s->position;
+                a->bus.seen |= app_bit16(i);
+            }
+        } else {
+            a->bus.absent |= app_bit16(i);
+        }
+    }
+    a->bus.goal_due = 0;
+    a->bus.torque_due = 0;
+    a->bus.wdog_step = (uint8_t)(2u * a->info.n_tendons);
+    return n;
+}

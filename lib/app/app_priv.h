@@ -233,6 +233,13 @@ void app_bus_goal(app_t *a, uint8_t i, int32_t goal, uint16_t vel, uint16_t acc)
 /* Reboots servo id once the goals queued before it are out; the bus is then
  * brought up again and the pending console line answered. */
 void app_bus_reboot(app_t *a, uint8_t id);
+/* A bring-up takes the bus: the transaction in flight is dropped, no servo
+ * is absent yet and no goal of the old frames is sent again. */
+void app_bus_stop(app_t *a);
+/* The bring-up is over: its servos, positions and hardware errors taken (the
+ * others marked absent), nothing queued, the Bus Watchdog writes due.
+ * Returns the number of servos found. */
+uint8_t app_bus_found(app_t *a);
 
 /* ---- app_sense.c: the sensors ---------------------------------------------- */
 
