@@ -258,9 +258,8 @@ uint8_t app_sense_settled(app_t *a);
 /* App-driven moves (app_run_t.move_kind). */
 enum { APP_MOVE_HOME = 1, APP_MOVE_RELEASE = 2 };
 
-/* Starts a homing run. Returns 0 or a CON_E_* code (nothing moves then). */
-int8_t app_run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon);
-/* app_run_start(), or CON_PENDING when an EEPROM write must finish first
+/* Starts a homing run. Returns 0 or a CON_E_* code (nothing moves then), or
+ * CON_PENDING when an EEPROM write must finish first
  * (the pending console line is answered when the run starts). */
 int8_t app_run_request(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon);
 /* A short press: the run the board offers (quick re-home or full), deferred
@@ -281,12 +280,11 @@ void app_run_move_step(app_t *a);
  * tendon without a window gets one). Returns nonzero when any was queued. */
 uint8_t app_run_release_goals(app_t *a);
 /* Engagement windows kept across resets (app_win_t): checked at boot, set
- * (keep 0: forgotten) per tendon, and marked while anything moves. */
+ * (keep 0: forgotten) per tendon. */
 void app_win_check(app_t *a);
 /* The target mode changed: the next absolute run captures the ambient again. */
 void app_run_ambient_reset(app_t *a);
 void app_win_set(app_t *a, uint8_t i, int32_t lo, int32_t hi, uint8_t keep);
-void app_win_moving(app_t *a, uint8_t on);
 
 /* ---- app_learn.c: learn and forget -------------------------------------------- */
 

@@ -54,7 +54,7 @@ APP_NOINLINE void app_win_set(app_t *a, uint8_t i, int32_t lo, int32_t hi, uint8
 /* Notes in the kept copy whether anything moves: a watchdog or reset-pin
  * reset in the middle of a run leaves tendons taut, and the next boot
  * releases them. */
-APP_NOINLINE void app_win_moving(app_t *a, uint8_t on)
+APP_NOINLINE static void win_moving(app_t *a, uint8_t on)
 {
     app_win_t *w = a->io->win;
     if (w != NULL && w->moving != on) {
@@ -80,7 +80,7 @@ APP_NOINLINE static void win_take(app_t *a)
  * frame, so the offsets become 0), count it and queue the records. */
 APP_NOINLINE static void run_done(app_t *a)
 {
-    app_win_moving(a, 0);
+    win_moving(a, 0);
     uint8_t i, k;
     uint32_t t = app_now_ms(a);
     a->run.amb_ok |= hom_amb_captured(&a->u.hom); /* read before u.idle reuses the storage */
@@ -145,7 +145,7 @@ void app_run_ambient_reset(app_t *a)
 }
 
 /* Starts a homing run. Returns 0 or a CON_E_* code (nothing moves then). */
-int8_t app_run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon)
+static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon)
 {
     hom_config_t cfg;
     hom_cmd_t cmd;
@@ -228,7 +228,7 @@ int8_t app_run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon)
     a->run.t_start = app_now_ms(a);
     a->bus.fresh = 0;
     a->state = APP_ST_CAL;
-    app_win_moving(a, 1);
+    win_moving(a, 1);
     app_panel_set(a, APP_LED_RUN);
     a->rec.rest_due = 0;
     return 0;
@@ -238,7 +238,7 @@ int8_t app_run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon)
  * servos have stopped. */
 APP_NOINLINE static void fault_rest(app_t *a, uint32_t t)
 {
-    app_win_moving(a, 0); /* the release goals are out: the servos finish them */
+    win_moving(a, 0); /* the release goals are out: the servos finish them */
     a->state = APP_ST_FAULT;
     app_panel_set(a, APP_LED_FAULT);
     a->rec.rest_due = 1;
@@ -297,7 +297,7 @@ APP_NOINLINE void app_run_step(app_t *a, hom_in_t *in)
 
 void app_run_move(app_t *a, uint8_t kind)
 {
-    app_win_moving(a, 1);
+    win_moving(a, 1);
     a->run.move_kind = kind;
     a->run.t_move = app_now_ms(a);
     a->bus.fresh = 0;
@@ -405,7 +405,7 @@ APP_NOINLINE void app_run_move_step(app_t *a)
     }
     a->rec.rest_due = 1;
     a->rec.t_rest = (uint16_t)t;
-    app_win_moving(a, 0);
+    win_moving(a, 0);
     if (a->run.move_kind == APP_MOVE_RELEASE) {
         app_learn_begin(a, APP_LEARN_BASELINE); /* the robot stands straight: capture B0 */
         return;
@@ -441,7 +441,7 @@ void app_run_press(app_t *a)
         a->run.req_tendon = 0;
         return;
     }
-    rc = app_run_start(a, a->boot.offer_quick ? HOM_MODE_QUICK : HOM_MODE_FULL, 0, 0);
+    rc = run_start(a, a->boot.offer_quick ? HOM_MODE_QUICK : HOM_MODE_FULL, 0, 0);
     if (rc != 0) {
         app_rep_fault(a, app_w_refused, rc, HOM_DEV_NONE, 0);
         app_panel_set(a, APP_LED_FAULT);
@@ -463,7 +463,7 @@ void app_run_poll(app_t *a)
             a->run.req_tension = 0;
             a->run.req_tendon = 0;
         }
-        rc = app_run_start(a, a->run.req_mode, a->run.req_tension, a->run.req_tendon);
+        rc = run_start(a, a->run.req_mode, a->run.req_tension, a->run.req_tendon);
         if (a->run.req_con && con_pending(&a->cmd.con)) {
             (void)con_complete(&a->cmd.con, rc);
         } else if (rc != 0) {
@@ -499,5 +499,5 @@ int8_t app_run_request(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon)
         a->run.req_tendon = tendon;
         return CON_PENDING;
     }
-    return app_run_start(a, mode, tension, tendon);
+    return run_start(a, mode, tension, tendon);
 }
