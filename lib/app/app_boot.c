@@ -103,7 +103,7 @@ APP_NOINLINE static void boot_start(app_t *a)
     bc.reboot_on_hw_error = 0;
     bc.reboot_wait_us = 500000u;
     app_bus_stop(a);
-    a->learn.have_b0 = 0; /* the bring-up reuses the baseline's storage */
+    app_learn_drop_baseline(a); /* the bring-up reuses the baseline's storage */
     (void)dxl_bringup_start(&a->u.bring, &a->bus.dxl, a->bus.ids, a->info.n_tendons, &bc);
     a->boot.step = 1;
 }
@@ -164,6 +164,12 @@ APP_NOINLINE static void boot_ready(app_t *a)
     }
     a->boot.con_wait = 0;
     a->bus.reboot_id = 0;
+}
+
+void app_boot_homes_new(app_t *a)
+{
+    a->boot.recover_rc = 0;
+    a->boot.offer_quick = 0;
 }
 
 void app_boot_again(app_t *a)

@@ -74,14 +74,7 @@ APP_NOINLINE static void servo_done(app_t *a, int8_t rc)
         }
     } else if (a->bus.txn == APP_TX_REBOOT) {
         if (rc != 0 && rc != -DXL_E_ALERT) {
-            if (a->run.auto_release) {
-                a->run.auto_release = 0; /* named: this tendon may still be taut */
-                for (i = 0; i < a->info.n_tendons; i++) {
-                    if (a->bus.ids[i] == a->bus.reboot_id) {
-                        app_rep_fault(a, app_w_not_released, CON_E_SERVO_FAULT, HOM_DEV_SERVO, i);
-                    }
-                }
-            } else if (con_pending(&a->cmd.con)) {
+            if (!app_run_reboot_failed(a) && con_pending(&a->cmd.con)) {
                 (void)con_complete(&a->cmd.con, CON_E_SERVO_FAULT);
             }
             a->bus.reboot_id = 0;
@@ -279,4 +272,45 @@ uint8_t app_bus_found(app_t *a)
     a->bus.torque_due = 0;
     a->bus.wdog_step = (uint8_t)(2u * a->info.n_tendons);
     return n;
+}
+
+void app_bus_goals_cleared(app_t *a)
+{
+    a->bus.torque_on = 0; /* nothing to refresh until a goal is set */
+}
+
+void app_bus_positions_stale(app_t *a)
+{
+    a->bus.fresh = 0;
+}
+
+void app_bus_inputs(app_t *a, hom_in_t *in)
+{
+    uint8_t i;
+    for (i = 0; i < a->info.n_tendons; i++) {
+        hom_servo_in_t *s = &in->servo[i];
+        if (app_has(a->bus.absent, i)) {
+            s->status = HOM_SERVO_ABSENT;
+        } else {
+            s->status = app_has(a->bus.fresh, i) ? HOM_SERVO_OK : HOM_SERVO_NOREPLY;
+        }
+        s->hw_error = a->bus.hw_err[i];
+        s->pos = a->bus.present[i];
+    }
+    a->bus.fresh = 0;
+}
+
+void app_bus_take(app_t *a, const hom_out_t *out)
+{
+    uint8_t i;
+    for (i = 0; i < a->info.n_tendons; i++) {
+        if (app_has(out->changed, i)) {
+            a->bus.acc = out->acc[i]; /* one profile acceleration for every move */
+            a->bus.goal_due |= app_bit16(i);
+            if ((out->torque[i] != 0u) != (app_has(a->bus.torque_on, i) != 0u)) {
+                a->bus.torque_on ^= app_bit16(i);
+                a->bus.torque_due |= app_bit16(i);
+            }
+        }
+    }
 }

@@ -215,3 +215,24 @@ APP_NOINLINE void app_learn_step(app_t *a, const hom_in_t *in)
     }
     a->state = APP_ST_IDLE;
 }
+
+void app_learn_drop_baseline(app_t *a)
+{
+    a->learn.have_b0 = 0;
+}
+
+void app_learn_saving(app_t *a)
+{
+    if (a->u.idle.rec.learned.grid_mask != 0u) {
+        a->learn.mask |= app_bit16(a->u.idle.rec.learned.tendon);
+    }
+}
+
+void app_learn_keep_baseline(app_t *a)
+{
+    uint8_t k;
+    for (k = 0; k < a->info.n_sensors; k++) {
+        memcpy(a->u.idle.b0[k], hom_baseline(&a->u.hom, k), sizeof a->u.idle.b0[k]);
+    }
+    a->learn.have_b0 = 1;
+}

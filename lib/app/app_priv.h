@@ -211,6 +211,8 @@ const dxl_servo_info *app_boot_servo_info(const app_t *a, uint8_t id);
 /* Brings the bus up again (`servos` scan, or after a servo reboot); the
  * pending console line is answered with the servo lines once it is done. */
 void app_boot_again(app_t *a);
+/* A run stored new homes: nothing was recovered, no quick re-home offered. */
+void app_boot_homes_new(app_t *a);
 
 /* ---- app_bus.c: the servo bus ------------------------------------------------ */
 
@@ -240,6 +242,15 @@ void app_bus_stop(app_t *a);
  * others marked absent), nothing queued, the Bus Watchdog writes due.
  * Returns the number of servos found. */
 uint8_t app_bus_found(app_t *a);
+/* A run starts from cleared goals: none is refreshed until set again. */
+void app_bus_goals_cleared(app_t *a);
+/* Positions read before now are not news for the next step. */
+void app_bus_positions_stale(app_t *a);
+/* Every servo's input of a homing step (status, hardware error, position);
+ * the positions then count as taken. */
+void app_bus_inputs(app_t *a, hom_in_t *in);
+/* Queues what a homing step changed: goals, velocities, torque. */
+void app_bus_take(app_t *a, const hom_out_t *out);
 
 /* ---- app_sense.c: the sensors ---------------------------------------------- */
 
@@ -267,6 +278,10 @@ int8_t app_run_request(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon)
 void app_run_press(app_t *a);
 /* Each pass before the steps: deferred run requests and owed releases. */
 void app_run_poll(app_t *a);
+/* The reboot of bus.reboot_id failed: when it was owed a release after a
+ * hardware error, that tendon is reported as not released and 1 returned;
+ * else 0 (a console `reboot` is answered by the bus room). */
+uint8_t app_run_reboot_failed(app_t *a);
 /* 0 when a run or move may start: the bring-up is over, a table is loaded
  * and no device is missing (each missing one reported); else CON_E_*. */
 int8_t app_run_check(app_t *a);
@@ -306,6 +321,14 @@ void app_learn_forget_next(app_t *a);
 /* The learned record just written was the last one of a `forget`: returns 1
  * (once) so that its console line is answered. */
 uint8_t app_learn_forgotten(app_t *a);
+/* A run or a bring-up takes the storage of the straight-pose baseline. */
+void app_learn_drop_baseline(app_t *a);
+/* The learned record in u.idle goes to the EEPROM now: a record with
+ * targets marks its tendon as learned. */
+void app_learn_saving(app_t *a);
+/* A run ended well: its straight-pose baseline becomes the learn baseline
+ * (copied out of the homing's storage into u.idle.b0). */
+void app_learn_keep_baseline(app_t *a);
 
 /* ---- app_rec.c: EEPROM records and homes ---------------------------------------- */
 
@@ -331,6 +354,14 @@ int32_t app_rec_home(const app_t *a, uint8_t i);
 /* 0 when every tendon has a stored home usable in this power cycle, else
  * CON_E_NOT_HOMED or CON_E_MOVED (a spool turned while powered off). */
 int8_t app_rec_usable(const app_t *a);
+/* Rest positions: recorded REST_DELAY_MS after t (due 1), or not (due 0). */
+void app_rec_rest_at(app_t *a, uint8_t due, uint32_t t);
+/* A run ended well: the homes of the tendons in mask taken from the homing
+ * (calibration frame = this power cycle's frame, offsets 0), counted at
+ * tension. Before the homing's storage is reused. */
+void app_rec_take_homes(app_t *a, uint16_t mask, uint16_t tension);
+/* ... then the history record of the run, and both records queued. */
+void app_rec_save_run(app_t *a);
 
 /* ---- app_cmd.c: the console ----------------------------------------------------- */
 

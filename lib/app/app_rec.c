@@ -125,13 +125,53 @@ APP_NOINLINE void app_rec_poll(app_t *a)
         (void)store_save_hist(&a->rec.store, &a->u.idle.rec.hist);
     } else if (a->rec.save_due & APP_SAVE_LEARNED) {
         a->rec.save_now = APP_SAVE_LEARNED;
-        if (a->u.idle.rec.learned.grid_mask != 0u) {
-            a->learn.mask |= app_bit16(a->u.idle.rec.learned.tendon);
-        }
+        app_learn_saving(a);
         (void)store_save_learned(&a->rec.store, &a->u.idle.rec.learned);
     } else {
         a->rec.save_now = APP_SAVE_SETTINGS;
         (void)store_save_settings(&a->rec.store, &a->rec.set);
     }
     a->rec.save_due &= (uint8_t)~a->rec.save_now;
+}
+
+void app_rec_rest_at(app_t *a, uint8_t due, uint32_t t)
+{
+    a->rec.rest_due = due;
+    if (due) {
+        a->rec.t_rest = (uint16_t)t;
+    }
+}
+
+void app_rec_take_homes(app_t *a, uint16_t mask, uint16_t tension)
+{
+    uint8_t i;
+    a->rec.homes.table_id = a->info.table_id;
+    a->rec.homes.n_tendons = a->info.n_tendons;
+    a->rec.homes.tension_mN = tension;
+    a->rec.homes.cal_count++;
+    for (i = 0; i < a->info.n_tendons; i++) {
+        int32_t h;
+        if (app_has(mask, i) && hom_home(&a->u.hom, i, &h) == 0) {
+            store_home_set(&a->rec.homes.t[i], h, h);
+            a->rec.offset[i] = 0;
+            a->rec.homes.valid_mask |= app_bit16(i);
+            a->rec.home_now |= app_bit16(i);
+        }
+    }
+}
+
+void app_rec_save_run(app_t *a)
+{
+    uint8_t i;
+    memset(&a->u.idle.rec.hist, 0, sizeof a->u.idle.rec.hist);
+    a->u.idle.rec.hist.cal_count = a->rec.homes.cal_count;
+    a->u.idle.rec.hist.table_id = a->rec.homes.table_id;
+    a->u.idle.rec.hist.tension_mN = a->rec.homes.tension_mN;
+    a->u.idle.rec.hist.valid_mask = a->rec.homes.valid_mask;
+    a->u.idle.rec.hist.n_tendons = a->rec.homes.n_tendons;
+    for (i = 0; i < a->info.n_tendons; i++) {
+        a->u.idle.rec.hist.home_ticks[i] = a->rec.homes.t[i].home_ticks;
+    }
+    a->rec.homes_rc = 0;
+    app_rec_queue(a, APP_SAVE_HOMES | APP_SAVE_HIST);
 }

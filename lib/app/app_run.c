@@ -80,43 +80,16 @@ APP_NOINLINE static void win_take(app_t *a)
  * frame, so the offsets become 0), count it and queue the records. */
 APP_NOINLINE static void run_done(app_t *a)
 {
-    win_moving(a, 0);
-    uint8_t i, k;
     uint32_t t = app_now_ms(a);
+    win_moving(a, 0);
     a->run.amb_ok |= hom_amb_captured(&a->u.hom); /* read before u.idle reuses the storage */
-    a->rec.homes.table_id = a->info.table_id;
-    a->rec.homes.n_tendons = a->info.n_tendons;
-    a->rec.homes.tension_mN = a->run.tension;
-    a->rec.homes.cal_count++;
-    for (i = 0; i < a->info.n_tendons; i++) {
-        int32_t h;
-        if (app_has(a->run.mask, i) && hom_home(&a->u.hom, i, &h) == 0) {
-            store_home_set(&a->rec.homes.t[i], h, h);
-            a->rec.offset[i] = 0;
-            a->rec.homes.valid_mask |= app_bit16(i);
-            a->rec.home_now |= app_bit16(i);
-        }
-    }
+    app_rec_take_homes(a, a->run.mask, a->run.tension);
     /* The run's baseline is the learn baseline until the next release. From
      * here on the homing's storage is reused (u.idle overlaps its first
-     * bytes only: the homes and baselines above were read first). */
-    for (k = 0; k < a->info.n_sensors; k++) {
-        memcpy(a->u.idle.b0[k], hom_baseline(&a->u.hom, k), sizeof a->u.idle.b0[k]);
-    }
-    a->learn.have_b0 = 1;
-    memset(&a->u.idle.rec.hist, 0, sizeof a->u.idle.rec.hist);
-    a->u.idle.rec.hist.cal_count = a->rec.homes.cal_count;
-    a->u.idle.rec.hist.table_id = a->rec.homes.table_id;
-    a->u.idle.rec.hist.tension_mN = a->rec.homes.tension_mN;
-    a->u.idle.rec.hist.valid_mask = a->rec.homes.valid_mask;
-    a->u.idle.rec.hist.n_tendons = a->rec.homes.n_tendons;
-    for (i = 0; i < a->info.n_tendons; i++) {
-        a->u.idle.rec.hist.home_ticks[i] = a->rec.homes.t[i].home_ticks;
-    }
-    a->rec.homes_rc = 0;
-    a->boot.recover_rc = 0;
-    app_rec_queue(a, APP_SAVE_HOMES | APP_SAVE_HIST);
-    a->boot.offer_quick = 0;
+     * bytes only: the homes above were read first). */
+    app_learn_keep_baseline(a);
+    app_rec_save_run(a);
+    app_boot_homes_new(a);
     app_rep_begin(a, app_w_done);
     app_rep_word(a, app_w_mode, app_w_mode_words, a->run.mode);
     app_rep_word(a, app_w_target, app_w_target_words, a->run.abs);
@@ -209,9 +182,9 @@ static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon
     cfg.v_fine = (uint16_t)a->rec.set.v[STORE_SET_APPROACH_SLOW];
     cfg.avg_samples = (uint8_t)a->rec.set.v[STORE_SET_FILTER_K];
     cfg.servo_timeout_ms = APP_SERVO_TIMEOUT_MS;
-    a->learn.have_b0 = 0; /* its storage goes to the homing */
+    app_learn_drop_baseline(a); /* its storage goes to the homing */
     hom_init(&a->u.hom, &cfg);
-    a->bus.torque_on = 0; /* the goals were cleared: nothing to refresh until set */
+    app_bus_goals_cleared(a);
     rc = hom_start(&a->u.hom, &a->htab, &cmd);
     if (rc == HOM_E_TENSION) {
         return CON_E_TENSION_RANGE;
@@ -226,11 +199,11 @@ static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon
     a->run.tension = tension;
     a->run.mask = mode == HOM_MODE_SINGLE ? app_bit16(tendon) : app_all_mask(a);
     a->run.t_start = app_now_ms(a);
-    a->bus.fresh = 0;
+    app_bus_positions_stale(a);
     a->state = APP_ST_CAL;
     win_moving(a, 1);
     app_panel_set(a, APP_LED_RUN);
-    a->rec.rest_due = 0;
+    app_rec_rest_at(a, 0, 0);
     return 0;
 }
 
@@ -241,40 +214,19 @@ APP_NOINLINE static void fault_rest(app_t *a, uint32_t t)
     win_moving(a, 0); /* the release goals are out: the servos finish them */
     a->state = APP_ST_FAULT;
     app_panel_set(a, APP_LED_FAULT);
-    a->rec.rest_due = 1;
-    a->rec.t_rest = (uint16_t)t;
+    app_rec_rest_at(a, 1, t);
 }
 
 APP_NOINLINE void app_run_step(app_t *a, hom_in_t *in)
 {
     hom_out_t out;
     hom_event_t ev;
-    uint8_t i;
     int rc;
     in->now_ms = app_now_ms(a);
-    for (i = 0; i < a->info.n_tendons; i++) {
-        hom_servo_in_t *s = &in->servo[i];
-        if (app_has(a->bus.absent, i)) {
-            s->status = HOM_SERVO_ABSENT;
-        } else {
-            s->status = app_has(a->bus.fresh, i) ? HOM_SERVO_OK : HOM_SERVO_NOREPLY;
-        }
-        s->hw_error = a->bus.hw_err[i];
-        s->pos = a->bus.present[i];
-    }
-    a->bus.fresh = 0;
+    app_bus_inputs(a, in);
     rc = hom_step(&a->u.hom, in, &out);
     win_take(a);
-    for (i = 0; i < a->info.n_tendons; i++) {
-        if (app_has(out.changed, i)) {
-            a->bus.acc = out.acc[i]; /* one profile acceleration for every move */
-            a->bus.goal_due |= app_bit16(i);
-            if ((out.torque[i] != 0u) != (app_has(a->bus.torque_on, i) != 0u)) {
-                a->bus.torque_on ^= app_bit16(i);
-                a->bus.torque_due |= app_bit16(i);
-            }
-        }
-    }
+    app_bus_take(a, &out);
     while (hom_event_pop(&a->u.hom, &ev)) {
         app_rep_event(a, &ev);
     }
@@ -288,9 +240,8 @@ APP_NOINLINE void app_run_step(app_t *a, hom_in_t *in)
             /* a servo in hardware error has its torque off and refused the
              * release: reboot it (Protocol 2.0 Reboot clears the error), then
              * release its tendon once the bus is up again */
-            a->bus.reboot_id = a->bus.ids[f];
-            a->bus.reboot_req = 1;
-            a->run.auto_release = a->bus.reboot_id;
+            app_bus_reboot(a, a->bus.ids[f]);
+            a->run.auto_release = a->bus.ids[f];
         }
     }
 }
@@ -300,7 +251,7 @@ void app_run_move(app_t *a, uint8_t kind)
     win_moving(a, 1);
     a->run.move_kind = kind;
     a->run.t_move = app_now_ms(a);
-    a->bus.fresh = 0;
+    app_bus_positions_stale(a);
     a->state = APP_ST_MOVE;
     app_panel_set(a, APP_LED_RUN);
 }
@@ -403,8 +354,7 @@ APP_NOINLINE void app_run_move_step(app_t *a)
         }
         return;
     }
-    a->rec.rest_due = 1;
-    a->rec.t_rest = (uint16_t)t;
+    app_rec_rest_at(a, 1, t);
     win_moving(a, 0);
     if (a->run.move_kind == APP_MOVE_RELEASE) {
         app_learn_begin(a, APP_LEARN_BASELINE); /* the robot stands straight: capture B0 */
@@ -446,6 +396,21 @@ void app_run_press(app_t *a)
         app_rep_fault(a, app_w_refused, rc, HOM_DEV_NONE, 0);
         app_panel_set(a, APP_LED_FAULT);
     }
+}
+
+uint8_t app_run_reboot_failed(app_t *a)
+{
+    uint8_t i;
+    if (!a->run.auto_release) {
+        return 0;
+    }
+    a->run.auto_release = 0; /* named: this tendon may still be taut */
+    for (i = 0; i < a->info.n_tendons; i++) {
+        if (a->bus.ids[i] == a->bus.reboot_id) {
+            app_rep_fault(a, app_w_not_released, CON_E_SERVO_FAULT, HOM_DEV_SERVO, i);
+        }
+    }
+    return 1;
 }
 
 /* Between the steps: a run requested while the bring-up or an EEPROM write
