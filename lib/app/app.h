@@ -160,110 +160,155 @@ typedef struct app_io_s {
     const char *reset_f;   /* reset cause word */
 } app_io_t;
 
-/* Caller-owned application state. Read-only outside lib/app. The small
- * fields come first: the AVR reaches the first 64 bytes of a struct with
- * one instruction. */
+/* The application's state, one sub-struct per room of lib/app (each written
+ * by its own file, docs/architecture.md). Caller-owned; read-only outside
+ * lib/app. The small fields of each room come first: the AVR reaches the
+ * first 64 bytes of a struct with one instruction. */
+
+/* app_boot.c: bring-up of the devices and the boot reports. */
 typedef struct {
-    /* state */
-    uint8_t state;
-    uint8_t table_ok;
-    uint8_t boot_step;
-    uint8_t boot_con; /* a pending command is answered when the bring-up is done */
-    uint8_t n_servo_found;
-    uint8_t n_sens_found;
-    uint8_t offer_quick;
-    int8_t recover_rc; /* worst store_recover_position() result at boot */
-    int8_t homes_rc;   /* store_homes_load() result */
-    uint8_t sv_txn;    /* transaction in flight */
-    uint8_t sv_cycle;
+    uint8_t step;        /* 0 start, 1 bring-up, 2 positions and Bus Watchdog, 3 ready */
+    uint8_t con_wait;    /* a pending command is answered when the bring-up is done */
+    uint8_t n_servos;    /* servos found by the last bring-up */
+    uint8_t n_sensors;   /* sensors sampling after the last bring-up */
+    uint8_t offer_quick; /* every stored home is usable: a press re-homes quickly */
+    int8_t recover_rc;   /* worst store_recover_position() result at boot */
+    uint32_t t_start;    /* start of the bring-up (or of the wait after a servo reboot) */
+} app_boot_t;
+
+/* app_bus.c: the servo bus, one transaction at a time. */
+typedef struct {
+    uint8_t txn; /* transaction in flight */
+    uint8_t cycle;
     uint8_t hwerr_due;
     uint8_t pos_force;  /* the next cycle reads positions (a servo was missed) */
     uint8_t pos_streak; /* position reads in a row that missed a servo */
-    uint8_t move_kind;
-    uint8_t run_mode;
-    uint8_t run_abs; /* the run compares |B - A| with the absolute targets (target_mode 1) */
-    uint8_t amb_ok;  /* amb[] holds this power cycle's ambient capture */
-    uint8_t last_fault;
-    uint8_t save_due; /* records waiting for the EEPROM */
-    uint8_t save_now; /* the record being written */
-    uint8_t rest_due; /* rest positions to record once the servos have stopped */
-    uint8_t have_b0;
-    uint8_t learn_tendon;
-    uint8_t learn_sensor;
-    uint8_t learn_grid;
-    uint8_t learn_n;
-    uint8_t req_start; /* a run requested while an EEPROM save finishes */
-    uint8_t req_con;   /* the request came from a pending `cal` / `rehome` */
-    uint8_t req_btn;   /* the request came from a press during the bring-up */
-    uint8_t req_mode;
-    uint8_t req_tendon;
+    uint8_t wdog_step;  /* Bus Watchdog writes left after a bring-up (two per servo) */
     uint8_t reboot_id;
-    uint8_t reboot_req;    /* `reboot` waits for the bus */
-    uint8_t auto_release;  /* ID of a servo in hardware error: reboot it, then release */
-    uint8_t reset_release; /* a reset cut a run or move: release once the bus is up */
-    uint8_t wdog_step;     /* Bus Watchdog writes left after a bring-up (two per servo) */
-    uint8_t btn_raw;
-    uint8_t btn_state;
-    uint8_t btn_long_done;
-    uint8_t led;
-    uint8_t led_on;
-    uint16_t servo_absent; /* bit i: tendon i's servo did not answer the bring-up */
-    uint16_t servo_fresh;  /* bit i: a position arrived since the last homing step */
-    uint16_t servo_seen;   /* bit i: a position has arrived since boot */
-    uint16_t home_now;     /* bit i: homes.t[i] usable in this power cycle */
-    uint16_t goal_due;     /* bit i: goal/velocity of tendon i to send */
-    uint16_t torque_due;   /* bit i: torque of tendon i to send */
-    uint16_t torque_on;    /* bit i: torque on sent since u.hom.out.goal[i] became valid */
-    uint16_t txn_mask;     /* tendons of the transaction in flight */
-    uint16_t run_mask;     /* tendons calibrated by this run */
-    uint16_t run_tension;
-    uint16_t req_tension;
-    uint16_t learned_mask; /* bit t: tendon t has a learned record for this table */
-    uint16_t forget_mask;  /* bit t: `forget` still has to erase tendon t's record */
-    uint8_t forgetting;    /* a `forget` waits for its records to be written */
-    uint16_t acc;          /* profile acceleration of every goal */
-    const struct app_io_s *io;
-    /* times */
-    uint32_t t_boot;
-    uint32_t t_run;
-    uint32_t t_move;
-    uint16_t t_rest; /* short waits: 16-bit ms, compared as 16-bit differences */
-    uint16_t t_btn_change;
-    uint16_t t_btn_down;
-    uint32_t loop_max_us;
-    uint32_t loops;
-    uint16_t rx_lost;     /* console bytes lost, last reported */
-    uint16_t rep_dropped; /* reports dropped, last reported */
-    /* per tendon and sensor */
+    uint8_t reboot_req;  /* `reboot` waits for the bus */
+    uint16_t absent;     /* bit i: tendon i's servo did not answer the bring-up */
+    uint16_t fresh;      /* bit i: a position arrived since the last homing step */
+    uint16_t seen;       /* bit i: a position has arrived since boot */
+    uint16_t goal_due;   /* bit i: goal/velocity of tendon i to send */
+    uint16_t torque_due; /* bit i: torque of tendon i to send */
+    uint16_t torque_on;  /* bit i: torque on sent since tendon i's goal (hom_goal()) became valid */
+    uint16_t txn_mask;   /* tendons of the transaction in flight */
+    uint16_t acc;        /* profile acceleration of every goal */
     uint8_t ids[TBL_MAX_TENDONS];
     uint8_t hw_err[TBL_MAX_TENDONS];
     int32_t present[TBL_MAX_TENDONS];
-    int32_t offset[TBL_MAX_TENDONS]; /* calibration frame = present frame + offset */
+    dxl_master dxl;
+} app_bus_t;
+
+/* app_run.c: runs, app moves, aborts and the releases that follow. */
+typedef struct {
+    uint8_t move_kind;
+    uint8_t mode;       /* hom_mode_t of the run */
+    uint8_t abs;        /* the run compares |B - A| with the absolute targets (target_mode 1) */
+    uint8_t amb_ok;     /* amb[] holds this power cycle's ambient capture */
+    uint8_t last_fault; /* hom_fault_t of the last run */
+    uint8_t req_start;  /* a run requested while an EEPROM save finishes */
+    uint8_t req_con;    /* the request came from a pending `cal` / `rehome` */
+    uint8_t req_btn;    /* the request came from a press during the bring-up */
+    uint8_t req_mode;
+    uint8_t req_tendon;
+    uint8_t auto_release;  /* ID of a servo in hardware error: reboot it, then release */
+    uint8_t reset_release; /* a reset cut a run or move: release once the bus is up */
+    uint16_t mask;         /* tendons calibrated by this run */
+    uint16_t tension;
+    uint16_t req_tension;
+    uint32_t t_start;
+    uint32_t t_move;
     /* absolute target mode: each sensor's ambient offset A (cuT, sensor
      * frame), captured by the first absolute calibration of the power cycle
      * (or the first after `set target_mode`), RAM only (docs/app.md) */
     int32_t amb[APP_MAX_SENSORS][3];
-    uint8_t sens_err[APP_MAX_SENSORS]; /* error counts (low byte) already passed to the homing */
-    /* modules and records */
-    tbl_src_t tab;  /* plain */
-    tbl_src_t htab; /* learned targets applied */
-    tbl_info_t info;
+} app_run_t;
+
+/* app_learn.c: `learn`, the baseline capture and `forget`. */
+typedef struct {
+    uint8_t tendon; /* tendon being learned, or the baseline capture */
+    uint8_t sensor;
+    uint8_t grid;
+    uint8_t n;          /* samples averaged so far (the fewest of any sensor) */
+    uint8_t have_b0;    /* u.idle.b0 holds the straight-pose baseline */
+    uint8_t forgetting; /* a `forget` waits for its records to be written */
+    uint16_t mask;      /* bit t: tendon t has a learned record for this table */
+    uint16_t forget;    /* bit t: `forget` still has to erase tendon t's record */
+    uint32_t t_start;
+} app_learn_t;
+
+/* app_rec.c: the EEPROM records and the homes of this power cycle. */
+typedef struct {
+    uint8_t save_due;                /* records waiting for the EEPROM */
+    uint8_t save_now;                /* the record being written */
+    uint8_t rest_due;                /* rest positions to record once the servos have stopped */
+    int8_t homes_rc;                 /* store_homes_load() result */
+    uint16_t home_now;               /* bit i: homes.t[i] usable in this power cycle */
+    uint16_t t_rest;                 /* 16-bit ms, compared as a 16-bit difference */
+    int32_t offset[TBL_MAX_TENDONS]; /* calibration frame = present frame + offset */
     store_t store;
     store_settings_t set;
     store_homes_t homes;
-    con_t con;
-    icm_set_t sens;
+} app_rec_t;
+
+/* app_panel.c: button and LED. */
+typedef struct {
+    uint8_t raw; /* button level, undebounced */
+    uint8_t state;
+    uint8_t long_done;
+    uint8_t led; /* APP_LED_* last set by a room (app_led_pattern() has the rest) */
+    uint8_t led_on;
+    uint16_t t_change; /* 16-bit ms, compared as 16-bit differences */
+    uint16_t t_down;
+} app_panel_t;
+
+/* app_sense.c: the sensor set. */
+typedef struct {
+    uint8_t err[APP_MAX_SENSORS]; /* error counts (low byte) already passed to the homing */
+    icm_set_t set;
     icm_set_slot_t slot[APP_MAX_SENSORS];
-    dxl_master dxl;
+} app_sense_t;
+
+/* app_cmd.c: the console. */
+typedef struct {
+    uint16_t rx_lost; /* console bytes lost, last reported */
+    uint16_t dropped; /* reports dropped, last reported */
+    con_t con;
+} app_cmd_t;
+
+/* The order of the members is the AVR's: the first 64 bytes of app_t are
+ * reached with one instruction, so the rooms with small, often used fields
+ * come first (this order measured 0.1 KB smaller than the others tried). */
+typedef struct {
+    /* shared by every room: written by app_poll() and the room that changes
+     * the activity (state), and by app_boot.c (the table) */
+    uint8_t state;
+    uint8_t table_ok;
+    const struct app_io_s *io;
+    app_panel_t panel;
+    app_boot_t boot;
+    app_learn_t learn;
+    app_rec_t rec;
+    app_bus_t bus;
+    app_run_t run;
+    uint32_t loop_max_us;
+    uint32_t loops;
+    tbl_src_t tab;  /* plain */
+    tbl_src_t htab; /* learned targets applied */
+    tbl_info_t info;
+    app_cmd_t cmd;
+    app_sense_t sense;
     /* Storage used by one activity at a time (RAM is the scarce resource):
-     *  hom    calibration runs; its `out` also holds the goals of app moves
-     *         (home, release) while no run is active;
-     *  bring  boot, `servos scan` and `reboot`;
-     *  idle   between runs: the sample sums of `learn` and the baseline
-     *         capture, the straight-pose baseline (have_b0) and the history or
-     *         learned record being saved. It overlaps only the homing's first
-     *         bytes (never its tendons, sensors or outputs); runs and bring-ups
-     *         wait until its record is written, and clear have_b0. */
+     *  hom    calibration runs (app_run.c); its goals (hom_goal()) also hold
+     *         the goals of app moves (home, release) while no run is active;
+     *  bring  boot, `servos scan` and `reboot` (app_boot.c);
+     *  idle   between runs (app_learn.c, app_rec.c): the sample sums of
+     *         `learn` and the baseline capture, the straight-pose baseline
+     *         (learn.have_b0) and the history or learned record being saved.
+     *         It overlaps only the homing's first bytes (never its tendons,
+     *         sensors or outputs); runs and bring-ups wait until its record
+     *         is written, and clear learn.have_b0. */
     union {
         hom_t hom;
         dxl_bringup bring;

@@ -421,4 +421,80 @@ int hom_window(const hom_t *h, uint8_t i, int32_t *lo, int32_t *hi);
 /* |v| for a 3-axis integer vector (64-bit integer square root). */
 uint32_t hom_norm3(const int32_t v[3]);
 
+/* ---- accessors for the application -------------------------------------------
+ * What the application reads of a run (and the goal slots it borrows between
+ * runs), so that it never depends on the layout of hom_t. Static inline: each
+ * is one load or store on the AVR. i must be below TBL_MAX_TENDONS, k below
+ * HOM_MAX_SENSORS; none checks it. */
+
+/* Goal Position and Profile Velocity last commanded for tendon i. */
+static inline int32_t hom_goal(const hom_t *h, uint8_t i)
+{
+    return h->out.goal[i];
+}
+
+static inline uint16_t hom_goal_vel(const hom_t *h, uint8_t i)
+{
+    return h->out.vel[i];
+}
+
+/* Sets tendon i's commanded goal and velocity. Only while no run is active:
+ * the application keeps the goals of its own moves (home, release) in the
+ * machine's output, which the next hom_init() clears. */
+static inline void hom_set_goal(hom_t *h, uint8_t i, int32_t goal, uint16_t vel)
+{
+    h->out.goal[i] = goal;
+    h->out.vel[i] = vel;
+}
+
+/* Tendons whose engagement window changed since the last call (hom_window()),
+ * as a bit mask; the bits are cleared. */
+static inline uint16_t hom_win_take_changed(hom_t *h)
+{
+    uint16_t m = h->win_changed;
+    h->win_changed = 0;
+    return m;
+}
+
+/* The fault of the last run (hom_fault_t) and the tendon or sensor it names. */
+static inline uint8_t hom_fault(const hom_t *h)
+{
+    return h->fault;
+}
+
+static inline uint8_t hom_fault_index(const hom_t *h)
+{
+    return h->fault_index;
+}
+
+/* Tendon i's per-run state (target, engagement, spool factor, direction). */
+static inline const hom_tendon_t *hom_tendon(const hom_t *h, uint8_t i)
+{
+    return &h->tendon[i];
+}
+
+/* For the HOM_EV_HOME report of the newest home: its |B - B0| (cuT) and the
+ * tendon's time from its start to that home (ms). */
+static inline uint32_t hom_home_dB(const hom_t *h)
+{
+    return h->home_dB;
+}
+
+static inline uint32_t hom_tendon_ms(const hom_t *h)
+{
+    return h->tendon_ms;
+}
+
+/* Sensor k's straight-pose baseline B0 of the last run (cuT, sensor frame). */
+static inline const int32_t *hom_baseline(const hom_t *h, uint8_t k)
+{
+    return h->sensor[k].b0;
+}
+
+/* Nonzero when the last run captured the ambient offsets (absolute mode). */
+static inline uint8_t hom_amb_captured(const hom_t *h)
+{
+    return h->amb_capture;
+}
+
 #endif /* HALLHOME_HOMING_H */

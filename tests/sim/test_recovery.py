@@ -210,15 +210,32 @@ def test_overload_on_the_pulled_tendon_is_rebooted_released_and_recalibrated(tmp
     completes(r)
 
 
+@pytest.fixture(scope="module")
+def last_fine_approach(tmp_path_factory):
+    """A time during the last tendon's fine approach in a clean calibration
+    of the same robot and seed (the bench is deterministic). Where it falls
+    moves by up to a second with the firmware's own timing (any change of the
+    code changes when samples and replies arrive), so the field step below
+    is placed from it rather than at a fixed time."""
+    r = bench(tmp_path_factory.mktemp("clean"), "--limit", "20s", "--at", "1s press 100",
+              "--until", "^<done mode=full")
+    completes(r)
+    eng = [t for t, f in r.of("progress") if f.get("state") == "engaged" and f.get("tendon") == "5"]
+    res = [t for t, f in r.of("result") if f.get("tendon") == "5"]
+    assert eng and res, r.context()
+    return eng[0] + 0.6 * (res[0] - eng[0])
+
+
 @pytest.mark.parametrize("step_uT", ["0 0 50", "0 -50 0", "50 0 0"])
-def test_a_field_step_no_motion_can_make_is_refused(tmp_path, step_uT):
+def test_a_field_step_no_motion_can_make_is_refused(tmp_path, step_uT, last_fine_approach):
     """A +-50 uT step on the active sensor (sensor 2) during the last
     tendon's fine approach once shifted its home by -5 to +8 ticks without a
     word. Released after its home, the tendon must bring the field back to
     the baseline; it does not, so the run ends in field_step, the home is
     not recorded, and every tendon is released."""
     r = bench(tmp_path, "--limit", "20s", "--at", "1s press 100",
-              "--at", f"9.2s field 2 {step_uT}", "--until", "^<(done|fault)", "--linger", "300ms")
+              "--at", f"{last_fine_approach:.3f}s field 2 {step_uT}", "--until", "^<(done|fault)",
+              "--linger", "300ms")
     faults = r.of("fault")
     assert faults and faults[0][1]["reason"] == "field_step", r.context()
     assert faults[0][1]["dev"] == "sensor" and faults[0][1]["index"] == "2"

@@ -73,7 +73,7 @@ static void test_boot_banner_and_ready(void **state)
     cmd(&g_b, "cal 5", "error:16 tension outside the table grid");
     cmd(&g_b, "cal 0.8 6", "error:15 no such tendon");
     /* the servo bus runs: every servo's position is fresh */
-    assert_int_equal(g_b.app.servo_seen, 0x3F);
+    assert_int_equal(g_b.app.bus.seen, 0x3F);
     /* idle LED: a short blip every 2 s */
     assert_int_equal(app_led_pattern(&g_b.app), APP_LED_IDLE);
 }
@@ -128,11 +128,11 @@ static void test_button_calibrates_and_stores(void **state)
     assert_int_equal(app_led_pattern(&g_b.app), APP_LED_DONE);
     /* the records reach the EEPROM once idle */
     app_bench_run_ms(&g_b, 2000);
-    assert_int_equal(store_homes_load(&g_b.app.store, g_b.table.table_id, &h), 0);
+    assert_int_equal(store_homes_load(&g_b.app.rec.store, g_b.table.table_id, &h), 0);
     assert_int_equal(h.valid_mask, 0x3F);
     assert_int_equal(h.cal_count, 1);
     assert_int_equal(h.tension_mN, 800);
-    assert_int_equal(store_hist_count(&g_b.app.store), 1);
+    assert_int_equal(store_hist_count(&g_b.app.rec.store), 1);
     for (i = 0; i < 6; i++) {
         first[i] = h.t[i].home_ticks;
         /* every tendon taut at its home (together they load each other) */
@@ -150,7 +150,7 @@ static void test_button_calibrates_and_stores(void **state)
     assert_true(app_bench_wait_line(&g_b, "<done ", g_line, sizeof g_line, 20000));
     assert_non_null(strstr(g_line, "mode=quick"));
     app_bench_run_ms(&g_b, 2000);
-    assert_int_equal(store_homes_load(&g_b.app.store, g_b.table.table_id, &h), 0);
+    assert_int_equal(store_homes_load(&g_b.app.rec.store, g_b.table.table_id, &h), 0);
     assert_int_equal(h.cal_count, 2);
     for (i = 0; i < 6; i++) {
         double truth;
@@ -210,7 +210,8 @@ static void test_realtime_abort_releases(void **state)
     app_bench_run_ms(&g_b, 1500);
     {
         store_homes_t h;
-        assert_int_equal(store_homes_load(&g_b.app.store, g_b.table.table_id, &h), STORE_E_EMPTY);
+        assert_int_equal(store_homes_load(&g_b.app.rec.store, g_b.table.table_id, &h),
+                         STORE_E_EMPTY);
     }
 }
 
@@ -284,10 +285,10 @@ static void test_servo_fault_mid_run(void **state)
     assert_true(app_bench_wait_line(&g_b, "<released reason=servo_error id=3", g_line,
                                     sizeof g_line, 3000));
     assert_true(app_bench_wait_line(&g_b, "<done mode=release", g_line, sizeof g_line, 3000));
-    assert_int_equal(g_b.app.hw_err[2], 0);
+    assert_int_equal(g_b.app.bus.hw_err[2], 0);
     assert_int_equal(g_b.app.state, APP_ST_IDLE);
     cmd(&g_b, "reboot 3", "ok");
-    assert_int_equal(g_b.app.hw_err[2], 0);
+    assert_int_equal(g_b.app.bus.hw_err[2], 0);
     assert_int_equal(g_b.app.state, APP_ST_IDLE);
 }
 
@@ -364,10 +365,10 @@ static void test_absolute_target_mode(void **state)
     (void)state;
     boot(&g_b, 1);
     assert_true(fabs(cal_tendon0("target=delta")) <= 2.0);
-    assert_int_equal(g_b.app.amb_ok, 0);
+    assert_int_equal(g_b.app.run.amb_ok, 0);
     cmd(&g_b, "set target_mode 1", "ok");
     assert_true(fabs(cal_tendon0("target=abs")) <= 2.0);
-    assert_int_equal(g_b.app.amb_ok, 1);
+    assert_int_equal(g_b.app.run.amb_ok, 1);
     for (k = 0; k < g_b.cfg.n_sensors; k++) {
         g_b.plant.extra_uT[k][2] = -50.0; /* the bench moved, iron came near */
     }
@@ -377,7 +378,7 @@ static void test_absolute_target_mode(void **state)
     cmd(&g_b, "set target_mode 0", "ok");
     assert_true(fabs(cal_tendon0("target=delta")) <= 2.0);
     cmd(&g_b, "set target_mode 1", "ok");
-    assert_int_equal(g_b.app.amb_ok, 0);
+    assert_int_equal(g_b.app.run.amb_ok, 0);
     assert_true(fabs(cal_tendon0("target=abs")) <= 2.0);
 }
 
@@ -400,7 +401,7 @@ static void test_learn_with_weight(void **state)
     cmd(&g_b, "learn 1 0.8",
         "error:25 implausible reading: not above noise or not rising with "
         "tension");
-    assert_int_equal(g_b.app.learned_mask, 0);
+    assert_int_equal(g_b.app.learn.mask, 0);
     assert_int_equal(plant_true_home(&g_b.cfg, 1, 800, &ticks), 0);
     g_b.weight_on = 1;
     g_b.weight_tendon = 1;
@@ -433,13 +434,13 @@ static void test_learn_with_weight(void **state)
     cmd(&g_b, "forget 12", "error:15 no such tendon");
     cmd(&g_b, "forget x", "error:15 no such tendon");
     cmd(&g_b, "forget 1", "ok");
-    assert_int_equal(g_b.app.learned_mask, 0);
+    assert_int_equal(g_b.app.learn.mask, 0);
     assert_int_equal(tbl_tendon(&g_b.app.htab, 1, &eff), 0);
     assert_int_equal(eff.target_cuT[4], g_b.table.tendons[1].target_cuT[4]);
     cmd(&g_b, "forget all", "ok"); /* nothing left: at once */
     app_bench_restart(&g_b, 0);
     assert_true(app_bench_wait_line(&g_b, "<ready ", g_line, sizeof g_line, 4000));
-    assert_int_equal(g_b.app.learned_mask, 0);
+    assert_int_equal(g_b.app.learn.mask, 0);
 }
 
 /* The pace of the AVR (about 2 ms per pass) and a start at an even
@@ -574,7 +575,7 @@ static void test_bus_noise_calibrates(void **state)
     assert_int_equal(results, 6);
     /* the noise did hit the bus, goals included */
     assert_true(g_b.noise_hits > 20u);
-    assert_true(g_b.app.dxl.stats.retries > 0u);
+    assert_true(g_b.app.bus.dxl.stats.retries > 0u);
 }
 
 /* The board stops running passes for this long while the bus and the servos

@@ -1,0 +1,316 @@
+/*
+ * app_bus: the servo-bus room. One DYNAMIXEL transaction at a time, chosen
+ * each pass in this order: a requested reboot (after the goals queued before
+ * it), the Bus Watchdog writes of a bring-up, torque changes, queued goals,
+ * then the cycle of position sync reads with a hardware-error read every
+ * APP_HWERR_EVERY-th cycle and a goal refresh every APP_GOAL_REFRESH_EVERY-th.
+ * The replies become bus.present / bus.hw_err for the other rooms.
+ */
+
+#include "app/app_priv.h"
+#include "dxl/dxl_xl430_reg.h"
+
+#define GOALS_PER_TXN 6u /* 12-byte entries of one sync write that fit DXL_TX_CAP */
+
+uint32_t app_bus_baud(const app_t *app)
+{
+    return (uint32_t)app->rec.set.v[STORE_SET_BUS_BAUD];
+}
+
+static uint8_t present_ids(const app_t *a, uint8_t *ids, uint16_t *mask)
+{
+    uint8_t i, n = 0;
+    *mask = 0;
+    for (i = 0; i < a->info.n_tendons; i++) {
+        if (app_has(a->bus.absent, i) == 0u) {
+            ids[n++] = a->bus.ids[i];
+            *mask |= app_bit16(i);
+        }
+    }
+    return n;
+}
+
+APP_NOINLINE static void put32(uint8_t *p, uint32_t v)
+{
+    p[0] = (uint8_t)v;
+    p[1] = (uint8_t)(v >> 8);
+    p[2] = (uint8_t)(v >> 16);
+    p[3] = (uint8_t)(v >> 24);
+}
+
+APP_NOINLINE static void servo_done(app_t *a, int8_t rc)
+{
+    uint8_t i;
+    uint16_t got = 0;
+    if (a->bus.txn == APP_TX_POS || a->bus.txn == APP_TX_HWERR) {
+        for (i = 0; i < a->info.n_tendons; i++) {
+            const dxl_reply *r;
+            if (app_has(a->bus.txn_mask, i) == 0u) {
+                continue;
+            }
+            r = dxl_reply_for(&a->bus.dxl, a->bus.ids[i]);
+            if (r == NULL || (r->result != 0 && r->result != -DXL_E_ALERT)) {
+                continue;
+            }
+            if (a->bus.txn == APP_TX_POS && r->len >= 4u) {
+                a->bus.present[i] = dxl_reply_value(r, 4);
+                got |= app_bit16(i);
+                a->bus.fresh |= app_bit16(i);
+                a->bus.seen |= app_bit16(i);
+            } else if (a->bus.txn == APP_TX_HWERR && r->len >= 1u) {
+                a->bus.hw_err[i] = r->data[0];
+            }
+            if (r->result == -DXL_E_ALERT && a->bus.txn == APP_TX_POS) {
+                a->bus.hwerr_due = 1;
+            }
+        }
+        if (a->bus.txn == APP_TX_POS) {
+            if (got == a->bus.txn_mask) {
+                a->bus.pos_streak = 0;
+            } else if (a->bus.pos_streak < APP_POS_RETRIES) {
+                a->bus.pos_streak++;
+                a->bus.pos_force = 1;
+            }
+        }
+    } else if (a->bus.txn == APP_TX_REBOOT) {
+        if (rc != 0 && rc != -DXL_E_ALERT) {
+            if (!app_run_reboot_failed(a) && con_pending(&a->cmd.con)) {
+                (void)con_complete(&a->cmd.con, CON_E_SERVO_FAULT);
+            }
+            a->bus.reboot_id = 0;
+        } else {
+            /* the servo lost its multi-turn count: bring the bus up again
+             * and recover the homes as after a power cycle; its engagement
+             * window is in the old frame */
+            for (i = 0; i < a->info.n_tendons; i++) {
+                if (a->bus.ids[i] == a->bus.reboot_id) {
+                    app_win_set(a, i, 0, 0, 0);
+                }
+            }
+            app_boot_again(a);
+        }
+    }
+    a->bus.txn = APP_TX_NONE;
+}
+
+/* Tendons whose servo stands more than a tick from the goal last sent. A
+ * sync write carries no reply: a servo that missed one to a corrupted byte
+ * keeps its old goal, so these goals go out again every few cycles. A servo
+ * that is really stuck stays where it is and the homing's stall check still
+ * sees it; a servo on its way gets the goal it already has. */
+static uint16_t off_goal(const app_t *a)
+{
+    uint8_t i = a->info.n_tendons;
+    uint16_t m = 0;
+    while (i-- > 0u) {
+        m = (uint16_t)(m << 1);
+        if ((uint32_t)(a->bus.present[i] - hom_goal(&a->u.hom, i)) + 1u > 2u) {
+            m |= 1u;
+        }
+    }
+    return m & a->bus.torque_on;
+}
+
+APP_NOINLINE static void servo_next(app_t *a)
+{
+    uint8_t ids[TBL_MAX_TENDONS];
+    uint8_t data[GOALS_PER_TXN * 12u];
+    uint8_t i, n = 0, txn, v, force;
+    uint16_t mask, addr;
+    if (a->bus.reboot_req && a->bus.goal_due == 0u && a->bus.torque_due == 0u) {
+        /* after the release goals of every other tendon are out: the
+         * bring-up that follows a reboot owns the bus for a while */
+        a->bus.reboot_req = 0;
+        if (dxl_reboot(&a->bus.dxl, a->bus.reboot_id) > 0) {
+            a->bus.txn = APP_TX_REBOOT;
+        } else if (con_pending(&a->cmd.con)) {
+            (void)con_complete(&a->cmd.con, CON_E_INTERNAL);
+        }
+        return;
+    }
+    if (a->bus.wdog_step != 0u || a->bus.torque_due != 0u) {
+        if (a->bus.wdog_step != 0u) {
+            /* two writes per servo, from the last: 0 clears an expired
+             * watchdog (the servo refuses goals until then), then the
+             * period arms it */
+            v = a->bus.wdog_step--;
+            i = (uint8_t)((v - 1u) >> 1);
+            if (app_has(a->bus.absent, i)) {
+                return;
+            }
+            v = (v & 1u) ? APP_BUS_WATCHDOG : 0u;
+            addr = DXL_XL430_BUS_WATCHDOG_ADDR;
+            txn = APP_TX_WDOG;
+        } else {
+            for (i = 0; app_has(a->bus.torque_due, i) == 0u; i++) {
+            }
+            a->bus.torque_due &= (uint16_t)~app_bit16(i);
+            v = app_has(a->bus.torque_on, i);
+            addr = DXL_XL430_TORQUE_ENABLE_ADDR;
+            txn = APP_TX_TORQUE;
+        }
+        if (dxl_write_value(&a->bus.dxl, a->bus.ids[i], addr, v, 1) > 0) {
+            a->bus.txn = txn;
+        }
+        return;
+    }
+    if (a->bus.goal_due == 0u) {
+        n = present_ids(a, ids, &mask);
+        if (n == 0u) {
+            return;
+        }
+        a->bus.txn_mask = mask;
+        a->bus.cycle++;
+        force = a->bus.pos_force;
+        a->bus.pos_force = 0;
+        addr = DXL_XL430_HW_ERROR_ADDR;
+        v = 1;
+        txn = APP_TX_HWERR;
+        if (a->bus.hwerr_due || (!force && (a->bus.cycle % APP_HWERR_EVERY) == 0u)) {
+            a->bus.hwerr_due = 0;
+        } else {
+            /* even between forced position reads: a lost goal is worse
+             * than a late position */
+            if ((a->bus.cycle % APP_GOAL_REFRESH_EVERY) == APP_GOAL_REFRESH_EVERY / 2u) {
+                a->bus.goal_due = off_goal(a); /* this cycle refreshes goals instead */
+            }
+            addr = DXL_XL430_PRESENT_POSITION_ADDR;
+            v = 4;
+            txn = APP_TX_POS;
+        }
+        if (a->bus.goal_due == 0u) {
+            if (dxl_sync_read(&a->bus.dxl, addr, v, ids, n) > 0) {
+                a->bus.txn = txn;
+            }
+            return;
+        }
+        n = 0;
+    }
+    for (i = 0; i < a->info.n_tendons && n < GOALS_PER_TXN; i++) {
+        uint8_t *p = &data[n * 12u];
+        if (app_has(a->bus.goal_due, i) == 0u) {
+            continue;
+        }
+        a->bus.goal_due &= (uint16_t)~app_bit16(i);
+        if (app_has(a->bus.absent, i)) {
+            continue;
+        }
+        ids[n++] = a->bus.ids[i];
+        put32(p, a->bus.acc);
+        put32(p + 4, hom_goal_vel(&a->u.hom, i));
+        put32(p + 8, (uint32_t)hom_goal(&a->u.hom, i));
+    }
+    if (n > 0u &&
+        dxl_sync_write(&a->bus.dxl, DXL_XL430_PROFILE_ACCELERATION_ADDR, 12u, ids, data, n) > 0) {
+        a->bus.txn = APP_TX_GOAL;
+    }
+}
+
+void app_bus_reboot(app_t *a, uint8_t id)
+{
+    a->bus.reboot_id = id;
+    a->bus.reboot_req = 1;
+}
+
+APP_NOINLINE void app_bus_poll(app_t *a)
+{
+    if (a->state == APP_ST_BOOT && a->boot.step != 2u) {
+        return; /* the bring-up owns the bus */
+    }
+    if (dxl_busy(&a->bus.dxl)) {
+        int8_t rc = dxl_poll(&a->bus.dxl);
+        if (rc > 0) {
+            return;
+        }
+        servo_done(a, rc);
+    } else if (a->bus.txn != APP_TX_NONE) {
+        servo_done(a, dxl_poll(&a->bus.dxl));
+    }
+    if (a->state != APP_ST_BOOT || a->boot.step == 2u) {
+        servo_next(a);
+    }
+}
+
+/* Queues a goal for tendon i. */
+APP_NOINLINE void app_bus_goal(app_t *a, uint8_t i, int32_t goal, uint16_t vel, uint16_t acc)
+{
+    hom_set_goal(&a->u.hom, i, goal, vel);
+    a->bus.acc = acc;
+    a->bus.goal_due |= app_bit16(i);
+    if (app_has(a->bus.torque_on, i) == 0u) {
+        a->bus.torque_on |= app_bit16(i);
+        a->bus.torque_due |= app_bit16(i);
+    }
+}
+
+void app_bus_stop(app_t *a)
+{
+    dxl_abort(&a->bus.dxl);
+    a->bus.txn = APP_TX_NONE;
+    a->bus.absent = 0;
+    a->bus.torque_on = 0; /* goals of the old frames must never be sent again */
+}
+
+uint8_t app_bus_found(app_t *a)
+{
+    uint8_t i, n = 0;
+    a->bus.seen = 0;
+    for (i = 0; i < a->info.n_tendons; i++) {
+        const dxl_servo_info *s = app_boot_servo_info(a, a->bus.ids[i]);
+        if (app_has(a->bus.absent, i) == 0u && s != NULL && s->present) {
+            n++;
+            a->bus.hw_err[i] = s->hw_error;
+            if (a->u.bring.result == 0) {
+                a->bus.present[i] = s->position;
+                a->bus.seen |= app_bit16(i);
+            }
+        } else {
+            a->bus.absent |= app_bit16(i);
+        }
+    }
+    a->bus.goal_due = 0;
+    a->bus.torque_due = 0;
+    a->bus.wdog_step = (uint8_t)(2u * a->info.n_tendons);
+    return n;
+}
+
+void app_bus_goals_cleared(app_t *a)
+{
+    a->bus.torque_on = 0; /* nothing to refresh until a goal is set */
+}
+
+void app_bus_positions_stale(app_t *a)
+{
+    a->bus.fresh = 0;
+}
+
+void app_bus_inputs(app_t *a, hom_in_t *in)
+{
+    uint8_t i;
+    for (i = 0; i < a->info.n_tendons; i++) {
+        hom_servo_in_t *s = &in->servo[i];
+        if (app_has(a->bus.absent, i)) {
+            s->status = HOM_SERVO_ABSENT;
+        } else {
+            s->status = app_has(a->bus.fresh, i) ? HOM_SERVO_OK : HOM_SERVO_NOREPLY;
+        }
+        s->hw_error = a->bus.hw_err[i];
+        s->pos = a->bus.present[i];
+    }
+    a->bus.fresh = 0;
+}
+
+void app_bus_take(app_t *a, const hom_out_t *out)
+{
+    uint8_t i;
+    for (i = 0; i < a->info.n_tendons; i++) {
+        if (app_has(out->changed, i)) {
+            a->bus.acc = out->acc[i]; /* one profile acceleration for every move */
+            a->bus.goal_due |= app_bit16(i);
+            if ((out->torque[i] != 0u) != (app_has(a->bus.torque_on, i) != 0u)) {
+                a->bus.torque_on ^= app_bit16(i);
+                a->bus.torque_due |= app_bit16(i);
+            }
+        }
+    }
+}

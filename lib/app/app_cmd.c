@@ -1,0 +1,479 @@
+/*
+ * app_cmd: the console room: its poll (realtime mode while anything moves,
+ * lost bytes and dropped reports) and the command handlers (app_handlers).
+ * A handler validates the whole line, then asks the room that owns the work;
+ * it returns 0, a CON_E_* error or CON_PENDING (answered by that room).
+ */
+#include <string.h>
+
+#include "app/app_priv.h"
+
+/* The console in realtime mode while anything moves (output never waits;
+ * docs/console.md), and the losses reported: console bytes lost to a full
+ * receive buffer at once, report lines dropped once nothing moves. */
+APP_NOINLINE void app_cmd_poll(app_t *a)
+{
+    uint8_t moving = (uint8_t)(a->state == APP_ST_CAL || a->state == APP_ST_MOVE);
+    uint16_t n = a->io->board->rx_lost != NULL ? a->io->board->rx_lost(a->io->board->ctx) : 0u;
+    con_set_realtime(&a->cmd.con, moving);
+    if (n != a->cmd.rx_lost) {
+        app_rep_begin(a, app_w_overrun);
+        app_rep_int(a, app_w_bytes, (uint16_t)(n - a->cmd.rx_lost));
+        app_rep_int(a, app_w_total, n);
+        app_rep_end(a);
+        a->cmd.rx_lost = n;
+    }
+    if (!moving && con_dropped(&a->cmd.con) != a->cmd.dropped) {
+        a->cmd.dropped = con_dropped(&a->cmd.con);
+        app_rep_begin(a, app_w_dropped);
+        app_rep_int(a, app_w_reports, a->cmd.dropped);
+        app_rep_end(a);
+    }
+    (void)con_poll(&a->cmd.con, (uint16_t)app_now_ms(a));
+}
+
+/* Console output waits for the UART0 ring (128 bytes, 11 ms per ring at
+ * 115200): listings of several lines would hold the loop for tens of ms,
+ * longer than the homing's servo deadline, so they wait until nothing moves. */
+static int8_t quiet_needed(const app_t *a)
+{
+    return (a->state == APP_ST_IDLE || a->state == APP_ST_FAULT) ? 0 : CON_E_BUSY;
+}
+
+static int8_t h_version(con_t *con, const con_args_t *args, void *ctx)
+{
+    app_t *a = ctx;
+    (void)con;
+    (void)args;
+    app_rep_begin(a, app_w_version);
+    con_report_flash(&a->cmd.con, app_w_name, app_w_hallhome);
+    if (a->io->version_f != NULL) {
+        con_report_flash(&a->cmd.con, app_w_version, a->io->version_f);
+    }
+    if (a->io->board_f != NULL) {
+        con_report_flash(&a->cmd.con, app_w_board, a->io->board_f);
+    }
+    if (a->table_ok) {
+        con_report_str(&a->cmd.con, app_w_table, a->info.name);
+        app_rep_hex(a, app_w_table_id, a->info.table_id);
+        app_rep_int(a, app_w_tendons, a->info.n_tendons);
+        app_rep_int(a, app_w_sensors, a->info.n_sensors);
+    } else {
+        con_report_flash(&a->cmd.con, app_w_table, app_w_none);
+    }
+    app_rep_end(a);
+    return 0;
+}
+
+static int8_t h_status(con_t *con, const con_args_t *args, void *ctx)
+{
+    app_t *a = ctx;
+    uint8_t i;
+    (void)con;
+    (void)args;
+    app_rep_begin(a, app_w_status);
+    app_rep_word(a, app_w_state, app_w_state_words, a->state);
+    if (a->table_ok) {
+        con_report_str(&a->cmd.con, app_w_table, a->info.name);
+    } else {
+        con_report_flash(&a->cmd.con, app_w_table, app_w_none);
+    }
+    app_rep_int(a, app_w_sensors, icm_set_ready_count(&a->sense.set));
+    app_rep_int(a, app_w_servos, a->boot.n_servos);
+    app_rep_hex(a, app_w_homes, a->rec.homes.valid_mask);
+    app_rep_hex(a, app_w_homes_now, a->rec.home_now);
+    app_rep_int(a, app_w_rehome, a->boot.offer_quick);
+    app_rep_int(a, app_w_tension_mN, a->rec.homes.tension_mN);
+    app_rep_int(a, app_w_count, (int32_t)a->rec.homes.cal_count);
+    app_rep_word(a, app_w_fault, app_w_fault_words, a->run.last_fault);
+    app_rep_int(a, app_w_learned, a->learn.mask);
+    app_rep_int(a, app_w_baseline, a->learn.have_b0);
+    app_rep_int(a, app_w_saving, store_busy(&a->rec.store) || a->rec.save_due != 0u);
+    app_rep_int(a, app_w_loop_max_us, (int32_t)a->loop_max_us);
+    app_rep_int(a, app_w_loops, (int32_t)a->loops);
+    app_rep_end(a);
+    for (i = 0; i < a->info.n_tendons; i++) {
+        if (app_has(a->rec.homes.valid_mask, i) == 0u) {
+            continue;
+        }
+        app_rep_begin(a, app_w_home);
+        app_rep_int(a, app_w_tendon, i);
+        app_rep_int(a, app_w_home, a->rec.homes.t[i].home_ticks);
+        app_rep_int(a, app_w_rest, a->rec.homes.t[i].rest_ticks);
+        app_rep_int(a, app_w_usable, app_has(a->rec.home_now, i));
+        if (app_has(a->rec.home_now, i)) {
+            app_rep_int(a, app_w_now, app_rec_home(a, i));
+        }
+        app_rep_end(a);
+    }
+    return 0;
+}
+
+static int8_t h_sensors(con_t *con, const con_args_t *args, void *ctx)
+{
+    app_t *a = ctx;
+    if (quiet_needed(a) != 0) {
+        return CON_E_BUSY;
+    }
+    uint8_t k;
+    (void)con;
+    (void)args;
+    if (!a->table_ok) {
+        return CON_E_NO_TABLE;
+    }
+    for (k = 0; k < a->info.n_sensors; k++) {
+        icm_diag_t d;
+        (void)icm_set_diag(&a->sense.set, k, &d);
+        app_rep_begin(a, app_w_sensor);
+        app_rep_int(a, app_w_index, k);
+        app_rep_int(a, app_w_ch, d.channel);
+        app_rep_int(a, app_w_addr, d.addr);
+        app_rep_int(a, app_w_ok, d.state == ICM_SET_S_RUN);
+        app_rep_int(a, app_w_who, d.who_am_i);
+        app_rep_int(a, app_w_mag, d.mag_ready);
+        con_report_fixed(&a->cmd.con, app_w_rate_Hz, d.rate_dhz, 1);
+        con_report_fixed(&a->cmd.con, app_w_bx_uT, d.field_cuT[0], 2);
+        con_report_fixed(&a->cmd.con, app_w_by_uT, d.field_cuT[1], 2);
+        con_report_fixed(&a->cmd.con, app_w_bz_uT, d.field_cuT[2], 2);
+        app_rep_int(a, app_w_ovf, d.overflow_count);
+        app_rep_int(a, app_w_err, d.error_count);
+        app_rep_int(a, app_w_last_err, d.last_err);
+        app_rep_int(a, app_w_reinits, d.reinits);
+        app_rep_end(a);
+    }
+    return 0;
+}
+
+static int8_t h_servos(con_t *con, const con_args_t *args, void *ctx)
+{
+    app_t *a = ctx;
+    (void)con;
+    if (!a->table_ok) {
+        return CON_E_NO_TABLE;
+    }
+    if (quiet_needed(a) != 0) {
+        return CON_E_BUSY;
+    }
+    if ((args->given & 1u) && args->v[0] != 0) {
+        app_rep_servos(a, 0); /* pos, err: the live cycle keeps both fresh */
+        return 0;
+    }
+    if (!app_idle_state(a) || app_rec_busy(a)) {
+        return CON_E_BUSY; /* the bring-up reuses the record's storage */
+    }
+    app_boot_again(a);
+    return CON_PENDING;
+}
+
+static int8_t h_cal(con_t *con, const con_args_t *args, void *ctx)
+{
+    app_t *a = ctx;
+    uint16_t tension = (args->given & 1u) ? (uint16_t)args->v[0] : 0u;
+    (void)con;
+    if (args->given & 2u) {
+        if (a->table_ok && args->v[1] >= a->info.n_tendons) {
+            return CON_E_BAD_TENDON;
+        }
+        return app_run_request(a, HOM_MODE_SINGLE, tension, (uint8_t)args->v[1]);
+    }
+    return app_run_request(a, HOM_MODE_FULL, tension, 0);
+}
+
+static int8_t h_rehome(con_t *con, const con_args_t *args, void *ctx)
+{
+    (void)con;
+    (void)args;
+    return app_run_request(ctx, HOM_MODE_QUICK, 0, 0);
+}
+
+static int8_t h_home(con_t *con, const con_args_t *args, void *ctx)
+{
+    app_t *a = ctx;
+    hom_config_t cfg;
+    uint8_t i;
+    int8_t e;
+    (void)con;
+    (void)args;
+    if (!app_idle_state(a)) {
+        return CON_E_BUSY;
+    }
+    e = app_run_check(a);
+    if (e != 0) {
+        return e;
+    }
+    e = app_rec_usable(a);
+    if (e != 0) {
+        return e;
+    }
+    hom_config_default(&cfg);
+    for (i = 0; i < a->info.n_tendons; i++) {
+        app_bus_goal(a, i, app_rec_home(a, i), cfg.v_final, cfg.acc);
+    }
+    app_run_move(a, APP_MOVE_HOME);
+    return 0;
+}
+
+static int8_t h_release(con_t *con, const con_args_t *args, void *ctx)
+{
+    app_t *a = ctx;
+    (void)con;
+    (void)args;
+    if (!a->table_ok) {
+        return CON_E_NO_TABLE;
+    }
+    if (a->state == APP_ST_BOOT) {
+        return CON_E_BUSY;
+    }
+    if (!app_idle_state(a)) {
+        app_abort(a);
+        return 0;
+    }
+    (void)app_run_release_goals(a);
+    app_run_move(a, APP_MOVE_RELEASE);
+    return 0;
+}
+
+static int8_t h_learn(con_t *con, const con_args_t *args, void *ctx)
+{
+    app_t *a = ctx;
+    uint8_t g, t = (uint8_t)args->v[0];
+    (void)con;
+    if (!a->table_ok) {
+        return CON_E_NO_TABLE;
+    }
+    if (!app_idle_state(a) || app_rec_busy(a)) {
+        return CON_E_BUSY;
+    }
+    if (t >= a->info.n_tendons) {
+        return CON_E_BAD_TENDON;
+    }
+    for (g = 0; g < a->info.n_grid && a->info.grid_mN[g] != (uint16_t)args->v[1]; g++) {
+    }
+    if (g >= a->info.n_grid) {
+        return CON_E_TENSION_RANGE; /* learned targets sit on the table's grid */
+    }
+    if (!a->learn.have_b0) {
+        return CON_E_NOT_HOMED; /* no straight-pose baseline yet: `release` first */
+    }
+    return app_learn_start(a, t, g);
+}
+
+/* `forget T|all`: the learned targets of tendon T, or of every tendon, are
+ * erased (empty records saved); the compiled table's targets apply again. */
+static int8_t h_forget(con_t *con, const con_args_t *args, void *ctx)
+{
+    app_t *a = ctx;
+    const char *w = args->s[0];
+    uint16_t m = 0;
+    (void)con;
+    if (!a->table_ok) {
+        return CON_E_NO_TABLE;
+    }
+    if (!app_idle_state(a) || app_rec_busy(a) || a->learn.forget != 0u) {
+        return CON_E_BUSY;
+    }
+    if (strcmp(w, "all") == 0) {
+        m = app_all_mask(a);
+    } else {
+        uint8_t t = 0;
+        for (; *w != '\0'; w++) {
+            if (*w < '0' || *w > '9' || t > 20u) {
+                return CON_E_BAD_TENDON;
+            }
+            t = (uint8_t)(t * 10u + (uint8_t)(*w - '0'));
+        }
+        if (t >= a->info.n_tendons) {
+            return CON_E_BAD_TENDON;
+        }
+        m = app_bit16(t);
+    }
+    return app_learn_forget(a, m);
+}
+
+static int8_t h_table(con_t *con, const con_args_t *args, void *ctx)
+{
+    app_t *a = ctx;
+    if (quiet_needed(a) != 0) {
+        return CON_E_BUSY;
+    }
+    char buf[TBL_MAX_GRID * 12u + 1u];
+    uint8_t i, g, pos;
+    (void)con;
+    (void)args;
+    if (!a->table_ok) {
+        return CON_E_NO_TABLE;
+    }
+    app_rep_begin(a, app_w_table);
+    con_report_str(&a->cmd.con, app_w_name, a->info.name);
+    app_rep_hex(a, app_w_table_id, a->info.table_id);
+    app_rep_int(a, app_w_tendons, a->info.n_tendons);
+    app_rep_int(a, app_w_sensors, a->info.n_sensors);
+    pos = 0;
+    buf[0] = '\0';
+    for (g = 0; g < a->info.n_grid; g++) {
+        app_list_add(buf, sizeof buf, &pos, a->info.grid_mN[g], '\0');
+    }
+    con_report_str(&a->cmd.con, app_w_grid_mN, buf);
+    app_rep_int(a, app_w_default_mN, a->info.default_mN);
+    app_rep_int(a, app_w_noise_cuT, a->info.noise_cuT);
+    app_rep_end(a);
+    for (i = 0; i < a->info.n_tendons; i++) {
+        tbl_tendon_t row, eff;
+        (void)tbl_tendon(&a->tab, i, &row);
+        (void)tbl_tendon(&a->htab, i, &eff);
+        app_rep_begin(a, app_w_tendon);
+        app_rep_int(a, app_w_tendon, i);
+        app_rep_int(a, app_w_id, row.servo_id);
+        app_rep_int(a, app_w_dir, row.pull_dir);
+        app_rep_int(a, app_w_segment, row.segment);
+        app_rep_int(a, app_w_sensor, row.sensor);
+        app_rep_int(a, app_w_limit_um, (int32_t)row.travel_limit_um);
+        pos = 0;
+        buf[0] = '\0';
+        for (g = 0; g < a->info.n_grid; g++) {
+            app_list_add(buf, sizeof buf, &pos, (int32_t)eff.target_cuT[g],
+                         eff.target_cuT[g] != row.target_cuT[g] ? '*' : '\0');
+        }
+        con_report_str(&a->cmd.con, app_w_target_cuT, buf);
+        app_rep_end(a);
+    }
+    return 0;
+}
+
+static int8_t h_history(con_t *con, const con_args_t *args, void *ctx)
+{
+    app_t *a = ctx;
+    if (quiet_needed(a) != 0) {
+        return CON_E_BUSY;
+    }
+    uint8_t n, age, i, pos;
+    char buf[TBL_MAX_TENDONS * 12u + 1u];
+    store_hist_t e;
+    (void)con;
+    (void)args;
+    n = store_hist_count(&a->rec.store);
+    for (age = 0; age < n; age++) {
+        if (store_hist_get(&a->rec.store, age, &e) != 0) {
+            break;
+        }
+        app_rep_begin(a, app_w_hist);
+        app_rep_int(a, app_w_age, age);
+        app_rep_int(a, app_w_count, (int32_t)e.cal_count);
+        app_rep_hex(a, app_w_table_id, e.table_id);
+        app_rep_int(a, app_w_tension_mN, e.tension_mN);
+        pos = 0;
+        buf[0] = '\0';
+        for (i = 0; i < e.n_tendons && i < TBL_MAX_TENDONS; i++) {
+            app_list_add(buf, sizeof buf, &pos, e.home_ticks[i],
+                         app_has(e.valid_mask, i) ? 0 : '?');
+        }
+        con_report_str(&a->cmd.con, app_w_homes, buf);
+        app_rep_end(a);
+    }
+    return 0;
+}
+
+static void setting_line(app_t *a, uint8_t id)
+{
+    char buf[24];
+    store_setting_info_t inf;
+    (void)store_setting_info(&a->rec.store, id, &inf);
+    app_rep_begin(a, app_w_setting);
+    (void)store_setting_text(&a->rec.store, id, 0, buf, sizeof buf);
+    con_report_str(&a->cmd.con, app_w_name, buf);
+    app_rep_int(a, app_w_value, a->rec.set.v[id]);
+    (void)store_setting_text(&a->rec.store, id, 1, buf, sizeof buf);
+    con_report_str(&a->cmd.con, app_w_unit, buf);
+    app_rep_int(a, app_w_min, inf.min);
+    app_rep_int(a, app_w_max, inf.max);
+    app_rep_int(a, app_w_default, inf.def);
+    app_rep_end(a);
+}
+
+static int8_t find_setting(app_t *a, const con_args_t *args)
+{
+    const char *n = args->s[0];
+    return store_setting_find(&a->rec.store, n, (uint8_t)strlen(n));
+}
+
+static int8_t h_get(con_t *con, const con_args_t *args, void *ctx)
+{
+    app_t *a = ctx;
+    if (quiet_needed(a) != 0) {
+        return CON_E_BUSY;
+    }
+    uint8_t id;
+    (void)con;
+    if (args->given & 1u) {
+        int8_t f = find_setting(a, args);
+        if (f < 0) {
+            return CON_E_UNKNOWN_SETTING;
+        }
+        setting_line(a, (uint8_t)f);
+        return 0;
+    }
+    for (id = 0; id < STORE_SETTING_COUNT; id++) {
+        setting_line(a, id);
+    }
+    return 0;
+}
+
+static int8_t h_set(con_t *con, const con_args_t *args, void *ctx)
+{
+    app_t *a = ctx;
+    int8_t f, rc;
+    (void)con;
+    f = find_setting(a, args);
+    if (f < 0) {
+        return CON_E_UNKNOWN_SETTING;
+    }
+    if ((a->rec.save_due & APP_SAVE_SETTINGS) || a->rec.save_now == APP_SAVE_SETTINGS) {
+        return CON_E_BUSY; /* the record is being written */
+    }
+    if (f == STORE_SET_CAL_TENSION && a->table_ok &&
+        (args->v[1] < a->info.grid_mN[0] || args->v[1] > a->info.grid_mN[a->info.n_grid - 1u])) {
+        return CON_E_TENSION_RANGE; /* every press would be refused */
+    }
+    rc = store_setting_set(&a->rec.store, &a->rec.set, (uint8_t)f, args->v[1]);
+    if (rc != 0) {
+        return CON_E_SETTING_RANGE;
+    }
+    if (f == STORE_SET_TARGET_MODE) {
+        app_run_ambient_reset(a);
+    }
+    return 0;
+}
+
+static int8_t h_save(con_t *con, const con_args_t *args, void *ctx)
+{
+    app_t *a = ctx;
+    (void)con;
+    (void)args;
+    if (!app_idle_state(a) || (a->rec.save_due & APP_SAVE_SETTINGS) ||
+        a->rec.save_now == APP_SAVE_SETTINGS) {
+        return CON_E_BUSY; /* EEPROM writes happen only while nothing moves */
+    }
+    app_rec_queue(a, APP_SAVE_SETTINGS);
+    return CON_PENDING;
+}
+
+static int8_t h_reboot(con_t *con, const con_args_t *args, void *ctx)
+{
+    app_t *a = ctx;
+    (void)con;
+    if (!app_idle_state(a) || app_rec_busy(a)) {
+        return CON_E_BUSY;
+    }
+    app_bus_reboot(a, (uint8_t)args->v[0]);
+    return CON_PENDING;
+}
+
+const con_handler_fn app_handlers[CON_CMD_COUNT] CON_FLASH = {
+    [CON_CMD_HELP] = NULL, /* built into the console */
+    [CON_CMD_VERSION] = h_version, [CON_CMD_STATUS] = h_status,   [CON_CMD_SENSORS] = h_sensors,
+    [CON_CMD_SERVOS] = h_servos,   [CON_CMD_CAL] = h_cal,         [CON_CMD_REHOME] = h_rehome,
+    [CON_CMD_HOME] = h_home,       [CON_CMD_RELEASE] = h_release, [CON_CMD_LEARN] = h_learn,
+    [CON_CMD_TABLE] = h_table,     [CON_CMD_HISTORY] = h_history, [CON_CMD_GET] = h_get,
+    [CON_CMD_SET] = h_set,         [CON_CMD_SAVE] = h_save,       [CON_CMD_REBOOT] = h_reboot,
+    [CON_CMD_FORGET] = h_forget,
+};

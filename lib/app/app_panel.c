@@ -1,0 +1,74 @@
+/*
+ * app_panel: the button (debounced; a short press starts a run, a long press
+ * aborts) and the LED patterns (app.h, APP_LED_*).
+ */
+#include "app/app_priv.h"
+
+APP_NOINLINE void app_panel_button(app_t *a, uint16_t t)
+{
+    uint8_t raw = a->io->board->button(a->io->board->ctx) ? 1u : 0u;
+    if (raw != a->panel.raw) {
+        a->panel.raw = raw;
+        a->panel.t_change = t;
+    }
+    if ((uint16_t)(t - a->panel.t_change) >= APP_DEBOUNCE_MS && a->panel.state != a->panel.raw) {
+        a->panel.state = a->panel.raw;
+        if (a->panel.state) {
+            a->panel.t_down = t;
+            a->panel.long_done = 0;
+        } else if (!a->panel.long_done) {
+            app_run_press(a);
+        }
+    }
+    if (a->panel.state && !a->panel.long_done &&
+        (uint16_t)(t - a->panel.t_down) >= APP_LONG_PRESS_MS) {
+        a->panel.long_done = 1;
+        app_abort(a);
+    }
+}
+
+APP_NOINLINE void app_panel_led(app_t *a, uint32_t t)
+{
+    uint8_t on;
+    uint32_t p;
+    switch (app_led_pattern(a)) {
+    case APP_LED_BOOT:
+        on = (uint8_t)((t / 100u) & 1u);
+        break;
+    case APP_LED_RUN:
+        on = (uint8_t)((t / 125u) & 1u);
+        break;
+    case APP_LED_DONE:
+        on = 1;
+        break;
+    case APP_LED_FAULT:
+        p = t % 1000u;
+        on = (uint8_t)(p < 300u && ((p / 50u) & 1u) == 0u);
+        break;
+    default:
+        p = t % 2000u;
+        on = (uint8_t)(p < 50u || (a->boot.offer_quick && p >= 200u && p < 250u));
+        break;
+    }
+    if (on != a->panel.led_on || a->loops == 0u) {
+        a->panel.led_on = on;
+        a->io->board->led(a->io->board->ctx, on);
+    }
+}
+
+uint8_t app_led_pattern(const app_t *app)
+{
+    switch (app->state) {
+    case APP_ST_BOOT:
+        return APP_LED_BOOT;
+    case APP_ST_CAL:
+    case APP_ST_MOVE:
+    case APP_ST_LEARN:
+        return APP_LED_RUN;
+    case APP_ST_FAULT:
+        return APP_LED_FAULT;
+    default:
+        return app->panel.led == APP_LED_DONE || app->panel.led == APP_LED_FAULT ? app->panel.led
+                                                                                 : APP_LED_IDLE;
+    }
+}

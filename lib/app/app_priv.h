@@ -1,0 +1,386 @@
+/*
+ * app_priv: what the rooms of lib/app share, and nothing outside lib/app
+ * includes. Each room is one file that owns one part of app_t (app.h):
+ *
+ *   app.c         the superloop (app_poll) and the small helpers every room uses
+ *   app_boot.c    app_init, the table, device bring-up and <ready>        (app_t.boot)
+ *   app_bus.c     the servo-bus scheduler: one transaction at a time      (app_t.bus)
+ *   app_sense.c   the sensor set and its samples for the homing           (app_t.sense)
+ *   app_run.c     runs (cal, rehome), app moves (home, release), aborts,
+ *                 the kept engagement windows                             (app_t.run)
+ *   app_learn.c   learn, forget and the learned-target table copy         (app_t.learn)
+ *   app_rec.c     the EEPROM records: homes, rest positions, history,
+ *                 settings, written one byte per pass while idle          (app_t.rec)
+ *   app_cmd.c     the console: its poll and the command handlers          (app_t.cmd)
+ *   app_report.c  report lines and the flash words they use
+ *   app_panel.c   button and LED                                          (app_t.panel)
+ *
+ * A room writes its own sub-struct; the others read it, or call the room's
+ * functions declared here. The shared storage app_t.u belongs to one
+ * activity at a time (app.h).
+ *
+ * Functions here follow the app's convention: 0 done, negative error (a
+ * CON_E_* code), positive in progress, unless they say otherwise.
+ */
+#ifndef HALLHOME_APP_PRIV_H
+#define HALLHOME_APP_PRIV_H
+
+#include "app/app.h"
+
+/* Flash is the scarce resource on the AVR: the tasks called from one place
+ * stay functions of their own rather than being merged into their caller,
+ * which costs more code (-0.8 KB measured). The firmware is linked as one
+ * LTO unit, so functions shared between the rooms cost no more than the
+ * static functions of one file did. */
+#if defined(__GNUC__)
+#define APP_NOINLINE __attribute__((noinline))
+#else
+#define APP_NOINLINE
+#endif
+
+/* Report kinds, keys and words, each once in console-flash memory (program
+ * memory on the AVR, where CON_FLASH is __progmem__): app_w_<id>. W(id) is
+ * the word "id" itself; WS(id, text) any other text. The *_words entries are
+ * space-separated lists read by app_rep_word(). */
+#define APP_WORDS(W, WS)                                                                           \
+    WS(mode_words, "full quick single dry")                                                        \
+    WS(target_words, "delta abs")                                                                  \
+    WS(fault_words, HOM_FAULT_WORDS)                                                               \
+    W(target)                                                                                      \
+    WS(state_words, "boot idle cal move learn fault")                                              \
+    WS(dev_words, "none sensor servo tendon")                                                      \
+    WS(phase_words, "- preflight release baseline tendon final")                                   \
+    W(fault)                                                                                       \
+    W(reason)                                                                                      \
+    W(error)                                                                                       \
+    W(dev)                                                                                         \
+    W(index)                                                                                       \
+    W(boot)                                                                                        \
+    W(name)                                                                                        \
+    W(hallhome)                                                                                    \
+    W(version)                                                                                     \
+    W(board)                                                                                       \
+    W(reset)                                                                                       \
+    W(missing)                                                                                     \
+    W(sensor)                                                                                      \
+    W(ch)                                                                                          \
+    W(addr)                                                                                        \
+    W(err)                                                                                         \
+    W(servo)                                                                                       \
+    W(id)                                                                                          \
+    W(hw_error)                                                                                    \
+    W(tendon)                                                                                      \
+    W(found)                                                                                       \
+    W(model)                                                                                       \
+    W(fw)                                                                                          \
+    W(pos)                                                                                         \
+    W(cal_pos)                                                                                     \
+    W(ready)                                                                                       \
+    W(table)                                                                                       \
+    W(table_id)                                                                                    \
+    W(none)                                                                                        \
+    W(sensors)                                                                                     \
+    W(sensors_expected)                                                                            \
+    W(servos)                                                                                      \
+    W(servos_expected)                                                                             \
+    W(homes)                                                                                       \
+    W(moved)                                                                                       \
+    W(stored)                                                                                      \
+    W(count)                                                                                       \
+    W(other_table)                                                                                 \
+    W(rehome)                                                                                      \
+    W(progress)                                                                                    \
+    W(state)                                                                                       \
+    W(start)                                                                                       \
+    W(mode)                                                                                        \
+    W(tension_mN)                                                                                  \
+    W(why)                                                                                         \
+    W(bits)                                                                                        \
+    W(engaged)                                                                                     \
+    W(result)                                                                                      \
+    W(home)                                                                                        \
+    W(home_um)                                                                                     \
+    W(dB_uT)                                                                                       \
+    W(target_uT)                                                                                   \
+    W(travel_um)                                                                                   \
+    W(time_ms)                                                                                     \
+    W(code)                                                                                        \
+    W(detail)                                                                                      \
+    W(released)                                                                                    \
+    W(done)                                                                                        \
+    W(aborted)                                                                                     \
+    W(servo_stall)                                                                                 \
+    W(release)                                                                                     \
+    W(baseline)                                                                                    \
+    W(learned)                                                                                     \
+    W(grid)                                                                                        \
+    W(eeprom)                                                                                      \
+    W(refused)                                                                                     \
+    W(tendons)                                                                                     \
+    W(status)                                                                                      \
+    W(homes_now)                                                                                   \
+    W(saving)                                                                                      \
+    W(loop_max_us)                                                                                 \
+    W(loops)                                                                                       \
+    W(rest)                                                                                        \
+    W(usable)                                                                                      \
+    W(now)                                                                                         \
+    W(ok)                                                                                          \
+    W(who)                                                                                         \
+    W(mag)                                                                                         \
+    W(rate_Hz)                                                                                     \
+    W(bx_uT)                                                                                       \
+    W(by_uT)                                                                                       \
+    W(bz_uT)                                                                                       \
+    W(ovf)                                                                                         \
+    W(last_err)                                                                                    \
+    W(reinits)                                                                                     \
+    W(grid_mN)                                                                                     \
+    W(default_mN)                                                                                  \
+    W(noise_cuT)                                                                                   \
+    W(dir)                                                                                         \
+    W(segment)                                                                                     \
+    W(limit_um)                                                                                    \
+    W(target_cuT)                                                                                  \
+    W(hist)                                                                                        \
+    W(age)                                                                                         \
+    W(setting)                                                                                     \
+    W(value)                                                                                       \
+    W(unit)                                                                                        \
+    W(min)                                                                                         \
+    W(max)                                                                                         \
+    W(default)                                                                                     \
+    W(overrun)                                                                                     \
+    W(bytes)                                                                                       \
+    W(total)                                                                                       \
+    W(dropped)                                                                                     \
+    W(reports)                                                                                     \
+    W(not_released)                                                                                \
+    W(servo_error)
+
+#define APP_W_DECL(id)        extern const char app_w_##id[];
+#define APP_WS_DECL(id, text) extern const char app_w_##id[];
+APP_WORDS(APP_W_DECL, APP_WS_DECL)
+#undef APP_W_DECL
+#undef APP_WS_DECL
+
+/* ---- app.c: helpers of every room ------------------------------------------ */
+
+uint32_t app_now_ms(const app_t *a);
+uint32_t app_now_us(const app_t *a);
+/* 1 << i and bit i of m (one routine each: a variable shift is a loop on the AVR) */
+uint16_t app_bit16(uint8_t i);
+uint8_t app_has(uint16_t m, uint8_t i);
+/* every tendon of the table */
+uint16_t app_all_mask(const app_t *a);
+/* nothing moves, nothing is captured (APP_ST_IDLE or APP_ST_FAULT) */
+uint8_t app_idle_state(const app_t *a);
+
+/* ---- app_report.c: report lines -------------------------------------------- */
+
+void app_rep_begin(app_t *a, const char *kind);
+void app_rep_int(app_t *a, const char *key, int32_t v);
+void app_rep_end(app_t *a);
+/* key=0x%08x (table_id) without a printf */
+void app_rep_hex(app_t *a, const char *key, uint32_t v);
+/* key=<word i of the flash list words_f> ("?" past its end) */
+void app_rep_word(app_t *a, const char *key, const char *words_f, uint8_t i);
+/* Appends the decimal v (and mark unless '\0') to the comma list in buf at
+ * *pos (capacity cap); a value that does not fit is left out. */
+void app_list_add(char *buf, uint8_t cap, uint8_t *pos, int32_t v, char mark);
+/* A fault the app itself detects (moves, learn, EEPROM), in the same shape as
+ * the homing's: reason word, console error code, device, index. */
+void app_rep_fault(app_t *a, const char *reason_f, int8_t err, uint8_t dev, uint8_t index);
+/* One <missing ...> per sensor not sampling and per servo absent or in
+ * hardware error. Returns CON_E_SENSOR_FAULT when a sensor is missing, else
+ * CON_E_SERVO_FAULT when a servo is, else 0. */
+int8_t app_rep_missing(app_t *a);
+/* One <servo ...> per tendon (with_model: model and firmware of the bring-up). */
+void app_rep_servos(app_t *a, uint8_t with_model);
+/* A homing event as a console report. */
+void app_rep_event(app_t *a, const hom_event_t *ev);
+
+/* ---- app_boot.c: bring-up ------------------------------------------------- */
+
+/* One step of the bring-up (state APP_ST_BOOT): servos pinged and set up,
+ * sensors started, then `<missing ...>` and `<ready ...>`. */
+void app_boot_poll(app_t *a);
+/* The bring-up's entry for servo id, or NULL (valid until the shared storage
+ * is reused by a run or a record). */
+const dxl_servo_info *app_boot_servo_info(const app_t *a, uint8_t id);
+/* Brings the bus up again (`servos` scan, or after a servo reboot); the
+ * pending console line is answered with the servo lines once it is done. */
+void app_boot_again(app_t *a);
+/* A run stored new homes: nothing was recovered, no quick re-home offered. */
+void app_boot_homes_new(app_t *a);
+
+/* ---- app_bus.c: the servo bus ------------------------------------------------ */
+
+/* Bus transactions (app_bus_t.txn). */
+enum {
+    APP_TX_NONE = 0,
+    APP_TX_POS,
+    APP_TX_HWERR,
+    APP_TX_GOAL,
+    APP_TX_TORQUE,
+    APP_TX_REBOOT,
+    APP_TX_WDOG
+};
+
+/* One step of the bus: the reply of the transaction in flight taken, the next
+ * one started (torque, Bus Watchdog, goals, hardware-error or position reads). */
+void app_bus_poll(app_t *a);
+/* Queues a goal for tendon i (torque on first when it is off). */
+void app_bus_goal(app_t *a, uint8_t i, int32_t goal, uint16_t vel, uint16_t acc);
+/* Reboots servo id once the goals queued before it are out; the bus is then
+ * brought up again and the pending console line answered. */
+void app_bus_reboot(app_t *a, uint8_t id);
+/* A bring-up takes the bus: the transaction in flight is dropped, no servo
+ * is absent yet and no goal of the old frames is sent again. */
+void app_bus_stop(app_t *a);
+/* The bring-up is over: its servos, positions and hardware errors taken (the
+ * others marked absent), nothing queued, the Bus Watchdog writes due.
+ * Returns the number of servos found. */
+uint8_t app_bus_found(app_t *a);
+/* A run starts from cleared goals: none is refreshed until set again. */
+void app_bus_goals_cleared(app_t *a);
+/* Positions read before now are not news for the next step. */
+void app_bus_positions_stale(app_t *a);
+/* Every servo's input of a homing step (status, hardware error, position);
+ * the positions then count as taken. */
+void app_bus_inputs(app_t *a, hom_in_t *in);
+/* Queues what a homing step changed: goals, velocities, torque. */
+void app_bus_take(app_t *a, const hom_out_t *out);
+
+/* ---- app_sense.c: the sensors ---------------------------------------------- */
+
+/* One step of the sensor set (now_us: the pass's start), and this pass's
+ * samples into in->sensor[] for the homing and `learn`. */
+void app_sense_poll(app_t *a, hom_in_t *in, uint32_t now_us);
+/* Sets the sensors of the table up and starts them (once; nothing when the
+ * set already runs). */
+void app_sense_start(app_t *a);
+/* The bring-up is over: the error counts so far are taken as seen. Returns
+ * the number of sensors sampling. */
+uint8_t app_sense_settled(app_t *a);
+
+/* ---- app_run.c: runs, moves and the kept windows ----------------------------- */
+
+/* App-driven moves (app_run_t.move_kind). */
+enum { APP_MOVE_HOME = 1, APP_MOVE_RELEASE = 2 };
+
+/* Starts a homing run. Returns 0 or a CON_E_* code (nothing moves then), or
+ * CON_PENDING when an EEPROM write must finish first
+ * (the pending console line is answered when the run starts). */
+int8_t app_run_request(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon);
+/* A short press: the run the board offers (quick re-home or full), deferred
+ * while the bring-up or an EEPROM write finishes; a refusal is reported. */
+void app_run_press(app_t *a);
+/* Each pass before the steps: deferred run requests and owed releases. */
+void app_run_poll(app_t *a);
+/* The reboot of bus.reboot_id failed: when it was owed a release after a
+ * hardware error, that tendon is reported as not released and 1 returned;
+ * else 0 (a console `reboot` is answered by the bus room). */
+uint8_t app_run_reboot_failed(app_t *a);
+/* 0 when a run or move may start: the bring-up is over, a table is loaded
+ * and no device is missing (each missing one reported); else CON_E_*. */
+int8_t app_run_check(app_t *a);
+/* One step of a run (state APP_ST_CAL) on this pass's samples. */
+void app_run_step(app_t *a, hom_in_t *in);
+/* Starts an app move (APP_MOVE_*) whose goals are queued. */
+void app_run_move(app_t *a, uint8_t kind);
+/* One step of an app move (state APP_ST_MOVE). */
+void app_run_move_step(app_t *a);
+/* Queues the release goals of every tendon that answered (never a pull; a
+ * tendon without a window gets one). Returns nonzero when any was queued. */
+uint8_t app_run_release_goals(app_t *a);
+/* Engagement windows kept across resets (app_win_t): checked at boot, set
+ * (keep 0: forgotten) per tendon. */
+void app_win_check(app_t *a);
+/* The target mode changed: the next absolute run captures the ambient again. */
+void app_run_ambient_reset(app_t *a);
+void app_win_set(app_t *a, uint8_t i, int32_t lo, int32_t hi, uint8_t keep);
+
+/* ---- app_learn.c: learn and forget -------------------------------------------- */
+
+#define APP_LEARN_BASELINE 0xFFu /* learn.tendon: capturing the straight-pose baseline */
+
+/* Starts averaging samples for tendon (or APP_LEARN_BASELINE). */
+void app_learn_begin(app_t *a, uint8_t tendon);
+/* One step of a capture (state APP_ST_LEARN) on this pass's samples. */
+void app_learn_step(app_t *a, const hom_in_t *in);
+/* `learn`: starts averaging tendon's sensor for grid point grid. Returns
+ * CON_PENDING (answered when done) or CON_E_SENSOR_FAULT. */
+int8_t app_learn_start(app_t *a, uint8_t tendon, uint8_t grid);
+/* `forget`: erases the learned records of the tendons in mask that have one.
+ * Returns CON_PENDING (answered once written) or 0 when none has. */
+int8_t app_learn_forget(app_t *a, uint16_t mask);
+/* `forget`, called by app_rec_poll() while the EEPROM and the record
+ * storage are free: the next tendon's empty learned record is queued. */
+void app_learn_forget_next(app_t *a);
+/* The learned record just written was the last one of a `forget`: returns 1
+ * (once) so that its console line is answered. */
+uint8_t app_learn_forgotten(app_t *a);
+/* A run or a bring-up takes the storage of the straight-pose baseline. */
+void app_learn_drop_baseline(app_t *a);
+/* The learned record in u.idle goes to the EEPROM now: a record with
+ * targets marks its tendon as learned. */
+void app_learn_saving(app_t *a);
+/* A run ended well: its straight-pose baseline becomes the learn baseline
+ * (copied out of the homing's storage into u.idle.b0). */
+void app_learn_keep_baseline(app_t *a);
+
+/* ---- app_rec.c: EEPROM records and homes ---------------------------------------- */
+
+/* Records waiting for the EEPROM (rec.save_due, rec.save_now). */
+enum { APP_SAVE_HOMES = 1, APP_SAVE_HIST = 2, APP_SAVE_LEARNED = 4, APP_SAVE_SETTINGS = 8 };
+
+/* Queues records (APP_SAVE_*) for the EEPROM. */
+void app_rec_queue(app_t *a, uint8_t what);
+/* A history or learned record waits in u.idle: the homing and the bring-up
+ * must not reuse that storage until it is written. */
+uint8_t app_rec_busy(const app_t *a);
+/* One EEPROM step (one byte while nothing moves), the queued records started
+ * in turn, and `save` / `forget` answered when theirs is written. */
+void app_rec_poll(app_t *a);
+/* Records the rest positions once the servos have stopped after a release
+ * or a fault. */
+void app_rec_rest_poll(app_t *a);
+/* Maps the stored homes into this power cycle's servo frames (rec.home_now).
+ * Returns 0, or the first store_recover_position() error of a tendon. */
+int8_t app_rec_recover(app_t *a);
+/* Tendon i's stored home in this power cycle's frame (valid with home_now). */
+int32_t app_rec_home(const app_t *a, uint8_t i);
+/* 0 when every tendon has a stored home usable in this power cycle, else
+ * CON_E_NOT_HOMED or CON_E_MOVED (a spool turned while powered off). */
+int8_t app_rec_usable(const app_t *a);
+/* Rest positions: recorded REST_DELAY_MS after t (due 1), or not (due 0). */
+void app_rec_rest_at(app_t *a, uint8_t due, uint32_t t);
+/* A run ended well: the homes of the tendons in mask taken from the homing
+ * (calibration frame = this power cycle's frame, offsets 0), counted at
+ * tension. Before the homing's storage is reused. */
+void app_rec_take_homes(app_t *a, uint16_t mask, uint16_t tension);
+/* ... then the history record of the run, and both records queued. */
+void app_rec_save_run(app_t *a);
+
+/* ---- app_cmd.c: the console ----------------------------------------------------- */
+
+/* The console's step: realtime mode while anything moves, lost bytes and
+ * dropped reports reported, one byte or line handled. */
+void app_cmd_poll(app_t *a);
+
+/* ---- app_panel.c: button and LED ------------------------------------------ */
+
+/* Debounces the button (t: 16-bit ms): a short press calls app_run_press(), a
+ * press held for APP_LONG_PRESS_MS calls app_abort(). */
+void app_panel_button(app_t *a, uint16_t t);
+/* Drives the LED with app_led_pattern() at time t (ms). */
+void app_panel_led(app_t *a, uint32_t t);
+/* The pattern a room asks for (APP_LED_*); app_led_pattern() shows it while
+ * the state allows. */
+static inline void app_panel_set(app_t *a, uint8_t pattern)
+{
+    a->panel.led = pattern;
+}
+
+#endif /* HALLHOME_APP_PRIV_H */

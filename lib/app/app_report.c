@@ -1,0 +1,252 @@
+/*
+ * app_report: the report lines of every room and the flash words they use
+ * (app_priv.h). Reports are written through the console (con_report_*), which
+ * drops them rather than wait while anything moves.
+ */
+#include <string.h>
+
+#include "app/app_priv.h"
+
+#define APP_W_DEF(id)        const char app_w_##id[] CON_FLASH = #id;
+#define APP_WS_DEF(id, text) const char app_w_##id[] CON_FLASH = text;
+APP_WORDS(APP_W_DEF, APP_WS_DEF)
+#undef APP_W_DEF
+#undef APP_WS_DEF
+
+void app_rep_begin(app_t *a, const char *kind)
+{
+    con_report_begin(&a->cmd.con, kind);
+}
+
+void app_rep_int(app_t *a, const char *key, int32_t v)
+{
+    con_report_int(&a->cmd.con, key, v);
+}
+
+void app_rep_end(app_t *a)
+{
+    con_report_end(&a->cmd.con);
+}
+
+/* Hex words (table_id) without a printf. */
+void app_rep_hex(app_t *a, const char *key, uint32_t v)
+{
+    char buf[11];
+    uint8_t i;
+    buf[0] = '0';
+    buf[1] = 'x';
+    for (i = 0; i < 8u; i++) {
+        uint8_t d = (uint8_t)((v >> (28u - 4u * i)) & 0xFu);
+        buf[2u + i] = (char)(d < 10u ? (char)('0' + d) : (char)('a' + d - 10u));
+    }
+    buf[10] = '\0';
+    con_report_str(&a->cmd.con, key, buf);
+}
+
+/* Appends the decimal v and a separator to buf at *pos (capacity cap). */
+void app_list_add(char *buf, uint8_t cap, uint8_t *pos, int32_t v, char mark)
+{
+    char tmp[13];
+    int8_t n = con_format_fixed(tmp, sizeof tmp, v, 0);
+    if (n < 0 || (uint16_t)*pos + (uint16_t)n + 3u > cap) {
+        return;
+    }
+    if (*pos > 0u) {
+        buf[(*pos)++] = ',';
+    }
+    memcpy(&buf[*pos], tmp, (size_t)n);
+    *pos = (uint8_t)(*pos + (uint8_t)n);
+    if (mark != '\0') {
+        buf[(*pos)++] = mark;
+    }
+    buf[*pos] = '\0';
+}
+
+/* Writes key=<word i of the flash list words_f> (space-separated; "?" past
+ * its end): one routine instead of a table of string pointers in RAM. */
+void app_rep_word(app_t *a, const char *key, const char *words_f, uint8_t i)
+{
+    char buf[16], c;
+    uint8_t n = 0;
+    for (;;) {
+        a->io->con_copy(&c, words_f++, 1);
+        if (c == '\0' || c == ' ') {
+            if (i == 0u || c == '\0') {
+                break;
+            }
+            i--;
+        } else if (i == 0u && n < sizeof buf - 1u) {
+            buf[n++] = c;
+        }
+    }
+    if (i != 0u || n == 0u) {
+        buf[n++] = '?';
+    }
+    buf[n] = '\0';
+    con_report_str(&a->cmd.con, key, buf);
+}
+
+/* A fault the app itself detects (moves, learn, EEPROM), in the same shape
+ * as the homing's: reason word, console error code, device. */
+void app_rep_fault(app_t *a, const char *reason_f, int8_t err, uint8_t dev, uint8_t index)
+{
+    app_rep_begin(a, app_w_fault);
+    con_report_flash(&a->cmd.con, app_w_reason, reason_f);
+    app_rep_int(a, app_w_error, -err);
+    app_rep_word(a, app_w_dev, app_w_dev_words, dev);
+    app_rep_int(a, app_w_index, index);
+    app_rep_end(a);
+}
+
+/* One `<missing ...>` per sensor that is not sampling and per servo that is
+ * absent or reports a hardware error. Returns CON_E_SENSOR_FAULT when a
+ * sensor is missing, else CON_E_SERVO_FAULT when a servo is, else 0. */
+int8_t app_rep_missing(app_t *a)
+{
+    uint8_t i;
+    int8_t rc = 0;
+    for (i = 0; i < a->info.n_sensors; i++) {
+        icm_diag_t d;
+        (void)icm_set_diag(&a->sense.set, i, &d);
+        if (d.state != ICM_SET_S_RUN) {
+            app_rep_begin(a, app_w_missing);
+            con_report_flash(&a->cmd.con, app_w_dev, app_w_sensor);
+            app_rep_int(a, app_w_index, i);
+            app_rep_int(a, app_w_ch, d.channel);
+            app_rep_int(a, app_w_addr, d.addr);
+            app_rep_int(a, app_w_err, d.last_err);
+            app_rep_end(a);
+            rc = CON_E_SENSOR_FAULT;
+        }
+    }
+    for (i = 0; i < a->info.n_tendons; i++) {
+        if (app_has(a->bus.absent, i) || a->bus.hw_err[i] != 0u) {
+            app_rep_begin(a, app_w_missing);
+            con_report_flash(&a->cmd.con, app_w_dev, app_w_servo);
+            app_rep_int(a, app_w_index, i);
+            app_rep_int(a, app_w_id, a->bus.ids[i]);
+            app_rep_int(a, app_w_hw_error, a->bus.hw_err[i]);
+            app_rep_end(a);
+            if (rc == 0) {
+                rc = CON_E_SERVO_FAULT;
+            }
+        }
+    }
+    return rc;
+}
+
+/* One `<servo ...>` line per tendon: what the bus knows of its servo. */
+void app_rep_servos(app_t *a, uint8_t with_model)
+{
+    uint8_t i;
+    for (i = 0; i < a->info.n_tendons; i++) {
+        app_rep_begin(a, app_w_servo);
+        app_rep_int(a, app_w_tendon, i);
+        app_rep_int(a, app_w_id, a->bus.ids[i]);
+        app_rep_int(a, app_w_found, app_has(a->bus.absent, i) == 0u);
+        if (with_model) {
+            const dxl_servo_info *s = app_boot_servo_info(a, a->bus.ids[i]);
+            if (s != NULL) {
+                app_rep_int(a, app_w_model, s->model);
+                app_rep_int(a, app_w_fw, s->firmware);
+            }
+        }
+        app_rep_int(a, app_w_pos, a->bus.present[i]);
+        app_rep_int(a, app_w_cal_pos, a->bus.present[i] + a->rec.offset[i]);
+        app_rep_int(a, app_w_hw_error, a->bus.hw_err[i]);
+        app_rep_end(a);
+    }
+}
+
+/* Ticks to um, split so that the products stay in 32 bits for any
+ * extended-position value (+-256 turns). */
+APP_NOINLINE static int32_t ticks_um(uint32_t npt, int32_t ticks)
+{
+    return ticks * (int32_t)(npt / 1000u) + ticks * (int32_t)(npt % 1000u) / 1000;
+}
+
+APP_NOINLINE void app_rep_event(app_t *a, const hom_event_t *ev)
+{
+    uint8_t i = ev->index;
+    switch (ev->type) {
+    case HOM_EV_START:
+        app_rep_begin(a, app_w_progress);
+        con_report_flash(&a->cmd.con, app_w_state, app_w_start);
+        app_rep_word(a, app_w_mode, app_w_mode_words, ev->code);
+        app_rep_int(a, app_w_tension_mN, ev->a);
+        app_rep_end(a);
+        break;
+    case HOM_EV_PHASE: {
+        app_rep_begin(a, app_w_progress);
+        app_rep_word(a, app_w_state, app_w_phase_words, ev->code);
+        if (ev->code == HOM_PH_TENDON && i < TBL_MAX_TENDONS) {
+            app_rep_int(a, app_w_tendon, i);
+            app_rep_int(a, app_w_id, a->bus.ids[i]);
+        }
+        app_rep_end(a);
+        break;
+    }
+    case HOM_EV_MISSING:
+        app_rep_begin(a, app_w_missing);
+        app_rep_word(a, app_w_dev, app_w_dev_words, ev->code);
+        app_rep_int(a, app_w_index, i);
+        if (ev->code == HOM_DEV_SERVO && i < TBL_MAX_TENDONS) {
+            app_rep_int(a, app_w_id, a->bus.ids[i]);
+        }
+        app_rep_int(a, app_w_why, ev->a);
+        app_rep_int(a, app_w_bits, ev->b);
+        app_rep_end(a);
+        break;
+    case HOM_EV_ENGAGED:
+        app_rep_begin(a, app_w_progress);
+        con_report_flash(&a->cmd.con, app_w_state, app_w_engaged);
+        app_rep_int(a, app_w_tendon, i);
+        app_rep_int(a, app_w_pos, ev->a);
+        app_rep_end(a);
+        break;
+    case HOM_EV_HOME:
+        if (i < a->info.n_tendons) {
+            const hom_tendon_t *t = hom_tendon(&a->u.hom, i);
+            app_rep_begin(a, app_w_result);
+            app_rep_int(a, app_w_tendon, i);
+            app_rep_int(a, app_w_id, a->bus.ids[i]);
+            app_rep_int(a, app_w_home, ev->a);
+            app_rep_int(a, app_w_home_um, ticks_um(t->nm_per_tick, ev->a));
+            con_report_fixed(&a->cmd.con, app_w_dB_uT, (int32_t)hom_home_dB(&a->u.hom), 2);
+            con_report_fixed(&a->cmd.con, app_w_target_uT, (int32_t)t->target_cuT, 2);
+            app_rep_int(a, app_w_travel_um, ticks_um(t->nm_per_tick, (ev->a - t->engage) * t->dir));
+            app_rep_int(a, app_w_time_ms, (int32_t)hom_tendon_ms(&a->u.hom));
+            app_rep_word(a, app_w_target, app_w_target_words, a->run.abs);
+            app_rep_end(a);
+        }
+        break;
+    case HOM_EV_DONE:
+        break; /* reported by run_done() with the count */
+    case HOM_EV_FAULT:
+        app_rep_begin(a, app_w_fault);
+        app_rep_word(a, app_w_reason, app_w_fault_words, ev->code);
+        app_rep_int(a, app_w_code, ev->code);
+        app_rep_word(a, app_w_dev, app_w_dev_words, (uint8_t)ev->a);
+        app_rep_int(a, app_w_index, i);
+        if ((ev->a == HOM_DEV_SERVO || ev->a == HOM_DEV_TENDON) && i < TBL_MAX_TENDONS) {
+            app_rep_int(a, app_w_id, a->bus.ids[i]);
+        }
+        app_rep_int(a, app_w_detail, ev->b);
+        app_rep_end(a);
+        break;
+    case HOM_EV_RELEASED:
+        app_rep_begin(a, app_w_released);
+        app_rep_word(a, app_w_reason, app_w_fault_words, (uint8_t)ev->a);
+        if ((ev->a == HOM_F_SERVO_TIMEOUT || ev->a == HOM_F_SERVO_ERROR) &&
+            hom_fault_index(&a->u.hom) < a->info.n_tendons) {
+            /* a servo that does not answer, or has its torque off, cannot
+             * take the release: named (a hardware error is rebooted next) */
+            app_rep_int(a, app_w_not_released, a->bus.ids[hom_fault_index(&a->u.hom)]);
+            app_rep_int(a, app_w_index, hom_fault_index(&a->u.hom));
+        }
+        app_rep_end(a);
+        break;
+    default:
+        break;
+    }
+}

@@ -1,0 +1,468 @@
+/*
+ * app_run: the run room. Homing runs (cal, rehome, single, dry) from the
+ * request to the stored result, the app's own moves (home, release) and
+ * aborts, the releases owed after a reset or a servo's hardware error, and
+ * the engagement windows kept across resets (app_win_t) that bound every
+ * release (docs/app.md, "Recovery").
+ */
+#include <stddef.h>
+#include <string.h>
+
+#include "app/app_priv.h"
+
+/* um of tendon travel in encoder ticks at npt nm per tick (rounded; travel
+ * is at most metres, so 32 bits hold um * 1000). */
+static int32_t um_ticks(uint32_t npt, uint32_t um)
+{
+    if (npt == 0u) {
+        npt = 1u;
+    }
+    return (int32_t)((um * 1000u + npt / 2u) / npt);
+}
+
+static uint16_t win_crc(const app_win_t *w)
+{
+    return store_crc16(0xFFFFu, w, offsetof(app_win_t, crc));
+}
+
+/* Checks the kept windows at boot: wrong magic, table or CRC clears them. */
+void app_win_check(app_t *a)
+{
+    app_win_t *w = a->io->win;
+    if (w != NULL && (w->magic != APP_WIN_MAGIC || w->table_id != a->info.table_id ||
+                      w->crc != win_crc(w) || !a->table_ok)) {
+        memset(w, 0, sizeof *w);
+        w->magic = APP_WIN_MAGIC;
+        w->table_id = a->info.table_id;
+        w->crc = win_crc(w);
+    }
+}
+
+/* Sets tendon i's window (or forgets it with keep 0). */
+APP_NOINLINE void app_win_set(app_t *a, uint8_t i, int32_t lo, int32_t hi, uint8_t keep)
+{
+    app_win_t *w = a->io->win;
+    if (w == NULL) {
+        return;
+    }
+    w->mask = (uint16_t)(keep ? (w->mask | app_bit16(i)) : (w->mask & ~app_bit16(i)));
+    w->lo[i] = lo;
+    w->hi[i] = hi;
+    w->crc = win_crc(w);
+}
+
+/* Notes in the kept copy whether anything moves: a watchdog or reset-pin
+ * reset in the middle of a run leaves tendons taut, and the next boot
+ * releases them. */
+APP_NOINLINE static void win_moving(app_t *a, uint8_t on)
+{
+    app_win_t *w = a->io->win;
+    if (w != NULL && w->moving != on) {
+        w->moving = on;
+        w->crc = win_crc(w);
+    }
+}
+
+/* Takes the windows a run changed into the kept copy. */
+APP_NOINLINE static void win_take(app_t *a)
+{
+    uint8_t i;
+    uint16_t m = hom_win_take_changed(&a->u.hom);
+    for (i = 0; i < a->info.n_tendons; i++) {
+        int32_t lo, hi;
+        if (app_has(m, i) && hom_window(&a->u.hom, i, &lo, &hi) == 0) {
+            app_win_set(a, i, lo, hi, 1);
+        }
+    }
+}
+
+/* A run finished: keep its homes (calibration frame = this power cycle's
+ * frame, so the offsets become 0), count it and queue the records. */
+APP_NOINLINE static void run_done(app_t *a)
+{
+    uint32_t t = app_now_ms(a);
+    win_moving(a, 0);
+    a->run.amb_ok |= hom_amb_captured(&a->u.hom); /* read before u.idle reuses the storage */
+    app_rec_take_homes(a, a->run.mask, a->run.tension);
+    /* The run's baseline is the learn baseline until the next release. From
+     * here on the homing's storage is reused (u.idle overlaps its first
+     * bytes only: the homes above were read first). */
+    app_learn_keep_baseline(a);
+    app_rec_save_run(a);
+    app_boot_homes_new(a);
+    app_rep_begin(a, app_w_done);
+    app_rep_word(a, app_w_mode, app_w_mode_words, a->run.mode);
+    app_rep_word(a, app_w_target, app_w_target_words, a->run.abs);
+    app_rep_int(a, app_w_time_ms, (int32_t)(t - a->run.t_start));
+    app_rep_int(a, app_w_tension_mN, a->run.tension);
+    app_rep_int(a, app_w_count, (int32_t)a->rec.homes.cal_count);
+    app_rep_end(a);
+    app_panel_set(a, APP_LED_DONE);
+    a->state = APP_ST_IDLE;
+}
+
+APP_NOINLINE int8_t app_run_check(app_t *a)
+{
+    if (a->state == APP_ST_BOOT) {
+        return CON_E_BUSY;
+    }
+    if (!a->table_ok) {
+        return CON_E_NO_TABLE;
+    }
+    return app_rep_missing(a);
+}
+
+void app_run_ambient_reset(app_t *a)
+{
+    a->run.amb_ok = 0;
+}
+
+/* Starts a homing run. Returns 0 or a CON_E_* code (nothing moves then). */
+static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon)
+{
+    hom_config_t cfg;
+    hom_cmd_t cmd;
+    int rc;
+    uint8_t i;
+    int8_t e;
+    if (!app_idle_state(a)) {
+        return CON_E_BUSY;
+    }
+    e = app_run_check(a);
+    if (e != 0) {
+        return e;
+    }
+    if (mode == HOM_MODE_SINGLE && tendon >= a->info.n_tendons) {
+        return CON_E_BAD_TENDON;
+    }
+    if (tension == 0u) {
+        tension = (uint16_t)a->rec.set.v[STORE_SET_CAL_TENSION];
+    }
+    if (tension < a->info.grid_mN[0] || tension > a->info.grid_mN[a->info.n_grid - 1u]) {
+        return CON_E_TENSION_RANGE;
+    }
+    if (mode == HOM_MODE_QUICK) {
+        e = app_rec_usable(a);
+        if (e != 0) {
+            return e;
+        }
+        tension = a->rec.homes.tension_mN;
+    }
+    if (store_busy(&a->rec.store) || app_rec_busy(a)) {
+        return CON_E_BUSY; /* finishes within a few hundred ms */
+    }
+    memset(&cmd, 0, sizeof cmd);
+    a->run.abs = a->rec.set.v[STORE_SET_TARGET_MODE] != 0;
+    if (a->run.abs) {
+        /* the first absolute run takes A from its own straight-pose
+         * baseline (a dry run stands wherever the robot is: never) */
+        cmd.ambient_cuT = a->run.amb;
+        cmd.ambient_capture = (uint8_t)(!a->run.amb_ok && mode != HOM_MODE_DRY);
+    }
+    cmd.mode = (hom_mode_t)mode;
+    cmd.tension_mN = tension;
+    cmd.tendon = tendon;
+    for (i = 0; i < a->info.n_tendons; i++) {
+        if (app_has(a->rec.home_now, i)) {
+            cmd.stored_home[i] = app_rec_home(a, i);
+            cmd.stored_mask |= app_bit16(i);
+        }
+    }
+    if (a->io->win != NULL) {
+        cmd.win_mask = a->io->win->mask;
+        memcpy(cmd.win_lo, a->io->win->lo, sizeof cmd.win_lo);
+        memcpy(cmd.win_hi, a->io->win->hi, sizeof cmd.win_hi);
+    }
+    hom_config_default(&cfg);
+    /* filter_k is the homing's own filter: samples averaged at each fine
+     * point while the servo stands still (near the target at least twice as
+     * many). A moving average of the stream ahead of the homing would lag
+     * during the take-up and delay the engagement it detects. */
+    cfg.v_fast = (uint16_t)a->rec.set.v[STORE_SET_APPROACH_FAST];
+    cfg.v_fine = (uint16_t)a->rec.set.v[STORE_SET_APPROACH_SLOW];
+    cfg.avg_samples = (uint8_t)a->rec.set.v[STORE_SET_FILTER_K];
+    cfg.servo_timeout_ms = APP_SERVO_TIMEOUT_MS;
+    app_learn_drop_baseline(a); /* its storage goes to the homing */
+    hom_init(&a->u.hom, &cfg);
+    app_bus_goals_cleared(a);
+    rc = hom_start(&a->u.hom, &a->htab, &cmd);
+    if (rc == HOM_E_TENSION) {
+        return CON_E_TENSION_RANGE;
+    }
+    if (rc == HOM_E_HOMES) {
+        return CON_E_NOT_HOMED;
+    }
+    if (rc != 0) {
+        return CON_E_INTERNAL;
+    }
+    a->run.mode = mode;
+    a->run.tension = tension;
+    a->run.mask = mode == HOM_MODE_SINGLE ? app_bit16(tendon) : app_all_mask(a);
+    a->run.t_start = app_now_ms(a);
+    app_bus_positions_stale(a);
+    a->state = APP_ST_CAL;
+    win_moving(a, 1);
+    app_panel_set(a, APP_LED_RUN);
+    app_rec_rest_at(a, 0, 0);
+    return 0;
+}
+
+/* A run or move ended in a fault: the rest positions are recorded once the
+ * servos have stopped. */
+APP_NOINLINE static void fault_rest(app_t *a, uint32_t t)
+{
+    win_moving(a, 0); /* the release goals are out: the servos finish them */
+    a->state = APP_ST_FAULT;
+    app_panel_set(a, APP_LED_FAULT);
+    app_rec_rest_at(a, 1, t);
+}
+
+APP_NOINLINE void app_run_step(app_t *a, hom_in_t *in)
+{
+    hom_out_t out;
+    hom_event_t ev;
+    int rc;
+    in->now_ms = app_now_ms(a);
+    app_bus_inputs(a, in);
+    rc = hom_step(&a->u.hom, in, &out);
+    win_take(a);
+    app_bus_take(a, &out);
+    while (hom_event_pop(&a->u.hom, &ev)) {
+        app_rep_event(a, &ev);
+    }
+    if (rc == 0) {
+        run_done(a);
+    } else if (rc < 0) {
+        uint8_t f = hom_fault_index(&a->u.hom);
+        fault_rest(a, in->now_ms);
+        a->run.last_fault = hom_fault(&a->u.hom);
+        if (a->run.last_fault == HOM_F_SERVO_ERROR && f < a->info.n_tendons) {
+            /* a servo in hardware error has its torque off and refused the
+             * release: reboot it (Protocol 2.0 Reboot clears the error), then
+             * release its tendon once the bus is up again */
+            app_bus_reboot(a, a->bus.ids[f]);
+            a->run.auto_release = a->bus.ids[f];
+        }
+    }
+}
+
+void app_run_move(app_t *a, uint8_t kind)
+{
+    win_moving(a, 1);
+    a->run.move_kind = kind;
+    a->run.t_move = app_now_ms(a);
+    app_bus_positions_stale(a);
+    a->state = APP_ST_MOVE;
+    app_panel_set(a, APP_LED_RUN);
+}
+
+/* Release goals computed by the app when no run is active: the slack margin
+ * before each tendon's engagement window. A tendon without a window gets
+ * one first: the engagement its stored home implies, or, with nothing
+ * known, the homing's own assumption (anywhere up to the release that frees
+ * a tendon left at the top of the grid). Never pulls, and repeated releases
+ * go no further (the window stays). */
+uint8_t app_run_release_goals(app_t *a)
+{
+    hom_config_t cfg;
+    uint8_t i, moved = 0;
+    hom_config_default(&cfg);
+    for (i = 0; i < a->info.n_tendons; i++) {
+        tbl_point_t pt;
+        tbl_tendon_t row;
+        int32_t g, dir, lo, hi;
+        if (app_has(a->bus.absent, i)) {
+            continue;
+        }
+        (void)tbl_tendon(&a->tab, i, &row);
+        dir = row.pull_dir < 0 ? -1 : 1;
+        if (a->io->win != NULL && app_has(a->io->win->mask, i)) {
+            lo = a->io->win->lo[i];
+        } else {
+            if (app_has(a->rec.home_now, i)) {
+                uint32_t trav = 0;
+                if (tbl_target(&a->tab, i, a->rec.homes.tension_mN, &pt) == 0) {
+                    trav = pt.travel_um;
+                }
+                hi = app_rec_home(a, i) - dir * um_ticks(row.nm_per_tick, trav);
+                lo = hi;
+            } else {
+                hi = a->bus.present[i];
+                lo = hi -
+                     dir * um_ticks(row.nm_per_tick, row.travel_um[a->info.n_grid - 1u] * 3u / 2u);
+            }
+            app_win_set(a, i, lo, hi, 1);
+        }
+        g = lo - dir * um_ticks(row.nm_per_tick, cfg.slack_margin_um);
+        if (dir * (g - a->bus.present[i]) > 0) {
+            g = a->bus.present[i]; /* already slacker than the release point */
+        }
+        app_bus_goal(a, i, g, cfg.v_release, cfg.acc);
+        moved = 1;
+    }
+    return moved;
+}
+
+void app_abort(app_t *app)
+{
+    if (app == NULL || app->state == APP_ST_BOOT) {
+        return;
+    }
+    if (app->run.req_start && app->run.req_con && con_pending(&app->cmd.con)) {
+        (void)con_complete(&app->cmd.con, CON_E_ABORTED);
+    }
+    app->run.req_start = 0;
+    if (app->state == APP_ST_CAL) {
+        hom_abort(&app->u.hom);
+        return;
+    }
+    if (app->state == APP_ST_LEARN && app->learn.tendon != APP_LEARN_BASELINE &&
+        con_pending(&app->cmd.con)) {
+        (void)con_complete(&app->cmd.con, CON_E_ABORTED);
+    }
+    if (!app->table_ok) {
+        return;
+    }
+    (void)app_run_release_goals(app);
+    app_rep_begin(app, app_w_released);
+    con_report_flash(&app->cmd.con, app_w_reason, app_w_aborted);
+    app_rep_end(app);
+    app_run_move(app, APP_MOVE_RELEASE);
+}
+
+APP_NOINLINE void app_run_move_step(app_t *a)
+{
+    uint8_t i, arrived = 1;
+    uint32_t t = app_now_ms(a);
+    for (i = 0; i < a->info.n_tendons; i++) {
+        int32_t d = a->bus.present[i] - hom_goal(&a->u.hom, i);
+        if (app_has(a->bus.absent, i)) {
+            continue;
+        }
+        if (app_has(a->bus.fresh, i) == 0u || a->bus.goal_due != 0u || d > APP_MOVE_TOL_TICKS ||
+            d < -APP_MOVE_TOL_TICKS) {
+            arrived = 0;
+        }
+    }
+    if (!arrived) {
+        if (t - a->run.t_move > APP_MOVE_TIMEOUT_MS) {
+            app_rep_fault(a, app_w_servo_stall, CON_E_TIMEOUT, HOM_DEV_SERVO, 0);
+            fault_rest(a, t);
+            if (a->run.move_kind == APP_MOVE_HOME) {
+                (void)app_run_release_goals(a);
+            }
+        }
+        return;
+    }
+    app_rec_rest_at(a, 1, t);
+    win_moving(a, 0);
+    if (a->run.move_kind == APP_MOVE_RELEASE) {
+        app_learn_begin(a, APP_LEARN_BASELINE); /* the robot stands straight: capture B0 */
+        return;
+    }
+    app_rep_begin(a, app_w_done);
+    con_report_flash(&a->cmd.con, app_w_mode, app_w_home);
+    app_rep_int(a, app_w_time_ms, (int32_t)(t - a->run.t_move));
+    app_rep_end(a);
+    a->state = APP_ST_IDLE;
+    app_panel_set(a, APP_LED_IDLE);
+}
+
+void app_run_press(app_t *a)
+{
+    int8_t rc;
+    if (a->state == APP_ST_BOOT) {
+        /* pressed before <ready>: the run starts once the bring-up is done,
+         * quick or full as it then offers */
+        a->run.req_start = 1;
+        a->run.req_con = 0;
+        a->run.req_btn = 1;
+        return;
+    }
+    if (!app_idle_state(a)) {
+        return; /* a long press aborts */
+    }
+    app_panel_set(a, APP_LED_IDLE);
+    if (store_busy(&a->rec.store) || app_rec_busy(a)) {
+        a->run.req_start = 1; /* starts once the EEPROM write in flight is done */
+        a->run.req_con = 0;
+        a->run.req_mode = a->boot.offer_quick ? HOM_MODE_QUICK : HOM_MODE_FULL;
+        a->run.req_tension = 0;
+        a->run.req_tendon = 0;
+        return;
+    }
+    rc = run_start(a, a->boot.offer_quick ? HOM_MODE_QUICK : HOM_MODE_FULL, 0, 0);
+    if (rc != 0) {
+        app_rep_fault(a, app_w_refused, rc, HOM_DEV_NONE, 0);
+        app_panel_set(a, APP_LED_FAULT);
+    }
+}
+
+uint8_t app_run_reboot_failed(app_t *a)
+{
+    uint8_t i;
+    if (!a->run.auto_release) {
+        return 0;
+    }
+    a->run.auto_release = 0; /* named: this tendon may still be taut */
+    for (i = 0; i < a->info.n_tendons; i++) {
+        if (a->bus.ids[i] == a->bus.reboot_id) {
+            app_rep_fault(a, app_w_not_released, CON_E_SERVO_FAULT, HOM_DEV_SERVO, i);
+        }
+    }
+    return 1;
+}
+
+/* Between the steps: a run requested while the bring-up or an EEPROM write
+ * was under way starts, and the releases owed after a reset or a servo's
+ * hardware error go out once nothing else moves. */
+void app_run_poll(app_t *a)
+{
+    if (a->run.req_start && a->state != APP_ST_BOOT && store_busy(&a->rec.store) == 0u &&
+        !app_rec_busy(a)) {
+        int8_t rc;
+        a->run.req_start = 0;
+        if (a->run.req_btn) {
+            a->run.req_btn = 0;
+            a->run.req_mode = a->boot.offer_quick ? HOM_MODE_QUICK : HOM_MODE_FULL;
+            a->run.req_tension = 0;
+            a->run.req_tendon = 0;
+        }
+        rc = run_start(a, a->run.req_mode, a->run.req_tension, a->run.req_tendon);
+        if (a->run.req_con && con_pending(&a->cmd.con)) {
+            (void)con_complete(&a->cmd.con, rc);
+        } else if (rc != 0) {
+            app_rep_fault(a, app_w_refused, rc, HOM_DEV_NONE, 0);
+        }
+    }
+    if (a->run.reset_release && a->state == APP_ST_IDLE) {
+        a->run.reset_release = 0;
+        (void)app_run_release_goals(a);
+        app_rep_begin(a, app_w_released);
+        con_report_flash(&a->cmd.con, app_w_reason, app_w_reset);
+        app_rep_end(a);
+        app_run_move(a, APP_MOVE_RELEASE);
+    }
+    if (a->run.auto_release && a->state == APP_ST_IDLE && a->table_ok) {
+        (void)app_run_release_goals(a);
+        app_rep_begin(a, app_w_released);
+        con_report_flash(&a->cmd.con, app_w_reason, app_w_servo_error);
+        app_rep_int(a, app_w_id, a->run.auto_release);
+        app_rep_end(a);
+        a->run.auto_release = 0;
+        app_run_move(a, APP_MOVE_RELEASE);
+    }
+}
+
+int8_t app_run_request(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon)
+{
+    if (app_idle_state(a) && (store_busy(&a->rec.store) || app_rec_busy(a))) {
+        a->run.req_start = 1;
+        a->run.req_con = 1;
+        a->run.req_mode = mode;
+        a->run.req_tension = tension;
+        a->run.req_tendon = tendon;
+        return CON_PENDING;
+    }
+    return run_start(a, mode, tension, tendon);
+}

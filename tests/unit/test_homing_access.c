@@ -1,0 +1,179 @@
+/* Tests of the accessors at the end of homing.h (what the application reads
+ * of a run) against a scripted bench: servos that reach their goal at once,
+ * sensors that stand still at the straight-pose field. Also: a run whose
+ * first step comes at an even millisecond runs its preflight like any other
+ * (the application once shifted that step to an odd time). */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <string.h>
+
+#include <cmocka.h>
+
+#include "hom_fixture.h"
+
+static plant_cfg_t g_cfg;
+static tbl_table_t g_tab;
+static hom_t g_h;
+static hom_in_t g_in;
+static hom_out_t g_out;
+static int32_t g_pos[TBL_MAX_TENDONS];
+
+static int group_setup(void **state)
+{
+    (void)state;
+    return hom_fix_paper(&g_cfg, &g_tab);
+}
+
+/* Starts a full run whose first step comes at t0 + 1 ms. */
+static void start_full(uint32_t t0)
+{
+    tbl_src_t src;
+    hom_cmd_t c;
+    memset(&c, 0, sizeof c);
+    c.mode = HOM_MODE_FULL;
+    src.table = &g_tab;
+    src.copy = tbl_copy_ram;
+    memset(&g_in, 0, sizeof g_in);
+    memset(g_pos, 0, sizeof g_pos);
+    g_in.now_ms = t0;
+    hom_init(&g_h, NULL);
+    assert_int_equal(hom_start(&g_h, &src, &c), 0);
+}
+
+/* One millisecond: a sample of every sensor every 10 ms, servos at their goals. */
+static int step(void)
+{
+    uint8_t k;
+    int rc;
+    g_in.now_ms++;
+    for (k = 0; k < HOM_MAX_SENSORS; k++) {
+        g_in.sensor[k].status = HOM_SENS_NONE;
+        if (g_in.now_ms % 10u == 0u) {
+            g_in.sensor[k].status = HOM_SENS_NEW;
+            memcpy(g_in.sensor[k].b_cuT, g_tab.sensors[k].b_straight_cuT,
+                   sizeof g_in.sensor[k].b_cuT);
+        }
+    }
+    for (k = 0; k < TBL_MAX_TENDONS; k++) {
+        g_in.servo[k].status = HOM_SERVO_OK;
+        g_in.servo[k].pos = g_pos[k];
+    }
+    rc = hom_step(&g_h, &g_in, &g_out);
+    for (k = 0; k < TBL_MAX_TENDONS; k++) {
+        if ((g_out.changed >> k) & 1u) {
+            g_pos[k] = g_out.goal[k];
+        }
+    }
+    return rc;
+}
+
+/* Steps until the run commands its first motion; returns the steps taken. */
+static int run_to_motion(void)
+{
+    int n;
+    for (n = 0; n < 2000 && g_h.moved == 0u; n++) {
+        assert_int_equal(step(), HOM_RUNNING);
+    }
+    assert_true(g_h.moved);
+    return n;
+}
+
+static void test_goal_slots(void **state)
+{
+    (void)state;
+    hom_init(&g_h, NULL);
+    hom_set_goal(&g_h, 2, -123456, 77);
+    hom_set_goal(&g_h, 11, 42, 1);
+    assert_int_equal(hom_goal(&g_h, 2), -123456);
+    assert_int_equal(hom_goal_vel(&g_h, 2), 77);
+    assert_int_equal(hom_goal(&g_h, 11), 42);
+    assert_int_equal(hom_goal_vel(&g_h, 11), 1);
+    assert_int_equal(hom_goal(&g_h, 3), 0);
+    /* the next run starts from cleared goals */
+    hom_init(&g_h, NULL);
+    assert_int_equal(hom_goal(&g_h, 2), 0);
+    assert_int_equal(hom_goal_vel(&g_h, 2), 0);
+}
+
+static void test_goals_follow_the_run(void **state)
+{
+    uint8_t i;
+    (void)state;
+    start_full(1000);
+    (void)run_to_motion();
+    for (i = 0; i < g_tab.n_tendons; i++) {
+        assert_int_equal(hom_goal(&g_h, i), g_out.goal[i]);
+        assert_int_equal(hom_goal_vel(&g_h, i), g_out.vel[i]);
+        assert_int_equal(hom_tendon(&g_h, i)->dir, g_tab.tendons[i].pull_dir < 0 ? -1 : 1);
+        assert_int_equal(hom_tendon(&g_h, i)->nm_per_tick, g_tab.tendons[i].nm_per_tick);
+    }
+}
+
+static void test_fault_and_index(void **state)
+{
+    uint8_t i;
+    (void)state;
+    start_full(1000);
+    assert_int_equal(hom_fault(&g_h), HOM_F_NONE);
+    (void)run_to_motion();
+    hom_abort(&g_h);
+    assert_int_equal(step(), -HOM_F_ABORTED);
+    assert_int_equal(hom_fault(&g_h), HOM_F_ABORTED);
+    /* the release goals of the abort are what the accessor reads */
+    for (i = 0; i < g_tab.n_tendons; i++) {
+        assert_int_equal(hom_goal(&g_h, i), g_out.goal[i]);
+    }
+    /* a servo in hardware error names its tendon */
+    start_full(1000);
+    (void)run_to_motion();
+    g_in.servo[4].hw_error = 0x20;
+    for (i = 0; i < 20 && step() > 0; i++) {
+        g_in.servo[4].hw_error = 0x20;
+    }
+    assert_int_equal(hom_fault(&g_h), HOM_F_SERVO_ERROR);
+    assert_int_equal(hom_fault_index(&g_h), 4);
+}
+
+static void test_window_changes_taken_once(void **state)
+{
+    uint16_t m;
+    uint8_t i;
+    (void)state;
+    start_full(1000);
+    (void)run_to_motion();
+    m = hom_win_take_changed(&g_h);
+    assert_int_not_equal(m, 0);
+    for (i = 0; i < g_tab.n_tendons; i++) {
+        int32_t lo, hi;
+        if ((m >> i) & 1u) {
+            assert_int_equal(hom_window(&g_h, i, &lo, &hi), 0);
+        }
+    }
+    assert_int_equal(hom_win_take_changed(&g_h), 0);
+}
+
+static void test_even_first_step_runs_preflight(void **state)
+{
+    int n_odd, n_even;
+    (void)state;
+    start_full(1000); /* first step at 1001 ms, first samples at 1010 ms */
+    n_odd = run_to_motion();
+    start_full(1001); /* first step at 1002 ms, the same samples */
+    n_even = run_to_motion();
+    assert_int_equal(n_even + 1, n_odd); /* both move at the same time */
+    assert_int_equal(hom_fault(&g_h), HOM_F_NONE);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_goal_slots),
+        cmocka_unit_test(test_goals_follow_the_run),
+        cmocka_unit_test(test_fault_and_index),
+        cmocka_unit_test(test_window_changes_taken_once),
+        cmocka_unit_test(test_even_first_step_runs_preflight),
+    };
+    return cmocka_run_group_tests(tests, group_setup, NULL);
+}
