@@ -234,7 +234,7 @@ APP_NOINLINE void app_bus_poll(app_t *a)
 /* Queues a goal for tendon i. */
 APP_NOINLINE void app_bus_goal(app_t *a, uint8_t i, int32_t goal, uint16_t vel, uint16_t acc)
 {
-    hom_set_goal(&a->u.hom, i, goal, vel);
+    hom_idle_goal(&a->u.hom, i, goal, vel);
     a->bus.acc = acc;
     a->bus.goal_due |= app_bit16(i);
     if (app_has(a->bus.torque_on, i) == 0u) {

@@ -441,7 +441,7 @@ static inline uint16_t hom_goal_vel(const hom_t *h, uint8_t i)
 /* Sets tendon i's commanded goal and velocity. Only while no run is active:
  * the application keeps the goals of its own moves (home, release) in the
  * machine's output, which the next hom_init() clears. */
-static inline void hom_set_goal(hom_t *h, uint8_t i, int32_t goal, uint16_t vel)
+static inline void hom_idle_goal(hom_t *h, uint8_t i, int32_t goal, uint16_t vel)
 {
     h->out.goal[i] = goal;
     h->out.vel[i] = vel;

@@ -84,8 +84,8 @@ static void test_goal_slots(void **state)
 {
     (void)state;
     hom_init(&g_h, NULL);
-    hom_set_goal(&g_h, 2, -123456, 77);
-    hom_set_goal(&g_h, 11, 42, 1);
+    hom_idle_goal(&g_h, 2, -123456, 77);
+    hom_idle_goal(&g_h, 11, 42, 1);
     assert_int_equal(hom_goal(&g_h, 2), -123456);
     assert_int_equal(hom_goal_vel(&g_h, 2), 77);
     assert_int_equal(hom_goal(&g_h, 11), 42);
