@@ -2,6 +2,7 @@
 
 #include <stddef.h>
 
+#include "dxl/dxl_priv.h"
 #include "dxl/dxl_xl430_reg.h"
 
 enum { DXL_PH_IDLE, DXL_PH_SEND, DXL_PH_WAIT_TX, DXL_PH_RECV };
@@ -39,6 +40,7 @@ void dxl_master_init(dxl_master *m, const dxl_port *port, const dxl_config *cfg)
     m->got = 0;
     m->phase = DXL_PH_IDLE;
     m->result = 0;
+    m->on_status = NULL;
 }
 
 uint8_t dxl_busy(const dxl_master *m)
@@ -131,9 +133,26 @@ static dxl_reply *dxl_pending_for(dxl_master *m, uint8_t id)
     return NULL;
 }
 
+dxl_reply *dxl_claim(dxl_master *m, uint8_t id)
+{
+    dxl_reply *r = dxl_pending_for(m, id);
+    if (r == NULL && dxl_reply_for(m, id) == NULL) {
+        /* answered already is fine: a retried group request asks everyone again */
+        m->stats.wrong_id++;
+        dxl_note(m, -DXL_E_WRONG_ID);
+    }
+    return r;
+}
+
+void dxl_malformed(dxl_master *m)
+{
+    m->stats.malformed++;
+    dxl_note(m, -DXL_E_MALFORMED);
+}
+
 /* The error number makes the data meaningless; the alert bit alone only says
  * that Hardware Error Status is nonzero, the data is still the servo's. */
-static void dxl_settle(dxl_master *m, dxl_reply *r, uint8_t err, const uint8_t *data, uint16_t n)
+void dxl_settle(dxl_master *m, dxl_reply *r, uint8_t err, const uint8_t *data, uint16_t n)
 {
     r->err = err;
     r->len = (uint8_t)n;
@@ -150,55 +169,23 @@ static void dxl_settle(dxl_master *m, dxl_reply *r, uint8_t err, const uint8_t *
     m->got++;
 }
 
-/* Combined reply: 0x55, then per servo ERR ID DATA and a CRC, the last CRC
- * being the packet's own (e-manual, "Fast Sync Read"). The packet CRC covers
- * all of it, so the partial CRCs are not checked again. */
-static void dxl_on_fast(dxl_master *m, const dxl_status *st)
-{
-    uint16_t per = (uint16_t)(m->n + 4u);
-    const uint8_t *p = st->params - 1; /* ERR of the first servo */
-    uint8_t count = m->n_reply;
-    /* from the first ERR to the end, the packet CRC included */
-    if (st->id != DXL_BROADCAST_ID || st->n + 3u != (uint16_t)(count * per)) {
-        m->stats.malformed++;
-        dxl_note(m, -DXL_E_MALFORMED);
-        return;
-    }
-    for (uint8_t i = 0; i < count; i++) {
-        const uint8_t *chunk = p + (uint16_t)(i * per);
-        dxl_reply *r = dxl_pending_for(m, chunk[1]);
-        if (r == NULL || r != &m->reply[i]) {
-            m->stats.wrong_id++;
-            dxl_note(m, -DXL_E_WRONG_ID);
-            continue;
-        }
-        dxl_settle(m, r, chunk[0], chunk + 2, m->n);
-    }
-}
-
 static void dxl_on_packet(dxl_master *m)
 {
     dxl_status st;
     if (dxl_parser_status(&m->parser, &st) != 0) {
         return; /* an instruction packet (our own echo on an unbuffered bus) */
     }
-    if (m->inst == DXL_INST_FAST_SYNC_READ) {
-        dxl_on_fast(m, &st);
+    if (m->on_status != NULL) {
+        m->on_status(m, &st);
         return;
     }
-    dxl_reply *r = dxl_pending_for(m, st.id);
-    if (r == NULL && dxl_reply_for(m, st.id) != NULL) {
-        return; /* answered already: a retried group request asks everyone again */
-    }
+    dxl_reply *r = dxl_claim(m, st.id);
     if (r == NULL) {
-        m->stats.wrong_id++;
-        dxl_note(m, -DXL_E_WRONG_ID);
         return;
     }
     uint16_t want = r->len;
     if (st.n != want && !((st.err & DXL_ERR_NUMBER_MASK) != 0 && st.n == 0)) {
-        m->stats.malformed++;
-        dxl_note(m, -DXL_E_MALFORMED);
+        dxl_malformed(m);
         return;
     }
     dxl_settle(m, r, st.err, st.params, st.n);
@@ -321,6 +308,7 @@ static int8_t dxl_prepare(dxl_master *m, uint8_t inst, uint16_t addr, uint16_t n
         return -DXL_E_BUSY;
     }
     m->inst = inst;
+    m->on_status = NULL;
     m->addr = addr;
     m->n = n;
     m->n_reply = 0;
@@ -450,8 +438,8 @@ int8_t dxl_clear_multiturn(dxl_master *m, uint8_t id)
     return dxl_simple(m, id, 0, dxl_build_clear_multiturn(m->tx, DXL_TX_CAP, id, &m->tx_len));
 }
 
-static int8_t dxl_group_read(dxl_master *m, uint8_t inst, uint16_t addr, uint16_t n,
-                             const uint8_t *ids, uint8_t count)
+int8_t dxl_group_read(dxl_master *m, uint8_t inst, uint16_t addr, uint16_t n, const uint8_t *ids,
+                      uint8_t count)
 {
     int8_t rc = dxl_prepare(m, inst, addr, n);
     if (rc != 0) {
@@ -460,10 +448,7 @@ static int8_t dxl_group_read(dxl_master *m, uint8_t inst, uint16_t addr, uint16_
     if (ids == NULL || count == 0 || count > DXL_MAX_IDS || n == 0 || n > DXL_REPLY_DATA) {
         return -DXL_E_ARG;
     }
-    int8_t built =
-        inst == DXL_INST_SYNC_READ
-            ? dxl_build_sync_read(m->tx, DXL_TX_CAP, addr, n, ids, count, &m->tx_len)
-            : dxl_build_fast_sync_read(m->tx, DXL_TX_CAP, addr, n, ids, count, &m->tx_len);
+    int8_t built = dxl_build_group_read(m->tx, DXL_TX_CAP, inst, addr, n, ids, count, &m->tx_len);
     if (built == 0) {
         for (uint8_t i = 0; i < count; i++) {
             dxl_expect(m, ids[i], n);
@@ -475,12 +460,6 @@ static int8_t dxl_group_read(dxl_master *m, uint8_t inst, uint16_t addr, uint16_
 int8_t dxl_sync_read(dxl_master *m, uint16_t addr, uint16_t n, const uint8_t *ids, uint8_t count)
 {
     return dxl_group_read(m, DXL_INST_SYNC_READ, addr, n, ids, count);
-}
-
-int8_t dxl_fast_sync_read(dxl_master *m, uint16_t addr, uint16_t n, const uint8_t *ids,
-                          uint8_t count)
-{
-    return dxl_group_read(m, DXL_INST_FAST_SYNC_READ, addr, n, ids, count);
 }
 
 int8_t dxl_sync_write(dxl_master *m, uint16_t addr, uint16_t n, const uint8_t *ids,

@@ -2,18 +2,29 @@
 
 #include <stddef.h>
 
+/* The CRC table lives in program memory on the AVR, where a const array
+ * would otherwise be copied to RAM at start-up; reading it takes
+ * pgm_read_word (avr-libc), the one AVR header this module needs. */
+#ifdef __AVR__
+#include <avr/pgmspace.h>
+#define DXL_CRC_FLASH      PROGMEM
+#define DXL_CRC_ENTRY(idx) pgm_read_word(&dxl_crc_nibble[idx])
+#else
+#define DXL_CRC_FLASH
+#define DXL_CRC_ENTRY(idx) dxl_crc_nibble[idx]
+#endif
+
 /* Nibble table for polynomial 0x8005: 32 bytes instead of 512, two lookups
- * per byte, which keeps the AVR's RAM free and is still far faster than the
- * 10 us a byte takes at 1 Mbps. */
-static const uint16_t dxl_crc_nibble[16] = {
+ * per byte, still far faster than the 10 us a byte takes at 1 Mbps. */
+static const uint16_t dxl_crc_nibble[16] DXL_CRC_FLASH = {
     0x0000, 0x8005, 0x800F, 0x000A, 0x801B, 0x001E, 0x0014, 0x8011,
     0x8033, 0x0036, 0x003C, 0x8039, 0x0028, 0x802D, 0x8027, 0x0022,
 };
 
 uint16_t dxl_crc16_byte(uint16_t crc, uint8_t byte)
 {
-    crc = (uint16_t)((crc << 4) ^ dxl_crc_nibble[((crc >> 12) ^ (byte >> 4)) & 0x0Fu]);
-    crc = (uint16_t)((crc << 4) ^ dxl_crc_nibble[((crc >> 12) ^ byte) & 0x0Fu]);
+    crc = (uint16_t)((crc << 4) ^ DXL_CRC_ENTRY(((crc >> 12) ^ (byte >> 4)) & 0x0Fu));
+    crc = (uint16_t)((crc << 4) ^ DXL_CRC_ENTRY(((crc >> 12) ^ byte) & 0x0Fu));
     return crc;
 }
 
@@ -235,8 +246,8 @@ static int8_t dxl_check_ids(const uint8_t *ids, uint8_t count)
     return 0;
 }
 
-static int8_t dxl_build_sync_read_inst(uint8_t *buf, uint16_t cap, uint8_t inst, uint16_t addr,
-                                       uint16_t n, const uint8_t *ids, uint8_t count, uint16_t *len)
+int8_t dxl_build_group_read(uint8_t *buf, uint16_t cap, uint8_t inst, uint16_t addr, uint16_t n,
+                            const uint8_t *ids, uint8_t count, uint16_t *len)
 {
     *len = 0;
     if (n == 0 || dxl_check_ids(ids, count) != 0) {
@@ -255,13 +266,7 @@ static int8_t dxl_build_sync_read_inst(uint8_t *buf, uint16_t cap, uint8_t inst,
 int8_t dxl_build_sync_read(uint8_t *buf, uint16_t cap, uint16_t addr, uint16_t n,
                            const uint8_t *ids, uint8_t count, uint16_t *len)
 {
-    return dxl_build_sync_read_inst(buf, cap, DXL_INST_SYNC_READ, addr, n, ids, count, len);
-}
-
-int8_t dxl_build_fast_sync_read(uint8_t *buf, uint16_t cap, uint16_t addr, uint16_t n,
-                                const uint8_t *ids, uint8_t count, uint16_t *len)
-{
-    return dxl_build_sync_read_inst(buf, cap, DXL_INST_FAST_SYNC_READ, addr, n, ids, count, len);
+    return dxl_build_group_read(buf, cap, DXL_INST_SYNC_READ, addr, n, ids, count, len);
 }
 
 int8_t dxl_build_sync_write(uint8_t *buf, uint16_t cap, uint16_t addr, uint16_t n,

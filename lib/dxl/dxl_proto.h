@@ -144,7 +144,12 @@ int8_t dxl_build_factory_reset(uint8_t *buf, uint16_t cap, uint8_t id, uint8_t m
                                uint16_t *len);
 /* Clear the multi-turn count (Present Position back within one turn). */
 int8_t dxl_build_clear_multiturn(uint8_t *buf, uint16_t cap, uint8_t id, uint16_t *len);
-/* Sync read / fast sync read of `n` bytes at `addr` from `count` servos. */
+/* Sync read (dxl_proto.c) / fast sync read (dxl_fast.c) of `n` bytes at
+ * `addr` from `count` servos; dxl_build_group_read() builds either, `inst`
+ * being DXL_INST_SYNC_READ or DXL_INST_FAST_SYNC_READ (the two differ only in
+ * the instruction byte). */
+int8_t dxl_build_group_read(uint8_t *buf, uint16_t cap, uint8_t inst, uint16_t addr, uint16_t n,
+                            const uint8_t *ids, uint8_t count, uint16_t *len);
 int8_t dxl_build_sync_read(uint8_t *buf, uint16_t cap, uint16_t addr, uint16_t n,
                            const uint8_t *ids, uint8_t count, uint16_t *len);
 int8_t dxl_build_fast_sync_read(uint8_t *buf, uint16_t cap, uint16_t addr, uint16_t n,
@@ -236,6 +241,30 @@ typedef struct {
  * -DXL_E_MALFORMED when it is not a status packet (INST not 0x55 or no error
  * byte). */
 int8_t dxl_parser_status(const dxl_parser *p, dxl_status *st);
+
+/* --- fast sync read reply (dxl_fast.c) --------------------------------------------
+ * One status packet from ID 0xFE carries every servo's answer (e-manual,
+ * Protocol 2.0, "Fast Sync Read"): after INST 0x55 come, per servo in the
+ * request's ID order, a block of ERR, ID, the `n` data bytes and a 2-byte CRC
+ * field; the last block's CRC field is the packet's own CRC. The first
+ * servo sends the header, each one appends its block, the last one the CRC;
+ * nobody stuffs (parse it in raw mode, dxl_parser_set_raw()). As ROBOTIS's
+ * SDK does, only the packet CRC is checked: it covers every block, so the
+ * per-block CRC fields are skipped. A servo that does not answer breaks the
+ * chain: the packet never completes and every servo's answer is lost. */
+typedef struct {
+    uint8_t err;
+    uint8_t id;
+    const uint8_t *data; /* `n` bytes, pointing into the parser buffer */
+} dxl_fast_block;
+
+/* Views block `i` (0-based) of a fast sync read reply `st` (from
+ * dxl_parser_status()) that answers a request for `n` bytes from `count`
+ * servos. Returns 0, or -DXL_E_MALFORMED when `st` is not such a reply (not
+ * from the broadcast ID, or its length is not exactly `count` blocks) or
+ * i >= count. */
+int8_t dxl_fast_block_at(const dxl_status *st, uint16_t n, uint8_t count, uint8_t i,
+                         dxl_fast_block *b);
 
 /* Little-endian value of `size` (1, 2 or 4) bytes at p. */
 uint32_t dxl_get_le(const uint8_t *p, uint8_t size);
