@@ -382,10 +382,12 @@ void dxl_parser_set_raw(dxl_parser *p, uint8_t raw)
     p->raw = raw;
 }
 
+/* CRC of the header FF FF FD 00, where every packet's CRC starts. */
+#define DXL_CRC_HEADER 0x0E28u
+
 static void dxl_parser_header_seen(dxl_parser *p)
 {
-    static const uint8_t hdr[4] = {0xFF, 0xFF, 0xFD, 0x00};
-    p->crc = dxl_crc16(0, hdr, 4);
+    p->crc = DXL_CRC_HEADER;
     p->state = DXL_PS_ID;
 }
 
@@ -455,45 +457,34 @@ static void dxl_parser_rescan(dxl_parser *p)
     p->stats.garbage = garbage;
 }
 
+/* Header search: states H1..RSRV are the number of header bytes matched.
+ * On a mismatch the search goes on from the longest header prefix that ends
+ * the bytes seen (only FF can start one: FF FF FF keeps two, FF FF FD FF one)
+ * and every byte left behind counts as garbage. */
+static void dxl_parser_hunt(dxl_parser *p, uint8_t byte)
+{
+    static const uint8_t hdr[4] = {0xFF, 0xFF, 0xFD, 0x00};
+    uint8_t k = p->state;
+    if (byte == hdr[k]) {
+        if (k == DXL_PS_RSRV) {
+            dxl_parser_header_seen(p);
+        } else {
+            p->state = (uint8_t)(k + 1u);
+        }
+        return;
+    }
+    uint8_t next = byte != 0xFF ? DXL_PS_H1 : (k == DXL_PS_H3 ? DXL_PS_H3 : DXL_PS_H2);
+    p->stats.garbage = (uint16_t)(p->stats.garbage + k + 1u - next);
+    p->state = next;
+}
+
 int8_t dxl_parser_feed(dxl_parser *p, uint8_t byte)
 {
+    if (p->state < DXL_PS_ID) {
+        dxl_parser_hunt(p, byte);
+        return 1;
+    }
     switch (p->state) {
-    case DXL_PS_H1:
-        if (byte == 0xFF) {
-            p->state = DXL_PS_H2;
-        } else {
-            p->stats.garbage++;
-        }
-        return 1;
-    case DXL_PS_H2:
-        if (byte == 0xFF) {
-            p->state = DXL_PS_H3;
-        } else {
-            p->stats.garbage = (uint16_t)(p->stats.garbage + 2u);
-            p->state = DXL_PS_H1;
-        }
-        return 1;
-    case DXL_PS_H3:
-        if (byte == 0xFD) {
-            p->state = DXL_PS_RSRV;
-        } else if (byte == 0xFF) {
-            p->stats.garbage++;
-        } else {
-            p->stats.garbage = (uint16_t)(p->stats.garbage + 3u);
-            p->state = DXL_PS_H1;
-        }
-        return 1;
-    case DXL_PS_RSRV:
-        if (byte == 0x00) {
-            dxl_parser_header_seen(p);
-        } else if (byte == 0xFF) {
-            p->stats.garbage = (uint16_t)(p->stats.garbage + 3u);
-            p->state = DXL_PS_H2;
-        } else {
-            p->stats.garbage = (uint16_t)(p->stats.garbage + 4u);
-            p->state = DXL_PS_H1;
-        }
-        return 1;
     case DXL_PS_ID:
         if (byte == 0xFF) {
             p->stats.garbage = (uint16_t)(p->stats.garbage + 4u);
