@@ -348,37 +348,51 @@ static int8_t dxl_simple(dxl_master *m, uint8_t id, uint16_t n, int8_t built)
     return dxl_launch(m, built);
 }
 
-int8_t dxl_ping(dxl_master *m, uint8_t id)
+/* Ping, read, write and reboot of one servo (write and reboot also to the
+ * broadcast ID), built here with the writer: one copy of the checks, the
+ * request and the expected reply for the four transactions bring-up and the
+ * app use, instead of one per instruction. A read sends `addr` and `n`, a
+ * write `addr` and data[0..n); `want` is the reply's data length. */
+static int8_t dxl_single(dxl_master *m, uint8_t inst, uint8_t id, uint16_t addr,
+                         const uint8_t *data, uint16_t n, uint16_t want)
 {
-    int8_t rc = dxl_prepare(m, DXL_INST_PING, 0, 3);
+    int8_t rc = dxl_prepare(m, inst, addr, want);
     if (rc != 0) {
         return rc;
     }
-    if (id > DXL_MAX_ID) {
+    uint8_t any_id = inst == DXL_INST_WRITE || inst == DXL_INST_REBOOT;
+    if ((id > DXL_MAX_ID && !(any_id && id == DXL_BROADCAST_ID)) || want > DXL_REPLY_DATA ||
+        (inst == DXL_INST_READ && n == 0) || (inst == DXL_INST_WRITE && (n == 0 || data == NULL))) {
         return -DXL_E_ARG;
     }
-    return dxl_simple(m, id, 3, dxl_build_ping(m->tx, DXL_TX_CAP, id, &m->tx_len));
+    dxl_writer w;
+    dxl_writer_begin(&w, m->tx, DXL_TX_CAP, id, inst);
+    if (inst == DXL_INST_READ || inst == DXL_INST_WRITE) {
+        dxl_writer_put_le(&w, addr, 2);
+        if (inst == DXL_INST_READ) {
+            dxl_writer_put_le(&w, n, 2);
+        } else {
+            for (uint16_t i = 0; i < n; i++) {
+                dxl_writer_put(&w, data[i]);
+            }
+        }
+    }
+    return dxl_simple(m, id, want, dxl_writer_end(&w, &m->tx_len));
+}
+
+int8_t dxl_ping(dxl_master *m, uint8_t id)
+{
+    return dxl_single(m, DXL_INST_PING, id, 0, NULL, 0, 3);
 }
 
 int8_t dxl_read(dxl_master *m, uint8_t id, uint16_t addr, uint16_t n)
 {
-    int8_t rc = dxl_prepare(m, DXL_INST_READ, addr, n);
-    if (rc != 0) {
-        return rc;
-    }
-    if (n > DXL_REPLY_DATA) {
-        return -DXL_E_ARG;
-    }
-    return dxl_simple(m, id, n, dxl_build_read(m->tx, DXL_TX_CAP, id, addr, n, &m->tx_len));
+    return dxl_single(m, DXL_INST_READ, id, addr, NULL, n, n);
 }
 
 int8_t dxl_write(dxl_master *m, uint8_t id, uint16_t addr, const uint8_t *data, uint16_t n)
 {
-    int8_t rc = dxl_prepare(m, DXL_INST_WRITE, addr, 0);
-    if (rc != 0) {
-        return rc;
-    }
-    return dxl_simple(m, id, 0, dxl_build_write(m->tx, DXL_TX_CAP, id, addr, data, n, &m->tx_len));
+    return dxl_single(m, DXL_INST_WRITE, id, addr, data, n, 0);
 }
 
 int8_t dxl_write_value(dxl_master *m, uint8_t id, uint16_t addr, uint32_t value, uint8_t size)
@@ -412,11 +426,7 @@ int8_t dxl_action(dxl_master *m, uint8_t id)
 
 int8_t dxl_reboot(dxl_master *m, uint8_t id)
 {
-    int8_t rc = dxl_prepare(m, DXL_INST_REBOOT, 0, 0);
-    if (rc != 0) {
-        return rc;
-    }
-    return dxl_simple(m, id, 0, dxl_build_reboot(m->tx, DXL_TX_CAP, id, &m->tx_len));
+    return dxl_single(m, DXL_INST_REBOOT, id, 0, NULL, 0, 0);
 }
 
 int8_t dxl_factory_reset(dxl_master *m, uint8_t id, uint8_t mode, uint32_t guard)
