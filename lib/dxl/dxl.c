@@ -597,26 +597,30 @@ static uint8_t dxl_bu_pinged(dxl_bringup *b, dxl_servo_info *s)
     return 1;
 }
 
+/* The writes of the configuration steps after the read, in step order:
+ * address, size and value (DXL_BU_V_ACC / _VEL: the profile from cfg). */
+#define DXL_BU_V_ACC 0xFEu
+#define DXL_BU_V_VEL 0xFFu
+static const uint8_t dxl_bu_writes[DXL_BU_C_STEPS - 1][3] DXL_FLASH = {
+    {DXL_XL430_TORQUE_ENABLE_ADDR, 1, 0},
+    {DXL_XL430_RETURN_DELAY_ADDR, 1, DXL_BU_RETURN_DELAY},
+    {DXL_XL430_OPERATING_MODE_ADDR, 1, DXL_XL430_MODE_EXTENDED},
+    {DXL_XL430_PROFILE_ACCELERATION_ADDR, 4, DXL_BU_V_ACC},
+    {DXL_XL430_PROFILE_VELOCITY_ADDR, 4, DXL_BU_V_VEL},
+    {DXL_XL430_TORQUE_ENABLE_ADDR, 1, 1},
+};
+
 static int8_t dxl_bu_config_issue(dxl_bringup *b, uint8_t id)
 {
-    switch (b->sub) {
-    case DXL_BU_C_READ:
+    if (b->sub == DXL_BU_C_READ) {
         return dxl_read(b->m, id, DXL_XL430_RETURN_DELAY_ADDR, DXL_BU_READ_LEN);
-    case DXL_BU_C_TORQUE_OFF:
-        return dxl_write_value(b->m, id, DXL_XL430_TORQUE_ENABLE_ADDR, 0, 1);
-    case DXL_BU_C_DELAY:
-        return dxl_write_value(b->m, id, DXL_XL430_RETURN_DELAY_ADDR, DXL_BU_RETURN_DELAY, 1);
-    case DXL_BU_C_MODE:
-        return dxl_write_value(b->m, id, DXL_XL430_OPERATING_MODE_ADDR, DXL_XL430_MODE_EXTENDED, 1);
-    case DXL_BU_C_ACC:
-        return dxl_write_value(b->m, id, DXL_XL430_PROFILE_ACCELERATION_ADDR,
-                               b->cfg.profile_acceleration, 4);
-    case DXL_BU_C_VEL:
-        return dxl_write_value(b->m, id, DXL_XL430_PROFILE_VELOCITY_ADDR, b->cfg.profile_velocity,
-                               4);
-    default:
-        return dxl_write_value(b->m, id, DXL_XL430_TORQUE_ENABLE_ADDR, 1, 1);
     }
+    const uint8_t *w = dxl_bu_writes[b->sub - 1u];
+    uint8_t k = DXL_FLASH_BYTE(&w[2]);
+    uint32_t v = k == DXL_BU_V_ACC   ? b->cfg.profile_acceleration
+                 : k == DXL_BU_V_VEL ? b->cfg.profile_velocity
+                                     : k;
+    return dxl_write_value(b->m, id, DXL_FLASH_BYTE(&w[0]), v, DXL_FLASH_BYTE(&w[1]));
 }
 
 /* Next configuration step of servo s, skipping EEPROM writes that would

@@ -7,6 +7,20 @@
 
 #include "dxl/dxl.h"
 
+/* Constant tables live in program memory on the AVR, where a const array
+ * would otherwise be copied to RAM at start-up; reading them takes
+ * pgm_read_byte/_word (avr-libc), the one AVR header lib/dxl needs. */
+#ifdef __AVR__
+#include <avr/pgmspace.h>
+#define DXL_FLASH            PROGMEM
+#define DXL_FLASH_BYTE(addr) pgm_read_byte(addr)
+#define DXL_FLASH_WORD(addr) pgm_read_word(addr)
+#else
+#define DXL_FLASH
+#define DXL_FLASH_BYTE(addr) (*(addr))
+#define DXL_FLASH_WORD(addr) (*(addr))
+#endif
+
 /* Starts a sync read or fast sync read (`inst`); same returns as
  * dxl_sync_read(). */
 int8_t dxl_group_read(dxl_master *m, uint8_t inst, uint16_t addr, uint16_t n, const uint8_t *ids,

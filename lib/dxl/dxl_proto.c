@@ -2,29 +2,20 @@
 
 #include <stddef.h>
 
-/* The CRC table lives in program memory on the AVR, where a const array
- * would otherwise be copied to RAM at start-up; reading it takes
- * pgm_read_word (avr-libc), the one AVR header this module needs. */
-#ifdef __AVR__
-#include <avr/pgmspace.h>
-#define DXL_CRC_FLASH      PROGMEM
-#define DXL_CRC_ENTRY(idx) pgm_read_word(&dxl_crc_nibble[idx])
-#else
-#define DXL_CRC_FLASH
-#define DXL_CRC_ENTRY(idx) dxl_crc_nibble[idx]
-#endif
+#include "dxl/dxl_priv.h"
 
 /* Nibble table for polynomial 0x8005: 32 bytes instead of 512, two lookups
  * per byte, still far faster than the 10 us a byte takes at 1 Mbps. */
-static const uint16_t dxl_crc_nibble[16] DXL_CRC_FLASH = {
+static const uint16_t dxl_crc_nibble[16] DXL_FLASH = {
     0x0000, 0x8005, 0x800F, 0x000A, 0x801B, 0x001E, 0x0014, 0x8011,
     0x8033, 0x0036, 0x003C, 0x8039, 0x0028, 0x802D, 0x8027, 0x0022,
 };
 
 uint16_t dxl_crc16_byte(uint16_t crc, uint8_t byte)
 {
-    crc = (uint16_t)((crc << 4) ^ DXL_CRC_ENTRY(((crc >> 12) ^ (byte >> 4)) & 0x0Fu));
-    crc = (uint16_t)((crc << 4) ^ DXL_CRC_ENTRY(((crc >> 12) ^ byte) & 0x0Fu));
+    crc = (uint16_t)((crc << 4) ^
+                     DXL_FLASH_WORD(&dxl_crc_nibble[((crc >> 12) ^ (byte >> 4)) & 0x0Fu]));
+    crc = (uint16_t)((crc << 4) ^ DXL_FLASH_WORD(&dxl_crc_nibble[((crc >> 12) ^ byte) & 0x0Fu]));
     return crc;
 }
 
