@@ -495,8 +495,10 @@ int8_t dxl_parser_feed(dxl_parser *p, uint8_t byte)
         uint16_t field = (uint16_t)(p->remaining | ((uint16_t)byte << 8));
         /* Stuffing adds at most one byte per three, so a raw body longer than
          * 4/3 of the buffer cannot fit once unstuffed. */
-        uint32_t most = (uint32_t)p->cap + p->cap / 3u + 1u;
-        if (field < 3u || (uint32_t)field - 2u > most) {
+        uint16_t third = (uint16_t)(p->cap / 3u);
+        uint16_t most = p->cap < (uint16_t)(0xFFFFu - third) ? (uint16_t)(p->cap + third + 1u)
+                                                             : 0xFFFFu; /* no LEN is too long */
+        if (field < 3u || (uint16_t)(field - 2u) > most) {
             p->stats.length++;
             p->state = DXL_PS_H1;
             return -DXL_E_LENGTH;
