@@ -496,8 +496,8 @@ int8_t dxl_parser_feed(dxl_parser *p, uint8_t byte)
         /* Stuffing adds at most one byte per three, so a raw body longer than
          * 4/3 of the buffer cannot fit once unstuffed. */
         uint16_t third = (uint16_t)(p->cap / 3u);
-        uint16_t most = p->cap < (uint16_t)(0xFFFFu - third) ? (uint16_t)(p->cap + third + 1u)
-                                                             : 0xFFFFu; /* no LEN is too long */
+        uint16_t room = (uint16_t)(UINT16_MAX - third);
+        uint16_t most = p->cap < room ? (uint16_t)(p->cap + third + 1u) : UINT16_MAX; /* any LEN */
         if (field < 3u || (uint16_t)(field - 2u) > most) {
             p->stats.length++;
             p->state = DXL_PS_H1;
