@@ -116,7 +116,7 @@ static void dxl_end_attempt(dxl_master *m, int8_t err)
     dxl_finish(m, err);
 }
 
-static void dxl_note(dxl_master *m, int8_t err)
+void dxl_note(dxl_master *m, int8_t err)
 {
     if (m->attempt_err == 0) {
         m->attempt_err = err;
@@ -215,9 +215,21 @@ static void dxl_recv(dxl_master *m)
             int8_t rc = dxl_parser_feed(&m->parser, chunk[i]);
             if (rc == 0) {
                 dxl_on_packet(m);
+                if (m->on_status != NULL && m->got < m->expect && m->attempt_err != 0) {
+                    /* the one combined reply is in, with bad blocks: retry now */
+                    dxl_end_attempt(m, m->attempt_err);
+                    return;
+                }
             } else if (rc < 0) {
                 dxl_note(m, rc == -DXL_E_CRC ? -DXL_E_CRC : -DXL_E_MALFORMED);
-                if (m->expect == 1u) {
+                if (m->on_status != NULL) {
+                    m->on_status(m, NULL); /* keep the blocks that check out */
+                }
+                if (m->got >= m->expect) {
+                    dxl_finish(m, 0);
+                    return;
+                }
+                if (m->expect == 1u || m->on_status != NULL) {
                     /* the one reply is spoilt and the bus is free: retry now */
                     dxl_end_attempt(m, m->attempt_err);
                     return;
@@ -228,7 +240,14 @@ static void dxl_recv(dxl_master *m)
     if (m->got >= m->expect) {
         dxl_finish(m, 0);
     } else if (dxl_time_reached(dxl_now(m), m->deadline)) {
-        dxl_end_attempt(m, -DXL_E_TIMEOUT);
+        if (m->on_status != NULL) {
+            m->on_status(m, NULL);
+        }
+        if (m->got >= m->expect) {
+            dxl_finish(m, 0);
+        } else {
+            dxl_end_attempt(m, -DXL_E_TIMEOUT);
+        }
     }
 }
 

@@ -114,7 +114,8 @@ struct dxl_master {
     /* Reply handler of a transaction whose answer is not one status packet
      * per servo (fast sync read); NULL otherwise. Set when the transaction
      * starts, so the code of a reply format the firmware never asks for is
-     * not linked. */
+     * not linked. Called with st NULL when an attempt ends on a corrupted
+     * packet or its deadline, to take what can be trusted of a partial one. */
     void (*on_status)(dxl_master *m, const dxl_status *st);
 };
 

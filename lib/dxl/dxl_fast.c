@@ -33,22 +33,76 @@ int8_t dxl_fast_block_at(const dxl_status *st, uint16_t n, uint8_t count, uint8_
     return 0;
 }
 
-/* Each block settles the reply of the ID it names, in whatever order (as
- * ROBOTIS's SDK reads them); a block of an ID not asked is counted as a
- * wrong ID and the others still count. */
+uint16_t dxl_fast_verified(const uint8_t *body, uint16_t have, uint16_t n, uint8_t count)
+{
+    uint16_t per = (uint16_t)(n + 4u);
+    uint16_t field = (uint16_t)(1u + count * per);
+    uint16_t mask = 0;
+    if (have == 0 || body[0] != DXL_INST_STATUS) {
+        return 0;
+    }
+    uint16_t crc = dxl_crc16_byte(DXL_CRC_HEADER, DXL_BROADCAST_ID);
+    crc = dxl_crc16_byte(crc, (uint8_t)field);
+    crc = dxl_crc16_byte(crc, (uint8_t)(field >> 8));
+    crc = dxl_crc16_byte(crc, DXL_INST_STATUS);
+    const uint8_t *b = body + 1;
+    for (uint8_t i = 0; i < count && (uint32_t)(i + 1u) * per + 1u <= have; i++, b += per) {
+        crc = dxl_crc16(crc, b, (uint16_t)(per - 2u));
+        if ((uint16_t)(b[per - 2u] | (uint16_t)b[per - 1u] << 8) == crc) {
+            mask |= (uint16_t)(1u << i);
+        }
+        crc = dxl_crc16(crc, b + per - 2u, 2);
+    }
+    return mask;
+}
+
+/* Settles the blocks of `mask` from the reply body in the parser buffer;
+ * notes a CRC error when a block it holds did not check out. A block of an
+ * ID not asked is counted as a wrong ID (dxl_claim); blocks land by the ID
+ * they name, in whatever order. */
+static void dxl_fast_take(dxl_master *m, uint16_t mask, uint8_t blocks)
+{
+    const uint8_t *b = m->parser.buf + 1;
+    for (uint8_t i = 0; i < blocks; i++, b += m->n + 4u) {
+        if ((mask & (1u << i)) == 0) {
+            dxl_note(m, -DXL_E_CRC);
+            continue;
+        }
+        dxl_reply *r = dxl_claim(m, b[1]);
+        if (r != NULL) {
+            dxl_settle(m, r, b[0], b + 2, m->n);
+        }
+    }
+}
+
+/* A complete reply (st) passed the packet CRC, which is the last block's
+ * own check; every other block must also match its own CRC field: the last
+ * servo computes the packet CRC over the bytes as it received them, so a
+ * byte of an earlier block flipped on the wire would pass the packet CRC.
+ * With st NULL (the attempt ended on a spoilt or cut-short reply) the blocks
+ * that check out one by one are kept: only the servos from a silent one or
+ * a flipped byte on are asked again, as with a plain sync read. */
 static void dxl_fast_on_status(dxl_master *m, const dxl_status *st)
 {
-    dxl_fast_block b;
-    for (uint8_t i = 0; i < m->n_reply; i++) {
-        if (dxl_fast_block_at(st, m->n, m->n_reply, i, &b) != 0) {
+    const dxl_parser *p = &m->parser;
+    uint8_t count = m->n_reply;
+    uint16_t mask = 0;
+    uint8_t blocks = 0;
+    if (p->id == DXL_BROADCAST_ID && p->body_len > 0) {
+        uint16_t whole = (uint16_t)((p->body_len - 1u) / (m->n + 4u));
+        blocks = whole < count ? (uint8_t)whole : count;
+        mask = dxl_fast_verified(p->buf, p->body_len, m->n, count);
+    }
+    if (st != NULL) {
+        dxl_fast_block b;
+        if (dxl_fast_block_at(st, m->n, count, 0, &b) != 0) {
             dxl_malformed(m);
             return;
         }
-        dxl_reply *r = dxl_claim(m, b.id);
-        if (r != NULL) {
-            dxl_settle(m, r, b.err, b.data, m->n);
-        }
+        mask |= (uint16_t)(1u << (count - 1u));
+        blocks = count;
     }
+    dxl_fast_take(m, mask, blocks);
 }
 
 int8_t dxl_fast_sync_read(dxl_master *m, uint16_t addr, uint16_t n, const uint8_t *ids,

@@ -33,6 +33,9 @@ dxl_reply *dxl_claim(dxl_master *m, uint8_t id);
 /* Stores a servo's answer in `r` and sets its result from the error byte. */
 void dxl_settle(dxl_master *m, dxl_reply *r, uint8_t err, const uint8_t *data, uint16_t n);
 
+/* Notes the first transport error of the attempt (kept as its result). */
+void dxl_note(dxl_master *m, int8_t err);
+
 /* Counts and notes a valid frame with the wrong content (-DXL_E_MALFORMED). */
 void dxl_malformed(dxl_master *m);
 

@@ -373,9 +373,6 @@ void dxl_parser_set_raw(dxl_parser *p, uint8_t raw)
     p->raw = raw;
 }
 
-/* CRC of the header FF FF FD 00, where every packet's CRC starts. */
-#define DXL_CRC_HEADER 0x0E28u
-
 static void dxl_parser_header_seen(dxl_parser *p)
 {
     p->crc = DXL_CRC_HEADER;

@@ -85,6 +85,9 @@ enum dxl_err {
 /* Clear instruction, multi-turn option and its fixed key (e-manual, "Clear"). */
 #define DXL_CLEAR_MULTITURN 0x01u
 
+/* CRC of the header FF FF FD 00, where every packet's CRC starts. */
+#define DXL_CRC_HEADER 0x0E28u
+
 /* Bytes of a packet without parameters: header 4, ID, LEN 2, INST, CRC 2. */
 #define DXL_PACKET_OVERHEAD 10u
 
@@ -248,10 +251,13 @@ int8_t dxl_parser_status(const dxl_parser *p, dxl_status *st);
  * request's ID order, a block of ERR, ID, the `n` data bytes and a 2-byte CRC
  * field; the last block's CRC field is the packet's own CRC. The first
  * servo sends the header, each one appends its block, the last one the CRC;
- * nobody stuffs (parse it in raw mode, dxl_parser_set_raw()). As ROBOTIS's
- * SDK does, only the packet CRC is checked: it covers every block, so the
- * per-block CRC fields are skipped. A servo that does not answer breaks the
- * chain: the packet never completes and every servo's answer is lost. */
+ * nobody stuffs (parse it in raw mode, dxl_parser_set_raw()). ROBOTIS's SDK
+ * checks only the packet CRC; the master checks every block's own CRC field
+ * as well (see dxl_fast.c for why). A servo that does not answer breaks the
+ * chain: the packet never completes. Each block's CRC field holds the CRC of
+ * the packet from its first FF to the end of that block's data (the last
+ * one is thus the packet CRC), so each block can be checked on its own:
+ * dxl_fast_verified(). */
 typedef struct {
     uint8_t err;
     uint8_t id;
@@ -265,6 +271,15 @@ typedef struct {
  * i >= count. */
 int8_t dxl_fast_block_at(const dxl_status *st, uint16_t n, uint8_t count, uint8_t i,
                          dxl_fast_block *b);
+
+/* Which blocks of a fast sync read reply for `n` bytes from `count` servos
+ * match their own CRC field, given the first `have` body bytes (INST 0x55
+ * first, as the parser stores them in raw mode) of a packet from the
+ * broadcast ID: bit i for block i. The CRC runs on over every byte as
+ * received, so a block after a bad one still checks out on its own. A block
+ * whose CRC field is beyond `have` (the last one of a complete packet: the
+ * parser took it as the packet CRC) is not set. Never fails. */
+uint16_t dxl_fast_verified(const uint8_t *body, uint16_t have, uint16_t n, uint8_t count);
 
 /* Little-endian value of `size` (1, 2 or 4) bytes at p. */
 uint32_t dxl_get_le(const uint8_t *p, uint8_t size);

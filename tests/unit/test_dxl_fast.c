@@ -20,9 +20,11 @@
 
 /* A fast sync read reply as a chain of servos sends it: header and LEN from
  * the first, per servo ERR ID DATA(n) and the running CRC, the last CRC being
- * the packet's. Returns the length. */
-static uint16_t make_reply(uint8_t *out, const uint8_t *ids, const uint8_t *errs,
-                           const uint32_t *values, uint8_t count, uint8_t n)
+ * the packet's. A byte flipped on the wire (flip_at >= 0, XOR 0x10) is flipped
+ * after its sender computed its CRC, and every later servo computes its CRC
+ * over it as received. Returns the length. */
+static uint16_t make_chain(uint8_t *out, const uint8_t *ids, const uint8_t *errs,
+                           const uint32_t *values, uint8_t count, uint8_t n, int32_t flip_at)
 {
     uint16_t field = (uint16_t)(1u + count * (n + 4u));
     const uint8_t hdr[8] = {0xFF, 0xFF, 0xFD, 0x00, 0xFE, (uint8_t)field, (uint8_t)(field >> 8),
@@ -37,8 +39,18 @@ static uint16_t make_reply(uint8_t *out, const uint8_t *ids, const uint8_t *errs
         uint16_t crc = dxl_crc16(0, out, pos);
         out[pos++] = (uint8_t)crc;
         out[pos++] = (uint8_t)(crc >> 8);
+        if (flip_at >= 0 && flip_at < (int32_t)pos) {
+            out[flip_at] ^= 0x10;
+            flip_at = -1;
+        }
     }
     return pos;
+}
+
+static uint16_t make_reply(uint8_t *out, const uint8_t *ids, const uint8_t *errs,
+                           const uint32_t *values, uint8_t count, uint8_t n)
+{
+    return make_chain(out, ids, errs, values, count, n, -1);
 }
 
 /* Feeds bytes to a raw-mode parser; returns the last result and counts the
@@ -295,9 +307,11 @@ static void test_master_broken_chain_then_next_request(void **state)
     uint16_t len = make_reply(reply, ids, NULL, values, 3, 4);
     uint16_t cut = (uint16_t)(8u + 8u); /* header and servo 1's block; 2 is silent */
     assert_int_equal(ask(ids, 3, reply, cut), -DXL_E_TIMEOUT);
-    for (uint8_t i = 0; i < 3; i++) {
-        assert_int_equal(dxl_reply_for(&R.m, ids[i])->result, -DXL_E_TIMEOUT);
-    }
+    /* servo 1's block checks out on its own CRC: kept, as a sync read would */
+    assert_int_equal(dxl_reply_for(&R.m, 1)->result, 0);
+    assert_int_equal(dxl_reply_value(dxl_reply_for(&R.m, 1), 4), 10);
+    assert_int_equal(dxl_reply_for(&R.m, 2)->result, -DXL_E_TIMEOUT);
+    assert_int_equal(dxl_reply_for(&R.m, 3)->result, -DXL_E_TIMEOUT);
     assert_int_equal(R.m.stats.retries, 1);
     /* the rest of the broken reply arrives late: drained as stale, then the
      * next request gets its own reply */
@@ -320,7 +334,77 @@ static void test_master_broken_chain_then_next_request(void **state)
     assert_int_equal(dxl_get_le(dxl_reply_for(&R.m, 1)->data, 4), 0x00FDFFFFu);
 }
 
-/* A corrupted reply costs every servo's answer, the good blocks included. */
+/* Block CRC fields: a cut keeps the blocks whose CRC field arrived; a byte
+ * flipped on the wire spoils only its own block, whose sender computed the
+ * CRC before the flip (the later servos compute theirs over it as received);
+ * a packet of another length or instruction checks out nowhere. */
+static void test_verified_blocks(void **state)
+{
+    (void)state;
+    uint8_t reply[REPLY_CAP];
+    const uint8_t ids[3] = {1, 2, 3};
+    const uint32_t values[3] = {10, 20, 30};
+    uint16_t len = make_reply(reply, ids, NULL, values, 3, 4);
+    const uint8_t *body = reply + 7; /* INST first, as the parser stores it */
+    uint16_t have = (uint16_t)(len - 7u);
+    assert_int_equal(dxl_fast_verified(body, have, 4, 3), 0x7);
+    for (uint16_t cut = 0; cut <= have; cut++) {
+        uint16_t whole = cut < 1u ? 0u : (uint16_t)((cut - 1u) / 8u);
+        assert_int_equal(dxl_fast_verified(body, cut, 4, 3), (1u << whole) - 1u);
+    }
+    for (uint16_t at = 8; at < len; at++) {
+        uint8_t bad[REPLY_CAP];
+        make_chain(bad, ids, NULL, values, 3, 4, at);
+        uint16_t block = (uint16_t)((at - 8u) / 8u);
+        assert_int_equal(dxl_fast_verified(bad + 7, have, 4, 3), 0x7u & ~(1u << block));
+    }
+    assert_int_equal(dxl_fast_verified(body, have, 4, 4), 0); /* LEN of 4 blocks in the CRC */
+    assert_int_equal(dxl_fast_verified(body, have, 2, 3), 0);
+    uint8_t not_status[REPLY_CAP];
+    memcpy(not_status, body, have);
+    not_status[0] = 0x82;
+    assert_int_equal(dxl_fast_verified(not_status, have, 4, 3), 0);
+}
+
+/* A byte of servo 1's data flipped on the wire: the last servo's packet CRC
+ * covers it as received and passes, servo 1's own CRC field does not. Its
+ * data is refused; the others are kept. */
+static void test_master_wire_flip_passing_the_packet_crc(void **state)
+{
+    (void)state;
+    rig_init(0);
+    uint8_t reply[REPLY_CAP];
+    const uint8_t ids[3] = {1, 2, 3};
+    const uint32_t values[3] = {10, 20, 30};
+    uint16_t len = make_chain(reply, ids, NULL, values, 3, 4, 8 + 2 + 3); /* value byte 3 */
+    uint16_t crc = dxl_crc16(0, reply, (uint16_t)(len - 2u));
+    assert_int_equal(reply[len - 2u] | reply[len - 1u] << 8, crc); /* the packet CRC passes */
+    assert_int_equal(ask(ids, 3, reply, len), -DXL_E_CRC);
+    assert_int_equal(dxl_reply_for(&R.m, 1)->result, -DXL_E_CRC);
+    assert_int_equal(dxl_reply_for(&R.m, 1)->len, 0);
+    assert_int_equal(dxl_reply_value(dxl_reply_for(&R.m, 2), 4), 20);
+    assert_int_equal(dxl_reply_value(dxl_reply_for(&R.m, 3), 4), 30);
+    assert_int_equal(R.m.stats.retries, 0);
+}
+
+/* A flipped byte in the last block: the blocks before it are kept, the
+ * last servo gets the CRC error. */
+static void test_master_corrupt_last_block_keeps_the_others(void **state)
+{
+    (void)state;
+    rig_init(0);
+    uint8_t reply[REPLY_CAP];
+    const uint8_t ids[3] = {1, 2, 3};
+    const uint32_t values[3] = {10, 20, 30};
+    uint16_t len = make_reply(reply, ids, NULL, values, 3, 4);
+    reply[8u + 16u + 3u] ^= 0x01; /* servo 3's data */
+    assert_int_equal(ask(ids, 3, reply, len), -DXL_E_CRC);
+    assert_int_equal(dxl_reply_value(dxl_reply_for(&R.m, 1), 4), 10);
+    assert_int_equal(dxl_reply_value(dxl_reply_for(&R.m, 2), 4), 20);
+    assert_int_equal(dxl_reply_for(&R.m, 3)->result, -DXL_E_CRC);
+}
+
+/* A flipped byte in the first block costs every servo's answer. */
 static void test_master_corrupt_reply_is_lost_whole(void **state)
 {
     (void)state;
@@ -347,6 +431,9 @@ int main(void)
         cmocka_unit_test(test_master_error_and_alert_per_servo),
         cmocka_unit_test(test_master_wrong_id_and_wrong_length),
         cmocka_unit_test(test_master_broken_chain_then_next_request),
+        cmocka_unit_test(test_verified_blocks),
+        cmocka_unit_test(test_master_wire_flip_passing_the_packet_crc),
+        cmocka_unit_test(test_master_corrupt_last_block_keeps_the_others),
         cmocka_unit_test(test_master_corrupt_reply_is_lost_whole),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
