@@ -67,6 +67,7 @@ static void dxl_begin_attempt(dxl_master *m)
     dxl_drain(m);
     dxl_parser_reset(&m->parser);
     dxl_parser_set_raw(&m->parser, m->inst == DXL_INST_FAST_SYNC_READ);
+    m->parser.block = m->inst == DXL_INST_FAST_SYNC_READ ? (uint16_t)(m->n + 4u) : 0u;
     m->attempt_err = 0;
     m->got = 0;
     for (uint8_t i = 0; i < m->n_reply; i++) {

@@ -33,29 +33,6 @@ int8_t dxl_fast_block_at(const dxl_status *st, uint16_t n, uint8_t count, uint8_
     return 0;
 }
 
-uint16_t dxl_fast_verified(const uint8_t *body, uint16_t have, uint16_t n, uint8_t count)
-{
-    uint16_t per = (uint16_t)(n + 4u);
-    uint16_t field = (uint16_t)(1u + count * per);
-    uint16_t mask = 0;
-    if (have == 0 || body[0] != DXL_INST_STATUS) {
-        return 0;
-    }
-    uint16_t crc = dxl_crc16_byte(DXL_CRC_HEADER, DXL_BROADCAST_ID);
-    crc = dxl_crc16_byte(crc, (uint8_t)field);
-    crc = dxl_crc16_byte(crc, (uint8_t)(field >> 8));
-    crc = dxl_crc16_byte(crc, DXL_INST_STATUS);
-    const uint8_t *b = body + 1;
-    for (uint8_t i = 0; i < count && (uint32_t)(i + 1u) * per + 1u <= have; i++, b += per) {
-        crc = dxl_crc16(crc, b, (uint16_t)(per - 2u));
-        if ((uint16_t)(b[per - 2u] | (uint16_t)b[per - 1u] << 8) == crc) {
-            mask |= (uint16_t)(1u << i);
-        }
-        crc = dxl_crc16(crc, b + per - 2u, 2);
-    }
-    return mask;
-}
-
 /* Settles the blocks of `mask` from the reply body in the parser buffer;
  * notes a CRC error when a block it holds did not check out. A block of an
  * ID not asked is counted as a wrong ID (dxl_claim); blocks land by the ID
@@ -84,14 +61,13 @@ static void dxl_fast_take(dxl_master *m, uint16_t mask, uint8_t blocks)
  * a flipped byte on are asked again, as with a plain sync read. */
 static void dxl_fast_on_status(dxl_master *m, const dxl_status *st)
 {
-    const dxl_parser *p = &m->parser;
+    const dxl_parser *p = &m->parser; /* blk_ok: blocks checked on arrival */
     uint8_t count = m->n_reply;
     uint16_t mask = 0;
     uint8_t blocks = 0;
-    if (p->id == DXL_BROADCAST_ID && p->body_len > 0) {
-        uint16_t whole = (uint16_t)((p->body_len - 1u) / (m->n + 4u));
-        blocks = whole < count ? (uint8_t)whole : count;
-        mask = dxl_fast_verified(p->buf, p->body_len, m->n, count);
+    if (p->id == DXL_BROADCAST_ID) {
+        mask = p->blk_ok;
+        blocks = p->blk_n < count ? p->blk_n : count;
     }
     if (st != NULL) {
         dxl_fast_block b;

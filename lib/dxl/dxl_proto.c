@@ -356,6 +356,7 @@ void dxl_parser_init(dxl_parser *p, uint8_t *buf, uint16_t cap)
     p->buf = buf;
     p->cap = cap;
     p->raw = 0;
+    p->block = 0;
     p->stats = (dxl_parse_stats){0, 0, 0, 0, 0, 0};
     dxl_parser_reset(p);
 }
@@ -364,6 +365,8 @@ void dxl_parser_reset(dxl_parser *p)
 {
     p->state = DXL_PS_H1;
     p->body_len = 0;
+    p->blk_ok = 0;
+    p->blk_n = 0;
     p->remaining = 0;
     p->run = 0;
 }
@@ -409,6 +412,20 @@ static int8_t dxl_parser_body(dxl_parser *p, uint8_t byte)
             return -DXL_E_OVERFLOW;
         }
         p->buf[p->body_len++] = byte;
+        if (p->block != 0) {
+            /* blk_pos starts at 0xFFFF for INST, then counts within a block */
+            uint16_t k = p->blk_pos++;
+            if (k == (uint16_t)(p->block - 2u)) {
+                p->blk_crc = p->crc; /* CRC up to the end of the block's data */
+            } else if (k == (uint16_t)(p->block - 1u)) {
+                if ((uint16_t)(p->buf[p->body_len - 2u] | (uint16_t)byte << 8) == p->blk_crc &&
+                    p->blk_n < 16u) {
+                    p->blk_ok |= (uint16_t)(1u << p->blk_n);
+                }
+                p->blk_n++;
+                p->blk_pos = 0;
+            }
+        }
     }
     p->crc = dxl_crc16_byte(p->crc, byte);
     p->tail[0] = p->tail[1];
@@ -505,6 +522,9 @@ int8_t dxl_parser_feed(dxl_parser *p, uint8_t byte)
         p->body_len = 0;
         p->run = 0;
         p->tail_n = 0;
+        p->blk_pos = UINT16_MAX;
+        p->blk_ok = 0;
+        p->blk_n = 0;
         p->state = DXL_PS_BODY;
         return 1;
     }

@@ -210,6 +210,16 @@ typedef struct {
     uint8_t raw;     /* nonzero: no unstuffing (fast sync read replies) */
     uint8_t tail[4]; /* last raw body bytes, searched again after a CRC error */
     uint8_t tail_n;
+    /* Fast sync read replies (raw mode): with `block` set to n + 4, the
+     * running CRC at the end of each block's data is compared with the
+     * block's CRC field as the bytes arrive; bit i of blk_ok is set when
+     * block i matched, blk_n counts the blocks whose CRC field has arrived
+     * (the last block's field is the packet CRC, checked as usual). */
+    uint16_t block;
+    uint16_t blk_pos;
+    uint16_t blk_crc;
+    uint16_t blk_ok;
+    uint8_t blk_n;
     dxl_parse_stats stats;
 } dxl_parser;
 
@@ -256,8 +266,8 @@ int8_t dxl_parser_status(const dxl_parser *p, dxl_status *st);
  * as well (see dxl_fast.c for why). A servo that does not answer breaks the
  * chain: the packet never completes. Each block's CRC field holds the CRC of
  * the packet from its first FF to the end of that block's data (the last
- * one is thus the packet CRC), so each block can be checked on its own:
- * dxl_fast_verified(). */
+ * one is thus the packet CRC), so each block can be checked on its own: the
+ * parser does it as the bytes arrive (dxl_parser.block, blk_ok). */
 typedef struct {
     uint8_t err;
     uint8_t id;
@@ -271,15 +281,6 @@ typedef struct {
  * i >= count. */
 int8_t dxl_fast_block_at(const dxl_status *st, uint16_t n, uint8_t count, uint8_t i,
                          dxl_fast_block *b);
-
-/* Which blocks of a fast sync read reply for `n` bytes from `count` servos
- * match their own CRC field, given the first `have` body bytes (INST 0x55
- * first, as the parser stores them in raw mode) of a packet from the
- * broadcast ID: bit i for block i. The CRC runs on over every byte as
- * received, so a block after a bad one still checks out on its own. A block
- * whose CRC field is beyond `have` (the last one of a complete packet: the
- * parser took it as the packet CRC) is not set. Never fails. */
-uint16_t dxl_fast_verified(const uint8_t *body, uint16_t have, uint16_t n, uint8_t count);
 
 /* Little-endian value of `size` (1, 2 or 4) bytes at p. */
 uint32_t dxl_get_le(const uint8_t *p, uint8_t size);
