@@ -339,7 +339,7 @@ def section_resources(res: Dict) -> List[str]:
     if bb.get("median_ms") is not None:
         out.append(f"| servo position-read period on the bench (firmware's bus cycle) | median "
                    f"{fmt(bb['median_ms'], 2, 'ms')}, 95th pct {fmt(bb['p95_ms'], 2, 'ms')}, max "
-                   f"{fmt(bb['max_ms'], 2, 'ms')} ({bb['reads']} sync reads of Present Position "
+                   f"{fmt(bb['max_ms'], 2, 'ms')} ({bb['reads']} (fast) sync reads of Present Position "
                    f"in {fmt(bb['window_s'], 1, 's')}) | simavr bench, `--trace-bus` during a "
                    "calibration |")
     else:
@@ -354,9 +354,28 @@ def section_resources(res: Dict) -> List[str]:
                f"{', '.join(fmt(x, 1) for x in rates) + ' Hz' if rates else 'n/a'} | "
                f"{cell(r.get('bench_src', 'not measured'))} |")
     out.append("")
+    out += loop_phase_table(r)
     if r.get("notes"):
         out += [f"- {n}" for n in r["notes"]] + [""]
     return out
+
+
+def loop_phase_table(r: Dict) -> List[str]:
+    """Main-loop pass times per calibration phase against the 4 ms goal."""
+    rows = r.get("loop_phases")
+    if not rows:
+        return [f"Main-loop pass by phase: not measured "
+                f"({cell(r.get('loop_phases_src', 'no simavr bench run'))}).", ""]
+    limit = GOALS["loop_worst_us"]
+    out = [f"Main-loop pass by phase ({cell(r.get('loop_phases_src', ''))}; goal: worst pass "
+           f"at most {limit / 1000:g} ms in every phase):", "",
+           "| phase | passes | mean | p99 (worst run) | worst | goal |",
+           "| --- | --- | --- | --- | --- | --- |"]
+    for p in rows:
+        out.append(f"| {p['name']} | {p['passes']} | {fmt(p['mean_us'], 0, 'µs')} | "
+                   f"{fmt(p['p99_us'], 0, 'µs')} | {fmt(p['max_us'], 0, 'µs')} | "
+                   f"{'met' if p['max_us'] <= limit else 'missed'} |")
+    return out + [""]
 
 
 def goals_table(res: Dict) -> List[Dict]:

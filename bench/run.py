@@ -323,6 +323,13 @@ def simavr_items(a, res: Dict, cfg: Dict, workdir: str) -> None:
         f"{len(runs) - len(failed)} of {len(runs)} calibrations completed"
         + (f"; failed: {'; '.join(str(r.get('error')) for r in failed[:3])}" if failed else ""))
 
+    res["resources"]["loop_phases"] = stats.loop_phases(
+        r["summary"].get("loop", {}).get("phases", []) for r in runs
+        if r.get("ok") and r.get("summary"))
+    res["resources"]["loop_phases_src"] = (
+        f"simavr bench: every main-loop pass of {len(runs) - len(failed)} calibrations "
+        "(boot, idle, calibration), timed by the cycle counter (`hh_bench --loop-table`)")
+
     log("simavr bench: traced run for the servo bus cycle")
     res["resources"]["bench_bus"] = simavr.bus_cycle(a.hh_bench, a.elf, a.config, workdir)
     if a.reduced:

@@ -30,6 +30,7 @@ GOALS = {
     "cal_time_s": 12.0,  # a full 6-tendon calibration
     "tension_err_mean_abs_N": 0.02,  # mean error within +-0.02 N
     "tension_err_sd_N": 0.03,  # standard deviation at most 0.03 N
+    "loop_worst_us": 4000.0,  # worst main-loop pass, in every phase
 }
 
 
@@ -184,3 +185,29 @@ def goal(value: float, limit: float, kind: str = "max") -> str:
         return "not measured"
     v = abs(float(value)) if kind == "abs" else float(value)
     return "met" if v <= limit else "missed"
+
+
+def loop_phases(runs: Iterable[Mapping]) -> List[Dict]:
+    """Merges the per-phase main-loop pass statistics of several bench runs
+    (each the ``loop.phases`` list of an hh_bench summary) into one row per
+    phase, in order of first appearance: passes summed, mean weighted by
+    passes, p99 the highest of the runs' p99 (a pooled percentile would need
+    the histograms), worst the highest pass of all."""
+    rows: Dict[str, Dict] = {}
+    for phases in runs:
+        for p in phases or []:
+            n = int(p.get("passes", 0))
+            if n <= 0:
+                continue
+            r = rows.setdefault(p["name"], {"name": p["name"], "passes": 0, "_sum": 0.0,
+                                            "p99_us": 0.0, "max_us": 0.0, "runs": 0})
+            r["passes"] += n
+            r["_sum"] += float(p["mean_us"]) * n
+            r["p99_us"] = max(r["p99_us"], float(p["p99_us"]))
+            r["max_us"] = max(r["max_us"], float(p["max_us"]))
+            r["runs"] += 1
+    out = []
+    for r in rows.values():
+        r["mean_us"] = r.pop("_sum") / r["passes"]
+        out.append(r)
+    return out

@@ -154,6 +154,9 @@ int main(void)
     uart1_init(app_bus_baud(&app));
     board_io_wdt_start();
     for (;;) {
+        /* pass marker: the virtual bench times each pass by this write
+         * (sim/bench/looptime.c); one OUT instruction on the chip */
+        GPIOR0 = 0;
         (void)app_poll(&app);
     }
 }

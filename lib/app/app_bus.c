@@ -179,7 +179,7 @@ APP_NOINLINE static void servo_next(app_t *a)
             txn = APP_TX_POS;
         }
         if (a->bus.goal_due == 0u) {
-            if (dxl_sync_read(&a->bus.dxl, addr, v, ids, n) > 0) {
+            if (dxl_fast_sync_read(&a->bus.dxl, addr, v, ids, n) > 0) {
                 a->bus.txn = txn;
             }
             return;

@@ -2,6 +2,7 @@
 
 #include <stddef.h>
 
+#include "dxl/dxl_priv.h"
 #include "dxl/dxl_xl430_reg.h"
 
 enum { DXL_PH_IDLE, DXL_PH_SEND, DXL_PH_WAIT_TX, DXL_PH_RECV };
@@ -39,6 +40,7 @@ void dxl_master_init(dxl_master *m, const dxl_port *port, const dxl_config *cfg)
     m->got = 0;
     m->phase = DXL_PH_IDLE;
     m->result = 0;
+    m->on_status = NULL;
 }
 
 uint8_t dxl_busy(const dxl_master *m)
@@ -65,6 +67,7 @@ static void dxl_begin_attempt(dxl_master *m)
     dxl_drain(m);
     dxl_parser_reset(&m->parser);
     dxl_parser_set_raw(&m->parser, m->inst == DXL_INST_FAST_SYNC_READ);
+    m->parser.block = m->inst == DXL_INST_FAST_SYNC_READ ? (uint16_t)(m->n + 4u) : 0u;
     m->attempt_err = 0;
     m->got = 0;
     for (uint8_t i = 0; i < m->n_reply; i++) {
@@ -114,7 +117,7 @@ static void dxl_end_attempt(dxl_master *m, int8_t err)
     dxl_finish(m, err);
 }
 
-static void dxl_note(dxl_master *m, int8_t err)
+void dxl_note(dxl_master *m, int8_t err)
 {
     if (m->attempt_err == 0) {
         m->attempt_err = err;
@@ -131,9 +134,26 @@ static dxl_reply *dxl_pending_for(dxl_master *m, uint8_t id)
     return NULL;
 }
 
+dxl_reply *dxl_claim(dxl_master *m, uint8_t id)
+{
+    dxl_reply *r = dxl_pending_for(m, id);
+    if (r == NULL && dxl_reply_for(m, id) == NULL) {
+        /* answered already is fine: a retried group request asks everyone again */
+        m->stats.wrong_id++;
+        dxl_note(m, -DXL_E_WRONG_ID);
+    }
+    return r;
+}
+
+void dxl_malformed(dxl_master *m)
+{
+    m->stats.malformed++;
+    dxl_note(m, -DXL_E_MALFORMED);
+}
+
 /* The error number makes the data meaningless; the alert bit alone only says
  * that Hardware Error Status is nonzero, the data is still the servo's. */
-static void dxl_settle(dxl_master *m, dxl_reply *r, uint8_t err, const uint8_t *data, uint16_t n)
+void dxl_settle(dxl_master *m, dxl_reply *r, uint8_t err, const uint8_t *data, uint16_t n)
 {
     r->err = err;
     r->len = (uint8_t)n;
@@ -150,55 +170,23 @@ static void dxl_settle(dxl_master *m, dxl_reply *r, uint8_t err, const uint8_t *
     m->got++;
 }
 
-/* Combined reply: 0x55, then per servo ERR ID DATA and a CRC, the last CRC
- * being the packet's own (e-manual, "Fast Sync Read"). The packet CRC covers
- * all of it, so the partial CRCs are not checked again. */
-static void dxl_on_fast(dxl_master *m, const dxl_status *st)
-{
-    uint16_t per = (uint16_t)(m->n + 4u);
-    const uint8_t *p = st->params - 1; /* ERR of the first servo */
-    uint8_t count = m->n_reply;
-    /* from the first ERR to the end, the packet CRC included */
-    if (st->id != DXL_BROADCAST_ID || st->n + 3u != (uint16_t)(count * per)) {
-        m->stats.malformed++;
-        dxl_note(m, -DXL_E_MALFORMED);
-        return;
-    }
-    for (uint8_t i = 0; i < count; i++) {
-        const uint8_t *chunk = p + (uint16_t)(i * per);
-        dxl_reply *r = dxl_pending_for(m, chunk[1]);
-        if (r == NULL || r != &m->reply[i]) {
-            m->stats.wrong_id++;
-            dxl_note(m, -DXL_E_WRONG_ID);
-            continue;
-        }
-        dxl_settle(m, r, chunk[0], chunk + 2, m->n);
-    }
-}
-
 static void dxl_on_packet(dxl_master *m)
 {
     dxl_status st;
     if (dxl_parser_status(&m->parser, &st) != 0) {
         return; /* an instruction packet (our own echo on an unbuffered bus) */
     }
-    if (m->inst == DXL_INST_FAST_SYNC_READ) {
-        dxl_on_fast(m, &st);
+    if (m->on_status != NULL) {
+        m->on_status(m, &st);
         return;
     }
-    dxl_reply *r = dxl_pending_for(m, st.id);
-    if (r == NULL && dxl_reply_for(m, st.id) != NULL) {
-        return; /* answered already: a retried group request asks everyone again */
-    }
+    dxl_reply *r = dxl_claim(m, st.id);
     if (r == NULL) {
-        m->stats.wrong_id++;
-        dxl_note(m, -DXL_E_WRONG_ID);
         return;
     }
     uint16_t want = r->len;
     if (st.n != want && !((st.err & DXL_ERR_NUMBER_MASK) != 0 && st.n == 0)) {
-        m->stats.malformed++;
-        dxl_note(m, -DXL_E_MALFORMED);
+        dxl_malformed(m);
         return;
     }
     dxl_settle(m, r, st.err, st.params, st.n);
@@ -228,9 +216,21 @@ static void dxl_recv(dxl_master *m)
             int8_t rc = dxl_parser_feed(&m->parser, chunk[i]);
             if (rc == 0) {
                 dxl_on_packet(m);
+                if (m->on_status != NULL && m->got < m->expect && m->attempt_err != 0) {
+                    /* the one combined reply is in, with bad blocks: retry now */
+                    dxl_end_attempt(m, m->attempt_err);
+                    return;
+                }
             } else if (rc < 0) {
                 dxl_note(m, rc == -DXL_E_CRC ? -DXL_E_CRC : -DXL_E_MALFORMED);
-                if (m->expect == 1u) {
+                if (m->on_status != NULL) {
+                    m->on_status(m, NULL); /* keep the blocks that check out */
+                }
+                if (m->got >= m->expect) {
+                    dxl_finish(m, 0);
+                    return;
+                }
+                if (m->expect == 1u || m->on_status != NULL) {
                     /* the one reply is spoilt and the bus is free: retry now */
                     dxl_end_attempt(m, m->attempt_err);
                     return;
@@ -241,7 +241,14 @@ static void dxl_recv(dxl_master *m)
     if (m->got >= m->expect) {
         dxl_finish(m, 0);
     } else if (dxl_time_reached(dxl_now(m), m->deadline)) {
-        dxl_end_attempt(m, -DXL_E_TIMEOUT);
+        if (m->on_status != NULL) {
+            m->on_status(m, NULL);
+        }
+        if (m->got >= m->expect) {
+            dxl_finish(m, 0);
+        } else {
+            dxl_end_attempt(m, -DXL_E_TIMEOUT);
+        }
     }
 }
 
@@ -321,6 +328,7 @@ static int8_t dxl_prepare(dxl_master *m, uint8_t inst, uint16_t addr, uint16_t n
         return -DXL_E_BUSY;
     }
     m->inst = inst;
+    m->on_status = NULL;
     m->addr = addr;
     m->n = n;
     m->n_reply = 0;
@@ -360,37 +368,51 @@ static int8_t dxl_simple(dxl_master *m, uint8_t id, uint16_t n, int8_t built)
     return dxl_launch(m, built);
 }
 
-int8_t dxl_ping(dxl_master *m, uint8_t id)
+/* Ping, read, write and reboot of one servo (write and reboot also to the
+ * broadcast ID), built here with the writer: one copy of the checks, the
+ * request and the expected reply for the four transactions bring-up and the
+ * app use, instead of one per instruction. A read sends `addr` and `n`, a
+ * write `addr` and data[0..n); `want` is the reply's data length. */
+static int8_t dxl_single(dxl_master *m, uint8_t inst, uint8_t id, uint16_t addr,
+                         const uint8_t *data, uint16_t n, uint16_t want)
 {
-    int8_t rc = dxl_prepare(m, DXL_INST_PING, 0, 3);
+    int8_t rc = dxl_prepare(m, inst, addr, want);
     if (rc != 0) {
         return rc;
     }
-    if (id > DXL_MAX_ID) {
+    uint8_t any_id = inst == DXL_INST_WRITE || inst == DXL_INST_REBOOT;
+    if ((id > DXL_MAX_ID && !(any_id && id == DXL_BROADCAST_ID)) || want > DXL_REPLY_DATA ||
+        (inst == DXL_INST_READ && n == 0) || (inst == DXL_INST_WRITE && (n == 0 || data == NULL))) {
         return -DXL_E_ARG;
     }
-    return dxl_simple(m, id, 3, dxl_build_ping(m->tx, DXL_TX_CAP, id, &m->tx_len));
+    dxl_writer w;
+    dxl_writer_begin(&w, m->tx, DXL_TX_CAP, id, inst);
+    if (inst == DXL_INST_READ || inst == DXL_INST_WRITE) {
+        dxl_writer_put_le(&w, addr, 2);
+        if (inst == DXL_INST_READ) {
+            dxl_writer_put_le(&w, n, 2);
+        } else {
+            for (uint16_t i = 0; i < n; i++) {
+                dxl_writer_put(&w, data[i]);
+            }
+        }
+    }
+    return dxl_simple(m, id, want, dxl_writer_end(&w, &m->tx_len));
+}
+
+int8_t dxl_ping(dxl_master *m, uint8_t id)
+{
+    return dxl_single(m, DXL_INST_PING, id, 0, NULL, 0, 3);
 }
 
 int8_t dxl_read(dxl_master *m, uint8_t id, uint16_t addr, uint16_t n)
 {
-    int8_t rc = dxl_prepare(m, DXL_INST_READ, addr, n);
-    if (rc != 0) {
-        return rc;
-    }
-    if (n > DXL_REPLY_DATA) {
-        return -DXL_E_ARG;
-    }
-    return dxl_simple(m, id, n, dxl_build_read(m->tx, DXL_TX_CAP, id, addr, n, &m->tx_len));
+    return dxl_single(m, DXL_INST_READ, id, addr, NULL, n, n);
 }
 
 int8_t dxl_write(dxl_master *m, uint8_t id, uint16_t addr, const uint8_t *data, uint16_t n)
 {
-    int8_t rc = dxl_prepare(m, DXL_INST_WRITE, addr, 0);
-    if (rc != 0) {
-        return rc;
-    }
-    return dxl_simple(m, id, 0, dxl_build_write(m->tx, DXL_TX_CAP, id, addr, data, n, &m->tx_len));
+    return dxl_single(m, DXL_INST_WRITE, id, addr, data, n, 0);
 }
 
 int8_t dxl_write_value(dxl_master *m, uint8_t id, uint16_t addr, uint32_t value, uint8_t size)
@@ -424,11 +446,7 @@ int8_t dxl_action(dxl_master *m, uint8_t id)
 
 int8_t dxl_reboot(dxl_master *m, uint8_t id)
 {
-    int8_t rc = dxl_prepare(m, DXL_INST_REBOOT, 0, 0);
-    if (rc != 0) {
-        return rc;
-    }
-    return dxl_simple(m, id, 0, dxl_build_reboot(m->tx, DXL_TX_CAP, id, &m->tx_len));
+    return dxl_single(m, DXL_INST_REBOOT, id, 0, NULL, 0, 0);
 }
 
 int8_t dxl_factory_reset(dxl_master *m, uint8_t id, uint8_t mode, uint32_t guard)
@@ -450,8 +468,8 @@ int8_t dxl_clear_multiturn(dxl_master *m, uint8_t id)
     return dxl_simple(m, id, 0, dxl_build_clear_multiturn(m->tx, DXL_TX_CAP, id, &m->tx_len));
 }
 
-static int8_t dxl_group_read(dxl_master *m, uint8_t inst, uint16_t addr, uint16_t n,
-                             const uint8_t *ids, uint8_t count)
+int8_t dxl_group_read(dxl_master *m, uint8_t inst, uint16_t addr, uint16_t n, const uint8_t *ids,
+                      uint8_t count)
 {
     int8_t rc = dxl_prepare(m, inst, addr, n);
     if (rc != 0) {
@@ -460,10 +478,7 @@ static int8_t dxl_group_read(dxl_master *m, uint8_t inst, uint16_t addr, uint16_
     if (ids == NULL || count == 0 || count > DXL_MAX_IDS || n == 0 || n > DXL_REPLY_DATA) {
         return -DXL_E_ARG;
     }
-    int8_t built =
-        inst == DXL_INST_SYNC_READ
-            ? dxl_build_sync_read(m->tx, DXL_TX_CAP, addr, n, ids, count, &m->tx_len)
-            : dxl_build_fast_sync_read(m->tx, DXL_TX_CAP, addr, n, ids, count, &m->tx_len);
+    int8_t built = dxl_build_group_read(m->tx, DXL_TX_CAP, inst, addr, n, ids, count, &m->tx_len);
     if (built == 0) {
         for (uint8_t i = 0; i < count; i++) {
             dxl_expect(m, ids[i], n);
@@ -475,12 +490,6 @@ static int8_t dxl_group_read(dxl_master *m, uint8_t inst, uint16_t addr, uint16_
 int8_t dxl_sync_read(dxl_master *m, uint16_t addr, uint16_t n, const uint8_t *ids, uint8_t count)
 {
     return dxl_group_read(m, DXL_INST_SYNC_READ, addr, n, ids, count);
-}
-
-int8_t dxl_fast_sync_read(dxl_master *m, uint16_t addr, uint16_t n, const uint8_t *ids,
-                          uint8_t count)
-{
-    return dxl_group_read(m, DXL_INST_FAST_SYNC_READ, addr, n, ids, count);
 }
 
 int8_t dxl_sync_write(dxl_master *m, uint16_t addr, uint16_t n, const uint8_t *ids,
@@ -608,26 +617,30 @@ static uint8_t dxl_bu_pinged(dxl_bringup *b, dxl_servo_info *s)
     return 1;
 }
 
+/* The writes of the configuration steps after the read, in step order:
+ * address, size and value (DXL_BU_V_ACC / _VEL: the profile from cfg). */
+#define DXL_BU_V_ACC 0xFEu
+#define DXL_BU_V_VEL 0xFFu
+static const uint8_t dxl_bu_writes[DXL_BU_C_STEPS - 1][3] DXL_FLASH = {
+    {DXL_XL430_TORQUE_ENABLE_ADDR, 1, 0},
+    {DXL_XL430_RETURN_DELAY_ADDR, 1, DXL_BU_RETURN_DELAY},
+    {DXL_XL430_OPERATING_MODE_ADDR, 1, DXL_XL430_MODE_EXTENDED},
+    {DXL_XL430_PROFILE_ACCELERATION_ADDR, 4, DXL_BU_V_ACC},
+    {DXL_XL430_PROFILE_VELOCITY_ADDR, 4, DXL_BU_V_VEL},
+    {DXL_XL430_TORQUE_ENABLE_ADDR, 1, 1},
+};
+
 static int8_t dxl_bu_config_issue(dxl_bringup *b, uint8_t id)
 {
-    switch (b->sub) {
-    case DXL_BU_C_READ:
+    if (b->sub == DXL_BU_C_READ) {
         return dxl_read(b->m, id, DXL_XL430_RETURN_DELAY_ADDR, DXL_BU_READ_LEN);
-    case DXL_BU_C_TORQUE_OFF:
-        return dxl_write_value(b->m, id, DXL_XL430_TORQUE_ENABLE_ADDR, 0, 1);
-    case DXL_BU_C_DELAY:
-        return dxl_write_value(b->m, id, DXL_XL430_RETURN_DELAY_ADDR, DXL_BU_RETURN_DELAY, 1);
-    case DXL_BU_C_MODE:
-        return dxl_write_value(b->m, id, DXL_XL430_OPERATING_MODE_ADDR, DXL_XL430_MODE_EXTENDED, 1);
-    case DXL_BU_C_ACC:
-        return dxl_write_value(b->m, id, DXL_XL430_PROFILE_ACCELERATION_ADDR,
-                               b->cfg.profile_acceleration, 4);
-    case DXL_BU_C_VEL:
-        return dxl_write_value(b->m, id, DXL_XL430_PROFILE_VELOCITY_ADDR, b->cfg.profile_velocity,
-                               4);
-    default:
-        return dxl_write_value(b->m, id, DXL_XL430_TORQUE_ENABLE_ADDR, 1, 1);
     }
+    const uint8_t *w = dxl_bu_writes[b->sub - 1u];
+    uint8_t k = DXL_FLASH_BYTE(&w[2]);
+    uint32_t v = k == DXL_BU_V_ACC   ? b->cfg.profile_acceleration
+                 : k == DXL_BU_V_VEL ? b->cfg.profile_velocity
+                                     : k;
+    return dxl_write_value(b->m, id, DXL_FLASH_BYTE(&w[0]), v, DXL_FLASH_BYTE(&w[1]));
 }
 
 /* Next configuration step of servo s, skipping EEPROM writes that would

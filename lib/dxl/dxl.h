@@ -88,7 +88,9 @@ typedef struct {
     uint16_t stale;     /* bytes found waiting before a request (late replies) */
 } dxl_master_stats;
 
-typedef struct {
+typedef struct dxl_master dxl_master;
+
+struct dxl_master {
     dxl_port port;
     dxl_config cfg;
     uint8_t tx[DXL_TX_CAP];
@@ -109,7 +111,13 @@ typedef struct {
     uint16_t tx_len;
     uint16_t tx_sent;
     uint32_t deadline;
-} dxl_master;
+    /* Reply handler of a transaction whose answer is not one status packet
+     * per servo (fast sync read); NULL otherwise. Set when the transaction
+     * starts, so the code of a reply format the firmware never asks for is
+     * not linked. Called with st NULL when an attempt ends on a corrupted
+     * packet or its deadline, to take what can be trusted of a partial one. */
+    void (*on_status)(dxl_master *m, const dxl_status *st);
+};
 
 /* Defaults for `baud` with `bits_per_byte` (10 on real hardware): 2 retries,
  * byte time rounded up, 1500 us reply allowance (covers the XL430's factory
@@ -146,7 +154,9 @@ int8_t dxl_clear_multiturn(dxl_master *m, uint8_t id);
 /* Read n bytes at addr from each of ids[0..count): one status packet each, in
  * list order. */
 int8_t dxl_sync_read(dxl_master *m, uint16_t addr, uint16_t n, const uint8_t *ids, uint8_t count);
-/* Fast sync read: one combined reply (needs servo firmware that has it); any
+/* Fast sync read (dxl_fast.c): the same request and results as
+ * dxl_sync_read(), answered by one combined status packet (needs servo
+ * firmware that has the instruction, dxl_proto.h describes the packet); any
  * corruption or a silent servo costs the whole reply. */
 int8_t dxl_fast_sync_read(dxl_master *m, uint16_t addr, uint16_t n, const uint8_t *ids,
                           uint8_t count);

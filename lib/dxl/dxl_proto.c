@@ -2,18 +2,20 @@
 
 #include <stddef.h>
 
+#include "dxl/dxl_priv.h"
+
 /* Nibble table for polynomial 0x8005: 32 bytes instead of 512, two lookups
- * per byte, which keeps the AVR's RAM free and is still far faster than the
- * 10 us a byte takes at 1 Mbps. */
-static const uint16_t dxl_crc_nibble[16] = {
+ * per byte, still far faster than the 10 us a byte takes at 1 Mbps. */
+static const uint16_t dxl_crc_nibble[16] DXL_FLASH = {
     0x0000, 0x8005, 0x800F, 0x000A, 0x801B, 0x001E, 0x0014, 0x8011,
     0x8033, 0x0036, 0x003C, 0x8039, 0x0028, 0x802D, 0x8027, 0x0022,
 };
 
 uint16_t dxl_crc16_byte(uint16_t crc, uint8_t byte)
 {
-    crc = (uint16_t)((crc << 4) ^ dxl_crc_nibble[((crc >> 12) ^ (byte >> 4)) & 0x0Fu]);
-    crc = (uint16_t)((crc << 4) ^ dxl_crc_nibble[((crc >> 12) ^ byte) & 0x0Fu]);
+    crc = (uint16_t)((crc << 4) ^
+                     DXL_FLASH_WORD(&dxl_crc_nibble[((crc >> 12) ^ (byte >> 4)) & 0x0Fu]));
+    crc = (uint16_t)((crc << 4) ^ DXL_FLASH_WORD(&dxl_crc_nibble[((crc >> 12) ^ byte) & 0x0Fu]));
     return crc;
 }
 
@@ -235,8 +237,8 @@ static int8_t dxl_check_ids(const uint8_t *ids, uint8_t count)
     return 0;
 }
 
-static int8_t dxl_build_sync_read_inst(uint8_t *buf, uint16_t cap, uint8_t inst, uint16_t addr,
-                                       uint16_t n, const uint8_t *ids, uint8_t count, uint16_t *len)
+int8_t dxl_build_group_read(uint8_t *buf, uint16_t cap, uint8_t inst, uint16_t addr, uint16_t n,
+                            const uint8_t *ids, uint8_t count, uint16_t *len)
 {
     *len = 0;
     if (n == 0 || dxl_check_ids(ids, count) != 0) {
@@ -255,13 +257,7 @@ static int8_t dxl_build_sync_read_inst(uint8_t *buf, uint16_t cap, uint8_t inst,
 int8_t dxl_build_sync_read(uint8_t *buf, uint16_t cap, uint16_t addr, uint16_t n,
                            const uint8_t *ids, uint8_t count, uint16_t *len)
 {
-    return dxl_build_sync_read_inst(buf, cap, DXL_INST_SYNC_READ, addr, n, ids, count, len);
-}
-
-int8_t dxl_build_fast_sync_read(uint8_t *buf, uint16_t cap, uint16_t addr, uint16_t n,
-                                const uint8_t *ids, uint8_t count, uint16_t *len)
-{
-    return dxl_build_sync_read_inst(buf, cap, DXL_INST_FAST_SYNC_READ, addr, n, ids, count, len);
+    return dxl_build_group_read(buf, cap, DXL_INST_SYNC_READ, addr, n, ids, count, len);
 }
 
 int8_t dxl_build_sync_write(uint8_t *buf, uint16_t cap, uint16_t addr, uint16_t n,
@@ -360,6 +356,7 @@ void dxl_parser_init(dxl_parser *p, uint8_t *buf, uint16_t cap)
     p->buf = buf;
     p->cap = cap;
     p->raw = 0;
+    p->block = 0;
     p->stats = (dxl_parse_stats){0, 0, 0, 0, 0, 0};
     dxl_parser_reset(p);
 }
@@ -368,6 +365,8 @@ void dxl_parser_reset(dxl_parser *p)
 {
     p->state = DXL_PS_H1;
     p->body_len = 0;
+    p->blk_ok = 0;
+    p->blk_n = 0;
     p->remaining = 0;
     p->run = 0;
 }
@@ -379,8 +378,7 @@ void dxl_parser_set_raw(dxl_parser *p, uint8_t raw)
 
 static void dxl_parser_header_seen(dxl_parser *p)
 {
-    static const uint8_t hdr[4] = {0xFF, 0xFF, 0xFD, 0x00};
-    p->crc = dxl_crc16(0, hdr, 4);
+    p->crc = DXL_CRC_HEADER;
     p->state = DXL_PS_ID;
 }
 
@@ -414,6 +412,20 @@ static int8_t dxl_parser_body(dxl_parser *p, uint8_t byte)
             return -DXL_E_OVERFLOW;
         }
         p->buf[p->body_len++] = byte;
+        if (p->block != 0) {
+            /* blk_pos starts at 0xFFFF for INST, then counts within a block */
+            uint16_t k = p->blk_pos++;
+            if (k == (uint16_t)(p->block - 2u)) {
+                p->blk_crc = p->crc; /* CRC up to the end of the block's data */
+            } else if (k == (uint16_t)(p->block - 1u)) {
+                if ((uint16_t)(p->buf[p->body_len - 2u] | (uint16_t)byte << 8) == p->blk_crc &&
+                    p->blk_n < 16u) {
+                    p->blk_ok |= (uint16_t)(1u << p->blk_n);
+                }
+                p->blk_n++;
+                p->blk_pos = 0;
+            }
+        }
     }
     p->crc = dxl_crc16_byte(p->crc, byte);
     p->tail[0] = p->tail[1];
@@ -450,45 +462,34 @@ static void dxl_parser_rescan(dxl_parser *p)
     p->stats.garbage = garbage;
 }
 
+/* Header search: states H1..RSRV are the number of header bytes matched.
+ * On a mismatch the search goes on from the longest header prefix that ends
+ * the bytes seen (only FF can start one: FF FF FF keeps two, FF FF FD FF one)
+ * and every byte left behind counts as garbage. */
+static void dxl_parser_hunt(dxl_parser *p, uint8_t byte)
+{
+    static const uint8_t hdr[4] = {0xFF, 0xFF, 0xFD, 0x00};
+    uint8_t k = p->state;
+    if (byte == hdr[k]) {
+        if (k == DXL_PS_RSRV) {
+            dxl_parser_header_seen(p);
+        } else {
+            p->state = (uint8_t)(k + 1u);
+        }
+        return;
+    }
+    uint8_t next = byte != 0xFF ? DXL_PS_H1 : (k == DXL_PS_H3 ? DXL_PS_H3 : DXL_PS_H2);
+    p->stats.garbage = (uint16_t)(p->stats.garbage + k + 1u - next);
+    p->state = next;
+}
+
 int8_t dxl_parser_feed(dxl_parser *p, uint8_t byte)
 {
+    if (p->state < DXL_PS_ID) {
+        dxl_parser_hunt(p, byte);
+        return 1;
+    }
     switch (p->state) {
-    case DXL_PS_H1:
-        if (byte == 0xFF) {
-            p->state = DXL_PS_H2;
-        } else {
-            p->stats.garbage++;
-        }
-        return 1;
-    case DXL_PS_H2:
-        if (byte == 0xFF) {
-            p->state = DXL_PS_H3;
-        } else {
-            p->stats.garbage = (uint16_t)(p->stats.garbage + 2u);
-            p->state = DXL_PS_H1;
-        }
-        return 1;
-    case DXL_PS_H3:
-        if (byte == 0xFD) {
-            p->state = DXL_PS_RSRV;
-        } else if (byte == 0xFF) {
-            p->stats.garbage++;
-        } else {
-            p->stats.garbage = (uint16_t)(p->stats.garbage + 3u);
-            p->state = DXL_PS_H1;
-        }
-        return 1;
-    case DXL_PS_RSRV:
-        if (byte == 0x00) {
-            dxl_parser_header_seen(p);
-        } else if (byte == 0xFF) {
-            p->stats.garbage = (uint16_t)(p->stats.garbage + 3u);
-            p->state = DXL_PS_H2;
-        } else {
-            p->stats.garbage = (uint16_t)(p->stats.garbage + 4u);
-            p->state = DXL_PS_H1;
-        }
-        return 1;
     case DXL_PS_ID:
         if (byte == 0xFF) {
             p->stats.garbage = (uint16_t)(p->stats.garbage + 4u);
@@ -508,8 +509,10 @@ int8_t dxl_parser_feed(dxl_parser *p, uint8_t byte)
         uint16_t field = (uint16_t)(p->remaining | ((uint16_t)byte << 8));
         /* Stuffing adds at most one byte per three, so a raw body longer than
          * 4/3 of the buffer cannot fit once unstuffed. */
-        uint32_t most = (uint32_t)p->cap + p->cap / 3u + 1u;
-        if (field < 3u || (uint32_t)field - 2u > most) {
+        uint16_t third = (uint16_t)(p->cap / 3u);
+        uint16_t room = (uint16_t)(UINT16_MAX - third);
+        uint16_t most = p->cap < room ? (uint16_t)(p->cap + third + 1u) : UINT16_MAX; /* any LEN */
+        if (field < 3u || (uint16_t)(field - 2u) > most) {
             p->stats.length++;
             p->state = DXL_PS_H1;
             return -DXL_E_LENGTH;
@@ -519,6 +522,9 @@ int8_t dxl_parser_feed(dxl_parser *p, uint8_t byte)
         p->body_len = 0;
         p->run = 0;
         p->tail_n = 0;
+        p->blk_pos = UINT16_MAX;
+        p->blk_ok = 0;
+        p->blk_n = 0;
         p->state = DXL_PS_BODY;
         return 1;
     }

@@ -85,6 +85,9 @@ enum dxl_err {
 /* Clear instruction, multi-turn option and its fixed key (e-manual, "Clear"). */
 #define DXL_CLEAR_MULTITURN 0x01u
 
+/* CRC of the header FF FF FD 00, where every packet's CRC starts. */
+#define DXL_CRC_HEADER 0x0E28u
+
 /* Bytes of a packet without parameters: header 4, ID, LEN 2, INST, CRC 2. */
 #define DXL_PACKET_OVERHEAD 10u
 
@@ -144,7 +147,12 @@ int8_t dxl_build_factory_reset(uint8_t *buf, uint16_t cap, uint8_t id, uint8_t m
                                uint16_t *len);
 /* Clear the multi-turn count (Present Position back within one turn). */
 int8_t dxl_build_clear_multiturn(uint8_t *buf, uint16_t cap, uint8_t id, uint16_t *len);
-/* Sync read / fast sync read of `n` bytes at `addr` from `count` servos. */
+/* Sync read (dxl_proto.c) / fast sync read (dxl_fast.c) of `n` bytes at
+ * `addr` from `count` servos; dxl_build_group_read() builds either, `inst`
+ * being DXL_INST_SYNC_READ or DXL_INST_FAST_SYNC_READ (the two differ only in
+ * the instruction byte). */
+int8_t dxl_build_group_read(uint8_t *buf, uint16_t cap, uint8_t inst, uint16_t addr, uint16_t n,
+                            const uint8_t *ids, uint8_t count, uint16_t *len);
 int8_t dxl_build_sync_read(uint8_t *buf, uint16_t cap, uint16_t addr, uint16_t n,
                            const uint8_t *ids, uint8_t count, uint16_t *len);
 int8_t dxl_build_fast_sync_read(uint8_t *buf, uint16_t cap, uint16_t addr, uint16_t n,
@@ -202,6 +210,16 @@ typedef struct {
     uint8_t raw;     /* nonzero: no unstuffing (fast sync read replies) */
     uint8_t tail[4]; /* last raw body bytes, searched again after a CRC error */
     uint8_t tail_n;
+    /* Fast sync read replies (raw mode): with `block` set to n + 4, the
+     * running CRC at the end of each block's data is compared with the
+     * block's CRC field as the bytes arrive; bit i of blk_ok is set when
+     * block i matched, blk_n counts the blocks whose CRC field has arrived
+     * (the last block's field is the packet CRC, checked as usual). */
+    uint16_t block;
+    uint16_t blk_pos;
+    uint16_t blk_crc;
+    uint16_t blk_ok;
+    uint8_t blk_n;
     dxl_parse_stats stats;
 } dxl_parser;
 
@@ -236,6 +254,33 @@ typedef struct {
  * -DXL_E_MALFORMED when it is not a status packet (INST not 0x55 or no error
  * byte). */
 int8_t dxl_parser_status(const dxl_parser *p, dxl_status *st);
+
+/* --- fast sync read reply (dxl_fast.c) --------------------------------------------
+ * One status packet from ID 0xFE carries every servo's answer (e-manual,
+ * Protocol 2.0, "Fast Sync Read"): after INST 0x55 come, per servo in the
+ * request's ID order, a block of ERR, ID, the `n` data bytes and a 2-byte CRC
+ * field; the last block's CRC field is the packet's own CRC. The first
+ * servo sends the header, each one appends its block, the last one the CRC;
+ * nobody stuffs (parse it in raw mode, dxl_parser_set_raw()). ROBOTIS's SDK
+ * checks only the packet CRC; the master checks every block's own CRC field
+ * as well (see dxl_fast.c for why). A servo that does not answer breaks the
+ * chain: the packet never completes. Each block's CRC field holds the CRC of
+ * the packet from its first FF to the end of that block's data (the last
+ * one is thus the packet CRC), so each block can be checked on its own: the
+ * parser does it as the bytes arrive (dxl_parser.block, blk_ok). */
+typedef struct {
+    uint8_t err;
+    uint8_t id;
+    const uint8_t *data; /* `n` bytes, pointing into the parser buffer */
+} dxl_fast_block;
+
+/* Views block `i` (0-based) of a fast sync read reply `st` (from
+ * dxl_parser_status()) that answers a request for `n` bytes from `count`
+ * servos. Returns 0, or -DXL_E_MALFORMED when `st` is not such a reply (not
+ * from the broadcast ID, or its length is not exactly `count` blocks) or
+ * i >= count. */
+int8_t dxl_fast_block_at(const dxl_status *st, uint16_t n, uint8_t count, uint8_t i,
+                         dxl_fast_block *b);
 
 /* Little-endian value of `size` (1, 2 or 4) bytes at p. */
 uint32_t dxl_get_le(const uint8_t *p, uint8_t size);

@@ -43,6 +43,7 @@
 #define BENCH_DDRD     0x2Au
 #define BENCH_PINE     0x2Cu
 #define BENCH_EECR     0x3Fu
+#define BENCH_GPIOR0   0x3Eu
 #define BENCH_TWSR     0xB9u
 #define BENCH_TWCR     0xBCu
 #define BENCH_UCSR0B   0xC1u
@@ -315,6 +316,28 @@ typedef struct {
     uint16_t n_timed_out;
 } bench_steps_t;
 
+/* ---- main-loop pass times (looptime.c) ----------------------------------------- */
+
+#define LOOP_PHASES     16u
+#define LOOP_BIN_CYCLES 16u    /* 1 us */
+#define LOOP_BINS       50000u /* 50 ms; longer passes land in the last bin */
+
+typedef struct {
+    char name[16];
+    uint64_t passes;
+    uint64_t sum; /* cycles */
+    uint64_t max; /* cycles */
+    uint64_t max_at_us;
+    uint32_t hist[LOOP_BINS];
+} loop_phase_t;
+
+typedef struct {
+    loop_phase_t phase[LOOP_PHASES];
+    uint8_t n_phases;
+    uint8_t cur;
+    uint64_t last_cycle; /* the last pass marker (0: none since reset) */
+} bench_loop_t;
+
 /* ---- the bench ---------------------------------------------------------------- */
 
 #define BENCH_RESET_LOG 32u
@@ -405,6 +428,7 @@ struct bench_t {
     uint64_t timer_at; /* absolute us of the armed service timer */
     bench_truth_t truth;
     bench_steps_t steps;
+    bench_loop_t loop;
     /* end of run */
     int stop;
     int exit_code;
@@ -479,6 +503,14 @@ void truth_con_in(bench_t *b, uint8_t byte);
 void truth_bus_byte(bench_t *b, uint64_t now_us);
 void truth_reset(bench_t *b, uint8_t mcusr);
 void truth_report(bench_t *b, FILE *json);
+
+/* Main-loop pass times by phase (looptime.c): init hooks the firmware's
+ * GPIOR0 pass marker; line follows the phase from console lines; reset drops
+ * the pass in flight; report writes JSON members and/or the table. */
+void loop_init(bench_t *b);
+void loop_reset(bench_t *b);
+void loop_line(bench_t *b, const char *line);
+void loop_report(bench_t *b, FILE *json, FILE *table);
 
 /* steps.c: `step [on REGEX] [within TIME] [+DELAY] EVENT ARGS` script lines */
 int steps_add(bench_t *b, const char *spec);

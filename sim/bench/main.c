@@ -77,6 +77,7 @@ void bench_console_line(bench_t *b, const char *line)
     }
     truth_line(b, line);
     steps_line(b, line);
+    loop_line(b, line);
     if (b->fault_at_us == 0 && strncmp(line, "<fault", 6) == 0) {
         b->fault_at_us = bench_now_us(b);
         b->released_at_us = 0;
@@ -339,6 +340,7 @@ static void after_reset(bench_t *b)
         b->wdt_resets++;
     }
     truth_reset(b, b->avr->data[BENCH_MCUSR]);
+    loop_reset(b);
     b->timer_at = 0;
     b->bus.dir_tx = 0;
     b->bus.mcu_head = b->bus.mcu_tail = 0;
@@ -512,6 +514,7 @@ static void write_summary(bench_t *b, double wall, double cpu)
                 t->icm[k].resets);
     }
     fprintf(f, "]},\n");
+    loop_report(b, f, NULL);
     truth_report(b, f);
     world_report(b, f, NULL, -1.0);
     fprintf(f, "\n}\n");
@@ -549,6 +552,7 @@ static void usage(FILE *f)
         "  --table               print the per-tendon table at exit\n"
         "  --straight-um U0,U1.. per tendon, um to pay out from its home to its straight-pose\n"
         "                        home: the table adds the tensions of that pose (computed)\n"
+        "  --loop-table          print main-loop pass times by phase at exit (mean, p99, worst)\n"
         "  --check-tension PCT   exit 1 unless every tendon's true tension at home is within "
         "PCT%%\n"
         "exit: 0 ok, 1 fail-on/check, 2 usage, 3 time limit before --until, 4 firmware stopped, "
@@ -575,7 +579,7 @@ int main(int argc, char **argv)
     bench_t *b = &bench;
     elf_firmware_t fw;
     double check_pct = -1.0;
-    uint8_t table = 0, use_stdin = 0;
+    uint8_t table = 0, use_stdin = 0, loop_table = 0;
 
     b->seed = 1;
     b->perturb = 0.05;
@@ -718,6 +722,8 @@ int main(int argc, char **argv)
             b->bus.trace = 1;
         } else if (strcmp(a, "--table") == 0) {
             table = 1;
+        } else if (strcmp(a, "--loop-table") == 0) {
+            loop_table = 1;
         } else if (strcmp(a, "--check-tension") == 0) {
             NEEDV();
             check_pct = strtod(v, NULL);
@@ -769,6 +775,7 @@ int main(int argc, char **argv)
     twi_bench_init(b, b->seed);
     avr_irq_register_notify(avr_io_getirq(b->avr, AVR_IOCTL_IOPORT_GETIRQ('B'), 7), led_pin, b);
     avr_register_io_write(b->avr, BENCH_EECR, eecr_write, b);
+    loop_init(b);
     if (ee_load(b) != 0 || world_init(b) != 0) {
         return BENCH_EXIT_USAGE;
     }
@@ -883,6 +890,9 @@ int main(int argc, char **argv)
             printf("calibration time %.3f s simulated\n",
                    (double)(b->until_at_us - b->cal_start_us) * 1e-6);
         }
+    }
+    if (loop_table) {
+        loop_report(b, NULL, stdout);
     }
     if (b->summary_path != NULL) {
         write_summary(b, wall, cpu);

@@ -232,3 +232,21 @@ def test_goals_show_the_previous_run():
     row = [l for l in text.splitlines() if l.startswith("| full 6-tendon")][0]
     assert row.endswith("| 9.00 s (simavr bench) |")
     assert "Previous run: d0, commit abc, firmware 0.1." in text
+
+
+def test_loop_phases_merge_runs_and_report_the_goal():
+    run_a = [{"name": "idle", "passes": 3, "mean_us": 1000.0, "p99_us": 1500.0, "max_us": 1600.0},
+             {"name": "engaged", "passes": 1, "mean_us": 5000.0, "p99_us": 5000.0,
+              "max_us": 5000.0}]
+    run_b = [{"name": "idle", "passes": 1, "mean_us": 2000.0, "p99_us": 2100.0, "max_us": 2100.0},
+             {"name": "empty", "passes": 0, "mean_us": 0.0, "p99_us": 0.0, "max_us": 0.0}]
+    rows = stats.loop_phases([run_a, run_b, None])
+    assert [r["name"] for r in rows] == ["idle", "engaged"]
+    idle = rows[0]
+    assert idle["passes"] == 4 and idle["runs"] == 2
+    assert idle["mean_us"] == pytest.approx(1250.0)
+    assert idle["p99_us"] == 2100.0 and idle["max_us"] == 2100.0
+    table = "\n".join(report.loop_phase_table({"loop_phases": rows, "loop_phases_src": "x"}))
+    assert "| idle | 4 |" in table and "met |" in table
+    assert "| engaged | 1 |" in table and "missed |" in table
+    assert "not measured" in "\n".join(report.loop_phase_table({}))

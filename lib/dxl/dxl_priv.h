@@ -1,0 +1,42 @@
+/*
+ * dxl_priv: what dxl.c shares with dxl_fast.c and nothing else. Users of the
+ * master include dxl.h only.
+ */
+#ifndef HALLHOME_DXL_PRIV_H
+#define HALLHOME_DXL_PRIV_H
+
+#include "dxl/dxl.h"
+
+/* Constant tables live in program memory on the AVR, where a const array
+ * would otherwise be copied to RAM at start-up; reading them takes
+ * pgm_read_byte/_word (avr-libc), the one AVR header lib/dxl needs. */
+#ifdef __AVR__
+#include <avr/pgmspace.h>
+#define DXL_FLASH            PROGMEM
+#define DXL_FLASH_BYTE(addr) pgm_read_byte(addr)
+#define DXL_FLASH_WORD(addr) pgm_read_word(addr)
+#else
+#define DXL_FLASH
+#define DXL_FLASH_BYTE(addr) (*(addr))
+#define DXL_FLASH_WORD(addr) (*(addr))
+#endif
+
+/* Starts a sync read or fast sync read (`inst`); same returns as
+ * dxl_sync_read(). */
+int8_t dxl_group_read(dxl_master *m, uint8_t inst, uint16_t addr, uint16_t n, const uint8_t *ids,
+                      uint8_t count);
+
+/* The pending reply entry of `id`, or NULL: an ID never asked is counted and
+ * noted as -DXL_E_WRONG_ID; an ID already answered is ignored. */
+dxl_reply *dxl_claim(dxl_master *m, uint8_t id);
+
+/* Stores a servo's answer in `r` and sets its result from the error byte. */
+void dxl_settle(dxl_master *m, dxl_reply *r, uint8_t err, const uint8_t *data, uint16_t n);
+
+/* Notes the first transport error of the attempt (kept as its result). */
+void dxl_note(dxl_master *m, int8_t err);
+
+/* Counts and notes a valid frame with the wrong content (-DXL_E_MALFORMED). */
+void dxl_malformed(dxl_master *m);
+
+#endif /* HALLHOME_DXL_PRIV_H */

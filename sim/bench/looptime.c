@@ -1,0 +1,145 @@
+/*
+ * looptime: the duration of every main-loop pass of the firmware, in CPU
+ * cycles, sorted by calibration phase.
+ *
+ * The firmware writes GPIOR0 once per pass (firmware/main.c); the bench
+ * timestamps each write with simavr's cycle count, so a pass is the cycles
+ * between two writes, interrupts included, exact to the cycle and free of
+ * any effect on the firmware's timing beyond the one OUT instruction. The
+ * phase is the one the firmware's last report line named: `<boot`, `<ready`
+ * and `<done` (idle), `<progress state=NAME` and `<fault`. A line reaches the
+ * bench a little after the pass that printed it, so the pass that changes
+ * phase counts in the old one. A reset ends the pass in flight uncounted.
+ */
+#include <string.h>
+
+#include "bench.h"
+
+static void loop_write(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param)
+{
+    bench_t *b = param;
+    bench_loop_t *l = &b->loop;
+    (void)addr;
+    (void)v;
+    uint64_t now = avr->cycle;
+    if (l->last_cycle != 0 && now > l->last_cycle) {
+        loop_phase_t *p = &l->phase[l->cur];
+        uint64_t c = now - l->last_cycle;
+        uint64_t bin = c / LOOP_BIN_CYCLES;
+        p->hist[bin < LOOP_BINS ? bin : LOOP_BINS - 1u]++;
+        p->passes++;
+        p->sum += c;
+        if (c > p->max) {
+            p->max = c;
+            p->max_at_us = bench_now_us(b);
+        }
+    }
+    l->last_cycle = now;
+}
+
+static uint8_t loop_phase_index(bench_loop_t *l, const char *name, size_t len)
+{
+    if (len >= sizeof l->phase[0].name) {
+        len = sizeof l->phase[0].name - 1u;
+    }
+    for (uint8_t i = 0; i < l->n_phases; i++) {
+        if (strlen(l->phase[i].name) == len && memcmp(l->phase[i].name, name, len) == 0) {
+            return i;
+        }
+    }
+    if (l->n_phases >= LOOP_PHASES) {
+        return (uint8_t)(LOOP_PHASES - 1u); /* the last one collects the rest */
+    }
+    loop_phase_t *p = &l->phase[l->n_phases];
+    memcpy(p->name, name, len);
+    p->name[len] = '\0';
+    return l->n_phases++;
+}
+
+void loop_init(bench_t *b)
+{
+    bench_loop_t *l = &b->loop;
+    l->n_phases = 0;
+    l->cur = loop_phase_index(l, "boot", 4);
+    l->last_cycle = 0;
+    avr_register_io_write(b->avr, BENCH_GPIOR0, loop_write, b);
+}
+
+void loop_reset(bench_t *b)
+{
+    b->loop.last_cycle = 0;
+    b->loop.cur = loop_phase_index(&b->loop, "boot", 4);
+}
+
+void loop_line(bench_t *b, const char *line)
+{
+    bench_loop_t *l = &b->loop;
+    static const char progress[] = "<progress state=";
+    if (strncmp(line, progress, sizeof progress - 1u) == 0) {
+        const char *name = line + sizeof progress - 1u;
+        l->cur = loop_phase_index(l, name, strcspn(name, " >"));
+    } else if (strncmp(line, "<ready", 6) == 0 || strncmp(line, "<done", 5) == 0) {
+        l->cur = loop_phase_index(l, "idle", 4);
+    } else if (strncmp(line, "<fault", 6) == 0) {
+        l->cur = loop_phase_index(l, "fault", 5);
+    } else if (strncmp(line, "<boot", 5) == 0) {
+        l->cur = loop_phase_index(l, "boot", 4);
+    }
+}
+
+static double loop_us(uint64_t cycles)
+{
+    return (double)cycles / (double)(BENCH_F_CPU / 1000000u);
+}
+
+/* The 99th percentile, to one histogram bin (LOOP_BIN_CYCLES), upper edge. */
+static uint64_t loop_p99(const loop_phase_t *p)
+{
+    uint64_t want = p->passes - p->passes / 100u;
+    uint64_t seen = 0;
+    for (uint32_t i = 0; i < LOOP_BINS; i++) {
+        seen += p->hist[i];
+        if (seen >= want) {
+            uint64_t edge = (uint64_t)(i + 1u) * LOOP_BIN_CYCLES;
+            return edge < p->max ? edge : p->max;
+        }
+    }
+    return p->max;
+}
+
+void loop_report(bench_t *b, FILE *json, FILE *table)
+{
+    const bench_loop_t *l = &b->loop;
+    if (json != NULL) {
+        fprintf(json, "  \"loop\": {\"bin_us\": %.3f, \"phases\": [", loop_us(LOOP_BIN_CYCLES));
+    }
+    if (table != NULL) {
+        fprintf(table, "\nmain-loop pass by phase (cycles between GPIOR0 writes, 16 MHz)\n");
+        fprintf(table, "%-10s %8s %9s %9s %9s %10s\n", "phase", "passes", "mean_us", "p99_us",
+                "worst_us", "worst_at_s");
+    }
+    uint8_t first = 1;
+    for (uint8_t i = 0; i < l->n_phases; i++) {
+        const loop_phase_t *p = &l->phase[i];
+        if (p->passes == 0) {
+            continue;
+        }
+        double mean = loop_us(p->sum) / (double)p->passes;
+        if (json != NULL) {
+            fprintf(json,
+                    "%s{\"name\": \"%s\", \"passes\": %llu, \"mean_us\": %.1f, \"p99_us\": %.1f, "
+                    "\"max_us\": %.1f, \"max_at_s\": %.6f}",
+                    first ? "" : ", ", p->name, (unsigned long long)p->passes, mean,
+                    loop_us(loop_p99(p)), loop_us(p->max), (double)p->max_at_us * 1e-6);
+        }
+        if (table != NULL) {
+            fprintf(table, "%-10s %8llu %9.1f %9.1f %9.1f %10.3f\n", p->name,
+                    (unsigned long long)p->passes, mean, loop_us(loop_p99(p)), loop_us(p->max),
+                    (double)p->max_at_us * 1e-6);
+        }
+        first = 0;
+    }
+    if (json != NULL) {
+        fprintf(json, "]},\n");
+    }
+}
