@@ -213,7 +213,8 @@ typedef struct {
     uint8_t req_mode;
     uint8_t req_tendon;
     uint8_t auto_release;  /* ID of a servo in hardware error: reboot it, then release */
-    uint8_t reset_release; /* a reset cut a run or move: release once the bus is up */
+    uint8_t reset_release; /* a reset cut a run or move: 1 owed, 2 early goals sent (bring-up) */
+    uint8_t recover_left;  /* device bring-ups left before the pending request is refused */
     uint16_t mask;         /* tendons calibrated by this run */
     uint16_t tension;
     uint16_t req_tension;

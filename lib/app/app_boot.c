@@ -158,7 +158,7 @@ APP_NOINLINE static void boot_ready(app_t *a)
     app_rep_end(a);
     a->state = APP_ST_IDLE;
     a->boot.step = 3;
-    if (a->boot.con_wait && con_pending(&a->cmd.con)) {
+    if (a->boot.con_wait && con_pending(&a->cmd.con) && !(a->run.req_start && a->run.req_con)) {
         app_rep_servos(a, 1);
         (void)con_complete(&a->cmd.con, 0);
     }
@@ -185,6 +185,13 @@ APP_NOINLINE void app_boot_poll(app_t *a)
     uint32_t t = app_now_ms(a);
     if (a->boot.step == 0u) {
         if (a->bus.reboot_id != 0u && t - a->boot.t_start < APP_SERVO_REBOOT_MS) {
+            return;
+        }
+        if (a->run.reset_release == 1u && app_run_early_release(a)) {
+            a->run.reset_release = 2; /* sent; the full release follows the bring-up */
+        }
+        if (dxl_busy(&a->bus.dxl)) {
+            (void)dxl_poll(&a->bus.dxl); /* the early release still on the wire */
             return;
         }
         boot_start(a);

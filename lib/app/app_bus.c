@@ -74,7 +74,8 @@ APP_NOINLINE static void servo_done(app_t *a, int8_t rc)
         }
     } else if (a->bus.txn == APP_TX_REBOOT) {
         if (rc != 0 && rc != -DXL_E_ALERT) {
-            if (!app_run_reboot_failed(a) && con_pending(&a->cmd.con)) {
+            if (!app_run_reboot_failed(a) && con_pending(&a->cmd.con) &&
+                !(a->run.req_start && a->run.req_con)) {
                 (void)con_complete(&a->cmd.con, CON_E_SERVO_FAULT);
             }
             a->bus.reboot_id = 0;
@@ -204,6 +205,21 @@ APP_NOINLINE static void servo_next(app_t *a)
         dxl_sync_write(&a->bus.dxl, DXL_XL430_PROFILE_ACCELERATION_ADDR, 12u, ids, data, n) > 0) {
         a->bus.txn = APP_TX_GOAL;
     }
+}
+
+uint8_t app_bus_goals_now(app_t *a)
+{
+    uint8_t ids[TBL_MAX_TENDONS];
+    uint8_t data[TBL_MAX_TENDONS * DXL_XL430_GOAL_POSITION_SIZE];
+    uint8_t i, n = 0;
+    for (i = 0; i < a->info.n_tendons; i++) {
+        if (app_has(a->bus.goal_due, i)) {
+            put32(&data[n * DXL_XL430_GOAL_POSITION_SIZE], (uint32_t)hom_goal(&a->u.hom, i));
+            ids[n++] = a->bus.ids[i];
+        }
+    }
+    return (uint8_t)(n > 0u && dxl_sync_write(&a->bus.dxl, DXL_XL430_GOAL_POSITION_ADDR,
+                                              DXL_XL430_GOAL_POSITION_SIZE, ids, data, n) > 0);
 }
 
 void app_bus_reboot(app_t *a, uint8_t id)

@@ -262,7 +262,13 @@ void app_run_move(app_t *a, uint8_t kind)
  * known, the homing's own assumption (anywhere up to the release that frees
  * a tendon left at the top of the grid). Never pulls, and repeated releases
  * go no further (the window stays). */
-uint8_t app_run_release_goals(app_t *a)
+/* blind: right after a reset that cut a run, before the bring-up (which
+ * takes 0.2 s or more, longer with a device missing): no position is known
+ * yet, so only the tendons whose engagement window survived in .noinit get
+ * a goal, the slack margin before the window (slack whatever the tendon's
+ * state; the servos kept power and their own frame, which a reset of the
+ * board does not change). */
+static uint8_t release_goals(app_t *a, uint8_t blind)
 {
     hom_config_t cfg;
     uint8_t i, moved = 0;
@@ -271,7 +277,8 @@ uint8_t app_run_release_goals(app_t *a)
         tbl_point_t pt;
         tbl_tendon_t row;
         int32_t g, dir, lo, hi;
-        if (app_has(a->bus.absent, i)) {
+        if (app_has(a->bus.absent, i) ||
+            (blind && (a->io->win == NULL || !app_has(a->io->win->mask, i)))) {
             continue;
         }
         (void)tbl_tendon(&a->tab, i, &row);
@@ -294,13 +301,26 @@ uint8_t app_run_release_goals(app_t *a)
             app_win_set(a, i, lo, hi, 1);
         }
         g = lo - dir * um_ticks(row.nm_per_tick, cfg.slack_margin_um);
-        if (dir * (g - a->bus.present[i]) > 0) {
+        if (!blind && dir * (g - a->bus.present[i]) > 0) {
             g = a->bus.present[i]; /* already slacker than the release point */
         }
         app_bus_goal(a, i, g, cfg.v_release, cfg.acc);
         moved = 1;
     }
     return moved;
+}
+
+uint8_t app_run_release_goals(app_t *a)
+{
+    return release_goals(a, 0);
+}
+
+/* The stop releases within docs/app.md's 100 ms: the goals go out in one
+ * sync write before the bring-up; the full release follows once the bus is
+ * up. */
+uint8_t app_run_early_release(app_t *a)
+{
+    return (uint8_t)(release_goals(a, 1) && app_bus_goals_now(a));
 }
 
 void app_abort(app_t *app)
@@ -368,6 +388,75 @@ APP_NOINLINE void app_run_move_step(app_t *a)
     app_panel_set(a, APP_LED_IDLE);
 }
 
+/* A run asked for while a device is missing or a servo reports a hardware
+ * error is not refused at once: the devices are brought up again first (a
+ * servo in hardware error is rebooted, Protocol 2.0 Reboot; a sensor or
+ * servo that stopped answering is looked for again), and the run starts
+ * after the new <ready>. Each servo in hardware error costs one bring-up, so
+ * a request gets one more than there are such servos; a device still
+ * missing after them refuses the run as before. Returns 1 when a bring-up
+ * was started for the request (kept in req_*), 0 when none is left. */
+static uint8_t defer_for_devices(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon,
+                                 uint8_t from_con)
+{
+    uint8_t i;
+    uint8_t id = 0;
+    if (!a->run.req_start) {
+        a->run.recover_left = 1;
+        for (i = 0; i < a->info.n_tendons; i++) {
+            if (a->bus.hw_err[i] != 0u) {
+                a->run.recover_left++;
+            }
+        }
+    }
+    if (a->run.recover_left == 0u) {
+        return 0;
+    }
+    a->run.recover_left--;
+    a->run.req_start = 1;
+    a->run.req_con = from_con;
+    a->run.req_btn = 0;
+    a->run.req_mode = mode;
+    a->run.req_tension = tension;
+    a->run.req_tendon = tendon;
+    for (i = 0; i < a->info.n_tendons && id == 0u; i++) {
+        if (a->bus.hw_err[i] != 0u && !app_has(a->bus.absent, i)) {
+            id = a->bus.ids[i];
+        }
+    }
+    if (id != 0u) {
+        app_bus_reboot(a, id); /* the bring-up follows the reboot */
+    } else {
+        app_boot_again(a);
+    }
+    return 1;
+}
+
+/* Starts the run now, defers it (EEPROM write in flight, bring-up under way,
+ * devices to bring up again), or refuses it: 0, CON_PENDING or a CON_E_*. */
+static int8_t run_or_defer(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon,
+                           uint8_t from_con)
+{
+    int8_t rc;
+    if (a->state == APP_ST_BOOT ||
+        (app_idle_state(a) && (store_busy(&a->rec.store) || app_rec_busy(a)))) {
+        a->run.req_start = 1;
+        a->run.req_con = from_con;
+        a->run.req_btn = 0;
+        a->run.req_mode = mode;
+        a->run.req_tension = tension;
+        a->run.req_tendon = tendon;
+        return CON_PENDING;
+    }
+    rc = run_start(a, mode, tension, tendon);
+    if ((rc == CON_E_SENSOR_FAULT || rc == CON_E_SERVO_FAULT) &&
+        defer_for_devices(a, mode, tension, tendon, from_con)) {
+        return CON_PENDING;
+    }
+    a->run.req_start = 0;
+    return rc;
+}
+
 void app_run_press(app_t *a)
 {
     int8_t rc;
@@ -383,16 +472,9 @@ void app_run_press(app_t *a)
         return; /* a long press aborts */
     }
     app_panel_set(a, APP_LED_IDLE);
-    if (store_busy(&a->rec.store) || app_rec_busy(a)) {
-        a->run.req_start = 1; /* starts once the EEPROM write in flight is done */
-        a->run.req_con = 0;
-        a->run.req_mode = a->boot.offer_quick ? HOM_MODE_QUICK : HOM_MODE_FULL;
-        a->run.req_tension = 0;
-        a->run.req_tendon = 0;
-        return;
-    }
-    rc = run_start(a, a->boot.offer_quick ? HOM_MODE_QUICK : HOM_MODE_FULL, 0, 0);
-    if (rc != 0) {
+    a->run.req_start = 0;
+    rc = run_or_defer(a, a->boot.offer_quick ? HOM_MODE_QUICK : HOM_MODE_FULL, 0, 0, 0);
+    if (rc != 0 && rc != CON_PENDING) {
         app_rep_fault(a, app_w_refused, rc, HOM_DEV_NONE, 0);
         app_panel_set(a, APP_LED_FAULT);
     }
@@ -419,16 +501,19 @@ uint8_t app_run_reboot_failed(app_t *a)
 void app_run_poll(app_t *a)
 {
     if (a->run.req_start && a->state != APP_ST_BOOT && store_busy(&a->rec.store) == 0u &&
-        !app_rec_busy(a)) {
+        !app_rec_busy(a) && a->bus.reboot_id == 0u && !a->bus.reboot_req) {
         int8_t rc;
-        a->run.req_start = 0;
         if (a->run.req_btn) {
             a->run.req_btn = 0;
             a->run.req_mode = a->boot.offer_quick ? HOM_MODE_QUICK : HOM_MODE_FULL;
             a->run.req_tension = 0;
             a->run.req_tendon = 0;
         }
-        rc = run_start(a, a->run.req_mode, a->run.req_tension, a->run.req_tendon);
+        rc =
+            run_or_defer(a, a->run.req_mode, a->run.req_tension, a->run.req_tendon, a->run.req_con);
+        if (rc == CON_PENDING) {
+            return; /* the devices are brought up again first */
+        }
         if (a->run.req_con && con_pending(&a->cmd.con)) {
             (void)con_complete(&a->cmd.con, rc);
         } else if (rc != 0) {
@@ -456,13 +541,6 @@ void app_run_poll(app_t *a)
 
 int8_t app_run_request(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon)
 {
-    if (app_idle_state(a) && (store_busy(&a->rec.store) || app_rec_busy(a))) {
-        a->run.req_start = 1;
-        a->run.req_con = 1;
-        a->run.req_mode = mode;
-        a->run.req_tension = tension;
-        a->run.req_tendon = tendon;
-        return CON_PENDING;
-    }
-    return run_start(a, mode, tension, tendon);
+    a->run.req_start = 0;
+    return run_or_defer(a, mode, tension, tendon, 1);
 }

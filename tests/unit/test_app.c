@@ -256,7 +256,10 @@ static void test_missing_sensor_and_servo(void **state)
     assert_true(app_bench_wait_line(&g_b, "<ready ", g_line, sizeof g_line, 100));
     assert_int_equal(app_bench_field(g_line, "sensors", -1), 2);
     assert_int_equal(app_bench_field(g_line, "servos", -1), 5);
-    cmd(&g_b, "cal", "error:13 sensor missing or faulty");
+    /* `cal` brings the devices up again once before it refuses */
+    app_bench_send(&g_b, "cal");
+    assert_true(app_bench_wait_line(&g_b, "<ready ", g_line, sizeof g_line, 4000));
+    reply(&g_b, "error:13 sensor missing or faulty", 4000);
     g_b.icm[1].present = 1; /* plugged in again: the sensor set re-inits it */
     app_bench_run_ms(&g_b, 1500);
     cmd(&g_b, "cal", "error:14 servo missing or faulty");
@@ -264,6 +267,27 @@ static void test_missing_sensor_and_servo(void **state)
     for (uint8_t i = 0; i < 6; i++) {
         assert_true(app_bench_tension(&g_b, i) < 0.001);
     }
+    /* the servo answers again: the next `cal` finds it in the new bring-up
+     * and the calibration runs, with no `scan` or power cycle first */
+    dxl_fakebus_add(&g_b.bus, &g_b.servo[4]);
+    cmd(&g_b, "cal", "ok");
+    assert_true(app_bench_wait_line(&g_b, "<done mode=full", g_line, sizeof g_line, 30000));
+}
+
+/* A press while a servo is in hardware error (torque off, overload) reboots
+ * it and calibrates: the recovery needs no console. */
+static void test_press_reboots_a_servo_in_hardware_error(void **state)
+{
+    (void)state;
+    boot(&g_b, 1);
+    xl430_inject_hw_error(&g_b.servo[3], DXL_XL430_HW_ERR_OVERLOAD);
+    app_bench_run_ms(&g_b, 300); /* the idle cycle reads the hardware error */
+    assert_int_not_equal(g_b.app.bus.hw_err[3], 0);
+    press(&g_b, 100);
+    assert_true(app_bench_wait_line(&g_b, "<ready ", g_line, sizeof g_line, 4000));
+    assert_true(app_bench_wait_line(&g_b, "<progress state=start", g_line, sizeof g_line, 1000));
+    assert_true(app_bench_wait_line(&g_b, "<done mode=full", g_line, sizeof g_line, 30000));
+    assert_int_equal(g_b.app.bus.hw_err[3], 0);
 }
 
 /* A servo overload mid-run: fault servo_error naming the servo, released. */
@@ -642,6 +666,7 @@ int main(void)
         cmocka_unit_test(test_boot_banner_and_ready),
         cmocka_unit_test(test_no_table),
         cmocka_unit_test(test_missing_sensor_and_servo),
+        cmocka_unit_test(test_press_reboots_a_servo_in_hardware_error),
         cmocka_unit_test(test_settings),
         cmocka_unit_test(test_absolute_target_mode),
         cmocka_unit_test(test_learn_with_weight),
