@@ -339,7 +339,7 @@ def section_resources(res: Dict) -> List[str]:
     if bb.get("median_ms") is not None:
         out.append(f"| servo position-read period on the bench (firmware's bus cycle) | median "
                    f"{fmt(bb['median_ms'], 2, 'ms')}, 95th pct {fmt(bb['p95_ms'], 2, 'ms')}, max "
-                   f"{fmt(bb['max_ms'], 2, 'ms')} ({bb['reads']} sync reads of Present Position "
+                   f"{fmt(bb['max_ms'], 2, 'ms')} ({bb['reads']} (fast) sync reads of Present Position "
                    f"in {fmt(bb['window_s'], 1, 's')}) | simavr bench, `--trace-bus` during a "
                    "calibration |")
     else:
