@@ -891,7 +891,7 @@ APP_NOINLINE static void servo_next(app_t *a)
             txn = TX_POS;
         }
         if (a->goal_due == 0u) {
-            if (dxl_sync_read(&a->dxl, addr, v, ids, n) > 0) {
+            if (dxl_fast_sync_read(&a->dxl, addr, v, ids, n) > 0) {
                 a->sv_txn = txn;
             }
             return;
