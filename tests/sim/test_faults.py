@@ -119,7 +119,7 @@ MID_RUN = [
     ("magnet_missing", 1.0, {"reason": "magnet_missing", "dev": "sensor"}, False),
     ("out_of_reach", 2.0, {"reason": "travel_limit", "dev": "tendon", "index": "0", "id": "1"}, True),
     ("abort_console", 2.85, {"reason": "aborted"}, True),
-    ("abort_button", 4.2, {"reason": "aborted"}, True),  # held from 2.2 s, acts at 2 s
+    ("abort_button", 4.0, {"reason": "aborted"}, True),  # held from 2.0 s, acts at 2 s
 ]
 
 

@@ -218,7 +218,7 @@ def test_a_field_step_no_motion_can_make_is_refused(tmp_path, step_uT):
     the baseline; it does not, so the run ends in field_step, the home is
     not recorded, and every tendon is released."""
     r = bench(tmp_path, "--limit", "20s", "--at", "1s press 100",
-              "--at", f"9.2s field 2 {step_uT}", "--until", "^<(done|fault)", "--linger", "300ms")
+              "--at", f"8.9s field 2 {step_uT}", "--until", "^<(done|fault)", "--linger", "300ms")
     faults = r.of("fault")
     assert faults and faults[0][1]["reason"] == "field_step", r.context()
     assert faults[0][1]["dev"] == "sensor" and faults[0][1]["index"] == "2"
