@@ -388,6 +388,17 @@ APP_NOINLINE void app_run_move_step(app_t *a)
     app_panel_set(a, APP_LED_IDLE);
 }
 
+/* Keeps a run request for app_run_poll() to start once it can. */
+static void keep_request(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon, uint8_t from_con)
+{
+    a->run.req_start = 1;
+    a->run.req_con = from_con;
+    a->run.req_btn = 0;
+    a->run.req_mode = mode;
+    a->run.req_tension = tension;
+    a->run.req_tendon = tendon;
+}
+
 /* A run asked for while a device is missing or a servo reports a hardware
  * error is not refused at once: the devices are brought up again first (a
  * servo in hardware error is rebooted, Protocol 2.0 Reboot; a sensor or
@@ -413,12 +424,7 @@ static uint8_t defer_for_devices(app_t *a, uint8_t mode, uint16_t tension, uint8
         return 0;
     }
     a->run.recover_left--;
-    a->run.req_start = 1;
-    a->run.req_con = from_con;
-    a->run.req_btn = 0;
-    a->run.req_mode = mode;
-    a->run.req_tension = tension;
-    a->run.req_tendon = tendon;
+    keep_request(a, mode, tension, tendon, from_con);
     for (i = 0; i < a->info.n_tendons && id == 0u; i++) {
         if (a->bus.hw_err[i] != 0u && !app_has(a->bus.absent, i)) {
             id = a->bus.ids[i];
@@ -440,12 +446,7 @@ static int8_t run_or_defer(app_t *a, uint8_t mode, uint16_t tension, uint8_t ten
     int8_t rc;
     if (a->state == APP_ST_BOOT ||
         (app_idle_state(a) && (store_busy(&a->rec.store) || app_rec_busy(a)))) {
-        a->run.req_start = 1;
-        a->run.req_con = from_con;
-        a->run.req_btn = 0;
-        a->run.req_mode = mode;
-        a->run.req_tension = tension;
-        a->run.req_tendon = tendon;
+        keep_request(a, mode, tension, tendon, from_con);
         return CON_PENDING;
     }
     rc = run_start(a, mode, tension, tendon);

@@ -14,16 +14,14 @@ test_dxl_sdk.py); the packets that need stuffing are stuffed here with the
 SDK's own ``addStuffing`` and sent with ``stuffed_txrx``.
 """
 
-import subprocess
 import time
-from pathlib import Path
 
 import pytest
 
-from dynamixel_sdk import COMM_SUCCESS, GroupSyncWrite, PacketHandler, PortHandler
+from xl430pty import xl430_port
 
-ROOT = Path(__file__).resolve().parents[2]
-TOOL = ROOT / "build" / "native" / "hh_xl430_pty"
+from dynamixel_sdk import COMM_SUCCESS, GroupSyncWrite, PacketHandler
+
 ID = 5
 BOOT_S = 0.1  # boot time given to the model (--boot-ms 100)
 
@@ -40,21 +38,8 @@ PH = PacketHandler(2.0)
 
 @pytest.fixture
 def port():
-    if not TOOL.exists():
-        pytest.fail(f"{TOOL} is missing: run `make unit` first (it builds hh_xl430_pty)")
-    proc = subprocess.Popen([str(TOOL), "--boot-ms", str(int(BOOT_S * 1000)), str(ID)],
-                            stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
-    line = proc.stdout.readline()
-    assert line.startswith("pty: "), line
-    handler = PortHandler(line.split()[1])
-    assert handler.openPort()
-    assert handler.setBaudRate(1000000)
-    try:
+    with xl430_port((ID,), BOOT_S * 1000) as handler:
         yield handler
-    finally:
-        handler.closePort()
-        proc.stdin.close()
-        proc.wait(timeout=10)
 
 
 def write(port, addr, value, size, dxl_id=ID):

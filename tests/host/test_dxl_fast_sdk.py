@@ -11,17 +11,15 @@ one its block in the request's ID order, the last one the CRC, and a silent
 servo breaks the chain (the ones after it never get their turn).
 """
 
-import subprocess
 import time
-from pathlib import Path
 
 import pytest
 
-from dynamixel_sdk import (COMM_RX_CORRUPT, COMM_RX_TIMEOUT, COMM_SUCCESS, GroupSyncRead,
-                           PacketHandler, PortHandler)
+from xl430pty import xl430_port
 
-ROOT = Path(__file__).resolve().parents[2]
-TOOL = ROOT / "build" / "native" / "hh_xl430_pty"
+from dynamixel_sdk import (COMM_RX_CORRUPT, COMM_RX_TIMEOUT, COMM_SUCCESS, GroupSyncRead,
+                           PacketHandler)
+
 IDS = (1, 2, 3, 4, 5, 6)
 PROFILE_ACC, PRESENT_POSITION = 108, 132
 
@@ -30,22 +28,9 @@ PH = PacketHandler(2.0)
 
 @pytest.fixture
 def port():
-    if not TOOL.exists():
-        pytest.fail(f"{TOOL} is missing: run `make unit` first (it builds hh_xl430_pty)")
-    proc = subprocess.Popen([str(TOOL), "--boot-ms", "50", *map(str, IDS)],
-                            stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
-    line = proc.stdout.readline()
-    assert line.startswith("pty: "), line
-    handler = PortHandler(line.split()[1])
-    assert handler.openPort()
-    assert handler.setBaudRate(1000000)
-    time.sleep(0.1)  # boot
-    try:
+    with xl430_port(IDS, 50) as handler:
+        time.sleep(0.1)  # boot
         yield handler
-    finally:
-        handler.closePort()
-        proc.stdin.close()
-        proc.wait(timeout=10)
 
 
 def set_profile(port, dxl_id, acc, vel):
