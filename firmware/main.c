@@ -14,6 +14,7 @@
 #include "reset.h"
 #include "tick.h"
 #include "twi.h"
+#include "stack.h"
 #include "uart0.h"
 #include "uart1.h"
 #include "version.h"
@@ -140,6 +141,7 @@ int main(void)
     io.console = &con_io;
     io.con_copy = copy_P;
     io.rt = &con_rt;
+    io.stack_free = stack_free_min;
     io.table = &HH_TABLE;
     io.table_copy = copy_P;
     io.table_copy_learned = copy_learned;

@@ -132,7 +132,7 @@ def ports_cmd(as_json) -> None:
 STATUS_KEYS = (("state", "state"), ("count", "calibrations"), ("tension_mN", "last tension mN"),
                ("fault", "last fault"), ("rehome", "quick re-home offered"),
                ("learned", "learned tendons (mask)"), ("baseline", "baseline captured"),
-               ("loop_max_us", "longest loop us"))
+               ("loop_max_us", "longest loop us"), ("stack_free", "least free stack B"))
 
 
 def read_status(c: Client) -> dict:

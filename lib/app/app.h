@@ -154,7 +154,10 @@ typedef struct app_io_s {
      * context, so the owner of the app instance binds it). NULL: learned
      * targets are stored but not used. */
     tbl_copy_fn table_copy_learned;
-    app_win_t *win;        /* engagement windows (see app_win_t); NULL: none kept */
+    app_win_t *win; /* engagement windows (see app_win_t); NULL: none kept */
+    /* Least free stack there has been since boot, bytes (the board paints the
+     * stack at boot); NULL: not known (`status` then omits stack_free). */
+    uint16_t (*stack_free)(void);
     const char *version_f; /* firmware version */
     const char *board_f;   /* board name */
     const char *reset_f;   /* reset cause word */

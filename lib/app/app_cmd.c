@@ -91,6 +91,9 @@ static int8_t h_status(con_t *con, const con_args_t *args, void *ctx)
     app_rep_int(a, app_w_saving, store_busy(&a->rec.store) || a->rec.save_due != 0u);
     app_rep_int(a, app_w_loop_max_us, (int32_t)a->loop_max_us);
     app_rep_int(a, app_w_loops, (int32_t)a->loops);
+    if (a->io->stack_free != NULL) {
+        app_rep_int(a, app_w_stack_free, (int32_t)a->io->stack_free());
+    }
     app_rep_end(a);
     for (i = 0; i < a->info.n_tendons; i++) {
         if (app_has(a->rec.homes.valid_mask, i) == 0u) {

@@ -121,6 +121,7 @@
     W(homes_now)                                                                                   \
     W(saving)                                                                                      \
     W(loop_max_us)                                                                                 \
+    W(stack_free)                                                                                  \
     W(loops)                                                                                       \
     W(rest)                                                                                        \
     W(usable)                                                                                      \

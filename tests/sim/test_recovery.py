@@ -243,3 +243,20 @@ def test_a_field_step_no_motion_can_make_is_refused(tmp_path, step_uT, last_fine
     assert not r.of("done")
     for t in r.summary["tendons"]:
         assert t["tension_now_mN"] < 1.0, f"tendon {t['tendon']} still at {t['tension_now_mN']} mN"
+
+
+def test_stack_keeps_a_kilobyte_free_through_a_busy_calibration(tmp_path):
+    """The board paints its stack at boot and `status` reports the least free
+    stack since (stack_free): at least 1 KB must stay free through a full
+    calibration with console traffic throughout (every command's handler and
+    the realtime console on the stack together)."""
+    times = [1.2 + 0.25 * k for k in range(36)]
+    r = bench(tmp_path, "--limit", "30s", "--at", "1s press 100",
+              *traffic(["help", "status", "get"], times),
+              "--at", "14s send status", "--at", "14.3s send version", "--until", "^<version ",
+              "--linger", "0")
+    statuses = [f for t, f in r.of("status") if t >= 14.0]
+    assert statuses and r.of("done"), r.context()
+    free = int(statuses[-1]["stack_free"])
+    print(f"least free stack through the run: {free} B")
+    assert 1024 <= free < 8192
