@@ -61,6 +61,10 @@
 #define APP_LEARN_SAMPLES   16u    /* samples averaged by `learn` and the baseline */
 #define APP_HWERR_EVERY     8u     /* read Hardware Error Status every n-th cycle */
 #define APP_SERVO_REBOOT_MS 600u   /* wait after `reboot` before the bus is brought up */
+/* After a reset that cut a run: how long the bring-up waits for the early
+ * release (v_release, about 3100 ticks/s) to slacken the tendons; a tendon
+ * 150 ticks past engagement is slack after 50 ms. */
+#define APP_EARLY_RELEASE_MS 60u
 #define APP_BUS_WATCHDOG                                                                           \
     10u                           /* XL430 Bus Watchdog, 20 ms units: servos stop 200 ms           \
                                        after the last instruction (board hung or reset) */
@@ -216,7 +220,8 @@ typedef struct {
     uint8_t req_mode;
     uint8_t req_tendon;
     uint8_t auto_release;  /* ID of a servo in hardware error: reboot it, then release */
-    uint8_t reset_release; /* a reset cut a run or move: 1 owed, 2 early goals sent (bring-up) */
+    uint8_t reset_release; /* a reset cut a run or move: 1 owed, 2-3 early release under way, 4
+                              released early or nothing to (app_boot_poll) */
     uint8_t recover_left;  /* device bring-ups left before the pending request is refused */
     uint16_t mask;         /* tendons calibrated by this run */
     uint16_t tension;

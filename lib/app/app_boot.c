@@ -187,11 +187,22 @@ APP_NOINLINE void app_boot_poll(app_t *a)
         if (a->bus.reboot_id != 0u && t - a->boot.t_start < APP_SERVO_REBOOT_MS) {
             return;
         }
-        if (a->run.reset_release == 1u && app_run_early_release(a)) {
-            a->run.reset_release = 2; /* sent; the full release follows the bring-up */
-        }
         if (dxl_busy(&a->bus.dxl)) {
             (void)dxl_poll(&a->bus.dxl); /* the early release still on the wire */
+            return;
+        }
+        /* reset_release 1: owed; 2: velocity sent; 3: goals sent, the
+         * bring-up waits APP_EARLY_RELEASE_MS for the tendons to slacken
+         * (its torque cycle would stop them where they stand) */
+        if (a->run.reset_release == 1u || a->run.reset_release == 2u) {
+            if (app_run_early_release(a, a->run.reset_release)) {
+                a->run.reset_release++;
+                a->boot.t_start = t;
+                return;
+            }
+            a->run.reset_release = 4; /* nothing known to release early */
+        }
+        if (a->run.reset_release == 3u && t - a->boot.t_start < APP_EARLY_RELEASE_MS) {
             return;
         }
         boot_start(a);

@@ -207,19 +207,22 @@ APP_NOINLINE static void servo_next(app_t *a)
     }
 }
 
-uint8_t app_bus_goals_now(app_t *a)
+uint8_t app_bus_goals_now(app_t *a, uint8_t what)
 {
     uint8_t ids[TBL_MAX_TENDONS];
-    uint8_t data[TBL_MAX_TENDONS * DXL_XL430_GOAL_POSITION_SIZE];
+    uint8_t data[TBL_MAX_TENDONS * 4u];
     uint8_t i, n = 0;
     for (i = 0; i < a->info.n_tendons; i++) {
         if (app_has(a->bus.goal_due, i)) {
-            put32(&data[n * DXL_XL430_GOAL_POSITION_SIZE], (uint32_t)hom_goal(&a->u.hom, i));
+            put32(&data[n * 4u],
+                  what != 0u ? (uint32_t)hom_goal(&a->u.hom, i) : hom_goal_vel(&a->u.hom, i));
             ids[n++] = a->bus.ids[i];
         }
     }
-    return (uint8_t)(n > 0u && dxl_sync_write(&a->bus.dxl, DXL_XL430_GOAL_POSITION_ADDR,
-                                              DXL_XL430_GOAL_POSITION_SIZE, ids, data, n) > 0);
+    return (uint8_t)(n > 0u && dxl_sync_write(&a->bus.dxl,
+                                              what != 0u ? DXL_XL430_GOAL_POSITION_ADDR
+                                                         : DXL_XL430_PROFILE_VELOCITY_ADDR,
+                                              4u, ids, data, n) > 0);
 }
 
 void app_bus_reboot(app_t *a, uint8_t id)

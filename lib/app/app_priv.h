@@ -236,10 +236,12 @@ void app_bus_goal(app_t *a, uint8_t i, int32_t goal, uint16_t vel, uint16_t acc)
 /* Reboots servo id once the goals queued before it are out; the bus is then
  * brought up again and the pending console line answered. */
 void app_bus_reboot(app_t *a, uint8_t id);
-/* Writes the queued goals' Goal Position at once (one sync write, outside
- * the scheduler, which queues them again: for the bring-up's first
- * moments). Returns 1 when the write went out. */
-uint8_t app_bus_goals_now(app_t *a);
+/* Writes the queued goals at once, outside the scheduler (which sends them
+ * again later): what 0 their Profile Velocity, 1 their Goal Position, one
+ * sync write each (all twelve fit one packet; the scheduler's 12-byte
+ * entries do not). For the bring-up's first moments. Returns 1 when the
+ * write went out. */
+uint8_t app_bus_goals_now(app_t *a, uint8_t what);
 /* A bring-up takes the bus: the transaction in flight is dropped, no servo
  * is absent yet and no goal of the old frames is sent again. */
 void app_bus_stop(app_t *a);
@@ -300,8 +302,10 @@ void app_run_move_step(app_t *a);
  * tendon without a window gets one). Returns nonzero when any was queued. */
 uint8_t app_run_release_goals(app_t *a);
 /* After a reset that cut a run: the release goals of the tendons whose
- * engagement window survived, written before the bring-up. 1 when sent. */
-uint8_t app_run_early_release(app_t *a);
+ * engagement window survived, before the bring-up (which switches torque
+ * off and on, and a servo takes its present position as goal then): step 1
+ * writes the release velocity, step 2 the goals. 1 when sent. */
+uint8_t app_run_early_release(app_t *a, uint8_t step);
 /* Engagement windows kept across resets (app_win_t): checked at boot, set
  * (keep 0: forgotten) per tendon. */
 void app_win_check(app_t *a);

@@ -315,12 +315,15 @@ uint8_t app_run_release_goals(app_t *a)
     return release_goals(a, 0);
 }
 
-/* The stop releases within docs/app.md's 100 ms: the goals go out in one
- * sync write before the bring-up; the full release follows once the bus is
- * up. */
-uint8_t app_run_early_release(app_t *a)
+/* The stop releases within docs/app.md's 100 ms: the release velocity and
+ * goals go out before the bring-up, which waits for the tendons to get
+ * there; the full release follows once the bus is up. */
+uint8_t app_run_early_release(app_t *a, uint8_t step)
 {
-    return (uint8_t)(release_goals(a, 1) && app_bus_goals_now(a));
+    if (step == 1u && !release_goals(a, 1)) {
+        return 0;
+    }
+    return app_bus_goals_now(a, (uint8_t)(step - 1u));
 }
 
 void app_abort(app_t *app)
