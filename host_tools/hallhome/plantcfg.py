@@ -47,7 +47,7 @@ def _vec(v) -> str:
 def plant_lines(robot: Robot, seed: int | None = None, perturb: float = 0.0, *,
                 slack_um: float = 1000.0, friction_mN: float = 10.0, friction_mu: float = 0.02,
                 backlash_um: float = 30.0, ambient_uT=EARTH_FIELD_UT,
-                servo_tau_ms: float = 4.0, compression: bool = False) -> list[str]:
+                servo_tau_ms: float = 4.0, compression: bool = True) -> list[str]:
     """The plant config as a list of lines (see ``write_plant_config``)."""
     if perturb < 0.0:
         raise PlantConfigError(f"perturb: expected >= 0, got {perturb}")
@@ -161,10 +161,12 @@ def write_plant_config(robot: Robot, path: str | Path, seed: int | None = None,
     physical parameters reproducibly; other keyword arguments
     (``slack_um``, ``friction_mN``, ``friction_mu``, ``backlash_um``,
     ``ambient_uT``, ``servo_tau_ms``) set what the robot TOML does not
-    describe; ``compression=True`` adds the backbone's axial stiffness
-    (``segment_ea_N``: the plant then compresses the backbone under the
-    tendons, as the straight-pose proof needs; off by default, so the
-    bench, the chaos robots and their recorded outcomes stay as they were). Raises ``PlantConfigError`` for robots the plant cannot model
+    describe; ``compression`` (default on) writes the backbone's axial
+    stiffness (``segment_ea_N``): the plant compresses the backbone under
+    the tendons as a real rod does, which decides the tensions of the
+    straight pose once every tendon is home (docs/homing.md, "Straight-pose
+    homes"); ``compression=False`` leaves it rigid along its axis. Raises
+    ``PlantConfigError`` for robots the plant cannot model
     (``plant_problems``).
     """
     path = Path(path)

@@ -92,27 +92,39 @@ def straight_pose(robot: Robot, tension_N: float,
     return StraightPose(float(tension_N), single * 1e6, all_d * 1e6, (single - all_d) * 1e6, dev)
 
 
-def straight_shift_um(robot: Robot, grid_N, model: CosseratModel | None = None) -> np.ndarray:
+def straight_shift_um(robot: Robot, grid_N, model: CosseratModel | None = None,
+                      single_um: np.ndarray | None = None) -> np.ndarray:
     """Per tendon and grid tension, the take-up (um) to pay out from the
     single-tendon home to reach the straight-pose home: float array of shape
     (n_tendons, len(grid_N)), shift_i(T) of (1) (module docstring). Positive
-    means the straight-pose home is on the release side of the single one."""
+    means the straight-pose home is on the release side of the single one.
+    ``single_um``, (n_tendons, len(grid_N)): d_i(T e_i) already solved (the
+    table generator's sweep), so that only the poses of every tendon at T
+    are solved here."""
     m = _model(robot, model)
     grid = [float(t) for t in np.atleast_1d(grid_N)]
-    out = np.empty((len(robot.tendons), len(grid)))
+    n = len(robot.tendons)
+    out = np.empty((n, len(grid)))
+    if single_um is None:
+        for g, t in enumerate(grid):
+            out[:, g] = straight_pose(robot, t, m).shift_um
+        return out
+    slack = m.solve(np.zeros(n))
     for g, t in enumerate(grid):
-        out[:, g] = straight_pose(robot, t, m).shift_um
+        together = m.solve(np.full(n, t), base_moment_guess=slack.base_moment)
+        out[:, g] = np.asarray(single_um)[:, g] - together.displacements * 1e6
     return out
 
 
 INT16_MAX = 32767
 
 
-def straight_um_table(robot: Robot, grid_N, model: CosseratModel | None = None) -> np.ndarray:
+def straight_um_table(robot: Robot, grid_N, model: CosseratModel | None = None,
+                      single_um: np.ndarray | None = None) -> np.ndarray:
     """``straight_shift_um`` rounded to whole um as the table's signed int16
     ``straight_um`` carries it (int array, same shape); ValueError naming the
     tendon and tension when a shift does not fit."""
-    shifts = straight_shift_um(robot, grid_N, model)
+    shifts = straight_shift_um(robot, grid_N, model, single_um)
     out = np.rint(shifts).astype(np.int64)
     bad = np.argwhere(np.abs(out) > INT16_MAX)
     if bad.size:

@@ -25,6 +25,7 @@ from hallhome.field import field_at_sensors, magnet_poses
 from hallhome.model import CosseratModel, Solution
 from hallhome.paths import LIB_DIR, PROJECT_ROOT, ROBOTS_DIR
 from hallhome.robot import Robot, load_robot
+from hallhome.straight import straight_um_table
 from hallhome.usable import UnusableRobot, check_limits, firmware_limits, robot_refusals
 
 TABLE_HEADER = LIB_DIR / "table" / "table.h"
@@ -124,6 +125,9 @@ class RobotResult:
     b_straight: np.ndarray  # (n_sensors, 3), T, sensor frames
     tendons: list[TendonResult]
     warnings: list[str] = field(default_factory=list)
+    # (n_tendons, n_grid) take-up from the single-tendon to the straight-pose
+    # home, um (hallhome.straight)
+    straight_um: np.ndarray | None = None
 
 
 def _pick(values: np.ndarray, largest: bool) -> int:
@@ -179,6 +183,12 @@ def compute(robot: Robot, steps: int = MODEL_STEPS, progress=None) -> RobotResul
                                         float(dist[_pick(dist, False)])))
         if progress is not None:
             progress(i + 1)
+    single_um = np.array([[s.displacements[i] * 1e6 for s in tr.solutions]
+                          for i, tr in enumerate(out.tendons)])
+    try:
+        out.straight_um = straight_um_table(robot, grid, model, single_um)
+    except ValueError as e:
+        raise TableError(f"{robot.path.name}: {e}") from None
     out.warnings = _warnings(out)
     return out
 
@@ -261,7 +271,7 @@ def build_table(res: RobotResult, spec: TableSpec) -> dict:
                         "i2c_addr": s.i2c_address,
                         "b_straight_cuT": [_cuT(x) for x in b]})
     tendons = []
-    for t, tr in zip(robot.tendons, res.tendons):
+    for i, (t, tr) in enumerate(zip(robot.tendons, res.tendons)):
         sel = tr.selected
         tendons.append({
             "servo_id": t.servo_id,
@@ -273,6 +283,7 @@ def build_table(res: RobotResult, spec: TableSpec) -> dict:
             "target_cuT": [_cuT(x) for x in tr.delta[:, sel]],
             "abs_target_cuT": [_cuT(x) for x in np.linalg.norm(tr.field[:, sel], axis=-1)],
             "travel_um": [_um(x) for x in tr.travel],
+            "straight_um": [int(x) for x in res.straight_um[i]],
         })
     table = {
         "magic": c["TBL_MAGIC"],

@@ -102,6 +102,7 @@ static int8_t h_status(con_t *con, const con_args_t *args, void *ctx)
         app_rep_begin(a, app_w_home);
         app_rep_int(a, app_w_tendon, i);
         app_rep_int(a, app_w_home, a->rec.homes.t[i].home_ticks);
+        app_rep_int(a, app_w_straight, a->rec.homes.t[i].home_ticks + a->rec.homes.to_straight[i]);
         app_rep_int(a, app_w_rest, a->rec.homes.t[i].rest_ticks);
         app_rep_int(a, app_w_usable, app_has(a->rec.home_now, i));
         if (app_has(a->rec.home_now, i)) {
@@ -210,7 +211,7 @@ static int8_t h_home(con_t *con, const con_args_t *args, void *ctx)
     }
     hom_config_default(&cfg);
     for (i = 0; i < a->info.n_tendons; i++) {
-        app_bus_goal(a, i, app_rec_home(a, i), cfg.v_final, cfg.acc);
+        app_bus_goal(a, i, app_rec_goal(a, i), cfg.v_final, cfg.acc);
     }
     app_run_move(a, APP_MOVE_HOME);
     return 0;

@@ -100,6 +100,7 @@
     W(result)                                                                                      \
     W(home)                                                                                        \
     W(home_um)                                                                                     \
+    W(straight)                                                                                    \
     W(dB_uT)                                                                                       \
     W(target_uT)                                                                                   \
     W(travel_um)                                                                                   \
@@ -363,6 +364,9 @@ void app_rec_rest_poll(app_t *a);
 int8_t app_rec_recover(app_t *a);
 /* Tendon i's stored home in this power cycle's frame (valid with home_now). */
 int32_t app_rec_home(const app_t *a, uint8_t i);
+/* Where `home` takes tendon i: its stored home, or its straight-pose home
+ * with the `home_pose` setting 1, in this power cycle's frame. */
+int32_t app_rec_goal(const app_t *a, uint8_t i);
 /* 0 when every tendon has a stored home usable in this power cycle, else
  * CON_E_NOT_HOMED or CON_E_MOVED (a spool turned while powered off). */
 int8_t app_rec_usable(const app_t *a);

@@ -16,6 +16,12 @@ int32_t app_rec_home(const app_t *a, uint8_t i)
     return a->rec.homes.t[i].home_ticks - a->rec.offset[i];
 }
 
+int32_t app_rec_goal(const app_t *a, uint8_t i)
+{
+    return app_rec_home(a, i) +
+           (a->rec.set.v[STORE_SET_HOME_POSE] != 0 ? a->rec.homes.to_straight[i] : 0);
+}
+
 /* Maps the stored homes into this power cycle's servo frames. */
 APP_NOINLINE int8_t app_rec_recover(app_t *a)
 {
@@ -153,6 +159,7 @@ void app_rec_take_homes(app_t *a, uint16_t mask, uint16_t tension)
         int32_t h;
         if (app_has(mask, i) && hom_home(&a->u.hom, i, &h) == 0) {
             store_home_set(&a->rec.homes.t[i], h, h);
+            a->rec.homes.to_straight[i] = hom_to_straight(&a->u.hom, i);
             a->rec.offset[i] = 0;
             a->rec.homes.valid_mask |= app_bit16(i);
             a->rec.home_now |= app_bit16(i);

@@ -211,6 +211,7 @@ APP_NOINLINE void app_rep_event(app_t *a, const hom_event_t *ev)
             app_rep_int(a, app_w_tendon, i);
             app_rep_int(a, app_w_id, a->bus.ids[i]);
             app_rep_int(a, app_w_home, ev->a);
+            app_rep_int(a, app_w_straight, ev->a + hom_to_straight(&a->u.hom, i));
             app_rep_int(a, app_w_home_um, ticks_um(t->nm_per_tick, ev->a));
             con_report_fixed(&a->cmd.con, app_w_dB_uT, (int32_t)hom_home_dB(&a->u.hom), 2);
             con_report_fixed(&a->cmd.con, app_w_target_uT, (int32_t)t->target_cuT, 2);

@@ -181,6 +181,7 @@ static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon
     cfg.v_fast = (uint16_t)a->rec.set.v[STORE_SET_APPROACH_FAST];
     cfg.v_fine = (uint16_t)a->rec.set.v[STORE_SET_APPROACH_SLOW];
     cfg.avg_samples = (uint8_t)a->rec.set.v[STORE_SET_FILTER_K];
+    cfg.straight = (uint8_t)a->rec.set.v[STORE_SET_HOME_POSE];
     cfg.servo_timeout_ms = APP_SERVO_TIMEOUT_MS;
     app_learn_drop_baseline(a); /* its storage goes to the homing */
     hom_init(&a->u.hom, &cfg);

@@ -42,6 +42,9 @@ HOM_NOINLINE static int32_t final_dist(const hom_t *h, uint8_t i, int32_t *goal)
     const hom_tendon_t *t = &h->tendon[i];
     int32_t d;
     *goal = t->have_home == 1u ? t->home : (t->have_home == 2u ? t->est_home : h->out.goal[i]);
+    if (t->have_home != 0u && h->cfg.straight != 0u) {
+        *goal += hom_straight_ticks(t);
+    }
     d = *goal - h->present[i];
     return d < 0 ? -d : d;
 }
@@ -182,6 +185,7 @@ HOM_NOINLINE static void finish_tendon(hom_t *h, int32_t p, int32_t fallback)
     int32_t home_q8 = fit_or(h, p, fallback);
     t->home = hom_floor_div256(home_q8);
     h->home_res = home_q8 - t->home * 256;
+    t->home_frac = (int8_t)h->home_res;
     h->home_dB = hom_delta_of(h, t->sensor, h->sensor[t->sensor].last);
     hom_set_goal(h, h->cur, hom_slack_goal(t), h->cfg.v_release);
     h->state = ST_TENDON_RELEASE;

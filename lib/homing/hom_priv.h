@@ -67,6 +67,11 @@ void hom_avg_of(const hom_t *h, uint8_t k, int32_t out[3]);
 uint32_t hom_delta_of(const hom_t *h, uint8_t k, const int32_t b[3]);
 uint32_t hom_meas_of(const hom_t *h, uint8_t k, const int32_t b[3]);
 int32_t hom_floor_div256(int32_t q8);
+/* The table's straight-pose shift (um of take-up paid out) as a position
+ * change of tendon t, 1/256 tick in the tick frame. */
+int32_t hom_straight_q8(const hom_tendon_t *t, int16_t straight_um);
+/* Straight-pose home minus home of tendon t, ticks (hom_to_straight()). */
+int16_t hom_straight_ticks(const hom_tendon_t *t);
 int32_t hom_further_back(const hom_tendon_t *t, int32_t g, int32_t x);
 int32_t hom_um_ticks_cur(const hom_t *h, uint8_t i, uint32_t um);
 uint8_t hom_next_tendon(const hom_t *h, uint8_t from);

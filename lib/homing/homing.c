@@ -40,6 +40,7 @@ void hom_config_default(hom_config_t *cfg)
     cfg->sat_cuT = 490000;        /* 4900 uT of the AK09916's 4912 uT */
     cfg->max_takeup_um = 4000;
     cfg->initial_release_um = 0;
+    cfg->straight = 1;
 }
 
 void hom_init(hom_t *h, const hom_config_t *cfg)
@@ -145,6 +146,11 @@ int hom_home(const hom_t *h, uint8_t i, int32_t *ticks)
     return 0;
 }
 
+int16_t hom_to_straight(const hom_t *h, uint8_t i)
+{
+    return h != NULL && i < h->n_tendons ? hom_straight_ticks(&h->tendon[i]) : 0;
+}
+
 /* a * b / c truncated towards zero and saturated to int32, in 32-bit
  * arithmetic only (64-bit expressions cost hundreds of bytes of code per use
  * on the AVR, and a library 64-bit division is slow): the quotient and the
@@ -207,6 +213,22 @@ HOM_NOINLINE int32_t hom_um_to_ticks(uint32_t um, uint32_t nm_per_tick)
     return hom_muldiv((int32_t)um, 1000, (int32_t)nm_per_tick) + 1;
 }
 
+HOM_NOINLINE int32_t hom_straight_q8(const hom_tendon_t *t, int16_t straight_um)
+{
+    return -(int32_t)t->dir * hom_muldiv(straight_um, 256000, (int32_t)t->nm_per_tick);
+}
+
+/* A measured home and its shift are rounded once, together, from both
+ * sub-tick parts (home + to_straight + the rounded sum of what rounding each
+ * left): one rounding, not two. A stored home has only the shift's. */
+HOM_NOINLINE int16_t hom_straight_ticks(const hom_tendon_t *t)
+{
+    return (int16_t)(t->to_straight +
+                     (t->have_home == 1u
+                          ? hom_floor_div256((int32_t)t->home_frac + t->straight_frac)
+                          : 0));
+}
+
 /* A stored home moved into this power cycle's frame: the XL430 keeps the angle
  * within one turn but not the turn count, and the spool does not turn half a
  * revolution while unpowered. */
@@ -250,6 +272,7 @@ HOM_NOINLINE static int load_tendon(hom_t *h, const tbl_src_t *table, const hom_
     tbl_point_t pt;
     hom_tendon_t *t = &h->tendon[i];
     uint32_t r;
+    int32_t q8;
     (void)tbl_tendon(table, i, &row);
     if (tbl_target(table, i, tension, &pt) != 0) {
         return -1;
@@ -262,6 +285,9 @@ HOM_NOINLINE static int load_tendon(hom_t *h, const tbl_src_t *table, const hom_
     t->travel_ticks = hom_um_to_ticks(pt.travel_um, row.nm_per_tick);
     t->margin_ticks = hom_um_to_ticks(h->cfg.slack_margin_um, row.nm_per_tick);
     t->limit_ticks = hom_muldiv((int32_t)row.travel_limit_um, 1000, (int32_t)row.nm_per_tick);
+    q8 = hom_straight_q8(t, pt.straight_um);
+    t->to_straight = (int16_t)hom_floor_div256(q8);
+    t->straight_frac = (int8_t)(q8 - (int32_t)t->to_straight * 256);
     if ((cmd->stored_mask >> i) & 1u) {
         t->est_home = cmd->stored_home[i]; /* unwrapped once positions are known */
         t->have_home = 2;                  /* 2: stored, not yet measured */
@@ -483,6 +509,7 @@ HOM_NOINLINE uint32_t hom_meas_of(const hom_t *h, uint8_t k, const int32_t b[3])
     return m < 0 ? 0u : (uint32_t)m;
 }
 
+/* q8 / 256 rounded to nearest, halves up (the remainder is -128..127). */
 int32_t hom_floor_div256(int32_t q8)
 {
     return q8 >= 0 ? (q8 + 128) / 256 : -((-q8 + 127) / 256);

@@ -245,6 +245,8 @@ typedef struct {
     uint32_t max_takeup_um;      /* engagement search: the most slack a tendon may start with (the
                                     search adds what the run itself released) */
     uint32_t initial_release_um; /* first release when positions are unknown (0 = from table) */
+    uint8_t straight;            /* final move to the straight-pose homes (1), or to the
+                                    single-tendon homes (0, the paper's definition) */
 } hom_config_t;
 
 typedef struct {
@@ -265,6 +267,10 @@ typedef struct {
     int32_t est_home;     /* quick mode: stored home in this power cycle's frame */
     int32_t eng_lo;       /* engagement window (see hom_cmd_t.win_*): lowest and highest */
     int32_t eng_hi;       /* position, in the pull direction, the engagement may lie at */
+    int16_t to_straight;  /* the table's straight-pose shift at the run's tension as a
+                             position change, ticks rounded to nearest ... */
+    int8_t straight_frac; /* ... and what the rounding left (1/256 tick, -128..127) */
+    int8_t home_frac;     /* what rounding a measured home left (1/256 tick) */
 } hom_tendon_t;
 
 typedef struct {
@@ -410,6 +416,11 @@ const char *hom_fault_name(int fault);
 /* Tendon i's home from the last run. Returns 0 and writes *ticks, or
  * HOM_E_ARG when i is out of range or has no home. */
 int hom_home(const hom_t *h, uint8_t i, int32_t *ticks);
+
+/* Tendon i's straight-pose home minus its home, ticks (docs/homing.md,
+ * "Straight-pose homes"): where the final move takes it with cfg.straight.
+ * 0 when i is out of range. */
+int16_t hom_to_straight(const hom_t *h, uint8_t i);
 
 /* Tendon i's engagement window as the last run left it: the run's own
  * engagement when it engaged (low = high), otherwise the window it started

@@ -42,7 +42,7 @@
  *
  *   0x000  settings slot A      128 bytes (4 + 4*STORE_SETTING_COUNT + 2 used)
  *   0x080  settings slot B      128
- *   0x100  homes slot A         192 (4 + 160 + 2 used)
+ *   0x100  homes slot A         192 (4 + 184 + 2 used)
  *   0x1C0  homes slot B         192
  *   0x280  learned targets      24 slots of 64: tendon t at 0x280 + 128*t
  *                               (A) and +64 (B); 4 + 56 + 2 used
@@ -92,8 +92,8 @@ enum {
 #define STORE_KIND_LEARNED     0x4Cu /* 'L' */
 #define STORE_KIND_HIST        0x52u /* 'R' */
 #define STORE_KIND_NONE        0x00u /* slot being rewritten */
-#define STORE_SETTINGS_VERSION 2u    /* raise when store_settings.def changes meaning/order */
-#define STORE_HOMES_VERSION    1u
+#define STORE_SETTINGS_VERSION 3u    /* raise when store_settings.def changes meaning/order */
+#define STORE_HOMES_VERSION    2u
 #define STORE_LEARNED_VERSION  1u
 #define STORE_HIST_VERSION     1u
 
@@ -166,6 +166,9 @@ typedef struct {
     uint8_t n_tendons;
     uint8_t reserved[3]; /* 0 */
     store_home_t t[STORE_MAX_TENDONS];
+    /* straight-pose home minus home_ticks, per tendon (ticks): the final
+     * move's goal with `home_pose` 1 (docs/homing.md, "Straight-pose homes") */
+    int16_t to_straight[STORE_MAX_TENDONS];
 } store_homes_t;
 
 /* ---- learned targets --------------------------------------------------------- */

@@ -196,6 +196,16 @@ int tbl_target(const tbl_src_t *src, uint8_t tendon, uint16_t tension_mN, tbl_po
         src->copy(y, row + a * TBL_MAX_GRID, sizeof y);
         v[a] = tbl_lerp(info.grid_mN[k], info.grid_mN[k + 1], y[0], y[1], tension_mN);
     }
+    /* the signed shifts, offset into the unsigned range of tbl_lerp */
+    {
+        int16_t sh[2];
+        src->copy(sh, &src->table->tendons[tendon].straight_um[k], sizeof sh);
+        out->straight_um = (int16_t)((int32_t)tbl_lerp(info.grid_mN[k], info.grid_mN[k + 1],
+                                                       (uint32_t)((int32_t)sh[0] + 32768),
+                                                       (uint32_t)((int32_t)sh[1] + 32768),
+                                                       tension_mN) -
+                                     32768);
+    }
     out->tension_mN = tension_mN;
     out->target_cuT = v[0];
     out->abs_target_cuT = v[1];

@@ -33,7 +33,7 @@
 #endif
 
 #define TBL_MAGIC          0x544C4848UL /* "HHLT" little-endian */
-#define TBL_FORMAT_VERSION 1u
+#define TBL_FORMAT_VERSION 2u
 
 #define TBL_MAX_GRID    12u /* tension grid points per tendon */
 #define TBL_MAX_TENDONS 12u
@@ -63,6 +63,12 @@ typedef struct {
     uint32_t target_cuT[TBL_MAX_GRID]; /* |B(p_T) - B(p_0)| per grid tension */
     uint32_t abs_target_cuT[TBL_MAX_GRID]; /* |B(p_T)| (magnet only) per grid tension */
     uint32_t travel_um[TBL_MAX_GRID];      /* expected take-up from engagement per grid tension */
+    /* take-up to pay out from the single-tendon home (this tendon pulled
+     * alone to the grid tension) to the straight-pose home (every tendon at
+     * that tension together, the robot straight): the path shortening of the
+     * bent pose minus the backbone's compression under every tendon
+     * (docs/homing.md, "Straight-pose homes"); negative: take up more */
+    int16_t straight_um[TBL_MAX_GRID];
 } tbl_tendon_t;
 
 typedef struct {
@@ -123,6 +129,7 @@ typedef struct {
     uint32_t target_cuT;     /* |B(p_T) - B(p_0)| at the tension */
     uint32_t abs_target_cuT; /* |B(p_T)| at the tension */
     uint32_t travel_um;      /* expected take-up from engagement */
+    int16_t straight_um;     /* single-tendon home to straight-pose home, um of take-up paid out */
 } tbl_point_t;
 
 /* Copy function for tables in ordinary memory (host, or RAM on the AVR):
@@ -148,8 +155,8 @@ int tbl_tendon(const tbl_src_t *src, uint8_t i, tbl_tendon_t *out);
  * i >= n_sensors). */
 int tbl_sensor(const tbl_src_t *src, uint8_t i, tbl_sensor_t *out);
 
-/* Linear interpolation of one tendon's target, absolute target and expected
- * travel at tension_mN, integer arithmetic only (rounded to nearest). A tension
+/* Linear interpolation of one tendon's target, absolute target, expected
+ * travel and straight-pose shift at tension_mN, integer arithmetic only (rounded to nearest). A tension
  * exactly on a grid point returns that point's values. Returns 0, TBL_E_ARG
  * (NULL argument or tendon >= n_tendons) or TBL_E_RANGE (tension outside the
  * grid; *out is left unchanged). */

@@ -7,7 +7,7 @@ const tbl_table_t tbl_table_paper_2seg TBL_FLASH = {
     .magic = TBL_MAGIC,
     .format_version = TBL_FORMAT_VERSION,
     .reserved = 0u,
-    .table_id = 0x1115C2F1UL,
+    .table_id = 0x651C4011UL,
     .name = "paper_2seg",
     .n_tendons = 6u,
     .n_sensors = 3u,
@@ -44,6 +44,7 @@ const tbl_table_t tbl_table_paper_2seg TBL_FLASH = {
             .target_cuT = {2650u, 3999u, 5354u, 6706u, 8046u, 9366u, 10656u, 11907u, 13111u, 14261u, 16373u, 18205u},
             .abs_target_cuT = {25354u, 26287u, 27186u, 28043u, 28847u, 29587u, 30254u, 30837u, 31328u, 31719u, 32179u, 32187u},
             .travel_um = {95u, 142u, 189u, 236u, 284u, 331u, 378u, 425u, 473u, 520u, 614u, 709u},
+            .straight_um = {73, 109, 146, 182, 219, 255, 292, 328, 364, 401, 474, 547},
         },
         [1] = {
             .servo_id = 2u,
@@ -55,6 +56,7 @@ const tbl_table_t tbl_table_paper_2seg TBL_FLASH = {
             .target_cuT = {2650u, 3999u, 5354u, 6706u, 8046u, 9366u, 10656u, 11907u, 13111u, 14261u, 16373u, 18205u},
             .abs_target_cuT = {25354u, 26286u, 27186u, 28043u, 28847u, 29587u, 30253u, 30837u, 31328u, 31719u, 32179u, 32187u},
             .travel_um = {95u, 142u, 189u, 236u, 284u, 331u, 378u, 425u, 473u, 520u, 614u, 709u},
+            .straight_um = {73, 109, 146, 182, 219, 255, 292, 328, 364, 401, 474, 547},
         },
         [2] = {
             .servo_id = 3u,
@@ -66,6 +68,7 @@ const tbl_table_t tbl_table_paper_2seg TBL_FLASH = {
             .target_cuT = {2650u, 3999u, 5354u, 6706u, 8046u, 9366u, 10656u, 11907u, 13111u, 14261u, 16373u, 18205u},
             .abs_target_cuT = {25354u, 26287u, 27186u, 28043u, 28847u, 29587u, 30254u, 30837u, 31328u, 31719u, 32179u, 32187u},
             .travel_um = {95u, 142u, 189u, 236u, 284u, 331u, 378u, 425u, 473u, 520u, 614u, 709u},
+            .straight_um = {73, 109, 146, 182, 219, 255, 292, 328, 364, 401, 474, 547},
         },
         [3] = {
             .servo_id = 4u,
@@ -77,6 +80,7 @@ const tbl_table_t tbl_table_paper_2seg TBL_FLASH = {
             .target_cuT = {6930u, 11130u, 15899u, 21295u, 27373u, 34181u, 41751u, 50091u, 59175u, 68930UL, 89858UL, 110982UL},
             .abs_target_cuT = {29648u, 33414u, 37685u, 42513u, 47946u, 54022u, 60763u, 68170UL, 76206UL, 84791UL, 102989UL, 120849UL},
             .travel_um = {174u, 260u, 347u, 434u, 521u, 607u, 694u, 781u, 868u, 954u, 1128u, 1301u},
+            .straight_um = {146, 219, 292, 365, 438, 511, 584, 657, 730, 803, 949, 1095},
         },
         [4] = {
             .servo_id = 5u,
@@ -88,6 +92,7 @@ const tbl_table_t tbl_table_paper_2seg TBL_FLASH = {
             .target_cuT = {6930u, 11130u, 15899u, 21294u, 27372u, 34180u, 41751u, 50091u, 59175u, 68930UL, 89857UL, 110981UL},
             .abs_target_cuT = {29648u, 33414u, 37685u, 42513u, 47946u, 54021u, 60763u, 68170UL, 76206UL, 84791UL, 102989UL, 120848UL},
             .travel_um = {174u, 260u, 347u, 434u, 521u, 607u, 694u, 781u, 868u, 954u, 1128u, 1301u},
+            .straight_um = {146, 219, 292, 365, 438, 511, 584, 657, 730, 803, 949, 1095},
         },
         [5] = {
             .servo_id = 6u,
@@ -99,6 +104,7 @@ const tbl_table_t tbl_table_paper_2seg TBL_FLASH = {
             .target_cuT = {6930u, 11130u, 15899u, 21294u, 27372u, 34180u, 41751u, 50091u, 59175u, 68930UL, 89857UL, 110981UL},
             .abs_target_cuT = {29648u, 33414u, 37685u, 42513u, 47946u, 54021u, 60763u, 68170UL, 76206UL, 84791UL, 102989UL, 120848UL},
             .travel_um = {174u, 260u, 347u, 434u, 521u, 607u, 694u, 781u, 868u, 954u, 1128u, 1301u},
+            .straight_um = {146, 219, 292, 365, 438, 511, 584, 657, 730, 803, 949, 1095},
         },
     },
 };

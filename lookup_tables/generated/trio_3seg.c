@@ -7,7 +7,7 @@ const tbl_table_t tbl_table_trio_3seg TBL_FLASH = {
     .magic = TBL_MAGIC,
     .format_version = TBL_FORMAT_VERSION,
     .reserved = 0u,
-    .table_id = 0x98BF64A5UL,
+    .table_id = 0x5AA99A18UL,
     .name = "trio_3seg",
     .n_tendons = 10u,
     .n_sensors = 4u,
@@ -49,6 +49,7 @@ const tbl_table_t tbl_table_trio_3seg TBL_FLASH = {
             .target_cuT = {1276u, 2212u, 3223u, 4318u, 5502u, 6786u, 8916u, 12192u},
             .abs_target_cuT = {14425u, 15338u, 16323u, 17387u, 18537u, 19780u, 21840u, 24997u},
             .travel_um = {55u, 92u, 129u, 166u, 203u, 240u, 295u, 369u},
+            .straight_um = {34, 56, 78, 101, 123, 146, 179, 224},
         },
         [1] = {
             .servo_id = 12u,
@@ -60,6 +61,7 @@ const tbl_table_t tbl_table_trio_3seg TBL_FLASH = {
             .target_cuT = {761u, 1324u, 1936u, 2603u, 3330u, 4124u, 5455u, 7537u},
             .abs_target_cuT = {8227u, 8789u, 9401u, 10067u, 10793u, 11586u, 12916u, 14995u},
             .travel_um = {55u, 92u, 129u, 166u, 203u, 240u, 295u, 369u},
+            .straight_um = {34, 56, 78, 101, 123, 146, 179, 224},
         },
         [2] = {
             .servo_id = 13u,
@@ -71,6 +73,7 @@ const tbl_table_t tbl_table_trio_3seg TBL_FLASH = {
             .target_cuT = {1603u, 2783u, 4061u, 5447u, 6951u, 8582u, 11295u, 15474u},
             .abs_target_cuT = {17321u, 18465u, 19702u, 21040u, 22488u, 24056u, 26656u, 30642u},
             .travel_um = {55u, 92u, 129u, 166u, 203u, 240u, 295u, 369u},
+            .straight_um = {34, 56, 78, 101, 123, 145, 179, 224},
         },
         [3] = {
             .servo_id = 14u,
@@ -82,6 +85,7 @@ const tbl_table_t tbl_table_trio_3seg TBL_FLASH = {
             .target_cuT = {761u, 1324u, 1936u, 2603u, 3330u, 4124u, 5455u, 7537u},
             .abs_target_cuT = {8227u, 8789u, 9401u, 10067u, 10793u, 11586u, 12916u, 14995u},
             .travel_um = {55u, 92u, 129u, 166u, 203u, 240u, 295u, 369u},
+            .straight_um = {34, 56, 78, 101, 123, 145, 179, 224},
         },
         [4] = {
             .servo_id = 21u,
@@ -93,6 +97,7 @@ const tbl_table_t tbl_table_trio_3seg TBL_FLASH = {
             .target_cuT = {1150u, 2017u, 2970u, 4017u, 5162u, 6409u, 8477u, 11592u},
             .abs_target_cuT = {8234u, 8804u, 9428u, 10109u, 10855u, 11669u, 13028u, 15104u},
             .travel_um = {94u, 157u, 220u, 283u, 346u, 409u, 503u, 629u},
+            .straight_um = {54, 90, 125, 161, 197, 233, 286, 358},
         },
         [5] = {
             .servo_id = 22u,
@@ -104,6 +109,7 @@ const tbl_table_t tbl_table_trio_3seg TBL_FLASH = {
             .target_cuT = {2275u, 4004u, 5923u, 8054u, 10418u, 13034u, 17476u, 24445u},
             .abs_target_cuT = {17939u, 19583u, 21401u, 23408u, 25621u, 28055u, 32151u, 38477u},
             .travel_um = {94u, 157u, 220u, 283u, 346u, 409u, 503u, 628u},
+            .straight_um = {54, 89, 125, 161, 197, 233, 286, 358},
         },
         [6] = {
             .servo_id = 23u,
@@ -115,6 +121,7 @@ const tbl_table_t tbl_table_trio_3seg TBL_FLASH = {
             .target_cuT = {1115u, 1975u, 2944u, 4039u, 5279u, 6685u, 9160u, 13306u},
             .abs_target_cuT = {8541u, 9368u, 10298u, 11346u, 12530u, 13870u, 16224u, 20154u},
             .travel_um = {94u, 157u, 220u, 283u, 346u, 409u, 503u, 629u},
+            .straight_um = {54, 89, 125, 161, 197, 233, 286, 358},
         },
         [7] = {
             .servo_id = 31u,
@@ -126,6 +133,7 @@ const tbl_table_t tbl_table_trio_3seg TBL_FLASH = {
             .target_cuT = {1639u, 2857u, 4187u, 5636u, 7212u, 8924u, 11761u, 16066u},
             .abs_target_cuT = {14730u, 15875u, 17119u, 18466u, 19923u, 21495u, 24073u, 27922u},
             .travel_um = {114u, 190u, 266u, 342u, 418u, 494u, 608u, 760u},
+            .straight_um = {62, 103, 144, 185, 226, 267, 329, 411},
         },
         [8] = {
             .servo_id = 32u,
@@ -137,6 +145,7 @@ const tbl_table_t tbl_table_trio_3seg TBL_FLASH = {
             .target_cuT = {1822u, 3135u, 4526u, 5993u, 7530u, 9131u, 11631u, 15072u},
             .abs_target_cuT = {17357u, 18485u, 19659u, 20873u, 22117u, 23378u, 25269u, 27678u},
             .travel_um = {114u, 190u, 266u, 342u, 418u, 494u, 608u, 760u},
+            .straight_um = {62, 103, 144, 185, 226, 267, 329, 411},
         },
         [9] = {
             .servo_id = 33u,
@@ -148,6 +157,7 @@ const tbl_table_t tbl_table_trio_3seg TBL_FLASH = {
             .target_cuT = {1060u, 1871u, 2781u, 3801u, 4949u, 6240u, 8492u, 12207u},
             .abs_target_cuT = {8507u, 9303u, 10195u, 11194u, 12317u, 13580u, 15781u, 19408u},
             .travel_um = {114u, 190u, 266u, 342u, 418u, 494u, 608u, 760u},
+            .straight_um = {62, 103, 144, 185, 226, 267, 329, 411},
         },
     },
 };

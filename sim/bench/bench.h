@@ -265,6 +265,10 @@ typedef struct {
     uint32_t runs;
     uint16_t homed_mask;
     uint16_t open_mask;              /* tendons slack since the run's start: window open */
+    /* the newest single-tendon home the firmware reported per tendon
+     * (`<result ... home=`), encoder frame; a power cycle forgets them */
+    uint16_t home_known;
+    int32_t home_ticks[BENCH_MAX_SERVOS];
     double peak_N[BENCH_MAX_SERVOS]; /* highest tension inside the windows */
     uint64_t peak_us[BENCH_MAX_SERVOS];
     double slack_ticks[BENCH_MAX_SERVOS];       /* deepest slack before the true engagement */
@@ -486,11 +490,16 @@ typedef struct {
     double tension_N[BENCH_MAX_SERVOS]; /* spool-side tension */
 } bench_pose_t;
 /* The plant as it stands now (after the final move: every tendon at its
- * single-tendon home) into *now; with --straight-um, every tendon at its home
- * (the servo's goal, in the plant's frame) minus its shift, reached together
- * from slack (plant_pose_ramp), into *straight. Returns 1 when *straight was
- * computed, 0 when not (no shifts), negative on a plant error. */
+ * straight-pose home, or at its single-tendon home with `home_pose` 0) into
+ * *now; with --straight-um, every tendon at its single-tendon home
+ * (world_home_shaft) minus its shift, reached together from slack
+ * (plant_pose_ramp), into *straight. Returns 1 when *straight was computed,
+ * 0 when not (no shifts), negative on a plant error. */
 int poses_report(bench_t *b, bench_pose_t *now, bench_pose_t *straight);
+/* Tendon i's single-tendon home in the plant's shaft frame: the home the
+ * firmware reported, or, before any report (a `home` move after a power
+ * cycle), the servo's goal. */
+double world_home_shaft(const bench_t *b, uint8_t i);
 /* Parses --straight-um: comma-separated um, one per tendon of the plant
  * (checked at the report). Returns 0 or -1. */
 int poses_parse(bench_t *b, const char *list);

@@ -60,14 +60,8 @@ int poses_report(bench_t *b, bench_pose_t *now, bench_pose_t *straight)
         return 0;
     }
     for (uint8_t i = 0; i < cfg->n_tendons; i++) {
-        const xl430 *m = &b->bus.servo[i];
-        /* the goal in the plant's frame: the shaft plus what is left to go
-         * (the encoder's frame differs from the shaft's after a power cycle) */
-        double home =
-            xl430_shaft_ticks(m) + (double)((int32_t)xl430_get(m, DXL_XL430_GOAL_POSITION_ADDR, 4) -
-                                            xl430_present_position(m));
-        goal[i] = home - (double)cfg->tendon[i].pull_dir * b->straight_um[i] * 1000.0 /
-                             plant_nm_per_tick(cfg, i);
+        goal[i] = world_home_shaft(b, i) - (double)cfg->tendon[i].pull_dir * b->straight_um[i] *
+                                               1000.0 / plant_nm_per_tick(cfg, i);
     }
     if (plant_pose_ramp(cfg, goal, &r) != 0) {
         return -1;

@@ -210,8 +210,13 @@ void truth_line(bench_t *b, const char *line)
         }
     } else if (strncmp(line, "<result ", 8) == 0) {
         int i;
+        int h;
         if (field_int(line, "tendon=", &i) == 0 && i >= 0 && i < (int)BENCH_MAX_SERVOS) {
             t->homed_mask |= (uint16_t)(1u << i);
+            if (field_int(line, " home=", &h) == 0) {
+                t->home_ticks[i] = h;
+                t->home_known |= (uint16_t)(1u << i);
+            }
         }
     } else if (strncmp(line, "<fault", 6) == 0) {
         add_stop(b, TRUTH_STOP_FAULT);

@@ -172,14 +172,16 @@ void world_tick(bench_t *b, uint64_t now)
 
 void world_power_cycle(bench_t *b, uint64_t now)
 {
+    b->truth.home_known = 0; /* reported in the encoders' old frames */
     bus_power_cycle(b, now);
     twi_bench_power_cycle(b);
 }
 
-/* The plant's true tension (mN) of tendon i at the servo's shaft now. */
+/* The plant's true tension (mN) of tendon i pulled alone to its
+ * single-tendon home (the calibration's definition, what it is judged by). */
 static double true_tension_mN(const bench_t *b, uint8_t i)
 {
-    return plant_tension_at(&b->plant.cfg, i, xl430_shaft_ticks(&b->bus.servo[i])) * 1000.0;
+    return plant_tension_at(&b->plant.cfg, i, world_home_shaft(b, i)) * 1000.0;
 }
 
 static int within_tol(const bench_t *b, double t_mN, double tol_pct)
@@ -208,7 +210,18 @@ int world_check_tension(bench_t *b, double tol_pct, char *reason, size_t n)
     return failed;
 }
 
-/* Per tendon: the firmware's home (the servo's goal, encoder frame), its
+double world_home_shaft(const bench_t *b, uint8_t i)
+{
+    const xl430 *m = &b->bus.servo[i];
+    int32_t home = (b->truth.home_known >> i) & 1u
+                       ? b->truth.home_ticks[i]
+                       : (int32_t)xl430_get(m, DXL_XL430_GOAL_POSITION_ADDR, 4);
+    /* the shaft plus the way from the encoder's position to the home (the
+     * encoder's frame differs from the shaft's after a power cycle) */
+    return xl430_shaft_ticks(m) + (double)(home - xl430_present_position(m));
+}
+
+/* Per tendon: the firmware's single-tendon home (encoder frame), its
  * take-up past the true engagement, the plant's truth there and, with a
  * tolerance (tol_pct >= 0), whether its true tension is within it. */
 void world_report(bench_t *b, FILE *json, FILE *table, double tol_pct)
@@ -246,14 +259,15 @@ void world_report(bench_t *b, FILE *json, FILE *table, double tol_pct)
     }
     for (uint8_t i = 0; i < b->bus.n_servos; i++) {
         const xl430 *m = &b->bus.servo[i];
-        double shaft = xl430_shaft_ticks(m);
+        double shaft = world_home_shaft(b, i); /* the single-tendon home */
         double eng = 0.0, home = NAN;
         (void)plant_true_engagement(cfg, i, &eng);
         (void)plant_true_home(cfg, i, (uint16_t)b->target_mN, &home);
-        double t_home = plant_tension_at(cfg, i, shaft) * 1000.0;
+        double t_home = true_tension_mN(b, i);
         double take_mm = (shaft - eng) * (double)cfg->tendon[i].pull_dir * cfg->nm_per_tick / 1e6;
         int32_t goal = (int32_t)xl430_get(m, DXL_XL430_GOAL_POSITION_ADDR, 4);
         int32_t present = xl430_present_position(m);
+        int32_t home_enc = (int32_t)lround(shaft - xl430_shaft_ticks(m)) + present;
         double err_mN = t_home - (double)b->target_mN;
         if (table) {
             char st[16] = "-";
@@ -262,7 +276,7 @@ void world_report(bench_t *b, FILE *json, FILE *table, double tol_pct)
             }
             fprintf(table,
                     "%6u %3u %11d %8.3f %10.1f %10.1f %10.1f %10d %8.1f %7.1f %11.1f %14s  %6s\n",
-                    i, m->cfg.id, (int)goal, take_mm, home, shaft - home, t_home, (int)b->target_mN,
+                    i, m->cfg.id, (int)home_enc, take_mm, home, shaft - home, t_home, (int)b->target_mN,
                     err_mN, 100.0 * err_mN / (double)b->target_mN, now.tension_N[i] * 1000.0, st,
                     tol_pct < 0.0 ? "-" : (within_tol(b, t_home, tol_pct) ? "pass" : "FAIL"));
         }
@@ -271,14 +285,16 @@ void world_report(bench_t *b, FILE *json, FILE *table, double tol_pct)
                 json,
                 "%s\n    {\"tendon\": %u, \"id\": %u, \"pull_dir\": %d, \"goal_ticks\": %d, "
                 "\"present_ticks\": %d, "
+                "\"home_ticks\": %d, \"home_reported\": %s, \"home_shaft_ticks\": %.2f, "
                 "\"torque\": %u, \"hw_error\": %u, \"shaft_ticks\": %.2f, \"take_up_mm\": %.4f, "
                 "\"true_engagement_ticks\": %.2f, \"true_home_ticks\": %.2f, \"err_ticks\": %.2f, "
                 "\"tension_at_home_mN\": %.1f, \"tension_now_mN\": %.1f, \"err_mN\": %.1f, "
                 "\"max_tension_mN\": %.1f, \"max_take_up_mm\": %.4f, \"last_move_s\": %.6f, "
                 "\"tension_straight_mN\": %.1f}",
                 i ? "," : "", i, m->cfg.id, (int)cfg->tendon[i].pull_dir, (int)goal, (int)present,
+                (int)home_enc, (b->truth.home_known >> i) & 1u ? "true" : "false", shaft,
                 (unsigned)xl430_get(m, DXL_XL430_TORQUE_ENABLE_ADDR, 1),
-                (unsigned)xl430_get(m, DXL_XL430_HW_ERROR_ADDR, 1), shaft, take_mm, eng,
+                (unsigned)xl430_get(m, DXL_XL430_HW_ERROR_ADDR, 1), xl430_shaft_ticks(m), take_mm, eng,
                 isnan(home) ? -1.0 : home, isnan(home) ? 0.0 : shaft - home, t_home,
                 b->plant.tension_N[i] * 1000.0, err_mN, b->max_tension_N[i] * 1000.0,
                 b->max_take_up_ticks[i] * cfg->nm_per_tick / 1e6, (double)b->last_move_us[i] * 1e-6,
@@ -292,13 +308,14 @@ void world_report(bench_t *b, FILE *json, FILE *table, double tol_pct)
         fprintf(table,
                 "T_home: the tendon alone at its single-tendon home (others slack), the "
                 "calibration's definition; result judges it\n"
-                "T_final: every tendon at its single-tendon home together, the plant now (tip "
-                "%.3f mm from straight)\n",
+                "T_final: the plant now, every tendon where the final move took it (home_pose 1: "
+                "its straight-pose home; 0: its single-tendon home), tip %.3f mm from straight\n",
                 now.tip_dev_mm);
         if (have_straight) {
             fprintf(table,
-                    "T_straight: every tendon at its home minus its straight-pose shift together "
-                    "(computed on the plant from these homes, tip %.3f mm from straight)\n",
+                    "T_straight: every tendon at its single-tendon home minus the host's "
+                    "straight-pose shift together (computed on the plant from these homes, tip "
+                    "%.3f mm from straight)\n",
                     straight.tip_dev_mm);
         } else {
             fprintf(table, "T_straight: - (no straight-pose shifts given: --straight-um)\n");

@@ -166,6 +166,61 @@ static void test_even_first_step_runs_preflight(void **state)
     assert_int_equal(hom_fault(&g_h), HOM_F_NONE);
 }
 
+/* q / 256 to nearest, halves up: the rounding the homing's positions use,
+ * computed here in 64 bits from the exact value. */
+static int64_t nearest256(int64_t q)
+{
+    return q >= 0 ? (q + 128) / 256 : -((-q + 127) / 256);
+}
+
+/* The straight-pose home of a measured home is the exact home plus the exact
+ * shift, rounded once; a stored home gets the rounded shift. Seeded random
+ * shifts, spools, pull directions and sub-tick homes against the 64-bit
+ * value. */
+static void test_straight_home_rounds_once(void **state)
+{
+    uint32_t seed = 12345u;
+    int n;
+    tbl_table_t keep = g_tab;
+    (void)state;
+    for (n = 0; n < 4000; n++) {
+        uint8_t g;
+        int16_t um;
+        uint32_t nm;
+        int8_t dir;
+        int64_t sq8;
+        int32_t home_q8, home;
+        hom_tendon_t *t;
+        seed = seed * 1103515245u + 12345u;
+        um = (int16_t)((int32_t)(seed >> 8) % 3000 - 500);
+        seed = seed * 1103515245u + 12345u;
+        nm = 1000u + (seed >> 8) % 20000u;
+        dir = (seed & 0x10u) != 0u ? 1 : -1;
+        g_tab.tendons[0].nm_per_tick = nm;
+        g_tab.tendons[0].pull_dir = dir;
+        for (g = 0; g < TBL_MAX_GRID; g++) {
+            g_tab.tendons[0].straight_um[g] = um;
+        }
+        start_full(1000);
+        t = &g_h.tendon[0];
+        /* the shift in 1/256 tick, truncated as the homing's muldiv does */
+        sq8 = -(int64_t)dir * ((int64_t)um * 256000 / (int64_t)nm);
+        /* a stored home: the shift rounded */
+        t->have_home = 2;
+        assert_int_equal(hom_to_straight(&g_h, 0), nearest256(sq8));
+        /* a measured home at home_q8, recorded as the fine approach does */
+        seed = seed * 1103515245u + 12345u;
+        home_q8 = (int32_t)((seed >> 4) % 2000000u) - 1000000;
+        home = (int32_t)nearest256(home_q8);
+        t->home = home;
+        t->home_frac = (int8_t)(home_q8 - home * 256);
+        t->have_home = 1;
+        assert_int_equal(home + hom_to_straight(&g_h, 0), nearest256((int64_t)home_q8 + sq8));
+    }
+    g_tab = keep;
+    assert_int_equal(hom_to_straight(&g_h, 200), 0); /* out of range */
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -174,6 +229,7 @@ int main(void)
         cmocka_unit_test(test_fault_and_index),
         cmocka_unit_test(test_window_changes_taken_once),
         cmocka_unit_test(test_even_first_step_runs_preflight),
+        cmocka_unit_test(test_straight_home_rounds_once),
     };
     return cmocka_run_group_tests(tests, group_setup, NULL);
 }
