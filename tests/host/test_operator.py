@@ -15,11 +15,16 @@ from hallhome import client as hc
 from hallhome import op_common as oc
 from hallhome import op_console, op_run, op_status, protocol
 from hallhome.cli import main
+from hallhome.paths import PROJECT_ROOT
+
+# the committed paper_2seg table's identity (its generated JSON)
+TID = json.loads((PROJECT_ROOT / "lookup_tables" / "generated" / "paper_2seg.json")
+                 .read_text())["table_id"].lower()
 
 SUBCOMMANDS = ["console", "status", "calibrate", "rehome", "home", "release", "learn", "learned",
                "forget", "history", "monitor", "export"]
 VERSION = ("<version name=hallhome version=0.1.0 board=\"Arduino Mega 2560\" table=paper_2seg "
-           "table_id=0x1115c2f1 tendons=6 sensors=3>")
+           f"table_id={TID} tendons=6 sensors=3>")
 STATUS = ("<status state=idle table=paper_2seg sensors=3 servos=6 homes=0x00000000 homes_now=0x0 "
           "rehome=0 tension_mN=0 count=0 fault=none learned=0 baseline=0 saving=0 loop_max_us=3584 "
           "loops=764>")
@@ -273,7 +278,7 @@ def test_missing_why3_sensor_is_named_saturated():
 def test_calibrate_names_the_grid_when_the_tension_is_off_it(monkeypatch, same_table):
     b = status_board([SENSORS[0]])
     b.answers["cal"] = "error:16 tension outside the table grid"
-    b.answers["table"] = ["<table name=paper_2seg table_id=0x1115c2f1 tendons=6 grid_mN=200,300,1500>"]
+    b.answers["table"] = [f"<table name=paper_2seg table_id={TID} tendons=6 grid_mN=200,300,1500>"]
     use(monkeypatch, b, op_status, op_run)
     r = CliRunner().invoke(main, ["calibrate", "-N", "5"])
     assert r.exit_code == 1
@@ -281,12 +286,12 @@ def test_calibrate_names_the_grid_when_the_tension_is_off_it(monkeypatch, same_t
 
 
 def test_status_and_calibrate_check_the_table(monkeypatch):
-    other = VERSION.replace("table_id=0x1115c2f1", "table_id=0x12345678")
+    other = VERSION.replace(f"table_id={TID}", "table_id=0x12345678")
     use(monkeypatch, status_board([SENSORS[0]], other), op_status, op_run)
     r = CliRunner().invoke(main, ["status"])
     assert r.exit_code == 0, r.output  # a warning, not a failure
     assert "warning: the board runs table paper_2seg 0x12345678, but paper_2seg.toml gives " \
-           "paper_2seg 0x1115c2f1" in r.output
+           f"paper_2seg {TID}" in r.output
     b = status_board([SENSORS[0]], other)
     use(monkeypatch, b, op_status, op_run)
     r = CliRunner().invoke(main, ["calibrate"])
@@ -295,7 +300,7 @@ def test_status_and_calibrate_check_the_table(monkeypatch):
 
 
 def test_calibrate_force_and_json(monkeypatch):
-    other = VERSION.replace("table_id=0x1115c2f1", "table_id=0x12345678")
+    other = VERSION.replace(f"table_id={TID}", "table_id=0x12345678")
     b = status_board([SENSORS[0]], other)
     b.events.extend(["<progress state=tendon tendon=0 id=1>",
                      "<result tendon=0 id=1 home=4321 home_um=2000 dB_uT=106.40 target_uT=106.56 "

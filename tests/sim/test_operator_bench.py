@@ -29,6 +29,10 @@ from hallhome import protocol
 from hallhome.client import BoardError, BoardReset, Client, Disconnected, LocalError, ReplyTimeout
 from hallhome.paths import PROJECT_ROOT as ROOT
 
+# the committed paper_2seg table's identity (its generated JSON)
+TID = json.loads((ROOT / "lookup_tables" / "generated" / "paper_2seg.json")
+                 .read_text())["table_id"].lower()
+
 BENCH = ROOT / "build" / "sim" / "hh_bench"
 FW = ROOT / "build" / "fw" / "paper_2seg" / "hallhome-paper_2seg.elf"
 PLANT = ROOT / "sim" / "plant" / "configs" / "paper_2seg.cfg"
@@ -244,7 +248,7 @@ def test_calibrate_one_tendon_then_history_and_export(bench, tmp_path):
     lines = r.stdout.strip().splitlines()
     assert lines[0].startswith("count,table_id,tension_mN,time,home0")
     f = lines[1].split(",")
-    assert f[:3] == ["1", "0x1115c2f1", "800"] and f[4] == str(home)
+    assert f[:3] == ["1", TID, "800"] and f[4] == str(home)
     assert re.fullmatch(r"20\d\d-\d\d-\d\d \d\d:\d\d", f[3])  # dated: this computer saw it end
     r = hh("history", "--port", b.pty, "--json")
     d = json.loads(r.stdout)
@@ -573,7 +577,7 @@ def test_calibrate_refuses_a_board_with_another_robots_table(bench):
     trio = ROOT / "lookup_tables" / "robots" / "trio_3seg.toml"
     r = hh("calibrate", "--port", b.pty, "--robot", trio, timeout=120)
     assert r.returncode == 1, r.stdout + r.stderr
-    assert re.search(r"the board runs table paper_2seg 0x1115c2f1, but trio_3seg.toml gives "
+    assert re.search(rf"the board runs table paper_2seg {TID}, but trio_3seg.toml gives "
                      r"trio_3seg 0x[0-9a-f]{8}", r.stderr), r.stderr
     assert "--force calibrates anyway" in r.stderr
     assert "<progress state=start" not in b.text()[m:]  # nothing moved
