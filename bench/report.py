@@ -11,7 +11,7 @@ import os
 import re
 from typing import Dict, List, Optional
 
-from . import stats
+from . import stats, straight_fw
 from .stats import GOALS, PAPER
 
 # Where a figure comes from: key in the results, label in the report.
@@ -29,6 +29,7 @@ SECTIONS = [
     "## 5. Absolute-magnitude mode vs field-change mode",
     "## 6. Firmware resources",
     "## Goals",
+    "## 7. Straight-pose homes",
 ]
 
 
@@ -453,6 +454,7 @@ def build_report(res: Dict) -> str:
     for part in (section_goals, section_repeat, section_accuracy, section_time, section_robust,
                  section_ambient, section_resources):
         out += part(res)
+    out += straight_fw.section(res, SECTIONS[7])
     return "\n".join(out).rstrip() + "\n"
 
 

@@ -16,7 +16,7 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 from typing import Dict, List
 
-from . import native, plots, report, simavr, stats
+from . import native, plots, report, simavr, stats, straight_fw
 
 
 def log(msg: str) -> None:
@@ -329,6 +329,9 @@ def simavr_items(a, res: Dict, cfg: Dict, workdir: str) -> None:
     res["resources"]["loop_phases_src"] = (
         f"simavr bench: every main-loop pass of {len(runs) - len(failed)} calibrations "
         "(boot, idle, calibration), timed by the cycle counter (`hh_bench --loop-table`)")
+
+    straight_fw.measure(a, res, workdir, len(seg), nominal_seeds=1 if a.reduced else 3,
+                        perturbed_seeds=0 if a.reduced else 5, log=log)
 
     log("simavr bench: traced run for the servo bus cycle")
     res["resources"]["bench_bus"] = simavr.bus_cycle(a.hh_bench, a.elf, a.config, workdir)

@@ -40,13 +40,15 @@ def parse_console(stdout: str) -> List[Dict]:
 
 
 def run(hh_bench: str, elf: str, plant: str, seed: int, events: List[str], until: str,
-        limit_s: float, tension_mN: int, workdir: str, perturb: float = 0.0) -> Dict:
-    """One hh_bench invocation. Returns {"ok", "exit", "summary", "lines",
-    "wall_s", "error"}."""
+        limit_s: float, tension_mN: int, workdir: str, perturb: float = 0.0,
+        extra_args: Optional[List[str]] = None) -> Dict:
+    """One hh_bench invocation (extra_args: more hh_bench options). Returns
+    {"ok", "exit", "summary", "lines", "wall_s", "error"}."""
     summ = os.path.join(workdir, f"summary_{seed}_{tension_mN}_{len(events)}_{perturb:g}.json")
     cmd = [hh_bench, elf, "--plant", plant, "--seed", str(seed), "--perturb", f"{perturb:g}",
            "--summary", summ, "--timestamps", "--limit", f"{limit_s:g}s",
            "--tension", f"{tension_mN / 1000:g}", "--until", until, "--fail-on", "^<fault"]
+    cmd += list(extra_args or [])
     for e in events:
         cmd += ["--at", e]
     res = {"ok": False, "cmd": " ".join(cmd), "seed": seed, "tension_mN": tension_mN}
@@ -97,14 +99,16 @@ def _t_of(lines: List[Dict], kind: str, **match) -> Optional[Dict]:
 
 def calibration(hh_bench: str, elf: str, plant: str, seed: int, tension_mN: int,
                 workdir: str, limit_s: float = 60.0, extra_events: Optional[List[str]] = None,
-                perturb: float = 0.0, until: Optional[str] = None) -> Dict:
+                perturb: float = 0.0, until: Optional[str] = None,
+                extra_args: Optional[List[str]] = None) -> Dict:
     """A full calibration at tension_mN from the bench's seeded random slack,
     nominal robot. Adds "cal_s" (start report to done report, simulated),
     "done_ms" (the firmware's own time_ms), "homes" (tendon -> home in the
     plant's motor frame), "tension_N" (tendon -> true single-tendon tension
     at the shaft position) and "done_t" (console time of done)."""
     ev = [f"0.3s send set cal_tension {tension_mN}", "0.6s send cal"] + list(extra_events or [])
-    r = run(hh_bench, elf, plant, seed, ev, until or DONE, limit_s, tension_mN, workdir, perturb)
+    r = run(hh_bench, elf, plant, seed, ev, until or DONE, limit_s, tension_mN, workdir, perturb,
+            extra_args)
     if not r["ok"]:
         return r
     lines = r["lines"]

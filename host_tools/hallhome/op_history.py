@@ -175,12 +175,23 @@ def current_homes(c: Client) -> Dict[str, object]:
         "firmware": ver.get("version"),
         "tension_N": int(s.get("tension_mN", 0)) / 1000.0 if s else None,
         "calibration_count": s.get("count") if s else None,
-        "tendons": [{"tendon": int(h.get("tendon")), "servo_id": ids.get(int(h.get("tendon"))),
-                     "home_ticks": h.get("home"),
-                     "home_now_ticks": h.get("now") if h.get("usable") == 1 else None,
-                     "rest_ticks": h.get("rest"), "usable": h.get("usable") == 1}
-                    for h in homes],
+        "tendons": [_home_row(h, ids) for h in homes],
     }
+
+
+def _home_row(h, ids) -> dict:
+    """One `<home>` line of `status` as an export row: the single-tendon
+    home and the straight-pose home, each in the calibration's frame and in
+    the servo's present one."""
+    t = int(h.get("tendon"))
+    home, straight, now = h.get("home"), h.get("straight"), h.get("now")
+    usable = h.get("usable") == 1
+    return {"tendon": t, "servo_id": ids.get(t),
+            "home_ticks": home, "home_now_ticks": now if usable else None,
+            "straight_ticks": straight,
+            "straight_now_ticks": (now + straight - home
+                                   if usable and None not in (now, straight, home) else None),
+            "rest_ticks": h.get("rest"), "usable": usable}
 
 
 @click.command("export")
@@ -191,10 +202,12 @@ def current_homes(c: Client) -> Dict[str, object]:
 @port_options
 @operator_command
 def export_cmd(fmt, as_json, output, port, timeout) -> None:
-    """The current homes, for teleoperation software. `home_now_ticks` is
-    the home in the servo's present multi-turn frame (what to command);
-    `home_ticks` is in the frame of the calibration. `--json` is
-    `--format json`."""
+    """The current homes, for teleoperation software. `home_ticks` is the
+    single-tendon home (the paper's definition), `straight_ticks` the
+    straight-pose home (every tendon at the tension with the robot straight:
+    the usual kinematic zero), both in the frame of the calibration; the
+    `*_now_ticks` columns are the same in the servo's present multi-turn
+    frame (what to command). `--json` is `--format json`."""
     with session(port, timeout) as c:
         data = current_homes(c)
     if fmt == "json" or as_json:
@@ -202,7 +215,8 @@ def export_cmd(fmt, as_json, output, port, timeout) -> None:
     else:
         buf = io.StringIO()
         w = csv.writer(buf, lineterminator="\n")
-        cols = ["tendon", "servo_id", "home_ticks", "home_now_ticks", "rest_ticks", "usable"]
+        cols = ["tendon", "servo_id", "home_ticks", "home_now_ticks", "straight_ticks",
+                "straight_now_ticks", "rest_ticks", "usable"]
         w.writerow(["robot", "table_id", "tension_N", "calibration_count"] + cols)
         for t in data["tendons"]:
             w.writerow([data["robot"], data["table_id"], data["tension_N"], data["calibration_count"]] +

@@ -60,7 +60,8 @@ class CalView:
             self.row(r.get("tendon"))["target"] = r.get("target_uT")
         elif r.kind == R.RESULT:
             row = self.row(r.get("tendon"))
-            row.update(state="home", home=r.get("home"), travel_um=r.get("travel_um"),
+            row.update(state="home", home=r.get("home"), straight=r.get("straight"),
+                       travel_um=r.get("travel_um"),
                        dB=r.get("dB_uT"), target=r.get("target_uT"), time_ms=r.get("time_ms"),
                        id=r.get("id"))
         elif r.kind == R.FAULT:
@@ -121,7 +122,7 @@ class CalView:
             "time_s": int(d.get("time_ms", 0)) / 1000.0 if d else None,
             "count": d.get("count") if d else None,
             "tendons": [{"tendon": k, "servo_id": r.get("id"), "state": r["state"],
-                         "home_ticks": r.get("home"),
+                         "home_ticks": r.get("home"), "straight_ticks": r.get("straight"),
                          "travel_mm": int(r["travel_um"]) / 1000 if r.get("travel_um") is not None else None,
                          "dB_uT": _f(r.get("dB")), "target_uT": _f(r.get("target")),
                          "time_s": int(r["time_ms"]) / 1000 if r.get("time_ms") is not None else None}

@@ -264,7 +264,11 @@ void world_report(bench_t *b, FILE *json, FILE *table, double tol_pct)
         (void)plant_true_engagement(cfg, i, &eng);
         (void)plant_true_home(cfg, i, (uint16_t)b->target_mN, &home);
         double t_home = true_tension_mN(b, i);
-        double take_mm = (shaft - eng) * (double)cfg->tendon[i].pull_dir * cfg->nm_per_tick / 1e6;
+        /* the take-up past the true engagement at the home (the table) and
+         * where the shaft stands now (the summary: slack after a release) */
+        double mm_tick = (double)cfg->tendon[i].pull_dir * cfg->nm_per_tick / 1e6;
+        double take_mm = (shaft - eng) * mm_tick;
+        double take_now_mm = (xl430_shaft_ticks(m) - eng) * mm_tick;
         int32_t goal = (int32_t)xl430_get(m, DXL_XL430_GOAL_POSITION_ADDR, 4);
         int32_t present = xl430_present_position(m);
         int32_t home_enc = (int32_t)lround(shaft - xl430_shaft_ticks(m)) + present;
@@ -294,7 +298,8 @@ void world_report(bench_t *b, FILE *json, FILE *table, double tol_pct)
                 i ? "," : "", i, m->cfg.id, (int)cfg->tendon[i].pull_dir, (int)goal, (int)present,
                 (int)home_enc, (b->truth.home_known >> i) & 1u ? "true" : "false", shaft,
                 (unsigned)xl430_get(m, DXL_XL430_TORQUE_ENABLE_ADDR, 1),
-                (unsigned)xl430_get(m, DXL_XL430_HW_ERROR_ADDR, 1), xl430_shaft_ticks(m), take_mm, eng,
+                (unsigned)xl430_get(m, DXL_XL430_HW_ERROR_ADDR, 1), xl430_shaft_ticks(m), take_now_mm,
+                eng,
                 isnan(home) ? -1.0 : home, isnan(home) ? 0.0 : shaft - home, t_home,
                 b->plant.tension_N[i] * 1000.0, err_mN, b->max_tension_N[i] * 1000.0,
                 b->max_take_up_ticks[i] * cfg->nm_per_tick / 1e6, (double)b->last_move_us[i] * 1e-6,

@@ -76,12 +76,13 @@ def test_export_json_flag(monkeypatch):
     b = FakeBoard({"version": [f"<version name=hallhome version=0.1.0 table=paper_2seg table_id={TID} "
                                "tendons=1 sensors=1>"],
                    "status": ["<status state=idle tension_mN=800 count=2>",
-                              "<home tendon=0 home=4327 rest=4000 usable=1 now=4327>"],
+                              "<home tendon=0 home=4327 straight=4280 rest=4000 usable=1 now=8423>"],
                    "table": ["<table name=paper_2seg table_id=0x1115c2f1 tendons=1>",
                              "<tendon tendon=0 id=1 sensor=0 target_cuT=1>"]})
     use(monkeypatch, b, op_history)
     r = CliRunner().invoke(main, ["export", "--json"])
     assert r.exit_code == 0, r.output
     d = json.loads(r.stdout)
-    assert d["tendons"] == [{"tendon": 0, "servo_id": 1, "home_ticks": 4327, "home_now_ticks": 4327,
+    assert d["tendons"] == [{"tendon": 0, "servo_id": 1, "home_ticks": 4327, "home_now_ticks": 8423,
+                             "straight_ticks": 4280, "straight_now_ticks": 8376,
                              "rest_ticks": 4000, "usable": True}]

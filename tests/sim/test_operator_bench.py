@@ -264,9 +264,13 @@ def test_calibrate_one_tendon_then_history_and_export(bench, tmp_path):
     assert data["robot"] == "paper_2seg" and data["calibration_count"] == 1
     t0 = [t for t in data["tendons"] if t["tendon"] == 0][0]
     assert t0["home_ticks"] == home and t0["servo_id"] == 1 and t0["usable"] is True
+    # the straight-pose home the run reported, paid out from the single one
+    straight = int(re.search(r"<result tendon=0 id=1 home=-?\d+ straight=(-?\d+) ", b.text()).group(1))
+    assert t0["straight_ticks"] == straight and 20 < home - straight < 80
     r = hh("export", "--port", b.pty, "--format", "csv")
     assert r.stdout.splitlines()[0] == ("robot,table_id,tension_N,calibration_count,tendon,servo_id,"
-                                        "home_ticks,home_now_ticks,rest_ticks,usable")
+                                        "home_ticks,home_now_ticks,straight_ticks,straight_now_ticks,"
+                                        "rest_ticks,usable")
 
 
 def test_calibrate_refused_names_the_missing_sensor(bench):
