@@ -223,10 +223,9 @@ HOM_NOINLINE int32_t hom_straight_q8(const hom_tendon_t *t, int16_t straight_um)
  * left): one rounding, not two. A stored home has only the shift's. */
 HOM_NOINLINE int16_t hom_straight_ticks(const hom_tendon_t *t)
 {
-    return (int16_t)(t->to_straight +
-                     (t->have_home == 1u
-                          ? hom_floor_div256((int32_t)t->home_frac + t->straight_frac)
-                          : 0));
+    return (int16_t)(t->to_straight + (t->have_home == 1u ? hom_floor_div256((int32_t)t->home_frac +
+                                                                             t->straight_frac)
+                                                          : 0));
 }
 
 /* A stored home moved into this power cycle's frame: the XL430 keeps the angle

@@ -200,11 +200,11 @@ int tbl_target(const tbl_src_t *src, uint8_t tendon, uint16_t tension_mN, tbl_po
     {
         int16_t sh[2];
         src->copy(sh, &src->table->tendons[tendon].straight_um[k], sizeof sh);
-        out->straight_um = (int16_t)((int32_t)tbl_lerp(info.grid_mN[k], info.grid_mN[k + 1],
-                                                       (uint32_t)((int32_t)sh[0] + 32768),
-                                                       (uint32_t)((int32_t)sh[1] + 32768),
-                                                       tension_mN) -
-                                     32768);
+        out->straight_um =
+            (int16_t)((int32_t)tbl_lerp(info.grid_mN[k], info.grid_mN[k + 1],
+                                        (uint32_t)((int32_t)sh[0] + 32768),
+                                        (uint32_t)((int32_t)sh[1] + 32768), tension_mN) -
+                      32768);
     }
     out->tension_mN = tension_mN;
     out->target_cuT = v[0];

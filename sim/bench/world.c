@@ -280,8 +280,9 @@ void world_report(bench_t *b, FILE *json, FILE *table, double tol_pct)
             }
             fprintf(table,
                     "%6u %3u %11d %8.3f %10.1f %10.1f %10.1f %10d %8.1f %7.1f %11.1f %14s  %6s\n",
-                    i, m->cfg.id, (int)home_enc, take_mm, home, shaft - home, t_home, (int)b->target_mN,
-                    err_mN, 100.0 * err_mN / (double)b->target_mN, now.tension_N[i] * 1000.0, st,
+                    i, m->cfg.id, (int)home_enc, take_mm, home, shaft - home, t_home,
+                    (int)b->target_mN, err_mN, 100.0 * err_mN / (double)b->target_mN,
+                    now.tension_N[i] * 1000.0, st,
                     tol_pct < 0.0 ? "-" : (within_tol(b, t_home, tol_pct) ? "pass" : "FAIL"));
         }
         if (json) {
@@ -298,10 +299,9 @@ void world_report(bench_t *b, FILE *json, FILE *table, double tol_pct)
                 i ? "," : "", i, m->cfg.id, (int)cfg->tendon[i].pull_dir, (int)goal, (int)present,
                 (int)home_enc, (b->truth.home_known >> i) & 1u ? "true" : "false", shaft,
                 (unsigned)xl430_get(m, DXL_XL430_TORQUE_ENABLE_ADDR, 1),
-                (unsigned)xl430_get(m, DXL_XL430_HW_ERROR_ADDR, 1), xl430_shaft_ticks(m), take_now_mm,
-                eng,
-                isnan(home) ? -1.0 : home, isnan(home) ? 0.0 : shaft - home, t_home,
-                b->plant.tension_N[i] * 1000.0, err_mN, b->max_tension_N[i] * 1000.0,
+                (unsigned)xl430_get(m, DXL_XL430_HW_ERROR_ADDR, 1), xl430_shaft_ticks(m),
+                take_now_mm, eng, isnan(home) ? -1.0 : home, isnan(home) ? 0.0 : shaft - home,
+                t_home, b->plant.tension_N[i] * 1000.0, err_mN, b->max_tension_N[i] * 1000.0,
                 b->max_take_up_ticks[i] * cfg->nm_per_tick / 1e6, (double)b->last_move_us[i] * 1e-6,
                 have_straight ? straight.tension_N[i] * 1000.0 : -1.0);
         }
