@@ -156,10 +156,9 @@ int tbl_tendon(const tbl_src_t *src, uint8_t i, tbl_tendon_t *out);
 int tbl_sensor(const tbl_src_t *src, uint8_t i, tbl_sensor_t *out);
 
 /* Linear interpolation of one tendon's target, absolute target, expected
- * travel and straight-pose shift at tension_mN, integer arithmetic only (rounded to nearest). A tension
- * exactly on a grid point returns that point's values. Returns 0, TBL_E_ARG
- * (NULL argument or tendon >= n_tendons) or TBL_E_RANGE (tension outside the
- * grid; *out is left unchanged). */
+ * travel and straight-pose shift at tension_mN, integer arithmetic only (rounded to nearest). A
+ * tension exactly on a grid point returns that point's values. Returns 0, TBL_E_ARG (NULL argument
+ * or tendon >= n_tendons) or TBL_E_RANGE (tension outside the grid; *out is left unchanged). */
 int tbl_target(const tbl_src_t *src, uint8_t tendon, uint16_t tension_mN, tbl_point_t *out);
 
 /* The same interpolation over arrays already in RAM (learned targets kept in

@@ -264,7 +264,7 @@ typedef struct {
     uint8_t run_active;
     uint32_t runs;
     uint16_t homed_mask;
-    uint16_t open_mask;              /* tendons slack since the run's start: window open */
+    uint16_t open_mask; /* tendons slack since the run's start: window open */
     /* the newest single-tendon home the firmware reported per tendon
      * (`<result ... home=`), encoder frame; a power cycle forgets them */
     uint16_t home_known;
