@@ -269,6 +269,9 @@ typedef struct {
      * (`<result ... home=`), encoder frame; a power cycle forgets them */
     uint16_t home_known;
     int32_t home_ticks[BENCH_MAX_SERVOS];
+    /* the same homes in the shaft's frame, kept over a power cycle */
+    uint16_t home_shaft_known;
+    double home_shaft[BENCH_MAX_SERVOS];
     double peak_N[BENCH_MAX_SERVOS]; /* highest tension inside the windows */
     uint64_t peak_us[BENCH_MAX_SERVOS];
     double slack_ticks[BENCH_MAX_SERVOS];       /* deepest slack before the true engagement */
@@ -497,8 +500,8 @@ typedef struct {
  * 0 when not (no shifts), negative on a plant error. */
 int poses_report(bench_t *b, bench_pose_t *now, bench_pose_t *straight);
 /* Tendon i's single-tendon home in the plant's shaft frame: the home the
- * firmware reported, or, before any report (a `home` move after a power
- * cycle), the servo's goal. */
+ * firmware reported (before a power cycle too), or, with none reported in
+ * this bench run, the servo's goal. */
 double world_home_shaft(const bench_t *b, uint8_t i);
 /* Parses --straight-um: comma-separated um, one per tendon of the plant
  * (checked at the report). Returns 0 or -1. */

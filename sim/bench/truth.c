@@ -216,6 +216,7 @@ void truth_line(bench_t *b, const char *line)
             if (field_int(line, " home=", &h) == 0) {
                 t->home_ticks[i] = h;
                 t->home_known |= (uint16_t)(1u << i);
+                t->home_shaft_known &= (uint16_t) ~(1u << i);
             }
         }
     } else if (strncmp(line, "<fault", 6) == 0) {

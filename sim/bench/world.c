@@ -172,7 +172,15 @@ void world_tick(bench_t *b, uint64_t now)
 
 void world_power_cycle(bench_t *b, uint64_t now)
 {
-    b->truth.home_known = 0; /* reported in the encoders' old frames */
+    /* the homes were reported in the encoders' old frames: keep them in the
+     * shaft's, which the power cycle does not change */
+    for (uint8_t i = 0; i < b->bus.n_servos; i++) {
+        if ((b->truth.home_known >> i) & 1u) {
+            b->truth.home_shaft[i] = world_home_shaft(b, i);
+            b->truth.home_shaft_known |= (uint16_t)(1u << i);
+        }
+    }
+    b->truth.home_known = 0;
     bus_power_cycle(b, now);
     twi_bench_power_cycle(b);
 }
@@ -213,9 +221,12 @@ int world_check_tension(bench_t *b, double tol_pct, char *reason, size_t n)
 double world_home_shaft(const bench_t *b, uint8_t i)
 {
     const xl430 *m = &b->bus.servo[i];
-    int32_t home = (b->truth.home_known >> i) & 1u
-                       ? b->truth.home_ticks[i]
-                       : (int32_t)xl430_get(m, DXL_XL430_GOAL_POSITION_ADDR, 4);
+    int32_t home;
+    if (!((b->truth.home_known >> i) & 1u) && ((b->truth.home_shaft_known >> i) & 1u)) {
+        return b->truth.home_shaft[i]; /* reported before a power cycle */
+    }
+    home = (b->truth.home_known >> i) & 1u ? b->truth.home_ticks[i]
+                                           : (int32_t)xl430_get(m, DXL_XL430_GOAL_POSITION_ADDR, 4);
     /* the shaft plus the way from the encoder's position to the home (the
      * encoder's frame differs from the shaft's after a power cycle) */
     return xl430_shaft_ticks(m) + (double)(home - xl430_present_position(m));
@@ -297,8 +308,9 @@ void world_report(bench_t *b, FILE *json, FILE *table, double tol_pct)
                 "\"max_tension_mN\": %.1f, \"max_take_up_mm\": %.4f, \"last_move_s\": %.6f, "
                 "\"tension_straight_mN\": %.1f}",
                 i ? "," : "", i, m->cfg.id, (int)cfg->tendon[i].pull_dir, (int)goal, (int)present,
-                (int)home_enc, (b->truth.home_known >> i) & 1u ? "true" : "false", shaft,
-                (unsigned)xl430_get(m, DXL_XL430_TORQUE_ENABLE_ADDR, 1),
+                (int)home_enc,
+                ((b->truth.home_known | b->truth.home_shaft_known) >> i) & 1u ? "true" : "false",
+                shaft, (unsigned)xl430_get(m, DXL_XL430_TORQUE_ENABLE_ADDR, 1),
                 (unsigned)xl430_get(m, DXL_XL430_HW_ERROR_ADDR, 1), xl430_shaft_ticks(m),
                 take_now_mm, eng, isnan(home) ? -1.0 : home, isnan(home) ? 0.0 : shaft - home,
                 t_home, b->plant.tension_N[i] * 1000.0, err_mN, b->max_tension_N[i] * 1000.0,
