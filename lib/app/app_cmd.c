@@ -237,18 +237,20 @@ static int8_t h_release(con_t *con, const con_args_t *args, void *ctx)
     return 0;
 }
 
-static int8_t h_learn(con_t *con, const con_args_t *args, void *ctx)
+/* The checks `learn` and `target` share: a table, nothing moving or being
+ * saved, tendon args->v[0] of the table, tension args->v[1] on its grid.
+ * Returns the grid index, or a negative CON_E_*. */
+static int8_t learn_grid(app_t *a, const con_args_t *args, con_t *con)
 {
-    app_t *a = ctx;
-    uint8_t g, t = (uint8_t)args->v[0];
+    uint8_t g;
     (void)con;
     if (!a->table_ok) {
         return CON_E_NO_TABLE;
     }
-    if (!app_idle_state(a) || app_rec_busy(a)) {
+    if (!app_idle_state(a) || app_rec_busy(a) || a->learn.forget != 0u) {
         return CON_E_BUSY;
     }
-    if (t >= a->info.n_tendons) {
+    if ((uint8_t)args->v[0] >= a->info.n_tendons) {
         return CON_E_BAD_TENDON;
     }
     for (g = 0; g < a->info.n_grid && a->info.grid_mN[g] != (uint16_t)args->v[1]; g++) {
@@ -256,10 +258,33 @@ static int8_t h_learn(con_t *con, const con_args_t *args, void *ctx)
     if (g >= a->info.n_grid) {
         return CON_E_TENSION_RANGE; /* learned targets sit on the table's grid */
     }
+    return (int8_t)g;
+}
+
+static int8_t h_learn(con_t *con, const con_args_t *args, void *ctx)
+{
+    app_t *a = ctx;
+    int8_t g = learn_grid(a, args, con);
+    if (g < 0) {
+        return g;
+    }
     if (!a->learn.have_b0) {
         return CON_E_NOT_HOMED; /* no straight-pose baseline yet: `release` first */
     }
-    return app_learn_start(a, t, g);
+    return app_learn_start(a, (uint8_t)args->v[0], (uint8_t)g);
+}
+
+/* `target T N dB`: a target computed on the host (an identified robot,
+ * docs/identify.md) installed as tendon T's learned target at grid tension
+ * N: the same record, checks and report as `learn`, answered once written. */
+static int8_t h_target(con_t *con, const con_args_t *args, void *ctx)
+{
+    app_t *a = ctx;
+    int8_t g = learn_grid(a, args, con);
+    if (g < 0) {
+        return g;
+    }
+    return app_learn_install(a, (uint8_t)args->v[0], (uint8_t)g, (uint32_t)args->v[2] / 10u);
 }
 
 /* `forget T|all`: the learned targets of tendon T, or of every tendon, are
@@ -479,5 +504,5 @@ const con_handler_fn app_handlers[CON_CMD_COUNT] CON_FLASH = {
     [CON_CMD_HOME] = h_home,       [CON_CMD_RELEASE] = h_release, [CON_CMD_LEARN] = h_learn,
     [CON_CMD_TABLE] = h_table,     [CON_CMD_HISTORY] = h_history, [CON_CMD_GET] = h_get,
     [CON_CMD_SET] = h_set,         [CON_CMD_SAVE] = h_save,       [CON_CMD_REBOOT] = h_reboot,
-    [CON_CMD_FORGET] = h_forget,
+    [CON_CMD_FORGET] = h_forget,   [CON_CMD_TARGET] = h_target,
 };

@@ -73,6 +73,59 @@ static int8_t learn_plausible(const app_t *a, const store_learned_t *l, uint32_t
     return 0;
 }
 
+/* Tendon t's learned record (u.idle.rec.learned): the stored one, or empty. */
+static store_learned_t *learned_of(app_t *a, uint8_t t)
+{
+    store_learned_t *l = &a->u.idle.rec.learned;
+    if (store_learned_load(&a->rec.store, t, a->info.table_id, l) != 0) {
+        memset(l, 0, sizeof *l);
+    }
+    return l;
+}
+
+/* v becomes tendon t's target at learn.grid: the record is queued for the
+ * EEPROM and reported. */
+static void learned_store(app_t *a, uint8_t t, uint32_t v)
+{
+    store_learned_t *l = &a->u.idle.rec.learned;
+    l->table_id = a->info.table_id;
+    l->tendon = t;
+    l->n_grid = a->info.n_grid;
+    l->target_cuT[a->learn.grid] = v;
+    l->grid_mask |= app_bit16(a->learn.grid);
+    app_rec_queue(a, APP_SAVE_LEARNED);
+    app_rep_begin(a, app_w_learned);
+    app_rep_int(a, app_w_tendon, t);
+    app_rep_int(a, app_w_tension_mN, a->info.grid_mN[a->learn.grid]);
+    app_rep_int(a, app_w_grid, a->learn.grid);
+    app_rep_int(a, app_w_sensor, a->learn.sensor);
+    con_report_fixed(&a->cmd.con, app_w_dB_uT, (int32_t)v, 2);
+    app_rep_end(a);
+}
+
+int8_t app_learn_install(app_t *a, uint8_t tendon, uint8_t grid, uint32_t v)
+{
+    tbl_tendon_t row;
+    int8_t rc;
+    (void)tbl_tendon(&a->tab, tendon, &row);
+    a->learn.sensor = row.sensor;
+    a->learn.grid = grid;
+    rc = learn_plausible(a, learned_of(a, tendon), v);
+    if (rc != 0) {
+        return rc;
+    }
+    learned_store(a, tendon, v);
+    a->learn.installing = 1;
+    return CON_PENDING;
+}
+
+uint8_t app_learn_installed(app_t *a)
+{
+    uint8_t was = a->learn.installing;
+    a->learn.installing = 0;
+    return was;
+}
+
 int8_t app_learn_start(app_t *a, uint8_t tendon, uint8_t grid)
 {
     icm_diag_t d;
@@ -190,25 +243,10 @@ APP_NOINLINE void app_learn_step(app_t *a, const hom_in_t *in)
             d[k] = a->u.idle.acc[first][k] - a->u.idle.b0[first][k];
         }
         v = hom_norm3(d);
-        if (store_learned_load(&a->rec.store, tdn, a->info.table_id, &a->u.idle.rec.learned) != 0) {
-            memset(&a->u.idle.rec.learned, 0, sizeof a->u.idle.rec.learned);
-        }
-        rc = learn_plausible(a, &a->u.idle.rec.learned, v);
+        rc = learn_plausible(a, learned_of(a, tdn), v);
     }
     if (rc == 0) {
-        a->u.idle.rec.learned.table_id = a->info.table_id;
-        a->u.idle.rec.learned.tendon = tdn;
-        a->u.idle.rec.learned.n_grid = a->info.n_grid;
-        a->u.idle.rec.learned.target_cuT[a->learn.grid] = v;
-        a->u.idle.rec.learned.grid_mask |= app_bit16(a->learn.grid);
-        app_rec_queue(a, APP_SAVE_LEARNED);
-        app_rep_begin(a, app_w_learned);
-        app_rep_int(a, app_w_tendon, tdn);
-        app_rep_int(a, app_w_tension_mN, a->info.grid_mN[a->learn.grid]);
-        app_rep_int(a, app_w_grid, a->learn.grid);
-        app_rep_int(a, app_w_sensor, first);
-        con_report_fixed(&a->cmd.con, app_w_dB_uT, (int32_t)v, 2);
-        app_rep_end(a);
+        learned_store(a, tdn, v);
     }
     if (con_pending(&a->cmd.con)) {
         (void)con_complete(&a->cmd.con, rc);

@@ -107,7 +107,8 @@ APP_NOINLINE void app_rec_poll(app_t *a)
         int8_t rc = store_poll(&a->rec.store, idle);
         if (rc <= 0) {
             if ((a->rec.save_now == APP_SAVE_SETTINGS ||
-                 (a->rec.save_now == APP_SAVE_LEARNED && app_learn_forgotten(a))) &&
+                 (a->rec.save_now == APP_SAVE_LEARNED &&
+                  (app_learn_forgotten(a) || app_learn_installed(a)))) &&
                 con_pending(&a->cmd.con)) {
                 (void)con_complete(&a->cmd.con, rc == 0 ? 0 : CON_E_EEPROM);
             } else if (rc < 0) {

@@ -7,6 +7,7 @@
 #include <stdarg.h>
 #include <stddef.h>
 #include <stdint.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -467,6 +468,46 @@ static void test_learn_with_weight(void **state)
     assert_int_equal(g_b.app.learn.mask, 0);
 }
 
+/* `target`: a host-computed target installed as a learned one (the record,
+ * checks and table override of `learn`), answered once written, kept over a
+ * restart; implausible values and off-grid tensions refused. */
+static void test_target_installs_a_learned_target(void **state)
+{
+    char line[64];
+    tbl_tendon_t eff;
+    uint32_t want = g_b.table.tendons[1].target_cuT[4] * 21u / 20u; /* 5 % above the table */
+    (void)state;
+    boot(&g_b, 1);
+    snprintf(line, sizeof line, "target 1 0.8 %lu.%02lu", (unsigned long)(want / 100u),
+             (unsigned long)(want % 100u));
+    cmd(&g_b, "target 1 0.75 100", "error:16 tension outside the table grid");
+    cmd(&g_b, "target 6 0.8 100", "error:15 no such tendon");
+    cmd(&g_b, "target 1 0.8 0.1",
+        "error:25 implausible reading: not above noise or not rising with tension");
+    cmd(&g_b, "target 1 0.8 x", "error:2 bad number");
+    assert_int_equal(g_b.app.learn.mask, 0);
+    app_bench_send(&g_b, line);
+    assert_true(app_bench_wait_line(&g_b, "<learned ", g_line, sizeof g_line, 1000));
+    assert_int_equal(app_bench_field(g_line, "tendon", -1), 1);
+    assert_int_equal(app_bench_field(g_line, "grid", -1), 4);
+    reply(&g_b, "ok", 3000); /* once the record is written */
+    assert_int_equal(g_b.app.learn.mask, 1u << 1);
+    assert_int_equal(tbl_tendon(&g_b.app.htab, 1, &eff), 0);
+    assert_int_equal(eff.target_cuT[4], want);
+    assert_int_equal(eff.target_cuT[3], g_b.table.tendons[1].target_cuT[3]);
+    /* a higher tension must get a higher target */
+    snprintf(line, sizeof line, "target 1 0.9 %lu.%02lu", (unsigned long)(want / 100u),
+             (unsigned long)(want % 100u));
+    cmd(&g_b, line, "error:25 implausible reading: not above noise or not rising with tension");
+    app_bench_restart(&g_b, 0);
+    assert_true(app_bench_wait_line(&g_b, "<ready ", g_line, sizeof g_line, 4000));
+    assert_int_equal(g_b.app.learn.mask, 1u << 1);
+    assert_int_equal(tbl_tendon(&g_b.app.htab, 1, &eff), 0);
+    assert_int_equal(eff.target_cuT[4], want);
+    cmd(&g_b, "forget 1", "ok");
+    assert_int_equal(g_b.app.learn.mask, 0);
+}
+
 /* The pace of the AVR (about 2 ms per pass) and a start at an even
  * millisecond, which the homing's preflight clock must survive. */
 static void test_slow_loop_single_tendon(void **state)
@@ -670,6 +711,7 @@ int main(void)
         cmocka_unit_test(test_settings),
         cmocka_unit_test(test_absolute_target_mode),
         cmocka_unit_test(test_learn_with_weight),
+        cmocka_unit_test(test_target_installs_a_learned_target),
         cmocka_unit_test(test_realtime_abort_releases),
         cmocka_unit_test(test_long_press_aborts),
         cmocka_unit_test(test_servo_fault_mid_run),

@@ -123,6 +123,8 @@ static void test_every_command_dispatches(void **state)
         /* required arguments filled with a valid value */
         if (i == CON_CMD_LEARN) {
             snprintf(line, sizeof(line), "%s 2 0.5\n", name);
+        } else if (i == CON_CMD_TARGET) {
+            snprintf(line, sizeof(line), "%s 2 0.5 106.56\n", name);
         } else if (i == CON_CMD_SET) {
             snprintf(line, sizeof(line), "%s filter_k 4\n", name);
         } else if (i == CON_CMD_REBOOT || i == CON_CMD_FORGET) {
