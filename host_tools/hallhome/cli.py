@@ -358,4 +358,6 @@ from hallhome.operator import register as _register_operator  # noqa: E402
 _register_operator(main)
 
 from hallhome.identify_cli import identify_group  # noqa: E402
+from hallhome.op_install import install_cmd  # noqa: E402
+identify_group.add_command(install_cmd)
 main.add_command(identify_group)

@@ -659,3 +659,67 @@ def test_console_ctrl_c_clears_the_line_and_ctrl_d_quits(bench, tmp_path):
         if p.poll() is None:
             p.kill()
         os.close(master)
+
+
+# --- identify install -----------------------------------------------------------------
+
+def _identified(tmp_path, name, **edits):
+    """The paper robot's description with some lines changed, under name."""
+    text = (ROOT / "lookup_tables" / "robots" / "paper_2seg.toml").read_text()
+    for old, new in edits.items():
+        assert old in text
+        text = text.replace(old, new)
+    p = tmp_path / f"{name}.toml"
+    p.write_text(text)
+    return p
+
+
+def test_identify_install_puts_the_identified_targets_on_the_board(bench, tmp_path):
+    # as if identified: a magnet 4 % weaker than the drawing says
+    ident = _identified(tmp_path, "paper_2seg_id",
+                        **{"polarization_T = [0.0, 0.0, 1.3]": "polarization_T = [0.0, 0.0, 1.248]"})
+    b = bench()
+    r = hh("identify", "install", ident, "--port", b.pty, "--json", timeout=300)
+    assert r.returncode == 0, r.stdout + r.stderr
+    doc = json.loads(r.stdout)
+    assert doc["installed"] == 6 * 12 and doc["board_table_id"] == TID
+    # every target on the board is learned, with the identified value
+    r = hh("learned", "--port", b.pty, "--json")
+    entries = json.loads(r.stdout)["learned"]
+    assert len(entries) == 72
+    for e in entries:
+        assert abs(e["target_uT"] - doc["targets_uT"][str(e["tendon"])][e["grid"]]) < 0.006
+    # a weaker magnet: smaller field changes than the compiled table's
+    r = hh("status", "--port", b.pty, "--json")
+    assert r.returncode == 0
+    m = b.mark()
+    r = hh("calibrate", "--port", b.pty, timeout=180)
+    assert r.returncode == 0, r.stdout + r.stderr
+    got = {int(t): float(v) for t, v in
+           re.findall(r"<result tendon=(\d+) id=\d+ home=-?\d+ straight=-?\d+ home_um=-?\d+ "
+                      r"dB_uT=[-0-9.]+ target_uT=([0-9.]+) ", b.text()[m:])}
+    assert sorted(got) == list(range(6))
+    for t, v in got.items():
+        assert abs(v - doc["targets_uT"][str(t)][6]) < 0.006  # 0.8 N is grid point 6
+    # back to the compiled targets
+    r = hh("forget", "all", "--port", b.pty)
+    assert r.returncode == 0, r.stdout + r.stderr
+    r = hh("learned", "--port", b.pty, "--json")
+    assert json.loads(r.stdout)["learned"] == []
+
+
+def test_identify_install_refuses_a_description_that_does_not_fit_the_board(bench, tmp_path):
+    b = bench()
+    other_grid = _identified(
+        tmp_path, "paper_2seg_id",
+        **{"tension_grid_N = [0.2, 0.3, 0.4": "tension_grid_N = [0.25, 0.3, 0.4"})
+    m = b.mark()
+    r = hh("identify", "install", other_grid, "--port", b.pty, timeout=300)
+    assert r.returncode == 1, r.stdout + r.stderr
+    assert "tension grid" in r.stderr and "learned targets sit on the board's grid" in r.stderr
+    other = _identified(tmp_path, "another_robot")
+    r = hh("identify", "install", other, "--port", b.pty, "--dry-run", timeout=300)
+    assert r.returncode == 1 and "--force installs anyway" in r.stderr, r.stderr
+    r = hh("identify", "install", other, "--port", b.pty, "--dry-run", "--force", timeout=300)
+    assert r.returncode == 0 and "nothing sent" in r.stdout, r.stdout + r.stderr
+    assert "target " not in b.text()[m:] and "<learned " not in b.text()[m:]  # nothing sent
