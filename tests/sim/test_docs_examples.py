@@ -269,10 +269,11 @@ def do_interactive(cmd, tmp):
 
 
 def do_identify(cmd, tmp):
-    """`hallhome identify [fit]`: the subcommand and every option shown exist
-    (tests/host/test_identify.py runs the fit on synthetic surveys)."""
+    """`hallhome identify [fit|install]`: the subcommand and every option
+    shown exist (tests/host/test_identify.py runs the fit on synthetic
+    surveys, tests/sim/test_operator_bench.py the install on the bench)."""
     argv = fill(cmd, tmp)
-    sub = ["fit"] if len(argv) > 2 and argv[2] == "fit" else []
+    sub = [argv[2]] if len(argv) > 2 and argv[2] in ("fit", "install") else []
     r = run([str(HALLHOME), "identify", *sub, "--help"])
     assert r.returncode == 0 and "Usage:" in r.out, r.out
     for opt in re.findall(r"(?:^|\s|\[)(--[A-Za-z][\w-]*)", cmd):

@@ -131,19 +131,30 @@ def test_long_press_aborts_a_taut_run(tmp_path, limits_mm):
     """A long press acts 2 s after it starts (sim/bench/scenarios/abort_button.scn
     shows it in `make sim`). Which tendon is taut 2 s on depends on the build's
     timing, so the moment comes from a clean run of the same seed (the bench
-    is deterministic): the middle of tendon 1's fine approach."""
+    is deterministic): the middle of tendon 1's fine approach. A held button
+    changes the firmware's loop timing by a few cycles, which can move the
+    fine approach's samples and its end by a few hundred ms: when the abort
+    landed between two tendons, the press moves 0.15 s later and the run is
+    repeated (every run's abort is checked; one must catch a taut tendon)."""
     clean = bench(tmp_path, "--limit", "15s", "--at", "1s press 100",
                   "--until", "^<result tendon=1 ")
     (t_eng, _), = [(t, f) for t, f in clean.of("progress")
                    if f.get("state") == "engaged" and f.get("tendon") == "1"]
     (t_res, _), = [(t, f) for t, f in clean.of("result") if f.get("tendon") == "1"]
     act = (t_eng + t_res) / 2.0
-    r = bench(tmp_path, "--limit", "15s", "--at", "1s press 100",
-              "--at", f"{act - 2.0:.4f}s longpress", "--linger", "300ms",
-              "--until", "^<(fault|released reason=aborted)", "--fail-on", "^<done mode=full")
-    assert r.rc == 0, r.context()
-    check_reported_and_released(r, limits_mm, "abort_button", act - 0.05,
-                                {"reason": "aborted"}, True)
+    tried = []
+    for _ in range(8):
+        r = bench(tmp_path, "--limit", "15s", "--at", "1s press 100",
+                  "--at", f"{act - 2.0:.4f}s longpress", "--linger", "300ms",
+                  "--until", "^<(fault|released reason=aborted)", "--fail-on", "^<done mode=full")
+        assert r.rc == 0, r.context()
+        check_reported_and_released(r, limits_mm, "abort_button", act - 0.05,
+                                    {"reason": "aborted"}, False)
+        tried.append((round(act, 3), r.summary["fault"]["max_tension_mN"]))
+        if r.summary["fault"]["max_tension_mN"] > 100.0:
+            break
+        act += 0.15
+    assert tried[-1][1] > 100.0, f"no abort caught a taut tendon: {tried}"
 
 
 def check_reported_and_released(r, limits_mm, name, at, expect, taut):
