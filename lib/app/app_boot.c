@@ -130,6 +130,13 @@ APP_NOINLINE static void boot_finish(app_t *a)
     a->boot.step = 2;
 }
 
+static const app_field_t ready_fields[] CON_FLASH = {
+    APP_FIELD(sensors, app_t, boot.n_sensors, APP_F_U),
+    APP_FIELD(sensors_expected, app_t, info.n_sensors, APP_F_U),
+    APP_FIELD(servos, app_t, boot.n_servos, APP_F_U),
+    APP_FIELD(servos_expected, app_t, info.n_tendons, APP_F_U),
+};
+
 APP_NOINLINE static void boot_ready(app_t *a)
 {
     a->boot.recover_rc = app_rec_recover(a);
@@ -138,14 +145,11 @@ APP_NOINLINE static void boot_ready(app_t *a)
     app_rep_begin(a, app_w_ready);
     if (a->table_ok) {
         con_report_str(&a->cmd.con, app_w_table, a->info.name);
-        app_rep_hex(a, app_w_table_id, a->info.table_id);
+        app_rep_fields(a, &a->info, app_info_fields, 1); /* table_id */
     } else {
         con_report_flash(&a->cmd.con, app_w_table, app_w_none);
     }
-    app_rep_int(a, app_w_sensors, a->boot.n_sensors);
-    app_rep_int(a, app_w_sensors_expected, a->info.n_sensors);
-    app_rep_int(a, app_w_servos, a->boot.n_servos);
-    app_rep_int(a, app_w_servos_expected, a->info.n_tendons);
+    APP_REP_FIELDS(a, a, ready_fields);
     if (a->rec.homes_rc == 0) {
         con_report_flash(&a->cmd.con, app_w_homes,
                          a->boot.recover_rc == STORE_E_MOVED ? app_w_moved : app_w_stored);

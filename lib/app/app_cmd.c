@@ -55,9 +55,7 @@ static int8_t h_version(con_t *con, const con_args_t *args, void *ctx)
     }
     if (a->table_ok) {
         con_report_str(&a->cmd.con, app_w_table, a->info.name);
-        app_rep_hex(a, app_w_table_id, a->info.table_id);
-        app_rep_int(a, app_w_tendons, a->info.n_tendons);
-        app_rep_int(a, app_w_sensors, a->info.n_sensors);
+        APP_REP_FIELDS(a, &a->info, app_info_fields);
     } else {
         con_report_flash(&a->cmd.con, app_w_table, app_w_none);
     }
@@ -65,6 +63,22 @@ static int8_t h_version(con_t *con, const con_args_t *args, void *ctx)
     return 0;
 }
 
+static const app_field_t status_fields[] CON_FLASH = {
+    APP_FIELD(servos, app_t, boot.n_servos, APP_F_U),
+    APP_FIELD(homes, app_t, rec.homes.valid_mask, APP_F_HEX),
+    APP_FIELD(homes_now, app_t, rec.home_now, APP_F_HEX),
+    APP_FIELD(rehome, app_t, boot.offer_quick, APP_F_U),
+    APP_FIELD(tension_mN, app_t, rec.homes.tension_mN, APP_F_U),
+    APP_FIELD(count, app_t, rec.homes.cal_count, APP_F_S),
+};
+static const app_field_t status_learn_fields[] CON_FLASH = {
+    APP_FIELD(learned, app_t, learn.mask, APP_F_U),
+    APP_FIELD(baseline, app_t, learn.have_b0, APP_F_U),
+};
+static const app_field_t status_loop_fields[] CON_FLASH = {
+    APP_FIELD(loop_max_us, app_t, loop_max_us, APP_F_S),
+    APP_FIELD(loops, app_t, loops, APP_F_S),
+};
 static int8_t h_status(con_t *con, const con_args_t *args, void *ctx)
 {
     app_t *a = ctx;
@@ -79,18 +93,11 @@ static int8_t h_status(con_t *con, const con_args_t *args, void *ctx)
         con_report_flash(&a->cmd.con, app_w_table, app_w_none);
     }
     app_rep_int(a, app_w_sensors, icm_set_ready_count(&a->sense.set));
-    app_rep_int(a, app_w_servos, a->boot.n_servos);
-    app_rep_hex(a, app_w_homes, a->rec.homes.valid_mask);
-    app_rep_hex(a, app_w_homes_now, a->rec.home_now);
-    app_rep_int(a, app_w_rehome, a->boot.offer_quick);
-    app_rep_int(a, app_w_tension_mN, a->rec.homes.tension_mN);
-    app_rep_int(a, app_w_count, (int32_t)a->rec.homes.cal_count);
+    APP_REP_FIELDS(a, a, status_fields);
     app_rep_word(a, app_w_fault, app_w_fault_words, a->run.last_fault);
-    app_rep_int(a, app_w_learned, a->learn.mask);
-    app_rep_int(a, app_w_baseline, a->learn.have_b0);
+    APP_REP_FIELDS(a, a, status_learn_fields);
     app_rep_int(a, app_w_saving, store_busy(&a->rec.store) || a->rec.save_due != 0u);
-    app_rep_int(a, app_w_loop_max_us, (int32_t)a->loop_max_us);
-    app_rep_int(a, app_w_loops, (int32_t)a->loops);
+    APP_REP_FIELDS(a, a, status_loop_fields);
     if (a->io->stack_free != NULL) {
         app_rep_int(a, app_w_stack_free, (int32_t)a->io->stack_free());
     }
@@ -113,6 +120,24 @@ static int8_t h_status(con_t *con, const con_args_t *args, void *ctx)
     return 0;
 }
 
+/* ok and mag: both 1 while the sensor samples (icm_diag_t.mag_ready is
+ * state RUN) */
+static const app_field_t sensor_fields[] CON_FLASH = {
+    APP_FIELD(ch, icm_diag_t, channel, APP_F_U),
+    APP_FIELD(addr, icm_diag_t, addr, APP_F_U),
+    APP_FIELD(ok, icm_diag_t, mag_ready, APP_F_U),
+    APP_FIELD(who, icm_diag_t, who_am_i, APP_F_U),
+    APP_FIELD(mag, icm_diag_t, mag_ready, APP_F_U),
+    APP_FIELD(rate_Hz, icm_diag_t, rate_dhz, APP_F_U | APP_F_DEC1),
+    APP_FIELD(bx_uT, icm_diag_t, field_cuT[0], APP_F_S | APP_F_DEC2),
+    APP_FIELD(by_uT, icm_diag_t, field_cuT[1], APP_F_S | APP_F_DEC2),
+    APP_FIELD(bz_uT, icm_diag_t, field_cuT[2], APP_F_S | APP_F_DEC2),
+    APP_FIELD(ovf, icm_diag_t, overflow_count, APP_F_U),
+    APP_FIELD(err, icm_diag_t, error_count, APP_F_U),
+    APP_FIELD(last_err, icm_diag_t, last_err, APP_F_S),
+    APP_FIELD(reinits, icm_diag_t, reinits, APP_F_U),
+};
+
 static int8_t h_sensors(con_t *con, const con_args_t *args, void *ctx)
 {
     app_t *a = ctx;
@@ -130,19 +155,7 @@ static int8_t h_sensors(con_t *con, const con_args_t *args, void *ctx)
         (void)icm_set_diag(&a->sense.set, k, &d);
         app_rep_begin(a, app_w_sensor);
         app_rep_int(a, app_w_index, k);
-        app_rep_int(a, app_w_ch, d.channel);
-        app_rep_int(a, app_w_addr, d.addr);
-        app_rep_int(a, app_w_ok, d.state == ICM_SET_S_RUN);
-        app_rep_int(a, app_w_who, d.who_am_i);
-        app_rep_int(a, app_w_mag, d.mag_ready);
-        con_report_fixed(&a->cmd.con, app_w_rate_Hz, d.rate_dhz, 1);
-        con_report_fixed(&a->cmd.con, app_w_bx_uT, d.field_cuT[0], 2);
-        con_report_fixed(&a->cmd.con, app_w_by_uT, d.field_cuT[1], 2);
-        con_report_fixed(&a->cmd.con, app_w_bz_uT, d.field_cuT[2], 2);
-        app_rep_int(a, app_w_ovf, d.overflow_count);
-        app_rep_int(a, app_w_err, d.error_count);
-        app_rep_int(a, app_w_last_err, d.last_err);
-        app_rep_int(a, app_w_reinits, d.reinits);
+        APP_REP_FIELDS(a, &d, sensor_fields);
         app_rep_end(a);
     }
     return 0;
@@ -319,6 +332,18 @@ static int8_t h_forget(con_t *con, const con_args_t *args, void *ctx)
     return app_learn_forget(a, m);
 }
 
+static const app_field_t table_fields[] CON_FLASH = {
+    APP_FIELD(default_mN, tbl_info_t, default_mN, APP_F_U),
+    APP_FIELD(noise_cuT, tbl_info_t, noise_cuT, APP_F_U),
+};
+static const app_field_t tendon_fields[] CON_FLASH = {
+    APP_FIELD(id, tbl_tendon_t, servo_id, APP_F_U),
+    APP_FIELD(dir, tbl_tendon_t, pull_dir, APP_F_S),
+    APP_FIELD(segment, tbl_tendon_t, segment, APP_F_U),
+    APP_FIELD(sensor, tbl_tendon_t, sensor, APP_F_U),
+    APP_FIELD(limit_um, tbl_tendon_t, travel_limit_um, APP_F_S),
+};
+
 static int8_t h_table(con_t *con, const con_args_t *args, void *ctx)
 {
     app_t *a = ctx;
@@ -334,17 +359,14 @@ static int8_t h_table(con_t *con, const con_args_t *args, void *ctx)
     }
     app_rep_begin(a, app_w_table);
     con_report_str(&a->cmd.con, app_w_name, a->info.name);
-    app_rep_hex(a, app_w_table_id, a->info.table_id);
-    app_rep_int(a, app_w_tendons, a->info.n_tendons);
-    app_rep_int(a, app_w_sensors, a->info.n_sensors);
+    APP_REP_FIELDS(a, &a->info, app_info_fields);
     pos = 0;
     buf[0] = '\0';
     for (g = 0; g < a->info.n_grid; g++) {
         app_list_add(buf, sizeof buf, &pos, a->info.grid_mN[g], '\0');
     }
     con_report_str(&a->cmd.con, app_w_grid_mN, buf);
-    app_rep_int(a, app_w_default_mN, a->info.default_mN);
-    app_rep_int(a, app_w_noise_cuT, a->info.noise_cuT);
+    APP_REP_FIELDS(a, &a->info, table_fields);
     app_rep_end(a);
     for (i = 0; i < a->info.n_tendons; i++) {
         tbl_tendon_t row, eff;
@@ -352,11 +374,7 @@ static int8_t h_table(con_t *con, const con_args_t *args, void *ctx)
         (void)tbl_tendon(&a->htab, i, &eff);
         app_rep_begin(a, app_w_tendon);
         app_rep_int(a, app_w_tendon, i);
-        app_rep_int(a, app_w_id, row.servo_id);
-        app_rep_int(a, app_w_dir, row.pull_dir);
-        app_rep_int(a, app_w_segment, row.segment);
-        app_rep_int(a, app_w_sensor, row.sensor);
-        app_rep_int(a, app_w_limit_um, (int32_t)row.travel_limit_um);
+        APP_REP_FIELDS(a, &row, tendon_fields);
         pos = 0;
         buf[0] = '\0';
         for (g = 0; g < a->info.n_grid; g++) {
@@ -368,6 +386,12 @@ static int8_t h_table(con_t *con, const con_args_t *args, void *ctx)
     }
     return 0;
 }
+
+static const app_field_t hist_fields[] CON_FLASH = {
+    APP_FIELD(count, store_hist_t, cal_count, APP_F_S),
+    APP_FIELD(table_id, store_hist_t, table_id, APP_F_HEX),
+    APP_FIELD(tension_mN, store_hist_t, tension_mN, APP_F_U),
+};
 
 static int8_t h_history(con_t *con, const con_args_t *args, void *ctx)
 {
@@ -387,9 +411,7 @@ static int8_t h_history(con_t *con, const con_args_t *args, void *ctx)
         }
         app_rep_begin(a, app_w_hist);
         app_rep_int(a, app_w_age, age);
-        app_rep_int(a, app_w_count, (int32_t)e.cal_count);
-        app_rep_hex(a, app_w_table_id, e.table_id);
-        app_rep_int(a, app_w_tension_mN, e.tension_mN);
+        APP_REP_FIELDS(a, &e, hist_fields);
         pos = 0;
         buf[0] = '\0';
         for (i = 0; i < e.n_tendons && i < TBL_MAX_TENDONS; i++) {
@@ -402,6 +424,12 @@ static int8_t h_history(con_t *con, const con_args_t *args, void *ctx)
     return 0;
 }
 
+static const app_field_t setting_fields[] CON_FLASH = {
+    APP_FIELD(min, store_setting_info_t, min, APP_F_S),
+    APP_FIELD(max, store_setting_info_t, max, APP_F_S),
+    APP_FIELD(default, store_setting_info_t, def, APP_F_S),
+};
+
 static void setting_line(app_t *a, uint8_t id)
 {
     char buf[24];
@@ -413,9 +441,7 @@ static void setting_line(app_t *a, uint8_t id)
     app_rep_int(a, app_w_value, a->rec.set.v[id]);
     (void)store_setting_text(&a->rec.store, id, 1, buf, sizeof buf);
     con_report_str(&a->cmd.con, app_w_unit, buf);
-    app_rep_int(a, app_w_min, inf.min);
-    app_rep_int(a, app_w_max, inf.max);
-    app_rep_int(a, app_w_default, inf.def);
+    APP_REP_FIELDS(a, &inf, setting_fields);
     app_rep_end(a);
 }
 

@@ -25,6 +25,8 @@
 #ifndef HALLHOME_APP_PRIV_H
 #define HALLHOME_APP_PRIV_H
 
+#include <stddef.h>
+
 #include "app/app.h"
 
 /* Flash is the scarce resource on the AVR: the tasks called from one place
@@ -190,6 +192,31 @@ void app_rep_word(app_t *a, const char *key, const char *words_f, uint8_t i);
 /* Appends the decimal v (and mark unless '\0') to the comma list in buf at
  * *pos (capacity cap); a value that does not fit is left out. */
 void app_list_add(char *buf, uint8_t cap, uint8_t *pos, int32_t v, char mark);
+/* A report field read from a struct: its key (a flash word), where it lies
+ * and how it prints. Reports that print struct members list them in flash
+ * (APP_FIELD) and print them with one app_rep_fields() call instead of one
+ * call per field (a call site costs 16-20 bytes of AVR code, an entry 5). */
+typedef struct {
+    const char *key;
+    uint16_t off; /* offsetof() in the struct */
+    uint8_t fmt;  /* size in bytes (1, 2, 4) | APP_F_* */
+} app_field_t;
+#define APP_F_U    0x00u /* unsigned integer */
+#define APP_F_S    0x08u /* signed integer */
+#define APP_F_DEC1 0x10u /* one decimal (v / 10) */
+#define APP_F_DEC2 0x20u /* two decimals (v / 100) */
+#define APP_F_HEX  0x40u /* 0x%08x */
+#define APP_FIELD(key, type, member, f)                                                            \
+    {                                                                                              \
+        app_w_##key, (uint16_t)offsetof(type, member),                                             \
+            (uint8_t)(sizeof(((type *)0)->member) | (f))                                           \
+    }
+/* Prints the n fields f (in flash) of the struct at base. */
+void app_rep_fields(app_t *a, const void *base, const app_field_t *f, uint8_t n);
+#define APP_REP_FIELDS(a, base, f)                                                                 \
+    app_rep_fields((a), (base), (f), (uint8_t)(sizeof(f) / sizeof((f)[0])))
+/* table_id (hex), tendons, sensors of a tbl_info_t; [0] alone: table_id */
+extern const app_field_t app_info_fields[3];
 /* A fault the app itself detects (moves, learn, EEPROM), in the same shape as
  * the homing's: reason word, console error code, device, index. */
 void app_rep_fault(app_t *a, const char *reason_f, int8_t err, uint8_t dev, uint8_t index);

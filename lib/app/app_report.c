@@ -43,6 +43,31 @@ void app_rep_hex(app_t *a, const char *key, uint32_t v)
     con_report_str(&a->cmd.con, key, buf);
 }
 
+void app_rep_fields(app_t *a, const void *base, const app_field_t *f, uint8_t n)
+{
+    for (; n > 0u; n--, f++) {
+        app_field_t e;
+        const uint8_t *p;
+        int32_t v;
+        a->io->con_copy(&e, f, sizeof e);
+        p = (const uint8_t *)base + e.off;
+        if ((e.fmt & 7u) == 1u) {
+            v = (e.fmt & APP_F_S) ? (int32_t)(int8_t)*p : (int32_t)*p;
+        } else if ((e.fmt & 7u) == 2u) {
+            uint16_t u;
+            memcpy(&u, p, sizeof u);
+            v = (e.fmt & APP_F_S) ? (int32_t)(int16_t)u : (int32_t)u;
+        } else {
+            memcpy(&v, p, sizeof v);
+        }
+        if (e.fmt & APP_F_HEX) {
+            app_rep_hex(a, e.key, (uint32_t)v);
+        } else {
+            con_report_fixed(&a->cmd.con, e.key, v, (uint8_t)((e.fmt >> 4) & 3u));
+        }
+    }
+}
+
 /* Appends the decimal v and a separator to buf at *pos (capacity cap). */
 void app_list_add(char *buf, uint8_t cap, uint8_t *pos, int32_t v, char mark)
 {
@@ -98,6 +123,19 @@ void app_rep_fault(app_t *a, const char *reason_f, int8_t err, uint8_t dev, uint
     app_rep_end(a);
 }
 
+static const app_field_t missing_fields[] CON_FLASH = {
+    APP_FIELD(ch, icm_diag_t, channel, APP_F_U),
+    APP_FIELD(addr, icm_diag_t, addr, APP_F_U),
+    APP_FIELD(err, icm_diag_t, last_err, APP_F_S),
+};
+
+/* table_id, tendons, sensors of the table in use (tbl_info_t) */
+const app_field_t app_info_fields[3] CON_FLASH = {
+    APP_FIELD(table_id, tbl_info_t, table_id, APP_F_HEX),
+    APP_FIELD(tendons, tbl_info_t, n_tendons, APP_F_U),
+    APP_FIELD(sensors, tbl_info_t, n_sensors, APP_F_U),
+};
+
 /* One `<missing ...>` per sensor that is not sampling and per servo that is
  * absent or reports a hardware error. Returns CON_E_SENSOR_FAULT when a
  * sensor is missing, else CON_E_SERVO_FAULT when a servo is, else 0. */
@@ -112,9 +150,7 @@ int8_t app_rep_missing(app_t *a)
             app_rep_begin(a, app_w_missing);
             con_report_flash(&a->cmd.con, app_w_dev, app_w_sensor);
             app_rep_int(a, app_w_index, i);
-            app_rep_int(a, app_w_ch, d.channel);
-            app_rep_int(a, app_w_addr, d.addr);
-            app_rep_int(a, app_w_err, d.last_err);
+            APP_REP_FIELDS(a, &d, missing_fields);
             app_rep_end(a);
             rc = CON_E_SENSOR_FAULT;
         }

@@ -6,6 +6,17 @@
 #include "icm20948/icm20948_reg.h"
 #include "icm20948/tca9548a.h"
 
+/* The init's register writes are a constant table, kept in program memory on
+ * the AVR (a const array would be copied to RAM at start-up). */
+#ifdef __AVR__
+#include <avr/pgmspace.h>
+#define ICM_FLASH               PROGMEM
+#define ICM_FLASH_COPY(d, s, n) memcpy_P((d), (s), (n))
+#else
+#define ICM_FLASH
+#define ICM_FLASH_COPY(d, s, n) memcpy((d), (s), (n))
+#endif
+
 enum { ICM_ST_IDLE, ICM_ST_INIT, ICM_ST_RUN, ICM_ST_FAIL };
 
 #define ICM_BANK_UNKNOWN 0xFFu
@@ -34,6 +45,76 @@ enum {
     IS_MODE_DONE,
     IS_SLV0,
     IS_BANK_BACK
+};
+
+/* The init steps that only write registers: up to three consecutive
+ * registers of one bank, then the next step after wait_ms. */
+typedef struct {
+    uint8_t step;
+    uint8_t bank;
+    uint8_t reg;
+    uint8_t n;
+    uint8_t v[3];
+    uint8_t next;
+    uint8_t wait_ms;
+} icm_init_write_t;
+
+typedef char
+    icm_waits_in_ms_t[(ICM_RESET_WAIT_US % 1000u == 0u && ICM_RESET_WAIT_US / 1000u < 256u &&
+                       ICM_WAKE_WAIT_US % 1000u == 0u && ICM_WAKE_WAIT_US / 1000u < 256u)
+                          ? 1
+                          : -1];
+
+static const icm_init_write_t icm_init_writes[] ICM_FLASH = {
+    {IS_RESET,
+     0,
+     ICM_REG_PWR_MGMT_1,
+     1,
+     {ICM_REG_PWR_DEVICE_RST, 0, 0},
+     IS_WAKE,
+     ICM_RESET_WAIT_US / 1000u},
+    {IS_WAKE,
+     0,
+     ICM_REG_PWR_MGMT_1,
+     1,
+     {ICM_REG_PWR_CLKSEL_AUTO, 0, 0},
+     IS_WHO2,
+     ICM_WAKE_WAIT_US / 1000u},
+    /* only the magnetometer is used; with the gyro and accelerometer off the
+     * master runs at its own rate (and they draw no current) */
+    {IS_SENSORS_OFF, 0, ICM_REG_PWR_MGMT_2, 1, {ICM_REG_PWR2_SENSORS_OFF, 0, 0}, IS_LP, 0},
+    {IS_LP, 0, ICM_REG_LP_CONFIG, 1, {ICM_REG_LP_I2C_MST_CYCLE, 0, 0}, IS_MST_CFG, 0},
+    /* rate, clock and shadow delay in one burst (bank 3, 0x00..0x02), all
+     * before the master is enabled */
+    {IS_MST_CFG,
+     3,
+     ICM_REG_I2C_MST_ODR_CONFIG,
+     3,
+     {ICM_REG_MST_ODR_137HZ, ICM_REG_MST_P_NSR | ICM_REG_MST_CLK_345KHZ, ICM_REG_DELAY_ES_SHADOW},
+     IS_MST_EN,
+     0},
+    {IS_MST_EN, 0, ICM_REG_USER_CTRL, 1, {ICM_REG_USER_I2C_MST_EN, 0, 0}, IS_MST_RST, 0},
+    {IS_MST_RST,
+     0,
+     ICM_REG_USER_CTRL,
+     1,
+     {ICM_REG_USER_I2C_MST_EN | ICM_REG_USER_I2C_MST_RST, 0, 0},
+     IS_AK_SRST,
+     ICM_WAKE_WAIT_US / 1000u},
+    {IS_RETRY_RST,
+     0,
+     ICM_REG_USER_CTRL,
+     1,
+     {ICM_REG_USER_I2C_MST_EN | ICM_REG_USER_I2C_MST_RST, 0, 0},
+     IS_AK_SRST,
+     ICM_WAKE_WAIT_US / 1000u},
+    {IS_SLV0,
+     3,
+     ICM_REG_I2C_SLV0_ADDR,
+     3,
+     {AK_REG_ADDR | ICM_REG_SLV_ADDR_READ, AK_REG_ST1, ICM_REG_SLV_CTRL_EN | AK_REG_BLOCK_LEN},
+     IS_BANK_BACK,
+     0},
 };
 
 int8_t icm_bus_error(int8_t bus_rc)
@@ -255,11 +336,31 @@ static int8_t icm_mag_failed(icm_dev_t *dev, int8_t why)
     return ICM_BUSY;
 }
 
+/* A step of icm_init_writes: its registers written, then the wait. */
+static int8_t icm_init_write(icm_dev_t *dev, uint32_t now_us)
+{
+    icm_init_write_t w;
+    uint8_t i;
+    int8_t rc;
+    for (i = 0; i < sizeof icm_init_writes / sizeof icm_init_writes[0]; i++) {
+        ICM_FLASH_COPY(&w, &icm_init_writes[i], sizeof w);
+        if (w.step == dev->step) {
+            rc = icm_wr(dev, w.bank, w.reg, w.v, w.n);
+            if (rc == 0) {
+                if (w.step == IS_RESET) {
+                    dev->bank = ICM_BANK_UNKNOWN; /* the reset selects bank 0 */
+                }
+                icm_wait(dev, now_us, (uint32_t)w.wait_ms * 1000u, w.next);
+            }
+            return rc;
+        }
+    }
+    return ICM_E_STATE;
+}
+
 static int8_t icm_init_step(icm_dev_t *dev, uint32_t now_us)
 {
     uint8_t v = 0;
-    uint8_t slv0[3];
-    uint8_t cfg[3];
     int8_t rc;
 
     switch (dev->step) {
@@ -281,57 +382,6 @@ static int8_t icm_init_step(icm_dev_t *dev, uint32_t now_us)
         }
         dev->step = (dev->step == IS_WHO) ? IS_RESET : IS_SENSORS_OFF;
         return 0;
-    case IS_RESET:
-        rc = icm_wr1(dev, 0, ICM_REG_PWR_MGMT_1, ICM_REG_PWR_DEVICE_RST);
-        if (rc == 0) {
-            dev->bank = ICM_BANK_UNKNOWN;
-            icm_wait(dev, now_us, ICM_RESET_WAIT_US, IS_WAKE);
-        }
-        return rc;
-    case IS_WAKE:
-        rc = icm_wr1(dev, 0, ICM_REG_PWR_MGMT_1, ICM_REG_PWR_CLKSEL_AUTO);
-        if (rc == 0) {
-            icm_wait(dev, now_us, ICM_WAKE_WAIT_US, IS_WHO2);
-        }
-        return rc;
-    case IS_SENSORS_OFF:
-        /* only the magnetometer is used; with the gyro and accelerometer off
-         * the master runs at its own rate (and they draw no current) */
-        rc = icm_wr1(dev, 0, ICM_REG_PWR_MGMT_2, ICM_REG_PWR2_SENSORS_OFF);
-        if (rc == 0) {
-            dev->step = IS_LP;
-        }
-        return rc;
-    case IS_LP:
-        rc = icm_wr1(dev, 0, ICM_REG_LP_CONFIG, ICM_REG_LP_I2C_MST_CYCLE);
-        if (rc == 0) {
-            dev->step = IS_MST_CFG;
-        }
-        return rc;
-    case IS_MST_CFG:
-        /* rate, clock and shadow delay in one burst (bank 3, 0x00..0x02),
-         * all before the master is enabled */
-        cfg[0] = ICM_REG_MST_ODR_137HZ;
-        cfg[1] = ICM_REG_MST_P_NSR | ICM_REG_MST_CLK_345KHZ;
-        cfg[2] = ICM_REG_DELAY_ES_SHADOW;
-        rc = icm_wr(dev, 3, ICM_REG_I2C_MST_ODR_CONFIG, cfg, 3);
-        if (rc == 0) {
-            dev->step = IS_MST_EN;
-        }
-        return rc;
-    case IS_MST_EN:
-        rc = icm_wr1(dev, 0, ICM_REG_USER_CTRL, ICM_REG_USER_I2C_MST_EN);
-        if (rc == 0) {
-            dev->step = IS_MST_RST;
-        }
-        return rc;
-    case IS_MST_RST:
-    case IS_RETRY_RST:
-        rc = icm_wr1(dev, 0, ICM_REG_USER_CTRL, ICM_REG_USER_I2C_MST_EN | ICM_REG_USER_I2C_MST_RST);
-        if (rc == 0) {
-            icm_wait(dev, now_us, ICM_WAKE_WAIT_US, IS_AK_SRST);
-        }
-        return rc;
     case IS_AK_SRST:
         rc = icm_slv4_begin(dev, 0, AK_REG_CNTL3, AK_REG_CNTL3_SRST);
         if (rc == 0) {
@@ -397,15 +447,6 @@ static int8_t icm_init_step(icm_dev_t *dev, uint32_t now_us)
             dev->step = IS_SLV0;
         }
         return rc;
-    case IS_SLV0:
-        slv0[0] = (uint8_t)(AK_REG_ADDR | ICM_REG_SLV_ADDR_READ);
-        slv0[1] = AK_REG_ST1;
-        slv0[2] = (uint8_t)(ICM_REG_SLV_CTRL_EN | AK_REG_BLOCK_LEN);
-        rc = icm_wr(dev, 3, ICM_REG_I2C_SLV0_ADDR, slv0, 3);
-        if (rc == 0) {
-            dev->step = IS_BANK_BACK;
-        }
-        return rc;
     case IS_BANK_BACK:
         rc = icm_bank(dev, 0);
         if (rc == 0) {
@@ -416,7 +457,7 @@ static int8_t icm_init_step(icm_dev_t *dev, uint32_t now_us)
         }
         return rc;
     default:
-        return ICM_E_STATE;
+        return icm_init_write(dev, now_us);
     }
 }
 
