@@ -35,6 +35,17 @@ HOM_NOINLINE int32_t hom_table_slope(const hom_t *h, uint8_t i)
     return s < 1 ? 1 : s;
 }
 
+/* The slope measured between two fine points, field change db over dp
+ * ticks, kept no flatter than a quarter of the table's: a point averaged
+ * from samples that lag its move (a main-loop pass stretched by console
+ * output) can read almost no rise, and the target would look out of reach. */
+HOM_NOINLINE static void measured_slope(hom_t *h, int32_t db, int32_t dp)
+{
+    int32_t s = hom_muldiv(db, 256, dp);
+    int32_t floor = hom_table_slope(h, h->cur) / 4;
+    h->slope_q8 = s < floor ? floor : s;
+}
+
 /* Distance of tendon i to its goal in the final move: its home (measured or
  * stored), else where it was sent last. */
 HOM_NOINLINE static int32_t final_dist(const hom_t *h, uint8_t i, int32_t *goal)
@@ -279,7 +290,7 @@ void hom_fine_point(hom_t *h)
         if (h->have_prev) {
             /* the secant across the crossing is the slope to come back with */
             if (dp > 0 && b > h->b_prev) {
-                h->slope_q8 = hom_muldiv((int32_t)(b - h->b_prev), 256, dp);
+                measured_slope(h, (int32_t)(b - h->b_prev), dp);
             }
             h->mod_goal = h->p_prev;
         } else {
@@ -298,7 +309,7 @@ void hom_fine_point(hom_t *h)
     /* a slope measured over 3 ticks or more replaces the estimate; one over
      * fewer ticks is too noisy and the last good one is kept */
     if (h->have_prev && dp >= 3 && b > h->b_prev) {
-        h->slope_q8 = hom_muldiv((int32_t)(b - h->b_prev), 256, dp);
+        measured_slope(h, (int32_t)(b - h->b_prev), dp);
     }
     s_q8 = h->slope_q8;
     if (s_q8 < 1) {
