@@ -33,6 +33,7 @@ HOM_NOINLINE void hom_begin_tendon(hom_t *h, uint8_t i)
     h->near = 0;
     h->n_pts = 0;
     h->steps = 0;
+    h->far = 0;
     h->slope_q8 = hom_table_slope(h, i);
     h->pos_at_sample = h->present[i];
     t->engaged = 0;

@@ -35,17 +35,6 @@ HOM_NOINLINE int32_t hom_table_slope(const hom_t *h, uint8_t i)
     return s < 1 ? 1 : s;
 }
 
-/* The slope measured between two fine points, field change db over dp
- * ticks, kept no flatter than a quarter of the table's: a point averaged
- * from samples that lag its move (a main-loop pass stretched by console
- * output) can read almost no rise, and the target would look out of reach. */
-HOM_NOINLINE static void measured_slope(hom_t *h, int32_t db, int32_t dp)
-{
-    int32_t s = hom_muldiv(db, 256, dp);
-    int32_t floor = hom_table_slope(h, h->cur) / 4;
-    h->slope_q8 = s < floor ? floor : s;
-}
-
 /* Distance of tendon i to its goal in the final move: its home (measured or
  * stored), else where it was sent last. */
 HOM_NOINLINE static int32_t final_dist(const hom_t *h, uint8_t i, int32_t *goal)
@@ -290,7 +279,7 @@ void hom_fine_point(hom_t *h)
         if (h->have_prev) {
             /* the secant across the crossing is the slope to come back with */
             if (dp > 0 && b > h->b_prev) {
-                measured_slope(h, (int32_t)(b - h->b_prev), dp);
+                h->slope_q8 = hom_muldiv((int32_t)(b - h->b_prev), 256, dp);
             }
             h->mod_goal = h->p_prev;
         } else {
@@ -302,6 +291,7 @@ void hom_fine_point(hom_t *h)
         }
         h->have_prev = 0;
         h->n_pts = 0;
+        h->far = 0;
         hom_set_goal(h, h->cur, hom_slack_goal(t), h->cfg.v_release);
         h->state = ST_BACKOFF;
         return;
@@ -309,7 +299,7 @@ void hom_fine_point(hom_t *h)
     /* a slope measured over 3 ticks or more replaces the estimate; one over
      * fewer ticks is too noisy and the last good one is kept */
     if (h->have_prev && dp >= 3 && b > h->b_prev) {
-        measured_slope(h, (int32_t)(b - h->b_prev), dp);
+        h->slope_q8 = hom_muldiv((int32_t)(b - h->b_prev), 256, dp);
     }
     s_q8 = h->slope_q8;
     if (s_q8 < 1) {
@@ -329,9 +319,22 @@ void hom_fine_point(hom_t *h)
     }
     room = (t->limit_ticks - hom_pull(t, p - t->engage)) * 256;
     if (r_q8 > room) {
-        /* the target lies beyond the travel limit: unreachable, stop here */
-        hom_fail_tendon(h, HOM_F_TRAVEL_LIMIT, hom_pull(t, p - t->engage) + r_q8 / 256);
-        return;
+        /* the target lies beyond the travel limit: unreachable, stop here,
+         * once two points in a row say so. One point averaged from samples
+         * that lagged its move (a main-loop pass stretched by console
+         * output) can read almost no rise: its step goes by the table's
+         * slope instead, within the room left. */
+        if (h->far) {
+            hom_fail_tendon(h, HOM_F_TRAVEL_LIMIT, hom_pull(t, p - t->engage) + r_q8 / 256);
+            return;
+        }
+        h->far = 1;
+        r_q8 = hom_muldiv((int32_t)(t->target_cuT - b), 65536, hom_table_slope(h, h->cur));
+        if (r_q8 > room) {
+            r_q8 = room;
+        }
+    } else {
+        h->far = 0;
     }
     if (++h->steps > h->cfg.fine_max_steps) {
         hom_fail_tendon(h, HOM_F_NO_PROGRESS, (int32_t)b);

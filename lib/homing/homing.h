@@ -308,6 +308,7 @@ typedef struct {
     uint8_t near;       /* fine: the next point is within a few ticks of the target */
     uint8_t n_near;     /* fine: samples to average at a near point */
     uint8_t n_pts;      /* fine: near points kept */
+    uint8_t far;        /* fine: the last point put the target beyond the travel limit */
     uint8_t ev_head;
     uint8_t ev_count;
     uint8_t ev_dropped;
