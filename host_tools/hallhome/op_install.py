@@ -14,8 +14,9 @@ from typing import Dict, List, Tuple
 import click
 from rich.markup import escape
 
+from hallhome import protocol
 from hallhome.client import BoardError, Client, HallhomeError, LocalError
-from hallhome.op_common import (cmd, declared, err, fixed3, int_list, json_option,
+from hallhome.op_common import (cmd, err, fixed3, int_list, json_option,
                                 operator_command, out, port_options, print_json, session,
                                 wait_saved)
 from hallhome.op_learn import TableInfo, read_table
@@ -82,8 +83,8 @@ def install_cmd(robot, dry_run, force, as_json, port, timeout) -> None:
 
     The targets are computed from ROBOT as `hallhome tables` would (a few
     seconds), the board's learned targets are forgotten, and every tendon's
-    target at every grid tension is written as a learned target (`target`
-    console command; EEPROM, with a CRC and the table identity, as `learn`
+    target at every grid tension is written as a learned target (`learn T N
+    DB` console command; EEPROM, with a CRC and the table identity, as `learn`
     stores them). `table` then marks every target with `*`, `status` shows
     `learned=` for every tendon; `hallhome forget all` returns to the
     compiled targets. Refused, with the reason, when ROBOT selects another
@@ -98,9 +99,9 @@ def install_cmd(robot, dry_run, force, as_json, port, timeout) -> None:
         desc = load_robot(robot)
     except RobotError as e:
         raise HallhomeError(f"{robot}: {e}") from None
-    if not declared("target"):
+    if "dB_uT" not in [a.name for a in protocol.COMMANDS_BY_NAME["learn"].args]:
         raise HallhomeError("the firmware declarations (lib/console/con_commands.def) have no "
-                            "`target` command")
+                            "`learn T N DB` (install a given target)")
     if not as_json:
         err().print(f"computing the targets of {escape(desc.name)} "
                     f"({len(desc.tendons)} tendons x {len(desc.tension_grid)} tensions) ...")
@@ -131,7 +132,7 @@ def install_cmd(robot, dry_run, force, as_json, port, timeout) -> None:
                 for g, uT in pts:
                     wait_saved(c, 20.0)
                     try:
-                        c.command(cmd("target", t, fixed3(g / 1000.0), f"{uT:.2f}"),
+                        c.command(cmd("learn", t, fixed3(g / 1000.0), f"{uT:.2f}"),
                                   timeout=max(timeout, 10.0))
                     except (BoardError, LocalError) as e:
                         raise HallhomeError(

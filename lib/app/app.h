@@ -242,7 +242,7 @@ typedef struct {
     uint8_t n;          /* samples averaged so far (the fewest of any sensor) */
     uint8_t have_b0;    /* u.idle.b0 holds the straight-pose baseline */
     uint8_t forgetting; /* a `forget` waits for its records to be written */
-    uint8_t installing; /* a `target` waits for its record to be written */
+    uint8_t installing; /* `learn T N DB` waits for its record to be written */
     uint16_t mask;      /* bit t: tendon t has a learned record for this table */
     uint16_t forget;    /* bit t: `forget` still has to erase tendon t's record */
     uint32_t t_start;

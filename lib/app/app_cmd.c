@@ -274,6 +274,10 @@ static int8_t learn_grid(app_t *a, const con_args_t *args, con_t *con)
     return (int8_t)g;
 }
 
+/* `learn T N`: the field change with a weight hung (app_learn.c); `learn T
+ * N DB`: DB (uT), computed on the host for an identified robot
+ * (docs/identify.md), installed the same way: record, checks and report,
+ * answered once written. */
 static int8_t h_learn(con_t *con, const con_args_t *args, void *ctx)
 {
     app_t *a = ctx;
@@ -281,23 +285,13 @@ static int8_t h_learn(con_t *con, const con_args_t *args, void *ctx)
     if (g < 0) {
         return g;
     }
+    if (args->given & 4u) {
+        return app_learn_install(a, (uint8_t)args->v[0], (uint8_t)g, (uint32_t)args->v[2] / 10u);
+    }
     if (!a->learn.have_b0) {
         return CON_E_NOT_HOMED; /* no straight-pose baseline yet: `release` first */
     }
     return app_learn_start(a, (uint8_t)args->v[0], (uint8_t)g);
-}
-
-/* `target T N dB`: a target computed on the host (an identified robot,
- * docs/identify.md) installed as tendon T's learned target at grid tension
- * N: the same record, checks and report as `learn`, answered once written. */
-static int8_t h_target(con_t *con, const con_args_t *args, void *ctx)
-{
-    app_t *a = ctx;
-    int8_t g = learn_grid(a, args, con);
-    if (g < 0) {
-        return g;
-    }
-    return app_learn_install(a, (uint8_t)args->v[0], (uint8_t)g, (uint32_t)args->v[2] / 10u);
 }
 
 /* `forget T|all`: the learned targets of tendon T, or of every tendon, are
@@ -530,5 +524,5 @@ const con_handler_fn app_handlers[CON_CMD_COUNT] CON_FLASH = {
     [CON_CMD_HOME] = h_home,       [CON_CMD_RELEASE] = h_release, [CON_CMD_LEARN] = h_learn,
     [CON_CMD_TABLE] = h_table,     [CON_CMD_HISTORY] = h_history, [CON_CMD_GET] = h_get,
     [CON_CMD_SET] = h_set,         [CON_CMD_SAVE] = h_save,       [CON_CMD_REBOOT] = h_reboot,
-    [CON_CMD_FORGET] = h_forget,   [CON_CMD_TARGET] = h_target,
+    [CON_CMD_FORGET] = h_forget,
 };

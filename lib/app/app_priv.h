@@ -358,11 +358,11 @@ int8_t app_learn_forget(app_t *a, uint16_t mask);
 /* `forget`, called by app_rec_poll() while the EEPROM and the record
  * storage are free: the next tendon's empty learned record is queued. */
 void app_learn_forget_next(app_t *a);
-/* `target`: installs v (cuT) as tendon's learned target at grid point grid
+/* `learn T N DB`: installs v (cuT) as tendon's learned target at grid point grid
  * when plausible (as `learn` checks it), and saves it. Returns CON_PENDING
  * (answered once written: app_learn_installed()) or CON_E_IMPLAUSIBLE. */
 int8_t app_learn_install(app_t *a, uint8_t tendon, uint8_t grid, uint32_t v);
-/* The learned record just written was a `target`'s: returns 1 once. */
+/* The learned record just written was an install's: returns 1 once. */
 uint8_t app_learn_installed(app_t *a);
 /* The learned record just written was the last one of a `forget`: returns 1
  * (once) so that its console line is answered. */

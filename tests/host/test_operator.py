@@ -303,8 +303,8 @@ def test_calibrate_force_and_json(monkeypatch):
     other = VERSION.replace(f"table_id={TID}", "table_id=0x12345678")
     b = status_board([SENSORS[0]], other)
     b.events.extend(["<progress state=tendon tendon=0 id=1>",
-                     "<result tendon=0 id=1 home=4321 home_um=2000 dB_uT=106.40 target_uT=106.56 "
-                     "travel_um=1356 time_ms=2500>",
+                     "<result tendon=0 id=1 home=4321 straight=4274 home_um=2000 dB_uT=106.40 "
+                     "target_uT=106.56 travel_um=1356 time_ms=2500>",
                      "<done mode=single time_ms=2600 tension_mN=800 count=3>"])
     use(monkeypatch, b, op_status, op_run)
     monkeypatch.setenv("HALLHOME_RUNS", "")
@@ -312,8 +312,8 @@ def test_calibrate_force_and_json(monkeypatch):
     assert r.exit_code == 0, r.output
     d = json.loads(r.stdout)
     assert d["ok"] and d["count"] == 3 and d["tendons"] == [
-        {"tendon": 0, "servo_id": 1, "state": "home", "home_ticks": 4321, "travel_mm": 1.356,
-         "dB_uT": 106.4, "target_uT": 106.56, "time_s": 2.5}]
+        {"tendon": 0, "servo_id": 1, "state": "home", "home_ticks": 4321, "straight_ticks": 4274,
+         "travel_mm": 1.356, "dB_uT": 106.4, "target_uT": 106.56, "time_s": 2.5}]
     assert "cal 0.800 0" in b.sent
     assert "warning: the board runs table" in r.stderr
 

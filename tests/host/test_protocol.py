@@ -90,7 +90,7 @@ def test_synopsis_parser():
     assert [(a.name, a.kind, a.required, a.min, a.max) for a in args] == [
         ("tension_N", "d", False, 10, 10000), ("tendon", "i", False, 0, 11)]
     assert protocol.COMMANDS_BY_NAME["servos"].args[0].choices == ("scan", "pos", "err")
-    assert protocol.COMMANDS_BY_NAME["learn"].usage == "<tendon> <tension_N>"
+    assert protocol.COMMANDS_BY_NAME["learn"].usage == "<tendon> <tension_N> [dB_uT]"
     with pytest.raises(ProtocolError):
         protocol.parse_synopsis("[a:i] <b:i>")
     with pytest.raises(ProtocolError):

@@ -468,23 +468,23 @@ static void test_learn_with_weight(void **state)
     assert_int_equal(g_b.app.learn.mask, 0);
 }
 
-/* `target`: a host-computed target installed as a learned one (the record,
+/* `learn T N DB`: a host-computed target installed as a learned one (the record,
  * checks and table override of `learn`), answered once written, kept over a
  * restart; implausible values and off-grid tensions refused. */
-static void test_target_installs_a_learned_target(void **state)
+static void test_learn_installs_a_given_target(void **state)
 {
     char line[64];
     tbl_tendon_t eff;
     uint32_t want = g_b.table.tendons[1].target_cuT[4] * 21u / 20u; /* 5 % above the table */
     (void)state;
     boot(&g_b, 1);
-    snprintf(line, sizeof line, "target 1 0.8 %lu.%02lu", (unsigned long)(want / 100u),
+    snprintf(line, sizeof line, "learn 1 0.8 %lu.%02lu", (unsigned long)(want / 100u),
              (unsigned long)(want % 100u));
-    cmd(&g_b, "target 1 0.75 100", "error:16 tension outside the table grid");
-    cmd(&g_b, "target 6 0.8 100", "error:15 no such tendon");
-    cmd(&g_b, "target 1 0.8 0.1",
+    cmd(&g_b, "learn 1 0.75 100", "error:16 tension outside the table grid");
+    cmd(&g_b, "learn 6 0.8 100", "error:15 no such tendon");
+    cmd(&g_b, "learn 1 0.8 0.1",
         "error:25 implausible reading: not above noise or not rising with tension");
-    cmd(&g_b, "target 1 0.8 x", "error:2 bad number");
+    cmd(&g_b, "learn 1 0.8 x", "error:2 bad number");
     assert_int_equal(g_b.app.learn.mask, 0);
     app_bench_send(&g_b, line);
     assert_true(app_bench_wait_line(&g_b, "<learned ", g_line, sizeof g_line, 1000));
@@ -496,7 +496,7 @@ static void test_target_installs_a_learned_target(void **state)
     assert_int_equal(eff.target_cuT[4], want);
     assert_int_equal(eff.target_cuT[3], g_b.table.tendons[1].target_cuT[3]);
     /* a higher tension must get a higher target */
-    snprintf(line, sizeof line, "target 1 0.9 %lu.%02lu", (unsigned long)(want / 100u),
+    snprintf(line, sizeof line, "learn 1 0.9 %lu.%02lu", (unsigned long)(want / 100u),
              (unsigned long)(want % 100u));
     cmd(&g_b, line, "error:25 implausible reading: not above noise or not rising with tension");
     app_bench_restart(&g_b, 0);
@@ -711,7 +711,7 @@ int main(void)
         cmocka_unit_test(test_settings),
         cmocka_unit_test(test_absolute_target_mode),
         cmocka_unit_test(test_learn_with_weight),
-        cmocka_unit_test(test_target_installs_a_learned_target),
+        cmocka_unit_test(test_learn_installs_a_given_target),
         cmocka_unit_test(test_realtime_abort_releases),
         cmocka_unit_test(test_long_press_aborts),
         cmocka_unit_test(test_servo_fault_mid_run),

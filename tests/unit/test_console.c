@@ -123,8 +123,6 @@ static void test_every_command_dispatches(void **state)
         /* required arguments filled with a valid value */
         if (i == CON_CMD_LEARN) {
             snprintf(line, sizeof(line), "%s 2 0.5\n", name);
-        } else if (i == CON_CMD_TARGET) {
-            snprintf(line, sizeof(line), "%s 2 0.5 106.56\n", name);
         } else if (i == CON_CMD_SET) {
             snprintf(line, sizeof(line), "%s filter_k 4\n", name);
         } else if (i == CON_CMD_REBOOT || i == CON_CMD_FORGET) {
@@ -232,7 +230,9 @@ static void test_bad_arguments_change_nothing(void **state)
         {"learn a 1\n", "error:2 bad number\r\n"},
         {"learn 12 1\n", "error:3 argument out of range\r\n"},
         {"learn 1 0\n", "error:3 argument out of range\r\n"},
-        {"learn 1 1 1\n", "error:5 too many arguments\r\n"},
+        {"learn 1 1 1 1\n", "error:5 too many arguments\r\n"},
+        {"learn 1 1 0\n", "error:3 argument out of range\r\n"},
+        {"learn 1 1 4913\n", "error:3 argument out of range\r\n"},
         {"learn 1 1 1 1 1 1 1\n", "error:5 too many arguments\r\n"},
         {"table x\n", "error:5 too many arguments\r\n"},
         {"history 3\n", "error:5 too many arguments\r\n"},
@@ -536,7 +536,7 @@ static void test_help_generated(void **state)
                 assert_non_null(strstr(line, "args=\"[scan|pos|err]\""));
             }
             if (n == CON_CMD_LEARN) {
-                assert_non_null(strstr(line, "args=\"<tendon> <tension_N>\""));
+                assert_non_null(strstr(line, "args=\"<tendon> <tension_N> [dB_uT]\""));
             }
             if (n == CON_CMD_HELP) {
                 assert_non_null(strstr(line, "args=\"\""));
