@@ -29,6 +29,7 @@ SECTIONS = [
     "## 5. Absolute-magnitude mode vs field-change mode",
     "## 6. Firmware resources",
     "## Goals",
+    "## 7. Identification of the robot as built",
 ]
 
 
@@ -378,6 +379,88 @@ def loop_phase_table(r: Dict) -> List[str]:
     return out + [""]
 
 
+ID_MODES = (("nominal", "nominal TOML (today)"), ("survey", "survey only (no weights)"),
+            ("weights", "survey + one weight per segment"))
+
+
+def _id_set_label(st: Dict) -> str:
+    lab = f"±{100 * st['perturb']:g} %"
+    if abs(st.get("perturb_stiffness", st["perturb"]) - st["perturb"]) > 1e-12:
+        lab += f", stiffness ±{100 * st['perturb_stiffness']:g} %"
+    return lab
+
+
+def section_identify(res: Dict) -> List[str]:
+    idf = res.get("identify") or {}
+    g = stats.ID_GOALS
+    out = [SECTIONS[7], ""]
+    out.append(
+        "Issue 17: accuracy on the robot as built. Seeded robots perturbed by `hh_bench "
+        "--perturb` (every parameter, as section 4) and `--perturb-stiffness` (the backbone's "
+        "EI and EA alone); for each, `hh_bench --survey` records what the board would see "
+        "(every tendon pulled alone from slack, encoder and field at each step, and "
+        f"one {fmt(idf.get('weight_g'), 0)} g weight per segment), `hallhome identify fit` "
+        "fits the description to it (without and with the weight records) and the table "
+        "generator makes the targets of each description (hallhome.identify_eval, "
+        "docs/identify.md). Error = the tension at which the true robot (the plant's "
+        "noise-free single-tendon pull, the calibration's definition) shows the target, "
+        "minus the target: what a homing that lands exactly on the target leaves; every "
+        "tendon of every robot counts. A refused fit keeps the nominal targets, as the user "
+        f"would. Goals: mean within ±{g['mean_abs_N']} N, SD ≤ {g['sd_N']} N, worst |error| "
+        f"≤ {g['worst_N']} N.")
+    out.append("")
+    if not idf or idf.get("not_measured"):
+        out.append(f"| robots | targets from | tension (N) | mean (N) | SD (N) | worst (N) | "
+                   "goals |")
+        out.append("| --- | --- | --- | --- | --- | --- | --- |")
+        out.append(f"| - | - | - | n/a | n/a | n/a | {cell(_src_note(idf))} |")
+        out.append("")
+        return out
+    out.append("| robots | targets from | tension (N) | mean (N) | SD (N) | worst \\|error\\| (N) "
+               "| goals: mean / SD / worst |")
+    out.append("| --- | --- | --- | --- | --- | --- | --- |")
+    for st in idf.get("sets", []):
+        lab = f"{len(st['seeds'])} x {_id_set_label(st)}"
+        for mode, mlab in ID_MODES:
+            for t in ("0.3", "0.8", "1.5", "all"):
+                r = st[mode][t]
+                goals = " / ".join(stats.id_goal_cells(r))
+                out.append(f"| {lab} | {mlab} | {t if t != 'all' else 'all three'} | "
+                           f"{r['mean']:+.4f} | {r['sd']:.4f} | {r['worst']:.4f} | {goals} |")
+    out.append("")
+    for st in idf.get("sets", []):
+        ref = st.get("refused", {})
+        fs = st.get("fit_s") or {}
+        out.append(f"- {len(st['seeds'])} robots at {_id_set_label(st)} (seeds "
+                   f"{st['seeds'][0]}-{st['seeds'][-1]}): fits refused: survey only "
+                   f"{ref.get('survey', 0)}, with weights {ref.get('weights', 0)}; a fit took "
+                   f"{fmt(fs.get('mean'), 1)} s on average, {fmt(fs.get('max'), 1)} s at most.")
+        for r in st.get("refusals", [])[:5]:
+            out.append(f"  - refused, {cell(r)}")
+    out.append(f"- Measured in {fmt(idf.get('wall_s'), 0)} s (wall).")
+    out += [""] + [f"- {n}" for n in identify_notes(idf)]
+    out += ["", "![identification](identify.png)", ""]
+    return out
+
+
+def identify_notes(idf: Dict) -> List[str]:
+    """Where the fit with weights meets or misses the goals, worded from the
+    figures."""
+    notes = []
+    for st in idf.get("sets", []):
+        w, nom = st["weights"]["all"], st["nominal"]["all"]
+        cells = stats.id_goal_cells(w)
+        missed = [f"{name} ({c})" for name, c in zip(("mean", "SD", "worst"), cells)
+                  if c != "met"]
+        worst_t = max(("0.3", "0.8", "1.5"), key=lambda t: st["weights"][t]["worst"])
+        notes.append(
+            f"{_id_set_label(st)}, with weights: {w['mean']:+.4f} ± {w['sd']:.4f} N, worst "
+            f"{w['worst']:.4f} N (at {worst_t} N) against {nom['mean']:+.4f} ± {nom['sd']:.4f} N, "
+            f"worst {nom['worst']:.4f} N with the nominal targets; "
+            + ("every goal met." if not missed else "missed: " + ", ".join(missed) + "."))
+    return notes
+
+
 def goals_table(res: Dict) -> List[Dict]:
     """Each goal with the figure it is judged on: the simavr bench when it was
     measured there, otherwise the native loop (said so)."""
@@ -451,7 +534,7 @@ def build_report(res: Dict) -> str:
         out.append(f"simavr bench{fw}: {sb}")
         out.append("")
     for part in (section_goals, section_repeat, section_accuracy, section_time, section_robust,
-                 section_ambient, section_resources):
+                 section_ambient, section_resources, section_identify):
         out += part(res)
     return "\n".join(out).rstrip() + "\n"
 

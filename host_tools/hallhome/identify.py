@@ -239,9 +239,13 @@ class _Model:
 
 
 def fit(robot: Robot, survey: Survey, *, sigma_uT: float = 1.0,
-        stiffness: bool | None = None, mechanics: bool = True) -> FitResult:
+        stiffness: bool | None = None, mechanics: bool = True, max_nfev: int | None = None,
+        progress=None) -> FitResult:
     """Fits ``robot`` to ``survey`` (see the module docstring). ``stiffness``
-    (default: when the survey has weight records) adds the segments' EI."""
+    (default: when the survey has weight records) adds the segments' EI.
+    ``max_nfev``: model evaluations before the fit gives up (default 200 per
+    parameter; a fit that runs out is refused as not converged).
+    ``progress(nfev, rms_uT)`` is called after every model evaluation."""
     twisted = [t.index for t in robot.tendons if t.twist != 0.0]
     if twisted:
         raise IdentifyError(f"tendons {twisted} have helical routing: the fit models straight "
@@ -265,11 +269,17 @@ def fit(robot: Robot, survey: Survey, *, sigma_uT: float = 1.0,
         engage = {p.tendon: v[names.index(f"engage{p.tendon}")] * 1e-6 for p in survey.pulls}
         return r, engage
 
+    nfev = [0]
+
     def resid(z):
         r, engage = unpack(z)
         preds, wpred = model.predict(r, engage)
         parts = [((pr - p.delta) / sigma).ravel() for pr, p in zip(preds, survey.pulls)]
         parts += [((wp - w.delta) / sigma).ravel() for wp, w in zip(wpred, survey.weights)]
+        if progress is not None:
+            nfev[0] += 1
+            data = np.concatenate(parts)
+            progress(nfev[0], float(np.sqrt(np.mean(data ** 2))) * sigma_uT)
         v = values(z)
         parts.append(np.array([(v[k] - p.nominal) / p.prior for k, p in enumerate(params)
                                if p.prior is not None]))
@@ -278,7 +288,7 @@ def fit(robot: Robot, survey: Survey, *, sigma_uT: float = 1.0,
     z0 = np.clip(np.zeros(len(params)), lo + 1e-9, hi - 1e-9)
     try:
         sol = least_squares(resid, z0, bounds=(lo, hi), x_scale=1.0, method="trf",
-                            max_nfev=200 * len(params))
+                            max_nfev=max_nfev or 200 * len(params))
     except (ValueError, np.linalg.LinAlgError) as exc:
         raise IdentifyError(f"the fit failed: {exc}") from None
     v = values(sol.x)
@@ -312,11 +322,13 @@ def _refusal(res: FitResult, sol, lo, hi) -> str | None:
     """The reason to refuse a fit, or None."""
     if not sol.success or sol.status <= 0:
         return f"the fit did not converge ({sol.message})"
+    fit_note = (f" (residual {res.rms_uT:.1f} uT rms against {res.signal_uT:.1f} uT of "
+                "signal)")
     for p, z, v, a, b in zip(res.params, sol.x, res.values, lo, hi):
         if p.prior is not None and min(z - a, b - z) < 1e-3 * (b - a):
             return (f"{p.name} = {v:.4g} {p.unit} reached the edge of its plausible range "
                     f"{p.lo:.4g}..{p.hi:.4g} {p.unit} (nominal {p.nominal:.4g}): the "
-                    "description does not fit this robot")
+                    "description does not fit this robot" + fit_note)
     for p, v in zip(res.params, res.values):
         if p.name.startswith("engage") and not p.lo < v < p.hi:
             return f"{p.name}: no engagement inside the pull ({v:.0f} um)"

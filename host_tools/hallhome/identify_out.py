@@ -150,7 +150,7 @@ def plot_residuals(res: FitResult, path: Path) -> Path:
             line, = row[0].plot(x, np.linalg.norm(pred[:, k], axis=-1) * 1e6, lw=1.2,
                                 label=f"model, sensor {k}")
             row[0].plot(x, np.linalg.norm(data[:, k], axis=-1) * 1e6, ".", ms=2.5,
-                        color=line.get_color())
+                        color=line.get_color(), label="measured (dots)" if k == 0 else None)
             row[1].plot(x, np.linalg.norm(pred[:, k] - data[:, k], axis=-1) * 1e6, lw=0.8,
                         color=line.get_color())
         for ax in row:
@@ -160,7 +160,7 @@ def plot_residuals(res: FitResult, path: Path) -> Path:
     axes[0][0].legend(fontsize=7)
     axes[-1][0].set_xlabel("take-up past the first step (mm); dotted: fitted engagement")
     axes[-1][1].set_xlabel("take-up (mm)")
-    fig.suptitle(f"identify fit: residual {res.rms_uT:.2f} uT rms"
+    fig.suptitle(f"identify fit of {res.robot.name}: residual {res.rms_uT:.2f} uT rms"
                  + (f" (REFUSED: {res.refused})" if res.refused else ""), fontsize=9)
     fig.tight_layout()
     fig.savefig(path, dpi=110)

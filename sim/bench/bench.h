@@ -373,6 +373,7 @@ struct bench_t {
     uint64_t limit_us;       /* 0 = none */
     uint32_t seed;
     double perturb;
+    double perturb_stiffness; /* backbone EI and EA spread; < 0: perturb's */
     uint8_t servo_baud_index; /* Baud Rate field the servos power up with (3 = 1 Mbps) */
     double tension_N;
     double straight_um[BENCH_MAX_SERVOS]; /* --straight-um: shift to the straight-pose home */

@@ -249,9 +249,10 @@ int survey_write(bench_t *b, const char *path)
     }
     fprintf(f,
             "{\"format\": \"hallhome-survey\", \"version\": 1, \"source\": \"hh_bench\",\n"
-            " \"robot\": \"%s\", \"seed\": %u, \"perturb\": %.6g, \"field_unit\": \"cuT\",\n"
-            " \"step_ticks\": %u,\n \"pulls\": [",
-            b->plant.cfg.name, b->seed, b->perturb, SURVEY_STEP_TICKS);
+            " \"robot\": \"%s\", \"seed\": %u, \"perturb\": %.6g, \"perturb_stiffness\": %.6g,\n"
+            " \"field_unit\": \"cuT\", \"step_ticks\": %u,\n \"pulls\": [",
+            b->plant.cfg.name, b->seed, b->perturb,
+            b->perturb_stiffness < 0.0 ? b->perturb : b->perturb_stiffness, SURVEY_STEP_TICKS);
     for (uint8_t i = 0; i < b->plant.cfg.n_tendons; i++) {
         if (survey_pull(b, f, i) != 0) {
             fprintf(stderr, "hh_bench: survey: tendon %u never moved the field\n", i);
