@@ -174,16 +174,19 @@ def identify(idf: Dict, outdir: str) -> str:
     n = max(len(sets), 1)
     fig, axes = plt.subplots(1, n, figsize=(5.2 * n, 4.2), squeeze=False, sharey=True)
     modes = (("nominal", "nominal TOML"), ("survey", "survey only"),
-             ("weights", "survey + weights"))
+             ("weights", "one weight per segment"), ("tendons", "one weight per tendon"))
     tensions = (0.3, 0.8, 1.5)
     for ax, st in zip(axes[0], sets):
-        for m, (key, lab) in enumerate(modes):
+        shown = [(key, lab) for key, lab in modes if key in st.get("errors", {})]
+        width = 0.8 / max(len(shown), 1)
+        for m, (key, lab) in enumerate(shown):
             e = np.array(st["errors"][key])  # (robots, tendons, tensions)
+            off = (m - (len(shown) - 1) / 2) * width
             for n_t, t in enumerate(tensions):
                 v = e[:, :, n_t].ravel()
-                x = n_t + (m - 1) * 0.25 + np.linspace(-0.08, 0.08, v.size)
+                x = n_t + off + np.linspace(-0.3, 0.3, v.size) * width
                 ax.plot(x, v, ".", ms=3, color=f"C{m}", label=lab if n_t == 0 else None)
-                ax.plot([n_t + (m - 1) * 0.25 - 0.1, n_t + (m - 1) * 0.25 + 0.1],
+                ax.plot([n_t + off - 0.4 * width, n_t + off + 0.4 * width],
                         [v.mean()] * 2, color=f"C{m}", lw=2)
         goal = idf.get("goals", {}).get("worst_N", 0.04)
         ax.axhspan(-goal, goal, color="0.85", zorder=0, label=f"worst-error goal ±{goal} N")

@@ -380,7 +380,8 @@ def loop_phase_table(r: Dict) -> List[str]:
 
 
 ID_MODES = (("nominal", "nominal TOML (today)"), ("survey", "survey only (no weights)"),
-            ("weights", "survey + one weight per segment"))
+            ("weights", "survey + one weight per segment"),
+            ("tendons", "survey + one weight per tendon"))
 
 
 def _id_set_label(st: Dict) -> str:
@@ -422,6 +423,8 @@ def section_identify(res: Dict) -> List[str]:
     for st in idf.get("sets", []):
         lab = f"{len(st['seeds'])} x {_id_set_label(st)}"
         for mode, mlab in ID_MODES:
+            if mode not in st:
+                continue
             for t in ("0.3", "0.8", "1.5", "all"):
                 r = st[mode][t]
                 goals = " / ".join(stats.id_goal_cells(r))
@@ -431,9 +434,11 @@ def section_identify(res: Dict) -> List[str]:
     for st in idf.get("sets", []):
         ref = st.get("refused", {})
         fs = st.get("fit_s") or {}
+        short = {"survey": "survey only", "weights": "one weight per segment",
+                 "tendons": "one weight per tendon"}
+        counts = ", ".join(f"{short[m]} {ref[m]}" for m, _ in ID_MODES[1:] if m in ref)
         out.append(f"- {len(st['seeds'])} robots at {_id_set_label(st)} (seeds "
-                   f"{st['seeds'][0]}-{st['seeds'][-1]}): fits refused: survey only "
-                   f"{ref.get('survey', 0)}, with weights {ref.get('weights', 0)}; a fit took "
+                   f"{st['seeds'][0]}-{st['seeds'][-1]}): fits refused: {counts}; a fit took "
                    f"{fmt(fs.get('mean'), 1)} s on average, {fmt(fs.get('max'), 1)} s at most.")
         for r in st.get("refusals", [])[:5]:
             out.append(f"  - refused, {cell(r)}")
@@ -448,16 +453,21 @@ def identify_notes(idf: Dict) -> List[str]:
     figures."""
     notes = []
     for st in idf.get("sets", []):
-        w, nom = st["weights"]["all"], st["nominal"]["all"]
-        cells = stats.id_goal_cells(w)
-        missed = [f"{name} ({c})" for name, c in zip(("mean", "SD", "worst"), cells)
-                  if c != "met"]
-        worst_t = max(("0.3", "0.8", "1.5"), key=lambda t: st["weights"][t]["worst"])
-        notes.append(
-            f"{_id_set_label(st)}, with weights: {w['mean']:+.4f} ± {w['sd']:.4f} N, worst "
-            f"{w['worst']:.4f} N (at {worst_t} N) against {nom['mean']:+.4f} ± {nom['sd']:.4f} N, "
-            f"worst {nom['worst']:.4f} N with the nominal targets; "
-            + ("every goal met." if not missed else "missed: " + ", ".join(missed) + "."))
+        nom = st["nominal"]["all"]
+        for mode, lab in (("weights", "one weight per segment"),
+                          ("tendons", "one weight per tendon")):
+            if mode not in st:
+                continue
+            w = st[mode]["all"]
+            cells = stats.id_goal_cells(w)
+            missed = [f"{name} ({c})" for name, c in zip(("mean", "SD", "worst"), cells)
+                      if c != "met"]
+            worst_t = max(("0.3", "0.8", "1.5"), key=lambda t: st[mode][t]["worst"])
+            notes.append(
+                f"{_id_set_label(st)}, {lab}: {w['mean']:+.4f} ± {w['sd']:.4f} N, worst "
+                f"{w['worst']:.4f} N (at {worst_t} N) against {nom['mean']:+.4f} ± "
+                f"{nom['sd']:.4f} N, worst {nom['worst']:.4f} N with the nominal targets; "
+                + ("every goal met." if not missed else "missed: " + ", ".join(missed) + "."))
     return notes
 
 

@@ -484,7 +484,7 @@ def identify_item(a, res: Dict) -> None:
     sets = [{"key": k, "perturb": p, "perturb_stiffness": ps,
              "seeds": list(range(1, (n or full) + 1))} for k, p, ps, full in ID_SETS]
     total = sum(len(st["seeds"]) for st in sets)
-    log(f"identification: {total} seeded robots (survey, two fits, three tables each), "
+    log(f"identification: {total} seeded robots (a survey, three fits, four tables each), "
         f"{a.jobs} at a time; a fit takes 5-30 s")
     t0 = time.time()
     count = [0]

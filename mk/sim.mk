@@ -72,12 +72,15 @@ IDENTIFY    := $(if $(FAULT),0,1)
 endif
 SIM_ID_ON   := $(and $(filter 1,$(IDENTIFY)),$(wildcard $(ROBOT_TOML)))
 SIM_ID_NAME := $(ROBOT)_id
-SIM_ID_DIR   = $(SIM_DIR)/identify/$(ROBOT)-$(SEED)$(SIM_PERTURB_TAG)
+SIM_ID_DIR   = $(SIM_DIR)/identify/$(ROBOT)-$(SEED)$(SIM_PERTURB_TAG)$(if $(SIM_ID_WEIGHT_ALL),-wall)
 SIM_ID_TOML  = $(SIM_ID_DIR)/$(SIM_ID_NAME).toml
 SIM_ID_TABLES := $(SIM_DIR)/identify/tables
 SIM_ID_ELF  := $(BUILD)/fw/$(SIM_ID_NAME)/hallhome-$(SIM_ID_NAME).elf
 SIM_ID_STATE = $(SIM_DIR)/eeprom/$(SIM_ID_NAME)-$(SEED)$(SIM_PERTURB_TAG).eeprom
 SIM_ID_WEIGHT ?= 80
+# SIM_ID_WEIGHT_ALL=1: the weight on every tendon in turn instead of one per
+# segment (the fit then gives each tendon its own radius and stretch)
+SIM_ID_WEIGHT_ALL ?=
 
 .PHONY: sim-build sim sim-test sim-no-robot
 EXTRA_HELP += "make sim [ROBOT= TENSION= SEED= FAULT= INTERACTIVE=1 IDENTIFY=0]   firmware on the virtual bench" \
@@ -114,13 +117,15 @@ sim: $(if $(SIM_ROBOT_KNOWN),$(SIM_PLANT) $(BENCH) firmware,sim-no-robot)
 	@mkdir -p $(SIM_DIR)/eeprom
 	@echo "make sim: ROBOT=$(ROBOT) SEED=$(SEED) TENSION=$(or $(TENSION),default) FAULT=$(or $(FAULT),none) IDENTIFY=$(if $(SIM_ID_ON),1,0)$(if $(SIM_PERTURB_TAG), PERTURB=$(or $(PERTURB),0.05) PERTURB_STIFFNESS=$(or $(PERTURB_STIFFNESS),$(PERTURB),0.05))"
 	@# identification first (sim/identify.sh): its firmware, description and
-	@# EEPROM image replace the nominal ones unless the fit was refused (exit 3)
+	@# EEPROM image replace the nominal ones unless the fit was refused (exit 3).
+	@# The script runs make itself: a $$(MAKE) on this line would make
+	@# `make -n sim` run it.
 	@# the straight-pose shifts of the robot description (T_straight in the
 	@# table); the bench's command line is shown (set -x) as it runs
 	@ELF=$(FW_ELF); TOML=$(ROBOT_TOML); STATE=$(SIM_STATE); \
 	$(if $(SIM_ID_ON),rc=0; BENCH=$(BENCH) FW_ELF=$(FW_ELF) PY=$(PY) WEIGHT_G=$(SIM_ID_WEIGHT) \
-		MAKE="$(MAKE)" sh sim/identify.sh $(ROBOT_TOML) $(SIM_PLANT) $(SEED) $(SIM_ID_DIR) \
-		$(SIM_ID_TABLES) $(SIM_PERTURB) || rc=$$?; \
+		sh sim/identify.sh $(ROBOT_TOML) $(SIM_PLANT) $(SEED) $(SIM_ID_DIR) \
+		$(SIM_ID_TABLES) $(SIM_PERTURB) $(if $(SIM_ID_WEIGHT_ALL),--survey-weight-all) || rc=$$?; \
 	if [ $$rc -eq 0 ]; then ELF=$(SIM_ID_ELF); TOML=$(SIM_ID_TOML); STATE=$(SIM_ID_STATE); \
 	elif [ $$rc -ne 3 ]; then exit $$rc; fi; \
 	echo "make sim: [5/5] calibration with the $$(basename $$TOML .toml) table ($$ELF)";) \

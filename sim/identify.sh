@@ -17,9 +17,12 @@
 # changed: the firmware build directory is shared by every seed of a robot,
 # and a table with an older time stamp than its object would not be rebuilt.
 #
-# usage: sim/identify.sh ROBOT_TOML PLANT SEED OUT TABLES [hh_bench perturbation options]
+# usage: sim/identify.sh ROBOT_TOML PLANT SEED OUT TABLES [hh_bench options: the
+# perturbation, --survey-weight-all]
 # environment: BENCH (hh_bench), FW_ELF (any firmware: the survey does not run
-# it), PY (the venv's python), MAKE, WEIGHT_G (grams per segment, 80)
+# it), PY (the venv's python), WEIGHT_G (grams per segment, 80). The firmware
+# is built by a make of its own (MAKE, default make) with only the variables
+# given here: the calling make's flags and variables are not passed on.
 # exit: 0 the identified firmware is built; 3 the fit (or its table) was
 # refused, the reason printed: calibrate with the nominal table; else an error.
 
@@ -43,8 +46,12 @@ stale() {
 mkdir -p "$out" "$tables" || exit 1
 py_src=$(ls host_tools/hallhome/*.py)
 
+case " $* " in
+*" --survey-weight-all "*) where="on every tendon in turn" ;;
+*) where="per segment" ;;
+esac
 say "[1/5] survey: each tendon pulled alone from slack, encoder and field recorded at every step;" \
-	"one ${weight} g weight per segment (the bench plays the board's part)"
+	"one ${weight} g weight $where (the bench plays the board's part)"
 if stale "$out/survey.json" "$BENCH" "$plant"; then
 	"$BENCH" "$FW_ELF" --plant "$plant" --seed "$seed" "$@" --survey "$out/survey.json.tmp" \
 		--survey-weight "$weight" 2>"$out/survey.log" || {
@@ -91,5 +98,6 @@ for f in "$name.c" "$name.json"; do
 done
 
 say "[4/5] firmware: make firmware ROBOT=$name (build/fw/$name)"
-$MAKE --no-print-directory firmware ROBOT="$name" ROBOTS_DIR="$out" TABLES_DIR="$tables" || exit 1
+MAKEFLAGS= MFLAGS= ${MAKE:-make} --no-print-directory firmware ROBOT="$name" ROBOTS_DIR="$out" \
+	TABLES_DIR="$tables" || exit 1
 exit 0

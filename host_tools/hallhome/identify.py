@@ -10,7 +10,12 @@ description):
 - ``magnet_J``: |polarization| of the tip magnet, T (its direction stays
   the TOML's);
 - ``length_<j>``: length of segment j, mm;
-- ``radius``: routing radius of every tendon (one common factor), mm;
+- ``radius``: routing radius of every tendon (one common factor), mm; or,
+  when every pulled tendon has a weight record of its own, ``radius<i>``
+  and ``EA<i>``: each tendon's routing radius (mm) and axial stiffness (N).
+  A tendon's take-up is its path change plus its stretch, and the survey
+  alone cannot tell one from the other; its own weight tells how far a
+  known force bends the robot through it;
 - ``sensor<k>_<x|y|z>``: sensor k's position, mm (its rotation stays);
 - ``engage<i>``: take-up from the pull's first step to the tendon's
   engagement, um (no prior: the slack at the start is unknown);
@@ -93,7 +98,25 @@ class FitResult:
         return rows
 
 
-def _params(robot: Robot, survey: Survey, stiffness: bool, mechanics: bool) -> list[Param]:
+def weighs_every_tendon(survey: Survey) -> bool:
+    """True when every pulled tendon has a weight record of its own: the fit
+    then gives each tendon its own routing radius and axial stiffness."""
+    return bool(survey.weights) and ({w.tendon for w in survey.weights}
+                                     >= {p.tendon for p in survey.pulls})
+
+
+def fit_params(robot: Robot, survey: Survey, stiffness: bool | None = None,
+               mechanics: bool = True, per_tendon: bool | None = None) -> list[Param]:
+    """The parameters ``fit`` fits (same defaults)."""
+    if stiffness is None:
+        stiffness = bool(survey.weights)
+    if per_tendon is None:
+        per_tendon = weighs_every_tendon(survey)
+    return _params(robot, survey, stiffness, mechanics, per_tendon)
+
+
+def _params(robot: Robot, survey: Survey, stiffness: bool, mechanics: bool,
+            per_tendon_radius: bool = False) -> list[Param]:
     out = []
     J = float(np.linalg.norm(robot.magnet.polarization))
     out.append(Param("magnet_J", "T", J, 0.15 * J, 0.5 * J, 1.5 * J, 0.05 * J))
@@ -101,7 +124,14 @@ def _params(robot: Robot, survey: Survey, stiffness: bool, mechanics: bool) -> l
         L = s.length * 1e3
         out.append(Param(f"length_{j + 1}", "mm", L, 0.05 * L, 0.8 * L, 1.2 * L, 0.01 * L))
     r = float(np.mean([t.routing_radius for t in robot.tendons])) * 1e3
-    if mechanics:
+    if mechanics and per_tendon_radius:
+        for p in survey.pulls:
+            ri = robot.tendons[p.tendon].routing_radius * 1e3
+            out.append(Param(f"radius{p.tendon}", "mm", ri, 0.05 * ri, 0.7 * ri, 1.3 * ri,
+                             0.01 * ri))
+            ea = robot.tendons[p.tendon].stiffness_ea
+            out.append(Param(f"EA{p.tendon}", "N", ea, 0.2 * ea, 0.5 * ea, 2.0 * ea, 0.05 * ea))
+    elif mechanics:
         out.append(Param("radius", "mm", r, 0.05 * r, 0.7 * r, 1.3 * r, 0.01 * r))
     for k, s in enumerate(robot.sensors):
         for a, ax in enumerate("xyz"):
@@ -137,7 +167,10 @@ def apply(robot: Robot, params: list[Param], values) -> Robot:
                                         youngs_modulus=e))
     r_nom = float(np.mean([t.routing_radius for t in robot.tendons]))
     f = v["radius"] * 1e-3 / r_nom if "radius" in v else 1.0
-    tendons = [dataclasses.replace(t, routing_radius=t.routing_radius * f) for t in robot.tendons]
+    tendons = [dataclasses.replace(t, routing_radius=v[f"radius{i}"] * 1e-3 if f"radius{i}" in v
+                                   else t.routing_radius * f,
+                                   stiffness_ea=v.get(f"EA{i}", t.stiffness_ea))
+               for i, t in enumerate(robot.tendons)]
     J = np.array(robot.magnet.polarization)
     magnet = dataclasses.replace(robot.magnet,
                                  polarization=tuple(J / np.linalg.norm(J) * v["magnet_J"]))
@@ -190,7 +223,7 @@ class _Model:
 
     def poses(self, r: Robot):
         key = (tuple(s.length for s in r.segments), tuple(s.youngs_modulus for s in r.segments),
-               r.tendons[0].routing_radius)
+               tuple(t.routing_radius for t in r.tendons), tuple(t.stiffness_ea for t in r.tendons))
         if key != self.key:
             pos, rot, take = [], [], []
             for p in self.survey.pulls:
@@ -240,9 +273,12 @@ class _Model:
 
 def fit(robot: Robot, survey: Survey, *, sigma_uT: float = 1.0,
         stiffness: bool | None = None, mechanics: bool = True, max_nfev: int | None = None,
-        progress=None) -> FitResult:
+        progress=None, per_tendon: bool | None = None) -> FitResult:
     """Fits ``robot`` to ``survey`` (see the module docstring). ``stiffness``
-    (default: when the survey has weight records) adds the segments' EI.
+    (default: when the survey has weight records) adds the segments' EI;
+    ``per_tendon`` (default: when every pulled tendon has a weight record)
+    fits each tendon's routing radius and axial stiffness instead of one
+    common radius.
     ``max_nfev``: model evaluations before the fit gives up (default 200 per
     parameter; a fit that runs out is refused as not converged).
     ``progress(nfev, rms_uT)`` is called after every model evaluation."""
@@ -252,7 +288,7 @@ def fit(robot: Robot, survey: Survey, *, sigma_uT: float = 1.0,
                             "routing only")
     if stiffness is None:
         stiffness = bool(survey.weights)
-    params = _params(robot, survey, stiffness, mechanics)
+    params = fit_params(robot, survey, stiffness, mechanics, per_tendon)
     names = [p.name for p in params]
     model = _Model(robot, survey)
     sigma = sigma_uT * 1e-6

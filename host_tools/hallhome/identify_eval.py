@@ -9,14 +9,16 @@ noise-free single-tendon pull, the calibration's definition) shows that
 |dB|. A homing that lands exactly on the target leaves that error.
 
 ``python -m hallhome.identify_eval`` runs the study of docs/identify.md:
-seeded perturbed robots surveyed on the bench, fitted with and without
-weights, errors against the nominal description's.
+seeded perturbed robots surveyed on the bench, fitted without weights, with
+one weight per segment and with one per tendon, errors against the nominal
+description's (``make bench`` runs it too, its section 7).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import re
 import subprocess
 import sys
 import tempfile
@@ -43,6 +45,8 @@ def truth_values(robot: Robot, survey: Survey) -> dict[str, float]:
         out[f"length_{j + 1}"] = L
         out[f"EI_{j + 1}"] = tr["segment_ei_Nm2"][j] * 1e3
     out["radius"] = float(np.mean([t["radius_mm"] for t in tr["tendons"]]))
+    for i, t in enumerate(tr["tendons"]):
+        out[f"radius{i}"] = t["radius_mm"]
     for k, s in enumerate(tr["sensors"]):
         for a, ax in enumerate("xyz"):
             out[f"sensor{k}_{ax}"] = s["pos_mm"][a]
@@ -92,16 +96,33 @@ def _invert(curve, grid, y) -> float:
 
 
 def bench_survey(bench: Path, elf: Path, plant: Path, out: Path, seed: int, perturb: float,
-                 weight_g: float, perturb_stiffness: float | None = None) -> None:
+                 weight_g: float, perturb_stiffness: float | None = None,
+                 weight_all: bool = False) -> None:
     """Runs ``hh_bench --survey`` for one seeded robot (``perturb_stiffness``:
-    the backbone's stiffness spread, default ``perturb``)."""
+    the backbone's stiffness spread, default ``perturb``; ``weight_all``: the
+    weight on every tendon, not only on each segment's first)."""
     cmd = [str(bench), str(elf), "--plant", str(plant), "--seed", str(seed), "--perturb",
            str(perturb), "--survey", str(out)]
     if perturb_stiffness is not None:
         cmd += ["--perturb-stiffness", str(perturb_stiffness)]
     if weight_g > 0:
         cmd += ["--survey-weight", str(weight_g)]
+        if weight_all:
+            cmd += ["--survey-weight-all"]
     subprocess.run(cmd, check=True, capture_output=True, text=True)
+
+
+def per_segment(robot: Robot, sv: Survey) -> Survey:
+    """``sv`` with the weight records of each segment's first tendon only
+    (hh_bench records those alike with or without --survey-weight-all)."""
+    first = set()
+    seen = set()
+    for i, t in enumerate(robot.tendons):
+        if t.segment not in seen:
+            seen.add(t.segment)
+            first.add(i)
+    return Survey(sv.pulls, tuple(w for w in sv.weights if w.tendon in first), sv.truth,
+                  sv.source, sv.meta)
 
 
 def _stats(v: np.ndarray) -> dict:
@@ -117,33 +138,40 @@ def _summary(errs: list[np.ndarray]) -> dict:
     return out
 
 
-MODES = ("nominal", "survey", "weights")
+MODES = ("nominal", "survey", "weights", "tendons")
+FITS = {"survey": "survey only", "weights": "one weight per segment",
+        "tendons": "one weight per tendon"}
 
 
 def one_seed(robot_path: Path, seed: int, perturb: float, weight_g: float, bench: Path,
              elf: Path, plant: Path, perturb_stiffness: float | None = None,
-             nominal_targets=None, workdir: Path | None = None) -> dict:
-    """One seeded bench robot: survey, the survey-only fit and the fit with
-    the weights; the tension errors of the nominal and of both fits' targets
-    (a refused fit keeps the nominal targets, as the user would), the fitted
+             nominal_targets=None, workdir: Path | None = None,
+             modes=("survey", "weights", "tendons")) -> dict:
+    """One seeded bench robot: one survey (the weight on every tendon when
+    ``modes`` has "tendons"), fitted as each mode says: "survey" without the
+    weights, "weights" with one per segment, "tendons" with one per tendon.
+    Returns the tension errors of the nominal and of each fit's targets (a
+    refused fit keeps the nominal targets, as the user would), the fitted
     minus the true parameters, and the fits' times."""
     import time
 
     robot = load_robot(robot_path)
     with tempfile.TemporaryDirectory(dir=workdir) as tmp:
         path = Path(tmp) / f"s{seed}.json"
-        bench_survey(bench, elf, plant, path, seed, perturb, weight_g, perturb_stiffness)
+        bench_survey(bench, elf, plant, path, seed, perturb, weight_g, perturb_stiffness,
+                     weight_all="tendons" in modes)
         sv = load_survey(path, robot)
     truth = sv.truth
     nominal = tension_errors(nominal_targets or robot, truth)
     out = {"seed": seed, "errors": {"nominal": nominal.tolist()}, "refused": {},
            "recovery": {}, "fit_s": {}}
     tv = truth_values(robot, sv)
-    for mode in ("survey", "weights"):
-        s = sv if mode == "weights" else Survey(sv.pulls, (), truth, sv.source, sv.meta)
+    surveys = {"survey": Survey(sv.pulls, (), truth, sv.source, sv.meta),
+               "weights": per_segment(robot, sv), "tendons": sv}
+    for mode in modes:
         t0 = time.monotonic()
         try:
-            res = fit(robot, s)
+            res = fit(robot, surveys[mode])
             why = res.refused
         except IdentifyError as exc:
             res, why = None, str(exc)
@@ -154,12 +182,13 @@ def one_seed(robot_path: Path, seed: int, perturb: float, weight_g: float, bench
             continue
         out["errors"][mode] = tension_errors(res.robot, truth).tolist()
         for r in res.table():
-            name = "engage" if r["name"].startswith("engage") else r["name"]
-            if r["name"] in tv:
-                rec = out["recovery"].setdefault(name, {})
-                rec.setdefault(mode, []).append(r["value"] - tv[r["name"]])
-                if mode == "weights" and name != "engage":
-                    rec.setdefault("nominal", []).append(r["nominal"] - tv[r["name"]])
+            if r["name"] not in tv:
+                continue
+            name = re.sub(r"^(engage|radius)\d+$", r"\1 (per tendon)", r["name"])
+            rec = out["recovery"].setdefault(name, {})
+            rec.setdefault(mode, []).append(r["value"] - tv[r["name"]])
+            if mode == "weights" and not name.endswith("(per tendon)"):
+                rec.setdefault("nominal", []).append(r["nominal"] - tv[r["name"]])
     return out
 
 
@@ -175,7 +204,8 @@ def studies(robot_path: Path, sets: list[dict], weight_g: float, bench: Path, el
     robot = load_robot(robot_path)
     nominal_targets = targets(robot)  # the same for every seed
     tasks = [(k, (robot_path, seed, st["perturb"], weight_g, bench, elf, plant,
-                  st.get("perturb_stiffness"), nominal_targets, workdir))
+                  st.get("perturb_stiffness"), nominal_targets, workdir,
+                  tuple(st.get("modes", MODES[1:]))))
              for k, st in enumerate(sets) for seed in st["seeds"]]
     per: list[list[dict]] = [[] for _ in sets]
     if jobs > 1 and len(tasks) > 1:
@@ -193,14 +223,16 @@ def studies(robot_path: Path, sets: list[dict], weight_g: float, bench: Path, el
 
 def study(robot_path: Path, seeds, perturb: float, weight_g: float, bench: Path, elf: Path,
           plant: Path, log=print, perturb_stiffness: float | None = None, jobs: int = 1,
-          workdir: Path | None = None) -> dict:
+          workdir: Path | None = None, modes=MODES[1:]) -> dict:
     """``studies`` of one set of robots."""
-    st = {"seeds": list(seeds), "perturb": perturb, "perturb_stiffness": perturb_stiffness}
+    st = {"seeds": list(seeds), "perturb": perturb, "perturb_stiffness": perturb_stiffness,
+          "modes": list(modes)}
     return studies(robot_path, [st], weight_g, bench, elf, plant, log, jobs, workdir)[0]
 
 
 def _set_summary(robot: Robot, st: dict, per: list[dict], weight_g: float) -> dict:
-    rows = {m: [np.array(p["errors"][m]) for p in per] for m in MODES}
+    modes = [m for m in MODES if all(m in p["errors"] for p in per)]
+    rows = {m: [np.array(p["errors"][m]) for p in per] for m in modes}
     recovery: dict[str, dict[str, list]] = {}
     for p in per:
         for name, d in p["recovery"].items():
@@ -213,23 +245,24 @@ def _set_summary(robot: Robot, st: dict, per: list[dict], weight_g: float) -> di
     return {"robot": robot.name, "seeds": [p["seed"] for p in per], "perturb": st["perturb"],
             "perturb_stiffness": st["perturb"] if ps is None else ps,
             "weight_g": weight_g,
-            "refused": {m: sum(m in p["refused"] for p in per) for m in ("survey", "weights")},
+            "modes": modes,
+            "refused": {m: sum(m in p["refused"] for p in per) for m in modes[1:]},
             "refusals": [f"seed {p['seed']} {m}: {w}" for p in per
                          for m, w in p["refused"].items()],
             "fit_s": {"mean": float(np.mean(fit_s)) if fit_s else None,
                       "max": float(np.max(fit_s)) if fit_s else None},
-            "errors": {m: [e.tolist() for e in rows[m]] for m in MODES},
-            **{m: _summary(rows[m]) for m in MODES},
+            "errors": {m: [e.tolist() for e in rows[m]] for m in modes},
+            **{m: _summary(rows[m]) for m in modes},
             "parameter_rms_error": rms}
 
 
 def _log_seed(p: dict, log, st: dict) -> None:
-    e = {m: np.abs(np.array(p["errors"][m])).max() for m in MODES}
+    e = {m: np.abs(np.array(v)).max() for m, v in p["errors"].items()}
     ref = "".join(f"; {m} fit refused: {w}" for m, w in p["refused"].items())
     ps = st.get("perturb_stiffness")
     spread = f"±{100 * st['perturb']:g} %" + (f", stiffness ±{100 * ps:g} %" if ps else "")
-    log(f"{spread}, seed {p['seed']}: worst |error| nominal {e['nominal']:.3f} N, survey only "
-        f"{e['survey']:.3f} N, with weights {e['weights']:.3f} N{ref}")
+    log(f"{spread}, seed {p['seed']}: worst |error| nominal {e['nominal']:.3f} N"
+        + "".join(f", {FITS[m]} {e[m]:.3f} N" for m in MODES[1:] if m in e) + ref)
 
 
 def main(argv=None) -> int:
@@ -247,11 +280,15 @@ def main(argv=None) -> int:
                     help="the backbone's stiffness spread (default: --perturb)")
     ap.add_argument("--jobs", type=int, default=1, help="seeds at once")
     ap.add_argument("--weight-g", type=float, default=80.0)
+    ap.add_argument("--modes", default=",".join(MODES[1:]),
+                    help="fits to score: survey (no weights), weights (one per segment), "
+                         "tendons (one per tendon)")
     ap.add_argument("--json", type=Path, help="write the figures here too")
     a = ap.parse_args(argv)
-    out = study(a.robot, range(1, a.seeds + 1), a.perturb, a.weight_g, a.bench, a.elf, a.plant,
-                log=lambda m: print(m, file=sys.stderr), perturb_stiffness=a.perturb_stiffness,
-                jobs=a.jobs)
+    st = {"seeds": list(range(1, a.seeds + 1)), "perturb": a.perturb,
+          "perturb_stiffness": a.perturb_stiffness, "modes": a.modes.split(",")}
+    out = studies(a.robot, [st], a.weight_g, a.bench, a.elf, a.plant,
+                  log=lambda m: print(m, file=sys.stderr), jobs=a.jobs)[0]
     text = json.dumps(out, indent=1)
     print(text)
     if a.json:

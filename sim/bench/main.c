@@ -549,6 +549,7 @@ static void usage(FILE *f)
         "  --survey-travel MM    survey pull past the detected engagement (default: the travel\n"
         "                        the unperturbed robot needs for the top grid tension)\n"
         "  --survey-weight G     survey: hang G grams on one tendon per segment (0: none)\n"
+        "  --survey-weight-all   survey: the weight on every tendon in turn\n"
         "  --tension N           calibration tension for the truth table (plant default)\n"
         "  --table               print the per-tendon table at exit\n"
         "  --straight-um U0,U1.. per tendon, um to pay out from its home to its straight-pose\n"
@@ -681,9 +682,11 @@ int main(int argc, char **argv)
             NEEDV();
             b->perturb = strtod(v, NULL);
         } else if (strcmp(a, "--perturb-stiffness") == 0) {
+            char *end = NULL;
             NEEDV();
-            b->perturb_stiffness = strtod(v, NULL);
-            if (!(b->perturb_stiffness >= 0.0 && b->perturb_stiffness < 1.0)) {
+            b->perturb_stiffness = strtod(v, &end);
+            if (end == v || *end != '\0' ||
+                !(b->perturb_stiffness >= 0.0 && b->perturb_stiffness < 1.0)) {
                 fprintf(stderr, "hh_bench: --perturb-stiffness takes a fraction in [0, 1)\n");
                 return BENCH_EXIT_USAGE;
             }
@@ -711,6 +714,8 @@ int main(int argc, char **argv)
                 fprintf(stderr, "hh_bench: --survey-travel takes 0 < mm <= 10\n");
                 return BENCH_EXIT_USAGE;
             }
+        } else if (strcmp(a, "--survey-weight-all") == 0) {
+            b->survey_weight_all = 1;
         } else if (strcmp(a, "--survey-weight") == 0) {
             NEEDV();
             b->survey_weight_g = strtod(v, NULL);

@@ -147,11 +147,16 @@ static void survey_weights(const bench_t *b, FILE *f)
     double cur[PLANT_MAX_SENSORS][3];
     const plant_cfg_t *c = &b->plant.cfg;
     int first = 1;
-    for (uint8_t j = 1; j <= c->n_segments && b->survey_weight_g > 0.0; j++) {
-        uint8_t i;
-        for (i = 0; i < c->n_tendons && c->tendon[i].segment != j; i++) {
+    /* one record per segment, on its first tendon, or with --survey-weight-all
+     * one per tendon; a segment's first tendon gets the same noise either way,
+     * so the records of one are those of the other on those tendons */
+    for (uint8_t i = 0; i < c->n_tendons && b->survey_weight_g > 0.0; i++) {
+        uint8_t j = c->tendon[i].segment;
+        uint8_t m;
+        for (m = 0; m < i && c->tendon[m].segment != j; m++) {
         }
-        if (i == c->n_tendons || start_plant(b, &p, b->seed * 57u + j, i) != 0) {
+        if ((m < i && !b->survey_weight_all) ||
+            start_plant(b, &p, b->seed * 57u + (m < i ? 100u + i : j), i) != 0) {
             continue;
         }
         read_avg(&p, SURVEY_BASE_SAMPLES, base);

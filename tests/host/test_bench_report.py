@@ -162,7 +162,8 @@ def _id_set(perturb, stiffness):
     except one tendon 0.05 N off at 1.5 N."""
     err = {"nominal": [[[0.05] * 3] * 2] * 2, "survey": [[[0.03] * 3] * 2] * 2,
            "weights": [[[0.005, -0.005, 0.0], [-0.005, 0.005, 0.05]],
-                       [[0.005, -0.005, 0.0], [-0.005, 0.005, 0.0]]]}
+                       [[0.005, -0.005, 0.0], [-0.005, 0.005, 0.0]]],
+           "tendons": [[[0.001, -0.001, 0.0]] * 2] * 2}
     import numpy as np
 
     def summary(e):
@@ -173,7 +174,7 @@ def _id_set(perturb, stiffness):
                     "worst": float(np.abs(v).max()), "n": v.size} for k, v in rows.items()}
 
     return {"seeds": [1, 2], "perturb": perturb, "perturb_stiffness": stiffness,
-            "refused": {"survey": 1, "weights": 0},
+            "refused": {"survey": 1, "weights": 0, "tendons": 0},
             "refusals": ["seed 2 survey: length_1 = 42.4 mm reached the edge"],
             "fit_s": {"mean": 9.0, "max": 14.0}, "errors": err,
             **{m: summary(e) for m, e in err.items()}}
@@ -290,12 +291,15 @@ def test_identification_section_rows_and_notes():
     text = report.build_report(_results())
     sec = text[text.index(report.SECTIONS[7]):]
     rows = [l for l in sec.splitlines() if l.startswith("| 2 x ")]
-    assert len(rows) == 2 * 3 * 4  # sets x descriptions x (three tensions and all)
+    assert len(rows) == 2 * 4 * 4  # sets x descriptions x (three tensions and all)
     assert "| 2 x ±5 % | nominal TOML (today) | 0.3 | +0.0500 | 0.0000 | 0.0500 | " \
         "missed by 0.0400 N / met / missed by 0.0100 N |" in rows
     assert "| 2 x ±10 %, stiffness ±25 % | survey + one weight per segment | 1.5 | +0.0125 | " \
         "0.0250 | 0.0500 | missed by 0.0025 N / missed by 0.0100 N / missed by 0.0100 N |" in rows
-    assert "fits refused: survey only 1, with weights 0" in sec
+    assert ("fits refused: survey only 1, one weight per segment 0, one weight per tendon 0"
+            in sec)
+    assert "±5 %, one weight per tendon: +0.0000 ± 0.0009 N, worst 0.0010 N (at 0.3 N)" in sec
+    assert "every goal met." in sec
     assert "seed 2 survey: length_1" in sec
     assert "worst 0.0500 N (at 1.5 N)" in sec and "missed: SD (missed by 0.0001 N), worst (missed by 0.0100 N)" in sec
 

@@ -298,3 +298,35 @@ def test_command_refuses_another_robots_survey_unless_told(tmp_path, survey_dict
     assert res.exit_code == 0, res.output
     assert "not written (--no-write)" in res.output
     assert not (tmp_path / "paper_2seg_id.toml").exists()
+
+
+def test_a_weight_on_every_tendon_fits_each_tendons_radius_and_stretch(tmp_path, nominal):
+    """Tendons 1 and 4 routed 3 % further out, tendon 2 2 % further in, tendon
+    5's tendon 30 % stiffer (EA): with one weight per tendon the fit gives
+    each tendon its own radius and EA and finds them."""
+    true = dataclasses.replace(nominal, tendons=tuple(
+        dataclasses.replace(t, routing_radius=t.routing_radius * f, stiffness_ea=t.stiffness_ea * g)
+        for t, f, g in zip(nominal.tendons, (1.0, 1.03, 0.98, 1.0, 1.03, 1.0),
+                           (1.0, 1.0, 1.0, 1.0, 1.0, 1.3))))
+    d = synthetic_survey(true, seed=5, weights=tuple((i, 80.0) for i in range(6)))
+    sv = survey_from_dict(d, nominal)
+    res = fit(nominal, sv)
+    assert res.refused is None, res.refused
+    names = [p.name for p in res.params]
+    assert "radius" not in names and all(f"radius{i}" in names and f"EA{i}" in names
+                                         for i in range(6))
+    # what 1 N on each tendon does to the tip (its bending angle) within 1 %: the
+    # radius, the lengths and EI alone trade against each other within their sigma
+    for i in range(6):
+        angles = [np.arccos(cc_single(r, i, [1.0])[1][0][2, 2]) for r in (res.robot, true)]
+        assert angles[0] == pytest.approx(angles[1], rel=0.01), i
+    assert res.value("radius1") > res.value("radius0") > res.value("radius2")
+    assert res.value("EA5") > 1.1 * max(res.value(f"EA{i}") for i in range(5))
+    out, back = write_identified(res, nominal, "s.json", tmp_path / "p_id.toml")
+    assert back.tendons[1].routing_radius == pytest.approx(res.value("radius1") * 1e-3, rel=1e-5)
+    assert back.tendons[5].stiffness_ea == pytest.approx(res.value("EA5"), rel=1e-4)
+    assert "effective: with the free length's error" in out.read_text()
+    # one weight per segment: the common radius, as before
+    seg = dict(d, weights=[w for w in d["weights"] if w["tendon"] in (0, 3)])
+    assert "radius" in [p.name for p in fit(nominal, survey_from_dict(seg, nominal),
+                                            max_nfev=1).params]
