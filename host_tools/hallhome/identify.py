@@ -220,6 +220,27 @@ class _Model:
     def __init__(self, robot: Robot, survey: Survey):
         self.robot, self.survey = robot, survey
         self.key = None
+        self.wcache: dict = {}  # weight record poses, by what they depend on
+
+    def _weight_pose(self, r: Robot, mech: tuple, tendon: int | None, force: float):
+        """Tip pose of the Cosserat model with ``force`` on ``tendon`` (None:
+        no load), cached on the segments and that tendon's radius: a tendon's
+        stiffness, or another tendon's radius, leaves it as it is."""
+        key = (mech, tendon, force,
+               None if tendon is None else r.tendons[tendon].routing_radius)
+        hit = self.wcache.get(key)
+        if hit is None:
+            if len(self.wcache) > 4096:
+                self.wcache.clear()
+            tau = np.zeros(len(r.tendons))
+            if tendon is not None:
+                tau[tendon] = force
+            cos = CosseratModel(r, steps_per_segment=MODEL_STEPS)
+            # no warm start: the finite differences of the Jacobian need the
+            # same solution for the same parameters, to the last digit
+            sol = cos.solve(tau)
+            hit = self.wcache[key] = (sol.tip_position[None], sol.tip_rotation[None])
+        return hit
 
     def poses(self, r: Robot):
         key = (tuple(s.length for s in r.segments), tuple(s.youngs_modulus for s in r.segments),
@@ -238,13 +259,12 @@ class _Model:
                 # the weights fix the stiffness, so they get the model the
                 # tables are generated with (Cosserat, gravity: an upright
                 # robot's own weight adds to its bending)
-                cos = CosseratModel(r, steps_per_segment=MODEL_STEPS)
-                nt = len(r.tendons)
-                for tau in [np.zeros(nt)] + [np.eye(nt)[w.tendon] * w.force
-                                             for w in self.survey.weights]:
-                    sol = cos.solve(tau)
-                    pos.append(sol.tip_position[None])
-                    rot.append(sol.tip_rotation[None])
+                mech = key[:2]
+                for tendon, force in [(None, 0.0)] + [(w.tendon, w.force)
+                                                      for w in self.survey.weights]:
+                    a, b = self._weight_pose(r, mech, tendon, force)
+                    pos.append(a)
+                    rot.append(b)
             self.cached = (np.concatenate(pos), np.concatenate(rot), np.concatenate(take))
             self.key = key
         return self.cached
