@@ -112,15 +112,19 @@ def bench_survey(bench: Path, elf: Path, plant: Path, out: Path, seed: int, pert
     subprocess.run(cmd, check=True, capture_output=True, text=True)
 
 
+def weighted_tendon(robot: Robot) -> list[int]:
+    """Per tendon, the tendon of its segment that carries the weight when
+    there is one per segment: the segment's first."""
+    first: dict[int, int] = {}
+    for i, t in enumerate(robot.tendons):
+        first.setdefault(t.segment, i)
+    return [first[t.segment] for t in robot.tendons]
+
+
 def per_segment(robot: Robot, sv: Survey) -> Survey:
     """``sv`` with the weight records of each segment's first tendon only
     (hh_bench records those alike with or without --survey-weight-all)."""
-    first = set()
-    seen = set()
-    for i, t in enumerate(robot.tendons):
-        if t.segment not in seen:
-            seen.add(t.segment)
-            first.add(i)
+    first = set(weighted_tendon(robot))
     return Survey(sv.pulls, tuple(w for w in sv.weights if w.tendon in first), sv.truth,
                   sv.source, sv.meta)
 
@@ -164,7 +168,8 @@ def one_seed(robot_path: Path, seed: int, perturb: float, weight_g: float, bench
     truth = sv.truth
     nominal = tension_errors(nominal_targets or robot, truth)
     out = {"seed": seed, "errors": {"nominal": nominal.tolist()}, "refused": {},
-           "recovery": {}, "fit_s": {}}
+           "recovery": {}, "fit_s": {},
+           "radius_mm": [t["radius_mm"] for t in truth["tendons"]]}
     tv = truth_values(robot, sv)
     surveys = {"survey": Survey(sv.pulls, (), truth, sv.source, sv.meta),
                "weights": per_segment(robot, sv), "tendons": sv}
@@ -252,6 +257,8 @@ def _set_summary(robot: Robot, st: dict, per: list[dict], weight_g: float) -> di
             "fit_s": {"mean": float(np.mean(fit_s)) if fit_s else None,
                       "max": float(np.max(fit_s)) if fit_s else None},
             "errors": {m: [e.tolist() for e in rows[m]] for m in modes},
+            "radius_mm": [p["radius_mm"] for p in per],
+            "weighted_tendon": weighted_tendon(robot),
             **{m: _summary(rows[m]) for m in modes},
             "parameter_rms_error": rms}
 

@@ -10,7 +10,8 @@
  * encoder position in ticks and each sensor's averaged reading in cuT, in the
  * sensor's own frame (noise, 0.15 uT quantisation and the ambient field
  * included). Optional weights: with every servo slack, a known mass hangs on
- * one tendon per segment and the field before and after is recorded.
+ * one tendon per segment (--survey-weight) or on every tendon in turn
+ * (--survey-weight-all) and the field before and after is recorded.
  * The plant's truth (perturbed parameters, true engagements, the true |dB|
  * per grid tension) goes into a separate "truth" object, for evaluating a
  * fit, never for making one.

@@ -174,6 +174,7 @@ def _id_set(perturb, stiffness):
                     "worst": float(np.abs(v).max()), "n": v.size} for k, v in rows.items()}
 
     return {"seeds": [1, 2], "perturb": perturb, "perturb_stiffness": stiffness,
+            "radius_mm": [[4.5, 4.6], [4.5, 4.4]], "weighted_tendon": [0, 0],
             "refused": {"survey": 1, "weights": 0, "tendons": 0},
             "refusals": ["seed 2 survey: length_1 = 42.4 mm reached the edge"],
             "fit_s": {"mean": 9.0, "max": 14.0}, "errors": err,
@@ -300,6 +301,11 @@ def test_identification_section_rows_and_notes():
             in sec)
     assert "±5 %, one weight per tendon: +0.0000 ± 0.0009 N, worst 0.0010 N (at 0.3 N)" in sec
     assert "every goal met." in sec
+    # the error at 1.5 N (0.05 N on the tendon routed further out than the weighted
+    # one) against the radius ratio: worked out by hand, r = 0.816
+    assert report.radius_correlation(_id_set(0.05, 0.05)) == pytest.approx(0.816, abs=1e-3)
+    assert "r = +0.82 at ±5 %" in sec and "1 of 2 survey-only fits at ±5 %" in sec
+    assert "(at m g = 0.78 N)" in sec
     assert "seed 2 survey: length_1" in sec
     assert "worst 0.0500 N (at 1.5 N)" in sec and "missed: SD (missed by 0.0001 N), worst (missed by 0.0100 N)" in sec
 
