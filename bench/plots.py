@@ -164,3 +164,42 @@ def ambient(amb: Dict, outdir: str) -> str:
     ax.set_title("Ambient change: absolute mode vs field-change mode (failed homes not in RMS)")
     ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     return _save(fig, outdir, "ambient.png")
+
+
+def identify(idf: Dict, outdir: str) -> str:
+    """Tension error of every tendon of every identified robot, per set,
+    tension and description (nominal, survey only, with weights), against
+    the worst-error goal."""
+    sets = idf.get("sets", []) if idf and not idf.get("not_measured") else []
+    n = max(len(sets), 1)
+    fig, axes = plt.subplots(1, n, figsize=(5.2 * n, 4.2), squeeze=False, sharey=True)
+    modes = (("nominal", "nominal TOML"), ("survey", "survey only"),
+             ("weights", "one weight per segment"), ("tendons", "one weight per tendon"))
+    tensions = (0.3, 0.8, 1.5)
+    for ax, st in zip(axes[0], sets):
+        shown = [(key, lab) for key, lab in modes if key in st.get("errors", {})]
+        width = 0.8 / max(len(shown), 1)
+        for m, (key, lab) in enumerate(shown):
+            e = np.array(st["errors"][key])  # (robots, tendons, tensions)
+            off = (m - (len(shown) - 1) / 2) * width
+            for n_t, t in enumerate(tensions):
+                v = e[:, :, n_t].ravel()
+                x = n_t + off + np.linspace(-0.3, 0.3, v.size) * width
+                ax.plot(x, v, ".", ms=3, color=f"C{m}", label=lab if n_t == 0 else None)
+                ax.plot([n_t + off - 0.4 * width, n_t + off + 0.4 * width],
+                        [v.mean()] * 2, color=f"C{m}", lw=2)
+        goal = idf.get("goals", {}).get("worst_N", 0.04)
+        ax.axhspan(-goal, goal, color="0.85", zorder=0, label=f"worst-error goal ±{goal} N")
+        ax.axhline(0, color="0.5", lw=0.8)
+        ax.set_xticks(range(len(tensions)))
+        ax.set_xticklabels([f"{t} N" for t in tensions])
+        spread = f"±{100 * st['perturb']:g} %"
+        if abs(st.get("perturb_stiffness", st["perturb"]) - st["perturb"]) > 1e-12:
+            spread += f", stiffness ±{100 * st['perturb_stiffness']:g} %"
+        ax.set_title(f"{len(st['seeds'])} robots at {spread}", fontsize=9)
+        ax.set_xlabel("tension (bars: mean)")
+    if not sets:
+        axes[0][0].text(0.5, 0.5, "not measured", ha="center", transform=axes[0][0].transAxes)
+    axes[0][0].set_ylabel("true tension - target (N)")
+    axes[0][0].legend(fontsize=7, loc="lower left")
+    return _save(fig, outdir, "identify.png")

@@ -11,6 +11,8 @@ import os
 import re
 from typing import Dict, List, Optional
 
+import numpy as np
+
 from . import stats, straight_fw
 from .stats import GOALS, PAPER
 
@@ -29,7 +31,8 @@ SECTIONS = [
     "## 5. Absolute-magnitude mode vs field-change mode",
     "## 6. Firmware resources",
     "## Goals",
-    "## 7. Straight-pose homes",
+    "## 7. Identification of the robot as built",
+    "## 8. Straight-pose homes",
 ]
 
 
@@ -379,6 +382,168 @@ def loop_phase_table(r: Dict) -> List[str]:
     return out + [""]
 
 
+ID_MODES = (("nominal", "nominal TOML (today)"), ("survey", "survey only (no weights)"),
+            ("weights", "survey + one weight per segment"),
+            ("tendons", "survey + one weight per tendon"))
+
+
+def _id_set_label(st: Dict) -> str:
+    lab = f"±{100 * st['perturb']:g} %"
+    if abs(st.get("perturb_stiffness", st["perturb"]) - st["perturb"]) > 1e-12:
+        lab += f", stiffness ±{100 * st['perturb_stiffness']:g} %"
+    return lab
+
+
+def section_identify(res: Dict) -> List[str]:
+    idf = res.get("identify") or {}
+    g = stats.ID_GOALS
+    out = [SECTIONS[7], ""]
+    out.append(
+        "Issue 17: accuracy on the robot as built. Seeded robots perturbed by `hh_bench "
+        "--perturb` (every parameter, as section 4) and `--perturb-stiffness` (the backbone's "
+        "EI and EA alone); for each, `hh_bench --survey --survey-weight-all` records what "
+        "the board would see (every tendon pulled alone from slack, encoder and field at "
+        f"each step, and a {fmt(idf.get('weight_g'), 0)} g weight on every tendon in turn), "
+        "`hallhome identify fit` fits the description to it three times (without the "
+        "weights; with one per segment, the records of each segment's first tendon, which "
+        "are those of a survey with one weight per segment; with one per tendon) and the "
+        "table generator makes the targets of each description (hallhome.identify_eval, "
+        "docs/identify.md). Error = the tension at which the true robot (the plant's "
+        "noise-free single-tendon pull, the calibration's definition) shows the target, "
+        "minus the target: what a homing that lands exactly on the target leaves; every "
+        "tendon of every robot counts. A refused fit keeps the nominal targets, as the user "
+        f"would. Goals: mean within ±{g['mean_abs_N']} N, SD ≤ {g['sd_N']} N, worst |error| "
+        f"≤ {g['worst_N']} N.")
+    out.append("")
+    if not idf or idf.get("not_measured"):
+        out.append(f"| robots | targets from | tension (N) | mean (N) | SD (N) | worst (N) | "
+                   "goals |")
+        out.append("| --- | --- | --- | --- | --- | --- | --- |")
+        out.append(f"| - | - | - | n/a | n/a | n/a | {cell(_src_note(idf))} |")
+        out.append("")
+        return out
+    out.append("| robots | targets from | tension (N) | mean (N) | SD (N) | worst \\|error\\| (N) "
+               "| goals: mean / SD / worst |")
+    out.append("| --- | --- | --- | --- | --- | --- | --- |")
+    for st in idf.get("sets", []):
+        lab = f"{len(st['seeds'])} x {_id_set_label(st)}"
+        for mode, mlab in ID_MODES:
+            if mode not in st:
+                continue
+            for t in ("0.3", "0.8", "1.5", "all"):
+                r = st[mode][t]
+                goals = " / ".join(stats.id_goal_cells(r))
+                out.append(f"| {lab} | {mlab} | {t if t != 'all' else 'all three'} | "
+                           f"{r['mean']:+.4f} | {r['sd']:.4f} | {r['worst']:.4f} | {goals} |")
+    out.append("")
+    for st in idf.get("sets", []):
+        ref = st.get("refused", {})
+        fs = st.get("fit_s") or {}
+        short = {"survey": "survey only", "weights": "one weight per segment",
+                 "tendons": "one weight per tendon"}
+        counts = ", ".join(f"{short[m]} {ref[m]}" for m, _ in ID_MODES[1:] if m in ref)
+        out.append(f"- {len(st['seeds'])} robots at {_id_set_label(st)} (seeds "
+                   f"{st['seeds'][0]}-{st['seeds'][-1]}): fits refused: {counts}; a fit took "
+                   f"{fmt(fs.get('mean'), 1)} s on average, {fmt(fs.get('max'), 1)} s at most.")
+        for r in st.get("refusals", [])[:5]:
+            out.append(f"  - refused, {cell(r)}")
+    out.append(f"- Measured in {fmt(idf.get('wall_s'), 0)} s (wall).")
+    out += [""] + [f"- {n}" for n in identify_notes(idf)]
+    out += ["", "![identification](identify.png)", ""]
+    return out
+
+
+def identify_notes(idf: Dict) -> List[str]:
+    """Where the fit with weights meets or misses the goals, worded from the
+    figures."""
+    notes = []
+    for st in idf.get("sets", []):
+        nom = st["nominal"]["all"]
+        for mode, lab in (("weights", "one weight per segment"),
+                          ("tendons", "one weight per tendon")):
+            if mode not in st:
+                continue
+            w = st[mode]["all"]
+            cells = stats.id_goal_cells(w)
+            missed = [f"{name} ({c})" for name, c in zip(("mean", "SD", "worst"), cells)
+                      if c != "met"]
+            worst_t = max(("0.3", "0.8", "1.5"), key=lambda t: st[mode][t]["worst"])
+            notes.append(
+                f"{_id_set_label(st)}, {lab}: {w['mean']:+.4f} ± {w['sd']:.4f} N, worst "
+                f"{w['worst']:.4f} N (at {worst_t} N) against {nom['mean']:+.4f} ± "
+                f"{nom['sd']:.4f} N, worst {nom['worst']:.4f} N with the nominal targets; "
+                + ("every goal met." if not missed else "missed: " + ", ".join(missed) + "."))
+    for st in idf.get("sets", []):
+        if "weights" not in st:
+            continue
+        trend = ", ".join(f"{st['weights'][t]['mean']:+.4f} N at {t} N" for t in ("0.3", "0.8", "1.5"))
+        line = (f"{_id_set_label(st)}: the mean error with one weight per segment goes with the "
+                f"tension ({trend})")
+        if "tendons" in st:
+            line += (f", and with one per tendon ({st['tendons']['0.3']['mean']:+.4f} N at 0.3 N, "
+                     f"{st['tendons']['1.5']['mean']:+.4f} N at 1.5 N); the SD at 1.5 N is "
+                     f"{st['weights']['1.5']['sd']:.4f} N with one weight per segment, "
+                     f"{st['tendons']['1.5']['sd']:.4f} N with one per tendon")
+        notes.append(line + ".")
+    why = []
+    g = idf.get("weight_g")
+    if g:
+        why.append(
+            "the mean's trend with tension is the plant's tendon friction, a tip force of "
+            "T (1 - mu) - f0 for a spool tension T (sim/plant): the host model and the table "
+            "have no friction term, so the stiffness a weight gives (at m g = "
+            f"{g * 9.80665e-3:.2f} N) is an effective one, exact at that tension only, too "
+            "soft below it and too stiff above (a second weight per segment could separate "
+            "friction from stiffness; the table would need the term)")
+    corr = [(st, radius_correlation(st)) for st in idf.get("sets", [])]
+    corr = [(st, c) for st, c in corr if c is not None]
+    if corr:
+        why.append(
+            "with one weight per segment the spread comes from the tendons without a weight: "
+            "each tendon's routing radius differs from the weighted one's, and a tendon's "
+            "survey cannot tell its radius from its stretch (free length over EA), so the "
+            "fit keeps one radius for all; a tendon's error at 1.5 N correlates with its "
+            "true radius over the weighted tendon's ("
+            + ", ".join(f"r = {c:+.2f} at {_id_set_label(st)}" for st, c in corr)
+            + "). A weight on every tendon lets the fit take each tendon's radius and "
+            "stretch")
+    ref = [(st, st.get("refused", {}).get("survey", 0)) for st in idf.get("sets", [])]
+    worse = [st for st in idf.get("sets", []) if st.get("survey")
+             and abs(st["survey"]["all"]["mean"]) > abs(st["nominal"]["all"]["mean"])]
+    if worse:
+        why.append(
+            "without weights the stiffness stays nominal: the geometry fit removes errors "
+            "that partly cancelled the stiffness's, so the mean gets worse than the nominal "
+            "description's (" + ", ".join(
+                f"{st['survey']['all']['mean']:+.4f} against {st['nominal']['all']['mean']:+.4f} N "
+                f"at {_id_set_label(st)}" for st in worse) + ")")
+    for st, n in ref:
+        if n:
+            why.append(f"{n} of {len(st['seeds'])} survey-only fits at {_id_set_label(st)} "
+                       "were refused (see above) and scored with the nominal targets")
+    if why:
+        notes.append("Why: " + "; ".join(f"({k + 1}) {w}" for k, w in enumerate(why)) + ".")
+    return notes
+
+
+def radius_correlation(st: Dict) -> Optional[float]:
+    """Correlation over every tendon of every robot of the set between the
+    error at 1.5 N with one weight per segment and the tendon's true routing
+    radius over its segment's weighted tendon's; None without the data."""
+    radii, wt = st.get("radius_mm"), st.get("weighted_tendon")
+    err = (st.get("errors") or {}).get("weights")
+    if not radii or not wt or not err:
+        return None
+    x, y = [], []
+    for r, e in zip(radii, err):
+        for i, w in enumerate(wt):
+            x.append(r[i] / r[w])
+            y.append(e[i][2])
+    if len(x) < 3 or np.std(x) == 0 or np.std(y) == 0:
+        return None
+    return float(np.corrcoef(x, y)[0, 1])
+
+
 def goals_table(res: Dict) -> List[Dict]:
     """Each goal with the figure it is judged on: the simavr bench when it was
     measured there, otherwise the native loop (said so)."""
@@ -452,9 +617,9 @@ def build_report(res: Dict) -> str:
         out.append(f"simavr bench{fw}: {sb}")
         out.append("")
     for part in (section_goals, section_repeat, section_accuracy, section_time, section_robust,
-                 section_ambient, section_resources):
+                 section_ambient, section_resources, section_identify):
         out += part(res)
-    out += straight_fw.section(res, SECTIONS[7])
+    out += straight_fw.section(res, SECTIONS[8])
     return "\n".join(out).rstrip() + "\n"
 
 

@@ -454,6 +454,57 @@ def _bench_rates(res: Dict, run: Dict, note: str = "") -> None:
                       f"({sim_s:.1f} s including boot{', ' + note if note else ''})")
 
 
+# ---- identification ------------------------------------------------------------------
+
+ID_SETS = (  # (label key, perturbation, stiffness spread or None, seeds in a full run)
+    ("5", 0.05, None, 20),
+    ("10s25", 0.10, 0.25, 20),
+)
+
+
+def identify_item(a, res: Dict) -> None:
+    """Section 7: the robot as built identified from a bench survey
+    (hallhome.identify_eval): seeded perturbed robots, targets from the
+    nominal TOML, from the survey-only fit and from the fit with one weight
+    per segment, scored by their tension errors on the true robot."""
+    why = None
+    if not (a.hh_bench and os.path.exists(a.hh_bench)):
+        why = f"no bench binary at {a.hh_bench} (it writes the surveys)"
+    elif not (a.elf and os.path.exists(a.elf)):
+        why = f"no firmware ELF at {a.elf} (hh_bench needs one, the survey does not run it)"
+    elif not (a.robot and os.path.exists(a.robot)):
+        why = f"no robot description at {a.robot}"
+    if why:
+        log(f"identification: {why}")
+        res["identify"] = {"not_measured": why}
+        return
+    try:
+        from hallhome.identify_eval import studies
+    except ImportError as e:
+        res["identify"] = {"not_measured": f"hallhome.identify_eval: {e}"}
+        return
+    n = a.id_seeds if a.id_seeds is not None else (1 if a.reduced else None)
+    sets = [{"key": k, "perturb": p, "perturb_stiffness": ps,
+             "seeds": list(range(1, (n or full) + 1))} for k, p, ps, full in ID_SETS]
+    total = sum(len(st["seeds"]) for st in sets)
+    log(f"identification: {total} seeded robots (a survey, three fits, four tables each), "
+        f"{a.jobs} at a time; a fit takes 5-30 s")
+    t0 = time.time()
+    count = [0]
+
+    def progress(msg):
+        count[0] += 1
+        log(f"identification {count[0]}/{total}: {msg} [{time.time() - t0:.0f} s]")
+
+    from pathlib import Path
+    out = studies(Path(a.robot), sets, a.id_weight_g, Path(a.hh_bench), Path(a.elf),
+                  Path(a.config), log=progress, jobs=max(1, a.jobs))
+    for st, o in zip(sets, out):
+        o["key"] = st["key"]
+    res["identify"] = {"sets": out, "weight_g": a.id_weight_g, "goals": stats.ID_GOALS,
+                       "wall_s": time.time() - t0, "robot": a.robot}
+
+
 # ---- main ----------------------------------------------------------------------------
 
 def main(argv=None) -> int:
@@ -471,6 +522,13 @@ def main(argv=None) -> int:
     p.add_argument("--sim-limit", type=float, default=60.0, help="simulated s per calibration")
     p.add_argument("--mc-runs", type=int, default=500)
     p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--robot", default="lookup_tables/robots/paper_2seg.toml",
+                   help="robot description the identification fits (section 7)")
+    p.add_argument("--id-seeds", type=int, default=None,
+                   help="robots per identification set (default 20, reduced 1)")
+    p.add_argument("--id-weight-g", type=float, default=80.0,
+                   help="the survey's weight per segment (g)")
+    p.add_argument("--no-identify", action="store_true", help="skip section 7")
     a = p.parse_args(argv)
     t0 = time.time()
     os.makedirs(a.out, exist_ok=True)
@@ -492,6 +550,10 @@ def main(argv=None) -> int:
     robust_item(a, res)
     ambient_item(a, res)
     size_item(a, res)
+    if a.no_identify:
+        res["identify"] = {"not_measured": "skipped (--no-identify)"}
+    else:
+        identify_item(a, res)
     res["resources"]["bus"] = native.dxl_bench(a.dxl_bench if os.path.exists(a.dxl_bench) else None)
     work = simavr.scratch_dir(os.path.join("build", "bench", "simavr"))
     try:
@@ -509,6 +571,7 @@ def main(argv=None) -> int:
     plots.timing(res["time"], a.out)
     plots.robustness(res["robust"], a.out)
     plots.ambient(res["ambient"], a.out)
+    plots.identify(res.get("identify", {}), a.out)
     text = report.build_report(res)
     path = os.path.join(a.out, "report.md")
     with open(path, "w") as fh:

@@ -34,6 +34,31 @@ GOALS = {
 }
 
 
+# The identification's goals (issue 17): tension error of the targets made
+# from the identified description, over every tendon of every seeded robot
+# at 0.3, 0.8 and 1.5 N (docs/identify.md).
+ID_GOALS = {
+    "mean_abs_N": 0.01,  # mean within +-0.01 N
+    "sd_N": 0.015,  # standard deviation at most 0.015 N
+    "worst_N": 0.04,  # worst |error| at most 0.04 N
+}
+
+
+def id_goal_cells(st: Mapping) -> List[str]:
+    """'met' or 'missed by X N' for the mean, SD and worst |error| of one row
+    of the identification study (a dict with mean, sd, worst)."""
+    out = []
+    for value, limit in ((abs(st["mean"]), ID_GOALS["mean_abs_N"]), (st["sd"], ID_GOALS["sd_N"]),
+                         (st["worst"], ID_GOALS["worst_N"])):
+        if value is None or not math.isfinite(float(value)):
+            out.append("not measured")
+        elif value <= limit:
+            out.append("met")
+        else:
+            out.append(f"missed by {value - limit:.4f} N")
+    return out
+
+
 def clean(values: Iterable[float]) -> List[float]:
     """The finite values, as floats."""
     out = []

@@ -1,4 +1,4 @@
-"""Straight-pose homes measured on the firmware (make bench, section 7):
+"""Straight-pose homes measured on the firmware (make bench, section 8):
 calibrations of the real ELF on the simavr bench at 0.3, 0.8 and 1.5 N, on
 the nominal robot and on robots perturbed by ±5 %, with the final move to the
 straight-pose homes (the default, `home_pose` 1). Per tendon, from the
@@ -131,7 +131,7 @@ def section(res: Dict, title: str) -> List[str]:
 
 
 def main(argv=None) -> int:
-    """`python -m bench.straight_fw`: section 7 alone (the rest of `make
+    """`python -m bench.straight_fw`: section 8 alone (the rest of `make
     bench` takes a quarter of an hour), written as markdown."""
     import argparse
     import os

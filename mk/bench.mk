@@ -52,7 +52,7 @@ BENCH_SOFT_DEPS = @for t in firmware $(BUILD)/sim/hh_bench native-build $(BENCH_
 bench: bench-tools
 	$(BENCH_SOFT_DEPS)
 	@echo "make bench: full run on $(BENCH_PLANT), progress below"
-	$(PY) -m bench.run --out $(BENCH_RESULTS) --config $(BENCH_PLANT) --closedloop $(BENCH_CL) \
+	$(PY) -m bench.run --out $(BENCH_RESULTS) --config $(BENCH_PLANT) --robot $(ROBOT_TOML) --closedloop $(BENCH_CL) \
 		--mc $(BENCH_MC) --hh-bench $(BUILD)/sim/hh_bench --elf $(FW_ELF) \
 		--dxl-bench $(BUILD)/native/hh_dxl_bench $(BENCH_ARGS)
 	@echo "make bench: report in $(BENCH_RESULTS)/report.md"
@@ -60,7 +60,7 @@ bench: bench-tools
 bench-check: bench-tools
 	$(BENCH_SOFT_DEPS)
 	@rm -rf $(BENCH_CHECK_DIR)
-	$(PY) -m bench.run --reduced --out $(BENCH_CHECK_DIR) --config $(BENCH_PLANT) \
+	$(PY) -m bench.run --reduced --out $(BENCH_CHECK_DIR) --config $(BENCH_PLANT) --robot $(ROBOT_TOML) \
 		--closedloop $(BENCH_CL) --mc $(BENCH_MC) --hh-bench $(BUILD)/sim/hh_bench \
 		--elf $(FW_ELF) --dxl-bench $(BUILD)/native/hh_dxl_bench --sim-limit 40 $(BENCH_ARGS)
 	$(PY) -c "import sys; from bench.report import check_report; \

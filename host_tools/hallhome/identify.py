@@ -10,7 +10,12 @@ description):
 - ``magnet_J``: |polarization| of the tip magnet, T (its direction stays
   the TOML's);
 - ``length_<j>``: length of segment j, mm;
-- ``radius``: routing radius of every tendon (one common factor), mm;
+- ``radius``: routing radius of every tendon (one common factor), mm; or,
+  when every pulled tendon has a weight record of its own, ``radius<i>``
+  and ``EA<i>``: each tendon's routing radius (mm) and axial stiffness (N).
+  A tendon's take-up is its path change plus its stretch, and the survey
+  alone cannot tell one from the other; its own weight tells how far a
+  known force bends the robot through it;
 - ``sensor<k>_<x|y|z>``: sensor k's position, mm (its rotation stays);
 - ``engage<i>``: take-up from the pull's first step to the tendon's
   engagement, um (no prior: the slack at the start is unknown);
@@ -93,7 +98,25 @@ class FitResult:
         return rows
 
 
-def _params(robot: Robot, survey: Survey, stiffness: bool, mechanics: bool) -> list[Param]:
+def weighs_every_tendon(survey: Survey) -> bool:
+    """True when every pulled tendon has a weight record of its own: the fit
+    then gives each tendon its own routing radius and axial stiffness."""
+    return bool(survey.weights) and ({w.tendon for w in survey.weights}
+                                     >= {p.tendon for p in survey.pulls})
+
+
+def fit_params(robot: Robot, survey: Survey, stiffness: bool | None = None,
+               mechanics: bool = True, per_tendon: bool | None = None) -> list[Param]:
+    """The parameters ``fit`` fits (same defaults)."""
+    if stiffness is None:
+        stiffness = bool(survey.weights)
+    if per_tendon is None:
+        per_tendon = weighs_every_tendon(survey)
+    return _params(robot, survey, stiffness, mechanics, per_tendon)
+
+
+def _params(robot: Robot, survey: Survey, stiffness: bool, mechanics: bool,
+            per_tendon_radius: bool = False) -> list[Param]:
     out = []
     J = float(np.linalg.norm(robot.magnet.polarization))
     out.append(Param("magnet_J", "T", J, 0.15 * J, 0.5 * J, 1.5 * J, 0.05 * J))
@@ -101,7 +124,14 @@ def _params(robot: Robot, survey: Survey, stiffness: bool, mechanics: bool) -> l
         L = s.length * 1e3
         out.append(Param(f"length_{j + 1}", "mm", L, 0.05 * L, 0.8 * L, 1.2 * L, 0.01 * L))
     r = float(np.mean([t.routing_radius for t in robot.tendons])) * 1e3
-    if mechanics:
+    if mechanics and per_tendon_radius:
+        for p in survey.pulls:
+            ri = robot.tendons[p.tendon].routing_radius * 1e3
+            out.append(Param(f"radius{p.tendon}", "mm", ri, 0.05 * ri, 0.7 * ri, 1.3 * ri,
+                             0.01 * ri))
+            ea = robot.tendons[p.tendon].stiffness_ea
+            out.append(Param(f"EA{p.tendon}", "N", ea, 0.2 * ea, 0.5 * ea, 2.0 * ea, 0.05 * ea))
+    elif mechanics:
         out.append(Param("radius", "mm", r, 0.05 * r, 0.7 * r, 1.3 * r, 0.01 * r))
     for k, s in enumerate(robot.sensors):
         for a, ax in enumerate("xyz"):
@@ -137,7 +167,10 @@ def apply(robot: Robot, params: list[Param], values) -> Robot:
                                         youngs_modulus=e))
     r_nom = float(np.mean([t.routing_radius for t in robot.tendons]))
     f = v["radius"] * 1e-3 / r_nom if "radius" in v else 1.0
-    tendons = [dataclasses.replace(t, routing_radius=t.routing_radius * f) for t in robot.tendons]
+    tendons = [dataclasses.replace(t, routing_radius=v[f"radius{i}"] * 1e-3 if f"radius{i}" in v
+                                   else t.routing_radius * f,
+                                   stiffness_ea=v.get(f"EA{i}", t.stiffness_ea))
+               for i, t in enumerate(robot.tendons)]
     J = np.array(robot.magnet.polarization)
     magnet = dataclasses.replace(robot.magnet,
                                  polarization=tuple(J / np.linalg.norm(J) * v["magnet_J"]))
@@ -187,10 +220,31 @@ class _Model:
     def __init__(self, robot: Robot, survey: Survey):
         self.robot, self.survey = robot, survey
         self.key = None
+        self.wcache: dict = {}  # weight record poses, by what they depend on
+
+    def _weight_pose(self, r: Robot, mech: tuple, tendon: int | None, force: float):
+        """Tip pose of the Cosserat model with ``force`` on ``tendon`` (None:
+        no load), cached on the segments and that tendon's radius: a tendon's
+        stiffness, or another tendon's radius, leaves it as it is."""
+        key = (mech, tendon, force,
+               None if tendon is None else r.tendons[tendon].routing_radius)
+        hit = self.wcache.get(key)
+        if hit is None:
+            if len(self.wcache) > 4096:
+                self.wcache.clear()
+            tau = np.zeros(len(r.tendons))
+            if tendon is not None:
+                tau[tendon] = force
+            cos = CosseratModel(r, steps_per_segment=MODEL_STEPS)
+            # no warm start: the finite differences of the Jacobian need the
+            # same solution for the same parameters, to the last digit
+            sol = cos.solve(tau)
+            hit = self.wcache[key] = (sol.tip_position[None], sol.tip_rotation[None])
+        return hit
 
     def poses(self, r: Robot):
         key = (tuple(s.length for s in r.segments), tuple(s.youngs_modulus for s in r.segments),
-               r.tendons[0].routing_radius)
+               tuple(t.routing_radius for t in r.tendons), tuple(t.stiffness_ea for t in r.tendons))
         if key != self.key:
             pos, rot, take = [], [], []
             for p in self.survey.pulls:
@@ -205,13 +259,12 @@ class _Model:
                 # the weights fix the stiffness, so they get the model the
                 # tables are generated with (Cosserat, gravity: an upright
                 # robot's own weight adds to its bending)
-                cos = CosseratModel(r, steps_per_segment=MODEL_STEPS)
-                nt = len(r.tendons)
-                for tau in [np.zeros(nt)] + [np.eye(nt)[w.tendon] * w.force
-                                             for w in self.survey.weights]:
-                    sol = cos.solve(tau)
-                    pos.append(sol.tip_position[None])
-                    rot.append(sol.tip_rotation[None])
+                mech = key[:2]
+                for tendon, force in [(None, 0.0)] + [(w.tendon, w.force)
+                                                      for w in self.survey.weights]:
+                    a, b = self._weight_pose(r, mech, tendon, force)
+                    pos.append(a)
+                    rot.append(b)
             self.cached = (np.concatenate(pos), np.concatenate(rot), np.concatenate(take))
             self.key = key
         return self.cached
@@ -239,16 +292,23 @@ class _Model:
 
 
 def fit(robot: Robot, survey: Survey, *, sigma_uT: float = 1.0,
-        stiffness: bool | None = None, mechanics: bool = True) -> FitResult:
+        stiffness: bool | None = None, mechanics: bool = True, max_nfev: int | None = None,
+        progress=None, per_tendon: bool | None = None) -> FitResult:
     """Fits ``robot`` to ``survey`` (see the module docstring). ``stiffness``
-    (default: when the survey has weight records) adds the segments' EI."""
+    (default: when the survey has weight records) adds the segments' EI;
+    ``per_tendon`` (default: when every pulled tendon has a weight record)
+    fits each tendon's routing radius and axial stiffness instead of one
+    common radius.
+    ``max_nfev``: model evaluations before the fit gives up (default 200 per
+    parameter; a fit that runs out is refused as not converged).
+    ``progress(nfev, rms_uT)`` is called after every model evaluation."""
     twisted = [t.index for t in robot.tendons if t.twist != 0.0]
     if twisted:
         raise IdentifyError(f"tendons {twisted} have helical routing: the fit models straight "
                             "routing only")
     if stiffness is None:
         stiffness = bool(survey.weights)
-    params = _params(robot, survey, stiffness, mechanics)
+    params = fit_params(robot, survey, stiffness, mechanics, per_tendon)
     names = [p.name for p in params]
     model = _Model(robot, survey)
     sigma = sigma_uT * 1e-6
@@ -265,11 +325,17 @@ def fit(robot: Robot, survey: Survey, *, sigma_uT: float = 1.0,
         engage = {p.tendon: v[names.index(f"engage{p.tendon}")] * 1e-6 for p in survey.pulls}
         return r, engage
 
+    nfev = [0]
+
     def resid(z):
         r, engage = unpack(z)
         preds, wpred = model.predict(r, engage)
         parts = [((pr - p.delta) / sigma).ravel() for pr, p in zip(preds, survey.pulls)]
         parts += [((wp - w.delta) / sigma).ravel() for wp, w in zip(wpred, survey.weights)]
+        if progress is not None:
+            nfev[0] += 1
+            data = np.concatenate(parts)
+            progress(nfev[0], float(np.sqrt(np.mean(data ** 2))) * sigma_uT)
         v = values(z)
         parts.append(np.array([(v[k] - p.nominal) / p.prior for k, p in enumerate(params)
                                if p.prior is not None]))
@@ -278,7 +344,7 @@ def fit(robot: Robot, survey: Survey, *, sigma_uT: float = 1.0,
     z0 = np.clip(np.zeros(len(params)), lo + 1e-9, hi - 1e-9)
     try:
         sol = least_squares(resid, z0, bounds=(lo, hi), x_scale=1.0, method="trf",
-                            max_nfev=200 * len(params))
+                            max_nfev=max_nfev or 200 * len(params))
     except (ValueError, np.linalg.LinAlgError) as exc:
         raise IdentifyError(f"the fit failed: {exc}") from None
     v = values(sol.x)
@@ -312,11 +378,13 @@ def _refusal(res: FitResult, sol, lo, hi) -> str | None:
     """The reason to refuse a fit, or None."""
     if not sol.success or sol.status <= 0:
         return f"the fit did not converge ({sol.message})"
+    fit_note = (f" (residual {res.rms_uT:.1f} uT rms against {res.signal_uT:.1f} uT of "
+                "signal)")
     for p, z, v, a, b in zip(res.params, sol.x, res.values, lo, hi):
         if p.prior is not None and min(z - a, b - z) < 1e-3 * (b - a):
             return (f"{p.name} = {v:.4g} {p.unit} reached the edge of its plausible range "
                     f"{p.lo:.4g}..{p.hi:.4g} {p.unit} (nominal {p.nominal:.4g}): the "
-                    "description does not fit this robot")
+                    "description does not fit this robot" + fit_note)
     for p, v in zip(res.params, res.values):
         if p.name.startswith("engage") and not p.lo < v < p.hi:
             return f"{p.name}: no engagement inside the pull ({v:.0f} um)"

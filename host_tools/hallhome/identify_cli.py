@@ -34,12 +34,27 @@ def identify_group():
        writes ROBOT_id.toml beside the original (refused fits write
        nothing).
     4. Install: generate the table of the identified TOML
-       (`hallhome tables ROBOT_id.toml`) and flash it.
+       (`hallhome tables ROBOT_id.toml`), build and flash its firmware
+       (`make flash ROBOT=<robot>_id`), calibrate.
 
     The board cannot stream a survey yet: surveys come from files, e.g. the
     virtual bench's (`build/sim/hh_bench --plant CFG --survey FILE
-    [--survey-weight GRAMS] FIRMWARE.elf`).
+    [--survey-weight GRAMS] FIRMWARE.elf`). `make sim` runs the whole path
+    on the bench's perturbed robot (IDENTIFY=0 skips it).
     """
+
+
+def next_steps(written: Path) -> str:
+    """What the user does with an identified TOML: its table, its firmware."""
+    from hallhome.paths import ROBOTS_DIR
+
+    stem = written.stem
+    if written.resolve().parent == Path(ROBOTS_DIR).resolve():
+        return (f"next: hallhome tables {written}, then make flash ROBOT={stem} "
+                "PORT=/dev/ttyACM0")
+    d = written.parent
+    return (f"next: hallhome tables {written} --out-dir {d}, then make flash ROBOT={stem} "
+            f"ROBOTS_DIR={d} TABLES_DIR={d} PORT=/dev/ttyACM0")
 
 
 def _rows_text(rows, truth: bool) -> list[str]:
@@ -60,25 +75,46 @@ def _rows_text(rows, truth: bool) -> list[str]:
 @click.argument("robot", type=click.Path(exists=True, dir_okay=False))
 @click.argument("survey", type=click.Path(exists=True, dir_okay=False))
 @click.option("--out", type=click.Path(dir_okay=False),
-              help="Identified TOML to write (default: ROBOT_id.toml beside ROBOT).")
+              help="Identified TOML to write (default: ROBOT_id.toml beside ROBOT). Its file "
+                   "name is the robot's name on the board: at most 15 characters.")
 @click.option("--no-write", is_flag=True, help="Fit and report only.")
 @click.option("--plots", "plot_dir", type=click.Path(file_okay=False),
-              help="Write identify_residuals.png and identify_parameters.png here.")
+              help="Write identify_residuals.png (measured and modelled field per tendon, "
+                   "the residual beside it) and identify_parameters.png (fitted minus "
+                   "nominal, 1 sigma) here.")
 @click.option("--no-weights", is_flag=True,
-              help="Ignore the survey's weight records (a geometry-only fit).")
+              help="Ignore the survey's weight records (a geometry-only fit: the stiffness "
+                   "stays nominal).")
+@click.option("--any-robot", is_flag=True,
+              help="Fit a survey that names another robot than ROBOT.")
 @click.option("--sigma-uT", "sigma_uT", type=click.FloatRange(0.01, 100.0), default=1.0,
               show_default=True, help="Field residual that counts as one sigma (noise and "
               "model error of one averaged reading).")
 @click.option("--evaluate", is_flag=True,
               help="With a bench survey's truth: tension errors of the nominal and the "
                    "identified targets (runs the table generator twice).")
-@click.option("--json", "as_json", is_flag=True, help="Print the result as JSON.")
-def fit_cmd(robot, survey, out, no_write, plot_dir, no_weights, sigma_uT, evaluate, as_json):
+@click.option("--json", "as_json", is_flag=True, help="Print the result as JSON (progress "
+              "goes to standard error).")
+def fit_cmd(robot, survey, out, no_write, plot_dir, no_weights, any_robot, sigma_uT, evaluate,
+            as_json):
     """Fit ROBOT.toml to a survey file and write the identified TOML.
 
-    Exits 1, writing nothing, when the fit is refused: it did not converge,
-    a parameter left its plausible range, or the model cannot explain the
-    data (the reason is printed).
+    Prints the fitted parameters against the nominal ones with their 1-sigma
+    uncertainty ("mostly the prior" marks the ones the data hardly tell),
+    the field residual per tendon and per weight record (uT rms; about the
+    noise, well under 1 uT, when the model explains the robot), and writes
+    ROBOT_id.toml. Next: generate its table (`hallhome tables
+    ROBOT_id.toml`) and build and flash its firmware (`make flash
+    ROBOT=<name>_id`, the TOML in lookup_tables/robots or ROBOTS_DIR).
+
+    \b
+    Exits 1, writing nothing, with the reason, when:
+    - the survey is malformed or from another robot (its name, sensor or
+      tendon count), or a pull never moves the field;
+    - the fit did not converge;
+    - a parameter ended at the edge of its plausible range (the
+      description does not fit this robot);
+    - the model cannot explain the data (residual above 10 % of the signal).
     """
     import numpy as np
 
@@ -86,22 +122,41 @@ def fit_cmd(robot, survey, out, no_write, plot_dir, no_weights, sigma_uT, evalua
     from hallhome.identify import fit
     from hallhome.identify_data import IdentifyError, Survey, load_survey
     from hallhome.identify_eval import fit_vs_truth, tension_errors, truth_values
-    from hallhome.identify_out import plot_parameters, plot_residuals, write_identified
+    from hallhome.identify_out import (identified_path, plot_parameters, plot_residuals,
+                                       write_identified)
 
     nominal = _load(robot)
     try:
-        sv = load_survey(survey, nominal)
+        sv = load_survey(survey, nominal, any_robot=any_robot)
     except IdentifyError as exc:
         raise click.ClickException(str(exc)) from None
     if no_weights:
         sv = Survey(sv.pulls, (), sv.truth, sv.source, sv.meta)
-    n_par = 1 + 2 * len(nominal.segments) + 1 + 3 * len(nominal.sensors) + len(sv.pulls)
+    n_par = 1 + len(nominal.segments) + 1 + 3 * len(nominal.sensors) + len(sv.pulls)
+    if sv.weights:
+        n_par += len(nominal.segments)
     say = (lambda m: click.echo(m, err=True)) if as_json else click.echo
     say(f"survey {survey}: {len(sv.pulls)} pulls, {len(sv.weights)} weight records "
-        f"(source {sv.source}); fitting about {n_par} parameters ...")
+        f"(source {sv.source}); fitting {n_par} parameters (5-30 s) ...")
+    if not sv.weights:
+        say("no weight records: the stiffness stays nominal, so the geometry is identified "
+            "but not the tension a take-up means; hang one known weight per segment for "
+            "that (docs/identify.md)")
+    missing = sorted(set(range(len(nominal.tendons))) - {p.tendon for p in sv.pulls})
+    if missing:
+        say(f"no pull of tendon(s) {', '.join(map(str, missing))}: their engagement is not "
+            "fitted")
     t0 = time.monotonic()
+    last = [t0]
+
+    def progress(nfev, rms):
+        now = time.monotonic()
+        if now - last[0] >= 3.0:
+            last[0] = now
+            say(f"  ... {now - t0:.0f} s, {nfev} model evaluations, residual {rms:.2f} uT rms")
+
     try:
-        res = fit(nominal, sv, sigma_uT=sigma_uT)
+        res = fit(nominal, sv, sigma_uT=sigma_uT, progress=progress)
     except IdentifyError as exc:
         raise click.ClickException(str(exc)) from None
     say(f"fit done in {time.monotonic() - t0:.1f} s: residual {res.rms_uT:.2f} uT rms "
@@ -149,6 +204,10 @@ def fit_cmd(robot, survey, out, no_write, plot_dir, no_weights, sigma_uT, evalua
             click.echo(f"wrote {p}")
         if "written" in result:
             click.echo(f"wrote {result['written']}")
+    if "written" in result:
+        say(next_steps(Path(result["written"])))
+    elif not res.refused and no_write:
+        say(f"not written (--no-write); without it: {Path(out) if out else identified_path(nominal)}")
     if res.refused:
         click.echo(f"refused: {res.refused}", err=True)
         sys.exit(1)

@@ -81,13 +81,26 @@ def _fields(value, n_sensors: int, where: str) -> np.ndarray:
     return a
 
 
-def survey_from_dict(d: dict, robot: Robot) -> Survey:
+def _base_name(name: str) -> str:
+    """A robot's name without the ``_id`` of an identified description."""
+    return name[:-3] if name.endswith("_id") else name
+
+
+def survey_from_dict(d: dict, robot: Robot, any_robot: bool = False) -> Survey:
     """Validates a survey object against ``robot`` and converts it to SI.
-    Raises IdentifyError naming the first problem."""
+    Raises IdentifyError naming the first problem. A survey that names
+    another robot (``"robot"``, the board's table name; ``<name>_id`` counts
+    as ``<name>``) is refused unless ``any_robot``."""
     if not isinstance(d, dict) or d.get("format") != "hallhome-survey":
         raise IdentifyError('not a survey: expected "format": "hallhome-survey"')
     if d.get("field_unit", "cuT") != "cuT":
         raise IdentifyError(f"field_unit {d.get('field_unit')!r}: expected cuT")
+    name = d.get("robot")
+    if (not any_robot and isinstance(name, str) and name
+            and _base_name(name) != _base_name(robot.name)):
+        raise IdentifyError(f"the survey is of robot {name!r}, the description is "
+                            f"{robot.name!r}: a survey from another robot? (fit it anyway "
+                            "with --any-robot)")
     ns, nt = len(robot.sensors), len(robot.tendons)
     pulls, seen, first = [], set(), {}
     for n, p in enumerate(d.get("pulls") or []):
@@ -96,7 +109,11 @@ def survey_from_dict(d: dict, robot: Robot) -> Survey:
         if not isinstance(i, int) or not 0 <= i < nt or i in seen:
             raise IdentifyError(f"{where}: tendon must be a new index 0..{nt - 1}")
         seen.add(i)
-        base = _fields(p.get("baseline_cuT"), ns, f"{where}.baseline_cuT")
+        b = p.get("baseline_cuT")
+        if isinstance(b, list) and len(b) != ns:
+            raise IdentifyError(f"{where}: {len(b)} sensors, the description has {ns}: a "
+                                "survey from another robot?")
+        base = _fields(b, ns, f"{where}.baseline_cuT")
         steps = p.get("steps") or []
         if len(steps) < 8:
             raise IdentifyError(f"{where}: {len(steps)} steps, at least 8 needed")
@@ -131,14 +148,15 @@ def survey_from_dict(d: dict, robot: Robot) -> Survey:
     return Survey(tuple(pulls), tuple(weights), d.get("truth"), d.get("source", "?"), meta)
 
 
-def load_survey(path: str | Path, robot: Robot) -> Survey:
-    """Reads a survey JSON file (see the module docstring)."""
+def load_survey(path: str | Path, robot: Robot, any_robot: bool = False) -> Survey:
+    """Reads a survey JSON file (see the module docstring and
+    ``survey_from_dict``)."""
     try:
         d = json.loads(Path(path).read_text())
     except (OSError, ValueError) as exc:
         raise IdentifyError(f"{path}: {exc}") from None
     try:
-        return survey_from_dict(d, robot)
+        return survey_from_dict(d, robot, any_robot)
     except IdentifyError as exc:
         raise IdentifyError(f"{path}: {exc}") from None
 

@@ -9,14 +9,16 @@ noise-free single-tendon pull, the calibration's definition) shows that
 |dB|. A homing that lands exactly on the target leaves that error.
 
 ``python -m hallhome.identify_eval`` runs the study of docs/identify.md:
-seeded perturbed robots surveyed on the bench, fitted with and without
-weights, errors against the nominal description's.
+seeded perturbed robots surveyed on the bench, fitted without weights, with
+one weight per segment and with one per tendon, errors against the nominal
+description's (``make bench`` runs it too, its section 7).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import re
 import subprocess
 import sys
 import tempfile
@@ -43,6 +45,8 @@ def truth_values(robot: Robot, survey: Survey) -> dict[str, float]:
         out[f"length_{j + 1}"] = L
         out[f"EI_{j + 1}"] = tr["segment_ei_Nm2"][j] * 1e3
     out["radius"] = float(np.mean([t["radius_mm"] for t in tr["tendons"]]))
+    for i, t in enumerate(tr["tendons"]):
+        out[f"radius{i}"] = t["radius_mm"]
     for k, s in enumerate(tr["sensors"]):
         for a, ax in enumerate("xyz"):
             out[f"sensor{k}_{ax}"] = s["pos_mm"][a]
@@ -55,20 +59,28 @@ def truth_values(robot: Robot, survey: Survey) -> dict[str, float]:
     return out
 
 
-def tension_errors(robot: Robot, truth: dict, tensions=TENSIONS) -> np.ndarray:
-    """(n_tendons, len(tensions)) true tension minus target, N, of the
-    targets generated from ``robot`` on the plant described by ``truth``."""
+def targets(robot: Robot) -> tuple[np.ndarray, list[tuple[int, np.ndarray]]]:
+    """The targets the table generator makes of ``robot``: its tension grid
+    (N) and, per tendon, the selected sensor and its |dB| per grid tension
+    (T)."""
     from hallhome.tablegen import compute
 
     res = compute(robot)
-    grid = np.array(robot.tension_grid)
+    return (np.array(robot.tension_grid),
+            [(tr.selected, tr.delta[:, tr.selected].copy()) for tr in res.tendons])
+
+
+def tension_errors(robot: Robot | tuple, truth: dict, tensions=TENSIONS) -> np.ndarray:
+    """(n_tendons, len(tensions)) true tension minus target, N, of the
+    targets generated from ``robot`` (or ``targets(robot)``, to reuse them)
+    on the plant described by ``truth``."""
+    grid, tgts = robot if isinstance(robot, tuple) else targets(robot)
     tgrid = np.array(truth["grid_mN"]) * 1e-3
-    out = np.zeros((len(robot.tendons), len(tensions)))
-    for i, tr in enumerate(res.tendons):
-        k = tr.selected
+    out = np.zeros((len(tgts), len(tensions)))
+    for i, (k, curve) in enumerate(tgts):
         true_curve = np.array([row[k] for row in truth["tendons"][i]["dB_uT"]]) * 1e-6
         for n, T in enumerate(tensions):
-            target = np.interp(T, grid, tr.delta[:, k])
+            target = np.interp(T, grid, curve)
             out[i, n] = _invert(true_curve, tgrid, target) - T
     return out
 
@@ -84,77 +96,180 @@ def _invert(curve, grid, y) -> float:
 
 
 def bench_survey(bench: Path, elf: Path, plant: Path, out: Path, seed: int, perturb: float,
-                 weight_g: float) -> None:
-    """Runs ``hh_bench --survey`` for one seeded robot."""
+                 weight_g: float, perturb_stiffness: float | None = None,
+                 weight_all: bool = False) -> None:
+    """Runs ``hh_bench --survey`` for one seeded robot (``perturb_stiffness``:
+    the backbone's stiffness spread, default ``perturb``; ``weight_all``: the
+    weight on every tendon, not only on each segment's first)."""
     cmd = [str(bench), str(elf), "--plant", str(plant), "--seed", str(seed), "--perturb",
            str(perturb), "--survey", str(out)]
+    if perturb_stiffness is not None:
+        cmd += ["--perturb-stiffness", str(perturb_stiffness)]
     if weight_g > 0:
         cmd += ["--survey-weight", str(weight_g)]
+        if weight_all:
+            cmd += ["--survey-weight-all"]
     subprocess.run(cmd, check=True, capture_output=True, text=True)
+
+
+def weighted_tendon(robot: Robot) -> list[int]:
+    """Per tendon, the tendon of its segment that carries the weight when
+    there is one per segment: the segment's first."""
+    first: dict[int, int] = {}
+    for i, t in enumerate(robot.tendons):
+        first.setdefault(t.segment, i)
+    return [first[t.segment] for t in robot.tendons]
+
+
+def per_segment(robot: Robot, sv: Survey) -> Survey:
+    """``sv`` with the weight records of each segment's first tendon only
+    (hh_bench records those alike with or without --survey-weight-all)."""
+    first = set(weighted_tendon(robot))
+    return Survey(sv.pulls, tuple(w for w in sv.weights if w.tendon in first), sv.truth,
+                  sv.source, sv.meta)
+
+
+def _stats(v: np.ndarray) -> dict:
+    v = np.asarray(v, float).ravel()
+    return {"mean": float(v.mean()), "sd": float(v.std(ddof=1)) if v.size > 1 else 0.0,
+            "worst": float(np.abs(v).max()), "n": int(v.size)}
 
 
 def _summary(errs: list[np.ndarray]) -> dict:
     e = np.array(errs)  # (runs, tendons, tensions)
-    out = {}
-    for n, T in enumerate(TENSIONS):
-        v = e[:, :, n].ravel()
-        out[f"{T:g}"] = {"mean": float(v.mean()), "sd": float(v.std(ddof=1)),
-                         "worst": float(np.abs(v).max())}
-    v = e.ravel()
-    out["all"] = {"mean": float(v.mean()), "sd": float(v.std(ddof=1)),
-                  "worst": float(np.abs(v).max())}
+    out = {f"{T:g}": _stats(e[:, :, n]) for n, T in enumerate(TENSIONS)}
+    out["all"] = _stats(e)
     return out
 
 
-def study(robot_path: Path, seeds, perturb: float, weight_g: float, bench: Path, elf: Path,
-          plant: Path, log=print) -> dict:
-    """The bench study: per seed a survey with one weight per segment; the
-    nominal description, the survey-only fit and the fit with weights
-    scored by their tension errors."""
-    from hallhome.tablegen import compute  # noqa: F401  (fail early without it)
+MODES = ("nominal", "survey", "weights", "tendons")
+FITS = {"survey": "survey only", "weights": "one weight per segment",
+        "tendons": "one weight per tendon"}
+
+
+def one_seed(robot_path: Path, seed: int, perturb: float, weight_g: float, bench: Path,
+             elf: Path, plant: Path, perturb_stiffness: float | None = None,
+             nominal_targets=None, workdir: Path | None = None,
+             modes=("survey", "weights", "tendons")) -> dict:
+    """One seeded bench robot: one survey (the weight on every tendon when
+    ``modes`` has "tendons"), fitted as each mode says: "survey" without the
+    weights, "weights" with one per segment, "tendons" with one per tendon.
+    Returns the tension errors of the nominal and of each fit's targets (a
+    refused fit keeps the nominal targets, as the user would), the fitted
+    minus the true parameters, and the fits' times."""
+    import time
 
     robot = load_robot(robot_path)
-    rows = {"nominal": [], "survey": [], "weights": []}
-    refused = {"survey": 0, "weights": 0}
-    recovery: dict[str, dict[str, list]] = {}  # parameter -> {"nominal"|mode: errors}
-    with tempfile.TemporaryDirectory() as tmp:
-        for seed in seeds:
-            path = Path(tmp) / f"s{seed}.json"
-            bench_survey(bench, elf, plant, path, seed, perturb, weight_g)
-            sv = load_survey(path, robot)
-            truth = sv.truth
-            rows["nominal"].append(tension_errors(robot, truth))
-            for mode in ("survey", "weights"):
-                s = sv if mode == "weights" else Survey(sv.pulls, (), truth, sv.source, sv.meta)
-                try:
-                    res = fit(robot, s)
-                except IdentifyError as exc:
-                    res = None
-                    log(f"seed {seed} {mode}: {exc}")
-                if res is None or res.refused:
-                    refused[mode] += 1
-                    log(f"seed {seed} {mode}: refused: {res.refused if res else ''}")
-                    rows[mode].append(rows["nominal"][-1])
-                    continue
-                rows[mode].append(tension_errors(res.robot, truth))
-                tv = truth_values(robot, s)
-                for r in res.table():
-                    if r["name"] in tv and not r["name"].startswith("engage"):
-                        rec = recovery.setdefault(r["name"], {})
-                        rec.setdefault(mode, []).append(r["value"] - tv[r["name"]])
-                        if mode == "weights":
-                            rec.setdefault("nominal", []).append(r["nominal"] - tv[r["name"]])
-                    elif r["name"].startswith("engage"):
-                        recovery.setdefault("engage", {}).setdefault(mode, []).append(
-                            r["value"] - tv[r["name"]])
-            log(f"seed {seed}: worst |error| nominal {np.abs(rows['nominal'][-1]).max():.3f} N, "
-                f"survey {np.abs(rows['survey'][-1]).max():.3f} N, "
-                f"weights {np.abs(rows['weights'][-1]).max():.3f} N")
+    with tempfile.TemporaryDirectory(dir=workdir) as tmp:
+        path = Path(tmp) / f"s{seed}.json"
+        bench_survey(bench, elf, plant, path, seed, perturb, weight_g, perturb_stiffness,
+                     weight_all="tendons" in modes)
+        sv = load_survey(path, robot)
+    truth = sv.truth
+    nominal = tension_errors(nominal_targets or robot, truth)
+    out = {"seed": seed, "errors": {"nominal": nominal.tolist()}, "refused": {},
+           "recovery": {}, "fit_s": {},
+           "radius_mm": [t["radius_mm"] for t in truth["tendons"]]}
+    tv = truth_values(robot, sv)
+    surveys = {"survey": Survey(sv.pulls, (), truth, sv.source, sv.meta),
+               "weights": per_segment(robot, sv), "tendons": sv}
+    for mode in modes:
+        t0 = time.monotonic()
+        try:
+            res = fit(robot, surveys[mode])
+            why = res.refused
+        except IdentifyError as exc:
+            res, why = None, str(exc)
+        out["fit_s"][mode] = time.monotonic() - t0
+        if why:
+            out["refused"][mode] = why
+            out["errors"][mode] = nominal.tolist()
+            continue
+        out["errors"][mode] = tension_errors(res.robot, truth).tolist()
+        for r in res.table():
+            if r["name"] not in tv:
+                continue
+            name = re.sub(r"^(engage|radius)\d+$", r"\1 (per tendon)", r["name"])
+            rec = out["recovery"].setdefault(name, {})
+            rec.setdefault(mode, []).append(r["value"] - tv[r["name"]])
+            if mode == "weights" and not name.endswith("(per tendon)"):
+                rec.setdefault("nominal", []).append(r["nominal"] - tv[r["name"]])
+    return out
+
+
+def studies(robot_path: Path, sets: list[dict], weight_g: float, bench: Path, elf: Path,
+            plant: Path, log=print, jobs: int = 1, workdir: Path | None = None) -> list[dict]:
+    """The bench study over several sets of robots, each a dict with
+    ``seeds``, ``perturb`` and optionally ``perturb_stiffness``: per seed a
+    survey with one weight per segment; the nominal description, the
+    survey-only fit and the fit with weights scored by their tension errors
+    (``one_seed``), ``jobs`` seeds at once. One summary per set."""
+    from concurrent.futures import ProcessPoolExecutor
+
+    robot = load_robot(robot_path)
+    nominal_targets = targets(robot)  # the same for every seed
+    tasks = [(k, (robot_path, seed, st["perturb"], weight_g, bench, elf, plant,
+                  st.get("perturb_stiffness"), nominal_targets, workdir,
+                  tuple(st.get("modes", MODES[1:]))))
+             for k, st in enumerate(sets) for seed in st["seeds"]]
+    per: list[list[dict]] = [[] for _ in sets]
+    if jobs > 1 and len(tasks) > 1:
+        with ProcessPoolExecutor(max_workers=jobs) as ex:
+            futures = [(k, ex.submit(one_seed, *a)) for k, a in tasks]
+            for k, f in futures:
+                per[k].append(f.result())
+                _log_seed(per[k][-1], log, sets[k])
+    else:
+        for k, a in tasks:
+            per[k].append(one_seed(*a))
+            _log_seed(per[k][-1], log, sets[k])
+    return [_set_summary(robot, st, p, weight_g) for st, p in zip(sets, per)]
+
+
+def study(robot_path: Path, seeds, perturb: float, weight_g: float, bench: Path, elf: Path,
+          plant: Path, log=print, perturb_stiffness: float | None = None, jobs: int = 1,
+          workdir: Path | None = None, modes=MODES[1:]) -> dict:
+    """``studies`` of one set of robots."""
+    st = {"seeds": list(seeds), "perturb": perturb, "perturb_stiffness": perturb_stiffness,
+          "modes": list(modes)}
+    return studies(robot_path, [st], weight_g, bench, elf, plant, log, jobs, workdir)[0]
+
+
+def _set_summary(robot: Robot, st: dict, per: list[dict], weight_g: float) -> dict:
+    modes = [m for m in MODES if all(m in p["errors"] for p in per)]
+    rows = {m: [np.array(p["errors"][m]) for p in per] for m in modes}
+    recovery: dict[str, dict[str, list]] = {}
+    for p in per:
+        for name, d in p["recovery"].items():
+            for k, v in d.items():
+                recovery.setdefault(name, {}).setdefault(k, []).extend(v)
     rms = {name: {k: float(np.sqrt(np.mean(np.square(v)))) for k, v in d.items()}
            for name, d in recovery.items()}
-    return {"robot": robot.name, "seeds": list(seeds), "perturb": perturb, "weight_g": weight_g,
-            "refused": refused, **{k: _summary(v) for k, v in rows.items()},
+    fit_s = [t for p in per for t in p["fit_s"].values()]
+    ps = st.get("perturb_stiffness")
+    return {"robot": robot.name, "seeds": [p["seed"] for p in per], "perturb": st["perturb"],
+            "perturb_stiffness": st["perturb"] if ps is None else ps,
+            "weight_g": weight_g,
+            "modes": modes,
+            "refused": {m: sum(m in p["refused"] for p in per) for m in modes[1:]},
+            "refusals": [f"seed {p['seed']} {m}: {w}" for p in per
+                         for m, w in p["refused"].items()],
+            "fit_s": {"mean": float(np.mean(fit_s)) if fit_s else None,
+                      "max": float(np.max(fit_s)) if fit_s else None},
+            "errors": {m: [e.tolist() for e in rows[m]] for m in modes},
+            "radius_mm": [p["radius_mm"] for p in per],
+            "weighted_tendon": weighted_tendon(robot),
+            **{m: _summary(rows[m]) for m in modes},
             "parameter_rms_error": rms}
+
+
+def _log_seed(p: dict, log, st: dict) -> None:
+    e = {m: np.abs(np.array(v)).max() for m, v in p["errors"].items()}
+    ref = "".join(f"; {m} fit refused: {w}" for m, w in p["refused"].items())
+    ps = st.get("perturb_stiffness")
+    spread = f"±{100 * st['perturb']:g} %" + (f", stiffness ±{100 * ps:g} %" if ps else "")
+    log(f"{spread}, seed {p['seed']}: worst |error| nominal {e['nominal']:.3f} N"
+        + "".join(f", {FITS[m]} {e[m]:.3f} N" for m in MODES[1:] if m in e) + ref)
 
 
 def main(argv=None) -> int:
@@ -168,11 +283,19 @@ def main(argv=None) -> int:
                     type=Path)
     ap.add_argument("--seeds", type=int, default=20)
     ap.add_argument("--perturb", type=float, default=0.05)
+    ap.add_argument("--perturb-stiffness", type=float, default=None,
+                    help="the backbone's stiffness spread (default: --perturb)")
+    ap.add_argument("--jobs", type=int, default=1, help="seeds at once")
     ap.add_argument("--weight-g", type=float, default=80.0)
+    ap.add_argument("--modes", default=",".join(MODES[1:]),
+                    help="fits to score: survey (no weights), weights (one per segment), "
+                         "tendons (one per tendon)")
     ap.add_argument("--json", type=Path, help="write the figures here too")
     a = ap.parse_args(argv)
-    out = study(a.robot, range(1, a.seeds + 1), a.perturb, a.weight_g, a.bench, a.elf, a.plant,
-                log=lambda m: print(m, file=sys.stderr))
+    st = {"seeds": list(range(1, a.seeds + 1)), "perturb": a.perturb,
+          "perturb_stiffness": a.perturb_stiffness, "modes": a.modes.split(",")}
+    out = studies(a.robot, [st], a.weight_g, a.bench, a.elf, a.plant,
+                  log=lambda m: print(m, file=sys.stderr), jobs=a.jobs)[0]
     text = json.dumps(out, indent=1)
     print(text)
     if a.json:

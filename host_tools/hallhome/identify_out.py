@@ -55,10 +55,15 @@ def _edits(res: FitResult) -> dict:
             out[("segments", j, "youngs_modulus_GPa")] = (
                 f"{s.youngs_modulus * 1e-9:.4f}",
                 note(f"EI_{j + 1}") + ", as E with the TOML's radii")
-    if "radius" in rows:
-        for i, t in enumerate(fitted.tendons):
-            out[("tendons", i, "routing_radius_mm")] = (f"{t.routing_radius * 1e3:.4f}",
-                                                        note("radius"))
+    for i, t in enumerate(fitted.tendons):
+        for name in ("radius", f"radius{i}"):
+            if name in rows:
+                out[("tendons", i, "routing_radius_mm")] = (f"{t.routing_radius * 1e3:.4f}",
+                                                            note(name))
+        if f"EA{i}" in rows:
+            out[("tendons", i, "stiffness_EA_N")] = (
+                f"{t.stiffness_ea:.1f}", note(f"EA{i}") + ", effective: with the free length's "
+                "error")
     out[("magnet", 0, "polarization_T")] = (_vec(fitted.magnet.polarization), note("magnet_J"))
     for k, s in enumerate(fitted.sensors):
         names = [f"sensor{k}_{a}" for a in "xyz"]
@@ -130,6 +135,7 @@ def write_identified(res: FitResult, nominal: Robot, survey_name: str,
     checks += [(np.linalg.norm(back.magnet.polarization),
                 np.linalg.norm(fitted.magnet.polarization))]
     checks += [(b.routing_radius, f.routing_radius) for b, f in zip(back.tendons, fitted.tendons)]
+    checks += [(b.stiffness_ea, f.stiffness_ea) for b, f in zip(back.tendons, fitted.tendons)]
     if any(abs(a - b) > 1e-3 * abs(b) for a, b in checks):
         raise IdentifyError(f"{out}: read back, the values differ from the fit")
     return out, back
@@ -150,7 +156,7 @@ def plot_residuals(res: FitResult, path: Path) -> Path:
             line, = row[0].plot(x, np.linalg.norm(pred[:, k], axis=-1) * 1e6, lw=1.2,
                                 label=f"model, sensor {k}")
             row[0].plot(x, np.linalg.norm(data[:, k], axis=-1) * 1e6, ".", ms=2.5,
-                        color=line.get_color())
+                        color=line.get_color(), label="measured (dots)" if k == 0 else None)
             row[1].plot(x, np.linalg.norm(pred[:, k] - data[:, k], axis=-1) * 1e6, lw=0.8,
                         color=line.get_color())
         for ax in row:
@@ -160,7 +166,7 @@ def plot_residuals(res: FitResult, path: Path) -> Path:
     axes[0][0].legend(fontsize=7)
     axes[-1][0].set_xlabel("take-up past the first step (mm); dotted: fitted engagement")
     axes[-1][1].set_xlabel("take-up (mm)")
-    fig.suptitle(f"identify fit: residual {res.rms_uT:.2f} uT rms"
+    fig.suptitle(f"identify fit of {res.robot.name}: residual {res.rms_uT:.2f} uT rms"
                  + (f" (REFUSED: {res.refused})" if res.refused else ""), fontsize=9)
     fig.tight_layout()
     fig.savefig(path, dpi=110)

@@ -373,13 +373,15 @@ struct bench_t {
     const char *eeprom_path;
     const char *summary_path;
     const char *plant_path;
-    const char *table_path;  /* --table: per-tendon table on stdout at exit */
-    const char *survey_path; /* --survey: write the identification survey, then exit */
-    double survey_travel_mm; /* survey pull past the detected engagement */
-    double survey_weight_g;  /* mass hung on one tendon per segment (0 = none) */
-    uint64_t limit_us;       /* 0 = none */
+    const char *table_path;    /* --table: per-tendon table on stdout at exit */
+    const char *survey_path;   /* --survey: write the identification survey, then exit */
+    double survey_travel_mm;   /* survey pull past the detected engagement */
+    double survey_weight_g;    /* mass hung on one tendon per segment (0 = none) */
+    uint8_t survey_weight_all; /* --survey-weight-all: on every tendon instead */
+    uint64_t limit_us;         /* 0 = none */
     uint32_t seed;
     double perturb;
+    double perturb_stiffness; /* backbone EI and EA spread; < 0: perturb's */
     uint8_t servo_baud_index; /* Baud Rate field the servos power up with (3 = 1 Mbps) */
     double tension_N;
     double straight_um[BENCH_MAX_SERVOS]; /* --straight-um: shift to the straight-pose home */

@@ -543,11 +543,13 @@ static void usage(FILE *f)
         "  --plant FILE          robot plant config (sim/plant); servos and sensors from it\n"
         "  --seed N              seed of the perturbation, the start state and all noise\n"
         "  --perturb FRAC        relative perturbation of the robot's parameters (0.05)\n"
+        "  --perturb-stiffness FRAC  the backbone's stiffness (EI, EA) by FRAC instead\n"
         "  --slack MIN:MAX       start slack before engagement in mm (0.3:2)\n"
         "  --survey FILE         write the identification survey of the plant (JSON) and exit\n"
         "  --survey-travel MM    survey pull past the detected engagement (default: the travel\n"
         "                        the unperturbed robot needs for the top grid tension)\n"
         "  --survey-weight G     survey: hang G grams on one tendon per segment (0: none)\n"
+        "  --survey-weight-all   survey: the weight on every tendon in turn\n"
         "  --tension N           calibration tension for the truth table (plant default)\n"
         "  --table               print the per-tendon table at exit\n"
         "  --straight-um U0,U1.. per tendon, um to pay out from its home to its straight-pose\n"
@@ -583,6 +585,7 @@ int main(int argc, char **argv)
 
     b->seed = 1;
     b->perturb = 0.05;
+    b->perturb_stiffness = -1.0;
     b->servo_baud_index = 3;
     b->start_slack_min_mm = 0.3;
     b->start_slack_max_mm = 2.0;
@@ -678,6 +681,15 @@ int main(int argc, char **argv)
         } else if (strcmp(a, "--perturb") == 0) {
             NEEDV();
             b->perturb = strtod(v, NULL);
+        } else if (strcmp(a, "--perturb-stiffness") == 0) {
+            char *end = NULL;
+            NEEDV();
+            b->perturb_stiffness = strtod(v, &end);
+            if (end == v || *end != '\0' ||
+                !(b->perturb_stiffness >= 0.0 && b->perturb_stiffness < 1.0)) {
+                fprintf(stderr, "hh_bench: --perturb-stiffness takes a fraction in [0, 1)\n");
+                return BENCH_EXIT_USAGE;
+            }
         } else if (strcmp(a, "--servo-baud") == 0) {
             NEEDV();
             b->servo_baud_index = (uint8_t)strtoul(v, NULL, 10);
@@ -702,6 +714,8 @@ int main(int argc, char **argv)
                 fprintf(stderr, "hh_bench: --survey-travel takes 0 < mm <= 10\n");
                 return BENCH_EXIT_USAGE;
             }
+        } else if (strcmp(a, "--survey-weight-all") == 0) {
+            b->survey_weight_all = 1;
         } else if (strcmp(a, "--survey-weight") == 0) {
             NEEDV();
             b->survey_weight_g = strtod(v, NULL);

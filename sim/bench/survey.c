@@ -10,7 +10,8 @@
  * encoder position in ticks and each sensor's averaged reading in cuT, in the
  * sensor's own frame (noise, 0.15 uT quantisation and the ambient field
  * included). Optional weights: with every servo slack, a known mass hangs on
- * one tendon per segment and the field before and after is recorded.
+ * one tendon per segment (--survey-weight) or on every tendon in turn
+ * (--survey-weight-all) and the field before and after is recorded.
  * The plant's truth (perturbed parameters, true engagements, the true |dB|
  * per grid tension) goes into a separate "truth" object, for evaluating a
  * fit, never for making one.
@@ -147,11 +148,16 @@ static void survey_weights(const bench_t *b, FILE *f)
     double cur[PLANT_MAX_SENSORS][3];
     const plant_cfg_t *c = &b->plant.cfg;
     int first = 1;
-    for (uint8_t j = 1; j <= c->n_segments && b->survey_weight_g > 0.0; j++) {
-        uint8_t i;
-        for (i = 0; i < c->n_tendons && c->tendon[i].segment != j; i++) {
+    /* one record per segment, on its first tendon, or with --survey-weight-all
+     * one per tendon; a segment's first tendon gets the same noise either way,
+     * so the records of one are those of the other on those tendons */
+    for (uint8_t i = 0; i < c->n_tendons && b->survey_weight_g > 0.0; i++) {
+        uint8_t j = c->tendon[i].segment;
+        uint8_t m;
+        for (m = 0; m < i && c->tendon[m].segment != j; m++) {
         }
-        if (i == c->n_tendons || start_plant(b, &p, b->seed * 57u + j, i) != 0) {
+        if ((m < i && !b->survey_weight_all) ||
+            start_plant(b, &p, b->seed * 57u + (m < i ? 100u + i : j), i) != 0) {
             continue;
         }
         read_avg(&p, SURVEY_BASE_SAMPLES, base);
@@ -249,9 +255,10 @@ int survey_write(bench_t *b, const char *path)
     }
     fprintf(f,
             "{\"format\": \"hallhome-survey\", \"version\": 1, \"source\": \"hh_bench\",\n"
-            " \"robot\": \"%s\", \"seed\": %u, \"perturb\": %.6g, \"field_unit\": \"cuT\",\n"
-            " \"step_ticks\": %u,\n \"pulls\": [",
-            b->plant.cfg.name, b->seed, b->perturb, SURVEY_STEP_TICKS);
+            " \"robot\": \"%s\", \"seed\": %u, \"perturb\": %.6g, \"perturb_stiffness\": %.6g,\n"
+            " \"field_unit\": \"cuT\", \"step_ticks\": %u,\n \"pulls\": [",
+            b->plant.cfg.name, b->seed, b->perturb,
+            b->perturb_stiffness < 0.0 ? b->perturb : b->perturb_stiffness, SURVEY_STEP_TICKS);
     for (uint8_t i = 0; i < b->plant.cfg.n_tendons; i++) {
         if (survey_pull(b, f, i) != 0) {
             fprintf(stderr, "hh_bench: survey: tendon %u never moved the field\n", i);

@@ -49,7 +49,9 @@ int world_init(bench_t *b)
                 line);
         return -1;
     }
-    if (plant_cfg_perturb(&cfg, b->seed, b->perturb) != 0 ||
+    if (plant_cfg_perturb_stiffness(&cfg, b->seed, b->perturb,
+                                    b->perturb_stiffness < 0.0 ? b->perturb
+                                                               : b->perturb_stiffness) != 0 ||
         plant_init(&b->plant, &cfg, b->seed) != 0) {
         fprintf(stderr, "hh_bench: plant config %s refused\n", b->plant_path);
         return -1;

@@ -158,6 +158,13 @@ int plant_cfg_check(const plant_cfg_t *cfg);
  * PLANT_E_ARG. */
 int plant_cfg_perturb(plant_cfg_t *cfg, uint32_t seed, double frac);
 
+/* The same with the backbone's stiffness (bending EI and axial EA of every
+ * segment: the rod's modulus) perturbed by `stiff` instead of frac, e.g. a
+ * NiTi rod whose modulus is known to +-25 % on a robot built to +-10 %. The
+ * random draws are those of plant_cfg_perturb(), so stiff = frac gives the
+ * same robot. Returns 0 or PLANT_E_ARG. */
+int plant_cfg_perturb_stiffness(plant_cfg_t *cfg, uint32_t seed, double frac, double stiff);
+
 /* Starts a plant: copies cfg, seeds the noise, puts every motor at tick 0
  * with the spool against the release side of its backlash, solves. Returns 0,
  * PLANT_E_ARG or PLANT_E_RANGE (cfg fails plant_cfg_check()). */

@@ -454,18 +454,23 @@ static double perturb_u(uint64_t *s)
 
 int plant_cfg_perturb(plant_cfg_t *cfg, uint32_t seed, double frac)
 {
+    return plant_cfg_perturb_stiffness(cfg, seed, frac, frac);
+}
+
+int plant_cfg_perturb_stiffness(plant_cfg_t *cfg, uint32_t seed, double frac, double stiff)
+{
     uint64_t s = 0x5EEDull ^ ((uint64_t)seed << 17);
     uint8_t i;
     int a;
     if (cfg == NULL) {
         return PLANT_E_ARG;
     }
-    if (frac == 0.0) {
+    if (frac == 0.0 && stiff == 0.0) {
         return 0;
     }
-    cfg->ei_Nm2 *= 1.0 + frac * perturb_u(&s);
+    cfg->ei_Nm2 *= 1.0 + stiff * perturb_u(&s);
     for (i = 0; i < cfg->n_segments; i++) {
-        cfg->seg_ei_Nm2[i] *= 1.0 + frac * perturb_u(&s);
+        cfg->seg_ei_Nm2[i] *= 1.0 + stiff * perturb_u(&s);
     }
     cfg->magnet_moment_Am2 *= 1.0 + frac * perturb_u(&s);
     for (i = 0; i < cfg->n_segments; i++) {
@@ -489,7 +494,7 @@ int plant_cfg_perturb(plant_cfg_t *cfg, uint32_t seed, double frac)
     }
     /* drawn last, so the draws above stay what they were before the key */
     for (i = 0; i < cfg->n_segments; i++) {
-        cfg->seg_ea_N[i] *= 1.0 + frac * perturb_u(&s);
+        cfg->seg_ea_N[i] *= 1.0 + stiff * perturb_u(&s);
     }
     return 0;
 }

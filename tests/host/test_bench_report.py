@@ -159,7 +159,34 @@ def _results():
                            "max_abs_N": 0.4}]}},
         "resources": {"flash_bytes": 80000, "ram_bytes": 4000, "flash_pct": 30.5, "ram_pct": 48.8,
                       "bus": {"sync_wire_ms": 1.54}, "sensor_rate_hz": [99.0]},
+        "identify": {"weight_g": 80.0, "goals": stats.ID_GOALS, "wall_s": 12.0,
+                     "sets": [_id_set(0.05, 0.05), _id_set(0.10, 0.25)]},
     }
+
+
+def _id_set(perturb, stiffness):
+    """An identification set of two robots with two tendons, errors made up:
+    nominal +0.05 N off, survey only +0.03 N, with weights 0.0 +- 0.005 N
+    except one tendon 0.05 N off at 1.5 N."""
+    err = {"nominal": [[[0.05] * 3] * 2] * 2, "survey": [[[0.03] * 3] * 2] * 2,
+           "weights": [[[0.005, -0.005, 0.0], [-0.005, 0.005, 0.05]],
+                       [[0.005, -0.005, 0.0], [-0.005, 0.005, 0.0]]],
+           "tendons": [[[0.001, -0.001, 0.0]] * 2] * 2}
+    import numpy as np
+
+    def summary(e):
+        e = np.array(e)
+        rows = {f"{t:g}": e[:, :, n] for n, t in enumerate((0.3, 0.8, 1.5))}
+        rows["all"] = e
+        return {k: {"mean": float(v.mean()), "sd": float(v.std(ddof=1)),
+                    "worst": float(np.abs(v).max()), "n": v.size} for k, v in rows.items()}
+
+    return {"seeds": [1, 2], "perturb": perturb, "perturb_stiffness": stiffness,
+            "radius_mm": [[4.5, 4.6], [4.5, 4.4]], "weighted_tendon": [0, 0],
+            "refused": {"survey": 1, "weights": 0, "tendons": 0},
+            "refusals": ["seed 2 survey: length_1 = 42.4 mm reached the edge"],
+            "fit_s": {"mean": 9.0, "max": 14.0}, "errors": err,
+            **{m: summary(e) for m, e in err.items()}}
 
 
 def test_goals_fall_back_to_the_native_loop_and_say_so():
@@ -183,7 +210,7 @@ def test_report_has_every_section_and_passes_the_check(tmp_path):
     # no PNGs were drawn here: only the images are missing
     assert problems and all("image" in p for p in problems)
     for name in ("repeatability", "accuracy", "timing", "robustness_hist",
-                 "robustness_sensitivity", "ambient"):
+                 "robustness_sensitivity", "ambient", "identify"):
         (tmp_path / f"{name}.png").write_bytes(b"")
     assert report.check_report(str(path)) == []
 
@@ -258,3 +285,43 @@ def test_loop_phases_merge_runs_and_report_the_goal():
     assert "| idle | 4 |" in table and "met |" in table
     assert "| engaged | 1 |" in table and "missed |" in table
     assert "not measured" in "\n".join(report.loop_phase_table({}))
+
+
+def test_identification_goals_say_by_how_much_they_are_missed():
+    assert stats.id_goal_cells({"mean": -0.008, "sd": 0.015, "worst": 0.04}) == \
+        ["met", "met", "met"]
+    assert stats.id_goal_cells({"mean": -0.012, "sd": 0.02, "worst": 0.0626}) == \
+        ["missed by 0.0020 N", "missed by 0.0050 N", "missed by 0.0226 N"]
+    assert stats.id_goal_cells({"mean": float("nan"), "sd": 0.0, "worst": 0.0})[0] == \
+        "not measured"
+
+
+def test_identification_section_rows_and_notes():
+    text = report.build_report(_results())
+    sec = text[text.index(report.SECTIONS[7]):]
+    rows = [l for l in sec.splitlines() if l.startswith("| 2 x ")]
+    assert len(rows) == 2 * 4 * 4  # sets x descriptions x (three tensions and all)
+    assert "| 2 x ±5 % | nominal TOML (today) | 0.3 | +0.0500 | 0.0000 | 0.0500 | " \
+        "missed by 0.0400 N / met / missed by 0.0100 N |" in rows
+    assert "| 2 x ±10 %, stiffness ±25 % | survey + one weight per segment | 1.5 | +0.0125 | " \
+        "0.0250 | 0.0500 | missed by 0.0025 N / missed by 0.0100 N / missed by 0.0100 N |" in rows
+    assert ("fits refused: survey only 1, one weight per segment 0, one weight per tendon 0"
+            in sec)
+    assert "±5 %, one weight per tendon: +0.0000 ± 0.0009 N, worst 0.0010 N (at 0.3 N)" in sec
+    assert "every goal met." in sec
+    # the error at 1.5 N (0.05 N on the tendon routed further out than the weighted
+    # one) against the radius ratio: worked out by hand, r = 0.816
+    assert report.radius_correlation(_id_set(0.05, 0.05)) == pytest.approx(0.816, abs=1e-3)
+    assert "r = +0.82 at ±5 %" in sec and "1 of 2 survey-only fits at ±5 %" in sec
+    assert "(at m g = 0.78 N)" in sec
+    assert "seed 2 survey: length_1" in sec
+    assert "worst 0.0500 N (at 1.5 N)" in sec and "missed: SD (missed by 0.0001 N), worst (missed by 0.0100 N)" in sec
+
+
+def test_identification_not_measured_fails_the_check(tmp_path):
+    r = _results()
+    r["identify"] = {"not_measured": "no bench binary"}
+    path = tmp_path / "report.md"
+    path.write_text(report.build_report(r))
+    problems = report.check_report(str(path))
+    assert any(report.SECTIONS[7] in p and "no numeric" in p for p in problems)

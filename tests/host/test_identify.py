@@ -234,3 +234,99 @@ def test_help_documents_the_procedure():
     assert res.exit_code == 0
     for word in ("Survey", "Weights", "Fit", "Install", "--survey"):
         assert word in res.output
+
+
+def test_survey_from_another_robot_is_refused_with_the_reason(nominal, survey_dict):
+    other = dict(survey_dict, robot="trio_3seg")
+    with pytest.raises(IdentifyError, match="another robot.*--any-robot"):
+        survey_from_dict(other, nominal)
+    assert survey_from_dict(other, nominal, any_robot=True).pulls
+    # the identified description's board name is the same robot
+    assert survey_from_dict(dict(survey_dict, robot="paper_2seg_id"), nominal).pulls
+    fewer = copy.deepcopy(survey_dict)
+    for p in fewer["pulls"]:
+        p["baseline_cuT"] = p["baseline_cuT"][:2]
+    with pytest.raises(IdentifyError, match="2 sensors, the description has 3"):
+        survey_from_dict(fewer, nominal)
+
+
+def test_a_robot_far_from_its_description_is_refused(nominal):
+    """Segments 40 % longer than described (another robot under the same
+    name): no parameter set inside the plausible ranges explains it."""
+    s1, s2 = nominal.segments
+    longer = dataclasses.replace(nominal, segments=(
+        dataclasses.replace(s1, length=s1.length * 1.4),
+        dataclasses.replace(s2, length=s2.length * 1.4)))
+    res = fit(nominal, survey_from_dict(synthetic_survey(longer, seed=3), nominal))
+    assert res.refused is not None
+    assert "does not fit this robot" in res.refused and "uT rms against" in res.refused
+
+
+def test_a_fit_that_does_not_converge_is_refused(nominal, survey_dict):
+    calls = []
+    res = fit(nominal, survey_from_dict(dict(survey_dict, weights=[]), nominal), max_nfev=3,
+              progress=lambda n, rms: calls.append((n, rms)))
+    assert res.refused is not None and "did not converge" in res.refused
+    assert [n for n, _ in calls] == list(range(1, len(calls) + 1)) and len(calls) >= 3
+    assert all(rms > 0 for _, rms in calls)
+
+
+def test_command_guides_the_next_step_and_warns_without_weights(tmp_path, survey_dict):
+    robot = tmp_path / "paper_2seg.toml"
+    robot.write_text(PAPER.read_text())
+    sv = tmp_path / "survey.json"
+    sv.write_text(json.dumps(dict(survey_dict, weights=[])))
+    res = CliRunner().invoke(main, ["identify", "fit", str(robot), str(sv)])
+    assert res.exit_code == 0, res.output
+    assert "no weight records: the stiffness stays nominal" in res.output
+    assert "fitting 19 parameters" in res.output
+    out = tmp_path / "paper_2seg_id.toml"
+    assert out.exists()
+    assert (f"next: hallhome tables {out} --out-dir {tmp_path}, then make flash "
+            f"ROBOT=paper_2seg_id ROBOTS_DIR={tmp_path} TABLES_DIR={tmp_path}") in res.output
+
+
+def test_command_refuses_another_robots_survey_unless_told(tmp_path, survey_dict):
+    robot = tmp_path / "paper_2seg.toml"
+    robot.write_text(PAPER.read_text())
+    sv = tmp_path / "survey.json"
+    sv.write_text(json.dumps(dict(survey_dict, robot="other_bot")))
+    res = CliRunner().invoke(main, ["identify", "fit", str(robot), str(sv), "--no-write"])
+    assert res.exit_code == 1 and "survey is of robot 'other_bot'" in res.output
+    res = CliRunner().invoke(main, ["identify", "fit", str(robot), str(sv), "--no-write",
+                                    "--any-robot"])
+    assert res.exit_code == 0, res.output
+    assert "not written (--no-write)" in res.output
+    assert not (tmp_path / "paper_2seg_id.toml").exists()
+
+
+def test_a_weight_on_every_tendon_fits_each_tendons_radius_and_stretch(tmp_path, nominal):
+    """Tendons 1 and 4 routed 3 % further out, tendon 2 2 % further in, tendon
+    5's tendon 30 % stiffer (EA): with one weight per tendon the fit gives
+    each tendon its own radius and EA and finds them."""
+    true = dataclasses.replace(nominal, tendons=tuple(
+        dataclasses.replace(t, routing_radius=t.routing_radius * f, stiffness_ea=t.stiffness_ea * g)
+        for t, f, g in zip(nominal.tendons, (1.0, 1.03, 0.98, 1.0, 1.03, 1.0),
+                           (1.0, 1.0, 1.0, 1.0, 1.0, 1.3))))
+    d = synthetic_survey(true, seed=5, weights=tuple((i, 80.0) for i in range(6)))
+    sv = survey_from_dict(d, nominal)
+    res = fit(nominal, sv)
+    assert res.refused is None, res.refused
+    names = [p.name for p in res.params]
+    assert "radius" not in names and all(f"radius{i}" in names and f"EA{i}" in names
+                                         for i in range(6))
+    # what 1 N on each tendon does to the tip (its bending angle) within 1 %: the
+    # radius, the lengths and EI alone trade against each other within their sigma
+    for i in range(6):
+        angles = [np.arccos(cc_single(r, i, [1.0])[1][0][2, 2]) for r in (res.robot, true)]
+        assert angles[0] == pytest.approx(angles[1], rel=0.01), i
+    assert res.value("radius1") > res.value("radius0") > res.value("radius2")
+    assert res.value("EA5") > 1.1 * max(res.value(f"EA{i}") for i in range(5))
+    out, back = write_identified(res, nominal, "s.json", tmp_path / "p_id.toml")
+    assert back.tendons[1].routing_radius == pytest.approx(res.value("radius1") * 1e-3, rel=1e-5)
+    assert back.tendons[5].stiffness_ea == pytest.approx(res.value("EA5"), rel=1e-4)
+    assert "effective: with the free length's error" in out.read_text()
+    # one weight per segment: the common radius, as before
+    seg = dict(d, weights=[w for w in d["weights"] if w["tendon"] in (0, 3)])
+    assert "radius" in [p.name for p in fit(nominal, survey_from_dict(seg, nominal),
+                                            max_nfev=1).params]

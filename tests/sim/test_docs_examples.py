@@ -287,7 +287,8 @@ BOARD_WHY = ("talks to a board on a serial port (tests/sim/test_operator_bench.p
 # (pattern, (why, check)), first match wins
 RULES = [
     (r"^make sim INTERACTIVE=1$", ("pty, real time, stopped with `quit`", do_interactive)),
-    (r"^make sim(\s|$)", ("run (3-10 s), SEED=3 when none is shown", do_make_sim)),
+    (r"^make sim(\s|$)", ("run (3-30 s with the identification), SEED=3 when none is shown",
+                          do_make_sim)),
     (r"^make (sim-test|test|bench|bench-check|unit|host-test|lint|fuzz|tables-check)(\s|$)",
      DRY_WHY),
     (r"^make chaos(-\w+)?(\s|$)", ("runs for minutes to hours on the bench: dry run",

@@ -162,3 +162,37 @@ def test_fit_of_a_bench_survey_beats_the_nominal_targets(tmp_path):
     identified = np.abs(tension_errors(res.robot, sv.truth))
     assert identified.max() < 0.03 and identified.max() < nominal.max()
     assert identified.mean() < 0.5 * nominal.mean()
+
+
+def test_stiffness_spread_moves_the_backbone_alone(tmp_path):
+    """--perturb-stiffness scales the backbone's EI deviations (same draws),
+    everything else stays the robot of --perturb."""
+    _, a = survey(tmp_path, "--seed", 9, name="a.json")
+    _, b = survey(tmp_path, "--seed", 9, "--perturb-stiffness", 0.25, name="b.json")
+    _, c = survey(tmp_path, "--seed", 9, "--perturb-stiffness", 0.05, name="c.json")
+    ta, tb = json.loads(a.read_text())["truth"], json.loads(b.read_text())["truth"]
+    da, dc = json.loads(a.read_text()), json.loads(c.read_text())
+    assert da == dc  # the same spread given twice: the same robot, the same survey
+    nominal_ei = 2.9452431e-3  # the TOML's: 60 GPa, 1 mm rod
+    for ea, eb in zip(ta["segment_ei_Nm2"], tb["segment_ei_Nm2"]):
+        assert (eb / nominal_ei - 1) == pytest.approx(5 * (ea / nominal_ei - 1), abs=1e-4)
+    assert ta["segment_len_mm"] == tb["segment_len_mm"]
+    assert ta["magnet_moment_Am2"] == tb["magnet_moment_Am2"]
+    assert [t["radius_mm"] for t in ta["tendons"]] == [t["radius_mm"] for t in tb["tendons"]]
+    assert json.loads(b.read_text())["perturb_stiffness"] == 0.25
+    for bad in ("1", "-0.1", "x"):
+        proc, _ = survey(tmp_path, "--perturb-stiffness", bad, name="bad.json")
+        assert proc.returncode == 2 and "--perturb-stiffness" in proc.stderr
+
+
+def test_survey_weight_on_every_tendon(tmp_path):
+    """--survey-weight-all: one record per tendon; those of each segment's
+    first tendon are the records without it."""
+    _, one = survey(tmp_path, "--seed", 4, "--survey-weight", 80, name="one.json")
+    _, every = survey(tmp_path, "--seed", 4, "--survey-weight", 80, "--survey-weight-all",
+                      name="every.json")
+    w1, wa = json.loads(one.read_text())["weights"], json.loads(every.read_text())["weights"]
+    assert [w["tendon"] for w in wa] == list(range(6))
+    assert [w for w in wa if w["tendon"] in (0, 3)] == w1
+    for w in wa:
+        assert max(math.dist(a, b) for a, b in zip(w["field_cuT"], w["baseline_cuT"])) > 5000

@@ -138,3 +138,85 @@ def test_switching_robots_builds_each_with_its_own_table(robots):
     r = make("firmware", "ROBOT=mkbot_a", *dirs, check=0)
     assert "NO TABLE" in r.out and not name_in_flash(hex_a, "mkbot_a")
     assert re.search(r"avr-gcc .* -o \S*hallhome-mkbot_a\.elf", r.out)
+
+
+# --- make sim: identification before the calibration ------------------------------------
+
+def _sim_files(tag):
+    d = ROOT / "build" / "sim" / "identify" / f"paper_2seg-{tag}"
+    return d, [ROOT / "build" / "sim" / "eeprom" / f"{r}-{tag}.eeprom"
+               for r in ("paper_2seg", "paper_2seg_id")]
+
+
+@pytest.fixture
+def fresh_seed():
+    """SEED=3 under its own perturbation tag (PERTURB=0.05, hh_bench's
+    default: the same robot), so the identification and the EEPROM images
+    are this test's own; removed after."""
+    d, images = _sim_files("3-p0.05")
+
+    def clean():
+        shutil.rmtree(d, ignore_errors=True)
+        for p in images:
+            p.unlink(missing_ok=True)
+    clean()
+    yield d
+    clean()
+
+
+def test_sim_identifies_the_robot_then_calibrates_with_its_table(fresh_seed):
+    r = make("sim", "SEED=3", "PERTURB=0.05")
+    assert r.returncode == 0, r.out[-3000:]
+    steps = [f"make sim: [{k}/5] " for k in range(1, 6)]
+    pos = [r.out.find(s) for s in steps]
+    assert all(p >= 0 for p in pos) and pos == sorted(pos), r.out[-3000:]
+    assert "IDENTIFY=1 PERTURB=0.05" in r.out
+    assert "fit done in" in r.out and "residual per weight" in r.out
+    assert "[5/5] calibration with the paper_2seg_id table" in r.out
+    assert re.search(r"<ready table=paper_2seg_id ", r.out)
+    assert "--perturb 0.05" in r.out and "--eeprom build/sim/eeprom/paper_2seg_id-3-p0.05" in r.out
+    assert re.search(r"^\s+5\s+6\s+\d+ .* pass$", r.stdout, re.M)
+    d = fresh_seed
+    for f in ("survey.json", "paper_2seg_id.toml", "fit.txt", "tables/paper_2seg_id.c",
+              "plots/identify_residuals.png"):
+        assert (d / f).exists(), f
+    # generated files go under build/, never into lookup_tables/
+    assert not (ROOT / "lookup_tables" / "robots" / "paper_2seg_id.toml").exists()
+    assert not (ROOT / "lookup_tables" / "generated" / "paper_2seg_id.c").exists()
+    # the same robot again: survey and fit are kept, the firmware is up to date
+    r = make("sim", "SEED=3", "PERTURB=0.05")
+    assert r.returncode == 0, r.out[-3000:]
+    assert "(kept: this robot was surveyed before)" in r.out
+    assert "(kept from an earlier run of this robot" in r.out
+    assert "avr-gcc" not in r.out
+
+
+def test_sim_without_identification_and_fault_scenarios_use_the_nominal_table(fresh_seed):
+    r = make("sim", "SEED=3", "PERTURB=0.05", "IDENTIFY=0")
+    assert r.returncode == 0, r.out[-3000:]
+    assert "IDENTIFY=0" in r.out and "[1/5]" not in r.out
+    assert re.search(r"<ready table=paper_2seg ", r.out)
+    assert not fresh_seed.exists()
+    r = make("-n", "sim", "SEED=3", "FAULT=sensor_unplug", check=0)
+    assert "sh sim/identify.sh" not in r.out and "IDENTIFY=0" in r.out
+    r = make("-n", "sim", "SEED=3", "FAULT=sensor_unplug", "IDENTIFY=1", check=0)
+    assert "sh sim/identify.sh" in r.out
+    assert not fresh_seed.exists()  # a dry run runs nothing
+
+
+def test_sim_calibrates_with_the_nominal_table_when_the_fit_is_refused(fresh_seed, tmp_path):
+    """A fit refused (here by a stand-in for the venv's python that refuses
+    every fit) is reported and the nominal table calibrates."""
+    fake = tmp_path / "python"
+    fake.write_text("#!/bin/sh\n"
+                    "case \"$*\" in *'identify fit'*) echo 'refused: for the test' >&2; "
+                    "exit 1;; esac\n"
+                    f"exec {ROOT / '.venv' / 'bin' / 'python'} \"$@\"\n")
+    fake.chmod(0o755)
+    r = make("sim", "SEED=3", "PERTURB=0.05", f"PY={fake}")
+    assert r.returncode == 0, r.out[-3000:]
+    assert "refused: for the test" in r.out
+    assert "identification refused (reason above): calibrating with the nominal table" in r.out
+    assert "[3/5]" not in r.out and "[4/5]" not in r.out
+    assert "[5/5] calibration with the paper_2seg table" in r.out
+    assert re.search(r"<ready table=paper_2seg ", r.out)
