@@ -182,6 +182,18 @@ def do_dry_learned(cmd, tmp):
     assert f"{tmp}/paper_2seg_learned.c -o build/fw/paper_2seg_learned/avr/" in r.stdout
 
 
+def do_dry_identified(cmd, tmp):
+    # The identified description and its table come from `make sim`'s
+    # identification (tests/sim/test_make.py runs it); copies of the
+    # nominal ones under the identified name stand in for them.
+    shutil.copy(ROOT / "lookup_tables" / "robots" / "paper_2seg.toml", tmp / "paper_2seg_id.toml")
+    shutil.copy(ROOT / "lookup_tables" / "generated" / "paper_2seg.c", tmp / "paper_2seg_id.c")
+    argv = fill(cmd, tmp)
+    r = run(["make", "-n", *argv[1:], f"ROBOTS_DIR={tmp}", f"TABLES_DIR={tmp}"])
+    assert r.returncode == 0, r.out
+    assert f"{tmp}/paper_2seg_id.c -o build/fw/paper_2seg_id/avr/" in r.stdout
+
+
 def do_help(cmd, tmp):
     """The subcommand(s) exist and know every option the example shows."""
     argv = fill(cmd, tmp)
@@ -299,6 +311,8 @@ RULES = [
     (r"^make flash(\s|$)", ("needs a board: dry run, avrdude gets ROBOT's HEX", do_dry_flash)),
     (r"^make firmware ROBOT=<robot>_learned", ("needs targets learned on a board: dry run",
                                                 do_dry_learned)),
+    (r"^make firmware ROBOT=<robot>_id", ("needs an identified robot (make sim): dry run",
+                                          do_dry_identified)),
     (r"^make( firmware| size| help)?$", ("run", do_make_run)),
     (r"^make -s fw-path$", ("run: one line", do_fw_path)),
     (r"^hallhome (check|tables)$", ("a name in prose, arguments required: --help", do_help)),
