@@ -359,5 +359,7 @@ _register_operator(main)
 
 from hallhome.identify_cli import identify_group  # noqa: E402
 from hallhome.op_install import install_cmd  # noqa: E402
+from hallhome.op_survey import survey_cmd  # noqa: E402
 identify_group.add_command(install_cmd)
+identify_group.add_command(survey_cmd)
 main.add_command(identify_group)

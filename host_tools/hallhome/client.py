@@ -50,7 +50,7 @@ QUIET = 0.15  # a pause this long ends the drain after a sync
 
 # Commands that start motion which outlives their `ok`: if the host that
 # started one goes away before it is seen to end, close() aborts it.
-MOTION_COMMANDS = ("cal", "rehome", "home")
+MOTION_COMMANDS = ("cal", "survey", "rehome", "home")
 for _name in MOTION_COMMANDS:
     if _name not in protocol.COMMANDS_BY_NAME:
         raise RuntimeError(f"command {_name!r} is no longer declared in con_commands.def")

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import sys
 import time
-from typing import Dict, List, Optional
+from typing import Callable, Dict, List, Optional
 
 import click
 from rich.live import Live
@@ -141,10 +141,11 @@ def _f(v) -> Optional[float]:
 
 
 def follow(c: Client, view: CalView, title: str, run_timeout: float, quiet: bool,
-           what: str = "calibration", again: str = "calibrate") -> None:
+           what: str = "calibration", again: str = "calibrate",
+           log: Callable[[Report], bool] = lambda r: True) -> None:
     """Feeds the run's reports to the view until it ends: a live table on a
-    terminal, the reports as a log otherwise (nothing with `quiet`). Ctrl-C
-    aborts on the board and exits 130."""
+    terminal, the reports for which `log` holds as a log otherwise (nothing
+    with `quiet`). Ctrl-C aborts on the board and exits 130."""
     con = out()
     live_ok = con.is_terminal and not quiet
     deadline = time.monotonic() + run_timeout
@@ -162,7 +163,7 @@ def follow(c: Client, view: CalView, title: str, run_timeout: float, quiet: bool
                         raise BoardReset(c.reset_message(r, f"during the {what}") +
                                          f"; run `hallhome {again}` again", r)
                     view.feed(r)
-                    if not con.is_terminal and not quiet:
+                    if not con.is_terminal and not quiet and log(r):
                         click.echo(r.raw)
                 if live_ok:
                     live.update(view.table(title))

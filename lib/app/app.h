@@ -223,6 +223,9 @@ typedef struct {
     uint8_t reset_release; /* a reset cut a run or move: 1 owed, 2-3 early release under way, 4
                               released early or nothing to (app_boot_poll) */
     uint8_t recover_left;  /* device bring-ups left before the pending request is refused */
+    uint8_t survey;        /* the run is an identification survey (APP_RUN_SURVEY): its samples
+                              are streamed, its homes neither kept nor stored */
+    uint8_t survey_n;      /* survey: selected-sensor samples since the last <sv> line */
     uint16_t mask;         /* tendons calibrated by this run */
     uint16_t tension;
     uint16_t req_tension;

@@ -196,6 +196,19 @@ static int8_t h_cal(con_t *con, const con_args_t *args, void *ctx)
     return app_run_request(a, HOM_MODE_FULL, tension, 0);
 }
 
+static int8_t h_survey(con_t *con, const con_args_t *args, void *ctx)
+{
+    app_t *a = ctx;
+    (void)con;
+    if (args->given & 1u) {
+        if (a->table_ok && args->v[0] >= a->info.n_tendons) {
+            return CON_E_BAD_TENDON;
+        }
+        return app_run_request(a, APP_RUN_SURVEY | HOM_MODE_SINGLE, 0, (uint8_t)args->v[0]);
+    }
+    return app_run_request(a, APP_RUN_SURVEY | HOM_MODE_FULL, 0, 0);
+}
+
 static int8_t h_rehome(con_t *con, const con_args_t *args, void *ctx)
 {
     (void)con;
@@ -519,10 +532,10 @@ static int8_t h_reboot(con_t *con, const con_args_t *args, void *ctx)
 
 const con_handler_fn app_handlers[CON_CMD_COUNT] CON_FLASH = {
     [CON_CMD_HELP] = NULL, /* built into the console */
-    [CON_CMD_VERSION] = h_version, [CON_CMD_STATUS] = h_status,   [CON_CMD_SENSORS] = h_sensors,
-    [CON_CMD_SERVOS] = h_servos,   [CON_CMD_CAL] = h_cal,         [CON_CMD_REHOME] = h_rehome,
-    [CON_CMD_HOME] = h_home,       [CON_CMD_RELEASE] = h_release, [CON_CMD_LEARN] = h_learn,
-    [CON_CMD_TABLE] = h_table,     [CON_CMD_HISTORY] = h_history, [CON_CMD_GET] = h_get,
-    [CON_CMD_SET] = h_set,         [CON_CMD_SAVE] = h_save,       [CON_CMD_REBOOT] = h_reboot,
-    [CON_CMD_FORGET] = h_forget,
+    [CON_CMD_VERSION] = h_version, [CON_CMD_STATUS] = h_status, [CON_CMD_SENSORS] = h_sensors,
+    [CON_CMD_SERVOS] = h_servos,   [CON_CMD_CAL] = h_cal,       [CON_CMD_SURVEY] = h_survey,
+    [CON_CMD_REHOME] = h_rehome,   [CON_CMD_HOME] = h_home,     [CON_CMD_RELEASE] = h_release,
+    [CON_CMD_LEARN] = h_learn,     [CON_CMD_TABLE] = h_table,   [CON_CMD_HISTORY] = h_history,
+    [CON_CMD_GET] = h_get,         [CON_CMD_SET] = h_set,       [CON_CMD_SAVE] = h_save,
+    [CON_CMD_REBOOT] = h_reboot,   [CON_CMD_FORGET] = h_forget,
 };

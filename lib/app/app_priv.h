@@ -45,7 +45,7 @@
  * the word "id" itself; WS(id, text) any other text. The *_words entries are
  * space-separated lists read by app_rep_word(). */
 #define APP_WORDS(W, WS)                                                                           \
-    WS(mode_words, "full quick single dry")                                                        \
+    WS(mode_words, "full quick single dry survey")                                                 \
     WS(target_words, "delta abs")                                                                  \
     WS(fault_words, HOM_FAULT_WORDS)                                                               \
     W(target)                                                                                      \
@@ -160,7 +160,11 @@
     W(dropped)                                                                                     \
     W(reports)                                                                                     \
     W(not_released)                                                                                \
-    W(servo_error)
+    W(servo_error)                                                                                 \
+    W(sv)                                                                                          \
+    W(t)                                                                                           \
+    W(p)                                                                                           \
+    W(b)
 
 #define APP_W_DECL(id)        extern const char app_w_##id[];
 #define APP_WS_DECL(id, text) extern const char app_w_##id[];
@@ -303,6 +307,20 @@ uint8_t app_sense_settled(app_t *a);
 
 /* App-driven moves (app_run_t.move_kind). */
 enum { APP_MOVE_HOME = 1, APP_MOVE_RELEASE = 2 };
+
+/* A mode of app_run_request() with this bit set is an identification
+ * survey (`survey`): every tendon, or one, pulled alone to the top grid
+ * tension as a calibration pulls, its samples streamed as <sv> lines, and
+ * nothing kept (docs/identify.md, "Survey on the board"). */
+#define APP_RUN_SURVEY 0x80u
+/* Survey: one <sv> line per this many samples of the pulled tendon's sensor
+ * (100 Hz): four sensors' lines at 50 Hz take half of the console's 115200
+ * baud, leaving room for the run's own reports. */
+#define APP_SURVEY_EVERY 2u
+/* Survey: the approach from engagement (hom_config_t.v_moderate) at 10
+ * units, 156 ticks/s: 1.6 ticks between two samples of a sensor, so the
+ * position a line pairs with a sample lags it by well under a tick. */
+#define APP_SURVEY_V 10u
 
 /* Starts a homing run. Returns 0 or a CON_E_* code (nothing moves then), or
  * CON_PENDING when an EEPROM write must finish first

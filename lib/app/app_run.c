@@ -83,15 +83,19 @@ APP_NOINLINE static void run_done(app_t *a)
     uint32_t t = app_now_ms(a);
     win_moving(a, 0);
     a->run.amb_ok |= hom_amb_captured(&a->u.hom); /* read before u.idle reuses the storage */
-    app_rec_take_homes(a, a->run.mask, a->run.tension);
+    if (!a->run.survey) {
+        app_rec_take_homes(a, a->run.mask, a->run.tension);
+    }
     /* The run's baseline is the learn baseline until the next release. From
      * here on the homing's storage is reused (u.idle overlaps its first
      * bytes only: the homes above were read first). */
     app_learn_keep_baseline(a);
-    app_rec_save_run(a);
-    app_boot_homes_new(a);
+    if (!a->run.survey) {
+        app_rec_save_run(a);
+        app_boot_homes_new(a);
+    }
     app_rep_begin(a, app_w_done);
-    app_rep_word(a, app_w_mode, app_w_mode_words, a->run.mode);
+    app_rep_word(a, app_w_mode, app_w_mode_words, a->run.survey ? 4u : a->run.mode);
     app_rep_word(a, app_w_target, app_w_target_words, a->run.abs);
     app_rep_int(a, app_w_time_ms, (int32_t)(t - a->run.t_start));
     app_rep_int(a, app_w_tension_mN, a->run.tension);
@@ -125,6 +129,8 @@ static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon
     int rc;
     uint8_t i;
     int8_t e;
+    uint8_t survey = (uint8_t)(mode & APP_RUN_SURVEY);
+    mode = (uint8_t)(mode & ~APP_RUN_SURVEY);
     if (!app_idle_state(a)) {
         return CON_E_BUSY;
     }
@@ -134,6 +140,9 @@ static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon
     }
     if (mode == HOM_MODE_SINGLE && tendon >= a->info.n_tendons) {
         return CON_E_BAD_TENDON;
+    }
+    if (survey) {
+        tension = a->info.grid_mN[a->info.n_grid - 1u];
     }
     if (tension == 0u) {
         tension = (uint16_t)a->rec.set.v[STORE_SET_CAL_TENSION];
@@ -160,6 +169,7 @@ static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon
         cmd.ambient_capture = (uint8_t)(!a->run.amb_ok && mode != HOM_MODE_DRY);
     }
     cmd.mode = (hom_mode_t)mode;
+    cmd.survey = survey != 0u;
     cmd.tension_mN = tension;
     cmd.tendon = tendon;
     for (i = 0; i < a->info.n_tendons; i++) {
@@ -182,6 +192,9 @@ static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon
     cfg.v_fine = (uint16_t)a->rec.set.v[STORE_SET_APPROACH_SLOW];
     cfg.avg_samples = (uint8_t)a->rec.set.v[STORE_SET_FILTER_K];
     cfg.straight = (uint8_t)a->rec.set.v[STORE_SET_HOME_POSE];
+    if (survey) {
+        cfg.v_moderate = APP_SURVEY_V;
+    }
     cfg.servo_timeout_ms = APP_SERVO_TIMEOUT_MS;
     app_learn_drop_baseline(a); /* its storage goes to the homing */
     hom_init(&a->u.hom, &cfg);
@@ -197,6 +210,8 @@ static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon
         return CON_E_INTERNAL;
     }
     a->run.mode = mode;
+    a->run.survey = cmd.survey;
+    a->run.survey_n = 0;
     a->run.tension = tension;
     a->run.mask = mode == HOM_MODE_SINGLE ? app_bit16(tendon) : app_all_mask(a);
     a->run.t_start = app_now_ms(a);
@@ -218,6 +233,35 @@ APP_NOINLINE static void fault_rest(app_t *a, uint32_t t)
     app_rec_rest_at(a, 1, t);
 }
 
+/* Survey: every APP_SURVEY_EVERY-th new sample of the pulled tendon's
+ * sensor, one line with the tendon, its position and every sensor's newest
+ * raw sample: <sv t=I p=TICKS b=x0,y0,z0,x1,...> (cuT, sensor frames). A
+ * line that finds no room in the console's output is dropped and counted
+ * like any report (docs/console.md); the host keeps what arrives. */
+static void survey_sample(app_t *a, const hom_in_t *in)
+{
+    char buf[3u * APP_MAX_SENSORS * 9u + 4u]; /* 7 digits and sign, comma */
+    uint8_t i, k, pos = 0;
+    if (!hom_pulling(&a->u.hom, &i) ||
+        in->sensor[hom_tendon(&a->u.hom, i)->sensor].status != HOM_SENS_NEW ||
+        ++a->run.survey_n < APP_SURVEY_EVERY) {
+        return;
+    }
+    a->run.survey_n = 0;
+    buf[0] = '\0';
+    for (k = 0; k < a->info.n_sensors; k++) {
+        const int32_t *v = hom_last(&a->u.hom, k);
+        app_list_add(buf, sizeof buf, &pos, v[0], '\0');
+        app_list_add(buf, sizeof buf, &pos, v[1], '\0');
+        app_list_add(buf, sizeof buf, &pos, v[2], '\0');
+    }
+    app_rep_begin(a, app_w_sv);
+    app_rep_int(a, app_w_t, i);
+    app_rep_int(a, app_w_p, a->bus.present[i]);
+    con_report_str(&a->cmd.con, app_w_b, buf);
+    app_rep_end(a);
+}
+
 APP_NOINLINE void app_run_step(app_t *a, hom_in_t *in)
 {
     hom_out_t out;
@@ -230,6 +274,9 @@ APP_NOINLINE void app_run_step(app_t *a, hom_in_t *in)
     app_bus_take(a, &out);
     while (hom_event_pop(&a->u.hom, &ev)) {
         app_rep_event(a, &ev);
+    }
+    if (a->run.survey) {
+        survey_sample(a, in);
     }
     if (rc == 0) {
         run_done(a);

@@ -63,7 +63,7 @@ HOM_NOINLINE void hom_begin_final(hom_t *h)
     }
     /* the same profile shape for all, velocities in proportion to distance,
      * so every tendon arrives at the same moment */
-    for (i = 0; i < h->n_tendons; i++) {
+    for (i = 0; i < h->n_tendons && !h->survey; i++) {
         if (h->tendon[i].have_home != 0u) {
             uint32_t d = (uint32_t)final_dist(h, i, &g);
             uint32_t v = ((uint32_t)h->cfg.v_final * d + (uint32_t)dmax - 1u) / (uint32_t)dmax;

@@ -376,6 +376,7 @@ int hom_start(hom_t *h, const tbl_src_t *table, const hom_cmd_t *cmd)
     }
     h->amb = cmd->ambient_cuT;
     h->amb_capture = cmd->ambient_capture;
+    h->survey = cmd->survey;
     for (i = 0; h->amb != NULL && i < info.n_sensors; i++) {
         tbl_sensor_t sn;
         (void)tbl_sensor(table, i, &sn);
@@ -518,6 +519,12 @@ int32_t hom_floor_div256(int32_t q8)
 HOM_NOINLINE int32_t hom_further_back(const hom_tendon_t *t, int32_t g, int32_t x)
 {
     return hom_pull(t, x - g) < 0 ? x : g;
+}
+
+uint8_t hom_pulling(const hom_t *h, uint8_t *tendon)
+{
+    *tendon = h->cur;
+    return (uint8_t)(h->state >= ST_TAKEUP && h->state <= ST_BACKOFF);
 }
 
 int32_t hom_um_ticks_cur(const hom_t *h, uint8_t i, uint32_t um)

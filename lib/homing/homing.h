@@ -336,6 +336,7 @@ typedef struct {
     tbl_src_t table;     /* the run's table: it must stay readable until the run ends */
     int32_t (*amb)[3];   /* absolute mode: the caller's ambient offsets (NULL: delta mode) */
     uint8_t amb_capture; /* absolute mode: this run captures them at its baseline */
+    uint8_t survey;      /* hom_cmd_t.survey: no final move */
     uint32_t servo_ok_ms[TBL_MAX_TENDONS];
     int32_t present[TBL_MAX_TENDONS];
     uint32_t moved_ms[TBL_MAX_TENDONS]; /* last goal written or change of the present position */
@@ -378,6 +379,10 @@ typedef struct {
     uint16_t win_mask;
     int32_t win_lo[TBL_MAX_TENDONS];
     int32_t win_hi[TBL_MAX_TENDONS];
+    /* Identification survey (docs/identify.md): the run pulls every tendon
+     * as a calibration does, but ends with each released (its release check)
+     * instead of a final move to the homes. */
+    uint8_t survey;
 } hom_cmd_t;
 
 /* Fills *cfg with the defaults: speeds designed for a 6.1 um tick, a sensor
@@ -413,6 +418,10 @@ int hom_event_pop(hom_t *h, hom_event_t *ev);
 /* Console word of a fault reason ("aborted", "travel_limit", ...); "unknown"
  * for values outside the enum. */
 const char *hom_fault_name(int fault);
+
+/* 1 and *tendon while a tendon is taken up or approaches its target (the
+ * stretch an identification survey records), 0 otherwise. */
+uint8_t hom_pulling(const hom_t *h, uint8_t *tendon);
 
 /* Tendon i's home from the last run. Returns 0 and writes *ticks, or
  * HOM_E_ARG when i is out of range or has no home. */
@@ -501,6 +510,12 @@ static inline uint32_t hom_tendon_ms(const hom_t *h)
 static inline const int32_t *hom_baseline(const hom_t *h, uint8_t k)
 {
     return h->sensor[k].b0;
+}
+
+/* Sensor k's newest raw sample (cuT, sensor frame). */
+static inline const int32_t *hom_last(const hom_t *h, uint8_t k)
+{
+    return h->sensor[k].last;
 }
 
 /* Nonzero when the last run captured the ambient offsets (absolute mode). */

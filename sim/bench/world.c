@@ -163,7 +163,7 @@ void world_tick(bench_t *b, uint64_t now)
     }
     for (uint8_t k = 0; k < b->twi.n_icm; k++) {
         double f[3];
-        plant_field_true(&b->plant, k, f);
+        plant_field_sensor(&b->plant, k, f);
         icmm_set_field_cuT(&b->twi.icm[k], (int32_t)lround(f[0] * 100.0),
                            (int32_t)lround(f[1] * 100.0), (int32_t)lround(f[2] * 100.0));
     }

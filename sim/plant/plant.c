@@ -377,6 +377,13 @@ static void to_sensor(const plant_cfg_t *c, uint8_t k, const double w[3], double
     }
 }
 
+void plant_field_sensor(const plant_t *p, uint8_t k, double b_uT[3])
+{
+    double w[3];
+    plant_field_true(p, k, w);
+    to_sensor(&p->cfg, k, w, b_uT);
+}
+
 int plant_read_sensor(plant_t *p, uint8_t k, int32_t out_cuT[3])
 {
     double w[3];

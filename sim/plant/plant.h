@@ -198,6 +198,10 @@ int plant_solve(plant_t *p);
  * into the sensor frame). */
 void plant_field_true(const plant_t *p, uint8_t k, double b_uT[3]);
 
+/* The same in the sensor's own frame (its TOML rotation), as the chip's
+ * registers give it: what the bench's AK09916 models are fed. */
+void plant_field_sensor(const plant_t *p, uint8_t k, double b_uT[3]);
+
 /* Magnet-only field at world point q (mm) for a given tip pose, in uT. */
 void plant_dipole_uT(const plant_cfg_t *cfg, const plant_pose_t *tip, const double q_mm[3],
                      double b_uT[3]);

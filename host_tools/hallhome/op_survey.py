@@ -1,0 +1,265 @@
+"""`hallhome identify survey`: the identification survey run on the board
+(docs/identify.md, "Survey on the board").
+
+The board's `survey` command pulls every tendon (or one) alone, the others
+released, from slack to the table's top grid tension, as a calibration
+pulls, and streams `<sv t=I p=TICKS b=x0,y0,z0,x1,...>` lines: the pulled
+tendon, its servo position and every sensor's newest raw sample (cuT, sensor
+frame). Nothing is stored on the board; every tendon ends released. This
+module turns those lines into the survey file `hallhome identify fit` reads,
+and optionally guides the hung weights, read through `sensors`.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable, Dict, List, Optional, Sequence, Tuple
+
+import click
+from rich.markup import escape
+
+from hallhome.client import BoardError, Client, HallhomeError, Report
+from hallhome.op_common import (R, TENDON, cmd, err, json_option, operator_command, out,
+                                port_options, print_json, session)
+from hallhome.op_learn import average_fields, read_table
+from hallhome.op_run import CalView, follow, run_timeout_option, start, wait_for_end
+
+SV = "sv"  # the board's survey sample report
+# Slack samples before the engagement the board reported, this many ticks
+# short of it, make a pull's baseline (the detection lies past the true
+# engagement: the field has risen by 8 noise levels there).
+BASE_GUARD_TICKS = 8
+MIN_BASE_SAMPLES = 2
+MIN_STEPS = 8  # what `identify fit` needs of a pull (identify_data.load_survey)
+
+
+class SurveyError(HallhomeError):
+    pass
+
+
+@dataclass
+class Sample:
+    ticks: int
+    b: List[List[float]]  # per sensor [x, y, z], cuT
+
+
+def parse_sample(r: Report, n_sensors: int) -> Tuple[int, Sample]:
+    """An `<sv>` report as (tendon, sample); ValueError when malformed."""
+    t, p = r.get("t"), r.get("p")
+    vals = [int(v) for v in str(r.get("b", "")).split(",") if v.strip()]
+    if not isinstance(t, int) or not isinstance(p, int) or len(vals) != 3 * n_sensors:
+        raise ValueError(f"malformed survey sample: {r.raw}")
+    return t, Sample(p, [vals[3 * k:3 * k + 3] for k in range(n_sensors)])
+
+
+class SurveyView(CalView):
+    """A calibration-like progress view that also keeps the samples."""
+
+    def __init__(self, n_tendons: int, only: Optional[int], n_sensors: int):
+        super().__init__(n_tendons, only)
+        self.n_sensors = n_sensors
+        self.samples: Dict[int, List[Sample]] = {}
+        self.engaged: Dict[int, int] = {}
+        self.bad = 0
+        self.dropped = 0
+
+    def feed(self, r: Report) -> None:
+        if r.kind == SV:
+            try:
+                t, s = parse_sample(r, self.n_sensors)
+            except ValueError:
+                self.bad += 1
+                return
+            self.samples.setdefault(t, []).append(s)
+            return
+        if r.kind == R.PROGRESS and r.get("state") == "engaged" and isinstance(r.get("pos"), int):
+            self.engaged[int(r.get("tendon"))] = int(r.get("pos"))
+        if r.kind == "dropped":
+            self.dropped += int(r.get("reports", 0) or 0)
+        super().feed(r)
+
+    @property
+    def ok(self) -> bool:
+        return (self.done is not None and self.done.get("mode") == "survey"
+                and not self.faults)
+
+
+def pull_of(tendon: int, samples: Sequence[Sample], engaged: Optional[int],
+            pull_dir: int) -> dict:
+    """One pull of the survey file from a tendon's samples in arrival order:
+    samples at one position averaged into one step, steps kept only while the
+    take-up grows (a re-approach after an overshoot goes back first), the
+    baseline from the slack samples before the reported engagement."""
+    if not samples:
+        raise SurveyError(f"tendon {tendon}: no survey samples arrived")
+    steps: List[Tuple[int, List[List[float]], int]] = []  # ticks, sum, count
+    for s in samples:
+        if steps and steps[-1][0] == s.ticks:
+            t0, acc, n = steps[-1]
+            steps[-1] = (t0, [[a + b for a, b in zip(ra, rb)] for ra, rb in zip(acc, s.b)], n + 1)
+        else:
+            steps.append((s.ticks, [list(map(float, v)) for v in s.b], 1))
+    kept: List[Tuple[int, List[List[float]]]] = []
+    for ticks, acc, n in steps:
+        if kept and pull_dir * (ticks - kept[-1][0]) <= 0:
+            continue
+        kept.append((ticks, [[round(x / n, 1) for x in v] for v in acc]))
+    if engaged is None:
+        raise SurveyError(f"tendon {tendon}: the board reported no engagement")
+    slack = [s for s in samples if pull_dir * (engaged - s.ticks) >= BASE_GUARD_TICKS]
+    if len(slack) < MIN_BASE_SAMPLES:
+        raise SurveyError(f"tendon {tendon}: {len(slack)} slack sample(s) before its engagement "
+                          f"at {engaged}, {MIN_BASE_SAMPLES} needed for its baseline (the "
+                          "tendon started too close to engagement? `release`, then survey again)")
+    ns = len(slack[0].b)
+    base = [[round(sum(s.b[k][a] for s in slack) / len(slack), 1) for a in range(3)]
+            for k in range(ns)]
+    if len(kept) < MIN_STEPS:
+        raise SurveyError(f"tendon {tendon}: {len(kept)} distinct positions, {MIN_STEPS} "
+                          "needed (samples lost on the console?)")
+    return {"tendon": tendon, "baseline_cuT": base, "steps": [[t, b] for t, b in kept],
+            "samples": len(samples)}
+
+
+def survey_doc(robot: str, table_id: str, view: SurveyView, dirs: Dict[int, int],
+               weights: List[dict]) -> dict:
+    pulls = [pull_of(t, view.samples.get(t, []), view.engaged.get(t), dirs.get(t, 1))
+             for t in sorted(set(view.rows) | set(view.samples))]
+    doc = {"format": "hallhome-survey", "version": 1, "field_unit": "cuT", "robot": robot,
+           "source": "board", "table_id": table_id, "pulls": pulls}
+    if weights:
+        doc["weights"] = weights
+    return doc
+
+
+def weight_tendons(rows: Sequence[Report], which: str) -> List[int]:
+    """The tendons that get a weight: the first of each segment, or all."""
+    seen, pick = set(), []
+    for r in rows:
+        i, seg = int(r.get("tendon")), r.get("segment")
+        if which == "all" or seg not in seen:
+            pick.append(i)
+        seen.add(seg)
+    return pick
+
+
+def record_weights(c: Client, tendons: Sequence[int], mass_g: float, n_avg: int,
+                   n_sensors: int, wait: Callable[[str], None]) -> List[dict]:
+    """With every tendon released: per tendon, the field averaged over n_avg
+    `sensors` reads before and with mass_g hung on it (the user hangs and
+    removes it when `wait` says so)."""
+    def fields() -> List[List[float]]:
+        got = average_fields(c, n_avg)
+        if len(got) != n_sensors:
+            raise SurveyError(f"{n_sensors - len(got)} sensor(s) not reading: see `hallhome "
+                              "status`")
+        return [[round(x * 100.0, 1) for x in got[k]] for k in range(n_sensors)]
+
+    recs = []
+    for i in tendons:
+        base = fields()
+        wait(f"hang {mass_g:g} g on tendon {i}, let it settle, then press Enter")
+        hung = fields()
+        wait(f"take the weight off tendon {i}, then press Enter")
+        recs.append({"tendon": i, "mass_g": mass_g, "baseline_cuT": base, "field_cuT": hung})
+    return recs
+
+
+@click.command("survey")
+@click.option("--out", "out_path", type=click.Path(dir_okay=False), default=None,
+              help="Survey file to write (default: <robot>_survey.json here).")
+@click.option("--tendon", "-k", type=TENDON, default=None,
+              help="Survey only this tendon (0-based; default: every tendon).")
+@click.option("--weight-g", type=click.FloatRange(0.0, 10000.0, min_open=False), default=0.0,
+              show_default=True, help="Mass to hang after the pulls (0: survey only).")
+@click.option("--weights", "which", type=click.Choice(["segment", "all"]), default="segment",
+              show_default=True, help="Hang the weight on the first tendon of each segment, "
+              "or on every tendon.")
+@click.option("--samples", type=click.IntRange(4, 64), default=16, show_default=True,
+              help="Field reads averaged per weight record.")
+@click.option("--no-prompt", "hang_wait", type=click.FloatRange(0.5, 600.0), default=None,
+              metavar="SECONDS", help="Do not wait for Enter: wait this long for each weight "
+              "to be hung or taken off (scripts).")
+@run_timeout_option
+@json_option
+@port_options
+@operator_command
+def survey_cmd(out_path, tendon, weight_g, which, samples, hang_wait, run_timeout, as_json, port,
+               timeout) -> None:
+    """Survey the robot on the board for `hallhome identify fit`.
+
+    Every tendon (or --tendon), the others released, is pulled alone from
+    slack to the table's top grid tension, as a calibration pulls, while the
+    board streams its servo position and every sensor's field; every tendon
+    ends released and nothing is stored on the board. With --weight-g, the
+    tool then guides the weights: with every servo slack, hang the mass on
+    the first tendon of each segment (--weights all: on every tendon) when
+    asked; the field is read before and with it. The survey file goes to
+    --out; fit it with `hallhome identify fit ROBOT.toml SURVEY.json`.
+    Ctrl-C aborts on the board and releases every tendon; nothing is
+    written then."""
+    with session(port, timeout) as c:
+        head, rows = read_table(c)
+        robot, table_id = str(head.get("name")), str(head.get("table_id"))
+        n, ns = int(head.get("tendons", 0) or 0), int(head.get("sensors", 0) or 0)
+        if tendon is not None and tendon >= n:
+            raise HallhomeError(f"--tendon {tendon}: the board's table has {n} tendons "
+                                f"(0..{n - 1})")
+        dirs = {int(r.get("tendon")): int(r.get("dir", 1) or 1) for r in rows}
+        view = SurveyView(n, tendon, ns)
+        title = f"survey of {robot}" + (f", tendon {tendon}" if tendon is not None else "")
+        try:
+            for r in start(c, cmd("survey", *([tendon] if tendon is not None else [])), as_json):
+                view.feed(r)
+        except BoardError as e:
+            if e.name == "UNKNOWN_COMMAND":
+                raise HallhomeError("this board's firmware has no `survey` command: flash the "
+                                    "current firmware (make flash)") from None
+            raise
+        follow(c, view, title, run_timeout, quiet=as_json, what="survey", again="identify survey",
+               log=lambda r: r.kind != SV)
+        if not view.ok:
+            for f in view.faults:
+                err().print(f"[red]fault: {f.get('reason')} on {f.get('dev')} {f.get('index')}[/]")
+            raise HallhomeError("the survey did not complete; nothing written")
+        if view.bad or view.dropped:
+            err().print(f"[yellow]{view.bad} malformed and {view.dropped} dropped report(s) "
+                        "during the survey (the fit uses what arrived)[/]")
+        weights: List[dict] = []
+        if weight_g > 0.0:
+            start(c, cmd("release"), as_json)
+            c.motion = "release"
+            wait_for_end(c, 30.0, "`release`")
+            c.motion_ended()
+            picks = weight_tendons(rows, which) if tendon is None else [tendon]
+
+            def wait(msg: str) -> None:
+                if hang_wait is not None:
+                    err().print(f"{msg.split(', then')[0]}: waiting {hang_wait:g} s")
+                    time.sleep(hang_wait)
+                else:
+                    click.prompt(msg, default="", show_default=False, prompt_suffix=" ",
+                                 err=True)
+
+            weights = record_weights(c, picks, weight_g, samples, ns, wait)
+    doc = survey_doc(robot, table_id, view, dirs, weights)
+    path = Path(out_path or f"{robot}_survey.json")
+    path.write_text(json.dumps(doc, indent=1) + "\n")
+    summary = {"written": str(path), "robot": robot, "table_id": table_id,
+               "pulls": [{"tendon": p["tendon"], "steps": len(p["steps"]),
+                          "samples": p["samples"]} for p in doc["pulls"]],
+               "weights": len(weights), "dropped_reports": view.dropped,
+               "time_s": int(view.done.get("time_ms", 0)) / 1000.0}
+    if as_json:
+        print_json(summary)
+        return
+    for p in summary["pulls"]:
+        out().print(f"tendon {p['tendon']}: {p['steps']} positions from {p['samples']} samples")
+    out().print(f"[green]survey written[/]: {escape(str(path))} ({len(doc['pulls'])} pulls, "
+                f"{len(weights)} weight records, {summary['time_s']:.1f} s on the board); next: "
+                f"hallhome identify fit ROBOT.toml {escape(str(path))}")
+    sys.stdout.flush()
