@@ -37,10 +37,11 @@ def identify_group():
        (`hallhome tables ROBOT_id.toml`), build and flash its firmware
        (`make flash ROBOT=<robot>_id`), calibrate.
 
-    The board cannot stream a survey yet: surveys come from files, e.g. the
-    virtual bench's (`build/sim/hh_bench --plant CFG --survey FILE
-    [--survey-weight GRAMS] FIRMWARE.elf`). `make sim` runs the whole path
-    on the bench's perturbed robot (IDENTIFY=0 skips it).
+    `hallhome identify survey` runs steps 1 and 2 on the board (its `survey`
+    command) and writes the survey file; the virtual bench writes one too
+    (`build/sim/hh_bench --plant CFG --survey FILE [--survey-weight GRAMS]
+    FIRMWARE.elf`). `make sim` runs the whole path on the bench's perturbed
+    robot (IDENTIFY=0 skips it).
     """
 
 

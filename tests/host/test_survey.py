@@ -1,0 +1,133 @@
+"""`hallhome identify survey`'s host side (hallhome.op_survey): the board's
+<sv> lines into survey pulls, the weights dialogue, refusals."""
+
+import pytest
+
+from hallhome.client import Report
+from hallhome.op_survey import (Sample, SurveyError, SurveyView, parse_sample, pull_of,
+                                record_weights, survey_doc, weight_tendons)
+
+
+def sv(t, p, *vals):
+    return Report("sv", {"t": t, "p": p, "b": ",".join(map(str, vals))},
+                  f"<sv t={t} p={p} b={','.join(map(str, vals))}>")
+
+
+def test_parse_sample_splits_sensors_and_refuses_a_short_line():
+    t, s = parse_sample(sv(2, 4100, 1, 2, 3, 4, 5, 6), 2)
+    assert t == 2 and s.ticks == 4100 and s.b == [[1, 2, 3], [4, 5, 6]]
+    with pytest.raises(ValueError):
+        parse_sample(sv(2, 4100, 1, 2, 3, 4, 5), 2)
+    with pytest.raises(ValueError):
+        parse_sample(Report("sv", {"t": "x", "p": 1, "b": "1,2,3"}, "<sv>"), 1)
+
+
+def ramp(start, stop, step, dirn=1, engaged_at=None):
+    """Samples of one sensor: flat (100, 0, 0) before engaged_at, rising after."""
+    out = []
+    for p in range(start, stop, step * dirn):
+        rise = max(0, dirn * (p - engaged_at)) if engaged_at is not None else 0
+        out.append(Sample(p, [[100 + 10 * rise, 0, 0]]))
+    return out
+
+
+def test_pull_averages_repeats_keeps_growth_and_takes_the_baseline_from_slack():
+    s = ramp(1000, 1100, 4, engaged_at=1040)
+    s += [Sample(1096, [[700, 0, 0]]), Sample(1096, [[720, 0, 0]])]  # fine samples at one spot
+    s += [Sample(1080, [[500, 0, 0]])]  # a re-approach goes back first: dropped
+    s += [Sample(1104, [[740, 0, 0]])]
+    p = pull_of(0, s, 1044, 1)
+    ticks = [st[0] for st in p["steps"]]
+    assert ticks == sorted(set(ticks)) and 1080 not in ticks[ticks.index(1096):]
+    at = dict((st[0], st[1]) for st in p["steps"])
+    assert at[1096][0][0] == pytest.approx((660 + 700 + 720) / 3, abs=0.1)
+    assert p["baseline_cuT"] == [[100.0, 0.0, 0.0]]  # only samples 8+ ticks short of 1044
+    assert p["samples"] == len(s)
+
+
+def test_pull_in_the_negative_direction():
+    s = ramp(5000, 4900, 4, dirn=-1, engaged_at=4960)
+    p = pull_of(3, s, 4956, -1)
+    ticks = [st[0] for st in p["steps"]]
+    assert ticks == sorted(ticks, reverse=True) and len(ticks) == len(s)
+
+
+def test_pull_refusals_name_the_tendon():
+    with pytest.raises(SurveyError, match="tendon 1: no survey samples"):
+        pull_of(1, [], 100, 1)
+    with pytest.raises(SurveyError, match="reported no engagement"):
+        pull_of(1, ramp(0, 100, 4), None, 1)
+    with pytest.raises(SurveyError, match="slack sample"):
+        pull_of(1, ramp(40, 100, 4, engaged_at=40), 44, 1)  # started at engagement
+    with pytest.raises(SurveyError, match="distinct positions"):
+        pull_of(1, ramp(0, 24, 4, engaged_at=12), 16, 1)
+
+
+def test_view_collects_samples_engagement_and_counts_bad_lines():
+    v = SurveyView(2, None, 1)
+    v.feed(Report("progress", {"state": "engaged", "tendon": 1, "pos": 4200}, ""))
+    v.feed(sv(1, 4210, 5, 6, 7))
+    v.feed(sv(1, 4214, 5, 6))  # cut short
+    v.feed(Report("dropped", {"reports": 3}, ""))
+    v.feed(Report("done", {"mode": "full"}, ""))
+    assert v.engaged == {1: 4200} and len(v.samples[1]) == 1 and v.bad == 1 and v.dropped == 3
+    assert not v.ok  # a calibration's done is not a survey's
+    v.done = Report("done", {"mode": "survey"}, "")
+    assert v.ok
+
+
+def test_survey_doc_has_the_fit_format_and_every_tendon():
+    v = SurveyView(2, None, 1)
+    for t in (0, 1):
+        v.samples[t] = ramp(1000, 1100, 4, engaged_at=1040)
+        v.engaged[t] = 1044
+    doc = survey_doc("r", "0x1", v, {0: 1, 1: 1}, [])
+    assert doc["format"] == "hallhome-survey" and doc["version"] == 1
+    assert [p["tendon"] for p in doc["pulls"]] == [0, 1] and "weights" not in doc
+    v.samples.pop(1)
+    with pytest.raises(SurveyError, match="tendon 1"):
+        survey_doc("r", "0x1", v, {}, [])
+
+
+def test_weight_tendons_first_of_each_segment_or_all():
+    rows = [Report("tendon", {"tendon": i, "segment": 1 + i // 3}, "") for i in range(6)]
+    assert weight_tendons(rows, "segment") == [0, 3]
+    assert weight_tendons(rows, "all") == list(range(6))
+
+
+class FakeBoard:
+    """Answers `sensors` with the field of whatever weight hangs now."""
+
+    def __init__(self):
+        self.hung = False
+        self.reads = 0
+
+    def command(self, line, timeout=None):
+        assert line == "sensors"
+        self.reads += 1
+        b = (150.0, 0.5, -2.0) if self.hung else (100.0, 0.5, -2.0)
+
+        class R:
+            def of(_, kind):
+                return [Report("sensor", {"index": 0, "ok": 1, "bx_uT": b[0], "by_uT": b[1],
+                                          "bz_uT": b[2]}, "")]
+        return R()
+
+
+def test_record_weights_reads_before_and_with_the_mass():
+    board, asked = FakeBoard(), []
+
+    def wait(msg):
+        asked.append(msg)
+        board.hung = msg.startswith("hang")
+
+    recs = record_weights(board, [0, 3], 80.0, 4, 1, wait)
+    assert [r["tendon"] for r in recs] == [0, 3]
+    assert recs[0]["baseline_cuT"] == [[10000.0, 50.0, -200.0]]
+    assert recs[0]["field_cuT"] == [[15000.0, 50.0, -200.0]]
+    assert len(asked) == 4 and "tendon 3" in asked[2] and board.reads == 16
+
+
+def test_record_weights_refuses_a_missing_sensor():
+    with pytest.raises(SurveyError, match="1 sensor"):
+        record_weights(FakeBoard(), [0], 80.0, 4, 2, lambda m: None)

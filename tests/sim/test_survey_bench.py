@@ -1,0 +1,139 @@
+"""The identification survey on the board (`survey`, docs/identify.md
+"Survey on the board") on the virtual bench: what it streams, that it
+stores nothing and ends released, that a stop during it is recovered from,
+and `hallhome identify survey` end to end with `hallhome identify fit`."""
+
+import json
+import math
+import os
+import re
+import subprocess
+import time
+from pathlib import Path
+
+import pytest
+
+from hallhome.op_survey import parse_sample
+from hallhome.client import Report
+
+ROOT = Path(__file__).resolve().parents[2]
+BENCH = ROOT / "build" / "sim" / "hh_bench"
+FW = ROOT / "build" / "fw" / "paper_2seg" / "hallhome-paper_2seg.elf"
+PLANT = ROOT / "sim" / "plant" / "configs" / "paper_2seg.cfg"
+TOML = ROOT / "lookup_tables" / "robots" / "paper_2seg.toml"
+HALLHOME = ROOT / ".venv" / "bin" / "hallhome"
+TOP_MN = 1500  # paper_2seg's top grid tension
+
+
+@pytest.fixture(scope="module", autouse=True)
+def built():
+    missing = [p for p in (BENCH, FW) if not p.exists()]
+    if missing:
+        pytest.fail("not built (run `make sim-test`): " + ", ".join(map(str, missing)))
+
+
+def run(tmp_path, *args):
+    summary = tmp_path / "summary.json"
+    proc = subprocess.run([str(BENCH), str(FW), "--plant", str(PLANT), "--seed", "7",
+                           "--summary", str(summary), *map(str, args)],
+                          capture_output=True, text=True, timeout=180, cwd=ROOT)
+    return proc, json.loads(summary.read_text())
+
+
+def samples(out):
+    """(tendon, ticks, [[x, y, z] per sensor]) of every <sv> line."""
+    got = []
+    for line in out.splitlines():
+        if line.startswith("<sv "):
+            fields = dict(kv.split("=", 1) for kv in line.strip("<>").split()[1:])
+            rep = Report("sv", {"t": int(fields["t"]), "p": int(fields["p"]), "b": fields["b"]},
+                         line)
+            t, s = parse_sample(rep, 3)
+            got.append((t, s.ticks, s.b))
+    return got
+
+
+def test_survey_streams_every_tendon_stores_nothing_and_ends_released(tmp_path):
+    proc, s = run(tmp_path, "--limit", "30s", "--at", "1s send survey",
+                  "--at", "step on ^<done.mode=survey +300ms send history",
+                  "--at", "step +300ms power-cycle", "--at", "step on ^<ready +100ms send history")
+    out = proc.stdout
+    assert proc.returncode == 0, proc.stderr
+    assert "<done mode=survey" in out and "<fault" not in out
+    assert re.search(r"<progress state=start mode=full tension_mN=1500", out)
+    got = samples(out)
+    for i in range(6):
+        mine = [g for g in got if g[0] == i]
+        assert len(mine) >= 40, f"tendon {i}: {len(mine)} samples"
+        ticks = [g[1] for g in mine]
+        assert ticks[-1] - ticks[0] > 100  # from slack through the engagement
+        # the pulled tendon moves the field of its segment far beyond the noise
+        first, last = mine[0][2], mine[-1][2]
+        assert max(math.dist(a, b) for a, b in zip(first, last)) > 3000  # cuT
+    # bounded pull at the top grid tension, and every tendon slack at the end
+    for t in s["tendons"]:
+        assert t["max_tension_mN"] <= 1.25 * TOP_MN + 100, t
+        assert t["tension_now_mN"] < 1.0, t
+    # nothing stored: no history entry, no homes after a power cycle
+    boots = [ln for ln in out.splitlines() if ln.startswith("<ready ")]
+    assert len(boots) == 2 and all("homes=none" in b for b in boots), boots
+    assert "<hist " not in out
+
+
+def test_a_stop_during_the_survey_releases_and_the_next_press_calibrates(tmp_path):
+    proc, s = run(tmp_path, "--limit", "40s", "--at", "1s send survey",
+                  "--at", "step on ^<progress.state=engaged.tendon=2[^0-9] +200ms raw !",
+                  "--at", "step on ^<released +500ms send survey 4",
+                  "--at", "step on ^<done.mode=survey +300ms press",
+                  "--until", "^<done mode=full")
+    out = proc.stdout
+    assert proc.returncode == 0, out[-2000:]
+    assert re.search(r"<released", out)
+    assert [ln for ln in out.splitlines() if ln.startswith("<done mode=survey")]
+    # the single-tendon survey pulled tendon 4 only
+    after = out[out.index("<released"):out.index("<done mode=survey")]
+    assert {g[0] for g in samples(after)} == {4}
+    assert "<done mode=full" in out
+
+
+def test_survey_refuses_a_tendon_the_table_lacks(tmp_path):
+    proc, _ = run(tmp_path, "--limit", "2s", "--at", "1s send survey 9", "--at", "1.2s send survey x")
+    assert "error:15" in proc.stdout  # BAD_TENDON
+    assert "error:2" in proc.stdout   # BAD_NUMBER
+    assert "<sv " not in proc.stdout
+
+
+def test_hallhome_identify_survey_end_to_end(tmp_path):
+    """The host tool against the board on a pty, then the fit of its file."""
+    pty = tmp_path / "console"
+    log = open(tmp_path / "bench.log", "w")
+    bench = subprocess.Popen([str(BENCH), str(FW), "--plant", str(PLANT), "--seed", "7",
+                              "--eeprom", str(tmp_path / "ee.bin"), "--interactive", "--realtime",
+                              "--pty-link", str(pty)], stdout=log, stderr=subprocess.STDOUT,
+                             cwd=ROOT)
+    try:
+        deadline = time.monotonic() + 15
+        while "<ready " not in (tmp_path / "bench.log").read_text(errors="replace"):
+            assert time.monotonic() < deadline, "the bench did not come up"
+            time.sleep(0.1)
+        out = tmp_path / "survey.json"
+        r = subprocess.run([str(HALLHOME), "identify", "survey", "--port", str(pty), "--out",
+                            str(out), "--json"], capture_output=True, text=True, timeout=120,
+                           cwd=ROOT, env=dict(os.environ, COLUMNS="200"))
+        assert r.returncode == 0, r.stdout + r.stderr
+        summary = json.loads(r.stdout)
+        assert [p["tendon"] for p in summary["pulls"]] == list(range(6))
+        assert all(p["steps"] >= 30 for p in summary["pulls"]), summary
+    finally:
+        bench.terminate()
+        bench.wait(10)
+    doc = json.loads(out.read_text())
+    assert doc["format"] == "hallhome-survey" and doc["robot"] == "paper_2seg"
+    fit = subprocess.run([str(HALLHOME), "identify", "fit", str(TOML), str(out), "--no-write",
+                          "--json"], capture_output=True, text=True, timeout=300, cwd=ROOT)
+    assert fit.returncode == 0, fit.stdout + fit.stderr
+    res = json.loads(fit.stdout)
+    assert not res.get("refused"), res
+    assert res["rms_uT"] < 3.0, res["rms_uT"]
+    magnet = {p["name"]: p for p in res["parameters"]}["magnet_J"]
+    assert magnet["value"] == pytest.approx(1.3, rel=0.1)  # the bench robot is nominal
