@@ -35,6 +35,15 @@ SV = "sv"  # the board's survey sample report
 BASE_GUARD_TICKS = 8
 MIN_BASE_SAMPLES = 2
 MIN_STEPS = 8  # what `identify fit` needs of a pull (identify_data.load_survey)
+# Past the slack, a sample more than this many ticks from the one before was
+# taken while the servo still ran at the take-up's speed (the engagement is
+# detected a few samples late, at up to 19 ticks per sample): its field lags
+# its position and it is left out. The survey's approach moves about 3 ticks
+# between two lines (APP_SURVEY_V, lib/app/app_priv.h).
+MAX_JUMP_TICKS = 6
+# How far short of the reported engagement the field may already rise: the
+# detection comes a few samples past the true engagement.
+FAST_GUARD_TICKS = 40
 
 
 class SurveyError(HallhomeError):
@@ -96,8 +105,14 @@ def pull_of(tendon: int, samples: Sequence[Sample], engaged: Optional[int],
     baseline from the slack samples before the reported engagement."""
     if not samples:
         raise SurveyError(f"tendon {tendon}: no survey samples arrived")
+    if engaged is None:
+        raise SurveyError(f"tendon {tendon}: the board reported no engagement")
     steps: List[Tuple[int, List[List[float]], int]] = []  # ticks, sum, count
+    prev: Optional[int] = None
     for s in samples:
+        jump, prev = (abs(s.ticks - prev) if prev is not None else 0), s.ticks
+        if jump > MAX_JUMP_TICKS and pull_dir * (engaged - s.ticks) < FAST_GUARD_TICKS:
+            continue
         if steps and steps[-1][0] == s.ticks:
             t0, acc, n = steps[-1]
             steps[-1] = (t0, [[a + b for a, b in zip(ra, rb)] for ra, rb in zip(acc, s.b)], n + 1)
@@ -108,8 +123,6 @@ def pull_of(tendon: int, samples: Sequence[Sample], engaged: Optional[int],
         if kept and pull_dir * (ticks - kept[-1][0]) <= 0:
             continue
         kept.append((ticks, [[round(x / n, 1) for x in v] for v in acc]))
-    if engaged is None:
-        raise SurveyError(f"tendon {tendon}: the board reported no engagement")
     slack = [s for s in samples if pull_dir * (engaged - s.ticks) >= BASE_GUARD_TICKS]
     if len(slack) < MIN_BASE_SAMPLES:
         raise SurveyError(f"tendon {tendon}: {len(slack)} slack sample(s) before its engagement "

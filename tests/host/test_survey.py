@@ -131,3 +131,13 @@ def test_record_weights_reads_before_and_with_the_mass():
 def test_record_weights_refuses_a_missing_sensor():
     with pytest.raises(SurveyError, match="1 sensor"):
         record_weights(FakeBoard(), [0], 80.0, 4, 2, lambda m: None)
+
+
+def test_samples_taken_at_take_up_speed_near_the_engagement_are_left_out():
+    # flat at 19 ticks a sample, then the approach at 3 ticks a sample from 1100
+    s = [Sample(p, [[100, 0, 0]]) for p in range(900, 1080, 19)]
+    s += [Sample(1081, [[400, 0, 0]])]  # at speed past the true engagement: lagging field
+    s += [Sample(p, [[100 + 10 * (p - 1060), 0, 0]]) for p in range(1084, 1160, 3)]
+    p = pull_of(0, s, 1090, 1)
+    ticks = [st[0] for st in p["steps"]]
+    assert 1081 not in ticks and 1084 in ticks and 900 in ticks  # flat part kept

@@ -281,11 +281,12 @@ def do_interactive(cmd, tmp):
 
 
 def do_identify(cmd, tmp):
-    """`hallhome identify [fit|install]`: the subcommand and every option
-    shown exist (tests/host/test_identify.py runs the fit on synthetic
-    surveys, tests/sim/test_operator_bench.py the install on the bench)."""
+    """`hallhome identify [fit|install|survey]`: the subcommand and every
+    option shown exist (tests/host/test_identify.py runs the fit on synthetic
+    surveys, tests/sim/test_operator_bench.py the install on the bench,
+    tests/sim/test_survey_bench.py the survey)."""
     argv = fill(cmd, tmp)
-    sub = [argv[2]] if len(argv) > 2 and argv[2] in ("fit", "install") else []
+    sub = [argv[2]] if len(argv) > 2 and argv[2] in ("fit", "install", "survey") else []
     r = run([str(HALLHOME), "identify", *sub, "--help"])
     assert r.returncode == 0 and "Usage:" in r.out, r.out
     for opt in re.findall(r"(?:^|\s|\[)(--[A-Za-z][\w-]*)", cmd):
