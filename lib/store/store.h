@@ -95,7 +95,7 @@ enum {
 #define STORE_KIND_NONE        0x00u /* slot being rewritten */
 #define STORE_SETTINGS_VERSION 3u    /* raise when store_settings.def changes meaning/order */
 #define STORE_HOMES_VERSION    2u
-#define STORE_LEARNED_VERSION  2u    /* 2: targets uint16 in table LSB (1: uint32 cuT) */
+#define STORE_LEARNED_VERSION  2u /* 2: targets uint16 in table LSB (1: uint32 cuT) */
 #define STORE_HIST_VERSION     1u
 
 #define STORE_HDR_LEN 4u /* kind, version, seq (2) */

@@ -69,7 +69,8 @@ int tbl_check(const tbl_src_t *src)
     for (i = 0; i < info.n_tendons; i++) {
         tbl_tendon_rec_t r;
         src->copy(&r,
-                  TBL_AT(src, TBL_OFF_TENDONS(info.n_sensors, info.n_grid) + i * sizeof(tbl_tendon_rec_t)),
+                  TBL_AT(src, TBL_OFF_TENDONS(info.n_sensors, info.n_grid) +
+                                  i * sizeof(tbl_tendon_rec_t)),
                   sizeof r);
         if (r.sensor >= info.n_sensors || r.nm_per_tick == 0u) {
             return TBL_E_FORMAT;
@@ -97,31 +98,18 @@ int tbl_info(const tbl_src_t *src, tbl_info_t *info)
     return 0;
 }
 
-typedef char tbl_info_counts_adjacent_t[(offsetof(tbl_info_t, n_sensors) ==
-                                             offsetof(tbl_info_t, n_tendons) + 1u &&
-                                         offsetof(tbl_info_t, mode) ==
-                                             offsetof(tbl_info_t, n_tendons) + 3u &&
-                                         offsetof(tbl_head_t, mode) ==
-                                             offsetof(tbl_head_t, n_tendons) + 3u)
-                                            ? 1
-                                            : -1];
+typedef char tbl_info_counts_adjacent_t
+    [(offsetof(tbl_info_t, n_sensors) == offsetof(tbl_info_t, n_tendons) + 1u &&
+      offsetof(tbl_info_t, mode) == offsetof(tbl_info_t, n_tendons) + 3u &&
+      offsetof(tbl_head_t, mode) == offsetof(tbl_head_t, n_tendons) + 3u)
+         ? 1
+         : -1];
 
 /* Offset of entry g of row `row` of tendon i (c: the counts). */
 static uint16_t tbl_row_off(const uint8_t c[3], uint8_t row, uint8_t i, uint8_t g)
 {
     return (uint16_t)(TBL_OFF_ROW(c[0], c[1], c[2], row) + 2u * ((uint16_t)i * c[2] + g));
 }
-
-/* The three uint32 rows of tbl_tendon_t lie back to back in the order of
- * TBL_ROW_TARGET, _ABS, _TRAVEL, so one loop widens them all. */
-typedef char tbl_rows_adjacent_t[(offsetof(tbl_tendon_t, abs_target_cuT) ==
-                                      offsetof(tbl_tendon_t, target_cuT) + TBL_MAX_GRID * 4u &&
-                                  offsetof(tbl_tendon_t, travel_um) ==
-                                      offsetof(tbl_tendon_t, abs_target_cuT) + TBL_MAX_GRID * 4u &&
-                                  TBL_ROW_TARGET == 0u && TBL_ROW_ABS == 1u &&
-                                  TBL_ROW_TRAVEL == 2u && TBL_ROW_STRAIGHT == 3u)
-                                     ? 1
-                                     : -1];
 
 int tbl_tendon(const tbl_src_t *src, uint8_t i, tbl_tendon_t *out)
 {
@@ -145,7 +133,9 @@ int tbl_tendon(const tbl_src_t *src, uint8_t i, tbl_tendon_t *out)
     out->nm_per_tick = r.nm_per_tick;
     out->travel_limit_um = r.travel_limit_um;
     for (row = 0; row < TBL_ROW_STRAIGHT; row++) {
-        uint32_t *d = out->target_cuT + row * TBL_MAX_GRID;
+        uint32_t *d = row == TBL_ROW_TARGET ? out->target_cuT
+                      : row == TBL_ROW_ABS  ? out->abs_target_cuT
+                                            : out->travel_um;
         uint8_t k = row == TBL_ROW_TRAVEL ? 1u : TBL_CUT_PER_LSB;
         src->copy(v, TBL_AT(src, tbl_row_off(c, row, i, 0)), 2u * c[2]);
         for (g = 0; g < c[2]; g++) {

@@ -74,7 +74,8 @@ typedef struct {
     uint32_t magic;          /* TBL_MAGIC */
     uint16_t format_version; /* TBL_FORMAT_VERSION */
     uint16_t size;           /* bytes of the whole table, TBL_SIZE(n_tendons, n_sensors, n_grid) */
-    uint32_t table_id; /* CRC-32 of the table's bytes with table_id 0: identifies the robot + model */
+    uint32_t
+        table_id; /* CRC-32 of the table's bytes with table_id 0: identifies the robot + model */
     char name[TBL_NAME_LEN];
     uint8_t n_tendons;
     uint8_t n_sensors;
@@ -91,11 +92,11 @@ typedef struct {
 } tbl_sensor_rec_t;
 
 typedef struct {
-    uint8_t servo_id;         /* DYNAMIXEL ID */
-    int8_t pull_dir;          /* +1: increasing position ticks shortens the tendon; -1: decreasing */
-    uint8_t segment;          /* 1-based segment where the tendon ends */
-    uint8_t sensor;           /* index of the selected sensor in the table's sensors */
-    uint16_t nm_per_tick;     /* tendon take-up per encoder tick (spool radius * 2 pi / ticks) */
+    uint8_t servo_id;     /* DYNAMIXEL ID */
+    int8_t pull_dir;      /* +1: increasing position ticks shortens the tendon; -1: decreasing */
+    uint8_t segment;      /* 1-based segment where the tendon ends */
+    uint8_t sensor;       /* index of the selected sensor in the table's sensors */
+    uint16_t nm_per_tick; /* tendon take-up per encoder tick (spool radius * 2 pi / ticks) */
     uint16_t travel_limit_um; /* safety: never pull further than this past engagement */
 } tbl_tendon_rec_t;
 
@@ -136,11 +137,12 @@ typedef struct tbl_table tbl_table_t;
 #define TBL_ROW_STRAIGHT 3u
 #define TBL_ROWS         4u
 
-#define TBL_OFF_GRID                 ((uint16_t)sizeof(tbl_head_t))
-#define TBL_OFF_SENSORS(ng)          (TBL_OFF_GRID + 2u * (ng))
-#define TBL_OFF_TENDONS(ns, ng)      (TBL_OFF_SENSORS(ng) + (ns) * (uint16_t)sizeof(tbl_sensor_rec_t))
-#define TBL_OFF_ROWS(nt, ns, ng)     (TBL_OFF_TENDONS(ns, ng) + (nt) * (uint16_t)sizeof(tbl_tendon_rec_t))
-#define TBL_OFF_ROW(nt, ns, ng, row) (TBL_OFF_ROWS(nt, ns, ng) + (row) * 2u * (nt) * (ng))
+#define TBL_OFF_GRID            ((uint16_t)sizeof(tbl_head_t))
+#define TBL_OFF_SENSORS(ng)     (TBL_OFF_GRID + 2u * (ng))
+#define TBL_OFF_TENDONS(ns, ng) (TBL_OFF_SENSORS(ng) + (ns) * (uint16_t)sizeof(tbl_sensor_rec_t))
+#define TBL_OFF_ROWS(nt, ns, ng)                                                                   \
+    (TBL_OFF_TENDONS(ns, ng) + (nt) * (uint16_t)sizeof(tbl_tendon_rec_t))
+#define TBL_OFF_ROW(nt, ns, ng, row) (TBL_OFF_ROWS(nt, ns, ng) + (row)*2u * (nt) * (ng))
 #define TBL_SIZE(nt, ns, ng)         TBL_OFF_ROW(nt, ns, ng, TBL_ROWS)
 #define TBL_SIZE_MAX                 TBL_SIZE(TBL_MAX_TENDONS, TBL_MAX_SENSORS, TBL_MAX_GRID)
 
@@ -150,8 +152,7 @@ typedef struct tbl_table tbl_table_t;
 #define TBL_LAYOUT_CHECK(NT, NS, NG)                                                               \
     typedef char tbl_layout_ok_t                                                                   \
         [(sizeof(tbl_head_t) == 36u && sizeof(tbl_sensor_rec_t) == 8u &&                           \
-          sizeof(tbl_tendon_rec_t) == 8u &&                                                        \
-          offsetof(struct tbl_table, grid_mN) == TBL_OFF_GRID &&                                   \
+          sizeof(tbl_tendon_rec_t) == 8u && offsetof(struct tbl_table, grid_mN) == TBL_OFF_GRID && \
           offsetof(struct tbl_table, sensors) == TBL_OFF_SENSORS(NG) &&                            \
           offsetof(struct tbl_table, tendons) == TBL_OFF_TENDONS(NS, NG) &&                        \
           offsetof(struct tbl_table, target_lsb) == TBL_OFF_ROW(NT, NS, NG, TBL_ROW_TARGET) &&     \

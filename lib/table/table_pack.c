@@ -92,7 +92,8 @@ int tbl_pack(const tbl_wide_t *w, tbl_buf_t *buf)
         for (g = 0; g < ng; g++) {
             uint16_t o = (uint16_t)(base + 2u * g);
             rc |= pack_field_u16(b + TBL_OFF_ROW(nt, ns, ng, TBL_ROW_TARGET) + o, t->target_cuT[g]);
-            rc |= pack_field_u16(b + TBL_OFF_ROW(nt, ns, ng, TBL_ROW_ABS) + o, t->abs_target_cuT[g]);
+            rc |=
+                pack_field_u16(b + TBL_OFF_ROW(nt, ns, ng, TBL_ROW_ABS) + o, t->abs_target_cuT[g]);
             rc |= pack_u16(b + TBL_OFF_ROW(nt, ns, ng, TBL_ROW_TRAVEL) + o, t->travel_um[g]);
             memcpy(b + TBL_OFF_ROW(nt, ns, ng, TBL_ROW_STRAIGHT) + o, &t->straight_um[g], 2u);
         }

@@ -214,8 +214,7 @@ int plant_run(const plant_run_cfg_t *rc, plant_run_result_t *res)
                 res->max_tension_N[i] = plant.tension_N[i];
             }
             if (engaged[i]) {
-                double past = (double)pull_dir[i] *
-                              ((double)in.servo[i].pos - (double)engage[i]);
+                double past = (double)pull_dir[i] * ((double)in.servo[i].pos - (double)engage[i]);
                 if (past > res->max_past_engage_ticks[i]) {
                     res->max_past_engage_ticks[i] = past;
                 }

@@ -83,8 +83,8 @@ int main(int argc, char **argv)
 {
     static plant_cfg_t nominal;
     static plant_cfg_t actual;
-    static tbl_wide_t table;   /* natural units */
-    static tbl_buf_t packed;   /* the same as the homing reads it */
+    static tbl_wide_t table; /* natural units */
+    static tbl_buf_t packed; /* the same as the homing reads it */
     static plant_run_result_t res;
     static plant_run_result_t first;
     plant_run_cfg_t rc;
