@@ -66,12 +66,33 @@ typedef struct {
 } opts_t;
 
 static plant_cfg_t nominal;
-static tbl_table_t table;
+static tbl_wide_t table;    /* natural units */
+static tbl_buf_t table_buf; /* `table` packed, as the homing reads it */
+
+/* `table` packed (again: callers may have changed it). */
+static const tbl_table_t *packed(void)
+{
+    if (tbl_pack(&table, &table_buf) != 0) {
+        fprintf(stderr, "hh_mc: the table does not fit the stored format\n");
+        exit(1);
+    }
+    return tbl_buf_table(&table_buf);
+}
 
 #ifdef HH_ROBOT
 #define HH_CAT2(a, b) a##b
 #define HH_CAT(a, b)  HH_CAT2(a, b)
 extern const tbl_table_t HH_CAT(tbl_table_, HH_ROBOT);
+
+/* The generated table in natural units. */
+static void generated_table(tbl_wide_t *w)
+{
+    tbl_src_t g = {&HH_CAT(tbl_table_, HH_ROBOT), tbl_copy_ram};
+    if (tbl_unpack(&g, w) != 0) {
+        fprintf(stderr, "hh_mc: the generated table fails its check\n");
+        exit(1);
+    }
+}
 #endif
 
 static void usage(void)
@@ -103,7 +124,7 @@ static double seg_ei_rel(const plant_cfg_t *actual, unsigned j)
 static void run_setup(plant_run_cfg_t *rc, const plant_cfg_t *actual, unsigned tension,
                       uint32_t seed)
 {
-    plant_run_defaults(rc, actual, &table);
+    plant_run_defaults(rc, actual, packed());
     rc->seed = seed;
     rc->cmd.mode = HOM_MODE_FULL;
     rc->cmd.tension_mN = (uint16_t)tension;
@@ -262,7 +283,7 @@ static void ideal_detect(const plant_cfg_t *actual, unsigned i, unsigned tension
                          double *x_abs)
 {
     static plant_t p;
-    tbl_src_t src = {&table, tbl_copy_ram};
+    tbl_src_t src = {packed(), tbl_copy_ram};
     tbl_point_t pt;
     double eng[TBL_MAX_TENDONS];
     double b0[3], b[3], d[3];
@@ -484,9 +505,9 @@ static int study_cal(const opts_t *o)
 
 static int study_targets(const opts_t *o)
 {
-    tbl_src_t sp = {&table, tbl_copy_ram};
+    tbl_src_t sp = {packed(), tbl_copy_ram};
     unsigned i;
-    static tbl_table_t own;
+    static tbl_wide_t own;
     own = table;
     printf("cols,tgt,tendon,segment,plant_sensor,plant_target_uT,plant_travel_um,gen_sensor,"
            "gen_target_uT,gen_travel_um,gen_ideal_tension_N\n");
@@ -500,11 +521,16 @@ static int study_targets(const opts_t *o)
         tbl_src_t sg = {&HH_CAT(tbl_table_, HH_ROBOT), tbl_copy_ram};
         double xd, xa;
         gb = tbl_target(&sg, (uint8_t)i, (uint16_t)o->tension, &b);
-        gs = HH_CAT(tbl_table_, HH_ROBOT).tendons[i].sensor;
+        {
+            tbl_tendon_t row;
+            (void)tbl_tendon(&sg, (uint8_t)i, &row);
+            gs = row.sensor;
+        }
         /* where the noise-free plant meets the generated target, sub-tick */
-        table = HH_CAT(tbl_table_, HH_ROBOT);
+        generated_table(&table);
         ideal_detect(&nominal, i, o->tension, &xd, &xa);
         table = own;
+        sp.table = packed();
         tn = isnan(xd) ? NAN : plant_tension_at(&nominal, (uint8_t)i, xd);
 #else
         memset(&b, 0, sizeof b);
@@ -590,7 +616,7 @@ int main(int argc, char **argv)
     }
     if (o.generated) {
 #ifdef HH_ROBOT
-        table = HH_CAT(tbl_table_, HH_ROBOT);
+        generated_table(&table);
         if (table.n_tendons != nominal.n_tendons || table.n_sensors != nominal.n_sensors) {
             fprintf(stderr, "hh_mc: the generated table does not fit %s\n", o.path);
             return 1;

@@ -20,7 +20,7 @@ BENCH_ARGS    ?=
 BENCH_PLANT    = $(or $(SIM_PLANT),sim/plant/configs/$(ROBOT).cfg)
 # The native runners built with optimisation (the CMake build carries the
 # sanitizers, 7x slower): the homing core and the plant, no AVR.
-BENCH_NATIVE_SRCS = $(wildcard sim/plant/*.c) $(wildcard lib/homing/*.c) lib/table/table.c
+BENCH_NATIVE_SRCS = $(wildcard sim/plant/*.c) $(wildcard lib/homing/*.c) lib/table/table.c lib/table/table_pack.c
 BENCH_NATIVE_CFLAGS := -std=c99 -O2 -Wall -Wextra -pedantic -Ilib -Isim
 
 .PHONY: bench bench-check bench-tools

@@ -44,12 +44,14 @@ def plan(table: dict, board: TableInfo, robot_name: str, force: bool = False) ->
         refusals.append(f"tension grid {list(table['grid_mN'])} mN here, {list(board.grid)} mN "
                         "in the board's table (learned targets sit on the board's grid)")
     targets: Dict[int, List[Tuple[int, float]]] = {}
+    from hallhome.tablegen import parse_table_header
+    cut = parse_table_header()["TBL_CUT_PER_LSB"]  # the table stores whole LSB
     for i, t in enumerate(table["tendons"]):
         if i < board.n and board.sensor.get(i) != t["sensor"]:
             refusals.append(f"tendon {i}: the identified robot selects sensor {t['sensor']}, the "
                             f"board's table sensor {board.sensor.get(i)} (the targets are that "
                             "sensor's field)")
-        targets[i] = [(g, v / 100.0) for g, v in zip(table["grid_mN"], t["target_cuT"])]
+        targets[i] = [(g, v * cut / 100.0) for g, v in zip(table["grid_mN"], t["target_lsb"])]
     return Plan(targets, refusals)
 
 

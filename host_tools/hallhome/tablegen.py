@@ -49,14 +49,18 @@ class CField:
     ctype: str
     name: str
     count: int | None  # array length, None for a scalar
+    dims: tuple[str, ...] = ()  # TBL_LAYOUT members: the count parameters (NT, NS, NG)
 
 
 @dataclass(frozen=True)
 class TableSpec:
-    """What lib/table/table.h declares: integer constants and struct fields."""
+    """What lib/table/table.h declares: integer constants, struct fields and
+    the stored layout (TBL_LAYOUT's members, sized by the robot's counts)."""
 
     constants: dict[str, int]
     structs: dict[str, tuple[CField, ...]]
+    layout: tuple[CField, ...] = ()
+    layout_params: tuple[str, str, str] = ("NT", "NS", "NG")
 
     def __getitem__(self, name: str) -> int:
         return self.constants[name]
@@ -89,12 +93,29 @@ def parse_table_header(path: Path = TABLE_HEADER) -> TableSpec:
             structs[sname] = tuple(fields)
     for needed in ("TBL_MAGIC", "TBL_FORMAT_VERSION", "TBL_MAX_GRID", "TBL_MAX_TENDONS",
                    "TBL_MAX_SENSORS", "TBL_NAME_LEN", "TBL_NO_MUX", "TBL_MODE_DELTA",
-                   "TBL_MODE_ABSOLUTE"):
+                   "TBL_MODE_ABSOLUTE", "TBL_CUT_PER_LSB"):
         if needed not in consts:
             raise TableError(f"{path}: constant {needed} not found")
-    if "tbl_table_t" not in structs:
-        raise TableError(f"{path}: struct tbl_table_t not found")
-    return TableSpec(consts, structs)
+    m = re.search(r"#define\s+TBL_LAYOUT\(\s*(\w+)\s*,\s*(\w+)\s*,\s*(\w+)\s*\)\s*\\\s*"
+                  r"struct\s+tbl_table\s*\{(.*?)\}", text, flags=re.S)
+    if m is None:
+        raise TableError(f"{path}: macro TBL_LAYOUT(NT, NS, NG) not found")
+    params = m.group(1, 2, 3)
+    layout = []
+    for decl in m.group(4).replace("\\", " ").split(";"):
+        decl = " ".join(decl.split())
+        if not decl:
+            continue
+        fm = re.fullmatch(r"(\w+)\s+(\w+)((?:\s*\[\s*\w+\s*\])*)", decl)
+        if fm is None:
+            raise TableError(f"{path}: TBL_LAYOUT member {decl!r} not understood")
+        dims = tuple(re.findall(r"\w+", fm.group(3)))
+        if any(d not in params for d in dims):
+            raise TableError(f"{path}: TBL_LAYOUT member {decl!r}: sizes must be {params}")
+        layout.append(CField(fm.group(1), fm.group(2), None, dims))
+    if not layout or layout[0].ctype not in structs or layout[0].dims:
+        raise TableError(f"{path}: TBL_LAYOUT must start with the header struct")
+    return TableSpec(consts, structs, tuple(layout), params)
 
 
 # --- computation --------------------------------------------------------------------
@@ -234,13 +255,21 @@ def _cuT(x: float) -> int:
     return int(round(x * 1e8))  # T -> centi-microtesla (10 nT)
 
 
+def _lsb(x: float, spec: TableSpec) -> int:
+    """T -> the table's field unit (TBL_CUT_PER_LSB cuT), nearest integer."""
+    return int(round(x * 1e8 / spec["TBL_CUT_PER_LSB"]))
+
+
 def _um(x: float) -> int:
     return int(round(x * 1e6))
 
 
 def build_table(res: RobotResult, spec: TableSpec) -> dict:
     """The table content as a nested dict keyed by table.h field names, with
-    integer values (arrays hold only the used entries)."""
+    integer values in the stored units: the header's fields at the top level,
+    ``grid_mN``, ``sensors`` and ``tendons`` (each tendon with its per-grid
+    rows). Raises TableError naming the robot, the key and the limit when a
+    value does not fit its stored type (nothing is clipped)."""
     robot = res.robot
     c = spec.constants
     nt, ns, ng = len(robot.tendons), len(robot.sensors), len(robot.tension_grid)
@@ -269,7 +298,7 @@ def build_table(res: RobotResult, spec: TableSpec) -> dict:
         sensors.append({"mux_channel": c["TBL_NO_MUX"] if s.mux_channel is None
                         else s.mux_channel,
                         "i2c_addr": s.i2c_address,
-                        "b_straight_cuT": [_cuT(x) for x in b]})
+                        "b_straight_lsb": [_lsb(x, spec) for x in b]})
     tendons = []
     for i, (t, tr) in enumerate(zip(robot.tendons, res.tendons)):
         sel = tr.selected
@@ -280,93 +309,184 @@ def build_table(res: RobotResult, spec: TableSpec) -> dict:
             "sensor": sel,
             "nm_per_tick": int(round(t.metres_per_tick * 1e9)),
             "travel_limit_um": _um(robot.travel_limit),
-            "target_cuT": [_cuT(x) for x in tr.delta[:, sel]],
-            "abs_target_cuT": [_cuT(x) for x in np.linalg.norm(tr.field[:, sel], axis=-1)],
+            "target_lsb": [_lsb(x, spec) for x in tr.delta[:, sel]],
+            "abs_target_lsb": [_lsb(x, spec) for x in np.linalg.norm(tr.field[:, sel], axis=-1)],
             "travel_um": [_um(x) for x in tr.travel],
             "straight_um": [int(x) for x in res.straight_um[i]],
         })
     table = {
         "magic": c["TBL_MAGIC"],
         "format_version": c["TBL_FORMAT_VERSION"],
-        "reserved": 0,
+        "size": table_size(spec, nt, ns, ng),
         "table_id": 0,
         "name": robot.name,
         "n_tendons": nt,
         "n_sensors": ns,
         "n_grid": ng,
         "mode": c["TBL_MODE_DELTA"] if robot.mode == "delta" else c["TBL_MODE_ABSOLUTE"],
-        "grid_mN": grid_mN,
         "default_mN": default_mN,
         "noise_cuT": _cuT(robot.noise),
+        "grid_mN": grid_mN,
         "sensors": sensors,
         "tendons": tendons,
     }
-    _check_fields(table, "tbl_table_t", spec)
+    check_table(table, spec, robot.path.name)
     table["table_id"] = zlib.crc32(canonical_bytes(table, spec))
     return table
 
 
-def _check_fields(value: dict, sname: str, spec: TableSpec) -> None:
-    """Every header field filled, nothing else, every integer in range."""
-    fields = spec.structs[sname]
-    names = [f.name for f in fields]
-    if set(value) != set(names):
-        missing = sorted(set(names) - set(value))
-        extra = sorted(set(value) - set(names))
-        raise TableError(f"lib/table/table.h {sname}: generator and header disagree "
-                         f"(header fields not filled: {missing}, unknown to header: {extra})")
-    for f in fields:
-        v = value[f.name]
-        items = v if f.count is not None else [v]
-        if f.count is not None and len(items) > f.count:
-            raise TableError(f"{sname}.{f.name}: {len(items)} entries, header allows {f.count}")
-        for x in items:
-            if f.ctype in spec.structs:
-                _check_fields(x, f.ctype, spec)
-            elif f.ctype == "char":
-                if not isinstance(v, str) or len(v) >= f.count:
-                    raise TableError(f"{sname}.{f.name}: string {v!r} too long")
-                break
+def _ctype_size(spec: TableSpec, ctype: str) -> int:
+    if ctype in spec.structs:
+        return sum((f.count or 1) * _ctype_size(spec, f.ctype) for f in spec.structs[ctype])
+    return 1 if ctype == "char" else struct.calcsize("<" + _CTYPES[ctype][0])
+
+
+def table_size(spec: TableSpec, nt: int, ns: int, ng: int) -> int:
+    """Bytes of the stored table for these counts (TBL_SIZE in table.h)."""
+    n = dict(zip(spec.layout_params, (nt, ns, ng)))
+    total = 0
+    for f in spec.layout:
+        count = 1
+        for d in f.dims:
+            count *= n[d]
+        total += count * _ctype_size(spec, f.ctype)
+    return total
+
+
+def _layout_items(table: dict, spec: TableSpec):
+    """(member, value) in TBL_LAYOUT order: the header struct as the table's
+    top-level fields, 1-dimensional members as top-level keys (a list of
+    dicts for a struct type), [NT][NG] rows from each tendon's dict."""
+    nt_param = spec.layout_params[0]
+    for k, f in enumerate(spec.layout):
+        if k == 0:
+            yield f, {g.name: table[g.name] for g in spec.structs[f.ctype]}
+        elif len(f.dims) == 2 and f.dims[0] == nt_param:
+            yield f, [td[f.name] for td in table["tendons"]]
+        elif f.name == "tendons":
+            rec = spec.structs[f.ctype]
+            yield f, [{g.name: td[g.name] for g in rec} for td in table["tendons"]]
+        else:
+            yield f, table[f.name]
+
+
+def _unit_note(key: str, ctype: str, lo: int, hi: int, spec: TableSpec) -> str:
+    cut = spec["TBL_CUT_PER_LSB"]
+    if key.split("[")[0].endswith("_lsb") or "_lsb[" in key:
+        return (f"{lo}..{hi} LSB = {lo * cut / 100:g}..{hi * cut / 100:g} uT "
+                f"(TBL_CUT_PER_LSB = {cut} cuT)")
+    if "_um" in key:
+        return f"{lo}..{hi} um = {lo / 1000:g}..{hi / 1000:g} mm"
+    return f"{lo}..{hi}"
+
+
+def check_table(table: dict, spec: TableSpec, where: str) -> None:
+    """Every header field filled, nothing else, the counts matching the
+    arrays, every integer within its stored C type. Raises TableError naming
+    ``where`` (the robot's file), the key and the limit."""
+    def fail(msg):
+        raise TableError(f"{where}: {msg}")
+
+    def fields_of(value: dict, names: list[str], ctx: str):
+        if set(value) != set(names):
+            missing = sorted(set(names) - set(value))
+            extra = sorted(set(value) - set(names))
+            fail(f"lib/table/table.h {ctx}: generator and header disagree (header fields not "
+                 f"filled: {missing}, unknown to header: {extra})")
+
+    def scalar(key: str, ctype: str, v):
+        if ctype in spec.structs:
+            for g in spec.structs[ctype]:
+                field(f"{key}.{g.name}", g, v[g.name])
+            return
+        _, lo, hi = _CTYPES[ctype]
+        if not isinstance(v, (int, np.integer)) or not lo <= v <= hi:
+            fail(f"{key} = {v} does not fit the table's {ctype} "
+                 f"({_unit_note(key, ctype, lo, hi, spec)}; lib/table/table.h)")
+
+    def field(key: str, f: CField, v):
+        if f.ctype == "char":
+            if not isinstance(v, str) or len(v) >= f.count:
+                fail(f"{key}: string {v!r} longer than {f.count - 1} characters")
+            return
+        if f.count is None:
+            scalar(key, f.ctype, v)
+            return
+        if len(v) != f.count:
+            fail(f"{key}: {len(v)} entries, the header declares {f.count}")
+        for k, x in enumerate(v):
+            scalar(f"{key}[{k}]", f.ctype, x)
+
+    head = spec.layout[0]
+    rec = spec.structs[spec.layout[[f.name for f in spec.layout].index("tendons")].ctype]
+    rows = [f.name for f in spec.layout if len(f.dims) == 2]
+    top = ([g.name for g in spec.structs[head.ctype]] +
+           [f.name for f in spec.layout[1:] if len(f.dims) == 1])
+    fields_of(table, top, "table")
+    counts = dict(zip(spec.layout_params, (table["n_tendons"], table["n_sensors"],
+                                           table["n_grid"])))
+    for k, td in enumerate(table["tendons"]):
+        fields_of(td, [g.name for g in rec] + rows, f"tendons[{k}]")
+    if table["size"] != table_size(spec, *counts.values()):
+        fail(f"size {table['size']} is not the layout's {table_size(spec, *counts.values())}")
+    for f, v in _layout_items(table, spec):
+        if not f.dims:
+            for g in spec.structs[f.ctype]:
+                field(g.name, g, v[g.name])
+            continue
+        if len(v) != counts[f.dims[0]]:
+            fail(f"{f.name}: {len(v)} entries for {f.dims[0]} = {counts[f.dims[0]]}")
+        for i, x in enumerate(v):
+            if len(f.dims) == 2:
+                if len(x) != counts[f.dims[1]]:
+                    fail(f"tendons[{i}].{f.name}: {len(x)} entries for {f.dims[1]} = "
+                         f"{counts[f.dims[1]]}")
+                for g, y in enumerate(x):
+                    scalar(f"tendons[{i}].{f.name}[{g}]", f.ctype, y)
             else:
-                _, lo, hi = _CTYPES[f.ctype]
-                if not lo <= x <= hi:
-                    raise TableError(f"{sname}.{f.name}: value {x} outside {f.ctype}")
+                scalar(f"{f.name}[{i}]", f.ctype, x)
 
 
-def canonical_bytes(table: dict, spec: TableSpec, sname: str = "tbl_table_t") -> bytes:
-    """The canonical serialisation the table_id CRC-32 covers: every field of
-    the header's structs in declaration order, little-endian, no padding,
-    arrays zero-filled to their declared size, char arrays NUL-filled, and
+def _pack(spec: TableSpec, ctype: str, v, out: bytearray, count: int | None = None) -> None:
+    if ctype == "char":
+        raw = v.encode("ascii")
+        out += raw + b"\0" * (count - len(raw))
+        return
+    if count is not None:
+        for x in v:
+            _pack(spec, ctype, x, out)
+        return
+    if ctype in spec.structs:
+        for g in spec.structs[ctype]:
+            _pack(spec, g.ctype, v[g.name], out, g.count)
+        return
+    out += struct.pack("<" + _CTYPES[ctype][0], int(v))
+
+
+def canonical_bytes(table: dict, spec: TableSpec) -> bytes:
+    """The bytes the table_id CRC-32 covers: the stored table exactly as the
+    AVR holds it (TBL_LAYOUT order, little-endian, no padding), with
     table_id itself as 0."""
     out = bytearray()
-    for f in spec.structs[sname]:
-        v = 0 if f.name == "table_id" and sname == "tbl_table_t" else table[f.name]
-        if f.ctype == "char":
-            raw = v.encode("ascii")
-            out += raw + b"\0" * (f.count - len(raw))
-            continue
-        items = v if f.count is not None else [v]
-        n = f.count if f.count is not None else 1
-        for k in range(n):
-            if f.ctype in spec.structs:
-                if k < len(items):
-                    out += canonical_bytes(items[k], spec, f.ctype)
-                else:
-                    out += _zero_struct(spec, f.ctype)
-            else:
-                out += struct.pack("<" + _CTYPES[f.ctype][0], items[k] if k < len(items) else 0)
+    for f, v in _layout_items(table, spec):
+        if not f.dims:
+            v = dict(v, table_id=0)
+            _pack(spec, f.ctype, v, out)
+        elif len(f.dims) == 2:
+            for row in v:
+                _pack(spec, f.ctype, row, out, len(row))
+        else:
+            _pack(spec, f.ctype, v, out, len(v))
+    if len(out) != table["size"]:
+        raise TableError(f"table {table['name']}: {len(out)} bytes packed, size says "
+                         f"{table['size']}")
     return bytes(out)
 
 
-def _zero_struct(spec: TableSpec, sname: str) -> bytes:
-    size = 0
-    for f in spec.structs[sname]:
-        n = f.count or 1
-        if f.ctype in spec.structs:
-            size += n * len(_zero_struct(spec, f.ctype))
-        else:
-            size += n * struct.calcsize("<" + _CTYPES[f.ctype][0])
-    return b"\0" * size
+def target_cuT(table: dict, tendon: int, spec: TableSpec | None = None) -> list[int]:
+    """Tendon ``tendon``'s targets in cuT, as the firmware reads them."""
+    spec = spec or parse_table_header()
+    return [v * spec["TBL_CUT_PER_LSB"] for v in table["tendons"][tendon]["target_lsb"]]
 
 
 # --- learned targets (`hallhome learn` exports) ------------------------------------
@@ -485,7 +605,7 @@ class LearnedApplied:
     """The model's table with learned targets compiled in."""
 
     name: str  # <robot>_learned: the file stem and the C symbol's suffix
-    table: dict  # as build_table's, learned target_cuT in place, table_id recomputed
+    table: dict  # as build_table's, learned target_lsb in place, table_id recomputed
     model_table_id: int
     files: list[LearnedFile]
     mask: list[list[bool]]  # [tendon][grid point]: target learned
@@ -500,7 +620,8 @@ class LearnedApplied:
 
 def apply_learned(table: dict, spec: TableSpec, robot: Robot,
                   files: Sequence[LearnedFile]) -> LearnedApplied:
-    """Replace the model's target_cuT by the learned targets of ``files``,
+    """Replace the model's targets by the learned targets of ``files`` (cuT,
+    rounded to the table's LSB like the board stores them),
     applied in order: the first must have been learned on the model's table
     (same table_id), each later one on the table the earlier ones give (the
     firmware built from it). A later file's entry replaces an earlier one.
@@ -514,6 +635,7 @@ def apply_learned(table: dict, spec: TableSpec, robot: Robot,
                          f"lookup_tables/robots; its table and this learned table would "
                          f"share a name")
     grid = list(table["grid_mN"])
+    cut = spec["TBL_CUT_PER_LSB"]
     nt = table["n_tendons"]
     model_id = table["table_id"]
     cur = json.loads(json.dumps(table))  # deep copy, plain data
@@ -556,11 +678,17 @@ def apply_learned(table: dict, spec: TableSpec, robot: Robot,
                 if v is None:
                     continue
                 gi = grid.index(g)
-                cur["tendons"][t]["target_cuT"][gi] = v
+                if v > 0xFFFF * cut:
+                    raise TableError(
+                        f"{where}: tendon {t} at {g} mN: target {v} cuT ({v / 100:g} uT) does "
+                        f"not fit the table's uint16_t field: at most 65535 LSB = "
+                        f"{0xFFFF * cut / 100:g} uT (TBL_CUT_PER_LSB = {cut} cuT, "
+                        f"lib/table/table.h)")
+                cur["tendons"][t]["target_lsb"][gi] = (v + cut // 2) // cut
                 mask[t][gi] = True
                 origin[(t, gi)] = lf.path.name
         cur["table_id"] = 0
-        _check_fields(cur, "tbl_table_t", spec)
+        check_table(cur, spec, robot.path.name)
         cur["table_id"] = zlib.crc32(canonical_bytes(cur, spec))
     if not any(any(row) for row in mask):
         raise TableError(f"learned targets {', '.join(f.path.name for f in files)}: no learned "
@@ -568,7 +696,7 @@ def apply_learned(table: dict, spec: TableSpec, robot: Robot,
     warnings = []
     for t in range(nt):
         name_t = _tendon_name(robot, t)
-        vals = cur["tendons"][t]["target_cuT"]
+        vals = [v * cut for v in cur["tendons"][t]["target_lsb"]]
         pts = [(gi, vals[gi]) for gi in range(len(grid)) if mask[t][gi]]
         for (ga, va), (gb, vb) in zip(pts, pts[1:]):
             if vb <= va:
@@ -595,14 +723,14 @@ def apply_learned(table: dict, spec: TableSpec, robot: Robot,
                     break
     if robot.mode == "absolute":
         warnings.append("the table's mode is absolute: learned targets replace the delta "
-                        "targets (target_cuT) only, abs_target_cuT stays the model's")
+                        "targets (target_lsb) only, abs_target_lsb stays the model's")
     return LearnedApplied(name, cur, model_id, list(files), mask, warnings)
 
 
 # --- rendering ----------------------------------------------------------------------
 
-_SYMBOLS = {("tbl_table_t", "magic"): "TBL_MAGIC",
-            ("tbl_table_t", "format_version"): "TBL_FORMAT_VERSION"}
+_SYMBOLS = {("tbl_head_t", "magic"): "TBL_MAGIC",
+            ("tbl_head_t", "format_version"): "TBL_FORMAT_VERSION"}
 
 
 def _c_int(ctype: str, v: int) -> str:
@@ -616,13 +744,13 @@ def _c_value(spec: TableSpec, sname: str, f: CField, v, indent: str) -> str:
     sym = _SYMBOLS.get((sname, f.name))
     if sym is not None and c[sym] == v:
         return sym
-    if sname == "tbl_table_t" and f.name == "table_id":
+    if sname == "tbl_head_t" and f.name == "table_id":
         return f"0x{v:08X}UL"
-    if sname == "tbl_table_t" and f.name == "mode":
+    if sname == "tbl_head_t" and f.name == "mode":
         return "TBL_MODE_DELTA" if v == c["TBL_MODE_DELTA"] else "TBL_MODE_ABSOLUTE"
-    if sname == "tbl_sensor_t" and f.name == "mux_channel" and v == c["TBL_NO_MUX"]:
+    if sname == "tbl_sensor_rec_t" and f.name == "mux_channel" and v == c["TBL_NO_MUX"]:
         return "TBL_NO_MUX"
-    if sname == "tbl_sensor_t" and f.name == "i2c_addr":
+    if sname == "tbl_sensor_rec_t" and f.name == "i2c_addr":
         return f"0x{v:02X}u"
     if f.ctype == "char":
         return json.dumps(v)
@@ -644,13 +772,31 @@ def _c_struct(spec: TableSpec, sname: str, value: dict, indent: str) -> str:
     return "{\n" + "\n".join(lines) + f"\n{indent}}}"
 
 
+def _c_layout(spec: TableSpec, table: dict) -> str:
+    """The initializer of the whole table, one designated member per line
+    group, in TBL_LAYOUT order; [NT][NG] rows one tendon per line."""
+    ind = "    "
+    parts = []
+    for f, v in _layout_items(table, spec):
+        if not f.dims:
+            parts.append(f"{ind}.{f.name} = {_c_struct(spec, f.ctype, v, ind)},")
+        elif len(f.dims) == 2:
+            rows = [f"{ind * 2}{{{', '.join(_c_int(f.ctype, x) for x in row)}}}, /* tendon {i} */"
+                    for i, row in enumerate(v)]
+            parts.append(f"{ind}.{f.name} = {{\n" + "\n".join(rows) + f"\n{ind}}},")
+        else:
+            fake = CField(f.ctype, f.name, len(v))
+            parts.append(f"{ind}.{f.name} = {_c_value(spec, 'tbl_table_t', fake, v, ind)},")
+    return "{\n" + "\n".join(parts) + "\n}"
+
+
 def render_c(table: dict, spec: TableSpec, robot: Robot,
              learned: LearnedApplied | None = None) -> str:
     """The generated C source defining tbl_table_<robot> (with learned
     targets: tbl_table_<robot>_learned)."""
     src = _relpath(robot.path)
     var = f"tbl_table_{robot.name}" if learned is None else f"tbl_table_{learned.name}"
-    body = _c_struct(spec, "tbl_table_t", table, "")
+    counts = f"{table['n_tendons']}, {table['n_sensors']}, {table['n_grid']}"
     head = f"/* generated by hallhome tables, do not edit: {src} */\n"
     if learned is not None:
         head = (f"/* generated by hallhome tables, do not edit: {src}\n"
@@ -659,8 +805,12 @@ def render_c(table: dict, spec: TableSpec, robot: Robot,
                 f"(tendon: mN): {learned.summary()} */\n")
     return (head +
             f"#include \"table/table.h\"\n\n"
+            f"/* {table['n_tendons']} tendons, {table['n_sensors']} sensors, {table['n_grid']} "
+            f"grid points: {table['size']} bytes */\n"
+            f"TBL_LAYOUT({counts});\n"
+            f"TBL_LAYOUT_CHECK({counts});\n\n"
             f"extern const tbl_table_t {var} TBL_FLASH;\n\n"
-            f"const tbl_table_t {var} TBL_FLASH = {body};\n")
+            f"const tbl_table_t {var} TBL_FLASH = {_c_layout(spec, table)};\n")
 
 
 def _relpath(p: Path) -> str:
@@ -723,7 +873,7 @@ def render_json(res: RobotResult, table: dict, spec: TableSpec,
         if learned is not None:
             h = tendons[-1]
             h["model_target_uT"] = h["target_uT"]
-            h["target_uT"] = _r(np.array(table["tendons"][t.index]["target_cuT"]) / 100.0, 3)
+            h["target_uT"] = _r(np.array(target_cuT(table, t.index, spec)) / 100.0, 3)
             h["learned"] = list(learned.mask[t.index])
     doc = {
         "format": "hallhome-table",

@@ -26,17 +26,17 @@ void app_table_copy(app_t *app, void *dst, const void *src, size_t n)
         if (app_has(app->learn.mask, t) == 0u) {
             continue;
         }
-        lo = (uintptr_t)&app->io->table->tendons[t].target_cuT[0];
-        if (lo >= s1 || lo + sizeof(uint32_t) * TBL_MAX_GRID <= s0) {
+        lo = (uintptr_t)tbl_target_row(app->io->table, &app->info, t);
+        if (lo == 0u || lo >= s1 || lo + sizeof(uint16_t) * app->info.n_grid <= s0) {
             continue;
         }
         if (store_learned_load(&app->rec.store, t, app->info.table_id, &l) != 0) {
             continue;
         }
         for (g = 0; g < l.n_grid && g < TBL_MAX_GRID; g++) {
-            uintptr_t w = lo + sizeof(uint32_t) * g;
-            if (app_has(l.grid_mask, g) != 0u && w >= s0 && w + sizeof(uint32_t) <= s1) {
-                memcpy((uint8_t *)dst + (w - s0), &l.target_cuT[g], sizeof(uint32_t));
+            uintptr_t w = lo + sizeof(uint16_t) * g;
+            if (app_has(l.grid_mask, g) != 0u && w >= s0 && w + sizeof(uint16_t) <= s1) {
+                memcpy((uint8_t *)dst + (w - s0), &l.target_lsb[g], sizeof(uint16_t));
             }
         }
     }
@@ -61,12 +61,14 @@ static int8_t learn_plausible(const app_t *a, const store_learned_t *l, uint32_t
 {
     uint8_t g;
     uint32_t m = 2u * (uint32_t)a->info.noise_cuT; /* a rise must exceed the noise */
-    if (v < 10u * (uint32_t)a->info.noise_cuT || v == 0u) {
+    /* above TBL_FIELD_CUT_MAX (9830 uT) the table's unit cannot hold it */
+    if (v < 10u * (uint32_t)a->info.noise_cuT || v == 0u || v > TBL_FIELD_CUT_MAX) {
         return CON_E_IMPLAUSIBLE;
     }
     for (g = 0; g < a->info.n_grid; g++) {
-        if (app_has(l->grid_mask, g) && ((g < a->learn.grid && l->target_cuT[g] + m >= v) ||
-                                         (g > a->learn.grid && l->target_cuT[g] <= v + m))) {
+        uint32_t have = (uint32_t)l->target_lsb[g] * TBL_CUT_PER_LSB;
+        if (app_has(l->grid_mask, g) &&
+            ((g < a->learn.grid && have + m >= v) || (g > a->learn.grid && have <= v + m))) {
             return CON_E_IMPLAUSIBLE;
         }
     }
@@ -83,15 +85,15 @@ static store_learned_t *learned_of(app_t *a, uint8_t t)
     return l;
 }
 
-/* v becomes tendon t's target at learn.grid: the record is queued for the
- * EEPROM and reported. */
+/* v becomes tendon t's target at learn.grid, rounded to the table's LSB:
+ * the record is queued for the EEPROM and reported. */
 static void learned_store(app_t *a, uint8_t t, uint32_t v)
 {
     store_learned_t *l = &a->u.idle.rec.learned;
     l->table_id = a->info.table_id;
     l->tendon = t;
     l->n_grid = a->info.n_grid;
-    l->target_cuT[a->learn.grid] = v;
+    l->target_lsb[a->learn.grid] = tbl_lsb_of_cuT(v);
     l->grid_mask |= app_bit16(a->learn.grid);
     app_rec_queue(a, APP_SAVE_LEARNED);
     app_rep_begin(a, app_w_learned);
@@ -99,7 +101,9 @@ static void learned_store(app_t *a, uint8_t t, uint32_t v)
     app_rep_int(a, app_w_tension_mN, a->info.grid_mN[a->learn.grid]);
     app_rep_int(a, app_w_grid, a->learn.grid);
     app_rep_int(a, app_w_sensor, a->learn.sensor);
-    con_report_fixed(&a->cmd.con, app_w_dB_uT, (int32_t)v, 2);
+    /* the stored value (whole LSB), the one `table` shows */
+    con_report_fixed(&a->cmd.con, app_w_dB_uT,
+                     (int32_t)((uint32_t)l->target_lsb[a->learn.grid] * TBL_CUT_PER_LSB), 2);
     app_rep_end(a);
 }
 

@@ -17,7 +17,7 @@
 #define STORE_ASSERT(name, cond) typedef char store_assert_##name[(cond) ? 1 : -1]
 
 STORE_ASSERT(homes_size, sizeof(store_homes_t) == 184u);
-STORE_ASSERT(learned_size, sizeof(store_learned_t) == 56u);
+STORE_ASSERT(learned_size, sizeof(store_learned_t) == 32u);
 STORE_ASSERT(hist_size, sizeof(store_hist_t) == 64u);
 STORE_ASSERT(settings_fit, STORE_SETTING_COUNT <= STORE_SETTING_MAX &&
                                STORE_SLOT_LEN(4u * STORE_SETTING_MAX) <= STORE_SETTINGS_STRIDE);

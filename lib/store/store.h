@@ -5,7 +5,8 @@
  * when invalid), the homes of the last calibration (multi-turn tick count,
  * single-turn remainder and the rest position the servo was left at, with the
  * tension, calibration count and table_id), learned (model-free) targets per
- * tendon in the shape of tbl_tendon_t.target_cuT, and a ring of the last
+ * tendon in the shape of the table's stored target row (uint16 LSB per grid
+ * point, TBL_CUT_PER_LSB cuT each), and a ring of the last
  * STORE_HIST_N calibrations so tendon creep can be followed.
  *
  * Power-loss guarantee: settings, homes and each tendon's learned targets are
@@ -45,7 +46,7 @@
  *   0x100  homes slot A         192 (4 + 184 + 2 used)
  *   0x1C0  homes slot B         192
  *   0x280  learned targets      24 slots of 64: tendon t at 0x280 + 128*t
- *                               (A) and +64 (B); 4 + 56 + 2 used
+ *                               (A) and +64 (B); 4 + 32 + 2 used
  *   0x880  history ring         STORE_HIST_N = 24 entries of 72 (4 + 64 + 2 used)
  *   0xF40  free                 192 bytes
  */
@@ -94,7 +95,7 @@ enum {
 #define STORE_KIND_NONE        0x00u /* slot being rewritten */
 #define STORE_SETTINGS_VERSION 3u    /* raise when store_settings.def changes meaning/order */
 #define STORE_HOMES_VERSION    2u
-#define STORE_LEARNED_VERSION  1u
+#define STORE_LEARNED_VERSION  2u /* 2: targets uint16 in table LSB (1: uint32 cuT) */
 #define STORE_HIST_VERSION     1u
 
 #define STORE_HDR_LEN 4u /* kind, version, seq (2) */
@@ -173,15 +174,17 @@ typedef struct {
 
 /* ---- learned targets --------------------------------------------------------- */
 
-/* Model-free targets of one tendon, same shape as tbl_tendon_t.target_cuT:
- * entry g is the target at the table's grid tension g. grid_mask bit g set
- * means entry g was learned; the others fall back to the compiled table. */
+/* Model-free targets of one tendon, in the shape and unit of the table's
+ * stored target row (tbl_target_row()): entry g is the target at the table's
+ * grid tension g, in LSB of TBL_CUT_PER_LSB cuT (tbl_lsb_of_cuT()). grid_mask
+ * bit g set means entry g was learned; the others fall back to the compiled
+ * table. */
 typedef struct {
     uint32_t table_id;
     uint8_t tendon;
     uint8_t n_grid;
     uint16_t grid_mask;
-    uint32_t target_cuT[TBL_MAX_GRID];
+    uint16_t target_lsb[TBL_MAX_GRID];
 } store_learned_t;
 
 /* ---- history ------------------------------------------------------------------ */

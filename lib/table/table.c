@@ -2,7 +2,10 @@
  * table: accessors for the generated calibration table. Every read goes
  * through the source's copy function, so the same code reads a table in AVR
  * program memory (memcpy_P) and in host memory (memcpy). Only the few bytes a
- * caller needs are copied: a whole table does not fit the AVR's RAM.
+ * caller needs are copied: a whole table does not fit the AVR's RAM. The
+ * table is sized to its robot, so every address is computed from the header's
+ * counts (TBL_OFF_* in table.h), and stored values are widened to the units
+ * the rest of the firmware works in (cuT, um).
  */
 #include "table/table.h"
 
@@ -16,34 +19,43 @@ void tbl_copy_ram(void *dst, const void *src, size_t n)
 
 /* Address arithmetic on the table's own address: valid in flash too, since the
  * pointer is never dereferenced here, only handed to the copy function. */
-#define TBL_FIELD_ADDR(src, field) ((const void *)&((src)->table->field))
+#define TBL_AT(src, off)   ((const void *)((const uint8_t *)(const void *)(src)->table + (off)))
+#define TBL_HEAD(src, fld) TBL_AT(src, offsetof(tbl_head_t, fld))
 
 static int tbl_src_ok(const tbl_src_t *src)
 {
     return src != NULL && src->table != NULL && src->copy != NULL;
 }
 
+/* n_tendons, n_sensors, n_grid (adjacent in the header) into c[0..2]. */
+static void tbl_counts(const tbl_src_t *src, uint8_t c[3])
+{
+    src->copy(c, TBL_HEAD(src, n_tendons), 3);
+}
+
 int tbl_check(const tbl_src_t *src)
 {
     uint32_t magic;
-    uint16_t version;
+    uint16_t version, size;
     tbl_info_t info;
     uint8_t i;
 
     if (!tbl_src_ok(src)) {
         return TBL_E_ARG;
     }
-    src->copy(&magic, TBL_FIELD_ADDR(src, magic), sizeof magic);
+    src->copy(&magic, TBL_HEAD(src, magic), sizeof magic);
     if (magic != TBL_MAGIC) {
         return TBL_E_MAGIC;
     }
-    src->copy(&version, TBL_FIELD_ADDR(src, format_version), sizeof version);
+    src->copy(&version, TBL_HEAD(src, format_version), sizeof version);
     if (version != TBL_FORMAT_VERSION) {
         return TBL_E_VERSION;
     }
+    src->copy(&size, TBL_HEAD(src, size), sizeof size);
     (void)tbl_info(src, &info);
     if (info.n_tendons == 0u || info.n_tendons > TBL_MAX_TENDONS || info.n_sensors == 0u ||
-        info.n_sensors > TBL_MAX_SENSORS || info.n_grid < 2u || info.n_grid > TBL_MAX_GRID) {
+        info.n_sensors > TBL_MAX_SENSORS || info.n_grid < 2u || info.n_grid > TBL_MAX_GRID ||
+        size != TBL_SIZE(info.n_tendons, info.n_sensors, info.n_grid)) {
         return TBL_E_FORMAT;
     }
     for (i = 1; i < info.n_grid; i++) {
@@ -55,11 +67,12 @@ int tbl_check(const tbl_src_t *src)
         return TBL_E_FORMAT;
     }
     for (i = 0; i < info.n_tendons; i++) {
-        uint8_t sensor;
-        uint32_t nm;
-        src->copy(&sensor, TBL_FIELD_ADDR(src, tendons[i].sensor), sizeof sensor);
-        src->copy(&nm, TBL_FIELD_ADDR(src, tendons[i].nm_per_tick), sizeof nm);
-        if (sensor >= info.n_sensors || nm == 0u) {
+        tbl_tendon_rec_t r;
+        src->copy(&r,
+                  TBL_AT(src, TBL_OFF_TENDONS(info.n_sensors, info.n_grid) +
+                                  i * sizeof(tbl_tendon_rec_t)),
+                  sizeof r);
+        if (r.sensor >= info.n_sensors || r.nm_per_tick == 0u) {
             return TBL_E_FORMAT;
         }
     }
@@ -68,49 +81,106 @@ int tbl_check(const tbl_src_t *src)
 
 int tbl_info(const tbl_src_t *src, tbl_info_t *info)
 {
+    uint8_t ng;
     if (!tbl_src_ok(src) || info == NULL) {
         return TBL_E_ARG;
     }
-    src->copy(&info->table_id, TBL_FIELD_ADDR(src, table_id), sizeof info->table_id);
-    src->copy(info->name, TBL_FIELD_ADDR(src, name), sizeof info->name);
+    memset(info->grid_mN, 0, sizeof info->grid_mN);
+    src->copy(&info->table_id, TBL_HEAD(src, table_id), sizeof info->table_id);
+    src->copy(info->name, TBL_HEAD(src, name), sizeof info->name);
     info->name[TBL_NAME_LEN - 1u] = '\0';
-    src->copy(&info->n_tendons, TBL_FIELD_ADDR(src, n_tendons), 1);
-    src->copy(&info->n_sensors, TBL_FIELD_ADDR(src, n_sensors), 1);
-    src->copy(&info->n_grid, TBL_FIELD_ADDR(src, n_grid), 1);
-    src->copy(&info->mode, TBL_FIELD_ADDR(src, mode), 1);
-    src->copy(info->grid_mN, TBL_FIELD_ADDR(src, grid_mN), sizeof info->grid_mN);
-    src->copy(&info->default_mN, TBL_FIELD_ADDR(src, default_mN), sizeof info->default_mN);
-    src->copy(&info->noise_cuT, TBL_FIELD_ADDR(src, noise_cuT), sizeof info->noise_cuT);
+    /* n_tendons, n_sensors, n_grid, mode: adjacent in both structs */
+    src->copy(&info->n_tendons, TBL_HEAD(src, n_tendons), 4);
+    src->copy(&info->default_mN, TBL_HEAD(src, default_mN), sizeof info->default_mN);
+    src->copy(&info->noise_cuT, TBL_HEAD(src, noise_cuT), sizeof info->noise_cuT);
+    ng = info->n_grid <= TBL_MAX_GRID ? info->n_grid : TBL_MAX_GRID;
+    src->copy(info->grid_mN, TBL_AT(src, TBL_OFF_GRID), 2u * ng);
     return 0;
 }
 
-static uint8_t tbl_count(const tbl_src_t *src, int tendons)
+typedef char tbl_info_counts_adjacent_t
+    [(offsetof(tbl_info_t, n_sensors) == offsetof(tbl_info_t, n_tendons) + 1u &&
+      offsetof(tbl_info_t, mode) == offsetof(tbl_info_t, n_tendons) + 3u &&
+      offsetof(tbl_head_t, mode) == offsetof(tbl_head_t, n_tendons) + 3u)
+         ? 1
+         : -1];
+
+/* Offset of entry g of row `row` of tendon i (c: the counts). */
+static uint16_t tbl_row_off(const uint8_t c[3], uint8_t row, uint8_t i, uint8_t g)
 {
-    uint8_t n;
-    if (tendons) {
-        src->copy(&n, TBL_FIELD_ADDR(src, n_tendons), 1);
-    } else {
-        src->copy(&n, TBL_FIELD_ADDR(src, n_sensors), 1);
-    }
-    return n;
+    return (uint16_t)(TBL_OFF_ROW(c[0], c[1], c[2], row) + 2u * ((uint16_t)i * c[2] + g));
 }
 
 int tbl_tendon(const tbl_src_t *src, uint8_t i, tbl_tendon_t *out)
 {
-    if (!tbl_src_ok(src) || out == NULL || i >= tbl_count(src, 1) || i >= TBL_MAX_TENDONS) {
+    uint8_t c[3], g, row;
+    tbl_tendon_rec_t r;
+    uint16_t v[TBL_MAX_GRID];
+
+    if (!tbl_src_ok(src) || out == NULL) {
         return TBL_E_ARG;
     }
-    src->copy(out, TBL_FIELD_ADDR(src, tendons[i]), sizeof *out);
+    tbl_counts(src, c);
+    if (i >= c[0] || i >= TBL_MAX_TENDONS || c[2] > TBL_MAX_GRID) {
+        return TBL_E_ARG;
+    }
+    memset(out, 0, sizeof *out);
+    src->copy(&r, TBL_AT(src, TBL_OFF_TENDONS(c[1], c[2]) + i * sizeof r), sizeof r);
+    out->servo_id = r.servo_id;
+    out->pull_dir = r.pull_dir;
+    out->segment = r.segment;
+    out->sensor = r.sensor;
+    out->nm_per_tick = r.nm_per_tick;
+    out->travel_limit_um = r.travel_limit_um;
+    for (row = 0; row < TBL_ROW_STRAIGHT; row++) {
+        uint32_t *d = row == TBL_ROW_TARGET ? out->target_cuT
+                      : row == TBL_ROW_ABS  ? out->abs_target_cuT
+                                            : out->travel_um;
+        uint8_t k = row == TBL_ROW_TRAVEL ? 1u : TBL_CUT_PER_LSB;
+        src->copy(v, TBL_AT(src, tbl_row_off(c, row, i, 0)), 2u * c[2]);
+        for (g = 0; g < c[2]; g++) {
+            d[g] = (uint32_t)v[g] * k;
+        }
+    }
+    src->copy(out->straight_um, TBL_AT(src, tbl_row_off(c, TBL_ROW_STRAIGHT, i, 0)), 2u * c[2]);
     return 0;
 }
 
 int tbl_sensor(const tbl_src_t *src, uint8_t i, tbl_sensor_t *out)
 {
-    if (!tbl_src_ok(src) || out == NULL || i >= tbl_count(src, 0) || i >= TBL_MAX_SENSORS) {
+    uint8_t c[3], a;
+    tbl_sensor_rec_t r;
+    if (!tbl_src_ok(src) || out == NULL) {
         return TBL_E_ARG;
     }
-    src->copy(out, TBL_FIELD_ADDR(src, sensors[i]), sizeof *out);
+    tbl_counts(src, c);
+    if (i >= c[1] || i >= TBL_MAX_SENSORS) {
+        return TBL_E_ARG;
+    }
+    src->copy(&r, TBL_AT(src, TBL_OFF_SENSORS(c[2]) + i * sizeof r), sizeof r);
+    out->mux_channel = r.mux_channel;
+    out->i2c_addr = r.i2c_addr;
+    for (a = 0; a < 3u; a++) {
+        out->b_straight_cuT[a] = (int32_t)r.b_straight_lsb[a] * (int32_t)TBL_CUT_PER_LSB;
+    }
     return 0;
+}
+
+const void *tbl_target_row(const tbl_table_t *table, const tbl_info_t *info, uint8_t tendon)
+{
+    uint8_t c[3];
+    if (table == NULL || info == NULL || tendon >= info->n_tendons) {
+        return NULL;
+    }
+    c[0] = info->n_tendons;
+    c[1] = info->n_sensors;
+    c[2] = info->n_grid;
+    return (const uint8_t *)(const void *)table + tbl_row_off(c, TBL_ROW_TARGET, tendon, 0);
+}
+
+uint16_t tbl_lsb_of_cuT(uint32_t cuT)
+{
+    return (uint16_t)((cuT + TBL_CUT_PER_LSB / 2u) / TBL_CUT_PER_LSB);
 }
 
 /* Locates x in the grid: returns the index k with grid[k] <= x <= grid[k+1],
@@ -162,22 +232,15 @@ int tbl_interp(const uint16_t *grid, const uint32_t *y, uint8_t n, uint16_t x, u
     return 0;
 }
 
-/* The three per-grid arrays of a tendon lie back to back (checked below), so
- * one loop interpolates them all. */
-typedef char tbl_rows_adjacent_t[(offsetof(tbl_tendon_t, abs_target_cuT) ==
-                                      offsetof(tbl_tendon_t, target_cuT) + TBL_MAX_GRID * 4u &&
-                                  offsetof(tbl_tendon_t, travel_um) ==
-                                      offsetof(tbl_tendon_t, abs_target_cuT) + TBL_MAX_GRID * 4u)
-                                     ? 1
-                                     : -1];
-
+/* The stored pair around the tension is widened first (fields to cuT, the
+ * signed shift offset into the unsigned range), so the interpolation is the
+ * exact rounding of the stored values in the returned unit. */
 int tbl_target(const tbl_src_t *src, uint8_t tendon, uint16_t tension_mN, tbl_point_t *out)
 {
     tbl_info_t info;
-    uint32_t v[3];
-    uint32_t y[2];
-    const uint32_t *row;
-    uint8_t a;
+    uint32_t v[TBL_ROWS];
+    uint16_t y[2];
+    uint8_t c[3], row;
     int k;
 
     if (out == NULL || tbl_info(src, &info) != 0 || tendon >= info.n_tendons ||
@@ -191,24 +254,28 @@ int tbl_target(const tbl_src_t *src, uint8_t tendon, uint16_t tension_mN, tbl_po
     if (k < 0) {
         return TBL_E_RANGE;
     }
-    row = &src->table->tendons[tendon].target_cuT[k]; /* address only, never dereferenced */
-    for (a = 0; a < 3u; a++) {
-        src->copy(y, row + a * TBL_MAX_GRID, sizeof y);
-        v[a] = tbl_lerp(info.grid_mN[k], info.grid_mN[k + 1], y[0], y[1], tension_mN);
-    }
-    /* the signed shifts, offset into the unsigned range of tbl_lerp */
-    {
-        int16_t sh[2];
-        src->copy(sh, &src->table->tendons[tendon].straight_um[k], sizeof sh);
-        out->straight_um =
-            (int16_t)((int32_t)tbl_lerp(info.grid_mN[k], info.grid_mN[k + 1],
-                                        (uint32_t)((int32_t)sh[0] + 32768),
-                                        (uint32_t)((int32_t)sh[1] + 32768), tension_mN) -
-                      32768);
+    c[0] = info.n_tendons;
+    c[1] = info.n_sensors;
+    c[2] = info.n_grid;
+    for (row = 0; row < TBL_ROWS; row++) {
+        uint32_t y0, y1;
+        src->copy(y, TBL_AT(src, tbl_row_off(c, row, tendon, (uint8_t)k)), sizeof y);
+        if (row == TBL_ROW_STRAIGHT) {
+            y0 = (uint32_t)((int32_t)(int16_t)y[0] + 32768);
+            y1 = (uint32_t)((int32_t)(int16_t)y[1] + 32768);
+        } else if (row == TBL_ROW_TRAVEL) {
+            y0 = y[0];
+            y1 = y[1];
+        } else {
+            y0 = (uint32_t)y[0] * TBL_CUT_PER_LSB;
+            y1 = (uint32_t)y[1] * TBL_CUT_PER_LSB;
+        }
+        v[row] = tbl_lerp(info.grid_mN[k], info.grid_mN[k + 1], y0, y1, tension_mN);
     }
     out->tension_mN = tension_mN;
-    out->target_cuT = v[0];
-    out->abs_target_cuT = v[1];
-    out->travel_um = v[2];
+    out->target_cuT = v[TBL_ROW_TARGET];
+    out->abs_target_cuT = v[TBL_ROW_ABS];
+    out->travel_um = v[TBL_ROW_TRAVEL];
+    out->straight_um = (int16_t)((int32_t)v[TBL_ROW_STRAIGHT] - 32768);
     return 0;
 }

@@ -9,7 +9,8 @@
  *
  * Units (integers only, so the AVR never needs floating point to use a table):
  *   tension         mN   (millinewton)
- *   field           cuT  (centi-microtesla, 10 nT; one AK09916 LSB is 15 cuT)
+ *   field           cuT  (centi-microtesla, 10 nT; one AK09916 LSB is 15 cuT);
+ *                   stored in LSB, returned by the accessors in cuT
  *   length          um   (micrometre)
  *   spool           nm per encoder tick
  *
@@ -33,8 +34,10 @@
 #endif
 
 #define TBL_MAGIC          0x544C4848UL /* "HHLT" little-endian */
-#define TBL_FORMAT_VERSION 2u
+#define TBL_FORMAT_VERSION 3u
 
+/* Largest counts a table may have (the accessors' RAM copies are sized to
+ * them); a table itself is sized to its robot (TBL_LAYOUT). */
 #define TBL_MAX_GRID    12u /* tension grid points per tendon */
 #define TBL_MAX_TENDONS 12u
 #define TBL_MAX_SENSORS 8u
@@ -42,52 +45,147 @@
 
 #define TBL_NO_MUX 0xFFu /* sensor wired directly, no TCA9548A channel */
 
+/* Field unit of the stored table: one AK09916 LSB, 0.15 uT = 15 cuT, the
+ * resolution the sensor reports in. Every stored field (targets, straight-pose
+ * field) is an integer number of LSB; the accessors return cuT. */
+#define TBL_CUT_PER_LSB 15u
+
 /* Calibration target mode the table was generated for (both sets of targets
  * are always present; the mode is the default the firmware starts in). */
 #define TBL_MODE_DELTA    0u /* |B - B0| against |B(p_T) - B(p_0)| (default) */
 #define TBL_MODE_ABSOLUTE 1u /* the paper's |B| against an absolute target */
 
+/* ---- the stored table (flash) -------------------------------------------------
+ *
+ * A table is a tbl_head_t followed by arrays sized to the robot's own counts
+ * (NT tendons, NS sensors, NG grid points), in the order TBL_LAYOUT declares.
+ * Every member after the header is made of 1- and 2-byte integers and the
+ * header is 36 bytes, so the layout has no padding on any compiler: the byte
+ * offsets are the TBL_OFF_* sums below, which the accessors use and every
+ * generated source checks at compile time (TBL_LAYOUT_CHECK).
+ *
+ * Stored units (smallest integer that holds the robot's values; the generator
+ * refuses a value that does not fit, naming robot, key and limit):
+ *   field           LSB of TBL_CUT_PER_LSB cuT, uint16 (|B| targets) / int16
+ *   length          um, uint16 (travel, travel limit) / int16 (straight shift)
+ *   spool           nm per encoder tick, uint16
+ */
+typedef struct {
+    uint32_t magic;          /* TBL_MAGIC */
+    uint16_t format_version; /* TBL_FORMAT_VERSION */
+    uint16_t size;           /* bytes of the whole table, TBL_SIZE(n_tendons, n_sensors, n_grid) */
+    uint32_t
+        table_id; /* CRC-32 of the table's bytes with table_id 0: identifies the robot + model */
+    char name[TBL_NAME_LEN];
+    uint8_t n_tendons;
+    uint8_t n_sensors;
+    uint8_t n_grid;
+    uint8_t mode;        /* TBL_MODE_* */
+    uint16_t default_mN; /* default calibration tension, inside the grid */
+    uint16_t noise_cuT;  /* expected sensor noise (1 sigma) the table assumed */
+} tbl_head_t;
+
 typedef struct {
     uint8_t mux_channel;       /* 0..7, or TBL_NO_MUX */
     uint8_t i2c_addr;          /* 7-bit ICM-20948 address, 0x68 or 0x69 */
-    int32_t b_straight_cuT[3]; /* predicted magnet field at the straight pose, sensor frame */
-} tbl_sensor_t;
+    int16_t b_straight_lsb[3]; /* predicted magnet field at the straight pose, sensor frame */
+} tbl_sensor_rec_t;
 
 typedef struct {
     uint8_t servo_id;     /* DYNAMIXEL ID */
     int8_t pull_dir;      /* +1: increasing position ticks shortens the tendon; -1: decreasing */
     uint8_t segment;      /* 1-based segment where the tendon ends */
-    uint8_t sensor;       /* index of the selected sensor in tbl_table_t.sensors */
-    uint32_t nm_per_tick; /* tendon take-up per encoder tick (spool radius * 2 pi / ticks) */
-    uint32_t travel_limit_um;          /* safety: never pull further than this past engagement */
-    uint32_t target_cuT[TBL_MAX_GRID]; /* |B(p_T) - B(p_0)| per grid tension */
+    uint8_t sensor;       /* index of the selected sensor in the table's sensors */
+    uint16_t nm_per_tick; /* tendon take-up per encoder tick (spool radius * 2 pi / ticks) */
+    uint16_t travel_limit_um; /* safety: never pull further than this past engagement */
+} tbl_tendon_rec_t;
+
+/* The whole table for NT tendons, NS sensors and NG grid points. Declared
+ * here once; each generated source expands it with its robot's counts, which
+ * completes the type tbl_table_t in that source only (everywhere else a table
+ * is reached through a tbl_src_t and the TBL_OFF_* offsets).
+ *   grid_mN        tension grid, strictly increasing, NG >= 2
+ *   target_lsb     |B(p_T) - B(p_0)| on the tendon's sensor, per grid tension
+ *   abs_target_lsb |B(p_T)| (magnet only), per grid tension
+ *   travel_um      expected take-up from engagement, per grid tension
+ *   straight_um    take-up to pay out from the single-tendon home (this tendon
+ *                  pulled alone to the grid tension) to the straight-pose home
+ *                  (every tendon at that tension together, the robot straight):
+ *                  the path shortening of the bent pose minus the backbone's
+ *                  compression under every tendon (docs/homing.md,
+ *                  "Straight-pose homes"); negative: take up more */
+#define TBL_LAYOUT(NT, NS, NG)                                                                     \
+    struct tbl_table {                                                                             \
+        tbl_head_t head;                                                                           \
+        uint16_t grid_mN[NG];                                                                      \
+        tbl_sensor_rec_t sensors[NS];                                                              \
+        tbl_tendon_rec_t tendons[NT];                                                              \
+        uint16_t target_lsb[NT][NG];                                                               \
+        uint16_t abs_target_lsb[NT][NG];                                                           \
+        uint16_t travel_um[NT][NG];                                                                \
+        int16_t straight_um[NT][NG];                                                               \
+    }
+
+/* A table in table memory. Incomplete on purpose: its size is the robot's. */
+typedef struct tbl_table tbl_table_t;
+
+/* Byte offsets of the layout's members, from the counts. The per-grid arrays
+ * are TBL_ROWS rows of NG entries per tendon, in the order of TBL_ROW_*. */
+#define TBL_ROW_TARGET   0u
+#define TBL_ROW_ABS      1u
+#define TBL_ROW_TRAVEL   2u
+#define TBL_ROW_STRAIGHT 3u
+#define TBL_ROWS         4u
+
+#define TBL_OFF_GRID            ((uint16_t)sizeof(tbl_head_t))
+#define TBL_OFF_SENSORS(ng)     (TBL_OFF_GRID + 2u * (ng))
+#define TBL_OFF_TENDONS(ns, ng) (TBL_OFF_SENSORS(ng) + (ns) * (uint16_t)sizeof(tbl_sensor_rec_t))
+#define TBL_OFF_ROWS(nt, ns, ng)                                                                   \
+    (TBL_OFF_TENDONS(ns, ng) + (nt) * (uint16_t)sizeof(tbl_tendon_rec_t))
+#define TBL_OFF_ROW(nt, ns, ng, row) (TBL_OFF_ROWS(nt, ns, ng) + (row)*2u * (nt) * (ng))
+#define TBL_SIZE(nt, ns, ng)         TBL_OFF_ROW(nt, ns, ng, TBL_ROWS)
+#define TBL_SIZE_MAX                 TBL_SIZE(TBL_MAX_TENDONS, TBL_MAX_SENSORS, TBL_MAX_GRID)
+
+/* Compile-time proof, in a generated source after TBL_LAYOUT(NT, NS, NG), that
+ * the compiler laid the table out as the offsets say (C99 has no
+ * _Static_assert: a negative array size fails the build). */
+#define TBL_LAYOUT_CHECK(NT, NS, NG)                                                               \
+    typedef char tbl_layout_ok_t                                                                   \
+        [(sizeof(tbl_head_t) == 36u && sizeof(tbl_sensor_rec_t) == 8u &&                           \
+          sizeof(tbl_tendon_rec_t) == 8u && offsetof(struct tbl_table, grid_mN) == TBL_OFF_GRID && \
+          offsetof(struct tbl_table, sensors) == TBL_OFF_SENSORS(NG) &&                            \
+          offsetof(struct tbl_table, tendons) == TBL_OFF_TENDONS(NS, NG) &&                        \
+          offsetof(struct tbl_table, target_lsb) == TBL_OFF_ROW(NT, NS, NG, TBL_ROW_TARGET) &&     \
+          offsetof(struct tbl_table, abs_target_lsb) == TBL_OFF_ROW(NT, NS, NG, TBL_ROW_ABS) &&    \
+          offsetof(struct tbl_table, travel_um) == TBL_OFF_ROW(NT, NS, NG, TBL_ROW_TRAVEL) &&      \
+          offsetof(struct tbl_table, straight_um) == TBL_OFF_ROW(NT, NS, NG, TBL_ROW_STRAIGHT) &&  \
+          offsetof(struct tbl_table, straight_um) + sizeof(int16_t) * (NT) * (NG) ==               \
+              TBL_SIZE(NT, NS, NG))                                                                \
+             ? 1                                                                                   \
+             : -1]
+
+/* ---- the table as the firmware reads it (RAM, natural units) ------------------ */
+
+/* One sensor, decoded by tbl_sensor(). */
+typedef struct {
+    uint8_t mux_channel;       /* 0..7, or TBL_NO_MUX */
+    uint8_t i2c_addr;          /* 7-bit ICM-20948 address */
+    int32_t b_straight_cuT[3]; /* predicted magnet field at the straight pose, sensor frame */
+} tbl_sensor_t;
+
+/* One tendon row, decoded by tbl_tendon(); entries from n_grid on are 0. */
+typedef struct {
+    uint8_t servo_id;
+    int8_t pull_dir;
+    uint8_t segment;
+    uint8_t sensor;
+    uint32_t nm_per_tick;
+    uint32_t travel_limit_um;
+    uint32_t target_cuT[TBL_MAX_GRID];     /* |B(p_T) - B(p_0)| per grid tension */
     uint32_t abs_target_cuT[TBL_MAX_GRID]; /* |B(p_T)| (magnet only) per grid tension */
     uint32_t travel_um[TBL_MAX_GRID];      /* expected take-up from engagement per grid tension */
-    /* take-up to pay out from the single-tendon home (this tendon pulled
-     * alone to the grid tension) to the straight-pose home (every tendon at
-     * that tension together, the robot straight): the path shortening of the
-     * bent pose minus the backbone's compression under every tendon
-     * (docs/homing.md, "Straight-pose homes"); negative: take up more */
-    int16_t straight_um[TBL_MAX_GRID];
+    int16_t straight_um[TBL_MAX_GRID];     /* single-tendon home to straight-pose home */
 } tbl_tendon_t;
-
-typedef struct {
-    uint32_t magic;          /* TBL_MAGIC */
-    uint16_t format_version; /* TBL_FORMAT_VERSION */
-    uint16_t reserved;       /* 0 */
-    uint32_t
-        table_id; /* CRC-32 of the generator's canonical content: identifies the robot + model */
-    char name[TBL_NAME_LEN];
-    uint8_t n_tendons;
-    uint8_t n_sensors;
-    uint8_t n_grid;
-    uint8_t mode;                   /* TBL_MODE_* */
-    uint16_t grid_mN[TBL_MAX_GRID]; /* strictly increasing, n_grid >= 2 used entries */
-    uint16_t default_mN;            /* default calibration tension, inside the grid */
-    uint16_t noise_cuT;             /* expected sensor noise (1 sigma) the table assumed */
-    tbl_sensor_t sensors[TBL_MAX_SENSORS];
-    tbl_tendon_t tendons[TBL_MAX_TENDONS];
-} tbl_table_t;
 
 /* Copies n bytes from table memory at src into RAM at dst. */
 typedef void (*tbl_copy_fn)(void *dst, const void *src, size_t n);
@@ -160,6 +258,20 @@ int tbl_sensor(const tbl_src_t *src, uint8_t i, tbl_sensor_t *out);
  * tension exactly on a grid point returns that point's values. Returns 0, TBL_E_ARG (NULL argument
  * or tendon >= n_tendons) or TBL_E_RANGE (tension outside the grid; *out is left unchanged). */
 int tbl_target(const tbl_src_t *src, uint8_t tendon, uint16_t tension_mN, tbl_point_t *out);
+
+/* Address in table memory of tendon `tendon`'s stored target row: n_grid
+ * uint16_t entries in LSB (TBL_CUT_PER_LSB cuT each), for a copy function
+ * that substitutes learned targets where a read covers them. info is the
+ * table's tbl_info(); the address is computed, never dereferenced. Returns NULL
+ * when table or info is NULL or tendon >= info->n_tendons. */
+const void *tbl_target_row(const tbl_table_t *table, const tbl_info_t *info, uint8_t tendon);
+
+/* Largest field value a table (and a learned target) can hold, cuT. */
+#define TBL_FIELD_CUT_MAX (0xFFFFUL * TBL_CUT_PER_LSB)
+
+/* A field value in cuT rounded to the nearest stored LSB; cuT must not
+ * exceed TBL_FIELD_CUT_MAX (the caller refuses larger values). */
+uint16_t tbl_lsb_of_cuT(uint32_t cuT);
 
 /* The same interpolation over arrays already in RAM (learned targets kept in
  * EEPROM have the table's shape): y[] sampled at grid[] (n points, strictly

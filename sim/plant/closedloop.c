@@ -59,11 +59,20 @@ int plant_run(const plant_run_cfg_t *rc, plant_run_result_t *res)
     int step_rc = HOM_RUNNING;
     int32_t engage[TBL_MAX_TENDONS];
     uint8_t engaged[TBL_MAX_TENDONS];
+    int8_t pull_dir[TBL_MAX_TENDONS];
+    tbl_info_t info;
 
-    if (rc == NULL || res == NULL || rc->plant == NULL || rc->table == NULL ||
-        rc->plant->n_tendons != rc->table->n_tendons ||
-        rc->plant->n_sensors != rc->table->n_sensors) {
+    src.table = rc != NULL ? rc->table : NULL;
+    src.copy = tbl_copy_ram;
+    if (rc == NULL || res == NULL || rc->plant == NULL || tbl_info(&src, &info) != 0 ||
+        rc->plant->n_tendons != info.n_tendons || rc->plant->n_sensors != info.n_sensors ||
+        info.n_tendons > TBL_MAX_TENDONS) {
         return PLANT_E_ARG;
+    }
+    for (i = 0; i < info.n_tendons; i++) {
+        tbl_tendon_t row;
+        (void)tbl_tendon(&src, i, &row);
+        pull_dir[i] = row.pull_dir;
     }
     memset(res, 0, sizeof *res);
     res->n_tendons = rc->plant->n_tendons;
@@ -105,8 +114,6 @@ int plant_run(const plant_run_cfg_t *rc, plant_run_result_t *res)
     (void)plant_solve(&plant);
 
     hom_init(&h, rc->hom);
-    src.table = rc->table;
-    src.copy = tbl_copy_ram;
     step_rc = hom_start(&h, &src, &rc->cmd);
     if (step_rc != 0) {
         res->rc = step_rc;
@@ -207,8 +214,7 @@ int plant_run(const plant_run_cfg_t *rc, plant_run_result_t *res)
                 res->max_tension_N[i] = plant.tension_N[i];
             }
             if (engaged[i]) {
-                double past = (double)rc->table->tendons[i].pull_dir *
-                              ((double)in.servo[i].pos - (double)engage[i]);
+                double past = (double)pull_dir[i] * ((double)in.servo[i].pos - (double)engage[i]);
                 if (past > res->max_past_engage_ticks[i]) {
                     res->max_past_engage_ticks[i] = past;
                 }

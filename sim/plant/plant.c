@@ -564,7 +564,14 @@ static uint32_t round_u32(double v)
     return v <= 0.0 ? 0u : (uint32_t)(v + 0.5);
 }
 
-int plant_make_table(const plant_cfg_t *cfg, tbl_table_t *t)
+/* A field in cuT rounded to the table's stored unit (whole LSB), so the wide
+ * table and its packed form hold the same values. */
+static uint32_t round_field(double cuT)
+{
+    return round_u32(cuT / (double)TBL_CUT_PER_LSB) * TBL_CUT_PER_LSB;
+}
+
+int plant_make_table(const plant_cfg_t *cfg, tbl_wide_t *t)
 {
     plant_t p;
     double b0[PLANT_MAX_SENSORS][3];
@@ -606,7 +613,8 @@ int plant_make_table(const plant_cfg_t *cfg, tbl_table_t *t)
         t->sensors[k].mux_channel = cfg->sensor[k].mux_channel;
         t->sensors[k].i2c_addr = cfg->sensor[k].i2c_addr;
         for (a = 0; a < 3; a++) {
-            t->sensors[k].b_straight_cuT[a] = (int32_t)floor(bm[a] * 100.0 + 0.5);
+            t->sensors[k].b_straight_cuT[a] =
+                (int32_t)floor(bm[a] * 100.0 / TBL_CUT_PER_LSB + 0.5) * (int32_t)TBL_CUT_PER_LSB;
         }
     }
 
@@ -670,8 +678,8 @@ int plant_make_table(const plant_cfg_t *cfg, tbl_table_t *t)
         }
         row->sensor = (uint8_t)best;
         for (g = 0; g < cfg->n_grid; g++) {
-            row->target_cuT[g] = round_u32(dtarget[best][g]);
-            row->abs_target_cuT[g] = round_u32(abst[best][g]);
+            row->target_cuT[g] = round_field(dtarget[best][g]);
+            row->abs_target_cuT[g] = round_field(abst[best][g]);
             row->travel_um[g] = round_u32(travel[g]);
         }
         row->travel_limit_um = round_u32(travel[cfg->n_grid - 1u] * cfg->travel_limit_factor +

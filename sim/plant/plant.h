@@ -40,6 +40,7 @@
 #include <stdint.h>
 
 #include "table/table.h"
+#include "table/table_pack.h"
 
 #define PLANT_MAX_SEGMENTS 4u
 #define PLANT_MAX_TENDONS  TBL_MAX_TENDONS
@@ -244,9 +245,10 @@ double plant_path_compliance(const plant_cfg_t *cfg, uint8_t i, uint8_t m);
  * (noise-free) to the true home and records |B - B0| at every sensor, the
  * travel from engagement and |B| of the magnet alone; selects per tendon the
  * sensor with the largest change that rises over the whole grid (or the one
- * the config names). Fills *t completely (magic, version, counts, limits).
+ * the config names). Fills *t completely (magic, version, counts, limits);
+ * fields are whole LSB (TBL_CUT_PER_LSB), so tbl_pack() stores them as they are.
  * Returns 0, PLANT_E_ARG, PLANT_E_RANGE or PLANT_E_SOLVE. */
-int plant_make_table(const plant_cfg_t *cfg, tbl_table_t *t);
+int plant_make_table(const plant_cfg_t *cfg, tbl_wide_t *t);
 
 /* ---- simple servo, separate from the plant ---------------------------------- */
 

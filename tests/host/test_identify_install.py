@@ -13,14 +13,15 @@ def board(n=2, grid=(200, 800), sensors=(0, 1), name="paper_2seg"):
 
 def table(n=2, grid=(200, 800), sensors=(0, 1)):
     return {"n_tendons": n, "grid_mN": list(grid),
-            "tendons": [{"sensor": s, "target_cuT": [1000 * (i + 1), 3000 * (i + 1)]}
+            "tendons": [{"sensor": s, "target_lsb": [200 * (i + 1), 600 * (i + 1)]}
                         for i, s in enumerate(sensors)]}
 
 
 def test_a_fitting_description_plans_every_target_in_uT():
     p = plan(table(), board(), "paper_2seg_id")
     assert p.refusals == []
-    assert p.targets == {0: [(200, 10.0), (800, 30.0)], 1: [(200, 20.0), (800, 60.0)]}
+    # the table's LSB (15 cuT each) in uT
+    assert p.targets == {0: [(200, 30.0), (800, 90.0)], 1: [(200, 60.0), (800, 180.0)]}
 
 
 def test_every_mismatch_is_named():

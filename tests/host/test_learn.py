@@ -65,7 +65,8 @@ def test_export_file_compiles(monkeypatch, tmp_path):
     p = tmp_path / "learned_paper_2seg.json"
     p.write_text(json.dumps(doc))
     applied = apply_learned(table, spec, robot, [load_learned(p)])
-    assert applied.table["tendons"][0]["target_cuT"][grid.index(800)] == 9950
+    # stored in the table's unit: 9950 cuT is 663.3 LSB of 15 cuT, kept as 663
+    assert applied.table["tendons"][0]["target_lsb"][grid.index(800)] == 663
 
 
 def test_nearest_grid():

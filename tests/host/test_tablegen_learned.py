@@ -26,6 +26,17 @@ from hallhome.tablegen import (TableError, apply_learned, build_table, canonical
 SPEC = parse_table_header()
 PAPER = ROBOTS_DIR / "paper_2seg.toml"
 LEARN_SCALE = 1.08  # the stand-in robot's field change is 8 % above the model's
+CUT = SPEC["TBL_CUT_PER_LSB"]
+
+
+def _cuT(d: dict) -> list:
+    """A tendon's targets as the firmware reads them (cuT)."""
+    return [v * CUT for v in d["target_lsb"]]
+
+
+def _q(cuT: int) -> int:
+    """A measured target as the board stores it: the nearest whole LSB, in cuT."""
+    return (cuT + CUT // 2) // CUT * CUT
 
 
 # --- a board that answers `hallhome learn` ---------------------------------------------
@@ -55,7 +66,7 @@ class LearnBoard:
                f"default_mN={t['default_mN']} noise_cuT={t['noise_cuT']}>")
         for k, d in enumerate(t["tendons"]):
             vals = [f"{self.learned[(k, g)]}*" if (k, g) in self.learned else str(v)
-                    for g, v in enumerate(d["target_cuT"])]
+                    for g, v in enumerate(_cuT(d))]
             yield (f"<tendon tendon={k} id={d['servo_id']} dir={d['pull_dir']:+d} "
                    f"segment={d['segment']} sensor={d['sensor']} limit_um={d['travel_limit_um']} "
                    f"target_cuT={','.join(vals)}>")
@@ -76,8 +87,8 @@ class LearnBoard:
             t, mN = int(words[1]), round(float(words[2]) * 1000)
             g = self.table["grid_mN"].index(mN)
             d = self.table["tendons"][t]
-            uT = round(d["target_cuT"][g] * LEARN_SCALE) / 100
-            self.learned[(t, g)] = round(uT * 100)
+            self.learned[(t, g)] = _q(round(_cuT(d)[g] * LEARN_SCALE))
+            uT = self.learned[(t, g)] / 100  # the firmware reports what it stored
             lines = [f"<learned tendon={t} tension_mN={mN} grid={g} sensor={d['sensor']} "
                      f"dB_uT={uT:.2f}>"]
         else:
@@ -176,14 +187,15 @@ def test_round_trip_replaces_exactly_the_learned_targets(generated, exported, mo
         h = twin["human"]["tendons"][k]
         for g in range(len(grid)):
             if k in (0, 3) and g in learned_at:
-                assert d["target_cuT"][g] == round(m["target_cuT"][g] * LEARN_SCALE)
+                assert _cuT(d)[g] == _q(round(_cuT(m)[g] * LEARN_SCALE))
                 assert h["learned"][g] is True
             else:
-                assert d["target_cuT"][g] == m["target_cuT"][g]
+                assert d["target_lsb"][g] == m["target_lsb"][g]
                 assert h["learned"][g] is False
-        assert d["abs_target_cuT"] == m["abs_target_cuT"] and d["travel_um"] == m["travel_um"]
-        assert h["target_uT"] == [v / 100 for v in d["target_cuT"]]
-        assert h["model_target_uT"][0] == pytest.approx(m["target_cuT"][0] / 100, abs=0.01)
+        assert d["abs_target_lsb"] == m["abs_target_lsb"] and d["travel_um"] == m["travel_um"]
+        assert h["target_uT"] == [v / 100 for v in _cuT(d)]
+        # the model's float against its stored value: within half an LSB (0.075 uT)
+        assert h["model_target_uT"][0] == pytest.approx(_cuT(m)[0] / 100, abs=0.076)
     # a new table: its own id, the CRC of its content; the name stays the robot's
     assert t["name"] == "paper_2seg"
     assert t["table_id"] != table["table_id"]
@@ -244,9 +256,10 @@ def test_learned_table_compiles_and_reads_back_through_the_accessors(generated, 
     g700, g800 = twin["grid_mN"].index(700), twin["grid_mN"].index(800)
     for line, d in zip(lines[1:], twin["tendons"]):
         v = [int(x) for x in line.split()]
-        assert v[:-1] == d["target_cuT"]
-        # 750 mN interpolates between the two learned points
-        assert v[-1] == round((d["target_cuT"][g700] + d["target_cuT"][g800]) / 2)
+        assert v[:-1] == _cuT(d)
+        # 750 mN interpolates between the two learned points (half rounds up)
+        a, b = _cuT(d)[g700], _cuT(d)[g800]
+        assert v[-1] == a + (b - a + 1) // 2
     assert len(lines) == 1 + twin["n_tendons"]
 
 
@@ -297,8 +310,8 @@ def test_a_file_learned_on_a_learned_table_chains_after_its_own(model, exported,
     both = apply_learned(table, SPEC, robot, [load_learned(exported), load_learned(second)])
     g = table["grid_mN"].index(1000)
     assert both.mask[5][g] and sum(map(sum, both.mask)) == 7
-    assert both.table["tendons"][5]["target_cuT"][g] == \
-        round(table["tendons"][5]["target_cuT"][g] * LEARN_SCALE)
+    assert _cuT(both.table["tendons"][5])[g] == \
+        _q(round(_cuT(table["tendons"][5])[g] * LEARN_SCALE))
     assert both.table["tendons"][0] == first.table["tendons"][0]
     with pytest.raises(TableError, match=r"learned on table 0x[0-9A-F]{8}, but the model's table "
                                          r"is 0x[0-9A-F]{8}.*learned files that built that table"):
@@ -316,13 +329,13 @@ def test_a_file_learned_on_a_learned_table_chains_after_its_own(model, exported,
 def test_warns_when_a_learned_point_meets_a_lower_model_point(model, exported, tmp_path):
     robot, table = model
     g900 = table["grid_mN"].index(900)
-    above = table["tendons"][0]["target_cuT"][g900 + 1] + 50
+    above = _cuT(table["tendons"][0])[g900 + 1] + 50
 
     def change(doc):
         doc["tendons"][0]["target_cuT"][g900] = above
     app = apply_learned(table, SPEC, robot, [load_learned(mutated(exported, tmp_path, change))])
     assert any(w.startswith("tendon 0 (servo 1, segment 1): target does not grow between 900 mN "
-                            f"(learned, {above} cuT) and 1000 mN (model") for w in app.warnings)
+                            f"(learned, {_q(above)} cuT) and 1000 mN (model") for w in app.warnings)
     clean = apply_learned(table, SPEC, robot, [load_learned(exported)])
     assert not any("does not grow" in w for w in clean.warnings)
 

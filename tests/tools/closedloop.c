@@ -83,7 +83,8 @@ int main(int argc, char **argv)
 {
     static plant_cfg_t nominal;
     static plant_cfg_t actual;
-    static tbl_table_t table;
+    static tbl_wide_t table; /* natural units */
+    static tbl_buf_t packed; /* the same as the homing reads it */
     static plant_run_result_t res;
     static plant_run_result_t first;
     plant_run_cfg_t rc;
@@ -185,7 +186,13 @@ int main(int argc, char **argv)
             fprintf(stderr, "hh_closedloop: generated table %s not linked\n", gen);
             return 1;
         }
-        table = *g;
+        tbl_src_t gs;
+        gs.table = g;
+        gs.copy = tbl_copy_ram;
+        if (tbl_unpack(&gs, &table) != 0) {
+            fprintf(stderr, "hh_closedloop: generated table %s fails its check\n", gen);
+            return 1;
+        }
     } else if (plant_make_table(&nominal, &table) != 0) {
         fprintf(stderr, "hh_closedloop: cannot build the table from %s\n", path);
         return 1;
@@ -193,12 +200,16 @@ int main(int argc, char **argv)
     if (tension == 0u) {
         tension = table.default_mN;
     }
+    if (tbl_pack(&table, &packed) != 0) {
+        fprintf(stderr, "hh_closedloop: the table does not fit the stored format\n");
+        return 1;
+    }
     c0 = clock();
     for (r = 0; r < runs; r++) {
         unsigned i;
         actual = nominal;
         (void)plant_cfg_perturb(&actual, seed + r, perturb);
-        plant_run_defaults(&rc, &actual, &table);
+        plant_run_defaults(&rc, &actual, tbl_buf_table(&packed));
         rc.seed = seed * 7919u + r;
         rc.cmd.mode = mode == HOM_MODE_QUICK ? HOM_MODE_FULL : mode;
         rc.cmd.tension_mN = (uint16_t)tension;

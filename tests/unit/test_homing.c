@@ -15,7 +15,7 @@
 #include "hom_fixture.h"
 
 static plant_cfg_t g_cfg;
-static tbl_table_t g_tab;
+static tbl_wide_t g_tab;
 static plant_run_result_t g_res;
 static plant_run_result_t g_res2;
 
@@ -52,7 +52,7 @@ static void expect_fault(plant_fault_t fi, uint8_t index, uint32_t at_ms, hom_fa
     plant_run_cfg_t rc;
     const hom_event_t *ev;
     uint8_t i;
-    plant_run_defaults(&rc, &g_cfg, &g_tab);
+    plant_run_defaults(&rc, &g_cfg, hom_fix_pack(&g_tab));
     rc.seed = 11;
     rc.fault = fi;
     rc.fault_index = index;
@@ -80,7 +80,7 @@ static void test_nominal_lands_within_one_tick(void **state)
     plant_run_cfg_t rc;
     uint8_t i;
     (void)state;
-    plant_run_defaults(&rc, &g_cfg, &g_tab);
+    plant_run_defaults(&rc, &g_cfg, hom_fix_pack(&g_tab));
     rc.seed = 3;
     assert_int_equal(plant_run(&rc, &g_res), 0);
     assert_int_equal(g_res.rc, 0);
@@ -104,7 +104,7 @@ static void test_other_tensions(void **state)
     uint8_t i;
     (void)state;
     for (k = 0; k < sizeof tensions / sizeof tensions[0]; k++) {
-        plant_run_defaults(&rc, &g_cfg, &g_tab);
+        plant_run_defaults(&rc, &g_cfg, hom_fix_pack(&g_tab));
         rc.seed = 5 + k;
         rc.cmd.tension_mN = tensions[k];
         assert_int_equal(plant_run(&rc, &g_res), 0);
@@ -123,7 +123,7 @@ static void test_repeatable_from_random_slack(void **state)
     uint8_t i;
     (void)state;
     for (run = 0; run < 6; run++) {
-        plant_run_defaults(&rc, &g_cfg, &g_tab);
+        plant_run_defaults(&rc, &g_cfg, hom_fix_pack(&g_tab));
         rc.seed = 100 + run;
         rc.start_min_um = -3000.0; /* 3 mm slack ... */
         rc.start_max_um = 400.0;   /* ... to 0.4 mm past engagement */
@@ -145,7 +145,7 @@ static void test_quick_rehome_same_homes(void **state)
     double start[TBL_MAX_TENDONS];
     uint8_t i;
     (void)state;
-    plant_run_defaults(&rc, &g_cfg, &g_tab);
+    plant_run_defaults(&rc, &g_cfg, hom_fix_pack(&g_tab));
     rc.seed = 21;
     assert_int_equal(plant_run(&rc, &g_res), 0);
     assert_int_equal(g_res.rc, 0);
@@ -184,7 +184,7 @@ static void test_overshoot_recovers(void **state)
     hom_config_default(&hc);
     hc.v_fast = 265;
     hc.v_moderate = 265;
-    plant_run_defaults(&rc, &g_cfg, &g_tab);
+    plant_run_defaults(&rc, &g_cfg, hom_fix_pack(&g_tab));
     rc.hom = &hc;
     rc.cmd.tension_mN = g_tab.grid_mN[0];
     rc.seed = 51;
@@ -207,7 +207,7 @@ static void test_quick_needs_homes(void **state)
 {
     plant_run_cfg_t rc;
     (void)state;
-    plant_run_defaults(&rc, &g_cfg, &g_tab);
+    plant_run_defaults(&rc, &g_cfg, hom_fix_pack(&g_tab));
     rc.cmd.mode = HOM_MODE_QUICK;
     rc.cmd.stored_mask = 0x1F; /* one missing */
     assert_int_equal(plant_run(&rc, &g_res), PLANT_E_RANGE);
@@ -219,7 +219,7 @@ static void test_single_tendon(void **state)
     plant_run_cfg_t rc;
     uint8_t i;
     (void)state;
-    plant_run_defaults(&rc, &g_cfg, &g_tab);
+    plant_run_defaults(&rc, &g_cfg, hom_fix_pack(&g_tab));
     rc.cmd.mode = HOM_MODE_SINGLE;
     rc.cmd.tendon = 4;
     rc.seed = 31;
@@ -243,7 +243,7 @@ static void test_dry_run_no_motion(void **state)
     double start[TBL_MAX_TENDONS];
     uint8_t i;
     (void)state;
-    plant_run_defaults(&rc, &g_cfg, &g_tab);
+    plant_run_defaults(&rc, &g_cfg, hom_fix_pack(&g_tab));
     rc.cmd.mode = HOM_MODE_DRY;
     for (i = 0; i < g_cfg.n_tendons; i++) {
         start[i] = 0.0; /* slack everywhere */
@@ -259,7 +259,7 @@ static void test_dry_run_no_motion(void **state)
     {
         tbl_src_t src;
         tbl_point_t pt;
-        src.table = &g_tab;
+        src.table = hom_fix_pack(&g_tab);
         src.copy = tbl_copy_ram;
         assert_int_equal(tbl_target(&src, 0, g_tab.default_mN, &pt), 0);
         assert_int_equal(find_event(&g_res, HOM_EV_TARGET)->a, (int32_t)pt.target_cuT);
@@ -312,7 +312,7 @@ static void test_magnet_missing_no_prediction(void **state)
 {
     /* a table without straight-pose predictions: the take-up finds no
      * engagement within its search distance */
-    static tbl_table_t tab;
+    static tbl_wide_t tab;
     plant_run_cfg_t rc;
     uint8_t k;
     (void)state;
@@ -320,7 +320,7 @@ static void test_magnet_missing_no_prediction(void **state)
     for (k = 0; k < tab.n_sensors; k++) {
         memset(tab.sensors[k].b_straight_cuT, 0, sizeof tab.sensors[k].b_straight_cuT);
     }
-    plant_run_defaults(&rc, &g_cfg, &tab);
+    plant_run_defaults(&rc, &g_cfg, hom_fix_pack(&tab));
     rc.fault = PLANT_FI_MAGNET_MISSING;
     assert_int_equal(plant_run(&rc, &g_res), 0);
     assert_int_equal(g_res.fault, HOM_F_NO_ENGAGEMENT);
@@ -337,7 +337,7 @@ static void test_magnet_missing_no_prediction(void **state)
 static void test_target_unreachable(void **state)
 {
     /* targets three times what the robot can give within its travel limit */
-    static tbl_table_t tab;
+    static tbl_wide_t tab;
     plant_run_cfg_t rc;
     uint8_t i;
     uint8_t g;
@@ -348,7 +348,7 @@ static void test_target_unreachable(void **state)
             tab.tendons[i].target_cuT[g] *= 3u;
         }
     }
-    plant_run_defaults(&rc, &g_cfg, &tab);
+    plant_run_defaults(&rc, &g_cfg, hom_fix_pack(&tab));
     rc.seed = 41;
     assert_int_equal(plant_run(&rc, &g_res), 0);
     assert_true(g_res.fault == HOM_F_TRAVEL_LIMIT || g_res.fault == HOM_F_NO_PROGRESS);
@@ -362,7 +362,7 @@ static void test_target_unreachable(void **state)
 static void test_travel_limit(void **state)
 {
     /* a limit shorter than the travel to the target */
-    static tbl_table_t tab;
+    static tbl_wide_t tab;
     plant_run_cfg_t rc;
     uint8_t i;
     (void)state;
@@ -370,7 +370,7 @@ static void test_travel_limit(void **state)
     for (i = 0; i < tab.n_tendons; i++) {
         tab.tendons[i].travel_limit_um = 250;
     }
-    plant_run_defaults(&rc, &g_cfg, &tab);
+    plant_run_defaults(&rc, &g_cfg, hom_fix_pack(&tab));
     assert_int_equal(plant_run(&rc, &g_res), 0);
     assert_int_equal(g_res.fault, HOM_F_TRAVEL_LIMIT);
     assert_true(g_res.released && g_res.release_ms <= 100u);
@@ -386,7 +386,7 @@ static void test_tendon_time_limit(void **state)
     (void)state;
     hom_config_default(&hc);
     hc.tendon_timeout_ms = 150;
-    plant_run_defaults(&rc, &g_cfg, &g_tab);
+    plant_run_defaults(&rc, &g_cfg, hom_fix_pack(&g_tab));
     rc.hom = &hc;
     assert_int_equal(plant_run(&rc, &g_res), 0);
     assert_int_equal(g_res.fault, HOM_F_TENDON_TIMEOUT);

@@ -16,7 +16,7 @@
 #include "hom_fixture.h"
 
 static plant_cfg_t g_cfg;
-static tbl_table_t g_tab;
+static tbl_wide_t g_tab;
 static plant_run_result_t g_res;
 static int32_t g_amb[HOM_MAX_SENSORS][3];
 
@@ -38,7 +38,7 @@ static void run(uint32_t seed, int32_t (*amb)[3], int capture, double shift_x_uT
                 plant_run_result_t *res)
 {
     plant_run_cfg_t rc;
-    plant_run_defaults(&rc, &g_cfg, &g_tab);
+    plant_run_defaults(&rc, &g_cfg, hom_fix_pack(&g_tab));
     rc.seed = seed;
     rc.cmd.ambient_cuT = amb;
     rc.cmd.ambient_capture = (uint8_t)capture;
@@ -164,7 +164,7 @@ static void expect_abs_fault(plant_fault_t fi, uint8_t index, uint32_t at_ms, ho
 {
     plant_run_cfg_t rc;
     uint8_t i;
-    plant_run_defaults(&rc, &g_cfg, &g_tab);
+    plant_run_defaults(&rc, &g_cfg, hom_fix_pack(&g_tab));
     rc.seed = 11;
     rc.cmd.ambient_cuT = g_amb;
     rc.fault = fi;
@@ -205,7 +205,7 @@ static void test_wrong_ambient_faults_safely(void **state)
     uint8_t i;
     (void)state;
     capture(13);
-    plant_run_defaults(&rc, &g_cfg, &g_tab);
+    plant_run_defaults(&rc, &g_cfg, hom_fix_pack(&g_tab));
     rc.seed = 14;
     rc.cmd.ambient_cuT = g_amb;
     rc.ambient_shift_uT[2] = -400.0;

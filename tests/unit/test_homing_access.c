@@ -14,7 +14,7 @@
 #include "hom_fixture.h"
 
 static plant_cfg_t g_cfg;
-static tbl_table_t g_tab;
+static tbl_wide_t g_tab;
 static hom_t g_h;
 static hom_in_t g_in;
 static hom_out_t g_out;
@@ -33,7 +33,7 @@ static void start_full(uint32_t t0)
     hom_cmd_t c;
     memset(&c, 0, sizeof c);
     c.mode = HOM_MODE_FULL;
-    src.table = &g_tab;
+    src.table = hom_fix_pack(&g_tab);
     src.copy = tbl_copy_ram;
     memset(&g_in, 0, sizeof g_in);
     memset(g_pos, 0, sizeof g_pos);
@@ -181,7 +181,7 @@ static void test_straight_home_rounds_once(void **state)
 {
     uint32_t seed = 12345u;
     int n;
-    tbl_table_t keep = g_tab;
+    tbl_wide_t keep = g_tab;
     (void)state;
     for (n = 0; n < 4000; n++) {
         uint8_t g;

@@ -14,7 +14,7 @@
 #include "hom_fixture.h"
 
 static plant_cfg_t g_cfg;
-static tbl_table_t g_tab;
+static tbl_wide_t g_tab;
 static hom_t g_h;
 
 typedef struct {
@@ -78,10 +78,11 @@ static int bench_step(bench_t *b, hom_t *h)
     return rc;
 }
 
-static tbl_src_t src_of(const tbl_table_t *t)
+/* The packed form of t as it is now (pack again after editing t). */
+static tbl_src_t src_of(const tbl_wide_t *t)
 {
     tbl_src_t s;
-    s.table = t;
+    s.table = hom_fix_pack(t);
     s.copy = tbl_copy_ram;
     return s;
 }
@@ -96,7 +97,7 @@ static hom_cmd_t full_cmd(void)
 
 static void test_start_errors(void **state)
 {
-    static tbl_table_t bad;
+    static tbl_wide_t bad;
     tbl_src_t src = src_of(&g_tab);
     tbl_src_t bsrc = src_of(&bad);
     hom_cmd_t c = full_cmd();
@@ -110,9 +111,11 @@ static void test_start_errors(void **state)
     c = full_cmd();
     bad = g_tab;
     bad.magic ^= 1u;
+    bsrc = src_of(&bad);
     assert_int_equal(hom_start(&g_h, &bsrc, &c), HOM_E_TABLE);
     bad = g_tab;
     bad.format_version++;
+    bsrc = src_of(&bad);
     assert_int_equal(hom_start(&g_h, &bsrc, &c), HOM_E_TABLE);
     c.tension_mN = 100;
     assert_int_equal(hom_start(&g_h, &src, &c), HOM_E_TENSION);
@@ -349,7 +352,7 @@ static void test_preflight_from_any_start_time(void **state)
 
 static void test_event_queue_overflow(void **state)
 {
-    static tbl_table_t big;
+    static tbl_wide_t big;
     tbl_src_t src = src_of(&big);
     hom_cmd_t c = full_cmd();
     hom_event_t ev;
@@ -368,6 +371,7 @@ static void test_event_queue_overflow(void **state)
     for (i = 0; i < TBL_MAX_TENDONS; i++) {
         g_b.servo_status[i] = HOM_SERVO_ABSENT;
     }
+    src = src_of(&big);
     assert_int_equal(hom_start(&g_h, &src, &c), 0);
     for (n = 0; n < 1000 && g_h.fault == HOM_F_NONE; n++) {
         (void)bench_step(&g_b, &g_h);

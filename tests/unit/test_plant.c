@@ -108,7 +108,7 @@ static void test_check_incomplete(void **state)
 
 static void test_load_paper_config(void **state)
 {
-    tbl_table_t t;
+    tbl_wide_t t;
     (void)state;
     assert_int_equal(hom_fix_paper_desc(&g_cfg, &t), 0);
     assert_string_equal(g_cfg.name, "paper_2seg");
@@ -350,13 +350,13 @@ static void test_servo_model(void **state)
 
 static void test_table_from_plant(void **state)
 {
-    tbl_table_t t;
+    tbl_wide_t t;
     tbl_src_t src;
     uint8_t i;
     uint8_t g;
     (void)state;
     assert_int_equal(hom_fix_paper(&g_cfg, &t), 0);
-    src.table = &t;
+    src.table = hom_fix_pack(&t);
     src.copy = tbl_copy_ram;
     assert_int_equal(tbl_check(&src), 0);
     assert_int_equal(t.noise_cuT, 60);

@@ -65,7 +65,7 @@ static void make_learned(store_learned_t *l, uint8_t tendon, uint32_t v)
     l->n_grid = 5;
     l->grid_mask = 0x15;
     for (g = 0; g < TBL_MAX_GRID; g++) {
-        l->target_cuT[g] = v + g;
+        l->target_lsb[g] = (uint16_t)(v + g);
     }
 }
 
@@ -238,7 +238,7 @@ static void test_other_table_flagged(void **state)
     assert_int_equal(store_save_learned(&st, &l), 1);
     assert_int_equal(store_fake_run(&st, POLLS), 0);
     assert_int_equal(store_learned_load(&st, 2, 0x1234, &lr), STORE_E_OTHER_TABLE);
-    assert_int_equal(lr.target_cuT[0], 99);
+    assert_int_equal(lr.target_lsb[0], 99);
 }
 
 static void test_argument_errors(void **state)
@@ -359,6 +359,45 @@ static void test_wrong_version_or_kind_ignored(void **state)
     assert_int_equal(store_homes_load(&st, TABLE_ID, &r), STORE_E_EMPTY);
 }
 
+/* A learned record of format 1 (uint32 cuT targets, 56-byte body) left by
+ * an older firmware has a valid CRC but another version: it reads as
+ * missing, never as uint16 targets. */
+static void test_learned_v1_refused(void **state)
+{
+    store_learned_t l;
+    uint8_t body[56];
+    uint8_t *p;
+    uint16_t crc, addr = (uint16_t)(STORE_ADDR_LEARNED + 2u * 1u * STORE_LEARNED_STRIDE);
+    uint32_t tid = TABLE_ID, t = 12345u;
+    (void)state;
+    fresh(0xFF);
+    memset(body, 0, sizeof body);
+    memcpy(body, &tid, 4);
+    body[4] = 1;    /* tendon */
+    body[5] = 5;    /* n_grid */
+    body[6] = 0x1F; /* grid_mask */
+    memcpy(body + 8, &t, 4);
+    p = &fake.mem[addr];
+    p[0] = STORE_KIND_LEARNED;
+    p[1] = 1u; /* STORE_LEARNED_VERSION of the uint32 layout */
+    p[2] = 1;
+    p[3] = 0;
+    memcpy(p + 4, body, sizeof body);
+    crc = store_crc16(0xFFFFu, p, 4u + sizeof body);
+    p[4 + sizeof body] = (uint8_t)crc;
+    p[5 + sizeof body] = (uint8_t)(crc >> 8);
+    boot();
+    assert_int_equal(STORE_LEARNED_VERSION, 2);
+    assert_int_equal(store_learned_load(&st, 1, TABLE_ID, &l), STORE_E_EMPTY);
+    /* a save of the new layout then reads back */
+    make_learned(&l, 1, 700);
+    assert_int_equal(store_save_learned(&st, &l), 1);
+    assert_int_equal(store_fake_run(&st, POLLS), 0);
+    memset(&l, 0, sizeof l);
+    assert_int_equal(store_learned_load(&st, 1, TABLE_ID, &l), 0);
+    assert_int_equal(l.target_lsb[2], 702);
+}
+
 /* Until its last write the slot being saved carries no valid kind, so a
  * torn slot cannot pass for a record even if its CRC happened to match. */
 static void test_torn_slot_marked_invalid(void **state)
@@ -465,10 +504,10 @@ static uint32_t probe_learned(void)
     if (store_learned_load(&st, 3, TABLE_ID, &l) != 0) {
         return 0;
     }
-    make_learned(&want, 3, l.target_cuT[0]);
-    want.n_grid = (uint8_t)((l.target_cuT[0] / 1000u) % 12u);
+    make_learned(&want, 3, l.target_lsb[0]);
+    want.n_grid = (uint8_t)((l.target_lsb[0] / 1000u) % 12u);
     assert_memory_equal(&l, &want, sizeof(l));
-    return l.target_cuT[0] / 1000u;
+    return l.target_lsb[0] / 1000u;
 }
 
 static int8_t start_hist(uint32_t v)
@@ -802,6 +841,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_crc_vector),
         cmocka_unit_test(test_layout),
+        cmocka_unit_test(test_learned_v1_refused),
         cmocka_unit_test(test_empty_eeprom),
         cmocka_unit_test(test_poll_idle_busy_hold),
         cmocka_unit_test(test_one_byte_per_ready),

@@ -150,7 +150,7 @@ static void app_start(app_bench_t *b, uint8_t with_table)
     b->io.console = &b->con.io;
     b->io.con_copy = bench_copy;
     b->io.rt = &b->rt;
-    b->io.table = with_table ? &b->table : NULL;
+    b->io.table = with_table ? tbl_buf_table(&b->table_buf) : NULL;
     b->io.table_copy = bench_copy;
     b->io.table_copy_learned = app_bench_copy_learned;
     b->io.version_f = "0.0.0-test";
@@ -170,6 +170,10 @@ int app_bench_init(app_bench_t *b, uint8_t with_table)
     b->loop_us = APP_BENCH_LOOP_US;
     b->noise_seed = 0x9E3779B97F4A7C15ull;
     rc = hom_fix_paper(&b->cfg, &b->table);
+    if (rc != 0) {
+        return rc;
+    }
+    rc = tbl_pack(&b->table, &b->table_buf);
     if (rc != 0) {
         return rc;
     }

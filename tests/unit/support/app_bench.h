@@ -42,7 +42,8 @@ typedef struct {
     con_rt_t rt;
     /* robot */
     plant_cfg_t cfg;
-    tbl_table_t table;
+    tbl_wide_t table;    /* the robot's table in natural units */
+    tbl_buf_t table_buf; /* the same packed: what the app reads */
     plant_t plant;
     uint8_t weight_on; /* a weight pulls tendon weight_tendon to weight_ticks */
     uint8_t weight_tendon;

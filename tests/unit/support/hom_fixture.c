@@ -2,6 +2,7 @@
 #include "hom_fixture.h"
 
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 const char *hom_fix_path(const char *rel, char *buf, size_t n)
@@ -18,7 +19,7 @@ const char *hom_fix_path(const char *rel, char *buf, size_t n)
     return buf;
 }
 
-int hom_fix_load(const char *name, plant_cfg_t *cfg, tbl_table_t *t)
+int hom_fix_load(const char *name, plant_cfg_t *cfg, tbl_wide_t *t)
 {
     char rel[128];
     char path[512];
@@ -38,12 +39,12 @@ int hom_fix_load(const char *name, plant_cfg_t *cfg, tbl_table_t *t)
     return rc;
 }
 
-int hom_fix_paper(plant_cfg_t *cfg, tbl_table_t *t)
+int hom_fix_paper(plant_cfg_t *cfg, tbl_wide_t *t)
 {
     return hom_fix_load("paper_2seg_near.cfg", cfg, t);
 }
 
-int hom_fix_paper_desc(plant_cfg_t *cfg, tbl_table_t *t)
+int hom_fix_paper_desc(plant_cfg_t *cfg, tbl_wide_t *t)
 {
     return hom_fix_load("paper_2seg.cfg", cfg, t);
 }
@@ -58,4 +59,19 @@ int hom_fix_count_events(const plant_run_result_t *r, uint8_t type)
         }
     }
     return n;
+}
+
+const tbl_table_t *hom_fix_pack(const tbl_wide_t *w)
+{
+    static const tbl_wide_t *owner[8];
+    static tbl_buf_t buf[8];
+    unsigned k;
+    for (k = 0; k < 8u && owner[k] != NULL && owner[k] != w; k++) {
+    }
+    if (k == 8u || tbl_pack(w, &buf[k]) != 0) {
+        fprintf(stderr, "hom_fixture: table %p does not pack\n", (const void *)w);
+        abort();
+    }
+    owner[k] = w;
+    return tbl_buf_table(&buf[k]);
 }

@@ -12,15 +12,21 @@ const char *hom_fix_path(const char *rel, char *buf, size_t n);
 
 /* Loads sim/plant/configs/<name> into *cfg and, when t is not NULL, fills *t
  * with plant_make_table(). Returns 0 or the plant error. */
-int hom_fix_load(const char *name, plant_cfg_t *cfg, tbl_table_t *t);
+int hom_fix_load(const char *name, plant_cfg_t *cfg, tbl_wide_t *t);
 
 /* hom_fix_load("paper_2seg_near.cfg"): the paper robot with the sensors close
  * to the magnet (a strong field; grid 250..1500 mN, 800 mN at index 4). */
-int hom_fix_paper(plant_cfg_t *cfg, tbl_table_t *t);
+int hom_fix_paper(plant_cfg_t *cfg, tbl_wide_t *t);
 
 /* hom_fix_load("paper_2seg.cfg"): the paper robot as its description has it
  * (written by hallhome.plantcfg; sensors on a 22 mm ring, a weak field). */
-int hom_fix_paper_desc(plant_cfg_t *cfg, tbl_table_t *t);
+int hom_fix_paper_desc(plant_cfg_t *cfg, tbl_wide_t *t);
+
+/* w packed into the stored layout, for tbl_src_t.table / plant_run_defaults().
+ * Each wide table (by address, up to 8) has its own buffer, repacked on every
+ * call, so a test edits its wide table and packs again. Fails the test when w
+ * does not pack. */
+const tbl_table_t *hom_fix_pack(const tbl_wide_t *w);
 
 /* Number of events of the given HOM_EV_* type a closed-loop run recorded. */
 int hom_fix_count_events(const plant_run_result_t *r, uint8_t type);
