@@ -14,12 +14,14 @@ void hom_config_default(hom_config_t *cfg)
      * 100 Hz samples, only while the tendon is slack. Moderate: 40 units,
      * 6 ticks per sample, so stopping at 80 % of the target leaves margin for
      * a sample of latency. Fine steps are short moves, speed hardly matters.
-     * Release: 200 units = 3.1 ticks/ms, a 1 mm release in 52 ms (< 100 ms). */
+     * Release: 265 units (the XL430 Velocity Limit) = 4.1 ticks/ms, a 1 mm
+     * release in 40 ms; the 2.5 mm a travel limit allows in 100 ms, a tendon
+     * as elastic as a spring in line (the out_of_reach scenario) included. */
     memset(cfg, 0, sizeof *cfg);
     cfg->v_fast = 120;
     cfg->v_moderate = 40;
     cfg->v_fine = 60;
-    cfg->v_release = 200;
+    cfg->v_release = 265;
     cfg->v_final = 120;
     cfg->acc = 0;
     cfg->slack_margin_um = 600; /* > the path shortening another tendon causes at 1 N */

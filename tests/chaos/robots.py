@@ -161,11 +161,22 @@ def build(r: Robot) -> Robot:
         if r.name not in _made:
             log = r.dir / "build.log"
             log.write_text("")
-            if not (r.table_c.exists() and r.plant.exists()):
+            if not (r.table_c.exists() and r.plant.exists()) or _stale(r):
                 _generate(r, log)
             build_firmware(r, log)
             _made.add(r.name)
     return r
+
+
+# What a cached table and plant config are made by: a newer one of these
+# (a new table format, say) makes them again.
+GENERATOR = [ROOT / "lib" / "table" / "table.h", ROOT / "host_tools" / "hallhome" / "tablegen.py",
+             ROOT / "host_tools" / "hallhome" / "plantcfg.py"]
+
+
+def _stale(r: Robot) -> bool:
+    made = min(r.table_c.stat().st_mtime, r.plant.stat().st_mtime)
+    return any(g.stat().st_mtime > made for g in GENERATOR if g.exists())
 
 
 def _generate(r: Robot, log: Path) -> None:
