@@ -38,8 +38,10 @@ void app_win_check(app_t *a)
     }
 }
 
-/* Sets tendon i's window (or forgets it with keep 0). */
-APP_NOINLINE void app_win_set(app_t *a, uint8_t i, int32_t lo, int32_t hi, uint8_t keep)
+/* Sets tendon i's window (or forgets it with keep 0); crc 0 leaves the CRC
+ * to the caller, which sets several windows and seals them once. */
+APP_NOINLINE static void win_put(app_t *a, uint8_t i, int32_t lo, int32_t hi, uint8_t keep,
+                                 uint8_t crc)
 {
     app_win_t *w = a->io->win;
     if (w == NULL) {
@@ -48,7 +50,14 @@ APP_NOINLINE void app_win_set(app_t *a, uint8_t i, int32_t lo, int32_t hi, uint8
     w->mask = (uint16_t)(keep ? (w->mask | app_bit16(i)) : (w->mask & ~app_bit16(i)));
     w->lo[i] = lo;
     w->hi[i] = hi;
-    w->crc = win_crc(w);
+    if (crc) {
+        w->crc = win_crc(w);
+    }
+}
+
+void app_win_set(app_t *a, uint8_t i, int32_t lo, int32_t hi, uint8_t keep)
+{
+    win_put(a, i, lo, hi, keep, 1);
 }
 
 /* Notes in the kept copy whether anything moves: a watchdog or reset-pin
@@ -71,8 +80,11 @@ APP_NOINLINE static void win_take(app_t *a)
     for (i = 0; i < a->info.n_tendons; i++) {
         int32_t lo, hi;
         if (app_has(m, i) && hom_window(&a->u.hom, i, &lo, &hi) == 0) {
-            app_win_set(a, i, lo, hi, 1);
+            win_put(a, i, lo, hi, 1, 0);
         }
+    }
+    if (m != 0u && a->io->win != NULL) {
+        a->io->win->crc = win_crc(a->io->win);
     }
 }
 

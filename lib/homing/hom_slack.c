@@ -37,6 +37,9 @@ void hom_do_preflight(hom_t *h, const hom_in_t *in)
             h->servo_ok_ms[i] = 0xFFFFFFFFu; /* not yet answered */
         }
     }
+    if (!hom_load_step(h)) {
+        all = 0; /* the table's part of the set-up first */
+    }
     for (i = 0; i < h->n_sensors; i++) {
         uint8_t st = in->sensor[i].status;
         if (st == HOM_SENS_NEW) {
