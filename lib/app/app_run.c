@@ -235,13 +235,23 @@ APP_NOINLINE void app_run_step(app_t *a, hom_in_t *in)
     hom_out_t out;
     hom_event_t ev;
     int rc;
+    uint8_t reported;
     in->now_ms = app_now_ms(a);
+    /* one report per pass, of an event of an earlier step: a step that
+     * pushes several events (a result and the next tendon's start) would
+     * otherwise format them all in the pass that did the step's work */
+    reported = (uint8_t)hom_event_pop(&a->u.hom, &ev);
+    if (reported) {
+        app_rep_event(a, &ev);
+    }
     app_bus_inputs(a, in);
     rc = hom_step(&a->u.hom, in, &out);
     win_take(a);
     app_bus_take(a, &out);
-    while (hom_event_pop(&a->u.hom, &ev)) {
-        app_rep_event(a, &ev);
+    if (rc <= 0 && (reported || hom_event_count(&a->u.hom) != 0u)) {
+        /* the end of a run waits for its reports: hom_step() repeats its
+         * result, and the release goals of a fault are already queued */
+        return;
     }
     if (rc == 0) {
         run_done(a);

@@ -127,6 +127,11 @@ int hom_event_pop(hom_t *h, hom_event_t *ev)
     return 1;
 }
 
+uint8_t hom_event_count(const hom_t *h)
+{
+    return h->ev_count;
+}
+
 int hom_window(const hom_t *h, uint8_t i, int32_t *lo, int32_t *hi)
 {
     if (h == NULL || lo == NULL || hi == NULL || i >= h->n_tendons || !((h->win_known >> i) & 1u)) {

@@ -410,6 +410,8 @@ int hom_step(hom_t *h, const hom_in_t *in, hom_out_t *out);
  * queue is empty. Events beyond HOM_EV_CAP are dropped and counted in
  * h->ev_dropped (the fault itself stays readable in h->fault). */
 int hom_event_pop(hom_t *h, hom_event_t *ev);
+/* Events waiting in the queue. */
+uint8_t hom_event_count(const hom_t *h);
 
 /* Console word of a fault reason ("aborted", "travel_limit", ...); "unknown"
  * for values outside the enum. */

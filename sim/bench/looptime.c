@@ -26,11 +26,14 @@
 static FILE *prof_f;
 static uint32_t prof_n;
 static uint32_t prof_pc[8192];
+static uint32_t prof_ra[8192];
 static uint8_t prof_room[8192];
 static avr_cycle_count_t prof_tick(avr_t *avr, avr_cycle_count_t when, void *param)
 {
     bench_loop_t *l = param;
     if (prof_n < 8192u) {
+        uint16_t sp = (uint16_t)(avr->data[0x5D] | (avr->data[0x5E] << 8));
+        prof_ra[prof_n] = ((uint32_t)avr->data[sp + 1] << 17) | ((uint32_t)avr->data[sp + 2] << 9) | ((uint32_t)avr->data[sp + 3] << 1);
         prof_pc[prof_n] = avr->pc;
         prof_room[prof_n++] = l->room;
     }
@@ -79,7 +82,7 @@ static void loop_write(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param)
         if (prof_f != NULL && c > 3000u * 16u) {
             fprintf(prof_f, "PASS %s %llu %.6f\n", p->name, (unsigned long long)c, (double)bench_now_us(b) * 1e-6);
             for (uint32_t k = 0; k < prof_n; k++) {
-                fprintf(prof_f, "%u %x\n", prof_room[k], prof_pc[k]);
+                fprintf(prof_f, "%u %x %x\n", prof_room[k], prof_pc[k], prof_ra[k]);
             }
         }
         if (c > p->max) {
