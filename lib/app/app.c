@@ -43,6 +43,7 @@ int8_t app_poll(app_t *app)
     app_t *a = app;
     hom_in_t in;
     uint32_t t0 = app_now_us(a), t = app_now_ms(a), dt;
+    uint8_t st = a->state; /* a run started in this pass steps from the next */
     a->io->board->wdt_kick(a->io->board->ctx);
     if (con_rt_take(a->io->rt)) {
         app_abort(a);
@@ -65,7 +66,9 @@ int8_t app_poll(app_t *app)
     APP_ROOM_MARK();
     switch (a->state) {
     case APP_ST_CAL:
-        app_run_step(a, &in);
+        if (st == APP_ST_CAL) {
+            app_run_step(a, &in);
+        }
         break;
     case APP_ST_MOVE:
         app_run_move_step(a);

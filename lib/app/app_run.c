@@ -196,9 +196,12 @@ static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon
     cfg.straight = (uint8_t)a->rec.set.v[STORE_SET_HOME_POSE];
     cfg.servo_timeout_ms = APP_SERVO_TIMEOUT_MS;
     app_learn_drop_baseline(a); /* its storage goes to the homing */
-    hom_init(&a->u.hom, &cfg);
+    hom_config_set(&a->u.hom, &cfg);
     app_bus_goals_cleared(a);
     rc = hom_start(&a->u.hom, &a->htab, &cmd);
+    if (rc != 0) {
+        hom_init(&a->u.hom, &cfg); /* refused: nothing of the shared storage looks like a run */
+    }
     if (rc == HOM_E_TENSION) {
         return CON_E_TENSION_RANGE;
     }

@@ -387,6 +387,10 @@ void hom_config_default(hom_config_t *cfg);
 
 /* Initialises *h idle with the given config (NULL = defaults), no homes. */
 void hom_init(hom_t *h, const hom_config_t *cfg);
+/* Sets the configuration for the next hom_start() and makes h startable
+ * without clearing the rest, which hom_start() clears itself (hom_init()
+ * clears it twice: about 1.4 KB of stores on the AVR). */
+void hom_config_set(hom_t *h, const hom_config_t *cfg);
 
 /* Starts a run: validates the table, interpolates every tendon's target at
  * the tension (the table stays in use during the run: keep it and its
