@@ -198,10 +198,9 @@ static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon
     app_learn_drop_baseline(a); /* its storage goes to the homing */
     hom_config_set(&a->u.hom, &cfg);
     app_bus_goals_cleared(a);
+    /* a refused start leaves the state idle: every goal read later is one
+     * an app move or release set first (app_bus_goal()) */
     rc = hom_start(&a->u.hom, &a->htab, &cmd);
-    if (rc != 0) {
-        hom_init(&a->u.hom, &cfg); /* refused: nothing of the shared storage looks like a run */
-    }
     if (rc == HOM_E_TENSION) {
         return CON_E_TENSION_RANGE;
     }

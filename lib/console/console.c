@@ -163,31 +163,24 @@ static void out_key(con_t *c, const char *key)
 
 int8_t con_format_fixed(char *buf, uint8_t cap, int32_t v, uint8_t decimals)
 {
-    char digits[10];
     uint32_t pw[10];
     uint32_t m, p;
-    uint8_t nd = 0, i, started = 0, len, k = 0;
+    uint8_t n = 1, nd, i, len, k = 0;
     if (decimals > 9u) {
         decimals = 9u;
     }
     m = (v < 0) ? (uint32_t)0 - (uint32_t)v : (uint32_t)v;
-    pw[9] = 1u;
-    for (i = 9; i > 0u; i--) {
-        pw[i - 1u] = pw[i] * 10u;
-    }
-    /* decimal digits by subtraction: no divide on the AVR */
-    for (i = 0; i < 10u; i++) {
-        uint8_t d = 0;
-        p = pw[i];
-        while (m >= p) {
-            m -= p;
-            d++;
+    /* the powers of ten up to m's leading digit only (a report is mostly
+     * short numbers), then the digits by subtraction: no divide on the AVR */
+    pw[0] = 1u;
+    while (n < 10u) {
+        p = pw[n - 1u] * 10u; /* at most 10^9: no overflow */
+        if (p > m) {
+            break;
         }
-        if (d != 0u || started || (uint8_t)(10u - i) <= (uint8_t)(decimals + 1u)) {
-            started = 1;
-            digits[nd++] = (char)('0' + d);
-        }
+        pw[n++] = p;
     }
+    nd = n > decimals ? n : (uint8_t)(decimals + 1u);
     len = (uint8_t)(nd + (v < 0 ? 1u : 0u) + (decimals ? 1u : 0u));
     if (cap <= len) {
         if (cap > 0u) {
@@ -198,11 +191,18 @@ int8_t con_format_fixed(char *buf, uint8_t cap, int32_t v, uint8_t decimals)
     if (v < 0) {
         buf[k++] = '-';
     }
-    for (i = 0; i < nd; i++) {
-        if (decimals != 0u && i == (uint8_t)(nd - decimals)) {
+    for (i = nd; i-- > 0u;) {
+        char d = '0';
+        if (i < n) {
+            while (m >= pw[i]) {
+                m -= pw[i];
+                d++;
+            }
+        }
+        if (decimals != 0u && i == (uint8_t)(decimals - 1u)) {
             buf[k++] = '.';
         }
-        buf[k++] = digits[i];
+        buf[k++] = d;
     }
     buf[k] = '\0';
     return (int8_t)k;

@@ -332,7 +332,7 @@ HOM_NOINLINE static void load_tendon(hom_t *h, uint8_t i)
  * Returns 1 once everything is loaded. */
 HOM_NOINLINE int hom_load_step(hom_t *h)
 {
-    uint8_t k = h->loaded;
+    uint8_t k = (uint8_t)(h->pf_started - 1u);
     uint8_t ns = h->amb != NULL ? h->n_sensors : 0u;
     if (k < ns) {
         tbl_sensor_t sn;
@@ -343,7 +343,7 @@ HOM_NOINLINE int hom_load_step(hom_t *h)
     } else {
         return 1;
     }
-    h->loaded++;
+    h->pf_started++;
     return 0;
 }
 

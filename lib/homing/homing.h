@@ -303,8 +303,8 @@ typedef struct {
     uint8_t steps;      /* slack-check steps or fine points so far */
     uint8_t have_prev;  /* fine: a previous point below the target exists */
     uint8_t settled;    /* slack average: settle time over, averaging */
-    uint8_t pf_started; /* preflight: first step seen, t_phase valid */
-    uint8_t loaded;     /* preflight: sensors and tendons of the table loaded (hom_load_step()) */
+    uint8_t pf_started; /* preflight: first step seen, t_phase valid; then 1 + the
+                           sensors and tendons of the table loaded (hom_load_step()) */
     uint8_t quick_leg;  /* quick mode: fast leg to just before the expected engagement */
     uint8_t near;       /* fine: the next point is within a few ticks of the target */
     uint8_t n_near;     /* fine: samples to average at a near point */
