@@ -416,15 +416,20 @@ static int8_t find_cmd(const con_t *c, const char *tok)
 }
 
 /* Copies the synopsis of cmd into syn (CON_SYN_MAX, truncated). */
-static void get_synopsis(const con_t *c, uint8_t cmd, char *syn)
+/* The synopsis at p (flash) into syn. */
+static void get_synopsis_at(const con_t *c, const char *p, char *syn)
 {
-    const char *p = fl_skip(c, con_cmd_text, (uint16_t)(3u * cmd + 1u));
     uint8_t n = 0;
     char ch;
     while ((ch = fl_char(c, p++)) != '\0' && n + 1u < CON_SYN_MAX) {
         syn[n++] = ch;
     }
     syn[n] = '\0';
+}
+
+static void get_synopsis(const con_t *c, uint8_t cmd, char *syn)
+{
+    get_synopsis_at(c, fl_skip(c, con_cmd_text, (uint16_t)(3u * cmd + 1u)), syn);
 }
 
 /* One argument spec of a synopsis, split in place. */
@@ -541,18 +546,35 @@ static int8_t check_args(con_t *c, uint8_t cmd, char **tok, uint8_t ntok)
 /* Writes `<help cmd=NAME args="..." text="...">` for command i, the args
  * shown as names (choices for words) in their brackets. Returns 0 when it
  * must wait for room (realtime mode). */
-static uint8_t help_line(con_t *c, uint8_t i)
+/* No line is read while the help listing is written: line[] keeps the flash
+ * address of the next command's text, so each help line starts there instead
+ * of skipping every earlier command's text again (which took 14 ms for the
+ * last line on the AVR, one flash byte at a time). */
+static const char *help_pos(const con_t *c)
+{
+    const char *p;
+    memcpy(&p, c->line, sizeof p);
+    return p;
+}
+
+static void help_set(con_t *c, const char *p)
+{
+    memcpy(c->line, &p, sizeof p);
+}
+
+static uint8_t help_line(con_t *c)
 {
     char syn[CON_SYN_MAX];
     char *q = syn;
     con_spec_t sp;
     uint8_t first = 1;
-    const char *p = fl_skip(c, con_cmd_text, (uint16_t)(3u * i));
+    const char *p = help_pos(c);
+    const char *syn_f = fl_skip(c, p, 1);
     c->olen = 0;
     out_flash(c, s_help_cmd);
     out_flash(c, p);
     out_flash(c, s_help_args);
-    get_synopsis(c, i, syn);
+    get_synopsis_at(c, syn_f, syn);
     while (next_spec(&q, &sp) == 0) {
         if (!first) {
             out_ch(c, ' ');
@@ -562,10 +584,15 @@ static uint8_t help_line(con_t *c, uint8_t i)
         out_ram(c, sp.type == 'w' ? sp.params : sp.name);
         out_ch(c, sp.open == '<' ? '>' : ']');
     }
+    p = fl_skip(c, syn_f, 1);
     out_flash(c, s_help_text);
-    out_flash(c, fl_skip(c, p, 2));
+    out_flash(c, p);
     out_flash(c, s_help_end);
-    return flush(c, CON_RESERVE);
+    if (!flush(c, CON_RESERVE)) {
+        return 0;
+    }
+    help_set(c, fl_skip(c, p, 1));
+    return 1;
 }
 
 /* ---- line handling ----------------------------------------------- */
@@ -615,6 +642,7 @@ static void execute(con_t *c)
     if (cmd == CON_CMD_HELP) {
         c->state = ST_HELP;
         c->help_i = 0;
+        help_set(c, con_cmd_text);
         return;
     }
     c->copy(&h, &c->handlers[cmd], sizeof(h));
@@ -739,7 +767,7 @@ int8_t con_poll(con_t *con, uint16_t now_ms)
              * a full ring costs no work per pass */
             if (!con->realtime || con->io->room == NULL ||
                 con->io->room(con->io->ctx) >= CON_OUT_MAX + CON_RESERVE) {
-                con->help_i = (uint8_t)(con->help_i + help_line(con, con->help_i));
+                con->help_i = (uint8_t)(con->help_i + help_line(con));
             }
             return 1;
         }
