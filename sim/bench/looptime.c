@@ -17,28 +17,9 @@
  * first room marker). Per phase the table gives each room's longest share of
  * a single pass and the rooms' shares of the phase's worst pass.
  */
-#include <stdlib.h>
 #include <string.h>
 
 #include "bench.h"
-
-/* PROFTMP: PC samples of long passes (diagnosis only) */
-static FILE *prof_f;
-static uint32_t prof_n;
-static uint32_t prof_pc[8192];
-static uint32_t prof_ra[8192];
-static uint8_t prof_room[8192];
-static avr_cycle_count_t prof_tick(avr_t *avr, avr_cycle_count_t when, void *param)
-{
-    bench_loop_t *l = param;
-    if (prof_n < 8192u) {
-        uint16_t sp = (uint16_t)(avr->data[0x5D] | (avr->data[0x5E] << 8));
-        prof_ra[prof_n] = ((uint32_t)avr->data[sp + 1] << 17) | ((uint32_t)avr->data[sp + 2] << 9) | ((uint32_t)avr->data[sp + 3] << 1);
-        prof_pc[prof_n] = avr->pc;
-        prof_room[prof_n++] = l->room;
-    }
-    return when + 64u;
-}
 
 /* Closes the room in progress at cycle now. */
 static void loop_room_end(bench_loop_t *l, uint64_t now)
@@ -79,12 +60,6 @@ static void loop_write(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param)
         p->hist[bin < LOOP_BINS ? bin : LOOP_BINS - 1u]++;
         p->passes++;
         p->sum += c;
-        if (prof_f != NULL && c > 3000u * 16u) {
-            fprintf(prof_f, "PASS %s %llu %.6f\n", p->name, (unsigned long long)c, (double)bench_now_us(b) * 1e-6);
-            for (uint32_t k = 0; k < prof_n; k++) {
-                fprintf(prof_f, "%u %x %x\n", prof_room[k], prof_pc[k], prof_ra[k]);
-            }
-        }
         if (c > p->max) {
             p->max = c;
             p->max_at_us = bench_now_us(b);
@@ -99,7 +74,6 @@ static void loop_write(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param)
     memset(l->pass_room, 0, sizeof l->pass_room);
     l->room = 0;
     l->last_cycle = now;
-    prof_n = 0;
 }
 
 static uint8_t loop_phase_index(bench_loop_t *l, const char *name, size_t len)
@@ -133,10 +107,6 @@ void loop_init(bench_t *b)
     memset(l->pass_room, 0, sizeof l->pass_room);
     avr_register_io_write(b->avr, BENCH_GPIOR0, loop_write, b);
     avr_register_io_write(b->avr, BENCH_GPIOR1, loop_room_write, b);
-    if (getenv("HH_LOOP_PROF") != NULL) {
-        prof_f = fopen(getenv("HH_LOOP_PROF"), "w");
-        avr_cycle_timer_register(b->avr, 64, prof_tick, l);
-    }
 }
 
 void loop_reset(bench_t *b)
