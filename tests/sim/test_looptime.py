@@ -8,8 +8,8 @@ report named. Every phase's worst pass must stay within 4 ms. Simulated
 cycles are deterministic for a seed, so this is not a timed test: the same
 firmware gives the same figures on any machine.
 
-The run has no console traffic: a `status`, `servos` or `help` line during
-a run still takes 3-6 ms in the console room (each reply or help line is
+The run has no console traffic: a `status` or `help` line during a run
+still takes 3-6 ms in the console room (each reply or help line is
 formatted in one pass; docs/benchmarks.md has the figures).
 """
 
