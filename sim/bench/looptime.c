@@ -155,8 +155,9 @@ static uint64_t loop_p99(const loop_phase_t *p)
 }
 
 /* The rooms in the order app_poll() marks them (lib/app/app.c). */
-static const char *const loop_room_names[LOOP_ROOMS] = {
-    "pre", "panel", "sense", "boot", "bus", "run_poll", "step", "cmd", "rest", "rec", "led", "post"};
+static const char *const loop_room_names[LOOP_ROOMS] = {"pre",  "panel",    "sense", "boot",
+                                                        "bus",  "run_poll", "step",  "cmd",
+                                                        "rest", "rec",      "led",   "post"};
 
 static void loop_room_table(const bench_loop_t *l, FILE *table)
 {
