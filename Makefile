@@ -60,7 +60,7 @@ AVR_SIZE_OPT := -fno-ipa-sra -fno-ipa-cp-clone -flto-partition=none \
 AVR_CFLAGS := -mmcu=$(MCU) -DF_CPU=$(F_CPU) -std=c99 -Os -g -Wall -Wextra -Werror -pedantic \
 	-Wshadow -Wstrict-prototypes -Wmissing-prototypes -ffunction-sections -fdata-sections \
 	-mcall-prologues -mstrict-X -fno-inline-small-functions $(AVR_SIZE_OPT) -flto -mrelax -Ilib -Ifirmware -I$(FW_GEN_DIR) -DTBL_FLASH=__attribute__\(\(__progmem__\)\) \
-	-DHH_ROBOT=$(ROBOT) -MMD -MP
+	-DHH_ROBOT=$(ROBOT) -DAPP_ROOM_MARK_ADDR=0x4A -MMD -MP
 AVR_LDFLAGS := -mmcu=$(MCU) -Os -mcall-prologues -mstrict-X -fno-inline-small-functions $(AVR_SIZE_OPT) -flto -mrelax -Wl,--gc-sections -Wl,-Map,$(FW_MAP)
 
 # Shell lines that stop a target for an unknown robot or a missing table.

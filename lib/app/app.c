@@ -43,21 +43,32 @@ int8_t app_poll(app_t *app)
     app_t *a = app;
     hom_in_t in;
     uint32_t t0 = app_now_us(a), t = app_now_ms(a), dt;
+    uint8_t st = a->state; /* a run started in this pass steps from the next */
     a->io->board->wdt_kick(a->io->board->ctx);
     if (con_rt_take(a->io->rt)) {
         app_abort(a);
     }
+    /* one APP_ROOM_MARK() before each room, unconditionally: the bench
+     * names the rooms by their order (sim/bench/looptime.c) */
+    APP_ROOM_MARK();
     app_panel_button(a, (uint16_t)t);
     memset(&in, 0, sizeof in);
+    APP_ROOM_MARK();
     app_sense_poll(a, &in, t0);
+    APP_ROOM_MARK();
     if (a->state == APP_ST_BOOT) {
         app_boot_poll(a);
     }
+    APP_ROOM_MARK();
     app_bus_poll(a);
+    APP_ROOM_MARK();
     app_run_poll(a);
+    APP_ROOM_MARK();
     switch (a->state) {
     case APP_ST_CAL:
-        app_run_step(a, &in);
+        if (st == APP_ST_CAL) {
+            app_run_step(a, &in);
+        }
         break;
     case APP_ST_MOVE:
         app_run_move_step(a);
@@ -68,10 +79,15 @@ int8_t app_poll(app_t *app)
     default:
         break;
     }
+    APP_ROOM_MARK();
     app_cmd_poll(a);
+    APP_ROOM_MARK();
     app_rec_rest_poll(a);
+    APP_ROOM_MARK();
     app_rec_poll(a);
+    APP_ROOM_MARK();
     app_panel_led(a, t);
+    APP_ROOM_MARK();
     a->loops++;
     dt = app_now_us(a) - t0;
     if (dt > a->loop_max_us) {

@@ -76,8 +76,8 @@
  * times out, and the other transactions resume. */
 #define APP_POS_RETRIES 3u
 /* A servo whose position has not been read for this long is a fault. The
- * firmware reads positions every 5-13 ms (a pass of the loop during the fine
- * approach takes up to about 13 ms), so 50 ms left room for only four reads,
+ * firmware reads positions every 5-13 ms (a pass of the loop took up to about
+ * 13 ms when this was chosen, 4 ms now), so 50 ms left room for only four reads,
  * and two corrupted replies in a row at a byte error rate of 1e-3 could end
  * a healthy run; 120 ms is still well inside the servos' own 200 ms bus
  * watchdog. */
@@ -210,7 +210,7 @@ typedef struct {
 /* app_run.c: runs, app moves, aborts and the releases that follow. */
 typedef struct {
     uint8_t move_kind;
-    uint8_t mode;       /* hom_mode_t of the run */
+    uint8_t mode;       /* hom_mode_t of the run, or APP_MODE_SURVEY */
     uint8_t abs;        /* the run compares |B - A| with the absolute targets (target_mode 1) */
     uint8_t amb_ok;     /* amb[] holds this power cycle's ambient capture */
     uint8_t last_fault; /* hom_fault_t of the last run */

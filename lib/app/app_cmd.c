@@ -196,17 +196,13 @@ static int8_t h_cal(con_t *con, const con_args_t *args, void *ctx)
     return app_run_request(a, HOM_MODE_FULL, tension, 0);
 }
 
+/* A tendon the table lacks is refused when the run starts (run_start). */
 static int8_t h_survey(con_t *con, const con_args_t *args, void *ctx)
 {
-    app_t *a = ctx;
     (void)con;
-    if (args->given & 1u) {
-        if (a->table_ok && args->v[0] >= a->info.n_tendons) {
-            return CON_E_BAD_TENDON;
-        }
-        return app_run_request(a, APP_RUN_SURVEY | HOM_MODE_SINGLE, 0, (uint8_t)args->v[0]);
-    }
-    return app_run_request(a, APP_RUN_SURVEY | HOM_MODE_FULL, 0, 0);
+    return app_run_request(
+        ctx, (uint8_t)(APP_RUN_SURVEY | ((args->given & 1u) ? HOM_MODE_SINGLE : HOM_MODE_FULL)), 0,
+        (uint8_t)args->v[0]);
 }
 
 static int8_t h_rehome(con_t *con, const con_args_t *args, void *ctx)

@@ -40,6 +40,18 @@
 #define APP_NOINLINE
 #endif
 
+/* Room marker for the virtual bench (sim/bench/looptime.c): app_poll() writes
+ * a zero to the byte at APP_ROOM_MARK_ADDR before each room's call, and the
+ * bench, which counts the writes of a pass, tells which room a long pass
+ * spent its time in. The AVR build points it at GPIOR1, a general purpose
+ * register nothing else uses (one OUT of the zero register, 2 bytes per
+ * marker); other builds leave it out. */
+#ifdef APP_ROOM_MARK_ADDR
+#define APP_ROOM_MARK() (*(volatile uint8_t *)(APP_ROOM_MARK_ADDR) = 0u)
+#else
+#define APP_ROOM_MARK() ((void)0)
+#endif
+
 /* Report kinds, keys and words, each once in console-flash memory (program
  * memory on the AVR, where CON_FLASH is __progmem__): app_w_<id>. W(id) is
  * the word "id" itself; WS(id, text) any other text. The *_words entries are
@@ -313,6 +325,8 @@ enum { APP_MOVE_HOME = 1, APP_MOVE_RELEASE = 2 };
  * tension as a calibration pulls, its samples streamed as <sv> lines, and
  * nothing kept (docs/identify.md, "Survey on the board"). */
 #define APP_RUN_SURVEY 0x80u
+/* app_run_t.mode of a survey: its word in app_w_mode_words */
+#define APP_MODE_SURVEY 4u
 /* Survey: one <sv> line per this many samples of the pulled tendon's sensor
  * (100 Hz): four sensors' lines at 50 Hz take half of the console's 115200
  * baud, leaving room for the run's own reports. */

@@ -38,8 +38,10 @@ void app_win_check(app_t *a)
     }
 }
 
-/* Sets tendon i's window (or forgets it with keep 0). */
-APP_NOINLINE void app_win_set(app_t *a, uint8_t i, int32_t lo, int32_t hi, uint8_t keep)
+/* Sets tendon i's window (or forgets it with keep 0); crc 0 leaves the CRC
+ * to the caller, which sets several windows and seals them once. */
+APP_NOINLINE static void win_put(app_t *a, uint8_t i, int32_t lo, int32_t hi, uint8_t keep,
+                                 uint8_t crc)
 {
     app_win_t *w = a->io->win;
     if (w == NULL) {
@@ -48,7 +50,14 @@ APP_NOINLINE void app_win_set(app_t *a, uint8_t i, int32_t lo, int32_t hi, uint8
     w->mask = (uint16_t)(keep ? (w->mask | app_bit16(i)) : (w->mask & ~app_bit16(i)));
     w->lo[i] = lo;
     w->hi[i] = hi;
-    w->crc = win_crc(w);
+    if (crc) {
+        w->crc = win_crc(w);
+    }
+}
+
+void app_win_set(app_t *a, uint8_t i, int32_t lo, int32_t hi, uint8_t keep)
+{
+    win_put(a, i, lo, hi, keep, 1);
 }
 
 /* Notes in the kept copy whether anything moves: a watchdog or reset-pin
@@ -71,8 +80,11 @@ APP_NOINLINE static void win_take(app_t *a)
     for (i = 0; i < a->info.n_tendons; i++) {
         int32_t lo, hi;
         if (app_has(m, i) && hom_window(&a->u.hom, i, &lo, &hi) == 0) {
-            app_win_set(a, i, lo, hi, 1);
+            win_put(a, i, lo, hi, 1, 0);
         }
+    }
+    if (m != 0u && a->io->win != NULL) {
+        a->io->win->crc = win_crc(a->io->win);
     }
 }
 
@@ -95,7 +107,7 @@ APP_NOINLINE static void run_done(app_t *a)
         app_boot_homes_new(a);
     }
     app_rep_begin(a, app_w_done);
-    app_rep_word(a, app_w_mode, app_w_mode_words, a->run.survey ? 4u : a->run.mode);
+    app_rep_word(a, app_w_mode, app_w_mode_words, a->run.mode);
     app_rep_word(a, app_w_target, app_w_target_words, a->run.abs);
     app_rep_int(a, app_w_time_ms, (int32_t)(t - a->run.t_start));
     app_rep_int(a, app_w_tension_mN, a->run.tension);
@@ -197,8 +209,10 @@ static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon
     }
     cfg.servo_timeout_ms = APP_SERVO_TIMEOUT_MS;
     app_learn_drop_baseline(a); /* its storage goes to the homing */
-    hom_init(&a->u.hom, &cfg);
+    hom_config_set(&a->u.hom, &cfg);
     app_bus_goals_cleared(a);
+    /* a refused start leaves the state idle: every goal read later is one
+     * an app move or release set first (app_bus_goal()) */
     rc = hom_start(&a->u.hom, &a->htab, &cmd);
     if (rc == HOM_E_TENSION) {
         return CON_E_TENSION_RANGE;
@@ -209,7 +223,7 @@ static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon
     if (rc != 0) {
         return CON_E_INTERNAL;
     }
-    a->run.mode = mode;
+    a->run.mode = survey ? APP_MODE_SURVEY : mode;
     a->run.survey = cmd.survey;
     a->run.survey_n = 0;
     a->run.tension = tension;
@@ -251,9 +265,10 @@ static void survey_sample(app_t *a, const hom_in_t *in)
     buf[0] = '\0';
     for (k = 0; k < a->info.n_sensors; k++) {
         const int32_t *v = hom_last(&a->u.hom, k);
-        app_list_add(buf, sizeof buf, &pos, v[0], '\0');
-        app_list_add(buf, sizeof buf, &pos, v[1], '\0');
-        app_list_add(buf, sizeof buf, &pos, v[2], '\0');
+        uint8_t ax;
+        for (ax = 0; ax < 3u; ax++) {
+            app_list_add(buf, sizeof buf, &pos, v[ax], '\0');
+        }
     }
     app_rep_begin(a, app_w_sv);
     app_rep_int(a, app_w_t, i);
@@ -267,13 +282,23 @@ APP_NOINLINE void app_run_step(app_t *a, hom_in_t *in)
     hom_out_t out;
     hom_event_t ev;
     int rc;
+    uint8_t reported;
     in->now_ms = app_now_ms(a);
+    /* one report per pass, of an event of an earlier step: a step that
+     * pushes several events (a result and the next tendon's start) would
+     * otherwise format them all in the pass that did the step's work */
+    reported = (uint8_t)hom_event_pop(&a->u.hom, &ev);
+    if (reported) {
+        app_rep_event(a, &ev);
+    }
     app_bus_inputs(a, in);
     rc = hom_step(&a->u.hom, in, &out);
     win_take(a);
     app_bus_take(a, &out);
-    while (hom_event_pop(&a->u.hom, &ev)) {
-        app_rep_event(a, &ev);
+    if (rc <= 0 && (reported || hom_event_count(&a->u.hom) != 0u)) {
+        /* the end of a run waits for its reports: hom_step() repeats its
+         * result, and the release goals of a fault are already queued */
+        return;
     }
     if (a->run.survey) {
         survey_sample(a, in);

@@ -163,31 +163,24 @@ static void out_key(con_t *c, const char *key)
 
 int8_t con_format_fixed(char *buf, uint8_t cap, int32_t v, uint8_t decimals)
 {
-    char digits[10];
     uint32_t pw[10];
     uint32_t m, p;
-    uint8_t nd = 0, i, started = 0, len, k = 0;
+    uint8_t n = 1, nd, i, len, k = 0;
     if (decimals > 9u) {
         decimals = 9u;
     }
     m = (v < 0) ? (uint32_t)0 - (uint32_t)v : (uint32_t)v;
-    pw[9] = 1u;
-    for (i = 9; i > 0u; i--) {
-        pw[i - 1u] = pw[i] * 10u;
-    }
-    /* decimal digits by subtraction: no divide on the AVR */
-    for (i = 0; i < 10u; i++) {
-        uint8_t d = 0;
-        p = pw[i];
-        while (m >= p) {
-            m -= p;
-            d++;
+    /* the powers of ten up to m's leading digit only (a report is mostly
+     * short numbers), then the digits by subtraction: no divide on the AVR */
+    pw[0] = 1u;
+    while (n < 10u) {
+        p = pw[n - 1u] * 10u; /* at most 10^9: no overflow */
+        if (p > m) {
+            break;
         }
-        if (d != 0u || started || (uint8_t)(10u - i) <= (uint8_t)(decimals + 1u)) {
-            started = 1;
-            digits[nd++] = (char)('0' + d);
-        }
+        pw[n++] = p;
     }
+    nd = n > decimals ? n : (uint8_t)(decimals + 1u);
     len = (uint8_t)(nd + (v < 0 ? 1u : 0u) + (decimals ? 1u : 0u));
     if (cap <= len) {
         if (cap > 0u) {
@@ -198,11 +191,18 @@ int8_t con_format_fixed(char *buf, uint8_t cap, int32_t v, uint8_t decimals)
     if (v < 0) {
         buf[k++] = '-';
     }
-    for (i = 0; i < nd; i++) {
-        if (decimals != 0u && i == (uint8_t)(nd - decimals)) {
+    for (i = nd; i-- > 0u;) {
+        char d = '0';
+        if (i < n) {
+            while (m >= pw[i]) {
+                m -= pw[i];
+                d++;
+            }
+        }
+        if (decimals != 0u && i == (uint8_t)(decimals - 1u)) {
             buf[k++] = '.';
         }
-        buf[k++] = digits[i];
+        buf[k++] = d;
     }
     buf[k] = '\0';
     return (int8_t)k;
@@ -416,15 +416,20 @@ static int8_t find_cmd(const con_t *c, const char *tok)
 }
 
 /* Copies the synopsis of cmd into syn (CON_SYN_MAX, truncated). */
-static void get_synopsis(const con_t *c, uint8_t cmd, char *syn)
+/* The synopsis at p (flash) into syn. */
+static void get_synopsis_at(const con_t *c, const char *p, char *syn)
 {
-    const char *p = fl_skip(c, con_cmd_text, (uint16_t)(3u * cmd + 1u));
     uint8_t n = 0;
     char ch;
     while ((ch = fl_char(c, p++)) != '\0' && n + 1u < CON_SYN_MAX) {
         syn[n++] = ch;
     }
     syn[n] = '\0';
+}
+
+static void get_synopsis(const con_t *c, uint8_t cmd, char *syn)
+{
+    get_synopsis_at(c, fl_skip(c, con_cmd_text, (uint16_t)(3u * cmd + 1u)), syn);
 }
 
 /* One argument spec of a synopsis, split in place. */
@@ -541,18 +546,35 @@ static int8_t check_args(con_t *c, uint8_t cmd, char **tok, uint8_t ntok)
 /* Writes `<help cmd=NAME args="..." text="...">` for command i, the args
  * shown as names (choices for words) in their brackets. Returns 0 when it
  * must wait for room (realtime mode). */
-static uint8_t help_line(con_t *c, uint8_t i)
+/* No line is read while the help listing is written: line[] keeps the flash
+ * address of the next command's text, so each help line starts there instead
+ * of skipping every earlier command's text again (which took 14 ms for the
+ * last line on the AVR, one flash byte at a time). */
+static const char *help_pos(const con_t *c)
+{
+    const char *p;
+    memcpy(&p, c->line, sizeof p);
+    return p;
+}
+
+static void help_set(con_t *c, const char *p)
+{
+    memcpy(c->line, &p, sizeof p);
+}
+
+static uint8_t help_line(con_t *c)
 {
     char syn[CON_SYN_MAX];
     char *q = syn;
     con_spec_t sp;
     uint8_t first = 1;
-    const char *p = fl_skip(c, con_cmd_text, (uint16_t)(3u * i));
+    const char *p = help_pos(c);
+    const char *syn_f = fl_skip(c, p, 1);
     c->olen = 0;
     out_flash(c, s_help_cmd);
     out_flash(c, p);
     out_flash(c, s_help_args);
-    get_synopsis(c, i, syn);
+    get_synopsis_at(c, syn_f, syn);
     while (next_spec(&q, &sp) == 0) {
         if (!first) {
             out_ch(c, ' ');
@@ -562,10 +584,15 @@ static uint8_t help_line(con_t *c, uint8_t i)
         out_ram(c, sp.type == 'w' ? sp.params : sp.name);
         out_ch(c, sp.open == '<' ? '>' : ']');
     }
+    p = fl_skip(c, syn_f, 1);
     out_flash(c, s_help_text);
-    out_flash(c, fl_skip(c, p, 2));
+    out_flash(c, p);
     out_flash(c, s_help_end);
-    return flush(c, CON_RESERVE);
+    if (!flush(c, CON_RESERVE)) {
+        return 0;
+    }
+    help_set(c, fl_skip(c, p, 1));
+    return 1;
 }
 
 /* ---- line handling ----------------------------------------------- */
@@ -615,6 +642,7 @@ static void execute(con_t *c)
     if (cmd == CON_CMD_HELP) {
         c->state = ST_HELP;
         c->help_i = 0;
+        help_set(c, con_cmd_text);
         return;
     }
     c->copy(&h, &c->handlers[cmd], sizeof(h));
@@ -739,7 +767,7 @@ int8_t con_poll(con_t *con, uint16_t now_ms)
              * a full ring costs no work per pass */
             if (!con->realtime || con->io->room == NULL ||
                 con->io->room(con->io->ctx) >= CON_OUT_MAX + CON_RESERVE) {
-                con->help_i = (uint8_t)(con->help_i + help_line(con, con->help_i));
+                con->help_i = (uint8_t)(con->help_i + help_line(con));
             }
             return 1;
         }

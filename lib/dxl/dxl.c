@@ -7,9 +7,11 @@
 
 enum { DXL_PH_IDLE, DXL_PH_SEND, DXL_PH_WAIT_TX, DXL_PH_RECV };
 
-#define DXL_PENDING     1 /* reply[].result while the reply is awaited */
-#define DXL_READ_CHUNK  16u
-#define DXL_READ_ROUNDS 8u /* chunks per poll: bounds the time one poll takes */
+#define DXL_PENDING    1 /* reply[].result while the reply is awaited */
+#define DXL_READ_CHUNK 16u
+/* chunks per poll: bounds the time one poll takes (about 0.5 ms on the AVR;
+ * the 256-byte receive buffer holds the rest of a long reply) */
+#define DXL_READ_ROUNDS 3u
 
 static uint8_t dxl_time_reached(uint32_t now, uint32_t t)
 {

@@ -4,19 +4,23 @@
 
 #include "dxl/dxl_priv.h"
 
-/* Nibble table for polynomial 0x8005: 32 bytes instead of 512, two lookups
- * per byte, still far faster than the 10 us a byte takes at 1 Mbps. */
-static const uint16_t dxl_crc_nibble[16] DXL_FLASH = {
-    0x0000, 0x8005, 0x800F, 0x000A, 0x801B, 0x001E, 0x0014, 0x8011,
-    0x8033, 0x0036, 0x003C, 0x8039, 0x0028, 0x802D, 0x8027, 0x0022,
-};
-
+/* Polynomial 0x8005 a byte at a time without a table: for x = top byte ^
+ * byte, the table entry is (x << 1) ^ (x << 2), with 0x8003 added when x has
+ * odd parity (the reduction by z^16 = z^15 + z^2 + 1, bit by bit). No flash
+ * lookups and no 16-bit shifts by 4, which the AVR does one bit at a time:
+ * the parser and the packet writer run it on every bus byte. */
 uint16_t dxl_crc16_byte(uint16_t crc, uint8_t byte)
 {
-    crc = (uint16_t)((crc << 4) ^
-                     DXL_FLASH_WORD(&dxl_crc_nibble[((crc >> 12) ^ (byte >> 4)) & 0x0Fu]));
-    crc = (uint16_t)((crc << 4) ^ DXL_FLASH_WORD(&dxl_crc_nibble[((crc >> 12) ^ byte) & 0x0Fu]));
-    return crc;
+    uint8_t x = (uint8_t)((crc >> 8) ^ byte);
+    uint8_t p = (uint8_t)(x ^ (x >> 4));
+    uint16_t t = (uint16_t)((uint16_t)x << 1);
+    p ^= (uint8_t)(p >> 2);
+    p ^= (uint8_t)(p >> 1);
+    t ^= (uint16_t)(t << 1);
+    if (p & 1u) {
+        t ^= 0x8003u;
+    }
+    return (uint16_t)((crc << 8) ^ t);
 }
 
 uint16_t dxl_crc16(uint16_t crc, const uint8_t *data, uint16_t n)

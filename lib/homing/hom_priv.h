@@ -85,6 +85,8 @@ int hom_check_servos(hom_t *h, const hom_in_t *in);
 
 /* ---- hom_slack.c: preflight, release, slack check, baseline ---- */
 void hom_do_preflight(hom_t *h, const hom_in_t *in);
+/* One piece of the run's table set-up (preflight); 1 once all is loaded. */
+int hom_load_step(hom_t *h);
 void hom_release_check(hom_t *h);
 void hom_do_slack_avg(hom_t *h);
 

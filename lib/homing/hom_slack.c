@@ -37,6 +37,9 @@ void hom_do_preflight(hom_t *h, const hom_in_t *in)
             h->servo_ok_ms[i] = 0xFFFFFFFFu; /* not yet answered */
         }
     }
+    if (!hom_load_step(h)) {
+        all = 0; /* the table's part of the set-up first */
+    }
     for (i = 0; i < h->n_sensors; i++) {
         uint8_t st = in->sensor[i].status;
         if (st == HOM_SENS_NEW) {
@@ -205,17 +208,25 @@ static void slack_done(hom_t *h)
         h->state = ST_DONE;
         return;
     }
-    hom_begin_tendon(h, hom_next_tendon(h, 0));
+    h->settled = 3; /* the next step begins the first tendon */
 }
 
 /* Averages every sensor after a settle time; compares with the previous
  * average; releases further until nothing changes. */
 HOM_NOINLINE void hom_do_slack_avg(hom_t *h)
 {
+    int32_t avg[HOM_MAX_SENSORS][3];
     uint8_t k;
     uint8_t i;
     uint32_t worst = 0;
     int done;
+    if (h->settled == 3u) {
+        /* the baseline is taken (slack_done()): the first tendon begins in
+         * a step of its own, its table work apart from the averages' */
+        h->settled = 0;
+        hom_begin_tendon(h, hom_next_tendon(h, 0));
+        return;
+    }
     if (!h->settled) {
         if (hom_since(h, h->t_phase) < h->cfg.settle_ms) {
             return;
@@ -230,15 +241,15 @@ HOM_NOINLINE void hom_do_slack_avg(hom_t *h)
         }
     }
     h->settled = 0;
-    /* until the slack is confirmed, b0 holds the previous average */
+    /* until the slack is confirmed, b0 holds the previous average; each
+     * average is computed once (three 32-bit divisions per sensor) */
     for (k = 0; k < h->n_sensors; k++) {
-        int32_t avg[3];
         int32_t d[3];
         uint32_t n;
         int a;
-        hom_avg_of(h, k, avg);
+        hom_avg_of(h, k, avg[k]);
         for (a = 0; a < 3; a++) {
-            d[a] = avg[a] - h->sensor[k].b0[a];
+            d[a] = avg[k][a] - h->sensor[k].b0[a];
         }
         n = hom_norm3(d);
         if (n > worst) {
@@ -247,14 +258,12 @@ HOM_NOINLINE void hom_do_slack_avg(hom_t *h)
     }
     done = h->mode == HOM_MODE_DRY || (h->steps > 0u && worst <= h->engage_cuT);
     for (k = 0; k < h->n_sensors; k++) {
-        int32_t avg[3];
         int a;
-        hom_avg_of(h, k, avg);
         for (a = 0; a < 3; a++) {
             /* the baseline when this average confirms the slack: both
              * averages then saw the same straight pose, so it takes both */
             int32_t *b0 = &h->sensor[k].b0[a];
-            *b0 = done && h->steps > 0u ? avg[a] - (avg[a] - *b0) / 2 : avg[a];
+            *b0 = done && h->steps > 0u ? avg[k][a] - (avg[k][a] - *b0) / 2 : avg[k][a];
         }
     }
     if (done) {

@@ -56,6 +56,12 @@ void hom_init(hom_t *h, const hom_config_t *cfg)
     h->state = ST_IDLE;
 }
 
+void hom_config_set(hom_t *h, const hom_config_t *cfg)
+{
+    h->cfg = *cfg;
+    h->state = ST_IDLE;
+}
+
 /* 32-bit arithmetic only (64-bit code is large and slow on the AVR): each
  * axis is scaled down by the smallest power of two that keeps the sum of
  * three squares within 32 bits (|axis| <= 37837, exact below 378 uT per
@@ -129,6 +135,11 @@ int hom_event_pop(hom_t *h, hom_event_t *ev)
     return 1;
 }
 
+uint8_t hom_event_count(const hom_t *h)
+{
+    return h->ev_count;
+}
+
 int hom_window(const hom_t *h, uint8_t i, int32_t *lo, int32_t *hi)
 {
     if (h == NULL || lo == NULL || hi == NULL || i >= h->n_tendons || !((h->win_known >> i) & 1u)) {
@@ -172,9 +183,19 @@ HOM_NOINLINE int32_t hom_muldiv(int32_t a, int32_t b, int32_t c)
     uint8_t k;
     /* every caller passes c != 0 (a spool factor tbl_check() refused at 0, a
      * count or slope it has checked positive) */
+    if (((ua | ub) >> 16) == 0u) {
+        /* both below 2^16: the product fits, one division (the common case:
+         * micrometres times 1000, cuT times 256) */
+        q = ua * ub / uc; /* cppcheck-suppress zerodivcond */
+        goto sign;
+    }
     bq = ub / uc; /* cppcheck-suppress zerodivcond */
     br = ub % uc; /* cppcheck-suppress zerodivcond */
-    for (k = 0; k < 32u; k++) {
+    /* the leading zero bits of |a| double nothing: start at its top bit */
+    for (k = 0; k < 32u && (ua & 0x80000000u) == 0u; k++) {
+        ua <<= 1;
+    }
+    for (; k < 32u; k++) {
         if (q >= 0x80000000u) {
             q = 0xFFFFFFFFu; /* beyond 32 bits: saturated below */
             break;
@@ -203,6 +224,7 @@ HOM_NOINLINE int32_t hom_muldiv(int32_t a, int32_t b, int32_t c)
         }
         ua <<= 1;
     }
+sign:
     if ((a < 0) ^ (b < 0) ^ (c < 0)) {
         return q >= 0x80000000u ? INT32_MIN : -(int32_t)q;
     }
@@ -263,47 +285,67 @@ HOM_NOINLINE void hom_work_point(const hom_t *h, uint8_t i, uint16_t mN, tbl_poi
     pt->target_cuT = hom_work_target(h, h->tendon[i].sensor, pt->target_cuT, pt->abs_target_cuT);
 }
 
-/* Loads tendon i's row for a run at the tension; raises *rel_um to the
- * release that frees it. Returns 0, or -1 when the table has no target. */
-HOM_NOINLINE static int load_tendon(hom_t *h, const tbl_src_t *table, const hom_cmd_t *cmd,
-                                    uint8_t i, const tbl_info_t *info, uint16_t tension,
-                                    uint32_t *rel_um)
+/* Tendon i's row for the run at its tension: what hom_start() left for the
+ * preflight (the cmd fields are set). tbl_target() cannot fail here:
+ * hom_start() checked the tendon count and the tension's range. */
+HOM_NOINLINE static void load_tendon(hom_t *h, uint8_t i)
 {
     tbl_tendon_t row;
     tbl_point_t pt;
+    tbl_info_t info;
     hom_tendon_t *t = &h->tendon[i];
     uint32_t r;
     int32_t q8;
-    (void)tbl_tendon(table, i, &row);
-    if (tbl_target(table, i, tension, &pt) != 0) {
-        return -1;
-    }
-    memset(t, 0, sizeof *t);
+    (void)tbl_info(&h->table, &info);
+    (void)tbl_tendon(&h->table, i, &row);
+    (void)tbl_target(&h->table, i, h->tension_mN, &pt);
     t->dir = row.pull_dir < 0 ? -1 : 1;
     t->nm_per_tick = row.nm_per_tick;
     t->sensor = row.sensor;
-    t->target_cuT = pt.target_cuT;
     t->travel_ticks = hom_um_to_ticks(pt.travel_um, row.nm_per_tick);
     t->margin_ticks = hom_um_to_ticks(h->cfg.slack_margin_um, row.nm_per_tick);
     t->limit_ticks = hom_muldiv((int32_t)row.travel_limit_um, 1000, (int32_t)row.nm_per_tick);
     q8 = hom_straight_q8(t, pt.straight_um);
     t->to_straight = (int16_t)hom_floor_div256(q8);
     t->straight_frac = (int8_t)(q8 - (int32_t)t->to_straight * 256);
-    if ((cmd->stored_mask >> i) & 1u) {
-        t->est_home = cmd->stored_home[i]; /* unwrapped once positions are known */
-        t->have_home = 2;                  /* 2: stored, not yet measured */
+    /* the engagement threshold is at most a quarter of every delta target */
+    if (pt.target_cuT / 4u < h->engage_cuT) {
+        h->engage_cuT = pt.target_cuT / 4u;
     }
-    if ((cmd->win_mask >> i) & 1u) {
-        t->eng_lo = cmd->win_lo[i];
-        t->eng_hi = cmd->win_hi[i];
+    /* absolute mode: the engagement threshold stays the delta mode's; the
+     * target becomes the distance of |B_magnet(p_T)| from |b_straight| */
+    t->target_cuT = hom_work_target(h, t->sensor, pt.target_cuT, pt.abs_target_cuT);
+    if (h->amb != NULL) {
+        t->abs_sign = pt.abs_target_cuT < h->sensor[t->sensor].p0 ? -1 : 1;
     }
     /* The initial release must free a tendon left anywhere up to the top of
      * the grid: one and a half times that travel plus the margin. */
-    r = row.travel_um[info->n_grid - 1u];
+    r = row.travel_um[info.n_grid - 1u];
     r = r + r / 2u + h->cfg.slack_margin_um;
-    if (r > *rel_um) {
-        *rel_um = r;
+    if (h->cfg.initial_release_um == 0u && r > h->release_um) {
+        h->release_um = r;
     }
+}
+
+/* One piece of the run's set-up per preflight step: the table work of a
+ * tendon (several divisions per grid value) costs about a millisecond on the
+ * AVR, too much for twelve tendons in one pass of the main loop. Absolute
+ * mode first each sensor's straight-pose |b|, then each tendon's row.
+ * Returns 1 once everything is loaded. */
+HOM_NOINLINE int hom_load_step(hom_t *h)
+{
+    uint8_t k = (uint8_t)(h->pf_started - 1u);
+    uint8_t ns = h->amb != NULL ? h->n_sensors : 0u;
+    if (k < ns) {
+        tbl_sensor_t sn;
+        (void)tbl_sensor(&h->table, k, &sn);
+        h->sensor[k].p0 = hom_norm3(sn.b_straight_cuT);
+    } else if (k < ns + h->n_tendons) {
+        load_tendon(h, (uint8_t)(k - ns));
+    } else {
+        return 1;
+    }
+    h->pf_started++;
     return 0;
 }
 
@@ -312,7 +354,6 @@ int hom_start(hom_t *h, const tbl_src_t *table, const hom_cmd_t *cmd)
     tbl_info_t info;
     uint16_t tension;
     uint8_t i;
-    uint32_t rel_um = 0;
 
     if (h == NULL || table == NULL || cmd == NULL || (unsigned)cmd->mode > HOM_MODE_DRY) {
         return HOM_E_ARG;
@@ -338,20 +379,22 @@ int hom_start(hom_t *h, const tbl_src_t *table, const hom_cmd_t *cmd)
     if (tension < info.grid_mN[0] || tension > info.grid_mN[info.n_grid - 1u]) {
         return HOM_E_TENSION;
     }
+    /* a fresh run: what hom_init() clears, except the config; the table's
+     * part of each tendon follows in the preflight (hom_load_step()) */
+    memset(h, 0, offsetof(hom_t, cfg));
+    memset(&h->table, 0, sizeof *h - offsetof(hom_t, table));
     for (i = 0; i < info.n_tendons; i++) {
-        if (load_tendon(h, table, cmd, i, &info, tension, &rel_um) != 0) {
-            return HOM_E_TENSION;
+        hom_tendon_t *t = &h->tendon[i];
+        if ((cmd->stored_mask >> i) & 1u) {
+            t->est_home = cmd->stored_home[i]; /* unwrapped once positions are known */
+            t->have_home = 2;                  /* 2: stored, not yet measured */
+        }
+        if ((cmd->win_mask >> i) & 1u) {
+            t->eng_lo = cmd->win_lo[i];
+            t->eng_hi = cmd->win_hi[i];
         }
     }
-    /* a fresh run: what hom_init() clears, except the config and the tendons
-     * just loaded */
-    memset(h, 0, offsetof(hom_t, cfg));
-    memset(&h->table, 0, offsetof(hom_t, tendon) - offsetof(hom_t, table));
-    memset(h->sensor, 0, sizeof *h - offsetof(hom_t, sensor));
-    if (h->cfg.initial_release_um != 0u) {
-        rel_um = h->cfg.initial_release_um;
-    }
-    h->release_um = rel_um;
+    h->release_um = h->cfg.initial_release_um;
     h->win_known = (uint16_t)(cmd->win_mask & ((1u << info.n_tendons) - 1u));
     h->table = *table;
     /* averages beyond the accumulator's reach would never complete */
@@ -371,28 +414,9 @@ int hom_start(hom_t *h, const tbl_src_t *table, const hom_cmd_t *cmd)
     if (8u * (uint32_t)info.noise_cuT > h->engage_cuT) {
         h->engage_cuT = 8u * (uint32_t)info.noise_cuT;
     }
-    for (i = 0; i < info.n_tendons; i++) {
-        if (h->tendon[i].target_cuT / 4u < h->engage_cuT) {
-            h->engage_cuT = h->tendon[i].target_cuT / 4u;
-        }
-    }
     h->amb = cmd->ambient_cuT;
     h->amb_capture = cmd->ambient_capture;
     h->survey = cmd->survey;
-    for (i = 0; h->amb != NULL && i < info.n_sensors; i++) {
-        tbl_sensor_t sn;
-        (void)tbl_sensor(table, i, &sn);
-        h->sensor[i].p0 = hom_norm3(sn.b_straight_cuT);
-    }
-    /* absolute mode: the engagement threshold stays the delta mode's; the
-     * targets become distances of |B_magnet(p_T)| from |b_straight| */
-    for (i = 0; h->amb != NULL && i < info.n_tendons; i++) {
-        hom_tendon_t *t = &h->tendon[i];
-        tbl_point_t pt;
-        hom_work_point(h, i, tension, &pt);
-        t->abs_sign = pt.abs_target_cuT < h->sensor[t->sensor].p0 ? -1 : 1;
-        t->target_cuT = pt.target_cuT;
-    }
     h->state = ST_PREFLIGHT;
     h->t_phase = 0;
     h->fault = HOM_F_NONE;

@@ -303,7 +303,8 @@ typedef struct {
     uint8_t steps;      /* slack-check steps or fine points so far */
     uint8_t have_prev;  /* fine: a previous point below the target exists */
     uint8_t settled;    /* slack average: settle time over, averaging */
-    uint8_t pf_started; /* preflight: first step seen, t_phase valid */
+    uint8_t pf_started; /* preflight: first step seen, t_phase valid; then 1 + the
+                           sensors and tendons of the table loaded (hom_load_step()) */
     uint8_t quick_leg;  /* quick mode: fast leg to just before the expected engagement */
     uint8_t near;       /* fine: the next point is within a few ticks of the target */
     uint8_t n_near;     /* fine: samples to average at a near point */
@@ -391,6 +392,10 @@ void hom_config_default(hom_config_t *cfg);
 
 /* Initialises *h idle with the given config (NULL = defaults), no homes. */
 void hom_init(hom_t *h, const hom_config_t *cfg);
+/* Sets the configuration for the next hom_start() and makes h startable
+ * without clearing the rest, which hom_start() clears itself (hom_init()
+ * clears it twice: about 1.4 KB of stores on the AVR). */
+void hom_config_set(hom_t *h, const hom_config_t *cfg);
 
 /* Starts a run: validates the table, interpolates every tendon's target at
  * the tension (the table stays in use during the run: keep it and its
@@ -414,6 +419,8 @@ int hom_step(hom_t *h, const hom_in_t *in, hom_out_t *out);
  * queue is empty. Events beyond HOM_EV_CAP are dropped and counted in
  * h->ev_dropped (the fault itself stays readable in h->fault). */
 int hom_event_pop(hom_t *h, hom_event_t *ev);
+/* Events waiting in the queue. */
+uint8_t hom_event_count(const hom_t *h);
 
 /* Console word of a fault reason ("aborted", "travel_limit", ...); "unknown"
  * for values outside the enum. */

@@ -67,14 +67,15 @@ static const char store_text[] STORE_FLASH =
 
 /* ---- CRC --------------------------------------------------------- */
 
+/* CRC-16/CCITT (0x1021) a byte at a time without a table: the eight shifts
+ * of the bitwise form reduce to x = top byte ^ b, x ^= x >> 4 and three
+ * shifted copies of x (about 8x faster on the AVR, where the bitwise loop
+ * cost half a millisecond per 100-byte record or window check). */
 static uint16_t crc_byte(uint16_t crc, uint8_t b)
 {
-    uint8_t i;
-    crc ^= (uint16_t)((uint16_t)b << 8);
-    for (i = 0; i < 8u; i++) {
-        crc = (crc & 0x8000u) ? (uint16_t)((crc << 1) ^ 0x1021u) : (uint16_t)(crc << 1);
-    }
-    return crc;
+    uint8_t x = (uint8_t)((crc >> 8) ^ b);
+    x ^= (uint8_t)(x >> 4);
+    return (uint16_t)((crc << 8) ^ ((uint16_t)x << 12) ^ ((uint16_t)x << 5) ^ x);
 }
 
 uint16_t store_crc16(uint16_t crc, const void *data, size_t n)

@@ -44,6 +44,7 @@
 #define BENCH_PINE     0x2Cu
 #define BENCH_EECR     0x3Fu
 #define BENCH_GPIOR0   0x3Eu
+#define BENCH_GPIOR1   0x4Au
 #define BENCH_TWSR     0xB9u
 #define BENCH_TWCR     0xBCu
 #define BENCH_UCSR0B   0xC1u
@@ -328,6 +329,10 @@ typedef struct {
 #define LOOP_PHASES     16u
 #define LOOP_BIN_CYCLES 16u    /* 1 us */
 #define LOOP_BINS       50000u /* 50 ms; longer passes land in the last bin */
+/* Room markers: app_poll() writes GPIOR1 before each room's call
+ * (APP_ROOM_MARK in lib/app/app_priv.h); the n-th write of a pass starts
+ * room n, room 0 is the pass's start up to the first marker. */
+#define LOOP_ROOMS 12u
 
 typedef struct {
     char name[16];
@@ -335,6 +340,8 @@ typedef struct {
     uint64_t sum; /* cycles */
     uint64_t max; /* cycles */
     uint64_t max_at_us;
+    uint64_t room_max[LOOP_ROOMS];   /* each room's longest share of one pass, cycles */
+    uint64_t worst_room[LOOP_ROOMS]; /* the rooms' shares of the worst pass, cycles */
     uint32_t hist[LOOP_BINS];
 } loop_phase_t;
 
@@ -343,6 +350,10 @@ typedef struct {
     uint8_t n_phases;
     uint8_t cur;
     uint64_t last_cycle; /* the last pass marker (0: none since reset) */
+    uint64_t room_start; /* the last room marker (or pass marker) */
+    uint8_t room;        /* room markers seen in this pass */
+    uint8_t rooms_used;  /* the most room markers seen in any pass, + 1 */
+    uint64_t pass_room[LOOP_ROOMS];
 } bench_loop_t;
 
 /* ---- the bench ---------------------------------------------------------------- */

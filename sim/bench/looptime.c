@@ -10,10 +10,40 @@
  * and `<done` (idle), `<progress state=NAME` and `<fault`. A line reaches the
  * bench a little after the pass that printed it, so the pass that changes
  * phase counts in the old one. A reset ends the pass in flight uncounted.
+ *
+ * Attribution: app_poll() also writes GPIOR1 before each room's call
+ * (APP_ROOM_MARK, lib/app/app_priv.h), always the same sequence, so the n-th
+ * GPIOR1 write of a pass starts room n (room 0: from the pass marker to the
+ * first room marker). Per phase the table gives each room's longest share of
+ * a single pass and the rooms' shares of the phase's worst pass.
  */
 #include <string.h>
 
 #include "bench.h"
+
+/* Closes the room in progress at cycle now. */
+static void loop_room_end(bench_loop_t *l, uint64_t now)
+{
+    uint8_t r = l->room < LOOP_ROOMS ? l->room : (uint8_t)(LOOP_ROOMS - 1u);
+    if (l->room_start != 0 && now > l->room_start) {
+        l->pass_room[r] += now - l->room_start;
+    }
+    l->room_start = now;
+}
+
+static void loop_room_write(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param)
+{
+    bench_loop_t *l = &((bench_t *)param)->loop;
+    (void)addr;
+    (void)v;
+    loop_room_end(l, avr->cycle);
+    if (l->room < 255u) {
+        l->room++;
+    }
+    if (l->room + 1u > l->rooms_used) {
+        l->rooms_used = (uint8_t)(l->room + 1u < LOOP_ROOMS ? l->room + 1u : LOOP_ROOMS);
+    }
+}
 
 static void loop_write(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param)
 {
@@ -22,6 +52,7 @@ static void loop_write(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param)
     (void)addr;
     (void)v;
     uint64_t now = avr->cycle;
+    loop_room_end(l, now);
     if (l->last_cycle != 0 && now > l->last_cycle) {
         loop_phase_t *p = &l->phase[l->cur];
         uint64_t c = now - l->last_cycle;
@@ -32,8 +63,16 @@ static void loop_write(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param)
         if (c > p->max) {
             p->max = c;
             p->max_at_us = bench_now_us(b);
+            memcpy(p->worst_room, l->pass_room, sizeof p->worst_room);
+        }
+        for (uint8_t r = 0; r < LOOP_ROOMS; r++) {
+            if (l->pass_room[r] > p->room_max[r]) {
+                p->room_max[r] = l->pass_room[r];
+            }
         }
     }
+    memset(l->pass_room, 0, sizeof l->pass_room);
+    l->room = 0;
     l->last_cycle = now;
 }
 
@@ -62,12 +101,20 @@ void loop_init(bench_t *b)
     l->n_phases = 0;
     l->cur = loop_phase_index(l, "boot", 4);
     l->last_cycle = 0;
+    l->room_start = 0;
+    l->room = 0;
+    l->rooms_used = 0;
+    memset(l->pass_room, 0, sizeof l->pass_room);
     avr_register_io_write(b->avr, BENCH_GPIOR0, loop_write, b);
+    avr_register_io_write(b->avr, BENCH_GPIOR1, loop_room_write, b);
 }
 
 void loop_reset(bench_t *b)
 {
     b->loop.last_cycle = 0;
+    b->loop.room_start = 0;
+    b->loop.room = 0;
+    memset(b->loop.pass_room, 0, sizeof b->loop.pass_room);
     b->loop.cur = loop_phase_index(&b->loop, "boot", 4);
 }
 
@@ -107,6 +154,32 @@ static uint64_t loop_p99(const loop_phase_t *p)
     return p->max;
 }
 
+/* The rooms in the order app_poll() marks them (lib/app/app.c). */
+static const char *const loop_room_names[LOOP_ROOMS] = {"pre",  "panel",    "sense", "boot",
+                                                        "bus",  "run_poll", "step",  "cmd",
+                                                        "rest", "rec",      "led",   "post"};
+
+static void loop_room_table(const bench_loop_t *l, FILE *table)
+{
+    fprintf(table, "\nroom share of a pass, us: longest in any pass / in the phase's worst pass\n");
+    fprintf(table, "%-10s", "phase");
+    for (uint8_t r = 0; r < l->rooms_used; r++) {
+        fprintf(table, " %13s", loop_room_names[r]);
+    }
+    fprintf(table, "\n");
+    for (uint8_t i = 0; i < l->n_phases; i++) {
+        const loop_phase_t *p = &l->phase[i];
+        if (p->passes == 0) {
+            continue;
+        }
+        fprintf(table, "%-10s", p->name);
+        for (uint8_t r = 0; r < l->rooms_used; r++) {
+            fprintf(table, " %6.0f/%6.0f", loop_us(p->room_max[r]), loop_us(p->worst_room[r]));
+        }
+        fprintf(table, "\n");
+    }
+}
+
 void loop_report(bench_t *b, FILE *json, FILE *table)
 {
     const bench_loop_t *l = &b->loop;
@@ -141,5 +214,8 @@ void loop_report(bench_t *b, FILE *json, FILE *table)
     }
     if (json != NULL) {
         fprintf(json, "]},\n");
+    }
+    if (table != NULL && l->rooms_used > 1u) {
+        loop_room_table(l, table);
     }
 }

@@ -40,6 +40,12 @@ static void start_full(uint32_t t0)
     g_in.now_ms = t0;
     hom_init(&g_h, NULL);
     assert_int_equal(hom_start(&g_h, &src, &c), 0);
+    /* the table's part of each tendon is loaded by the preflight's steps,
+     * one tendon per step (no sensor sample yet: the preflight goes on) */
+    for (uint8_t i = 0; i <= TBL_MAX_TENDONS; i++) {
+        hom_out_t o;
+        (void)hom_step(&g_h, &g_in, &o);
+    }
 }
 
 /* One millisecond: a sample of every sensor every 10 ms, servos at their goals. */

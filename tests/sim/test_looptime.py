@@ -1,0 +1,69 @@
+"""Main-loop pass time on the virtual bench (issue 14, "lean, fast").
+
+The real firmware (build/fw/paper_2seg/hallhome-paper_2seg.elf) calibrates
+the paper_2seg plant with `hh_bench --loop-table`; the bench times every pass
+of the main loop by simavr's cycle counter between two GPIOR0 writes
+(sim/bench/looptime.c) and files it under the phase the firmware's last
+report named. Every phase's worst pass must stay within 4 ms. Simulated
+cycles are deterministic for a seed, so this is not a timed test: the same
+firmware gives the same figures on any machine.
+
+The run has no console traffic: a `status` or `help` line during a run
+still takes 3-6 ms in the console room (each reply or help line is
+formatted in one pass; docs/benchmarks.md has the figures).
+"""
+
+import json
+import subprocess
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+BENCH = ROOT / "build" / "sim" / "hh_bench"
+FW = ROOT / "build" / "fw" / "paper_2seg" / "hallhome-paper_2seg.elf"
+PLANT = ROOT / "sim" / "plant" / "configs" / "paper_2seg.cfg"
+GOAL_US = 4000.0
+# the phases a full calibration goes through (looptime.c's names)
+PHASES = {"boot", "idle", "preflight", "release", "baseline", "tendon", "engaged", "final"}
+
+
+@pytest.fixture(scope="module")
+def loop(tmp_path_factory):
+    missing = [p for p in (BENCH, FW) if not p.exists()]
+    if missing:
+        pytest.fail("not built (run `make sim-test`): " + ", ".join(map(str, missing)))
+    tmp = tmp_path_factory.mktemp("loop")
+    summary = tmp / "summary.json"
+    proc = subprocess.run(
+        [str(BENCH), str(FW), "--plant", str(PLANT), "--seed", "3", "--timestamps",
+         "--summary", str(summary), "--limit", "60s", "--loop-table",
+         "--at", "1s press 100",
+         "--until", "^<done mode=full", "--fail-on", "^<fault"],
+        capture_output=True, text=True, timeout=180, cwd=ROOT)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-1500:]
+    assert summary.exists(), proc.stderr
+    s = json.loads(summary.read_text())
+    return proc.stdout, {p["name"]: p for p in s["loop"]["phases"]}
+
+
+def test_every_phase_measured(loop):
+    out, phases = loop
+    assert PHASES <= set(phases), f"phases seen: {sorted(phases)}"
+    assert all(phases[n]["passes"] > 0 for n in PHASES)
+
+
+def test_worst_pass_within_goal(loop):
+    out, phases = loop
+    over = {n: p["max_us"] for n, p in phases.items() if p["max_us"] > GOAL_US}
+    table = out[out.find("main-loop pass by phase"):]
+    assert not over, f"passes over {GOAL_US:.0f} us: {over}\n{table}"
+
+
+def test_room_attribution(loop):
+    """The room markers of app_poll() reach the bench (the table that says
+    which room took a long pass's time)."""
+    out, _ = loop
+    assert "room share of a pass" in out
+    header = out[out.find("room share of a pass"):].splitlines()[1].split()
+    assert header[:4] == ["phase", "pre", "panel", "sense"] and "step" in header
