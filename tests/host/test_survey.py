@@ -36,7 +36,7 @@ def test_pull_averages_repeats_keeps_growth_and_takes_the_baseline_from_slack():
     s += [Sample(1096, [[700, 0, 0]]), Sample(1096, [[720, 0, 0]])]  # fine samples at one spot
     s += [Sample(1080, [[500, 0, 0]])]  # a re-approach goes back first: dropped
     s += [Sample(1104, [[740, 0, 0]])]
-    p = pull_of(0, s, 1044, 1)
+    p = pull_of(0, s, 1044, 1, keep=1.0)
     ticks = [st[0] for st in p["steps"]]
     assert ticks == sorted(set(ticks)) and 1080 not in ticks[ticks.index(1096):]
     at = dict((st[0], st[1]) for st in p["steps"])
@@ -47,7 +47,7 @@ def test_pull_averages_repeats_keeps_growth_and_takes_the_baseline_from_slack():
 
 def test_pull_in_the_negative_direction():
     s = ramp(5000, 4900, 4, dirn=-1, engaged_at=4960)
-    p = pull_of(3, s, 4956, -1)
+    p = pull_of(3, s, 4956, -1, keep=1.0)
     ticks = [st[0] for st in p["steps"]]
     assert ticks == sorted(ticks, reverse=True) and len(ticks) == len(s)
 
@@ -141,3 +141,13 @@ def test_samples_taken_at_take_up_speed_near_the_engagement_are_left_out():
     p = pull_of(0, s, 1090, 1)
     ticks = [st[0] for st in p["steps"]]
     assert 1081 not in ticks and 1084 in ticks and 900 in ticks  # flat part kept
+
+
+def test_the_top_of_the_range_past_the_engagement_is_left_out():
+    s = ramp(1000, 1201, 4, engaged_at=1040)  # engaged 1044, top 1200
+    p = pull_of(0, s, 1044, 1)  # KEEP_RANGE 0.85: up to 1044 + 0.85 * 156 = 1176.6
+    ticks = [st[0] for st in p["steps"]]
+    assert max(ticks) == 1176 and 1000 in ticks
+    s = ramp(5000, 4799, 4, dirn=-1, engaged_at=4960)  # negative pull: 4956 down to 4800
+    ticks = [st[0] for st in pull_of(0, s, 4956, -1)["steps"]]
+    assert min(ticks) == 4824  # 4956 - 0.85 * 156 = 4823.4

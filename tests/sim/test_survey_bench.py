@@ -156,19 +156,22 @@ def board_survey(tmp_path, seed):
     return path
 
 
-@pytest.mark.parametrize("seed", [2, 4])
+@pytest.mark.parametrize("seed", [2, 8])
 def test_a_board_survey_identifies_the_geometry(tmp_path, seed):
-    """Seeded, deterministic: the fit of the board's survey on the nominal
-    bench robot (magnet 1.3 T, radius 4.5 mm) is accepted, its residual near
-    the single-sample noise."""
+    """Seeded, deterministic: the fit of the board's survey of the bench robot
+    (perturbed by 5 %) is accepted, its residual near the single-sample noise,
+    the geometry within the spread measured on seeds 1-10 (docs/identify.md:
+    the magnet's strength and the routing radius trade against each other).
+    Seeds 2 and 8 landed in the wrong valley before the top of each pull was
+    left out."""
     fit = subprocess.run([str(HALLHOME), "identify", "fit", str(TOML),
                           str(board_survey(tmp_path, seed)), "--no-write", "--json"],
                          capture_output=True, text=True, timeout=300, cwd=ROOT)
     assert fit.returncode == 0, fit.stdout + fit.stderr
     res = json.loads(fit.stdout)
     assert not res.get("refused"), res["refused"]
-    assert res["rms_uT"] < 2.0, res["rms_uT"]
+    assert res["rms_uT"] < 1.5, res["rms_uT"]
     val = {p["name"]: p["value"] for p in res["parameters"]}
-    assert val["magnet_J"] == pytest.approx(1.3, rel=0.08)
-    assert val["radius"] == pytest.approx(4.5, rel=0.06)
+    assert val["magnet_J"] == pytest.approx(1.3, rel=0.15)
+    assert val["radius"] == pytest.approx(4.5, rel=0.1)
     assert val["length_1"] + val["length_2"] == pytest.approx(106.0, rel=0.03)
