@@ -148,6 +148,7 @@ int main(void)
     io.version_f = PSTR(HH_VERSION);
     io.board_f = PSTR(BOARD_NAME);
     io.reset_f = reset_cause_P();
+    io.release_at_boot = (reset_flags() & RESET_WATCHDOG) != 0u;
     if (reset_flags() & (RESET_POWER | RESET_BROWNOUT)) {
         memset(&win, 0, sizeof win);
     }

@@ -165,6 +165,10 @@ typedef struct app_io_s {
     const char *version_f; /* firmware version */
     const char *board_f;   /* board name */
     const char *reset_f;   /* reset cause word */
+    /* The reset left the servos powered with the firmware out of control (a
+     * watchdog reset): every tendon is released at boot, as after a reset
+     * that cut a run, whatever the robot was doing (docs/app.md, "Recovery"). */
+    uint8_t release_at_boot;
 } app_io_t;
 
 /* The application's state, one sub-struct per room of lib/app (each written

@@ -260,3 +260,32 @@ def test_stack_keeps_a_kilobyte_free_through_a_busy_calibration(tmp_path):
     free = int(statuses[-1]["stack_free"])
     print(f"least free stack through the run: {free} B")
     assert 1024 <= free < 8192
+
+
+@pytest.mark.parametrize("when", ["+0ms", "+400ms", "+3s"])
+def test_a_watchdog_reset_at_the_homes_releases_every_tendon(tmp_path, when):
+    """A watchdog reset means the firmware lost control: after a completed
+    calibration (the robot held at its straight-pose homes, every tendon
+    taut; while the record is saved, or later) the board releases every
+    tendon within 100 ms of the reset, not only after a reset that cut a
+    run (chaos seeds 1001 and 1009: 1.25 s and 1.63 s, at the next run's
+    release). A reset from the reset pin (the host opening the port) leaves
+    the robot at its homes."""
+    r = bench(tmp_path, "--limit", "30s", "--at", "1s press 100",
+              "--at", f"step on ^<done.mode=full {when} wdt-reset",
+              "--at", "step on ^<ready +500ms send status", "--until", "^<status")
+    assert r.of("done") and r.summary["resets"]["count"] >= 1, r.context()
+    stops = [s for s in r.summary["truth"]["stops"] if s["kind"] == "watchdog"]
+    assert stops, r.summary["truth"]["stops"]
+    assert stops[0]["tension_mN"] > 100.0, stops[0]  # it caught taut tendons
+    assert stops[0]["released_after_ms"] <= 100.0, stops[0]
+    assert all(t["tension_now_mN"] < 1.0 for t in r.summary["tendons"])
+
+
+def test_a_reset_pin_reset_at_the_homes_keeps_them(tmp_path):
+    r = bench(tmp_path, "--limit", "30s", "--at", "1s press 100",
+              "--at", "step on ^<done.mode=full +3s ext-reset",
+              "--at", "step on ^<ready +500ms send status", "--until", "^<status")
+    assert r.of("done") and r.summary["resets"]["count"] >= 1, r.context()
+    assert sum(t["tension_now_mN"] > 100.0 for t in r.summary["tendons"]) >= 4, (
+        [t["tension_now_mN"] for t in r.summary["tendons"]])
