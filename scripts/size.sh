@@ -1,12 +1,13 @@
 #!/usr/bin/env bash
 # Flash and static RAM of a firmware ELF against the ATmega2560, failing above
-# the project's budget: 63 KB flash (64044 B measured with the robot-sized
-# table, format 3, plus a small margin), 4 KB static RAM (half the chip, the
-# rest is stack). Issue 14's goal is 48 KB / 3 KB: lower these as savings land.
+# the project's budget: 64 KB flash (the robot-sized table, format 3, brought
+# it to 64044 B; the board's identification survey and the safety fixes after
+# it, to about 64.5 KB), 4 KB static RAM (half the chip, the rest is stack).
+# Issue 14's goal is 48 KB / 3 KB: lower these as savings land.
 set -euo pipefail
 elf=$1
 flash_cap=262144 ram_cap=8192
-flash_max=64512 ram_max=4096
+flash_max=65536 ram_max=4096
 read -r text data bss noinit < <(avr-size -A "$elf" | awk '
     $1==".text"{t=$2} $1==".data"{d=$2} $1==".bss"{b=$2} $1==".noinit"{n=$2}
     END{print t+0, d+0, b+0, n+0}')

@@ -309,6 +309,11 @@ APP_NOINLINE void app_run_step(app_t *a, hom_in_t *in)
         uint8_t f = hom_fault_index(&a->u.hom);
         fault_rest(a, in->now_ms);
         a->run.last_fault = hom_fault(&a->u.hom);
+        /* a servo that stopped answering, or did not move, may have let its
+         * Bus Watchdog expire: it then refuses every goal until a bring-up
+         * clears the watchdog, which the next run asks for first */
+        a->run.bring_up |= (uint8_t)(a->run.last_fault == HOM_F_SERVO_TIMEOUT ||
+                                     a->run.last_fault == HOM_F_SERVO_STALL);
         if (a->run.last_fault == HOM_F_SERVO_ERROR && f < a->info.n_tendons) {
             /* a servo in hardware error has its torque off and refused the
              * release: reboot it (Protocol 2.0 Reboot clears the error), then
@@ -523,6 +528,12 @@ static int8_t run_or_defer(app_t *a, uint8_t mode, uint16_t tension, uint8_t ten
     if (a->state == APP_ST_BOOT ||
         (app_idle_state(a) && (store_busy(&a->rec.store) || app_rec_busy(a)))) {
         keep_request(a, mode, tension, tendon, from_con);
+        return CON_PENDING;
+    }
+    if (a->run.bring_up && app_idle_state(a)) {
+        a->run.bring_up = 0;
+        keep_request(a, mode, tension, tendon, from_con);
+        app_boot_again(a);
         return CON_PENDING;
     }
     rc = run_start(a, mode, tension, tendon);
