@@ -3,9 +3,12 @@
 # path a user follows to calibrate the robot as built instead of the robot as
 # described, on the bench's perturbed robot.
 #
-#   1. survey: every tendon pulled alone, one weight per segment; the bench
-#      plays the board's part (hh_bench --survey), as the firmware cannot
-#      run a survey yet
+#   1. survey: the firmware's `survey` (every tendon pulled alone, its
+#      samples streamed: hallhome.op_survey turns the console log into the
+#      pulls), and one weight per segment hung by the bench (hh_bench
+#      --survey --survey-weight: the bench cannot hang a weight when a host
+#      asks); should the board's survey not complete, the bench's own
+#      stepped pulls stand in, announced
 #   2. identify: hallhome identify fit ROBOT.toml SURVEY.json -> <robot>_id.toml
 #   3. table: hallhome tables <robot>_id.toml
 #   4. firmware: make firmware ROBOT=<robot>_id (its own build directory)
@@ -19,8 +22,9 @@
 #
 # usage: sim/identify.sh ROBOT_TOML PLANT SEED OUT TABLES [hh_bench options: the
 # perturbation, --survey-weight-all]
-# environment: BENCH (hh_bench), FW_ELF (any firmware: the survey does not run
-# it), PY (the venv's python), WEIGHT_G (grams per segment, 80). The firmware
+# environment: BENCH (hh_bench), FW_ELF (the robot's firmware with its nominal
+# table: it runs the survey), PY (the venv's python), WEIGHT_G (grams per
+# segment, 80). The firmware
 # is built by a make of its own (MAKE, default make) with only the variables
 # given here: the calling make's flags and variables are not passed on.
 # exit: 0 the identified firmware is built; 3 the fit (or its table) was
@@ -50,16 +54,26 @@ case " $* " in
 *" --survey-weight-all "*) where="on every tendon in turn" ;;
 *) where="per segment" ;;
 esac
-say "[1/5] survey: each tendon pulled alone from slack, encoder and field recorded at every step;" \
-	"one ${weight} g weight $where (the bench plays the board's part)"
-if stale "$out/survey.json" "$BENCH" "$plant"; then
-	"$BENCH" "$FW_ELF" --plant "$plant" --seed "$seed" "$@" --survey "$out/survey.json.tmp" \
+say "[1/5] survey: the board's \`survey\`, each tendon pulled alone from slack, encoder and" \
+	"field streamed; one ${weight} g weight $where (hung by the bench)"
+if stale "$out/survey.json" "$BENCH" "$plant" "$FW_ELF"; then
+	"$BENCH" "$FW_ELF" --plant "$plant" --seed "$seed" "$@" --survey "$out/bench-survey.json" \
 		--survey-weight "$weight" 2>"$out/survey.log" || {
 		cat "$out/survey.log"
 		say "survey failed"
 		exit 1
 	}
-	mv "$out/survey.json.tmp" "$out/survey.json"
+	"$BENCH" "$FW_ELF" --plant "$plant" --seed "$seed" "$@" --timestamps --limit 180s \
+		--at "1s send survey" --until "^<done mode=survey|^<fault" \
+		>"$out/board-survey.txt" 2>>"$out/survey.log"
+	if "$PY" -m hallhome.op_survey "$out/board-survey.txt" "$out/bench-survey.json" \
+		"$out/survey.json.tmp"; then
+		mv "$out/survey.json.tmp" "$out/survey.json"
+	else
+		say "      the board's survey did not complete ($out/board-survey.txt):" \
+			"the bench's stepped pulls stand in"
+		cp "$out/bench-survey.json" "$out/survey.json"
+	fi
 	say "      wrote $out/survey.json"
 else
 	say "      $out/survey.json (kept: this robot was surveyed before)"

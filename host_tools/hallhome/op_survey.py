@@ -286,3 +286,72 @@ def survey_cmd(out_path, tendon, weight_g, which, samples, hang_wait, run_timeou
                 f"{len(weights)} weight records, {summary['time_s']:.1f} s on the board); next: "
                 f"hallhome identify fit ROBOT.toml {escape(str(path))}")
     sys.stdout.flush()
+
+
+# --- the board's survey from a console log (make sim, sim/identify.sh) ------------------
+
+def parse_report(line: str) -> Optional[Report]:
+    """A console line (with or without the bench's `[ t ]` time stamp) as a
+    report, or None."""
+    text = line.strip()
+    if text.startswith("["):
+        text = text.split("]", 1)[-1].strip()
+    if not (text.startswith("<") and text.endswith(">")):
+        return None
+    kind, _, rest = text[1:-1].partition(" ")
+    fields: Dict[str, object] = {}
+    for kv in rest.split():
+        k, eq, v = kv.partition("=")
+        if eq:
+            fields[k] = int(v) if v.lstrip("-").isdigit() else v
+    return Report(kind, fields, text)
+
+
+def from_log(lines: Sequence[str], robot: str, n_tendons: int, n_sensors: int) -> dict:
+    """The survey file of a console log holding one `survey` run; the pull
+    direction of each tendon read from its samples (the board pulls)."""
+    view = SurveyView(n_tendons, None, n_sensors)
+    for line in lines:
+        r = parse_report(line)
+        if r is not None:
+            view.feed(r)
+    if not view.ok:
+        why = "; ".join(f.raw for f in view.faults) or "no <done mode=survey>"
+        raise SurveyError(f"the board's survey did not complete: {why}")
+    dirs = {t: (1 if s[-1].ticks >= s[0].ticks else -1) for t, s in view.samples.items() if s}
+    return survey_doc(robot, "", view, dirs, [])
+
+
+def main(argv: Optional[Sequence[str]] = None) -> int:
+    """python -m hallhome.op_survey LOG WEIGHTS OUT: the survey file of the
+    board's `survey` in LOG (a bench console log) with the weight records and
+    the truth of WEIGHTS (`hh_bench --survey` with its weights: the bench
+    hangs them), written to OUT."""
+    import argparse
+
+    ap = argparse.ArgumentParser(prog="python -m hallhome.op_survey", description=main.__doc__)
+    ap.add_argument("log")
+    ap.add_argument("weights")
+    ap.add_argument("out")
+    a = ap.parse_args(argv)
+    bench = json.loads(Path(a.weights).read_text())
+    ns = len(bench["pulls"][0]["baseline_cuT"])
+    try:
+        doc = from_log(Path(a.log).read_text(errors="replace").splitlines(), bench["robot"],
+                       len(bench["pulls"]), ns)
+    except SurveyError as e:
+        print(f"survey: {e}", file=sys.stderr)
+        return 1
+    for k in ("weights", "truth", "seed", "perturb"):
+        if k in bench:
+            doc[k] = bench[k]
+    doc["source"] = "board survey, bench weights"
+    Path(a.out).write_text(json.dumps(doc, indent=1) + "\n")
+    print(f"survey: {len(doc['pulls'])} pulls of the board ("
+          + ", ".join(f"tendon {p['tendon']}: {len(p['steps'])}" for p in doc["pulls"])
+          + f" positions), {len(doc.get('weights', []))} weight records of the bench")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -7,6 +7,7 @@ paper_2seg under other names); their build directories are removed after.
 """
 
 import os
+import json
 import re
 import shutil
 import subprocess
@@ -180,6 +181,9 @@ def test_sim_identifies_the_robot_then_calibrates_with_its_table(fresh_seed):
     for f in ("survey.json", "paper_2seg_id.toml", "fit.txt", "tables/paper_2seg_id.c",
               "plots/identify_residuals.png"):
         assert (d / f).exists(), f
+    # the pulls are the firmware's own `survey`, the weights the bench's
+    sv = json.loads((d / "survey.json").read_text())
+    assert sv["source"] == "board survey, bench weights" and len(sv["weights"]) == 2
     # generated files go under build/, never into lookup_tables/
     assert not (ROOT / "lookup_tables" / "robots" / "paper_2seg_id.toml").exists()
     assert not (ROOT / "lookup_tables" / "generated" / "paper_2seg_id.c").exists()
