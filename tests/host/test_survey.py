@@ -1,6 +1,8 @@
 """`hallhome identify survey`'s host side (hallhome.op_survey): the board's
 <sv> lines into survey pulls, the weights dialogue, refusals."""
 
+import json
+
 import pytest
 
 from hallhome.client import Report
@@ -151,3 +153,28 @@ def test_the_top_of_the_range_past_the_engagement_is_left_out():
     s = ramp(5000, 4799, 4, dirn=-1, engaged_at=4960)  # negative pull: 4956 down to 4800
     ticks = [st[0] for st in pull_of(0, s, 4956, -1)["steps"]]
     assert min(ticks) == 4824  # 4956 - 0.85 * 156 = 4823.4
+
+
+def test_a_console_log_becomes_a_survey_with_the_bench_weights(tmp_path):
+    from hallhome.op_survey import from_log, main, parse_report
+    lines = ["[  1.0] <progress state=start mode=full tension_mN=1500>"]
+    for t in (0, 1):
+        lines.append(f"[  2.0] <progress state=engaged tendon={t} pos=1044>")
+        lines += [f"[  2.1] <sv t={t} p={p} b={100 + 10 * max(0, p - 1040)},0,0>"
+                  for p in range(1000, 1100, 4)]
+    lines.append("[  9.0] <done mode=survey target=delta time_ms=8000 tension_mN=1500 count=0>")
+    assert parse_report(lines[-1]).get("mode") == "survey" and parse_report("ok") is None
+    doc = from_log(lines, "r", 2, 1)
+    assert [p["tendon"] for p in doc["pulls"]] == [0, 1]
+    log, bench, out = tmp_path / "log.txt", tmp_path / "bench.json", tmp_path / "s.json"
+    log.write_text("\n".join(lines))
+    bench.write_text(json.dumps({"robot": "r", "pulls": [{"baseline_cuT": [[0, 0, 0]]}] * 2,
+                                 "weights": [{"tendon": 0, "mass_g": 80}], "truth": {"x": 1}}))
+    assert main([str(log), str(bench), str(out)]) == 0
+    got = json.loads(out.read_text())
+    assert got["weights"] == [{"tendon": 0, "mass_g": 80}] and got["truth"] == {"x": 1}
+    assert got["source"] == "board survey, bench weights"
+    # a survey the board did not finish is refused, nothing written
+    log.write_text("\n".join(lines[:-1] + ["<fault reason=aborted code=20 dev=none index=0>"]))
+    out.unlink()
+    assert main([str(log), str(bench), str(out)]) == 1 and not out.exists()
