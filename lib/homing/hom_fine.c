@@ -301,10 +301,15 @@ void hom_fine_point(hom_t *h)
     if (h->have_prev && dp >= 3 && b > h->b_prev) {
         h->slope_q8 = hom_muldiv((int32_t)(b - h->b_prev), 256, dp);
     }
-    s_q8 = h->slope_q8;
-    if (s_q8 < 1) {
-        s_q8 = 1;
-    }
+    /* A measured slope may read far too low: a point taken where the take-up
+     * had run past and come back sits on the release branch of the friction
+     * hysteresis, high for its position, and the next secant is nearly flat.
+     * Its step would then be many times the travel (a 76-tick step pulled a
+     * 0.3 N tendon to 4.2 x its target). No estimate goes below half the
+     * table's own slope, so no step goes beyond twice what the table
+     * predicts; a robot whose field really is that much flatter takes
+     * more, shorter steps. */
+    s_q8 = h->slope_q8 < h->slope_min_q8 ? h->slope_min_q8 : h->slope_q8;
     r_q8 = hom_muldiv((int32_t)(t->target_cuT - b), 65536, s_q8);
     if (!h->have_prev && t->retries == 0u) {
         /* first point: the table's own curve says how far the target is */
@@ -345,7 +350,9 @@ void hom_fine_point(hom_t *h)
         step = 1; /* half a tick or more: bracket it rather than extrapolate */
     }
     h->near = (uint8_t)(r_q8 <= 4 * 256);
-    h->n_near = near_samples(h, s_q8);
+    /* the samples follow the slope as measured, a flat one asks for many
+     * (| 1: never a zero divisor, a 1/256 of a cuT per tick) */
+    h->n_near = near_samples(h, h->slope_q8 | 1);
     if (step > t->limit_ticks + 1) {
         step = t->limit_ticks + 1; /* refused below as beyond the limit */
     }
