@@ -10,21 +10,22 @@
 void hom_config_default(hom_config_t *cfg)
 {
     /* Speeds in XL430 units (0.229 rpm = 15.63 ticks/s = 96 um/s on a
-     * 6.1 um tick). Fast take-up: 120 units = 11.5 mm/s at most, 19 ticks
-     * between two 100 Hz samples, only while the tendon is slack, and no
-     * more than twice the tendon's expected travel in ticks
-     * (hom_begin_tendon()). Moderate: 40 units,
-     * 6 ticks per sample, so stopping at 80 % of the target leaves margin for
+     * 6.1 um tick). Take-up: twice the tendon's expected travel in ticks
+     * (hom_begin_tendon()), at most v_fast, only while the tendon is slack;
+     * the firmware's cap (setting approach_fast) is 90 units = 14 ticks per
+     * 100 Hz sample: 120 gave homes up to 30 ticks off on the distal tendons
+     * of paper_2seg at 1.5 N on the bench. Moderate: 60 units,
+     * 9 ticks per sample, so stopping at 80 % of the target leaves margin for
      * a sample of latency. Fine steps are short moves, speed hardly matters.
      * Release and final move: 265 units (the XL430 Velocity Limit) =
      * 4.1 ticks/ms, a 1 mm release in 40 ms; the 2.5 mm a travel limit allows
      * in 100 ms, a tendon as elastic as a spring in line (the out_of_reach
      * scenario) included. Settle: 10 ms after a fine step (5 ms standing
-     * still); the 20 ms used before gave the same homes on the bench and
-     * cost 10 ms a point. */
+     * still); 20 ms gave the same homes on the bench and cost 10 ms a
+     * point. */
     memset(cfg, 0, sizeof *cfg);
     cfg->v_fast = 120;
-    cfg->v_moderate = 40;
+    cfg->v_moderate = 60;
     cfg->v_fine = 60;
     cfg->v_release = 265;
     cfg->v_final = 265;
