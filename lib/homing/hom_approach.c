@@ -28,7 +28,7 @@ HOM_NOINLINE void hom_begin_tendon(hom_t *h, uint8_t i)
         return;
     }
     t = &h->tendon[i];
-    /* Take-up speed: v_fast at most, and HOM_TAKEUP_V_PER_TICK units per
+    /* Take-up speed: v_fast at most, and takeup_per_tick units per
      * tick of the tendon's expected travel at this tension. Engagement shows
      * at the next 100 Hz sample and the moderate speed takes over a sample
      * later, so the distance run past engagement grows with the speed: tied
@@ -36,7 +36,7 @@ HOM_NOINLINE void hom_begin_tendon(hom_t *h, uint8_t i)
      * most) whatever the tension, short of the moderate stop at 0.8 of it.
      * A short travel (proximal, low tension) goes slower, a long one faster
      * than one fixed speed would. */
-    v = (uint16_t)((uint16_t)t->travel_ticks * HOM_TAKEUP_V_PER_TICK);
+    v = (uint16_t)((uint16_t)t->travel_ticks * h->cfg.takeup_per_tick);
     if (v > h->cfg.v_fast) {
         v = h->cfg.v_fast;
     }

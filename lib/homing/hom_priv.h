@@ -45,7 +45,6 @@ enum {
 #endif
 
 #define HOM_MAX_AVG             32u
-#define HOM_TAKEUP_V_PER_TICK   2u   /* take-up speed per tick of expected travel (takeup_v) */
 #define HOM_QUICK_STOP_PERMILLE 975u /* quick leg: stop when the field is this close */
 #define HOM_DROOP_TICKS         8    /* a servo stopped this close counts as arrived ... */
 #define HOM_STILL_MS            100u /* ... after this long without motion */

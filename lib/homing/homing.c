@@ -36,6 +36,7 @@ void hom_config_default(hom_config_t *cfg)
     cfg->baseline_samples = 16;
     cfg->avg_samples = 2;
     cfg->fine_max_steps = 16;
+    cfg->takeup_per_tick = 2;
     cfg->near_permille = 800;
     cfg->settle_ms = 10;
     cfg->preflight_ms = 200;

@@ -231,6 +231,7 @@ typedef struct {
     uint8_t baseline_samples;    /* per slack-check average, B0 takes two (1..32, else 32) */
     uint8_t avg_samples;         /* per fine point, more near the target (1..16, else 16) */
     uint8_t fine_max_steps;      /* fine points before HOM_F_NO_PROGRESS */
+    uint8_t takeup_per_tick;     /* take-up speed per tick of expected travel (at most v_fast) */
     uint16_t near_permille;      /* moderate approach stops at this fraction of the target */
     uint16_t settle_ms;          /* wait after a fine move before sampling */
     uint16_t preflight_ms;       /* time for every device to answer */
