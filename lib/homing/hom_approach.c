@@ -66,8 +66,7 @@ HOM_NOINLINE void hom_begin_tendon(hom_t *h, uint8_t i)
             return;
         }
     }
-    hom_set_goal(h, i, search_goal(h, i),
-                 h->mode == HOM_MODE_QUICK ? h->cfg.v_moderate : v);
+    hom_set_goal(h, i, search_goal(h, i), h->mode == HOM_MODE_QUICK ? h->cfg.v_moderate : v);
     h->state = ST_TAKEUP;
 }
 

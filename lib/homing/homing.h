@@ -327,10 +327,10 @@ typedef struct {
     uint32_t tendon_ms;    /* the last tendon's time from its start to its recorded home */
     int32_t p_prev;        /* fine: previous point (position, |dB|) */
     uint32_t b_prev;
-    int32_t mod_goal;    /* re-approach: moderate goal after an overshoot */
-    int32_t slope_q8;    /* fine: current slope estimate, cuT per tick * 256 */
+    int32_t mod_goal;     /* re-approach: moderate goal after an overshoot */
+    int32_t slope_q8;     /* fine: current slope estimate, cuT per tick * 256 */
     int32_t slope_min_q8; /* fine: half the table's slope, the floor of every estimate */
-    uint32_t engage_cuT; /* engagement threshold */
+    uint32_t engage_cuT;  /* engagement threshold */
     uint16_t tension_mN;
     uint16_t noise_cuT;
     uint32_t t_start;    /* run start */
