@@ -22,11 +22,24 @@ HOM_NOINLINE void hom_begin_tendon(hom_t *h, uint8_t i)
 {
     hom_tendon_t *t;
     int32_t g;
+    uint16_t v;
     if (i >= h->n_tendons) {
         hom_begin_final(h);
         return;
     }
     t = &h->tendon[i];
+    /* Take-up speed: v_fast at most, and takeup_per_tick units per
+     * tick of the tendon's expected travel at this tension. Engagement shows
+     * at the next 100 Hz sample and the moderate speed takes over a sample
+     * later, so the distance run past engagement grows with the speed: tied
+     * to the travel it stays the same share of it (a third per sample at
+     * most) whatever the tension, short of the moderate stop at 0.8 of it.
+     * A short travel (proximal, low tension) goes slower, a long one faster
+     * than one fixed speed would. */
+    v = (uint16_t)((uint16_t)t->travel_ticks * h->cfg.takeup_per_tick);
+    if (v > h->cfg.v_fast) {
+        v = h->cfg.v_fast;
+    }
     h->cur = i;
     h->t_tendon = h->now_ms;
     h->have_prev = 0;
@@ -35,6 +48,7 @@ HOM_NOINLINE void hom_begin_tendon(hom_t *h, uint8_t i)
     h->steps = 0;
     h->far = 0;
     h->slope_q8 = hom_table_slope(h, i);
+    h->slope_min_q8 = (h->slope_q8 >> 1) + 1; /* at least 1: a divisor */
     h->pos_at_sample = h->present[i];
     t->engaged = 0;
     t->retries = 0;
@@ -47,13 +61,12 @@ HOM_NOINLINE void hom_begin_tendon(hom_t *h, uint8_t i)
         g = t->est_home - hom_pull(t, guard);
         if (hom_pull(t, g - h->present[i]) > 0) {
             h->quick_leg = 1;
-            hom_set_goal(h, i, g, h->cfg.v_fast);
+            hom_set_goal(h, i, g, v);
             h->state = ST_TAKEUP;
             return;
         }
     }
-    hom_set_goal(h, i, search_goal(h, i),
-                 h->mode == HOM_MODE_QUICK ? h->cfg.v_moderate : h->cfg.v_fast);
+    hom_set_goal(h, i, search_goal(h, i), h->mode == HOM_MODE_QUICK ? h->cfg.v_moderate : v);
     h->state = ST_TAKEUP;
 }
 

@@ -301,10 +301,7 @@ void hom_fine_point(hom_t *h)
     if (h->have_prev && dp >= 3 && b > h->b_prev) {
         h->slope_q8 = hom_muldiv((int32_t)(b - h->b_prev), 256, dp);
     }
-    s_q8 = h->slope_q8;
-    if (s_q8 < 1) {
-        s_q8 = 1;
-    }
+    s_q8 = h->slope_q8 | 1; /* | 1: never a zero divisor (1/256 cuT per tick) */
     r_q8 = hom_muldiv((int32_t)(t->target_cuT - b), 65536, s_q8);
     if (!h->have_prev && t->retries == 0u) {
         /* first point: the table's own curve says how far the target is */
@@ -335,6 +332,18 @@ void hom_fine_point(hom_t *h)
         }
     } else {
         h->far = 0;
+        if (s_q8 < h->slope_min_q8) {
+            /* A measured slope may read far too low: a point taken where the
+             * servo had run past and come back sits on the release branch of
+             * the friction hysteresis, high for its position, and the next
+             * secant is nearly flat. Its step would be many times the travel
+             * (a 76-tick step pulled a 0.3 N tendon to 4.2 x its target). The
+             * step goes by no less than half the table's slope, so no step
+             * is more than twice what the table predicts. The test above
+             * keeps the measured slope: a field that really is flat still
+             * ends at the travel limit as before. */
+            r_q8 = hom_muldiv((int32_t)(t->target_cuT - b), 65536, h->slope_min_q8);
+        }
     }
     if (++h->steps > h->cfg.fine_max_steps) {
         hom_fail_tendon(h, HOM_F_NO_PROGRESS, (int32_t)b);
@@ -345,7 +354,7 @@ void hom_fine_point(hom_t *h)
         step = 1; /* half a tick or more: bracket it rather than extrapolate */
     }
     h->near = (uint8_t)(r_q8 <= 4 * 256);
-    h->n_near = near_samples(h, s_q8);
+    h->n_near = near_samples(h, s_q8); /* as measured: a flat slope asks for many */
     if (step > t->limit_ticks + 1) {
         step = t->limit_ticks + 1; /* refused below as beyond the limit */
     }

@@ -10,19 +10,25 @@
 void hom_config_default(hom_config_t *cfg)
 {
     /* Speeds in XL430 units (0.229 rpm = 15.63 ticks/s = 96 um/s on a
-     * 6.1 um tick). Fast take-up: 120 units = 11.5 mm/s, 19 ticks between two
-     * 100 Hz samples, only while the tendon is slack. Moderate: 40 units,
-     * 6 ticks per sample, so stopping at 80 % of the target leaves margin for
+     * 6.1 um tick). Take-up: twice the tendon's expected travel in ticks
+     * (hom_begin_tendon()), at most v_fast, only while the tendon is slack;
+     * the firmware's cap (setting approach_fast) is 90 units = 14 ticks per
+     * 100 Hz sample: 120 gave homes up to 30 ticks off on the distal tendons
+     * of paper_2seg at 1.5 N on the bench. Moderate: 60 units,
+     * 9 ticks per sample, so stopping at 80 % of the target leaves margin for
      * a sample of latency. Fine steps are short moves, speed hardly matters.
-     * Release: 265 units (the XL430 Velocity Limit) = 4.1 ticks/ms, a 1 mm
-     * release in 40 ms; the 2.5 mm a travel limit allows in 100 ms, a tendon
-     * as elastic as a spring in line (the out_of_reach scenario) included. */
+     * Release and final move: 265 units (the XL430 Velocity Limit) =
+     * 4.1 ticks/ms, a 1 mm release in 40 ms; the 2.5 mm a travel limit allows
+     * in 100 ms, a tendon as elastic as a spring in line (the out_of_reach
+     * scenario) included. Settle: 10 ms after a fine step (5 ms standing
+     * still); 20 ms gave the same homes on the bench and cost 10 ms a
+     * point. */
     memset(cfg, 0, sizeof *cfg);
     cfg->v_fast = 120;
-    cfg->v_moderate = 40;
+    cfg->v_moderate = 60;
     cfg->v_fine = 60;
     cfg->v_release = 265;
-    cfg->v_final = 120;
+    cfg->v_final = 265;
     cfg->acc = 0;
     cfg->slack_margin_um = 600; /* > the path shortening another tendon causes at 1 N */
     cfg->slack_step_um = 300;
@@ -30,8 +36,9 @@ void hom_config_default(hom_config_t *cfg)
     cfg->baseline_samples = 16;
     cfg->avg_samples = 2;
     cfg->fine_max_steps = 16;
+    cfg->takeup_per_tick = 2;
     cfg->near_permille = 800;
-    cfg->settle_ms = 20;
+    cfg->settle_ms = 10;
     cfg->preflight_ms = 200;
     cfg->sensor_timeout_ms = 100;
     cfg->servo_timeout_ms = 50;

@@ -231,6 +231,7 @@ typedef struct {
     uint8_t baseline_samples;    /* per slack-check average, B0 takes two (1..32, else 32) */
     uint8_t avg_samples;         /* per fine point, more near the target (1..16, else 16) */
     uint8_t fine_max_steps;      /* fine points before HOM_F_NO_PROGRESS */
+    uint8_t takeup_per_tick;     /* take-up speed per tick of expected travel (at most v_fast) */
     uint16_t near_permille;      /* moderate approach stops at this fraction of the target */
     uint16_t settle_ms;          /* wait after a fine move before sampling */
     uint16_t preflight_ms;       /* time for every device to answer */
@@ -326,9 +327,10 @@ typedef struct {
     uint32_t tendon_ms;    /* the last tendon's time from its start to its recorded home */
     int32_t p_prev;        /* fine: previous point (position, |dB|) */
     uint32_t b_prev;
-    int32_t mod_goal;    /* re-approach: moderate goal after an overshoot */
-    int32_t slope_q8;    /* fine: current slope estimate, cuT per tick * 256 */
-    uint32_t engage_cuT; /* engagement threshold */
+    int32_t mod_goal;     /* re-approach: moderate goal after an overshoot */
+    int32_t slope_q8;     /* fine: current slope estimate, cuT per tick * 256 */
+    int32_t slope_min_q8; /* fine: half the table's slope, the floor of every estimate */
+    uint32_t engage_cuT;  /* engagement threshold */
     uint16_t tension_mN;
     uint16_t noise_cuT;
     uint32_t t_start;    /* run start */

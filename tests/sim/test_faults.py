@@ -112,12 +112,12 @@ def assert_all_released(r):
 # scenario, injection time (s; None: a step of the scenario injects it, at
 # a moment of the run), fault fields, tendon 0 taut when it came
 MID_RUN = [
-    ("sensor_unplug", 2.8, {"reason": "sensor_(error|timeout)", "dev": "sensor", "index": "0"}, True),
+    ("sensor_unplug", None, {"reason": "sensor_(error|timeout)", "dev": "sensor", "index": "0"}, True),
     ("servo_silent", None, {"reason": "servo_timeout", "dev": "servo", "index": "2", "id": "3"},
      True),
-    ("servo_hwerr", 2.8,
+    ("servo_hwerr", None,
      {"reason": "servo_error", "dev": "servo", "index": "1", "id": "2", "detail": "32"}, True),
-    ("saturate", 2.8, {"reason": "saturated", "dev": "sensor", "index": "0"}, True),
+    ("saturate", None, {"reason": "saturated", "dev": "sensor", "index": "0"}, True),
     ("magnet_missing", 1.0, {"reason": "magnet_missing", "dev": "sensor"}, False),
     ("out_of_reach", 2.0, {"reason": "travel_limit", "dev": "tendon", "index": "0", "id": "1"}, True),
     ("abort_console", None, {"reason": "aborted"}, True),
