@@ -22,6 +22,7 @@ from typing import Callable, Dict, List, Optional, Sequence, Tuple
 import click
 from rich.markup import escape
 
+from hallhome import protocol
 from hallhome.client import BoardError, Client, HallhomeError, Report
 from hallhome.op_common import (R, TENDON, cmd, err, json_option, operator_command, out,
                                 port_options, print_json, session)
@@ -292,19 +293,15 @@ def survey_cmd(out_path, tendon, weight_g, which, samples, hang_wait, run_timeou
 
 def parse_report(line: str) -> Optional[Report]:
     """A console line (with or without the bench's `[ t ]` time stamp) as a
-    report, or None."""
+    report (protocol.parse_line, as the client reads the board), or None."""
     text = line.strip()
     if text.startswith("["):
         text = text.split("]", 1)[-1].strip()
-    if not (text.startswith("<") and text.endswith(">")):
+    try:
+        msg = protocol.parse_line(text)
+    except protocol.ProtocolError:
         return None
-    kind, _, rest = text[1:-1].partition(" ")
-    fields: Dict[str, object] = {}
-    for kv in rest.split():
-        k, eq, v = kv.partition("=")
-        if eq:
-            fields[k] = int(v) if v.lstrip("-").isdigit() else v
-    return Report(kind, fields, text)
+    return Report(msg["kind"], msg["fields"], text) if msg["type"] == "report" else None
 
 
 def from_log(lines: Sequence[str], robot: str, n_tendons: int, n_sensors: int) -> dict:

@@ -13,9 +13,8 @@ from pathlib import Path
 
 import pytest
 
-from hallhome.client import Report
 from hallhome.identify_data import load_survey
-from hallhome.op_survey import SurveyView, parse_sample, survey_doc
+from hallhome.op_survey import from_log, parse_report, parse_sample
 from hallhome.robot import load_robot
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -46,12 +45,10 @@ def samples(out):
     """(tendon, ticks, [[x, y, z] per sensor]) of every <sv> line."""
     got = []
     for line in out.splitlines():
-        if line.startswith("<sv "):
-            fields = dict(kv.split("=", 1) for kv in line.strip("<>").split()[1:])
-            rep = Report("sv", {"t": int(fields["t"]), "p": int(fields["p"]), "b": fields["b"]},
-                         line)
-            t, s = parse_sample(rep, 3)
-            got.append((t, s.ticks, s.b))
+        rep = parse_report(line)
+        if rep is not None and rep.kind == "sv":
+            t, smp = parse_sample(rep, 3)
+            got.append((t, smp.ticks, smp.b))
     return got
 
 
@@ -141,18 +138,9 @@ def board_survey(tmp_path, seed):
                            "--limit", "60s", "--at", "1s send survey",
                            "--until", "^<done mode=survey|^<fault"],
                           capture_output=True, text=True, timeout=180, cwd=ROOT)
-    view = SurveyView(6, None, 3)
-    for line in proc.stdout.splitlines():
-        m = re.match(r"<(\w+) (.*)>$", line.strip())
-        if m:
-            f = {}
-            for kv in m[2].split():
-                k, _, v = kv.partition("=")
-                f[k] = int(v) if re.fullmatch(r"-?\d+", v) else v
-            view.feed(Report(m[1], f, line))
-    assert view.ok, proc.stdout[-1500:]
+    doc = from_log(proc.stdout.splitlines(), "paper_2seg", 6, 3)  # refuses an unfinished one
     path = tmp_path / f"survey{seed}.json"
-    path.write_text(json.dumps(survey_doc("paper_2seg", "0", view, {i: 1 for i in range(6)}, [])))
+    path.write_text(json.dumps(doc))
     return path
 
 
