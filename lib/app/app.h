@@ -229,8 +229,6 @@ typedef struct {
     uint8_t recover_left;  /* device bring-ups left before the pending request is refused */
     uint8_t bring_up;      /* the last run ended in a servo timeout or stall: the next run
                               brings the devices up again first (their Bus Watchdogs) */
-    uint8_t survey;        /* the run is an identification survey (APP_RUN_SURVEY): its samples
-                              are streamed, its homes neither kept nor stored */
     uint8_t survey_n;      /* survey: selected-sensor samples since the last <sv> line */
     uint16_t mask;         /* tendons calibrated by this run */
     uint16_t tension;

@@ -95,14 +95,14 @@ APP_NOINLINE static void run_done(app_t *a)
     uint32_t t = app_now_ms(a);
     win_moving(a, 0);
     a->run.amb_ok |= hom_amb_captured(&a->u.hom); /* read before u.idle reuses the storage */
-    if (!a->run.survey) {
+    if (a->run.mode != APP_MODE_SURVEY) {
         app_rec_take_homes(a, a->run.mask, a->run.tension);
     }
     /* The run's baseline is the learn baseline until the next release. From
      * here on the homing's storage is reused (u.idle overlaps its first
      * bytes only: the homes above were read first). */
     app_learn_keep_baseline(a);
-    if (!a->run.survey) {
+    if (a->run.mode != APP_MODE_SURVEY) {
         app_rec_save_run(a);
         app_boot_homes_new(a);
     }
@@ -224,7 +224,6 @@ static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon
         return CON_E_INTERNAL;
     }
     a->run.mode = survey ? APP_MODE_SURVEY : mode;
-    a->run.survey = cmd.survey;
     a->run.survey_n = 0;
     a->run.tension = tension;
     a->run.mask = mode == HOM_MODE_SINGLE ? app_bit16(tendon) : app_all_mask(a);
@@ -300,7 +299,7 @@ APP_NOINLINE void app_run_step(app_t *a, hom_in_t *in)
          * result, and the release goals of a fault are already queued */
         return;
     }
-    if (a->run.survey) {
+    if (a->run.mode == APP_MODE_SURVEY) {
         survey_sample(a, in);
     }
     if (rc == 0) {
