@@ -258,10 +258,13 @@ class _Model:
             if self.survey.weights:
                 # the weights fix the stiffness, so they get the model the
                 # tables are generated with (Cosserat, gravity: an upright
-                # robot's own weight adds to its bending)
+                # robot's own weight adds to its bending), and a weight hung
+                # from slack reaches the tendon's end through its friction as
+                # a calibration's pull does (Robot.tip_tension)
                 mech = key[:2]
-                for tendon, force in [(None, 0.0)] + [(w.tendon, w.force)
-                                                      for w in self.survey.weights]:
+                for tendon, force in [(None, 0.0)] + [
+                        (w.tendon, r.tip_tension(r.tendons[w.tendon], w.force))
+                        for w in self.survey.weights]:
                     a, b = self._weight_pose(r, mech, tendon, force)
                     pos.append(a)
                     rot.append(b)

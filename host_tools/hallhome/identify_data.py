@@ -188,7 +188,7 @@ def synthetic_survey(robot: Robot, *, seed: int = 1, noise_uT: float = 0.3,
         sols = []
         for T in grid:
             tau = np.zeros(nt)
-            tau[i] = T
+            tau[i] = robot.tip_tension(t, T)
             sols.append(model.solve(tau))
         take = np.array([s.take_up[i] for s in sols])
         B = field_at_sensors(robot, np.array([s.tip_position for s in sols]),
@@ -211,7 +211,7 @@ def synthetic_survey(robot: Robot, *, seed: int = 1, noise_uT: float = 0.3,
     w0 = field_at_sensors(robot, s0.tip_position, s0.tip_rotation)[0]
     for i, grams in weights:
         tau = np.zeros(nt)
-        tau[i] = grams * 1e-3 * G
+        tau[i] = robot.tip_tension(robot.tendons[i], grams * 1e-3 * G)
         s = heavy.solve(tau)
         b = field_at_sensors(robot, s.tip_position, s.tip_rotation)[0]
         wrec.append({"tendon": i, "mass_g": grams, "baseline_cuT": reading(w0),

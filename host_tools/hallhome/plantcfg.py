@@ -8,8 +8,9 @@ closed-loop run with a generated table against this plant carries real model
 error.
 
 What the robot TOML does not describe is set from keyword arguments: initial
-slack, friction along the tendon path, spool backlash, ambient field, the
-simple servo's time constant. With ``perturb > 0`` the physical values are
+slack, friction along the tendon path (where a tendon's description has no
+``friction_mN``/``friction_mu``; an argument given overrides the TOML),
+spool backlash, ambient field, the simple servo's time constant. With ``perturb > 0`` the physical values are
 perturbed with a seeded generator the same way ``plant_cfg_perturb()`` does in
 C (every stiffness (each segment's EI, and EA with ``compression``), free length, friction, backlash and the magnet moment
 times ``1 + perturb * u``, radii and segment lengths ``1 + 0.2 perturb u``,
@@ -44,8 +45,27 @@ def _vec(v) -> str:
     return " ".join(_fmt(float(x)) for x in v)
 
 
+# The bench's tendon friction where a description says nothing of it: a
+# play of 10 mN plus 2 % of the tension (braid through printed disk holes).
+FRICTION_MN = 10.0
+FRICTION_MU = 0.02
+
+
+def _friction_mN(t, given: float | None) -> float:
+    if given is not None:
+        return given
+    return FRICTION_MN if t.friction_N is None else t.friction_N * 1e3
+
+
+def _friction_mu(t, given: float | None) -> float:
+    if given is not None:
+        return given
+    return FRICTION_MU if t.friction_mu is None else t.friction_mu
+
+
 def plant_lines(robot: Robot, seed: int | None = None, perturb: float = 0.0, *,
-                slack_um: float = 1000.0, friction_mN: float = 10.0, friction_mu: float = 0.02,
+                slack_um: float = 1000.0, friction_mN: float | None = None,
+                friction_mu: float | None = None,
                 backlash_um: float = 30.0, ambient_uT=EARTH_FIELD_UT,
                 servo_tau_ms: float = 4.0, compression: bool = True) -> list[str]:
     """The plant config as a list of lines (see ``write_plant_config``)."""
@@ -104,8 +124,8 @@ def plant_lines(robot: Robot, seed: int | None = None, perturb: float = 0.0, *,
             p + f"ea_N = {_fmt(t.stiffness_ea * (1.0 + perturb * u()))}",
             p + f"free_len_mm = {_fmt(free * 1e3 * (1.0 + perturb * u()))}",
             p + f"slack_um = {_fmt(slack_um + 500.0 * perturb * u())}",
-            p + f"friction_mN = {_fmt(friction_mN * (1.0 + perturb * u()))}",
-            p + f"friction_mu = {_fmt(friction_mu * (1.0 + perturb * u()))}",
+            p + f"friction_mN = {_fmt(_friction_mN(t, friction_mN) * (1.0 + perturb * u()))}",
+            p + f"friction_mu = {_fmt(_friction_mu(t, friction_mu) * (1.0 + perturb * u()))}",
             p + f"backlash_um = {_fmt(backlash_um * (1.0 + perturb * u()))}",
         ]
     for s in robot.sensors:

@@ -127,6 +127,10 @@ class Tendon:
     ``free_length`` (m), the tendon length between the robot base and the
     spool. The length that stretches under tension T is the path inside the
     robot plus ``free_length``: stretch = T * (path + free_length) / EA.
+    Friction along the path: pulled from slack (a calibration's approach, a
+    weight hung from slack), a spool-side tension T reaches the tendon's end
+    as T (1 - ``friction_mu``) - ``friction_N`` (``Robot.tip_tension``);
+    None where the description does not say (no friction term).
     """
 
     index: int
@@ -140,6 +144,8 @@ class Tendon:
     ticks_per_rev: int
     stiffness_ea: float
     free_length: float
+    friction_N: float | None = None
+    friction_mu: float | None = None
 
     @property
     def metres_per_tick(self) -> float:
@@ -245,6 +251,21 @@ class Robot:
         length inside the robot (m): T * (path + free_length) / EA, m."""
         return tension * (path_length + tendon.free_length) / tendon.stiffness_ea
 
+    def tip_tension(self, tendon: Tendon, tension: float) -> float:
+        """The tension ``tendon`` delivers at its end when its spool side
+        holds ``tension`` (N), pulled from slack through the path's friction:
+        max(0, T (1 - friction_mu) - friction_N); T where the description has
+        no friction. Every model solve of a calibration's pull or a hung
+        weight goes through it, so the targets are those of the spool-side
+        tension the calibration is asked for."""
+        mu = tendon.friction_mu or 0.0
+        f0 = tendon.friction_N or 0.0
+        return max(0.0, tension * (1.0 - mu) - f0)
+
+    def tip_tensions(self, tensions) -> np.ndarray:
+        """``tip_tension`` of every tendon, for a vector of spool tensions."""
+        return np.array([self.tip_tension(t, float(x)) for t, x in zip(self.tendons, tensions)])
+
 
 # --- validation -------------------------------------------------------------------
 
@@ -258,7 +279,7 @@ _SEGMENT_KEYS = {"length_mm", "disks", "youngs_modulus_GPa", "poisson_ratio", "o
                  "inner_radius_mm", "density_kg_m3", "disk_mass_g"}
 _TENDON_KEYS = {"segment", "routing_radius_mm", "routing_angle_deg", "twist_deg_per_mm",
                 "servo_id", "pull_dir", "spool_radius_mm", "ticks_per_rev", "stiffness_EA_N",
-                "free_length_mm"}
+                "free_length_mm", "friction_mN", "friction_mu"}
 _MAGNET_KEYS = {"shape", "diameter_mm", "length_mm", "size_mm", "polarization_T", "offset_mm",
                 "rotation_deg", "mass_g"}
 _SENSOR_KEYS = {"position_mm", "rotation_deg", "mux_channel", "i2c_address"}
@@ -444,6 +465,10 @@ def load_robot(path: str | Path) -> Robot:
         ea = ck.number(t, w, "stiffness_EA_N", "a positive axial stiffness EA in N", 0,
                        lo_open=True)
         fl = ck.number(t, w, "free_length_mm", "a length >= 0 in mm", 0)
+        fr = (ck.number(t, w, "friction_mN", "a friction force in mN, 0..1000", 0, 1000)
+              if "friction_mN" in t else None)
+        fmu = (ck.number(t, w, "friction_mu", "a fraction of the tension, 0..0.4", 0, 0.4)
+               if "friction_mu" in t else None)
         for key, v, lo, hi, unit in (("routing_radius_mm", rr, 0.2, 100, "mm"),
                                      ("spool_radius_mm", sr, 0.5, 100, "mm"),
                                      ("stiffness_EA_N", ea, 10, 1e7, "N"),
@@ -454,9 +479,12 @@ def load_robot(path: str | Path) -> Robot:
                 ck.fail(f"{w}.servo_id", f"a servo ID not used by another tendon (tendons"
                         f"[{servo_of[sid] + 1}] already uses it)", sid)
             servo_of.setdefault(sid, i)
-        if None not in (seg, rr, ra, tw, sid, pd, sr, tpr, ea, fl):
+        bad_friction = ("friction_mN" in t and fr is None) or ("friction_mu" in t and fmu is None)
+        if None not in (seg, rr, ra, tw, sid, pd, sr, tpr, ea, fl) and not bad_friction:
             tendons.append(Tendon(i, seg, rr * 1e-3, math.radians(ra), math.radians(tw) * 1e3,
-                                  sid, pd, sr * 1e-3, tpr, float(ea), fl * 1e-3))
+                                  sid, pd, sr * 1e-3, tpr, float(ea), fl * 1e-3,
+                                  None if fr is None else fr * 1e-3,
+                                  None if fmu is None else float(fmu)))
 
     magnet = None
     if "magnet" not in doc:

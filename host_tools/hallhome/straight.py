@@ -37,6 +37,11 @@ by that much. The Cosserat model has shear and extension, so both terms come
 from one model without special cases, and an unbalanced robot (a segment
 with one tendon, gravity across) gets the pose of every tendon at T, which
 is then not straight: ``tip_deviation_mm`` says by how much.
+
+T in (1) is what bends the robot: the tension at the tendon's end, which the
+path's friction leaves of the spool's T (``Robot.tip_tension``; every home
+is approached pulling from slack, the single-tendon one and the final move's
+alike), so both poses are solved at it.
 """
 
 from __future__ import annotations
@@ -81,11 +86,12 @@ def straight_pose(robot: Robot, tension_N: float,
     if not tension_N > 0.0:
         raise ValueError(f"tension: expected > 0 N, got {tension_N!r}")
     slack = m.solve(np.zeros(n))
-    together = m.solve(np.full(n, float(tension_N)), base_moment_guess=slack.base_moment)
+    tip = robot.tip_tensions(np.full(n, float(tension_N)))
+    together = m.solve(tip, base_moment_guess=slack.base_moment)
     single = np.empty(n)
     for i in range(n):
         tau = np.zeros(n)
-        tau[i] = tension_N
+        tau[i] = tip[i]
         single[i] = m.solve(tau, base_moment_guess=slack.base_moment).displacements[i]
     all_d = together.displacements
     dev = float(np.linalg.norm(together.tip_position - slack.tip_position)) * 1e3
@@ -111,7 +117,7 @@ def straight_shift_um(robot: Robot, grid_N, model: CosseratModel | None = None,
         return out
     slack = m.solve(np.zeros(n))
     for g, t in enumerate(grid):
-        together = m.solve(np.full(n, t), base_moment_guess=slack.base_moment)
+        together = m.solve(robot.tip_tensions(np.full(n, t)), base_moment_guess=slack.base_moment)
         out[:, g] = np.asarray(single_um)[:, g] - together.displacements * 1e6
     return out
 

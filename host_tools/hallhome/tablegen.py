@@ -174,16 +174,18 @@ def compute(robot: Robot, steps: int = MODEL_STEPS, progress=None) -> RobotResul
     for i, tendon in enumerate(robot.tendons):
         sols = []
         guess = None
+        # the grid's tensions are the spool's (what the servo holds); the
+        # robot bends under what friction lets through to the tendon's end
         for T in grid:
             tau = np.zeros(nt)
-            tau[i] = T
+            tau[i] = robot.tip_tension(tendon, T)
             sol = model.solve(tau, base_moment_guess=guess)
             guess = sol.base_moment
             sols.append(sol)
         extra = []
         for T in (td - SENSITIVITY_STEP_N, td + SENSITIVITY_STEP_N):
             tau = np.zeros(nt)
-            tau[i] = T
+            tau[i] = robot.tip_tension(tendon, T)
             extra.append(model.solve(tau, base_moment_guess=guess))
         allsol = sols + extra
         B = field_at_sensors(robot, np.array([s.tip_position for s in allsol]),
@@ -192,7 +194,7 @@ def compute(robot: Robot, steps: int = MODEL_STEPS, progress=None) -> RobotResul
         sens = (delta[-1] - delta[-2]) / (2 * SENSITIVITY_STEP_N)
         # the magnet at the default tension, for the paper's closest-sensor rule
         tau = np.zeros(nt)
-        tau[i] = td
+        tau[i] = robot.tip_tension(tendon, td)
         dsol = model.solve(tau, base_moment_guess=guess)
         mpos, _ = magnet_poses(robot, dsol.tip_position, dsol.tip_rotation)
         dist = np.linalg.norm(sensor_pos - mpos[0], axis=1)
