@@ -10,7 +10,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from .report import SOURCES  # noqa: E402
+from .report import ID_SHORT, SOURCES, id_set_label  # noqa: E402
 from .stats import PAPER  # noqa: E402
 
 
@@ -173,8 +173,7 @@ def identify(idf: Dict, outdir: str) -> str:
     sets = idf.get("sets", []) if idf and not idf.get("not_measured") else []
     n = max(len(sets), 1)
     fig, axes = plt.subplots(1, n, figsize=(5.2 * n, 4.2), squeeze=False, sharey=True)
-    modes = (("nominal", "nominal TOML"), ("survey", "survey only"),
-             ("weights", "one weight per segment"), ("tendons", "one weight per tendon"))
+    modes = (("nominal", "nominal TOML"),) + tuple(ID_SHORT.items())
     tensions = (0.3, 0.8, 1.5)
     for ax, st in zip(axes[0], sets):
         shown = [(key, lab) for key, lab in modes if key in st.get("errors", {})]
@@ -193,10 +192,7 @@ def identify(idf: Dict, outdir: str) -> str:
         ax.axhline(0, color="0.5", lw=0.8)
         ax.set_xticks(range(len(tensions)))
         ax.set_xticklabels([f"{t} N" for t in tensions])
-        spread = f"±{100 * st['perturb']:g} %"
-        if abs(st.get("perturb_stiffness", st["perturb"]) - st["perturb"]) > 1e-12:
-            spread += f", stiffness ±{100 * st['perturb_stiffness']:g} %"
-        ax.set_title(f"{len(st['seeds'])} robots at {spread}", fontsize=9)
+        ax.set_title(f"{len(st['seeds'])} robots at {id_set_label(st)}", fontsize=9)
         ax.set_xlabel("tension (bars: mean)")
     if not sets:
         axes[0][0].text(0.5, 0.5, "not measured", ha="center", transform=axes[0][0].transAxes)

@@ -384,13 +384,21 @@ def loop_phase_table(r: Dict) -> List[str]:
 
 ID_MODES = (("nominal", "nominal TOML (today)"), ("survey", "survey only (no weights)"),
             ("weights", "survey + one weight per segment"),
-            ("tendons", "survey + one weight per tendon"))
+            ("tendons", "survey + one weight per tendon"),
+            ("friction", "survey + two masses per segment (friction fitted)"))
+ID_SHORT = {"survey": "survey only", "weights": "one weight per segment",
+            "tendons": "one weight per tendon", "friction": "two masses per segment"}
 
 
-def _id_set_label(st: Dict) -> str:
+def id_set_label(st: Dict) -> str:
+    """The robots of an identification set, as the report and plot name them."""
     lab = f"±{100 * st['perturb']:g} %"
     if abs(st.get("perturb_stiffness", st["perturb"]) - st["perturb"]) > 1e-12:
         lab += f", stiffness ±{100 * st['perturb_stiffness']:g} %"
+    fr = st.get("description_friction_mN")
+    if fr is not None:
+        lab += (", description without friction" if fr == 0
+                else f", description friction {fr:g} mN")
     return lab
 
 
@@ -404,9 +412,11 @@ def section_identify(res: Dict) -> List[str]:
         "EI and EA alone); for each, `hh_bench --survey --survey-weight-all` records what "
         "the board would see (every tendon pulled alone from slack, encoder and field at "
         f"each step, and a {fmt(idf.get('weight_g'), 0)} g weight on every tendon in turn), "
-        "`hallhome identify fit` fits the description to it three times (without the "
+        "`hallhome identify fit` fits the description to it (without the "
         "weights; with one per segment, the records of each segment's first tendon, which "
-        "are those of a survey with one weight per segment; with one per tendon) and the "
+        "are those of a survey with one weight per segment; with one per tendon; with a "
+        "second mass, twice the first, on each segment's first tendon, which lets the fit "
+        "find the tendon friction) and the "
         "table generator makes the targets of each description (hallhome.identify_eval, "
         "docs/identify.md). Error = the tension at which the true robot (the plant's "
         "noise-free single-tendon pull, the calibration's definition) shows the target, "
@@ -426,7 +436,7 @@ def section_identify(res: Dict) -> List[str]:
                "| goals: mean / SD / worst |")
     out.append("| --- | --- | --- | --- | --- | --- | --- |")
     for st in idf.get("sets", []):
-        lab = f"{len(st['seeds'])} x {_id_set_label(st)}"
+        lab = f"{len(st['seeds'])} x {id_set_label(st)}"
         for mode, mlab in ID_MODES:
             if mode not in st:
                 continue
@@ -439,10 +449,8 @@ def section_identify(res: Dict) -> List[str]:
     for st in idf.get("sets", []):
         ref = st.get("refused", {})
         fs = st.get("fit_s") or {}
-        short = {"survey": "survey only", "weights": "one weight per segment",
-                 "tendons": "one weight per tendon"}
-        counts = ", ".join(f"{short[m]} {ref[m]}" for m, _ in ID_MODES[1:] if m in ref)
-        out.append(f"- {len(st['seeds'])} robots at {_id_set_label(st)} (seeds "
+        counts = ", ".join(f"{ID_SHORT[m]} {ref[m]}" for m, _ in ID_MODES[1:] if m in ref)
+        out.append(f"- {len(st['seeds'])} robots at {id_set_label(st)} (seeds "
                    f"{st['seeds'][0]}-{st['seeds'][-1]}): fits refused: {counts}; a fit took "
                    f"{fmt(fs.get('mean'), 1)} s on average, {fmt(fs.get('max'), 1)} s at most.")
         for r in st.get("refusals", [])[:5]:
@@ -460,7 +468,8 @@ def identify_notes(idf: Dict) -> List[str]:
     for st in idf.get("sets", []):
         nom = st["nominal"]["all"]
         for mode, lab in (("weights", "one weight per segment"),
-                          ("tendons", "one weight per tendon")):
+                          ("tendons", "one weight per tendon"),
+                          ("friction", "two masses per segment")):
             if mode not in st:
                 continue
             w = st[mode]["all"]
@@ -469,7 +478,7 @@ def identify_notes(idf: Dict) -> List[str]:
                       if c != "met"]
             worst_t = max(("0.3", "0.8", "1.5"), key=lambda t: st[mode][t]["worst"])
             notes.append(
-                f"{_id_set_label(st)}, {lab}: {w['mean']:+.4f} ± {w['sd']:.4f} N, worst "
+                f"{id_set_label(st)}, {lab}: {w['mean']:+.4f} ± {w['sd']:.4f} N, worst "
                 f"{w['worst']:.4f} N (at {worst_t} N) against {nom['mean']:+.4f} ± "
                 f"{nom['sd']:.4f} N, worst {nom['worst']:.4f} N with the nominal targets; "
                 + ("every goal met." if not missed else "missed: " + ", ".join(missed) + "."))
@@ -477,7 +486,7 @@ def identify_notes(idf: Dict) -> List[str]:
         if "weights" not in st:
             continue
         trend = ", ".join(f"{st['weights'][t]['mean']:+.4f} N at {t} N" for t in ("0.3", "0.8", "1.5"))
-        line = (f"{_id_set_label(st)}: the mean error with one weight per segment goes with the "
+        line = (f"{id_set_label(st)}: the mean error with one weight per segment goes with the "
                 f"tension ({trend})")
         if "tendons" in st:
             line += (f", and with one per tendon ({st['tendons']['0.3']['mean']:+.4f} N at 0.3 N, "
@@ -487,14 +496,27 @@ def identify_notes(idf: Dict) -> List[str]:
         notes.append(line + ".")
     why = []
     g = idf.get("weight_g")
-    if g:
-        why.append(
-            "the mean's trend with tension is the plant's tendon friction, a tip force of "
-            "T (1 - mu) - f0 for a spool tension T (sim/plant): the host model and the table "
-            "have no friction term, so the stiffness a weight gives (at m g = "
-            f"{g * 9.80665e-3:.2f} N) is an effective one, exact at that tension only, too "
-            "soft below it and too stiff above (a second weight per segment could separate "
-            "friction from stiffness; the table would need the term)")
+    for st in idf.get("sets", []):
+        if "weights" not in st or not g:
+            continue
+        trend = st["weights"]["1.5"]["mean"] - st["weights"]["0.3"]["mean"]
+        fr = st.get("description_friction_mN")
+        line = (f"at {id_set_label(st)} the mean error with one weight per segment moves by "
+                f"{trend:+.4f} N from 0.3 to 1.5 N: "
+                + ("the description has no tendon friction (the plant's tip gets T (1 - mu) - "
+                   "f0 of a spool tension T, sim/plant), so the stiffness a weight gives (at "
+                   f"m g = {g * 9.80665e-3:.2f} N) is an effective one, exact at that tension "
+                   "only" if fr == 0 else
+                   "the targets carry the description's tendon friction (T (1 - mu) - f0 at "
+                   "the tip of a spool tension T), which the plant has within the set's "
+                   "spread"))
+        if "friction" in st:
+            f = st.get("parameter_rms_error", {}).get("friction", {}).get("friction")
+            t2 = st["friction"]["1.5"]["mean"] - st["friction"]["0.3"]["mean"]
+            line += (f"; with two masses per segment the fit finds the friction"
+                     + (f" (rms {f:.2f} mN from the plant's)" if f is not None else "")
+                     + f" and the trend is {t2:+.4f} N")
+        why.append(line)
     corr = [(st, radius_correlation(st)) for st in idf.get("sets", [])]
     corr = [(st, c) for st, c in corr if c is not None]
     if corr:
@@ -504,7 +526,7 @@ def identify_notes(idf: Dict) -> List[str]:
             "survey cannot tell its radius from its stretch (free length over EA), so the "
             "fit keeps one radius for all; a tendon's error at 1.5 N correlates with its "
             "true radius over the weighted tendon's ("
-            + ", ".join(f"r = {c:+.2f} at {_id_set_label(st)}" for st, c in corr)
+            + ", ".join(f"r = {c:+.2f} at {id_set_label(st)}" for st, c in corr)
             + "). A weight on every tendon lets the fit take each tendon's radius and "
             "stretch")
     ref = [(st, st.get("refused", {}).get("survey", 0)) for st in idf.get("sets", [])]
@@ -516,10 +538,10 @@ def identify_notes(idf: Dict) -> List[str]:
             "that partly cancelled the stiffness's, so the mean gets worse than the nominal "
             "description's (" + ", ".join(
                 f"{st['survey']['all']['mean']:+.4f} against {st['nominal']['all']['mean']:+.4f} N "
-                f"at {_id_set_label(st)}" for st in worse) + ")")
+                f"at {id_set_label(st)}" for st in worse) + ")")
     for st, n in ref:
         if n:
-            why.append(f"{n} of {len(st['seeds'])} survey-only fits at {_id_set_label(st)} "
+            why.append(f"{n} of {len(st['seeds'])} survey-only fits at {id_set_label(st)} "
                        "were refused (see above) and scored with the nominal targets")
     if why:
         notes.append("Why: " + "; ".join(f"({k + 1}) {w}" for k, w in enumerate(why)) + ".")

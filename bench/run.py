@@ -456,9 +456,13 @@ def _bench_rates(res: Dict, run: Dict, note: str = "") -> None:
 
 # ---- identification ------------------------------------------------------------------
 
-ID_SETS = (  # (label key, perturbation, stiffness spread or None, seeds in a full run)
-    ("5", 0.05, None, 20),
-    ("10s25", 0.10, 0.25, 20),
+# (label key, perturbation, stiffness spread or None, seeds in a full run, fits,
+#  the description's friction in mN or None for the TOML's)
+ID_FITS = ("survey", "weights", "tendons", "friction")
+ID_SETS = (
+    ("5", 0.05, None, 20, ID_FITS, None),
+    ("10s25", 0.10, 0.25, 20, ID_FITS, None),
+    ("5nf", 0.05, None, 20, ("weights", "friction"), 0.0),
 )
 
 
@@ -484,10 +488,11 @@ def identify_item(a, res: Dict) -> None:
         res["identify"] = {"not_measured": f"hallhome.identify_eval: {e}"}
         return
     n = a.id_seeds if a.id_seeds is not None else (1 if a.reduced else None)
-    sets = [{"key": k, "perturb": p, "perturb_stiffness": ps,
-             "seeds": list(range(1, (n or full) + 1))} for k, p, ps, full in ID_SETS]
+    sets = [{"key": k, "perturb": p, "perturb_stiffness": ps, "modes": list(modes),
+             "description_friction_mN": fr, "seeds": list(range(1, (n or full) + 1))}
+            for k, p, ps, full, modes, fr in ID_SETS]
     total = sum(len(st["seeds"]) for st in sets)
-    log(f"identification: {total} seeded robots (a survey, three fits, four tables each), "
+    log(f"identification: {total} seeded robots (a survey, two to four fits and tables each), "
         f"{a.jobs} at a time; a fit takes 5-30 s")
     t0 = time.time()
     count = [0]

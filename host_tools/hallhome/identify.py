@@ -20,7 +20,13 @@ description):
 - ``engage<i>``: take-up from the pull's first step to the tendon's
   engagement, um (no prior: the slack at the start is unknown);
 - ``EI_<j>``: bending stiffness of segment j, mN m^2, only with weight
-  records (or ``stiffness=True``); without them it stays nominal.
+  records (or ``stiffness=True``); without them it stays nominal;
+- ``friction``: the tendons' friction force (``friction_mN`` of every
+  tendon), mN, only when a tendon carries weights of two masses
+  (``measures_friction``). A hung weight reaches the tendon's end as
+  m g (1 - mu) - f0 (``Robot.tip_tension``): one mass gives the stiffness
+  with the description's friction folded in, two tell the offset f0 from
+  the slope (mu stays the description's: it scales like the stiffness).
 
 The model is the host's constant-curvature model (no gravity) and field
 model: cheap enough for finite-difference Jacobians, and within a few um of
@@ -105,18 +111,40 @@ def weighs_every_tendon(survey: Survey) -> bool:
                                      >= {p.tendon for p in survey.pulls})
 
 
+# Two masses on one tendon tell the friction when the heavier is at least
+# this many times the lighter (closer masses leave it to the noise).
+FRICTION_MASS_RATIO = 1.5
+
+
+# A fitted friction this far below zero (mN), and beyond 3 sigma, is refused;
+# closer to zero it is a frictionless robot seen through the noise.
+FRICTION_SLACK_MN = 2.0
+
+
+def measures_friction(survey: Survey) -> bool:
+    """True when some tendon carries weight records of two masses at least
+    FRICTION_MASS_RATIO apart: the fit then finds the tendon friction."""
+    masses: dict[int, list[float]] = {}
+    for w in survey.weights:
+        masses.setdefault(w.tendon, []).append(w.mass)
+    return any(max(m) >= FRICTION_MASS_RATIO * min(m) for m in masses.values())
+
+
 def fit_params(robot: Robot, survey: Survey, stiffness: bool | None = None,
-               mechanics: bool = True, per_tendon: bool | None = None) -> list[Param]:
+               mechanics: bool = True, per_tendon: bool | None = None,
+               friction: bool | None = None) -> list[Param]:
     """The parameters ``fit`` fits (same defaults)."""
     if stiffness is None:
         stiffness = bool(survey.weights)
     if per_tendon is None:
         per_tendon = weighs_every_tendon(survey)
-    return _params(robot, survey, stiffness, mechanics, per_tendon)
+    if friction is None:
+        friction = measures_friction(survey)
+    return _params(robot, survey, stiffness, mechanics, per_tendon, friction)
 
 
 def _params(robot: Robot, survey: Survey, stiffness: bool, mechanics: bool,
-            per_tendon_radius: bool = False) -> list[Param]:
+            per_tendon_radius: bool = False, friction: bool = False) -> list[Param]:
     out = []
     J = float(np.linalg.norm(robot.magnet.polarization))
     out.append(Param("magnet_J", "T", J, 0.15 * J, 0.5 * J, 1.5 * J, 0.05 * J))
@@ -145,6 +173,12 @@ def _params(robot: Robot, survey: Survey, stiffness: bool, mechanics: bool,
             ei = s.bending_stiffness * 1e3
             out.append(Param(f"EI_{j + 1}", "mN m^2", ei, 0.3 * ei, 0.25 * ei, 4.0 * ei,
                              0.05 * ei))
+    if friction:
+        # no prior: the two masses decide. Below zero it is not physical, but
+        # a bound at 0 would start a frictionless description on its edge:
+        # the range goes below and a fit that ends there is refused (_refusal)
+        f0 = float(np.mean([t.friction_N or 0.0 for t in robot.tendons])) * 1e3
+        out.append(Param("friction", "mN", f0, None, -50.0, 500.0, 5.0))
     return out
 
 
@@ -169,7 +203,9 @@ def apply(robot: Robot, params: list[Param], values) -> Robot:
     f = v["radius"] * 1e-3 / r_nom if "radius" in v else 1.0
     tendons = [dataclasses.replace(t, routing_radius=v[f"radius{i}"] * 1e-3 if f"radius{i}" in v
                                    else t.routing_radius * f,
-                                   stiffness_ea=v.get(f"EA{i}", t.stiffness_ea))
+                                   stiffness_ea=v.get(f"EA{i}", t.stiffness_ea),
+                                   friction_N=v["friction"] * 1e-3 if "friction" in v
+                                   else t.friction_N)
                for i, t in enumerate(robot.tendons)]
     J = np.array(robot.magnet.polarization)
     magnet = dataclasses.replace(robot.magnet,
@@ -244,7 +280,8 @@ class _Model:
 
     def poses(self, r: Robot):
         key = (tuple(s.length for s in r.segments), tuple(s.youngs_modulus for s in r.segments),
-               tuple(t.routing_radius for t in r.tendons), tuple(t.stiffness_ea for t in r.tendons))
+               tuple(t.routing_radius for t in r.tendons), tuple(t.stiffness_ea for t in r.tendons),
+               tuple(t.friction_N for t in r.tendons))
         if key != self.key:
             pos, rot, take = [], [], []
             for p in self.survey.pulls:
@@ -296,12 +333,14 @@ class _Model:
 
 def fit(robot: Robot, survey: Survey, *, sigma_uT: float = 1.0,
         stiffness: bool | None = None, mechanics: bool = True, max_nfev: int | None = None,
-        progress=None, per_tendon: bool | None = None) -> FitResult:
+        progress=None, per_tendon: bool | None = None,
+        friction: bool | None = None) -> FitResult:
     """Fits ``robot`` to ``survey`` (see the module docstring). ``stiffness``
     (default: when the survey has weight records) adds the segments' EI;
     ``per_tendon`` (default: when every pulled tendon has a weight record)
     fits each tendon's routing radius and axial stiffness instead of one
-    common radius.
+    common radius; ``friction`` (default: when a tendon carries two masses,
+    ``measures_friction``) fits the tendons' friction force.
     ``max_nfev``: model evaluations before the fit gives up (default 200 per
     parameter; a fit that runs out is refused as not converged).
     ``progress(nfev, rms_uT)`` is called after every model evaluation."""
@@ -311,7 +350,7 @@ def fit(robot: Robot, survey: Survey, *, sigma_uT: float = 1.0,
                             "routing only")
     if stiffness is None:
         stiffness = bool(survey.weights)
-    params = fit_params(robot, survey, stiffness, mechanics, per_tendon)
+    params = fit_params(robot, survey, stiffness, mechanics, per_tendon, friction)
     names = [p.name for p in params]
     model = _Model(robot, survey)
     sigma = sigma_uT * 1e-6
@@ -383,8 +422,15 @@ def _refusal(res: FitResult, sol, lo, hi) -> str | None:
         return f"the fit did not converge ({sol.message})"
     fit_note = (f" (residual {res.rms_uT:.1f} uT rms against {res.signal_uT:.1f} uT of "
                 "signal)")
+    for p, v, sd in zip(res.params, res.values, res.sigmas):
+        if p.name == "friction" and v < -max(3.0 * sd if np.isfinite(sd) else 0.0,
+                                             FRICTION_SLACK_MN):
+            return (f"friction = {v:.1f} +- {sd:.1f} mN: below zero, the two masses disagree "
+                    "with the model; fit with one mass (--no-friction: the description's "
+                    "friction)" + fit_note)
     for p, z, v, a, b in zip(res.params, sol.x, res.values, lo, hi):
-        if p.prior is not None and min(z - a, b - z) < 1e-3 * (b - a):
+        if ((p.prior is not None or p.name == "friction")
+                and min(z - a, b - z) < 1e-3 * (b - a)):
             return (f"{p.name} = {v:.4g} {p.unit} reached the edge of its plausible range "
                     f"{p.lo:.4g}..{p.hi:.4g} {p.unit} (nominal {p.nominal:.4g}): the "
                     "description does not fit this robot" + fit_note)

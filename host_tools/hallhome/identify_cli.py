@@ -25,8 +25,10 @@ def identify_group():
        of every sensor are recorded at each step.
     2. Weights (optional, recommended): with every servo slack, hang one
        known mass on one tendon of each segment and record the field before
-       and after. They measure each segment's bending stiffness, with the
-       tendon's friction at that tension folded in.
+       and after. They measure each segment's bending stiffness (with the
+       description's tendon friction). Hang a second mass, at least 1.5
+       times the first, on the same tendon and the fit finds the friction
+       too.
     3. Fit: `hallhome identify fit ROBOT.toml SURVEY.json` fits the magnet,
        segment lengths, routing radius, sensor positions, each tendon's
        engagement and the stiffness, reports them against the nominal
@@ -86,6 +88,9 @@ def _rows_text(rows, truth: bool) -> list[str]:
 @click.option("--no-weights", is_flag=True,
               help="Ignore the survey's weight records (a geometry-only fit: the stiffness "
                    "stays nominal).")
+@click.option("--no-friction", is_flag=True,
+              help="With two masses on a tendon: keep the description's tendon friction "
+                   "instead of fitting it.")
 @click.option("--any-robot", is_flag=True,
               help="Fit a survey that names another robot than ROBOT.")
 @click.option("--sigma-uT", "sigma_uT", type=click.FloatRange(0.01, 100.0), default=1.0,
@@ -96,8 +101,8 @@ def _rows_text(rows, truth: bool) -> list[str]:
                    "identified targets (runs the table generator twice).")
 @click.option("--json", "as_json", is_flag=True, help="Print the result as JSON (progress "
               "goes to standard error).")
-def fit_cmd(robot, survey, out, no_write, plot_dir, no_weights, any_robot, sigma_uT, evaluate,
-            as_json):
+def fit_cmd(robot, survey, out, no_write, plot_dir, no_weights, no_friction, any_robot, sigma_uT,
+            evaluate, as_json):
     """Fit ROBOT.toml to a survey file and write the identified TOML.
 
     Prints the fitted parameters against the nominal ones with their 1-sigma
@@ -115,12 +120,14 @@ def fit_cmd(robot, survey, out, no_write, plot_dir, no_weights, any_robot, sigma
     - the fit did not converge;
     - a parameter ended at the edge of its plausible range (the
       description does not fit this robot);
+    - with two masses on a tendon, the friction came out below zero
+      (--no-friction keeps the description's);
     - the model cannot explain the data (residual above 10 % of the signal).
     """
     import numpy as np
 
     from hallhome.cli import _load
-    from hallhome.identify import fit
+    from hallhome.identify import fit, measures_friction
     from hallhome.identify_data import IdentifyError, Survey, load_survey
     from hallhome.identify_eval import fit_vs_truth, tension_errors, truth_values
     from hallhome.identify_out import (identified_path, plot_parameters, plot_residuals,
@@ -136,6 +143,8 @@ def fit_cmd(robot, survey, out, no_write, plot_dir, no_weights, any_robot, sigma
     n_par = 1 + len(nominal.segments) + 1 + 3 * len(nominal.sensors) + len(sv.pulls)
     if sv.weights:
         n_par += len(nominal.segments)
+    friction = measures_friction(sv) and not no_friction
+    n_par += friction
     say = (lambda m: click.echo(m, err=True)) if as_json else click.echo
     say(f"survey {survey}: {len(sv.pulls)} pulls, {len(sv.weights)} weight records "
         f"(source {sv.source}); fitting {n_par} parameters (5-30 s) ...")
@@ -157,7 +166,7 @@ def fit_cmd(robot, survey, out, no_write, plot_dir, no_weights, any_robot, sigma
             say(f"  ... {now - t0:.0f} s, {nfev} model evaluations, residual {rms:.2f} uT rms")
 
     try:
-        res = fit(nominal, sv, sigma_uT=sigma_uT, progress=progress)
+        res = fit(nominal, sv, sigma_uT=sigma_uT, progress=progress, friction=friction)
     except IdentifyError as exc:
         raise click.ClickException(str(exc)) from None
     say(f"fit done in {time.monotonic() - t0:.1f} s: residual {res.rms_uT:.2f} uT rms "

@@ -10,13 +10,15 @@ noise-free single-tendon pull, the calibration's definition) shows that
 
 ``python -m hallhome.identify_eval`` runs the study of docs/identify.md:
 seeded perturbed robots surveyed on the bench, fitted without weights, with
-one weight per segment and with one per tendon, errors against the nominal
-description's (``make bench`` runs it too, its section 7).
+one weight per segment, with one per tendon and with two masses per segment
+(the friction fitted too), errors against the nominal description's
+(``make bench`` runs it too, its section 7).
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import re
 import subprocess
@@ -47,6 +49,7 @@ def truth_values(robot: Robot, survey: Survey) -> dict[str, float]:
     out["radius"] = float(np.mean([t["radius_mm"] for t in tr["tendons"]]))
     for i, t in enumerate(tr["tendons"]):
         out[f"radius{i}"] = t["radius_mm"]
+    out["friction"] = float(np.mean([t["friction_mN"] for t in tr["tendons"]]))
     for k, s in enumerate(tr["sensors"]):
         for a, ax in enumerate("xyz"):
             out[f"sensor{k}_{ax}"] = s["pos_mm"][a]
@@ -97,16 +100,17 @@ def _invert(curve, grid, y) -> float:
 
 def bench_survey(bench: Path, elf: Path, plant: Path, out: Path, seed: int, perturb: float,
                  weight_g: float, perturb_stiffness: float | None = None,
-                 weight_all: bool = False) -> None:
+                 weight_all: bool = False, second_g: float = 0.0) -> None:
     """Runs ``hh_bench --survey`` for one seeded robot (``perturb_stiffness``:
     the backbone's stiffness spread, default ``perturb``; ``weight_all``: the
-    weight on every tendon, not only on each segment's first)."""
+    weight on every tendon, not only on each segment's first; ``second_g``: a
+    second mass hung in turn on the same tendons)."""
     cmd = [str(bench), str(elf), "--plant", str(plant), "--seed", str(seed), "--perturb",
            str(perturb), "--survey", str(out)]
     if perturb_stiffness is not None:
         cmd += ["--perturb-stiffness", str(perturb_stiffness)]
     if weight_g > 0:
-        cmd += ["--survey-weight", str(weight_g)]
+        cmd += ["--survey-weight", f"{weight_g:g}" + (f",{second_g:g}" if second_g > 0 else "")]
         if weight_all:
             cmd += ["--survey-weight-all"]
     subprocess.run(cmd, check=True, capture_output=True, text=True)
@@ -142,28 +146,53 @@ def _summary(errs: list[np.ndarray]) -> dict:
     return out
 
 
-MODES = ("nominal", "survey", "weights", "tendons")
+MODES = ("nominal", "survey", "weights", "tendons", "friction")
 FITS = {"survey": "survey only", "weights": "one weight per segment",
-        "tendons": "one weight per tendon"}
+        "tendons": "one weight per tendon", "friction": "two masses per segment"}
+# "friction": each segment's first tendon carries the weight and a second
+# mass this many times heavier, so the fit finds the tendon friction too
+SECOND_MASS_FACTOR = 2.0
+
+
+def with_friction(robot: Robot, friction_mN: float | None) -> Robot:
+    """``robot`` with every tendon's friction force set to ``friction_mN``
+    (None: as described): a study of a description that gets it wrong."""
+    if friction_mN is None:
+        return robot
+    return dataclasses.replace(robot, tendons=tuple(
+        dataclasses.replace(t, friction_N=friction_mN * 1e-3) for t in robot.tendons))
+
+
+def _masses(sv: Survey, grams: float | None) -> Survey:
+    """``sv`` with the weight records of mass ``grams`` only (None: all)."""
+    if grams is None:
+        return sv
+    return Survey(sv.pulls, tuple(w for w in sv.weights if abs(w.mass * 1e3 - grams) < 1e-6),
+                  sv.truth, sv.source, sv.meta)
 
 
 def one_seed(robot_path: Path, seed: int, perturb: float, weight_g: float, bench: Path,
              elf: Path, plant: Path, perturb_stiffness: float | None = None,
              nominal_targets=None, workdir: Path | None = None,
-             modes=("survey", "weights", "tendons")) -> dict:
+             modes=("survey", "weights", "tendons"),
+             description_friction_mN: float | None = None) -> dict:
     """One seeded bench robot: one survey (the weight on every tendon when
     ``modes`` has "tendons"), fitted as each mode says: "survey" without the
     weights, "weights" with one per segment, "tendons" with one per tendon.
     Returns the tension errors of the nominal and of each fit's targets (a
     refused fit keeps the nominal targets, as the user would), the fitted
-    minus the true parameters, and the fits' times."""
+    minus the true parameters, and the fits' times. "friction" fits the
+    records of each segment's first tendon with a second mass
+    (SECOND_MASS_FACTOR heavier) too. ``description_friction_mN``: the
+    description's friction is taken to be that (``with_friction``)."""
     import time
 
-    robot = load_robot(robot_path)
+    robot = with_friction(load_robot(robot_path), description_friction_mN)
+    second = SECOND_MASS_FACTOR * weight_g if "friction" in modes else 0.0
     with tempfile.TemporaryDirectory(dir=workdir) as tmp:
         path = Path(tmp) / f"s{seed}.json"
         bench_survey(bench, elf, plant, path, seed, perturb, weight_g, perturb_stiffness,
-                     weight_all="tendons" in modes)
+                     weight_all="tendons" in modes, second_g=second)
         sv = load_survey(path, robot)
     truth = sv.truth
     nominal = tension_errors(nominal_targets or robot, truth)
@@ -171,13 +200,23 @@ def one_seed(robot_path: Path, seed: int, perturb: float, weight_g: float, bench
            "recovery": {}, "fit_s": {},
            "radius_mm": [t["radius_mm"] for t in truth["tendons"]]}
     tv = truth_values(robot, sv)
+    one = _masses(sv, weight_g)
     surveys = {"survey": Survey(sv.pulls, (), truth, sv.source, sv.meta),
-               "weights": per_segment(robot, sv), "tendons": sv}
+               "weights": per_segment(robot, one), "tendons": one,
+               "friction": per_segment(robot, sv)}
     for mode in modes:
         t0 = time.monotonic()
         try:
             res = fit(robot, surveys[mode])
             why = res.refused
+            if why and mode == "friction" and why.startswith("friction"):
+                # what the refusal tells the user: both masses, the
+                # description's friction (--no-friction)
+                out.setdefault("friction_fallback", []).append(why)
+                res = fit(robot, surveys[mode], friction=False)
+                why = res.refused
+            elif mode == "friction" and not why:
+                out["friction_mN"] = res.value("friction")
         except IdentifyError as exc:
             res, why = None, str(exc)
         out["fit_s"][mode] = time.monotonic() - t0
@@ -207,10 +246,15 @@ def studies(robot_path: Path, sets: list[dict], weight_g: float, bench: Path, el
     from concurrent.futures import ProcessPoolExecutor
 
     robot = load_robot(robot_path)
-    nominal_targets = targets(robot)  # the same for every seed
+    nominal = {}  # the same for every seed of a description
+    for st in sets:
+        fr = st.get("description_friction_mN")
+        if fr not in nominal:
+            nominal[fr] = targets(with_friction(robot, fr))
     tasks = [(k, (robot_path, seed, st["perturb"], weight_g, bench, elf, plant,
-                  st.get("perturb_stiffness"), nominal_targets, workdir,
-                  tuple(st.get("modes", MODES[1:]))))
+                  st.get("perturb_stiffness"), nominal[st.get("description_friction_mN")],
+                  workdir, tuple(st.get("modes", MODES[1:])),
+                  st.get("description_friction_mN")))
              for k, st in enumerate(sets) for seed in st["seeds"]]
     per: list[list[dict]] = [[] for _ in sets]
     if jobs > 1 and len(tasks) > 1:
@@ -250,6 +294,8 @@ def _set_summary(robot: Robot, st: dict, per: list[dict], weight_g: float) -> di
     return {"robot": robot.name, "seeds": [p["seed"] for p in per], "perturb": st["perturb"],
             "perturb_stiffness": st["perturb"] if ps is None else ps,
             "weight_g": weight_g,
+            "second_g": SECOND_MASS_FACTOR * weight_g if "friction" in modes else None,
+            "description_friction_mN": st.get("description_friction_mN"),
             "modes": modes,
             "refused": {m: sum(m in p["refused"] for p in per) for m in modes[1:]},
             "refusals": [f"seed {p['seed']} {m}: {w}" for p in per
@@ -287,13 +333,21 @@ def main(argv=None) -> int:
                     help="the backbone's stiffness spread (default: --perturb)")
     ap.add_argument("--jobs", type=int, default=1, help="seeds at once")
     ap.add_argument("--weight-g", type=float, default=80.0)
-    ap.add_argument("--modes", default=",".join(MODES[1:]),
+    ap.add_argument("--modes", default=",".join(MODES[1:4]),
                     help="fits to score: survey (no weights), weights (one per segment), "
-                         "tendons (one per tendon)")
+                         "tendons (one per tendon), friction (two masses per segment: the "
+                         "friction fitted too)")
+    ap.add_argument("--description-friction-mN", type=float, default=None,
+                    help="study a description whose tendon friction is this (default: the "
+                         "TOML's), e.g. 0 for one that leaves it out")
     ap.add_argument("--json", type=Path, help="write the figures here too")
     a = ap.parse_args(argv)
     st = {"seeds": list(range(1, a.seeds + 1)), "perturb": a.perturb,
-          "perturb_stiffness": a.perturb_stiffness, "modes": a.modes.split(",")}
+          "perturb_stiffness": a.perturb_stiffness, "modes": a.modes.split(","),
+          "description_friction_mN": a.description_friction_mN}
+    bad = [m for m in st["modes"] if m not in MODES[1:]]
+    if bad:
+        ap.error(f"--modes: unknown {', '.join(bad)} (known: {', '.join(MODES[1:])})")
     out = studies(a.robot, [st], a.weight_g, a.bench, a.elf, a.plant,
                   log=lambda m: print(m, file=sys.stderr), jobs=a.jobs)[0]
     text = json.dumps(out, indent=1)

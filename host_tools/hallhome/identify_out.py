@@ -21,6 +21,9 @@ from hallhome.robot import Robot, RobotError, load_robot
 
 _KEY = re.compile(r"^(\s*)([A-Za-z_][A-Za-z0-9_]*)(\s*=\s*)(.*?)(\s*#.*)?$")
 _TABLE = re.compile(r"^\s*(\[\[?)\s*([A-Za-z_]+)\s*\]\]?")
+# Keys a description may leave out (the loader's default stands): a fitted one
+# is added to its table; a fitted required key must be in the original.
+_OPTIONAL_KEYS = {"friction_mN"}
 
 
 def identified_path(robot: Robot) -> Path:
@@ -64,6 +67,10 @@ def _edits(res: FitResult) -> dict:
             out[("tendons", i, "stiffness_EA_N")] = (
                 f"{t.stiffness_ea:.1f}", note(f"EA{i}") + ", effective: with the free length's "
                 "error")
+        if "friction" in rows:
+            # a fit a little below zero (within the noise, see _refusal) is none
+            out[("tendons", i, "friction_mN")] = (f"{max(0.0, t.friction_N) * 1e3:.2f}",
+                                                  note("friction"))
     out[("magnet", 0, "polarization_T")] = (_vec(fitted.magnet.polarization), note("magnet_J"))
     for k, s in enumerate(fitted.sensors):
         names = [f"sensor{k}_{a}" for a in "xyz"]
@@ -73,15 +80,42 @@ def _edits(res: FitResult) -> dict:
     return out
 
 
+def _key_lines(src: list[str]) -> dict:
+    """{(table, index, key): line number} of every key line, and {(table,
+    index): line number} of each table's last key line."""
+    out: dict = {}
+    counts: dict[str, int] = {}
+    table, index = None, 0
+    for n, line in enumerate(src):
+        m = _TABLE.match(line)
+        if m:
+            table = m.group(2)
+            counts[table] = counts.get(table, -1) + 1
+            index = counts[table] if m.group(1) == "[[" else 0
+        m = _KEY.match(line)
+        if m and table is not None:
+            out[(table, index, m.group(2))] = n
+            out[(table, index)] = n
+    return out
+
+
 def render_identified(res: FitResult, nominal: Robot, survey_name: str, when=None) -> str:
     """The identified TOML text (see the module docstring)."""
     when = when or _dt.datetime.now(_dt.timezone.utc)
     edits = _edits(res)
+    src = nominal.path.read_text().splitlines()
+    where = _key_lines(src)
+    # a fitted optional key the original leaves out (a tendon without
+    # friction_mN) is written after the last key of its table
+    extra: dict[int, list[str]] = {}
+    for (t, i, k), (val, com) in sorted(edits.items()):
+        if k in _OPTIONAL_KEYS and (t, i, k) not in where and (t, i) in where:
+            extra.setdefault(where[(t, i)], []).append(f"{k} = {val}   {com}")
     counts: dict[str, int] = {}
     table, index = None, 0
     done = set()
     lines = []
-    for line in nominal.path.read_text().splitlines():
+    for n, line in enumerate(src):
         m = _TABLE.match(line)
         if m:
             table = m.group(2)
@@ -93,6 +127,9 @@ def render_identified(res: FitResult, nominal: Robot, survey_name: str, when=Non
             line = f"{m.group(1)}{m.group(2)}{m.group(3)}{val}   {com}"
             done.add((table, index, m.group(2)))
         lines.append(line)
+        for add in extra.get(n, []):
+            lines.append(add)
+            done.add((table, index, add.split(" ", 1)[0]))
     missing = set(edits) - done
     if missing:
         raise IdentifyError(f"{nominal.path}: cannot place the fitted "

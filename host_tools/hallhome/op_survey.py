@@ -171,11 +171,11 @@ def weight_tendons(rows: Sequence[Report], which: str) -> List[int]:
     return pick
 
 
-def record_weights(c: Client, tendons: Sequence[int], mass_g: float, n_avg: int,
+def record_weights(c: Client, tendons: Sequence[int], masses_g: Sequence[float], n_avg: int,
                    n_sensors: int, wait: Callable[[str], None]) -> List[dict]:
-    """With every tendon released: per tendon, the field averaged over n_avg
-    `sensors` reads before and with mass_g hung on it (the user hangs and
-    removes it when `wait` says so)."""
+    """With every tendon released: per tendon and mass, the field averaged
+    over n_avg `sensors` reads before and with the mass hung on it (the user
+    hangs and removes it when `wait` says so)."""
     def fields() -> List[List[float]]:
         got = average_fields(c, n_avg)
         if len(got) != n_sensors:
@@ -185,11 +185,13 @@ def record_weights(c: Client, tendons: Sequence[int], mass_g: float, n_avg: int,
 
     recs = []
     for i in tendons:
-        base = fields()
-        wait(f"hang {mass_g:g} g on tendon {i}, let it settle, then press Enter")
-        hung = fields()
-        wait(f"take the weight off tendon {i}, then press Enter")
-        recs.append({"tendon": i, "mass_g": mass_g, "baseline_cuT": base, "field_cuT": hung})
+        for mass_g in masses_g:
+            base = fields()
+            wait(f"hang {mass_g:g} g on tendon {i}, let it settle, then press Enter")
+            hung = fields()
+            wait(f"take the weight off tendon {i}, then press Enter")
+            recs.append({"tendon": i, "mass_g": mass_g, "baseline_cuT": base,
+                         "field_cuT": hung})
     return recs
 
 
@@ -200,6 +202,9 @@ def record_weights(c: Client, tendons: Sequence[int], mass_g: float, n_avg: int,
               help="Survey only this tendon (0-based; default: every tendon).")
 @click.option("--weight-g", type=click.FloatRange(0.0, 10000.0, min_open=False), default=0.0,
               show_default=True, help="Mass to hang after the pulls (0: survey only).")
+@click.option("--weight2-g", type=click.FloatRange(0.0, 10000.0), default=0.0,
+              help="A second mass, at least 1.5 times --weight-g, hung in turn on the same "
+              "tendons: the fit then finds the tendon friction too (0: none).")
 @click.option("--weights", "which", type=click.Choice(["segment", "all"]), default="segment",
               show_default=True, help="Hang the weight on the first tendon of each segment, "
               "or on every tendon.")
@@ -212,8 +217,8 @@ def record_weights(c: Client, tendons: Sequence[int], mass_g: float, n_avg: int,
 @json_option
 @port_options
 @operator_command
-def survey_cmd(out_path, tendon, weight_g, which, samples, hang_wait, run_timeout, as_json, port,
-               timeout) -> None:
+def survey_cmd(out_path, tendon, weight_g, weight2_g, which, samples, hang_wait, run_timeout,
+               as_json, port, timeout) -> None:
     """Survey the robot on the board for `hallhome identify fit`.
 
     Every tendon (or --tendon), the others released, is pulled alone from
@@ -222,10 +227,18 @@ def survey_cmd(out_path, tendon, weight_g, which, samples, hang_wait, run_timeou
     ends released and nothing is stored on the board. With --weight-g, the
     tool then guides the weights: with every servo slack, hang the mass on
     the first tendon of each segment (--weights all: on every tendon) when
-    asked; the field is read before and with it. The survey file goes to
+    asked; the field is read before and with it. With --weight2-g too, the
+    second mass is hung after the first on each of those tendons, and the
+    fit finds the tendon friction from the two. The survey file goes to
     --out; fit it with `hallhome identify fit ROBOT.toml SURVEY.json`.
     Ctrl-C aborts on the board and releases every tendon; nothing is
     written then."""
+    from hallhome.identify import FRICTION_MASS_RATIO
+
+    if weight2_g > 0.0 and not weight2_g >= FRICTION_MASS_RATIO * weight_g > 0.0:
+        raise click.BadParameter(f"{weight2_g:g} g: the second mass must be at least "
+                                 f"{FRICTION_MASS_RATIO:g} times --weight-g ({weight_g:g} g), "
+                                 "which must be given", param_hint="--weight2-g")
     with session(port, timeout) as c:
         head, rows = read_table(c)
         robot, table_id = str(head.get("name")), str(head.get("table_id"))
@@ -269,7 +282,8 @@ def survey_cmd(out_path, tendon, weight_g, which, samples, hang_wait, run_timeou
                     click.prompt(msg, default="", show_default=False, prompt_suffix=" ",
                                  err=True)
 
-            weights = record_weights(c, picks, weight_g, samples, ns, wait)
+            masses = [weight_g] + ([weight2_g] if weight2_g > 0.0 else [])
+            weights = record_weights(c, picks, masses, samples, ns, wait)
     doc = survey_doc(robot, table_id, view, dirs, weights)
     path = Path(out_path or f"{robot}_survey.json")
     path.write_text(json.dumps(doc, indent=1) + "\n")

@@ -93,6 +93,10 @@ typedef enum {
     EV_QUIT            /* end the run (exit code as if the time limit passed) */
 } bench_ev_kind_t;
 
+/* --survey-weight G[,G2]: masses hung in turn on each weighted tendon; two
+ * masses let the fit tell the tendon friction from the stiffness. */
+#define BENCH_SURVEY_MASSES 2
+
 typedef struct {
     uint64_t at_us;
     bench_ev_kind_t kind;
@@ -384,12 +388,14 @@ struct bench_t {
     const char *eeprom_path;
     const char *summary_path;
     const char *plant_path;
-    const char *table_path;    /* --table: per-tendon table on stdout at exit */
-    const char *survey_path;   /* --survey: write the identification survey, then exit */
-    double survey_travel_mm;   /* survey pull past the detected engagement */
-    double survey_weight_g;    /* mass hung on one tendon per segment (0 = none) */
-    uint8_t survey_weight_all; /* --survey-weight-all: on every tendon instead */
-    uint64_t limit_us;         /* 0 = none */
+    const char *table_path;  /* --table: per-tendon table on stdout at exit */
+    const char *survey_path; /* --survey: write the identification survey, then exit */
+    double survey_travel_mm; /* survey pull past the detected engagement */
+    double survey_weight_g[BENCH_SURVEY_MASSES]; /* masses hung in turn on one tendon per
+                                                  * segment (0 = none) */
+    uint8_t survey_n_weights;                    /* how many of them are given */
+    uint8_t survey_weight_all;                   /* --survey-weight-all: on every tendon instead */
+    uint64_t limit_us;                           /* 0 = none */
     uint32_t seed;
     double perturb;
     double perturb_stiffness; /* backbone EI and EA spread; < 0: perturb's */

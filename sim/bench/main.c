@@ -548,7 +548,8 @@ static void usage(FILE *f)
         "  --survey FILE         write the identification survey of the plant (JSON) and exit\n"
         "  --survey-travel MM    survey pull past the detected engagement (default: the travel\n"
         "                        the unperturbed robot needs for the top grid tension)\n"
-        "  --survey-weight G     survey: hang G grams on one tendon per segment (0: none)\n"
+        "  --survey-weight G[,G2]  survey: hang G grams on one tendon per segment (0: none);\n"
+        "                        G,G2: each mass in turn (the fit then finds the friction)\n"
         "  --survey-weight-all   survey: the weight on every tendon in turn\n"
         "  --tension N           calibration tension for the truth table (plant default)\n"
         "  --table               print the per-tendon table at exit\n"
@@ -717,10 +718,22 @@ int main(int argc, char **argv)
         } else if (strcmp(a, "--survey-weight-all") == 0) {
             b->survey_weight_all = 1;
         } else if (strcmp(a, "--survey-weight") == 0) {
+            char *end = NULL;
             NEEDV();
-            b->survey_weight_g = strtod(v, NULL);
-            if (!(b->survey_weight_g >= 0.0 && b->survey_weight_g <= 10000.0)) {
-                fprintf(stderr, "hh_bench: --survey-weight takes 0 <= grams <= 10000\n");
+            b->survey_n_weights = 0;
+            for (const char *q = v; b->survey_n_weights < BENCH_SURVEY_MASSES; q = end + 1) {
+                double g = strtod(q, &end);
+                if (end == q || !(g >= 0.0 && g <= 10000.0) || (*end != '\0' && *end != ',')) {
+                    b->survey_n_weights = 0;
+                    break;
+                }
+                b->survey_weight_g[b->survey_n_weights++] = g;
+                if (*end == '\0') {
+                    break;
+                }
+            }
+            if (b->survey_n_weights == 0 || (end != NULL && *end != '\0')) {
+                fprintf(stderr, "hh_bench: --survey-weight takes G or G,G2: grams, 0..10000\n");
                 return BENCH_EXIT_USAGE;
             }
         } else if (strcmp(a, "--tension") == 0) {

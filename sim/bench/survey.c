@@ -11,7 +11,8 @@
  * sensor's own frame (noise, 0.15 uT quantisation and the ambient field
  * included). Optional weights: with every servo slack, a known mass hangs on
  * one tendon per segment (--survey-weight) or on every tendon in turn
- * (--survey-weight-all) and the field before and after is recorded.
+ * (--survey-weight-all) and the field before and after is recorded; with two
+ * masses (--survey-weight G,G2) each is hung in turn.
  * The plant's truth (perturbed parameters, true engagements, the true |dB|
  * per grid tension) goes into a separate "truth" object, for evaluating a
  * fit, never for making one.
@@ -148,29 +149,37 @@ static void survey_weights(const bench_t *b, FILE *f)
     double cur[PLANT_MAX_SENSORS][3];
     const plant_cfg_t *c = &b->plant.cfg;
     int first = 1;
-    /* one record per segment, on its first tendon, or with --survey-weight-all
-     * one per tendon; a segment's first tendon gets the same noise either way,
-     * so the records of one are those of the other on those tendons */
-    for (uint8_t i = 0; i < c->n_tendons && b->survey_weight_g > 0.0; i++) {
+    /* one record per segment and mass, on its first tendon, or with
+     * --survey-weight-all one per tendon and mass; a segment's first tendon
+     * gets the same noise either way, so the records of one are those of the
+     * other on those tendons; each mass is hung from slack */
+    for (uint8_t i = 0; i < c->n_tendons; i++) {
         uint8_t j = c->tendon[i].segment;
         uint8_t m;
         for (m = 0; m < i && c->tendon[m].segment != j; m++) {
         }
-        if ((m < i && !b->survey_weight_all) ||
-            start_plant(b, &p, b->seed * 57u + (m < i ? 100u + i : j), i) != 0) {
+        if (m < i && !b->survey_weight_all) {
             continue;
         }
-        read_avg(&p, SURVEY_BASE_SAMPLES, base);
-        (void)plant_set_weight(&p, i, b->survey_weight_g * 1e-3 * BENCH_G);
-        (void)plant_solve(&p);
-        read_avg(&p, SURVEY_BASE_SAMPLES, cur);
-        fprintf(f, "%s\n  {\"tendon\": %u, \"mass_g\": %.3f, \"baseline_cuT\": ", first ? "" : ",",
-                i, b->survey_weight_g);
-        put_fields(f, c->n_sensors, base);
-        fprintf(f, ", \"field_cuT\": ");
-        put_fields(f, c->n_sensors, cur);
-        fputc('}', f);
-        first = 0;
+        for (uint8_t k = 0; k < b->survey_n_weights; k++) {
+            double g = b->survey_weight_g[k];
+            if (!(g > 0.0) ||
+                start_plant(b, &p, b->seed * 57u + (m < i ? 100u + i : j) + 1000u * k, i) != 0) {
+                continue;
+            }
+            read_avg(&p, SURVEY_BASE_SAMPLES, base);
+            (void)plant_set_weight(&p, i, g * 1e-3 * BENCH_G);
+            (void)plant_solve(&p);
+            read_avg(&p, SURVEY_BASE_SAMPLES, cur);
+            fprintf(f,
+                    "%s\n  {\"tendon\": %u, \"mass_g\": %.3f, \"baseline_cuT\": ", first ? "" : ",",
+                    i, g);
+            put_fields(f, c->n_sensors, base);
+            fprintf(f, ", \"field_cuT\": ");
+            put_fields(f, c->n_sensors, cur);
+            fputc('}', f);
+            first = 0;
+        }
     }
 }
 

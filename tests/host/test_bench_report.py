@@ -160,18 +160,28 @@ def _results():
         "resources": {"flash_bytes": 80000, "ram_bytes": 4000, "flash_pct": 30.5, "ram_pct": 48.8,
                       "bus": {"sync_wire_ms": 1.54}, "sensor_rate_hz": [99.0]},
         "identify": {"weight_g": 80.0, "goals": stats.ID_GOALS, "wall_s": 12.0,
-                     "sets": [_id_set(0.05, 0.05), _id_set(0.10, 0.25)]},
+                     "sets": [_id_set(0.05, 0.05), _id_set(0.10, 0.25),
+                              _id_set(0.05, 0.05, description_friction=0.0)]},
     }
 
 
-def _id_set(perturb, stiffness):
+def _id_set(perturb, stiffness, description_friction=None):
     """An identification set of two robots with two tendons, errors made up:
     nominal +0.05 N off, survey only +0.03 N, with weights 0.0 +- 0.005 N
-    except one tendon 0.05 N off at 1.5 N."""
+    except one tendon 0.05 N off at 1.5 N. With ``description_friction``: a
+    description with that friction, fitted with one weight and with two
+    masses per segment (+0.002 N everywhere, the friction 0.5 mN off)."""
     err = {"nominal": [[[0.05] * 3] * 2] * 2, "survey": [[[0.03] * 3] * 2] * 2,
            "weights": [[[0.005, -0.005, 0.0], [-0.005, 0.005, 0.05]],
                        [[0.005, -0.005, 0.0], [-0.005, 0.005, 0.0]]],
            "tendons": [[[0.001, -0.001, 0.0]] * 2] * 2}
+    extra = {}
+    if description_friction is not None:
+        err = {"nominal": err["nominal"], "weights": err["weights"],
+               "friction": [[[0.002] * 3] * 2] * 2}
+        extra = {"description_friction_mN": description_friction,
+                 "parameter_rms_error": {"friction": {"friction": 0.5}},
+                 "refused": {"weights": 0, "friction": 0}, "refusals": []}
     import numpy as np
 
     def summary(e):
@@ -186,7 +196,7 @@ def _id_set(perturb, stiffness):
             "refused": {"survey": 1, "weights": 0, "tendons": 0},
             "refusals": ["seed 2 survey: length_1 = 42.4 mm reached the edge"],
             "fit_s": {"mean": 9.0, "max": 14.0}, "errors": err,
-            **{m: summary(e) for m, e in err.items()}}
+            **{m: summary(e) for m, e in err.items()}, **extra}
 
 
 def test_goals_fall_back_to_the_native_loop_and_say_so():
@@ -300,7 +310,8 @@ def test_identification_section_rows_and_notes():
     text = report.build_report(_results())
     sec = text[text.index(report.SECTIONS[7]):]
     rows = [l for l in sec.splitlines() if l.startswith("| 2 x ")]
-    assert len(rows) == 2 * 4 * 4  # sets x descriptions x (three tensions and all)
+    # sets x descriptions x (three tensions and all); the third set: two fits
+    assert len(rows) == 2 * 4 * 4 + 3 * 4
     assert "| 2 x ±5 % | nominal TOML (today) | 0.3 | +0.0500 | 0.0000 | 0.0500 | " \
         "missed by 0.0400 N / met / missed by 0.0100 N |" in rows
     assert "| 2 x ±10 %, stiffness ±25 % | survey + one weight per segment | 1.5 | +0.0125 | " \
@@ -313,7 +324,17 @@ def test_identification_section_rows_and_notes():
     # one) against the radius ratio: worked out by hand, r = 0.816
     assert report.radius_correlation(_id_set(0.05, 0.05)) == pytest.approx(0.816, abs=1e-3)
     assert "r = +0.82 at ±5 %" in sec and "1 of 2 survey-only fits at ±5 %" in sec
-    assert "(at m g = 0.78 N)" in sec
+    # the friction: the description's (perturbed) in the first sets; none in
+    # the third, where two masses find it
+    assert "at ±5 % the mean error with one weight per segment moves by +0.0125 N" in sec
+    assert "which the plant has within the set's spread" in sec
+    assert "fits refused: one weight per segment 0, two masses per segment 0" in sec
+    assert ("| 2 x ±5 %, description without friction | survey + two masses per segment "
+            "(friction fitted) | all three | +0.0020 | 0.0000 | 0.0020 | met / met / met |" in rows)
+    assert "has no tendon friction" in sec and "(at m g = 0.78 N) is an effective one" in sec
+    assert "the fit finds the friction (rms 0.50 mN from the plant's) and the trend is +0.0000 N" \
+        in sec
+    assert "±5 %, description without friction, two masses per segment: +0.0020" in sec
     assert "seed 2 survey: length_1" in sec
     assert "worst 0.0500 N (at 1.5 N)" in sec and "missed: SD (missed by 0.0001 N), worst (missed by 0.0100 N)" in sec
 

@@ -11,7 +11,7 @@ import pytest
 from click.testing import CliRunner
 
 from hallhome.cli import main
-from hallhome.identify import cc_single, fit
+from hallhome.identify import cc_single, fit, fit_params, measures_friction
 from hallhome.identify_data import IdentifyError, Survey, survey_from_dict, synthetic_survey
 from hallhome.identify_out import identified_path, render_identified, write_identified
 from hallhome.model import ConstantCurvatureModel
@@ -330,3 +330,63 @@ def test_a_weight_on_every_tendon_fits_each_tendons_radius_and_stretch(tmp_path,
     seg = dict(d, weights=[w for w in d["weights"] if w["tendon"] in (0, 3)])
     assert "radius" in [p.name for p in fit(nominal, survey_from_dict(seg, nominal),
                                             max_nfev=1).params]
+
+
+def test_friction_needs_two_masses_on_one_tendon(nominal):
+    pulls = survey_from_dict(synthetic_survey(nominal, seed=1), nominal)
+    d = synthetic_survey(nominal, seed=1, weights=((0, 80.0), (3, 80.0)))
+    assert not measures_friction(survey_from_dict(d, nominal))
+    d = synthetic_survey(nominal, seed=1, weights=((0, 80.0), (3, 100.0), (3, 80.0)))
+    assert not measures_friction(survey_from_dict(d, nominal))  # 1.25x: too close
+    d = synthetic_survey(nominal, seed=1, weights=((0, 40.0), (0, 120.0)))
+    assert measures_friction(survey_from_dict(d, nominal))
+    assert "friction" not in [p.name for p in fit_params(nominal, pulls)]
+
+
+@pytest.fixture(scope="module")
+def friction_case(tmp_path_factory, true_robot):
+    """A description that leaves the friction out (the TOML without its
+    friction keys) and a robot as built with 14 mN + 2 %, surveyed with two
+    masses per segment."""
+    tmp = tmp_path_factory.mktemp("friction")
+    src = tmp / "paper_2seg.toml"
+    src.write_text("\n".join(l for l in PAPER.read_text().splitlines()
+                             if not l.startswith("friction_mN")) + "\n")
+    desc = load_robot(src)
+    assert all(t.friction_N is None for t in desc.tendons)
+    true = dataclasses.replace(true_robot, tendons=tuple(
+        dataclasses.replace(t, friction_N=0.014) for t in true_robot.tendons))
+    d = synthetic_survey(true, seed=4, weights=((0, 40.0), (0, 120.0), (3, 40.0), (3, 120.0)))
+    return desc, true, survey_from_dict(d, desc)
+
+
+def test_two_masses_fit_the_friction_the_description_leaves_out(friction_case, tmp_path):
+    desc, true, sv = friction_case
+    res = fit(desc, sv)
+    assert res.refused is None
+    assert res.value("friction") == pytest.approx(14.0, abs=2.0)
+    # the targets follow: the tension reaching the tendon's end at 1.5 N
+    tip = res.robot.tip_tension(res.robot.tendons[3], 1.5)
+    assert tip == pytest.approx(true.tip_tension(true.tendons[3], 1.5), abs=0.003)
+    # one mass cannot tell: the friction stays the description's (none)
+    one = Survey(sv.pulls, tuple(w for w in sv.weights if w.mass < 0.05), sv.truth, sv.source,
+                 sv.meta)
+    assert "friction" not in [p.name for p in fit(desc, one).params]
+    # the identified TOML gets the key its original leaves out, and loads
+    out, back = write_identified(res, desc, "s.json", tmp_path / "p_id.toml")
+    assert all(t.friction_N == pytest.approx(res.value("friction") * 1e-3, abs=1e-5)
+               for t in back.tendons)
+    assert out.read_text().count("friction_mN = ") == len(desc.tendons)
+
+
+def test_friction_below_zero_is_refused_with_the_way_out(friction_case):
+    desc, true, sv = friction_case
+    # the light mass reads as heavier than it is: the friction far below zero
+    light = Survey(sv.pulls, tuple(dataclasses.replace(w, delta=w.delta * (1.3 if w.mass < 0.05
+                                                                          else 1.0))
+                                   for w in sv.weights), sv.truth, sv.source, sv.meta)
+    res = fit(desc, light)
+    assert res.refused is not None and res.refused.startswith("friction")
+    assert "--no-friction" in res.refused
+    kept = fit(desc, light, friction=False)
+    assert "friction" not in [p.name for p in kept.params]

@@ -123,16 +123,32 @@ def test_record_weights_reads_before_and_with_the_mass():
         asked.append(msg)
         board.hung = msg.startswith("hang")
 
-    recs = record_weights(board, [0, 3], 80.0, 4, 1, wait)
+    recs = record_weights(board, [0, 3], [80.0], 4, 1, wait)
     assert [r["tendon"] for r in recs] == [0, 3]
     assert recs[0]["baseline_cuT"] == [[10000.0, 50.0, -200.0]]
     assert recs[0]["field_cuT"] == [[15000.0, 50.0, -200.0]]
     assert len(asked) == 4 and "tendon 3" in asked[2] and board.reads == 16
 
 
+def test_two_masses_are_hung_in_turn_on_each_tendon():
+    board, asked = FakeBoard(), []
+
+    def wait(msg):
+        asked.append(msg)
+        board.hung = msg.startswith("hang")
+
+    recs = record_weights(board, [0, 3], [40.0, 120.0], 4, 1, wait)
+    assert [(r["tendon"], r["mass_g"]) for r in recs] == [(0, 40.0), (0, 120.0), (3, 40.0),
+                                                          (3, 120.0)]
+    assert [m.split(",")[0] for m in asked if m.startswith("hang")] == [
+        "hang 40 g on tendon 0", "hang 120 g on tendon 0", "hang 40 g on tendon 3",
+        "hang 120 g on tendon 3"]
+    assert board.reads == 32
+
+
 def test_record_weights_refuses_a_missing_sensor():
     with pytest.raises(SurveyError, match="1 sensor"):
-        record_weights(FakeBoard(), [0], 80.0, 4, 2, lambda m: None)
+        record_weights(FakeBoard(), [0], [80.0], 4, 2, lambda m: None)
 
 
 def test_samples_taken_at_take_up_speed_near_the_engagement_are_left_out():
@@ -178,3 +194,13 @@ def test_a_console_log_becomes_a_survey_with_the_bench_weights(tmp_path):
     log.write_text("\n".join(lines[:-1] + ["<fault reason=aborted code=20 dev=none index=0>"]))
     out.unlink()
     assert main([str(log), str(bench), str(out)]) == 1 and not out.exists()
+
+
+def test_a_second_mass_too_light_or_alone_is_refused_before_the_board():
+    from click.testing import CliRunner
+
+    from hallhome.cli import main
+
+    for args in (["--weight-g", "80", "--weight2-g", "100"], ["--weight2-g", "120"]):
+        r = CliRunner().invoke(main, ["identify", "survey", "--port", "/dev/null-none", *args])
+        assert r.exit_code == 2 and "--weight2-g" in r.output and "1.5 times" in r.output, r.output

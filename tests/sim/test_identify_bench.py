@@ -196,3 +196,34 @@ def test_survey_weight_on_every_tendon(tmp_path):
     assert [w for w in wa if w["tendon"] in (0, 3)] == w1
     for w in wa:
         assert max(math.dist(a, b) for a, b in zip(w["field_cuT"], w["baseline_cuT"])) > 5000
+
+
+def test_two_masses_per_segment_and_the_friction_they_give(tmp_path):
+    """--survey-weight G,G2: each mass in turn on the same tendons, the first
+    mass's records as with G alone; the fit finds the plant's friction from
+    them, starting from a description that says there is none."""
+    import dataclasses
+
+    from hallhome.identify import fit
+    from hallhome.identify_data import load_survey
+    from hallhome.robot import load_robot
+
+    _, one = survey(tmp_path, "--seed", 6, "--perturb", 0.05, "--survey-weight", 80,
+                    name="one.json")
+    _, two = survey(tmp_path, "--seed", 6, "--perturb", 0.05, "--survey-weight", "80,160",
+                    name="two.json")
+    w1, w2 = json.loads(one.read_text())["weights"], json.loads(two.read_text())["weights"]
+    assert [(w["tendon"], w["mass_g"]) for w in w2] == [(0, 80.0), (0, 160.0), (3, 80.0),
+                                                        (3, 160.0)]
+    assert [w for w in w2 if w["mass_g"] == 80.0] == w1
+    robot = load_robot(ROOT / "lookup_tables" / "robots" / "paper_2seg.toml")
+    none = dataclasses.replace(robot, tendons=tuple(
+        dataclasses.replace(t, friction_N=0.0) for t in robot.tendons))
+    sv = load_survey(two, none)
+    res = fit(none, sv)
+    assert res.refused is None
+    true = sum(t["friction_mN"] for t in sv.truth["tendons"]) / len(sv.truth["tendons"])
+    assert res.value("friction") == pytest.approx(true, abs=3.0)
+    for bad in ("80,", "80,160,240", "x", "-5", "80,,160"):
+        proc, _ = survey(tmp_path, "--survey-weight", bad, name="bad.json")
+        assert proc.returncode == 2 and "--survey-weight takes" in proc.stderr, bad
