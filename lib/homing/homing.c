@@ -30,7 +30,8 @@ void hom_config_default(hom_config_t *cfg)
     cfg->v_release = 265;
     cfg->v_final = 265;
     cfg->acc = 0;
-    cfg->slack_margin_um = 600; /* > the path shortening another tendon causes at 1 N */
+    cfg->slack_margin_um = 600; /* > the path shortening another tendon causes at 1 N;
+                                 * scaled up above 1 N (load_tendon) */
     cfg->slack_step_um = 300;
     cfg->slack_max_steps = 6;
     cfg->baseline_samples = 16;
@@ -310,7 +311,15 @@ HOM_NOINLINE static void load_tendon(hom_t *h, uint8_t i)
     t->nm_per_tick = row.nm_per_tick;
     t->sensor = row.sensor;
     t->travel_ticks = hom_um_to_ticks(pt.travel_um, row.nm_per_tick);
-    t->margin_ticks = hom_um_to_ticks(h->cfg.slack_margin_um, row.nm_per_tick);
+    /* slack_margin_um covers the path lengthening another tendon's pull
+     * causes at 1 N; it grows with the run's tension above that (linear
+     * statics): at 1.5 N a distal pull took up 0.6 mm of slack on the
+     * opposite proximal tendon and made it carry 0.29 N */
+    r = h->cfg.slack_margin_um;
+    if (h->tension_mN > 1000u) {
+        r = r * h->tension_mN / 1000u;
+    }
+    t->margin_ticks = hom_um_to_ticks(r, row.nm_per_tick);
     t->limit_ticks = hom_muldiv((int32_t)row.travel_limit_um, 1000, (int32_t)row.nm_per_tick);
     q8 = hom_straight_q8(t, pt.straight_um);
     t->to_straight = (int16_t)hom_floor_div256(q8);

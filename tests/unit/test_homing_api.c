@@ -204,6 +204,32 @@ static void test_abort_releases_on_next_step(void **state)
     assert_int_equal(g_b.out.changed, 0);
 }
 
+/* The slack a calibrated tendon is released to grows with the tension above
+ * 1 N: another tendon's pull lengthens its path in proportion. */
+static void test_slack_margin_grows_above_one_newton(void **state)
+{
+    tbl_src_t src = src_of(&g_tab);
+    hom_cmd_t c = full_cmd();
+    int32_t m[3];
+    static const uint16_t tension[3] = {800, 1000, 1500};
+    uint8_t k;
+    int n;
+    (void)state;
+    for (k = 0; k < 3u; k++) {
+        hom_init(&g_h, NULL);
+        bench_init(&g_b, 1000);
+        c.tension_mN = tension[k];
+        assert_int_equal(hom_start(&g_h, &src, &c), 0);
+        for (n = 0; n < 100 && g_h.moved == 0u; n++) {
+            assert_int_equal(bench_step(&g_b, &g_h), HOM_RUNNING);
+        }
+        m[k] = g_h.tendon[0].margin_ticks;
+    }
+    assert_int_equal(m[0], m[1]);
+    assert_true(m[1] > 90); /* 600 um at 6.1 um per tick */
+    assert_in_range(m[2], m[1] * 3 / 2 - 1, m[1] * 3 / 2 + 1);
+}
+
 static void test_preflight_names_every_missing_device(void **state)
 {
     tbl_src_t src = src_of(&g_tab);
@@ -454,6 +480,7 @@ int main(void)
         cmocka_unit_test(test_preflight_from_any_start_time),
         cmocka_unit_test(test_event_queue_overflow),
         cmocka_unit_test(test_helpers),
+        cmocka_unit_test(test_slack_margin_grows_above_one_newton),
     };
     return cmocka_run_group_tests(tests, group_setup, NULL);
 }
