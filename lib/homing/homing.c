@@ -311,13 +311,21 @@ HOM_NOINLINE static void load_tendon(hom_t *h, uint8_t i)
     t->nm_per_tick = row.nm_per_tick;
     t->sensor = row.sensor;
     t->travel_ticks = hom_um_to_ticks(pt.travel_um, row.nm_per_tick);
-    /* slack_margin_um covers the path lengthening another tendon's pull
-     * causes at 1 N; it grows with the run's tension above that (linear
-     * statics): at 1.5 N a distal pull took up 0.6 mm of slack on the
-     * opposite proximal tendon and made it carry 0.29 N */
+    /* The slack kept beyond engagement must exceed the path lengthening the
+     * other tendons' pulls cause on this one: slack_margin_um covers it at
+     * 1 N on the reference robot and grows with the tension above that
+     * (linear statics; at 1.5 N a distal pull took up 0.6 mm of slack on
+     * the opposite proximal tendon and made it carry 0.29 N). On any robot
+     * a pull at the run's tension lengthens a tendon opposite it by about
+     * the geometric take-up of that tendon's own pull (same moment, same
+     * segments): its travel at the tension, plus a quarter of the margin
+     * for a late engagement. */
     r = h->cfg.slack_margin_um;
     if (h->tension_mN > 1000u) {
         r = r * h->tension_mN / 1000u;
+    }
+    if (pt.travel_um + h->cfg.slack_margin_um / 4u > r) {
+        r = pt.travel_um + h->cfg.slack_margin_um / 4u;
     }
     t->margin_ticks = hom_um_to_ticks(r, row.nm_per_tick);
     t->limit_ticks = hom_muldiv((int32_t)row.travel_limit_um, 1000, (int32_t)row.nm_per_tick);

@@ -12,6 +12,7 @@
 #include <cmocka.h>
 
 #include "hom_fixture.h"
+#include "homing/hom_priv.h"
 
 static plant_cfg_t g_cfg;
 static tbl_wide_t g_tab;
@@ -204,18 +205,20 @@ static void test_abort_releases_on_next_step(void **state)
     assert_int_equal(g_b.out.changed, 0);
 }
 
-/* The slack a calibrated tendon is released to grows with the tension above
- * 1 N: another tendon's pull lengthens its path in proportion. */
-static void test_slack_margin_grows_above_one_newton(void **state)
+/* The slack a calibrated tendon is released to: at least the margin, scaled
+ * with the tension above 1 N, and at least the tendon's own travel at the
+ * tension plus a quarter of the margin (another tendon's pull lengthens its
+ * path by about that much). */
+static void test_slack_margin_covers_the_pull_of_other_tendons(void **state)
 {
     tbl_src_t src = src_of(&g_tab);
     hom_cmd_t c = full_cmd();
-    int32_t m[3];
-    static const uint16_t tension[3] = {800, 1000, 1500};
+    static const uint16_t tension[4] = {300, 800, 1000, 1500};
     uint8_t k;
+    uint8_t i;
     int n;
     (void)state;
-    for (k = 0; k < 3u; k++) {
+    for (k = 0; k < 4u; k++) {
         hom_init(&g_h, NULL);
         bench_init(&g_b, 1000);
         c.tension_mN = tension[k];
@@ -223,11 +226,17 @@ static void test_slack_margin_grows_above_one_newton(void **state)
         for (n = 0; n < 100 && g_h.moved == 0u; n++) {
             assert_int_equal(bench_step(&g_b, &g_h), HOM_RUNNING);
         }
-        m[k] = g_h.tendon[0].margin_ticks;
+        for (i = 0; i < g_tab.n_tendons; i++) {
+            const hom_tendon_t *t = &g_h.tendon[i];
+            uint32_t scaled = tension[k] > 1000u ? 600u * tension[k] / 1000u : 600u;
+            int32_t a = hom_um_to_ticks(scaled, t->nm_per_tick);
+            int32_t b = t->travel_ticks + hom_um_to_ticks(150u, t->nm_per_tick);
+            int32_t want = a > b ? a : b;
+            assert_in_range(t->margin_ticks, want - 1, want + 1);
+        }
     }
-    assert_int_equal(m[0], m[1]);
-    assert_true(m[1] > 90); /* 600 um at 6.1 um per tick */
-    assert_in_range(m[2], m[1] * 3 / 2 - 1, m[1] * 3 / 2 + 1);
+    /* at 1.5 N the margin is half as large again as at 1 N or more */
+    assert_true(g_h.tendon[0].margin_ticks >= hom_um_to_ticks(900u, g_h.tendon[0].nm_per_tick));
 }
 
 static void test_preflight_names_every_missing_device(void **state)
@@ -480,7 +489,7 @@ int main(void)
         cmocka_unit_test(test_preflight_from_any_start_time),
         cmocka_unit_test(test_event_queue_overflow),
         cmocka_unit_test(test_helpers),
-        cmocka_unit_test(test_slack_margin_grows_above_one_newton),
+        cmocka_unit_test(test_slack_margin_covers_the_pull_of_other_tendons),
     };
     return cmocka_run_group_tests(tests, group_setup, NULL);
 }
