@@ -486,7 +486,7 @@ def identify_notes(idf: Dict) -> List[str]:
         if "weights" not in st:
             continue
         trend = ", ".join(f"{st['weights'][t]['mean']:+.4f} N at {t} N" for t in ("0.3", "0.8", "1.5"))
-        line = (f"{id_set_label(st)}: the mean error with one weight per segment goes with the "
+        line = (f"{id_set_label(st)}: the mean error with one weight per segment by "
                 f"tension ({trend})")
         if "tendons" in st:
             line += (f", and with one per tendon ({st['tendons']['0.3']['mean']:+.4f} N at 0.3 N, "
