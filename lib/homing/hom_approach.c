@@ -117,12 +117,6 @@ HOM_NOINLINE static void begin_moderate(hom_t *h)
     }
 }
 
-HOM_NOINLINE void hom_begin_fine_move(hom_t *h)
-{
-    h->state = ST_FINE_MOVE;
-    h->t_phase = h->now_ms;
-}
-
 /* The field b has come within permille of the target. */
 HOM_NOINLINE static int near_target(const hom_tendon_t *t, uint32_t b, uint16_t permille)
 {
@@ -140,7 +134,7 @@ HOM_NOINLINE static void stop_short(hom_t *h, int32_t p)
         (void)hom_pull_to(h, g, h->cfg.v_moderate);
     }
     if (h->state == state) {
-        hom_begin_fine_move(h);
+        hom_enter(h, ST_FINE_MOVE);
     }
 }
 
@@ -189,7 +183,7 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
             stop_short(h, p); /* the stored home is further than the field says */
         } else if (hom_reached(h, h->cur)) {
             if (h->quick_leg && t->engaged) {
-                hom_begin_fine_move(h);
+                hom_enter(h, ST_FINE_MOVE);
             } else if (h->quick_leg) {
                 /* no engagement where the stored home put it: search as usual */
                 h->quick_leg = 0;
@@ -205,7 +199,7 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
         if (fresh && near_target(t, m, t->retries != 0u ? 1000u : h->cfg.near_permille)) {
             stop_short(h, p);
         } else if (hom_reached(h, h->cur)) {
-            hom_begin_fine_move(h);
+            hom_enter(h, ST_FINE_MOVE);
         }
         break;
     case ST_FINE_MOVE: {

@@ -70,8 +70,7 @@ HOM_NOINLINE void hom_begin_final(hom_t *h)
             hom_set_goal(h, i, g, (uint16_t)(v == 0u ? 1u : v));
         }
     }
-    h->state = ST_FINAL;
-    h->t_phase = h->now_ms;
+    hom_enter(h, ST_FINAL);
 }
 
 /* Samples to average at a point near the target: enough that the noise of
@@ -188,9 +187,8 @@ HOM_NOINLINE static void finish_tendon(hom_t *h, int32_t p, int32_t fallback)
     t->home_frac = (int8_t)h->home_res;
     h->home_dB = hom_delta_of(h, t->sensor, h->sensor[t->sensor].last);
     hom_set_goal(h, h->cur, hom_slack_goal(t), h->cfg.v_release);
-    h->state = ST_TENDON_RELEASE;
+    hom_enter(h, ST_TENDON_RELEASE);
     h->settled = 0;
-    h->t_phase = h->now_ms;
 }
 
 /* Remaining travel from a field b to the target along the table's own
@@ -362,6 +360,6 @@ void hom_fine_point(hom_t *h)
     h->b_prev = b;
     h->have_prev = 1;
     if (hom_pull_to(h, p + hom_pull(t, (int32_t)step), h->cfg.v_fine) == 0) {
-        hom_begin_fine_move(h);
+        hom_enter(h, ST_FINE_MOVE);
     }
 }

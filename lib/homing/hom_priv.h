@@ -76,6 +76,8 @@ int32_t hom_further_back(const hom_tendon_t *t, int32_t g, int32_t x);
 int32_t hom_um_ticks_cur(const hom_t *h, uint8_t i, uint32_t um);
 uint8_t hom_next_tendon(const hom_t *h, uint8_t from);
 int hom_move_done(hom_t *h, int arrived, uint8_t dev, uint8_t index);
+/* Enters state (ST_*) now: the phase's waits and timeouts count from this step. */
+void hom_enter(hom_t *h, uint8_t state);
 
 /* ---- hom_fault.c: faults and health checks ---- */
 void hom_fail(hom_t *h, hom_fault_t f, uint8_t dev, uint8_t index, int32_t detail);
@@ -93,7 +95,6 @@ void hom_do_slack_avg(hom_t *h);
 /* ---- hom_approach.c: take-up and approach ---- */
 void hom_begin_tendon(hom_t *h, uint8_t i);
 int hom_pull_to(hom_t *h, int32_t g, uint16_t v);
-void hom_begin_fine_move(hom_t *h);
 void hom_do_tendon(hom_t *h, const hom_in_t *in);
 
 /* ---- hom_fine.c: fine approach, fit, final move ---- */

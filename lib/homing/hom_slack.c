@@ -96,8 +96,7 @@ void hom_do_preflight(hom_t *h, const hom_in_t *in)
             hom_set_goal(h, i, hom_further_back(t, h->present[i], g), h->cfg.v_release);
         }
         /* a dry run moves nothing: straight to the baseline average */
-        h->state = h->mode == HOM_MODE_DRY ? ST_SLACK_AVG : ST_RELEASE_ALL;
-        h->t_phase = h->now_ms;
+        hom_enter(h, h->mode == HOM_MODE_DRY ? ST_SLACK_AVG : ST_RELEASE_ALL);
         h->steps = 0;
         return;
     }
@@ -281,6 +280,5 @@ HOM_NOINLINE void hom_do_slack_avg(hom_t *h)
                     hom_pull(t, h->steps * hom_um_ticks_cur(h, i, h->cfg.slack_step_um));
         hom_set_goal(h, i, hom_further_back(t, h->present[i], g), h->cfg.v_release);
     }
-    h->state = ST_RELEASE_ALL;
-    h->t_phase = h->now_ms;
+    hom_enter(h, ST_RELEASE_ALL);
 }

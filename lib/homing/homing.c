@@ -454,6 +454,12 @@ HOM_NOINLINE uint32_t hom_since(const hom_t *h, uint32_t t)
     return (uint32_t)(h->now_ms - t);
 }
 
+HOM_NOINLINE void hom_enter(hom_t *h, uint8_t state)
+{
+    h->state = state;
+    h->t_phase = h->now_ms;
+}
+
 HOM_NOINLINE void hom_set_goal(hom_t *h, uint8_t i, int32_t goal, uint16_t vel)
 {
     h->moved_ms[i] = h->now_ms;
@@ -611,9 +617,8 @@ int hom_step(hom_t *h, const hom_in_t *in, hom_out_t *out)
             switch (h->state) {
             case ST_RELEASE_ALL:
                 if (hom_move_done(h, all_reached(h), HOM_DEV_NONE, 0)) {
-                    h->state = ST_SLACK_AVG;
+                    hom_enter(h, ST_SLACK_AVG);
                     h->settled = 0;
-                    h->t_phase = h->now_ms;
                 }
                 break;
             case ST_SLACK_AVG:
