@@ -57,7 +57,11 @@ FW_OBJS  := $(patsubst %.c,$(AVR_DIR)/%.o,$(FW_SRCS)) $(TABLE_OBJ)
 AVR_SIZE_OPT := -fno-ipa-sra -fno-ipa-cp-clone -flto-partition=none \
 	-fno-move-loop-invariants -fno-tree-pre -fno-split-wide-types -maccumulate-args \
 	-fno-tree-forwprop -fno-tree-dominator-opts -fno-tree-reassoc
-AVR_CFLAGS := -mmcu=$(MCU) -DF_CPU=$(F_CPU) -std=c99 -Os -g -Wall -Wextra -Werror -pedantic \
+# The servo bus keeps 4 data bytes per reply: the firmware reads at most a
+# Present Position (4 bytes; a ping returns 3), the library's default is 8
+# (48 bytes of RAM for 12 servos).
+AVR_LIB_CFG := -DDXL_REPLY_DATA=4u
+AVR_CFLAGS := $(AVR_LIB_CFG) -mmcu=$(MCU) -DF_CPU=$(F_CPU) -std=c99 -Os -g -Wall -Wextra -Werror -pedantic \
 	-Wshadow -Wstrict-prototypes -Wmissing-prototypes -ffunction-sections -fdata-sections \
 	-mcall-prologues -mstrict-X -fno-inline-small-functions $(AVR_SIZE_OPT) -flto -mrelax -Ilib -Ifirmware -I$(FW_GEN_DIR) -DTBL_FLASH=__attribute__\(\(__progmem__\)\) \
 	-DHH_ROBOT=$(ROBOT) -DAPP_ROOM_MARK_ADDR=0x4A -MMD -MP
