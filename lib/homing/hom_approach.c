@@ -169,7 +169,7 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
             t->engage = h->pos_at_sample; /* the last position seen slack */
             t->eng_lo = t->engage;
             t->eng_hi = t->engage;
-            h->win_changed |= (uint16_t)(1u << h->cur);
+            h->win_changed |= hom_bit(h->cur);
             hom_push_event(h, HOM_EV_ENGAGED, 0, h->cur, t->engage, (int32_t)b);
             if (!h->quick_leg) {
                 begin_moderate(h);

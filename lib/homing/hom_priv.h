@@ -76,6 +76,8 @@ int32_t hom_further_back(const hom_tendon_t *t, int32_t g, int32_t x);
 int32_t hom_um_ticks_cur(const hom_t *h, uint8_t i, uint32_t um);
 uint8_t hom_next_tendon(const hom_t *h, uint8_t from);
 int hom_move_done(hom_t *h, int arrived, uint8_t dev, uint8_t index);
+uint16_t hom_bit(uint8_t i);
+uint8_t hom_has(uint16_t m, uint8_t i);
 /* Enters state (ST_*) now: the phase's waits and timeouts count from this step. */
 void hom_enter(hom_t *h, uint8_t state);
 

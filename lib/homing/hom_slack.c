@@ -77,7 +77,7 @@ void hom_do_preflight(hom_t *h, const hom_in_t *in)
             if (h->mode == HOM_MODE_DRY) {
                 continue;
             }
-            if (!((h->win_known >> i) & 1u)) {
+            if (!hom_has(h->win_known, i)) {
                 /* nothing known: the engagement may lie up to the release
                  * that frees a tendon left at the top of the grid behind the
                  * present position, or (slack) ahead of it */
@@ -89,8 +89,8 @@ void hom_do_preflight(hom_t *h, const hom_in_t *in)
                     t->eng_hi = t->est_home - hom_pull(t, t->travel_ticks);
                     t->eng_lo = t->eng_hi;
                 }
-                h->win_known |= (uint16_t)(1u << i);
-                h->win_changed |= (uint16_t)(1u << i);
+                h->win_known |= hom_bit(i);
+                h->win_changed |= hom_bit(i);
             }
             g = release_base(h, i);
             hom_set_goal(h, i, hom_further_back(t, h->present[i], g), h->cfg.v_release);
@@ -175,7 +175,7 @@ static void slack_done(hom_t *h)
             int32_t lo = h->present[i] + hom_pull(t, t->margin_ticks);
             if (hom_further_back(t, lo, t->eng_lo) == lo) {
                 t->eng_lo = lo;
-                h->win_changed |= (uint16_t)(1u << i);
+                h->win_changed |= hom_bit(i);
             }
         }
     }

@@ -149,7 +149,7 @@ uint8_t hom_event_count(const hom_t *h)
 
 int hom_window(const hom_t *h, uint8_t i, int32_t *lo, int32_t *hi)
 {
-    if (h == NULL || lo == NULL || hi == NULL || i >= h->n_tendons || !((h->win_known >> i) & 1u)) {
+    if (h == NULL || lo == NULL || hi == NULL || i >= h->n_tendons || !hom_has(h->win_known, i)) {
         return HOM_E_ARG;
     }
     *lo = h->tendon[i].eng_lo;
@@ -379,7 +379,7 @@ int hom_start(hom_t *h, const tbl_src_t *table, const hom_cmd_t *cmd)
         return HOM_E_ARG;
     }
     if (cmd->mode == HOM_MODE_QUICK &&
-        (cmd->stored_mask & ((1u << info.n_tendons) - 1u)) != ((1u << info.n_tendons) - 1u)) {
+        (cmd->stored_mask & (hom_bit(info.n_tendons) - 1u)) != (hom_bit(info.n_tendons) - 1u)) {
         return HOM_E_HOMES;
     }
     tension = cmd->tension_mN != 0u ? cmd->tension_mN : info.default_mN;
@@ -392,17 +392,17 @@ int hom_start(hom_t *h, const tbl_src_t *table, const hom_cmd_t *cmd)
     memset(&h->table, 0, sizeof *h - offsetof(hom_t, table));
     for (i = 0; i < info.n_tendons; i++) {
         hom_tendon_t *t = &h->tendon[i];
-        if ((cmd->stored_mask >> i) & 1u) {
+        if (hom_has(cmd->stored_mask, i)) {
             t->est_home = cmd->stored_home[i]; /* unwrapped once positions are known */
             t->have_home = 2;                  /* 2: stored, not yet measured */
         }
-        if ((cmd->win_mask >> i) & 1u) {
+        if (hom_has(cmd->win_mask, i)) {
             t->eng_lo = cmd->win_lo[i];
             t->eng_hi = cmd->win_hi[i];
         }
     }
     h->release_um = h->cfg.initial_release_um;
-    h->win_known = (uint16_t)(cmd->win_mask & ((1u << info.n_tendons) - 1u));
+    h->win_known = (uint16_t)(cmd->win_mask & (hom_bit(info.n_tendons) - 1u));
     h->table = *table;
     /* averages beyond the accumulator's reach would never complete */
     if (h->cfg.baseline_samples == 0u || h->cfg.baseline_samples > HOM_MAX_AVG) {
@@ -454,6 +454,18 @@ HOM_NOINLINE uint32_t hom_since(const hom_t *h, uint32_t t)
     return (uint32_t)(h->now_ms - t);
 }
 
+/* 1 << i and bit i of m: one routine each (a variable shift is a loop on
+ * the AVR) */
+HOM_NOINLINE uint16_t hom_bit(uint8_t i)
+{
+    return (uint16_t)(1u << i);
+}
+
+HOM_NOINLINE uint8_t hom_has(uint16_t m, uint8_t i)
+{
+    return (uint8_t)((m >> i) & 1u);
+}
+
 HOM_NOINLINE void hom_enter(hom_t *h, uint8_t state)
 {
     h->state = state;
@@ -467,7 +479,7 @@ HOM_NOINLINE void hom_set_goal(hom_t *h, uint8_t i, int32_t goal, uint16_t vel)
     h->out.vel[i] = vel;
     h->out.acc[i] = h->cfg.acc;
     h->out.torque[i] = 1;
-    h->out.changed |= (uint16_t)(1u << i);
+    h->out.changed |= hom_bit(i);
     h->moved = 1;
 }
 
