@@ -204,12 +204,12 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
         break;
     case ST_FINE_MOVE: {
         int32_t err = p - h->out.goal[h->cur];
-        if (hom_since(h, h->t_phase) >= h->cfg.settle_ms &&
+        if (hom_phase_ms(h) >= h->cfg.settle_ms &&
             hom_since(h, h->moved_ms[h->cur]) >= h->cfg.settle_ms / 2u &&
             ((err >= -1 && err <= 1) || hom_reached(h, h->cur))) {
             hom_start_avg(h);
             h->state = ST_FINE_AVG;
-        } else if (hom_since(h, h->t_phase) > h->cfg.move_timeout_ms) {
+        } else if (hom_phase_ms(h) > h->cfg.move_timeout_ms) {
             hom_fail(h, HOM_F_SERVO_STALL, HOM_DEV_SERVO, h->cur, err);
         }
         break;

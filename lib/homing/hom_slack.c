@@ -100,7 +100,7 @@ void hom_do_preflight(hom_t *h, const hom_in_t *in)
         h->steps = 0;
         return;
     }
-    if (hom_since(h, h->t_phase) < h->cfg.preflight_ms) {
+    if (hom_phase_ms(h) < h->cfg.preflight_ms) {
         return;
     }
     for (i = 0; i < h->n_sensors; i++) {
@@ -140,7 +140,7 @@ HOM_NOINLINE void hom_release_check(hom_t *h)
         return;
     }
     if (h->settled == 1u) {
-        if (hom_since(h, h->t_phase) >= h->cfg.settle_ms) {
+        if (hom_phase_ms(h) >= h->cfg.settle_ms) {
             hom_start_avg(h);
             h->settled = 2;
         }
@@ -227,7 +227,7 @@ HOM_NOINLINE void hom_do_slack_avg(hom_t *h)
         return;
     }
     if (!h->settled) {
-        if (hom_since(h, h->t_phase) < h->cfg.settle_ms) {
+        if (hom_phase_ms(h) < h->cfg.settle_ms) {
             return;
         }
         hom_start_avg(h);

@@ -466,6 +466,11 @@ HOM_NOINLINE uint8_t hom_has(uint16_t m, uint8_t i)
     return (uint8_t)((m >> i) & 1u);
 }
 
+HOM_NOINLINE uint32_t hom_phase_ms(const hom_t *h)
+{
+    return hom_since(h, h->t_phase);
+}
+
 HOM_NOINLINE void hom_enter(hom_t *h, uint8_t state)
 {
     h->state = state;
@@ -596,7 +601,7 @@ uint8_t hom_next_tendon(const hom_t *h, uint8_t from)
  * than move_timeout_ms ends the run (HOM_F_SERVO_STALL). */
 HOM_NOINLINE int hom_move_done(hom_t *h, int arrived, uint8_t dev, uint8_t index)
 {
-    if (!arrived && hom_since(h, h->t_phase) > h->cfg.move_timeout_ms) {
+    if (!arrived && hom_phase_ms(h) > h->cfg.move_timeout_ms) {
         hom_fail(h, HOM_F_SERVO_STALL, dev, index, 0);
     }
     return arrived;
