@@ -159,7 +159,7 @@ APP_NOINLINE static void boot_ready(app_t *a)
         con_report_flash(&a->cmd.con, app_w_homes,
                          a->rec.homes_rc == STORE_E_OTHER_TABLE ? app_w_other_table : app_w_none);
     }
-    app_rep_int(a, app_w_rehome, a->boot.offer_quick);
+    app_rep_u8(a, app_w_rehome, a->boot.offer_quick);
     app_rep_end(a);
     a->state = APP_ST_IDLE;
     a->boot.step = 3;
@@ -188,8 +188,9 @@ void app_boot_again(app_t *a)
 APP_NOINLINE void app_boot_poll(app_t *a)
 {
     uint32_t t = app_now_ms(a);
+    uint32_t el = t - a->boot.t_start; /* t_start changes only on the way out */
     if (a->boot.step == 0u) {
-        if (a->bus.reboot_id != 0u && t - a->boot.t_start < APP_SERVO_REBOOT_MS) {
+        if (a->bus.reboot_id != 0u && el < APP_SERVO_REBOOT_MS) {
             return;
         }
         if (dxl_busy(&a->bus.dxl)) {
@@ -207,7 +208,7 @@ APP_NOINLINE void app_boot_poll(app_t *a)
             }
             a->run.reset_release = 4; /* nothing known to release early */
         }
-        if (a->run.reset_release == 3u && t - a->boot.t_start < APP_EARLY_RELEASE_MS) {
+        if (a->run.reset_release == 3u && el < APP_EARLY_RELEASE_MS) {
             return;
         }
         boot_start(a);
@@ -233,13 +234,13 @@ APP_NOINLINE void app_boot_poll(app_t *a)
                 return;
             }
         }
-        if (rc > 0 && t - a->boot.t_start < APP_PREFLIGHT_MS) {
+        if (rc > 0 && el < APP_PREFLIGHT_MS) {
             return;
         }
         if (rc > 0) {
             dxl_abort(&a->bus.dxl);
         }
-        if (!icm_set_settled(&a->sense.set) && t - a->boot.t_start < APP_PREFLIGHT_MS) {
+        if (!icm_set_settled(&a->sense.set) && el < APP_PREFLIGHT_MS) {
             return;
         }
         boot_finish(a);
@@ -248,7 +249,7 @@ APP_NOINLINE void app_boot_poll(app_t *a)
     /* step 2: every found servo's position and Bus Watchdog, then ready */
     if (((a->bus.seen | a->bus.absent) != app_all_mask(a) || a->bus.wdog_step != 0u ||
          a->bus.txn == APP_TX_WDOG) &&
-        t - a->boot.t_start < APP_PREFLIGHT_MS) {
+        el < APP_PREFLIGHT_MS) {
         return;
     }
     boot_ready(a);

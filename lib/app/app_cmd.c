@@ -92,7 +92,7 @@ static int8_t h_status(con_t *con, const con_args_t *args, void *ctx)
     } else {
         con_report_flash(&a->cmd.con, app_w_table, app_w_none);
     }
-    app_rep_int(a, app_w_sensors, icm_set_ready_count(&a->sense.set));
+    app_rep_u8(a, app_w_sensors, icm_set_ready_count(&a->sense.set));
     APP_REP_FIELDS(a, a, status_fields);
     app_rep_word(a, app_w_fault, app_w_fault_words, a->run.last_fault);
     APP_REP_FIELDS(a, a, status_learn_fields);
@@ -107,11 +107,11 @@ static int8_t h_status(con_t *con, const con_args_t *args, void *ctx)
             continue;
         }
         app_rep_begin(a, app_w_home);
-        app_rep_int(a, app_w_tendon, i);
+        app_rep_u8(a, app_w_tendon, i);
         app_rep_int(a, app_w_home, a->rec.homes.t[i].home_ticks);
         app_rep_int(a, app_w_straight, a->rec.homes.t[i].home_ticks + a->rec.homes.to_straight[i]);
         app_rep_int(a, app_w_rest, a->rec.homes.t[i].rest_ticks);
-        app_rep_int(a, app_w_usable, app_has(a->rec.home_now, i));
+        app_rep_u8(a, app_w_usable, app_has(a->rec.home_now, i));
         if (app_has(a->rec.home_now, i)) {
             app_rep_int(a, app_w_now, app_rec_home(a, i));
         }
@@ -154,7 +154,7 @@ static int8_t h_sensors(con_t *con, const con_args_t *args, void *ctx)
         icm_diag_t d;
         (void)icm_set_diag(&a->sense.set, k, &d);
         app_rep_begin(a, app_w_sensor);
-        app_rep_int(a, app_w_index, k);
+        app_rep_u8(a, app_w_index, k);
         APP_REP_FIELDS(a, &d, sensor_fields);
         app_rep_end(a);
     }
@@ -376,7 +376,7 @@ static int8_t h_table(con_t *con, const con_args_t *args, void *ctx)
         (void)tbl_tendon(&a->tab, i, &row);
         (void)tbl_tendon(&a->htab, i, &eff);
         app_rep_begin(a, app_w_tendon);
-        app_rep_int(a, app_w_tendon, i);
+        app_rep_u8(a, app_w_tendon, i);
         APP_REP_FIELDS(a, &row, tendon_fields);
         pos = 0;
         buf[0] = '\0';
@@ -413,7 +413,7 @@ static int8_t h_history(con_t *con, const con_args_t *args, void *ctx)
             break;
         }
         app_rep_begin(a, app_w_hist);
-        app_rep_int(a, app_w_age, age);
+        app_rep_u8(a, app_w_age, age);
         APP_REP_FIELDS(a, &e, hist_fields);
         pos = 0;
         buf[0] = '\0';
