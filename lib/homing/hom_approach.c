@@ -52,7 +52,7 @@ HOM_NOINLINE void hom_begin_tendon(hom_t *h, uint8_t i)
     h->pos_at_sample = h->present[i];
     t->engaged = 0;
     t->retries = 0;
-    hom_push_event(h, HOM_EV_PHASE, HOM_PH_TENDON, i, 0, 0);
+    hom_phase_event(h, HOM_PH_TENDON, i);
     h->quick_leg = 0;
     if (h->mode == HOM_MODE_QUICK) {
         /* straight to just short of the stored home: a tenth of the expected

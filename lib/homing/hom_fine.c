@@ -54,7 +54,7 @@ HOM_NOINLINE void hom_begin_final(hom_t *h)
     uint8_t i;
     int32_t dmax = 1;
     int32_t g;
-    hom_push_event(h, HOM_EV_PHASE, HOM_PH_FINAL, 0, 0, 0);
+    hom_phase_event(h, HOM_PH_FINAL, 0);
     for (i = 0; i < h->n_tendons; i++) {
         int32_t d = final_dist(h, i, &g);
         if (d > dmax) {

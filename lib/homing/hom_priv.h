@@ -52,6 +52,9 @@ enum {
 
 /* ---- homing.c: API and shared helpers ---- */
 void hom_push_event(hom_t *h, uint8_t type, uint8_t code, uint8_t index, int32_t a, int32_t b);
+/* HOM_EV_PHASE code (HOM_PH_*) for index */
+void hom_phase_event(hom_t *h, uint8_t code, uint8_t index);
+void hom_done(hom_t *h);
 int32_t hom_muldiv(int32_t a, int32_t b, int32_t c);
 int32_t hom_um_to_ticks(uint32_t um, uint32_t nm_per_tick);
 int32_t hom_unwrap_home(int32_t stored, int32_t present);

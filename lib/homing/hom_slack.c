@@ -31,7 +31,7 @@ void hom_do_preflight(hom_t *h, const hom_in_t *in)
         h->t_phase = h->now_ms;
         h->t_start = h->now_ms;
         hom_push_event(h, HOM_EV_START, h->mode, 0, h->tension_mN, 0);
-        hom_push_event(h, HOM_EV_PHASE, HOM_PH_PREFLIGHT, 0, 0, 0);
+        hom_phase_event(h, HOM_PH_PREFLIGHT, 0);
         memset(h->seen, 0, sizeof h->seen);
         for (i = 0; i < h->n_tendons; i++) {
             h->servo_ok_ms[i] = 0xFFFFFFFFu; /* not yet answered */
@@ -69,7 +69,7 @@ void hom_do_preflight(hom_t *h, const hom_in_t *in)
         for (i = 0; i < h->n_sensors; i++) {
             h->sensor[i].last_ms = h->now_ms;
         }
-        hom_push_event(h, HOM_EV_PHASE, HOM_PH_RELEASE, 0, 0, 0);
+        hom_phase_event(h, HOM_PH_RELEASE, 0);
         for (i = 0; i < h->n_tendons; i++) {
             hom_tendon_t *t = &h->tendon[i];
             int32_t g;
@@ -196,15 +196,14 @@ static void slack_done(hom_t *h)
             return;
         }
     }
-    hom_push_event(h, HOM_EV_PHASE, HOM_PH_BASELINE, 0, 0, 0);
+    hom_phase_event(h, HOM_PH_BASELINE, 0);
     if (h->mode == HOM_MODE_DRY) {
         for (i = 0; i < h->n_tendons; i++) {
             hom_push_event(
                 h, HOM_EV_TARGET, 0, i, (int32_t)h->tendon[i].target_cuT,
                 hom_muldiv(h->tendon[i].travel_ticks, (int32_t)h->tendon[i].nm_per_tick, 1000));
         }
-        hom_push_event(h, HOM_EV_DONE, 0, 0, (int32_t)hom_since(h, h->t_start), 0);
-        h->state = ST_DONE;
+        hom_done(h);
         return;
     }
     h->settled = 3; /* the next step begins the first tendon */

@@ -131,6 +131,18 @@ HOM_NOINLINE void hom_push_event(hom_t *h, uint8_t type, uint8_t code, uint8_t i
     h->ev_count++;
 }
 
+HOM_NOINLINE void hom_phase_event(hom_t *h, uint8_t code, uint8_t index)
+{
+    hom_push_event(h, HOM_EV_PHASE, code, index, 0, 0);
+}
+
+/* The run is over: HOM_EV_DONE with its time. */
+HOM_NOINLINE void hom_done(hom_t *h)
+{
+    hom_push_event(h, HOM_EV_DONE, 0, 0, (int32_t)hom_since(h, h->t_start), 0);
+    h->state = ST_DONE;
+}
+
 int hom_event_pop(hom_t *h, hom_event_t *ev)
 {
     if (h == NULL || ev == NULL || h->ev_count == 0u) {
@@ -646,8 +658,7 @@ int hom_step(hom_t *h, const hom_in_t *in, hom_out_t *out)
                 break;
             case ST_FINAL:
                 if (hom_move_done(h, all_reached(h), HOM_DEV_NONE, 0)) {
-                    hom_push_event(h, HOM_EV_DONE, 0, 0, (int32_t)hom_since(h, h->t_start), 0);
-                    h->state = ST_DONE;
+                    hom_done(h);
                 }
                 break;
             default:
