@@ -57,10 +57,12 @@ FW_OBJS  := $(patsubst %.c,$(AVR_DIR)/%.o,$(FW_SRCS)) $(TABLE_OBJ)
 AVR_SIZE_OPT := -fno-ipa-sra -fno-ipa-cp-clone -flto-partition=none \
 	-fno-move-loop-invariants -fno-tree-pre -fno-split-wide-types -maccumulate-args \
 	-fno-tree-forwprop -fno-tree-dominator-opts -fno-tree-reassoc
-# The servo bus keeps 4 data bytes per reply: the firmware reads at most a
-# Present Position (4 bytes; a ping returns 3), the library's default is 8
-# (48 bytes of RAM for 12 servos).
-AVR_LIB_CFG := -DDXL_REPLY_DATA=4u
+# The libraries sized to what the firmware uses (each knob is described where
+# it is defined): 4 data bytes per servo reply, the most the firmware reads (a
+# Present Position; a ping returns 3), not the default 8 (48 bytes of RAM for
+# 12 servos); homing events without their step time, which no report prints
+# (48 bytes).
+AVR_LIB_CFG := -DDXL_REPLY_DATA=4u -DHOM_EV_TIME=0
 AVR_CFLAGS := $(AVR_LIB_CFG) -mmcu=$(MCU) -DF_CPU=$(F_CPU) -std=c99 -Os -g -Wall -Wextra -Werror -pedantic \
 	-Wshadow -Wstrict-prototypes -Wmissing-prototypes -ffunction-sections -fdata-sections \
 	-mcall-prologues -mstrict-X -fno-inline-small-functions $(AVR_SIZE_OPT) -flto -mrelax -Ilib -Ifirmware -I$(FW_GEN_DIR) -DTBL_FLASH=__attribute__\(\(__progmem__\)\) \

@@ -122,7 +122,9 @@ HOM_NOINLINE void hom_push_event(hom_t *h, uint8_t type, uint8_t code, uint8_t i
         return;
     }
     e = &h->ev[(h->ev_head + h->ev_count) % HOM_EV_CAP];
+#if HOM_EV_TIME
     e->t_ms = h->now_ms;
+#endif
     e->type = type;
     e->code = code;
     e->index = index;
