@@ -569,12 +569,16 @@ int8_t icm_read_fetch(icm_dev_t *dev, uint32_t now_us, icm_sample_t *out)
         out->flags |= ICM_SAMPLE_NEW;
         if (blk[0] & AK_REG_ST1_DOR) {
             out->flags |= ICM_SAMPLE_OVERRUN;
+#if ICM_STATS
             dev->overrun_count++;
+#endif
         }
         if (blk[8] & AK_REG_ST2_HOFL) {
             dev->overflow_count++;
         }
+#if ICM_STATS
         dev->new_count++;
+#endif
         dev->last_new_us = now_us;
         dev->have = 1;
         memcpy(dev->last, blk, sizeof(blk));
