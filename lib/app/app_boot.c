@@ -74,13 +74,7 @@ int8_t app_init(app_t *app, const app_io_t *io)
     app->boot.t_start = app_now_ms(app);
     app_panel_set(app, APP_LED_BOOT);
     app_rep_begin(app, app_w_boot);
-    con_report_flash(&app->cmd.con, app_w_name, app_w_hallhome);
-    if (io->version_f != NULL) {
-        con_report_flash(&app->cmd.con, app_w_version, io->version_f);
-    }
-    if (io->board_f != NULL) {
-        con_report_flash(&app->cmd.con, app_w_board, io->board_f);
-    }
+    app_rep_ident(app);
     if (io->reset_f != NULL) {
         con_report_flash(&app->cmd.con, app_w_reset, io->reset_f);
     }
@@ -144,12 +138,7 @@ APP_NOINLINE static void boot_ready(app_t *a)
     a->boot.offer_quick = (uint8_t)(a->table_ok && a->rec.home_now != 0u &&
                                     a->rec.home_now == app_all_mask(a) && a->bus.absent == 0u);
     app_rep_begin(a, app_w_ready);
-    if (a->table_ok) {
-        con_report_str(&a->cmd.con, app_w_table, a->info.name);
-        app_rep_fields(a, &a->info, app_info_fields, 1); /* table_id */
-    } else {
-        con_report_flash(&a->cmd.con, app_w_table, app_w_none);
-    }
+    app_rep_table(a, 1); /* table_id */
     APP_REP_FIELDS(a, a, ready_fields);
     if (a->rec.homes_rc == 0) {
         con_report_flash(&a->cmd.con, app_w_homes,

@@ -46,19 +46,8 @@ static int8_t h_version(con_t *con, const con_args_t *args, void *ctx)
     (void)con;
     (void)args;
     app_rep_begin(a, app_w_version);
-    con_report_flash(&a->cmd.con, app_w_name, app_w_hallhome);
-    if (a->io->version_f != NULL) {
-        con_report_flash(&a->cmd.con, app_w_version, a->io->version_f);
-    }
-    if (a->io->board_f != NULL) {
-        con_report_flash(&a->cmd.con, app_w_board, a->io->board_f);
-    }
-    if (a->table_ok) {
-        con_report_str(&a->cmd.con, app_w_table, a->info.name);
-        APP_REP_FIELDS(a, &a->info, app_info_fields);
-    } else {
-        con_report_flash(&a->cmd.con, app_w_table, app_w_none);
-    }
+    app_rep_ident(a);
+    app_rep_table(a, 3); /* table_id, tendons, sensors */
     app_rep_end(a);
     return 0;
 }
@@ -87,11 +76,7 @@ static int8_t h_status(con_t *con, const con_args_t *args, void *ctx)
     (void)args;
     app_rep_begin(a, app_w_status);
     app_rep_word(a, app_w_state, app_w_state_words, a->state);
-    if (a->table_ok) {
-        con_report_str(&a->cmd.con, app_w_table, a->info.name);
-    } else {
-        con_report_flash(&a->cmd.con, app_w_table, app_w_none);
-    }
+    app_rep_table(a, 0);
     app_rep_u8(a, app_w_sensors, icm_set_ready_count(&a->sense.set));
     APP_REP_FIELDS(a, a, status_fields);
     app_rep_word(a, app_w_fault, app_w_fault_words, a->run.last_fault);

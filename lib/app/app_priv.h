@@ -236,6 +236,10 @@ void app_rep_fields(app_t *a, const void *base, const app_field_t *f, uint8_t n)
     app_rep_fields((a), (base), (f), (uint8_t)(sizeof(f) / sizeof((f)[0])))
 /* table_id (hex), tendons, sensors of a tbl_info_t; [0] alone: table_id */
 extern const app_field_t app_info_fields[3];
+/* name=hallhome version=... board=... of <boot> and <version> */
+void app_rep_ident(app_t *a);
+/* table=<name> and the first n of app_info_fields, or table=none without a table */
+void app_rep_table(app_t *a, uint8_t n);
 /* A fault the app itself detects (moves, learn, EEPROM), in the same shape as
  * the homing's: reason word, console error code, device, index. */
 void app_rep_fault(app_t *a, const char *reason_f, int8_t err, uint8_t dev, uint8_t index);

@@ -123,6 +123,29 @@ void app_rep_word(app_t *a, const char *key, const char *words_f, uint8_t i)
     con_report_str(&a->cmd.con, key, buf);
 }
 
+/* name=hallhome version=... board=... (those the board names) */
+void app_rep_ident(app_t *a)
+{
+    con_report_flash(&a->cmd.con, app_w_name, app_w_hallhome);
+    if (a->io->version_f != NULL) {
+        con_report_flash(&a->cmd.con, app_w_version, a->io->version_f);
+    }
+    if (a->io->board_f != NULL) {
+        con_report_flash(&a->cmd.con, app_w_board, a->io->board_f);
+    }
+}
+
+/* table=<name> and the first n fields of app_info_fields, or table=none */
+void app_rep_table(app_t *a, uint8_t n)
+{
+    if (a->table_ok) {
+        con_report_str(&a->cmd.con, app_w_table, a->info.name);
+        app_rep_fields(a, &a->info, app_info_fields, n);
+    } else {
+        con_report_flash(&a->cmd.con, app_w_table, app_w_none);
+    }
+}
+
 /* A fault the app itself detects (moves, learn, EEPROM), in the same shape
  * as the homing's: reason word, console error code, device. */
 void app_rep_fault(app_t *a, const char *reason_f, int8_t err, uint8_t dev, uint8_t index)
