@@ -302,7 +302,7 @@ static int8_t h_forget(con_t *con, const con_args_t *args, void *ctx)
     if (!app_idle_state(a) || app_rec_busy(a) || a->learn.forget != 0u) {
         return CON_E_BUSY;
     }
-    if (strcmp(w, "all") == 0) {
+    if (w[0] == 'a' && w[1] == 'l' && w[2] == 'l' && w[3] == '\0') { /* no string in RAM */
         m = app_all_mask(a);
     } else {
         uint8_t t = 0;

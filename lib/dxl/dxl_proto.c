@@ -478,9 +478,9 @@ static void dxl_parser_rescan(dxl_parser *p)
  * and every byte left behind counts as garbage. */
 static void dxl_parser_hunt(dxl_parser *p, uint8_t byte)
 {
-    static const uint8_t hdr[4] = {0xFF, 0xFF, 0xFD, 0x00};
+    static const uint8_t hdr[4] DXL_FLASH = {0xFF, 0xFF, 0xFD, 0x00};
     uint8_t k = p->state;
-    if (byte == hdr[k]) {
+    if (byte == DXL_FLASH_BYTE(&hdr[k])) {
         if (k == DXL_PS_RSRV) {
             dxl_parser_header_seen(p);
         } else {
