@@ -74,7 +74,7 @@ HOM_NOINLINE void hom_begin_tendon(hom_t *h, uint8_t i)
  * past engagement. Returns 1 if it did. */
 HOM_NOINLINE static int beyond_limit(hom_t *h, int32_t x)
 {
-    const hom_tendon_t *t = &h->tendon[h->cur];
+    const hom_tendon_t *t = hom_cur(h);
     int32_t d;
     if (!t->engaged) {
         return 0;
@@ -99,7 +99,7 @@ HOM_NOINLINE int hom_pull_to(hom_t *h, int32_t g, uint16_t v)
 
 HOM_NOINLINE static void begin_moderate(hom_t *h)
 {
-    hom_tendon_t *t = &h->tendon[h->cur];
+    hom_tendon_t *t = hom_cur(h);
     int32_t g;
     if (t->retries != 0u) {
         g = h->mod_goal;
@@ -127,7 +127,7 @@ HOM_NOINLINE static int near_target(const hom_tendon_t *t, uint32_t b, uint16_t 
  * position p (unless the goal is nearer) and go on with fine points. */
 HOM_NOINLINE static void stop_short(hom_t *h, int32_t p)
 {
-    const hom_tendon_t *t = &h->tendon[h->cur];
+    const hom_tendon_t *t = hom_cur(h);
     uint8_t state = h->state;
     int32_t g = p + hom_pull(t, 2);
     if (hom_pull(t, h->out.goal[h->cur] - g) > 0) {
@@ -140,7 +140,7 @@ HOM_NOINLINE static void stop_short(hom_t *h, int32_t p)
 
 HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
 {
-    hom_tendon_t *t = &h->tendon[h->cur];
+    hom_tendon_t *t = hom_cur(h);
     uint8_t sel = t->sensor;
     int fresh = in->sensor[sel].status == HOM_SENS_NEW;
     uint32_t b = fresh ? hom_delta_of(h, sel, in->sensor[sel].b_cuT) : 0u;
@@ -156,7 +156,7 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
         return;
     }
     if (t->engaged && hom_pull(t, p - h->out.goal[h->cur]) > HOM_DROOP_TICKS &&
-        hom_since(h, h->moved_ms[h->cur]) >= 10u) {
+        hom_still_ms(h, h->cur) >= 10u) {
         /* pulling past the goal last sent: the servo missed that goal (a
          * sync write gets no status) and still runs to an older one; send
          * it again, every 10 ms until it takes */
@@ -205,7 +205,7 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
     case ST_FINE_MOVE: {
         int32_t err = p - h->out.goal[h->cur];
         if (hom_phase_ms(h) >= h->cfg.settle_ms &&
-            hom_since(h, h->moved_ms[h->cur]) >= h->cfg.settle_ms / 2u &&
+            hom_still_ms(h, h->cur) >= h->cfg.settle_ms / 2u &&
             ((err >= -1 && err <= 1) || hom_reached(h, h->cur))) {
             hom_start_avg(h);
             h->state = ST_FINE_AVG;

@@ -118,7 +118,7 @@ static void keep_point(hom_t *h, int32_t p, uint32_t b, uint8_t n)
  * halved together until they fit; below that the result is exact. */
 HOM_NOINLINE static int32_t fit_or(const hom_t *h, int32_t p, int32_t fallback)
 {
-    const hom_tendon_t *t = &h->tendon[h->cur];
+    const hom_tendon_t *t = hom_cur(h);
     /* at most 4 points of at most 32 samples with |x| <= 4: the sums without
      * y fit 16 bits (|sx| <= 512, sxx <= 2048, d < 2^18); with |y| < 2^20
      * the others fit 32; |sy| < 2^21 and |sxy| < 2^23 keep each product of
@@ -180,7 +180,7 @@ HOM_NOINLINE static int32_t fit_or(const hom_t *h, int32_t p, int32_t fallback)
  * (hom_release_check()). */
 HOM_NOINLINE static void finish_tendon(hom_t *h, int32_t p, int32_t fallback)
 {
-    hom_tendon_t *t = &h->tendon[h->cur];
+    hom_tendon_t *t = hom_cur(h);
     int32_t home_q8 = fit_or(h, p, fallback);
     t->home = hom_floor_div256(home_q8);
     h->home_res = home_q8 - t->home * 256;
@@ -200,7 +200,7 @@ HOM_NOINLINE static int32_t table_remaining_q8(const hom_t *h, uint32_t b)
 {
     tbl_tendon_t row;
     tbl_info_t info;
-    const hom_tendon_t *t = &h->tendon[h->cur];
+    const hom_tendon_t *t = hom_cur(h);
     uint32_t x0 = 0;
     uint32_t y0 = 0;
     int32_t travel_b = -1;
@@ -241,7 +241,7 @@ HOM_NOINLINE static int32_t table_remaining_q8(const hom_t *h, uint32_t b)
  * again to the last point known to be short of it. */
 void hom_fine_point(hom_t *h)
 {
-    hom_tendon_t *t = &h->tendon[h->cur];
+    hom_tendon_t *t = hom_cur(h);
     int32_t avg[3];
     int32_t p = h->present[h->cur];
     uint32_t b;

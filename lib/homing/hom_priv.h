@@ -81,6 +81,10 @@ uint8_t hom_next_tendon(const hom_t *h, uint8_t from);
 int hom_move_done(hom_t *h, int arrived, uint8_t dev, uint8_t index);
 uint16_t hom_bit(uint8_t i);
 uint8_t hom_has(uint16_t m, uint8_t i);
+/* the tendon being calibrated */
+hom_tendon_t *hom_cur(const hom_t *h);
+/* ms since tendon i's goal was last set or its servo last moved */
+uint32_t hom_still_ms(const hom_t *h, uint8_t i);
 /* ms since the current state was entered (hom_enter()) */
 uint32_t hom_phase_ms(const hom_t *h);
 /* Enters state (ST_*) now: the phase's waits and timeouts count from this step. */

@@ -129,7 +129,7 @@ void hom_do_preflight(hom_t *h, const hom_in_t *in)
  * home is not recorded. Otherwise the home is recorded and reported. */
 HOM_NOINLINE void hom_release_check(hom_t *h)
 {
-    hom_tendon_t *t = &h->tendon[h->cur];
+    hom_tendon_t *t = hom_cur(h);
     int32_t avg[3];
     uint32_t d;
     if (!h->settled) {

@@ -480,6 +480,18 @@ HOM_NOINLINE uint8_t hom_has(uint16_t m, uint8_t i)
     return (uint8_t)((m >> i) & 1u);
 }
 
+/* As strchr() does, a const run in, a writable tendon out: one routine for
+ * the readers and the writers. */
+HOM_NOINLINE hom_tendon_t *hom_cur(const hom_t *h)
+{
+    return (hom_tendon_t *)&h->tendon[h->cur];
+}
+
+HOM_NOINLINE uint32_t hom_still_ms(const hom_t *h, uint8_t i)
+{
+    return hom_since(h, h->moved_ms[i]);
+}
+
 HOM_NOINLINE uint32_t hom_phase_ms(const hom_t *h)
 {
     return hom_since(h, h->t_phase);
@@ -511,8 +523,7 @@ HOM_NOINLINE int hom_reached(const hom_t *h, uint8_t i)
     if (d >= -1 && d <= 1) {
         return 1;
     }
-    return d >= -HOM_DROOP_TICKS && d <= HOM_DROOP_TICKS &&
-           hom_since(h, h->moved_ms[i]) >= HOM_STILL_MS;
+    return d >= -HOM_DROOP_TICKS && d <= HOM_DROOP_TICKS && hom_still_ms(h, i) >= HOM_STILL_MS;
 }
 
 /* Every tendon whose goal was set in this run has reached it. */
