@@ -10,7 +10,7 @@
 
 #include "app/app_priv.h"
 
-APP_NOINLINE static void load_table(app_t *a)
+static void load_table(app_t *a)
 {
     uint8_t i;
     a->tab.table = a->io->table;
@@ -82,7 +82,7 @@ int8_t app_init(app_t *app, const app_io_t *io)
     return 0;
 }
 
-APP_NOINLINE static void boot_start(app_t *a)
+static void boot_start(app_t *a)
 {
     dxl_bringup_config bc;
     a->state = APP_ST_BOOT;
@@ -115,7 +115,7 @@ APP_NOINLINE const dxl_servo_info *app_boot_servo_info(const app_t *a, uint8_t i
     return NULL;
 }
 
-APP_NOINLINE static void boot_finish(app_t *a)
+static void boot_finish(app_t *a)
 {
     a->boot.n_servos = app_bus_found(a);
     a->boot.n_sensors = app_sense_settled(a);

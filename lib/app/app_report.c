@@ -235,7 +235,7 @@ APP_NOINLINE static int32_t ticks_um(uint32_t npt, int32_t ticks)
     return ticks * (int32_t)(npt / 1000u) + ticks * (int32_t)(npt % 1000u) / 1000;
 }
 
-APP_NOINLINE void app_rep_event(app_t *a, const hom_event_t *ev)
+void app_rep_event(app_t *a, const hom_event_t *ev)
 {
     uint8_t i = ev->index;
     switch (ev->type) {

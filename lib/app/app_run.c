@@ -73,7 +73,7 @@ APP_NOINLINE static void win_moving(app_t *a, uint8_t on)
 }
 
 /* Takes the windows a run changed into the kept copy. */
-APP_NOINLINE static void win_take(app_t *a)
+static void win_take(app_t *a)
 {
     uint8_t i;
     uint16_t m = hom_win_take_changed(&a->u.hom);

@@ -78,7 +78,7 @@ HOM_NOINLINE void hom_begin_final(hom_t *h)
  * field change of one tick; at least twice avg_samples, at most HOM_MAX_AVG.
  * A weak field (sensors far from the magnet, a high tension where |dB|
  * flattens) needs many; a strong one needs the minimum. */
-HOM_NOINLINE static uint8_t near_samples(const hom_t *h, int32_t s_q8)
+static uint8_t near_samples(const hom_t *h, int32_t s_q8)
 {
     int32_t q = ((int32_t)h->noise_cuT * 7 * 256 + s_q8 - 1) / s_q8; /* ceil(7 noise / slope) */
     int32_t n = q > 6 ? (int32_t)HOM_MAX_AVG : q * q;
@@ -116,7 +116,7 @@ static void keep_point(hom_t *h, int32_t p, uint32_t b, uint8_t n)
  * the same factor, so sums of y beyond what the products below hold in 32
  * bits (|sy| >= 2^21: points 164 uT or more from the target on average) are
  * halved together until they fit; below that the result is exact. */
-HOM_NOINLINE static int32_t fit_or(const hom_t *h, int32_t p, int32_t fallback)
+static int32_t fit_or(const hom_t *h, int32_t p, int32_t fallback)
 {
     const hom_tendon_t *t = hom_cur(h);
     /* at most 4 points of at most 32 samples with |x| <= 4: the sums without

@@ -258,7 +258,7 @@ HOM_NOINLINE int32_t hom_um_to_ticks(uint32_t um, uint32_t nm_per_tick)
     return hom_muldiv((int32_t)um, 1000, (int32_t)nm_per_tick) + 1;
 }
 
-HOM_NOINLINE int32_t hom_straight_q8(const hom_tendon_t *t, int16_t straight_um)
+int32_t hom_straight_q8(const hom_tendon_t *t, int16_t straight_um)
 {
     return -(int32_t)t->dir * hom_muldiv(straight_um, 256000, (int32_t)t->nm_per_tick);
 }
