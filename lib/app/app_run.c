@@ -90,7 +90,7 @@ static void win_take(app_t *a)
 
 /* A run finished: keep its homes (calibration frame = this power cycle's
  * frame, so the offsets become 0), count it and queue the records. */
-APP_NOINLINE static void run_done(app_t *a)
+static void run_done(app_t *a)
 {
     uint32_t t = app_now_ms(a);
     win_moving(a, 0);

@@ -118,7 +118,7 @@ HOM_NOINLINE static void begin_moderate(hom_t *h)
 }
 
 /* The field b has come within permille of the target. */
-HOM_NOINLINE static int near_target(const hom_tendon_t *t, uint32_t b, uint16_t permille)
+static int near_target(const hom_tendon_t *t, uint32_t b, uint16_t permille)
 {
     return (int32_t)b >= hom_muldiv((int32_t)t->target_cuT, permille, 1000);
 }

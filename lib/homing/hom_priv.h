@@ -38,8 +38,9 @@ enum {
 
 /* Functions that measured smaller on the AVR as calls than inlined (each
  * inlined copy of 32-bit arithmetic costs more than the call). The health
- * checks, the fit and the straight-pose shift measured smaller merged into
- * their one caller, and have no HOM_NOINLINE. */
+ * checks, the fit, the straight-pose shift, the table set-up step, the
+ * release check and the near-target test measured smaller without it, and
+ * have no HOM_NOINLINE. */
 #if defined(__GNUC__)
 #define HOM_NOINLINE __attribute__((noinline))
 #else

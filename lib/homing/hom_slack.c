@@ -127,7 +127,7 @@ void hom_do_preflight(hom_t *h, const hom_in_t *in)
  * means something moved that no tendon moves (a magnet, a sensor, iron
  * nearby) and the home measured against it is wrong: HOM_F_FIELD_STEP, the
  * home is not recorded. Otherwise the home is recorded and reported. */
-HOM_NOINLINE void hom_release_check(hom_t *h)
+void hom_release_check(hom_t *h)
 {
     hom_tendon_t *t = hom_cur(h);
     int32_t avg[3];

@@ -353,7 +353,7 @@ HOM_NOINLINE static void load_tendon(hom_t *h, uint8_t i)
  * AVR, too much for twelve tendons in one pass of the main loop. Absolute
  * mode first each sensor's straight-pose |b|, then each tendon's row.
  * Returns 1 once everything is loaded. */
-HOM_NOINLINE int hom_load_step(hom_t *h)
+int hom_load_step(hom_t *h)
 {
     uint8_t k = (uint8_t)(h->pf_started - 1u);
     uint8_t ns = h->amb != NULL ? h->n_sensors : 0u;
