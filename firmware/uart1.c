@@ -188,10 +188,16 @@ static uint32_t uart1_port_now(void *ctx)
     return tick_us();
 }
 
+/* Member by member: an initialised local is copied from a template the AVR
+ * keeps in RAM. */
 dxl_port uart1_port(void)
 {
-    dxl_port p = {
-        NULL,          uart1_port_write, uart1_port_read, uart1_port_set_dir, uart1_port_tx_done,
-        uart1_port_now};
+    dxl_port p;
+    p.ctx = NULL;
+    p.write = uart1_port_write;
+    p.read = uart1_port_read;
+    p.set_dir = uart1_port_set_dir;
+    p.tx_done = uart1_port_tx_done;
+    p.now_us = uart1_port_now;
     return p;
 }

@@ -48,7 +48,7 @@
 #include "store/store.h"
 #include "table/table.h"
 
-/* Sensor slots the app reserves (83 bytes each on the AVR): as many as a
+/* Sensor slots the app reserves (77 bytes each in the firmware): as many as a
  * run can use; a table with more sensors is refused at boot with "no valid
  * lookup table". */
 #define APP_MAX_SENSORS HOM_MAX_SENSORS

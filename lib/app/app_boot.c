@@ -10,7 +10,7 @@
 
 #include "app/app_priv.h"
 
-APP_NOINLINE static void load_table(app_t *a)
+static void load_table(app_t *a)
 {
     uint8_t i;
     a->tab.table = a->io->table;
@@ -74,13 +74,7 @@ int8_t app_init(app_t *app, const app_io_t *io)
     app->boot.t_start = app_now_ms(app);
     app_panel_set(app, APP_LED_BOOT);
     app_rep_begin(app, app_w_boot);
-    con_report_flash(&app->cmd.con, app_w_name, app_w_hallhome);
-    if (io->version_f != NULL) {
-        con_report_flash(&app->cmd.con, app_w_version, io->version_f);
-    }
-    if (io->board_f != NULL) {
-        con_report_flash(&app->cmd.con, app_w_board, io->board_f);
-    }
+    app_rep_ident(app);
     if (io->reset_f != NULL) {
         con_report_flash(&app->cmd.con, app_w_reset, io->reset_f);
     }
@@ -88,7 +82,7 @@ int8_t app_init(app_t *app, const app_io_t *io)
     return 0;
 }
 
-APP_NOINLINE static void boot_start(app_t *a)
+static void boot_start(app_t *a)
 {
     dxl_bringup_config bc;
     a->state = APP_ST_BOOT;
@@ -121,7 +115,7 @@ APP_NOINLINE const dxl_servo_info *app_boot_servo_info(const app_t *a, uint8_t i
     return NULL;
 }
 
-APP_NOINLINE static void boot_finish(app_t *a)
+static void boot_finish(app_t *a)
 {
     a->boot.n_servos = app_bus_found(a);
     a->boot.n_sensors = app_sense_settled(a);
@@ -144,12 +138,7 @@ APP_NOINLINE static void boot_ready(app_t *a)
     a->boot.offer_quick = (uint8_t)(a->table_ok && a->rec.home_now != 0u &&
                                     a->rec.home_now == app_all_mask(a) && a->bus.absent == 0u);
     app_rep_begin(a, app_w_ready);
-    if (a->table_ok) {
-        con_report_str(&a->cmd.con, app_w_table, a->info.name);
-        app_rep_fields(a, &a->info, app_info_fields, 1); /* table_id */
-    } else {
-        con_report_flash(&a->cmd.con, app_w_table, app_w_none);
-    }
+    app_rep_table(a, 1); /* table_id */
     APP_REP_FIELDS(a, a, ready_fields);
     if (a->rec.homes_rc == 0) {
         con_report_flash(&a->cmd.con, app_w_homes,
@@ -159,7 +148,7 @@ APP_NOINLINE static void boot_ready(app_t *a)
         con_report_flash(&a->cmd.con, app_w_homes,
                          a->rec.homes_rc == STORE_E_OTHER_TABLE ? app_w_other_table : app_w_none);
     }
-    app_rep_int(a, app_w_rehome, a->boot.offer_quick);
+    app_rep_u8(a, app_w_rehome, a->boot.offer_quick);
     app_rep_end(a);
     a->state = APP_ST_IDLE;
     a->boot.step = 3;
@@ -188,8 +177,9 @@ void app_boot_again(app_t *a)
 APP_NOINLINE void app_boot_poll(app_t *a)
 {
     uint32_t t = app_now_ms(a);
+    uint32_t el = t - a->boot.t_start; /* t_start changes only on the way out */
     if (a->boot.step == 0u) {
-        if (a->bus.reboot_id != 0u && t - a->boot.t_start < APP_SERVO_REBOOT_MS) {
+        if (a->bus.reboot_id != 0u && el < APP_SERVO_REBOOT_MS) {
             return;
         }
         if (dxl_busy(&a->bus.dxl)) {
@@ -207,7 +197,7 @@ APP_NOINLINE void app_boot_poll(app_t *a)
             }
             a->run.reset_release = 4; /* nothing known to release early */
         }
-        if (a->run.reset_release == 3u && t - a->boot.t_start < APP_EARLY_RELEASE_MS) {
+        if (a->run.reset_release == 3u && el < APP_EARLY_RELEASE_MS) {
             return;
         }
         boot_start(a);
@@ -233,13 +223,13 @@ APP_NOINLINE void app_boot_poll(app_t *a)
                 return;
             }
         }
-        if (rc > 0 && t - a->boot.t_start < APP_PREFLIGHT_MS) {
+        if (rc > 0 && el < APP_PREFLIGHT_MS) {
             return;
         }
         if (rc > 0) {
             dxl_abort(&a->bus.dxl);
         }
-        if (!icm_set_settled(&a->sense.set) && t - a->boot.t_start < APP_PREFLIGHT_MS) {
+        if (!icm_set_settled(&a->sense.set) && el < APP_PREFLIGHT_MS) {
             return;
         }
         boot_finish(a);
@@ -248,7 +238,7 @@ APP_NOINLINE void app_boot_poll(app_t *a)
     /* step 2: every found servo's position and Bus Watchdog, then ready */
     if (((a->bus.seen | a->bus.absent) != app_all_mask(a) || a->bus.wdog_step != 0u ||
          a->bus.txn == APP_TX_WDOG) &&
-        t - a->boot.t_start < APP_PREFLIGHT_MS) {
+        el < APP_PREFLIGHT_MS) {
         return;
     }
     boot_ready(a);

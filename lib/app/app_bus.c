@@ -231,7 +231,7 @@ void app_bus_reboot(app_t *a, uint8_t id)
     a->bus.reboot_req = 1;
 }
 
-APP_NOINLINE void app_bus_poll(app_t *a)
+void app_bus_poll(app_t *a)
 {
     if (a->state == APP_ST_BOOT && a->boot.step != 2u) {
         return; /* the bring-up owns the bus */

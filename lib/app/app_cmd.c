@@ -46,19 +46,8 @@ static int8_t h_version(con_t *con, const con_args_t *args, void *ctx)
     (void)con;
     (void)args;
     app_rep_begin(a, app_w_version);
-    con_report_flash(&a->cmd.con, app_w_name, app_w_hallhome);
-    if (a->io->version_f != NULL) {
-        con_report_flash(&a->cmd.con, app_w_version, a->io->version_f);
-    }
-    if (a->io->board_f != NULL) {
-        con_report_flash(&a->cmd.con, app_w_board, a->io->board_f);
-    }
-    if (a->table_ok) {
-        con_report_str(&a->cmd.con, app_w_table, a->info.name);
-        APP_REP_FIELDS(a, &a->info, app_info_fields);
-    } else {
-        con_report_flash(&a->cmd.con, app_w_table, app_w_none);
-    }
+    app_rep_ident(a);
+    app_rep_table(a, 3); /* table_id, tendons, sensors */
     app_rep_end(a);
     return 0;
 }
@@ -87,12 +76,8 @@ static int8_t h_status(con_t *con, const con_args_t *args, void *ctx)
     (void)args;
     app_rep_begin(a, app_w_status);
     app_rep_word(a, app_w_state, app_w_state_words, a->state);
-    if (a->table_ok) {
-        con_report_str(&a->cmd.con, app_w_table, a->info.name);
-    } else {
-        con_report_flash(&a->cmd.con, app_w_table, app_w_none);
-    }
-    app_rep_int(a, app_w_sensors, icm_set_ready_count(&a->sense.set));
+    app_rep_table(a, 0);
+    app_rep_u8(a, app_w_sensors, icm_set_ready_count(&a->sense.set));
     APP_REP_FIELDS(a, a, status_fields);
     app_rep_word(a, app_w_fault, app_w_fault_words, a->run.last_fault);
     APP_REP_FIELDS(a, a, status_learn_fields);
@@ -107,11 +92,11 @@ static int8_t h_status(con_t *con, const con_args_t *args, void *ctx)
             continue;
         }
         app_rep_begin(a, app_w_home);
-        app_rep_int(a, app_w_tendon, i);
+        app_rep_u8(a, app_w_tendon, i);
         app_rep_int(a, app_w_home, a->rec.homes.t[i].home_ticks);
         app_rep_int(a, app_w_straight, a->rec.homes.t[i].home_ticks + a->rec.homes.to_straight[i]);
         app_rep_int(a, app_w_rest, a->rec.homes.t[i].rest_ticks);
-        app_rep_int(a, app_w_usable, app_has(a->rec.home_now, i));
+        app_rep_u8(a, app_w_usable, app_has(a->rec.home_now, i));
         if (app_has(a->rec.home_now, i)) {
             app_rep_int(a, app_w_now, app_rec_home(a, i));
         }
@@ -154,7 +139,7 @@ static int8_t h_sensors(con_t *con, const con_args_t *args, void *ctx)
         icm_diag_t d;
         (void)icm_set_diag(&a->sense.set, k, &d);
         app_rep_begin(a, app_w_sensor);
-        app_rep_int(a, app_w_index, k);
+        app_rep_u8(a, app_w_index, k);
         APP_REP_FIELDS(a, &d, sensor_fields);
         app_rep_end(a);
     }
@@ -317,7 +302,7 @@ static int8_t h_forget(con_t *con, const con_args_t *args, void *ctx)
     if (!app_idle_state(a) || app_rec_busy(a) || a->learn.forget != 0u) {
         return CON_E_BUSY;
     }
-    if (strcmp(w, "all") == 0) {
+    if (w[0] == 'a' && w[1] == 'l' && w[2] == 'l' && w[3] == '\0') { /* no string in RAM */
         m = app_all_mask(a);
     } else {
         uint8_t t = 0;
@@ -376,7 +361,7 @@ static int8_t h_table(con_t *con, const con_args_t *args, void *ctx)
         (void)tbl_tendon(&a->tab, i, &row);
         (void)tbl_tendon(&a->htab, i, &eff);
         app_rep_begin(a, app_w_tendon);
-        app_rep_int(a, app_w_tendon, i);
+        app_rep_u8(a, app_w_tendon, i);
         APP_REP_FIELDS(a, &row, tendon_fields);
         pos = 0;
         buf[0] = '\0';
@@ -413,7 +398,7 @@ static int8_t h_history(con_t *con, const con_args_t *args, void *ctx)
             break;
         }
         app_rep_begin(a, app_w_hist);
-        app_rep_int(a, app_w_age, age);
+        app_rep_u8(a, app_w_age, age);
         APP_REP_FIELDS(a, &e, hist_fields);
         pos = 0;
         buf[0] = '\0';

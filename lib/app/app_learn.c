@@ -99,8 +99,8 @@ static void learned_store(app_t *a, uint8_t t, uint32_t v)
     app_rep_begin(a, app_w_learned);
     app_rep_int(a, app_w_tendon, t);
     app_rep_int(a, app_w_tension_mN, a->info.grid_mN[a->learn.grid]);
-    app_rep_int(a, app_w_grid, a->learn.grid);
-    app_rep_int(a, app_w_sensor, a->learn.sensor);
+    app_rep_u8(a, app_w_grid, a->learn.grid);
+    app_rep_u8(a, app_w_sensor, a->learn.sensor);
     /* the stored value (whole LSB), the one `table` shows */
     con_report_fixed(&a->cmd.con, app_w_dB_uT,
                      (int32_t)((uint32_t)l->target_lsb[a->learn.grid] * TBL_CUT_PER_LSB), 2);
@@ -183,12 +183,12 @@ APP_NOINLINE void app_learn_step(app_t *a, const hom_in_t *in)
 {
     uint8_t k, first, last, tdn = a->learn.tendon;
     uint32_t v = 0;
-    uint32_t t = app_now_ms(a);
+    uint32_t el = app_now_ms(a) - a->learn.t_start;
     int8_t rc = 0;
     if (a->learn.tendon == APP_LEARN_BASELINE) {
         first = 0;
         last = a->info.n_sensors;
-        if (t - a->learn.t_start < SETTLE_MS) {
+        if (el < SETTLE_MS) {
             return;
         }
     } else {
@@ -214,7 +214,7 @@ APP_NOINLINE void app_learn_step(app_t *a, const hom_in_t *in)
             }
         }
         a->learn.n = least;
-        if (least < APP_LEARN_SAMPLES && t - a->learn.t_start > LEARN_WAIT_MS + SETTLE_MS) {
+        if (least < APP_LEARN_SAMPLES && el > LEARN_WAIT_MS + SETTLE_MS) {
             rc = CON_E_TIMEOUT;
         }
     }
@@ -234,7 +234,7 @@ APP_NOINLINE void app_learn_step(app_t *a, const hom_in_t *in)
         }
         app_rep_begin(a, app_w_done);
         con_report_flash(&a->cmd.con, app_w_mode, app_w_release);
-        app_rep_int(a, app_w_time_ms, (int32_t)(t - a->learn.t_start));
+        app_rep_int(a, app_w_time_ms, (int32_t)el);
         app_rep_int(a, app_w_baseline, rc == 0);
         app_rep_end(a);
         a->state = APP_ST_IDLE;

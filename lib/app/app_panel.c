@@ -4,7 +4,7 @@
  */
 #include "app/app_priv.h"
 
-APP_NOINLINE void app_panel_button(app_t *a, uint16_t t)
+void app_panel_button(app_t *a, uint16_t t)
 {
     uint8_t raw = a->io->board->button(a->io->board->ctx) ? 1u : 0u;
     if (raw != a->panel.raw) {
@@ -27,7 +27,7 @@ APP_NOINLINE void app_panel_button(app_t *a, uint16_t t)
     }
 }
 
-APP_NOINLINE void app_panel_led(app_t *a, uint32_t t)
+void app_panel_led(app_t *a, uint32_t t)
 {
     uint8_t on;
     uint32_t p;

@@ -29,11 +29,15 @@
 
 #include "app/app.h"
 
-/* Flash is the scarce resource on the AVR: the tasks called from one place
- * stay functions of their own rather than being merged into their caller,
- * which costs more code (-0.8 KB measured). The firmware is linked as one
- * LTO unit, so functions shared between the rooms cost no more than the
- * static functions of one file did. */
+/* Flash is the scarce resource on the AVR: most tasks called from one place
+ * stay functions of their own (APP_NOINLINE) rather than being merged into
+ * their caller, which costs more code (-0.8 KB measured); the ones left
+ * without it (the bus poll, button and LED, the bring-up's start and finish,
+ * the table load, the home recovery, the event report, the window take-over,
+ * the end of a run) each measured smaller without it, 0.6 KB together, and
+ * every one kept APP_NOINLINE measured larger without it. The firmware is linked as one LTO
+ * unit, so functions shared between the rooms cost no more than the static
+ * functions of one file did. */
 #if defined(__GNUC__)
 #define APP_NOINLINE __attribute__((noinline))
 #else
@@ -200,6 +204,9 @@ uint8_t app_idle_state(const app_t *a);
 
 void app_rep_begin(app_t *a, const char *kind);
 void app_rep_int(app_t *a, const char *key, int32_t v);
+void app_rep_u8(app_t *a, const char *key, uint8_t v);
+/* tendon=i id=<its servo's ID> */
+void app_rep_tendon(app_t *a, uint8_t i);
 void app_rep_end(app_t *a);
 /* key=0x%08x (table_id) without a printf */
 void app_rep_hex(app_t *a, const char *key, uint32_t v);
@@ -233,6 +240,10 @@ void app_rep_fields(app_t *a, const void *base, const app_field_t *f, uint8_t n)
     app_rep_fields((a), (base), (f), (uint8_t)(sizeof(f) / sizeof((f)[0])))
 /* table_id (hex), tendons, sensors of a tbl_info_t; [0] alone: table_id */
 extern const app_field_t app_info_fields[3];
+/* name=hallhome version=... board=... of <boot> and <version> */
+void app_rep_ident(app_t *a);
+/* table=<name> and the first n of app_info_fields, or table=none without a table */
+void app_rep_table(app_t *a, uint8_t n);
 /* A fault the app itself detects (moves, learn, EEPROM), in the same shape as
  * the homing's: reason word, console error code, device, index. */
 void app_rep_fault(app_t *a, const char *reason_f, int8_t err, uint8_t dev, uint8_t index);

@@ -23,7 +23,7 @@ int32_t app_rec_goal(const app_t *a, uint8_t i)
 }
 
 /* Maps the stored homes into this power cycle's servo frames. */
-APP_NOINLINE int8_t app_rec_recover(app_t *a)
+int8_t app_rec_recover(app_t *a)
 {
     uint8_t i;
     int8_t worst = 0;

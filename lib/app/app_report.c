@@ -23,6 +23,18 @@ void app_rep_int(app_t *a, const char *key, int32_t v)
     con_report_int(&a->cmd.con, key, v);
 }
 
+/* 8-bit values: no zero extension at each call */
+void app_rep_u8(app_t *a, const char *key, uint8_t v)
+{
+    con_report_int(&a->cmd.con, key, v);
+}
+
+void app_rep_tendon(app_t *a, uint8_t i)
+{
+    app_rep_u8(a, app_w_tendon, i);
+    app_rep_u8(a, app_w_id, a->bus.ids[i]);
+}
+
 void app_rep_end(app_t *a)
 {
     con_report_end(&a->cmd.con);
@@ -111,6 +123,29 @@ void app_rep_word(app_t *a, const char *key, const char *words_f, uint8_t i)
     con_report_str(&a->cmd.con, key, buf);
 }
 
+/* name=hallhome version=... board=... (those the board names) */
+void app_rep_ident(app_t *a)
+{
+    con_report_flash(&a->cmd.con, app_w_name, app_w_hallhome);
+    if (a->io->version_f != NULL) {
+        con_report_flash(&a->cmd.con, app_w_version, a->io->version_f);
+    }
+    if (a->io->board_f != NULL) {
+        con_report_flash(&a->cmd.con, app_w_board, a->io->board_f);
+    }
+}
+
+/* table=<name> and the first n fields of app_info_fields, or table=none */
+void app_rep_table(app_t *a, uint8_t n)
+{
+    if (a->table_ok) {
+        con_report_str(&a->cmd.con, app_w_table, a->info.name);
+        app_rep_fields(a, &a->info, app_info_fields, n);
+    } else {
+        con_report_flash(&a->cmd.con, app_w_table, app_w_none);
+    }
+}
+
 /* A fault the app itself detects (moves, learn, EEPROM), in the same shape
  * as the homing's: reason word, console error code, device. */
 void app_rep_fault(app_t *a, const char *reason_f, int8_t err, uint8_t dev, uint8_t index)
@@ -119,7 +154,7 @@ void app_rep_fault(app_t *a, const char *reason_f, int8_t err, uint8_t dev, uint
     con_report_flash(&a->cmd.con, app_w_reason, reason_f);
     app_rep_int(a, app_w_error, -err);
     app_rep_word(a, app_w_dev, app_w_dev_words, dev);
-    app_rep_int(a, app_w_index, index);
+    app_rep_u8(a, app_w_index, index);
     app_rep_end(a);
 }
 
@@ -149,7 +184,7 @@ int8_t app_rep_missing(app_t *a)
         if (d.state != ICM_SET_S_RUN) {
             app_rep_begin(a, app_w_missing);
             con_report_flash(&a->cmd.con, app_w_dev, app_w_sensor);
-            app_rep_int(a, app_w_index, i);
+            app_rep_u8(a, app_w_index, i);
             APP_REP_FIELDS(a, &d, missing_fields);
             app_rep_end(a);
             rc = CON_E_SENSOR_FAULT;
@@ -159,9 +194,9 @@ int8_t app_rep_missing(app_t *a)
         if (app_has(a->bus.absent, i) || a->bus.hw_err[i] != 0u) {
             app_rep_begin(a, app_w_missing);
             con_report_flash(&a->cmd.con, app_w_dev, app_w_servo);
-            app_rep_int(a, app_w_index, i);
-            app_rep_int(a, app_w_id, a->bus.ids[i]);
-            app_rep_int(a, app_w_hw_error, a->bus.hw_err[i]);
+            app_rep_u8(a, app_w_index, i);
+            app_rep_u8(a, app_w_id, a->bus.ids[i]);
+            app_rep_u8(a, app_w_hw_error, a->bus.hw_err[i]);
             app_rep_end(a);
             if (rc == 0) {
                 rc = CON_E_SERVO_FAULT;
@@ -177,19 +212,18 @@ void app_rep_servos(app_t *a, uint8_t with_model)
     uint8_t i;
     for (i = 0; i < a->info.n_tendons; i++) {
         app_rep_begin(a, app_w_servo);
-        app_rep_int(a, app_w_tendon, i);
-        app_rep_int(a, app_w_id, a->bus.ids[i]);
+        app_rep_tendon(a, i);
         app_rep_int(a, app_w_found, app_has(a->bus.absent, i) == 0u);
         if (with_model) {
             const dxl_servo_info *s = app_boot_servo_info(a, a->bus.ids[i]);
             if (s != NULL) {
                 app_rep_int(a, app_w_model, s->model);
-                app_rep_int(a, app_w_fw, s->firmware);
+                app_rep_u8(a, app_w_fw, s->firmware);
             }
         }
         app_rep_int(a, app_w_pos, a->bus.present[i]);
         app_rep_int(a, app_w_cal_pos, a->bus.present[i] + a->rec.offset[i]);
-        app_rep_int(a, app_w_hw_error, a->bus.hw_err[i]);
+        app_rep_u8(a, app_w_hw_error, a->bus.hw_err[i]);
         app_rep_end(a);
     }
 }
@@ -201,7 +235,7 @@ APP_NOINLINE static int32_t ticks_um(uint32_t npt, int32_t ticks)
     return ticks * (int32_t)(npt / 1000u) + ticks * (int32_t)(npt % 1000u) / 1000;
 }
 
-APP_NOINLINE void app_rep_event(app_t *a, const hom_event_t *ev)
+void app_rep_event(app_t *a, const hom_event_t *ev)
 {
     uint8_t i = ev->index;
     switch (ev->type) {
@@ -216,8 +250,7 @@ APP_NOINLINE void app_rep_event(app_t *a, const hom_event_t *ev)
         app_rep_begin(a, app_w_progress);
         app_rep_word(a, app_w_state, app_w_phase_words, ev->code);
         if (ev->code == HOM_PH_TENDON && i < TBL_MAX_TENDONS) {
-            app_rep_int(a, app_w_tendon, i);
-            app_rep_int(a, app_w_id, a->bus.ids[i]);
+            app_rep_tendon(a, i);
         }
         app_rep_end(a);
         break;
@@ -225,9 +258,9 @@ APP_NOINLINE void app_rep_event(app_t *a, const hom_event_t *ev)
     case HOM_EV_MISSING:
         app_rep_begin(a, app_w_missing);
         app_rep_word(a, app_w_dev, app_w_dev_words, ev->code);
-        app_rep_int(a, app_w_index, i);
+        app_rep_u8(a, app_w_index, i);
         if (ev->code == HOM_DEV_SERVO && i < TBL_MAX_TENDONS) {
-            app_rep_int(a, app_w_id, a->bus.ids[i]);
+            app_rep_u8(a, app_w_id, a->bus.ids[i]);
         }
         app_rep_int(a, app_w_why, ev->a);
         app_rep_int(a, app_w_bits, ev->b);
@@ -236,7 +269,7 @@ APP_NOINLINE void app_rep_event(app_t *a, const hom_event_t *ev)
     case HOM_EV_ENGAGED:
         app_rep_begin(a, app_w_progress);
         con_report_flash(&a->cmd.con, app_w_state, app_w_engaged);
-        app_rep_int(a, app_w_tendon, i);
+        app_rep_u8(a, app_w_tendon, i);
         app_rep_int(a, app_w_pos, ev->a);
         app_rep_end(a);
         break;
@@ -244,8 +277,7 @@ APP_NOINLINE void app_rep_event(app_t *a, const hom_event_t *ev)
         if (i < a->info.n_tendons) {
             const hom_tendon_t *t = hom_tendon(&a->u.hom, i);
             app_rep_begin(a, app_w_result);
-            app_rep_int(a, app_w_tendon, i);
-            app_rep_int(a, app_w_id, a->bus.ids[i]);
+            app_rep_tendon(a, i);
             app_rep_int(a, app_w_home, ev->a);
             app_rep_int(a, app_w_straight, ev->a + hom_to_straight(&a->u.hom, i));
             app_rep_int(a, app_w_home_um, ticks_um(t->nm_per_tick, ev->a));
@@ -262,11 +294,11 @@ APP_NOINLINE void app_rep_event(app_t *a, const hom_event_t *ev)
     case HOM_EV_FAULT:
         app_rep_begin(a, app_w_fault);
         app_rep_word(a, app_w_reason, app_w_fault_words, ev->code);
-        app_rep_int(a, app_w_code, ev->code);
+        app_rep_u8(a, app_w_code, ev->code);
         app_rep_word(a, app_w_dev, app_w_dev_words, (uint8_t)ev->a);
-        app_rep_int(a, app_w_index, i);
+        app_rep_u8(a, app_w_index, i);
         if ((ev->a == HOM_DEV_SERVO || ev->a == HOM_DEV_TENDON) && i < TBL_MAX_TENDONS) {
-            app_rep_int(a, app_w_id, a->bus.ids[i]);
+            app_rep_u8(a, app_w_id, a->bus.ids[i]);
         }
         app_rep_int(a, app_w_detail, ev->b);
         app_rep_end(a);
@@ -278,8 +310,8 @@ APP_NOINLINE void app_rep_event(app_t *a, const hom_event_t *ev)
             hom_fault_index(&a->u.hom) < a->info.n_tendons) {
             /* a servo that does not answer, or has its torque off, cannot
              * take the release: named (a hardware error is rebooted next) */
-            app_rep_int(a, app_w_not_released, a->bus.ids[hom_fault_index(&a->u.hom)]);
-            app_rep_int(a, app_w_index, hom_fault_index(&a->u.hom));
+            app_rep_u8(a, app_w_not_released, a->bus.ids[hom_fault_index(&a->u.hom)]);
+            app_rep_u8(a, app_w_index, hom_fault_index(&a->u.hom));
         }
         app_rep_end(a);
         break;

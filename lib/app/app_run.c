@@ -73,7 +73,7 @@ APP_NOINLINE static void win_moving(app_t *a, uint8_t on)
 }
 
 /* Takes the windows a run changed into the kept copy. */
-APP_NOINLINE static void win_take(app_t *a)
+static void win_take(app_t *a)
 {
     uint8_t i;
     uint16_t m = hom_win_take_changed(&a->u.hom);
@@ -90,7 +90,7 @@ APP_NOINLINE static void win_take(app_t *a)
 
 /* A run finished: keep its homes (calibration frame = this power cycle's
  * frame, so the offsets become 0), count it and queue the records. */
-APP_NOINLINE static void run_done(app_t *a)
+static void run_done(app_t *a)
 {
     uint32_t t = app_now_ms(a);
     win_moving(a, 0);
@@ -270,7 +270,7 @@ static void survey_sample(app_t *a, const hom_in_t *in)
         }
     }
     app_rep_begin(a, app_w_sv);
-    app_rep_int(a, app_w_t, i);
+    app_rep_u8(a, app_w_t, i);
     app_rep_int(a, app_w_p, a->bus.present[i]);
     con_report_str(&a->cmd.con, app_w_b, buf);
     app_rep_end(a);
@@ -619,7 +619,7 @@ void app_run_poll(app_t *a)
         (void)app_run_release_goals(a);
         app_rep_begin(a, app_w_released);
         con_report_flash(&a->cmd.con, app_w_reason, app_w_servo_error);
-        app_rep_int(a, app_w_id, a->run.auto_release);
+        app_rep_u8(a, app_w_id, a->run.auto_release);
         app_rep_end(a);
         a->run.auto_release = 0;
         app_run_move(a, APP_MOVE_RELEASE);

@@ -36,7 +36,9 @@ void dxl_master_init(dxl_master *m, const dxl_port *port, const dxl_config *cfg)
     m->port = *port;
     m->cfg = *cfg;
     dxl_parser_init(&m->parser, m->rx, DXL_RX_CAP);
+#if DXL_STATS
     m->stats = (dxl_master_stats){0, 0, 0, 0, 0, 0};
+#endif
     m->n_reply = 0;
     m->expect = 0;
     m->got = 0;
@@ -60,7 +62,7 @@ static void dxl_drain(dxl_master *m)
         if (got == 0) {
             break;
         }
-        m->stats.stale = (uint16_t)(m->stats.stale + got);
+        DXL_COUNT(m->stats.stale = (uint16_t)(m->stats.stale + got));
     }
 }
 
@@ -78,7 +80,7 @@ static void dxl_begin_attempt(dxl_master *m)
         }
     }
     m->tx_sent = 0;
-    m->stats.requests++;
+    DXL_COUNT(m->stats.requests++);
     m->port.set_dir(m->port.ctx, DXL_DIR_TX);
     m->phase = DXL_PH_SEND;
 }
@@ -105,14 +107,14 @@ static void dxl_finish(dxl_master *m, int8_t err)
 static void dxl_end_attempt(dxl_master *m, int8_t err)
 {
     if (err == -DXL_E_TIMEOUT) {
-        m->stats.timeouts++;
+        DXL_COUNT(m->stats.timeouts++);
         if (m->attempt_err != 0) {
             err = m->attempt_err;
         }
     }
     if (m->attempt < m->cfg.retries) {
         m->attempt++;
-        m->stats.retries++;
+        DXL_COUNT(m->stats.retries++);
         dxl_begin_attempt(m);
         return;
     }
@@ -141,7 +143,7 @@ dxl_reply *dxl_claim(dxl_master *m, uint8_t id)
     dxl_reply *r = dxl_pending_for(m, id);
     if (r == NULL && dxl_reply_for(m, id) == NULL) {
         /* answered already is fine: a retried group request asks everyone again */
-        m->stats.wrong_id++;
+        DXL_COUNT(m->stats.wrong_id++);
         dxl_note(m, -DXL_E_WRONG_ID);
     }
     return r;
@@ -149,7 +151,7 @@ dxl_reply *dxl_claim(dxl_master *m, uint8_t id)
 
 void dxl_malformed(dxl_master *m)
 {
-    m->stats.malformed++;
+    DXL_COUNT(m->stats.malformed++);
     dxl_note(m, -DXL_E_MALFORMED);
 }
 

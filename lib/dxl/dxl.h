@@ -96,7 +96,9 @@ struct dxl_master {
     uint8_t tx[DXL_TX_CAP];
     uint8_t rx[DXL_RX_CAP];
     dxl_parser parser;
+#if DXL_STATS
     dxl_master_stats stats;
+#endif
     dxl_reply reply[DXL_MAX_IDS];
     uint8_t n_reply; /* entries in reply[] for this transaction */
     uint8_t expect;  /* replies the transaction waits for (0: none) */

@@ -361,7 +361,9 @@ void dxl_parser_init(dxl_parser *p, uint8_t *buf, uint16_t cap)
     p->cap = cap;
     p->raw = 0;
     p->block = 0;
+#if DXL_STATS
     p->stats = (dxl_parse_stats){0, 0, 0, 0, 0, 0};
+#endif
     dxl_parser_reset(p);
 }
 
@@ -393,11 +395,11 @@ static int8_t dxl_parser_body(dxl_parser *p, uint8_t byte)
     if (!p->raw && p->run == 3u) {
         p->run = 0;
         if (byte != 0xFD) {
-            p->stats.truncated++;
+            DXL_COUNT(p->stats.truncated++);
             if (byte == 0x00) {
                 dxl_parser_header_seen(p);
             } else {
-                p->stats.garbage = (uint16_t)(p->stats.garbage + 1u);
+                DXL_COUNT(p->stats.garbage = (uint16_t)(p->stats.garbage + 1u));
                 p->state = byte == 0xFF ? DXL_PS_H2 : DXL_PS_H1;
             }
             return -DXL_E_TRUNCATED;
@@ -411,7 +413,7 @@ static int8_t dxl_parser_body(dxl_parser *p, uint8_t byte)
             p->run = 0;
         }
         if (p->body_len >= p->cap) {
-            p->stats.overflow++;
+            DXL_COUNT(p->stats.overflow++);
             p->state = DXL_PS_H1;
             return -DXL_E_OVERFLOW;
         }
@@ -458,12 +460,16 @@ static void dxl_parser_rescan(dxl_parser *p)
     }
     again[n++] = (uint8_t)p->rx_crc;
     again[n++] = (uint8_t)(p->rx_crc >> 8);
+#if DXL_STATS
     uint16_t garbage = p->stats.garbage;
+#endif
     p->state = DXL_PS_H1;
     for (uint8_t i = 0; i < n; i++) {
         (void)dxl_parser_feed(p, again[i]);
     }
+#if DXL_STATS
     p->stats.garbage = garbage;
+#endif
 }
 
 /* Header search: states H1..RSRV are the number of header bytes matched.
@@ -472,9 +478,9 @@ static void dxl_parser_rescan(dxl_parser *p)
  * and every byte left behind counts as garbage. */
 static void dxl_parser_hunt(dxl_parser *p, uint8_t byte)
 {
-    static const uint8_t hdr[4] = {0xFF, 0xFF, 0xFD, 0x00};
+    static const uint8_t hdr[4] DXL_FLASH = {0xFF, 0xFF, 0xFD, 0x00};
     uint8_t k = p->state;
-    if (byte == hdr[k]) {
+    if (byte == DXL_FLASH_BYTE(&hdr[k])) {
         if (k == DXL_PS_RSRV) {
             dxl_parser_header_seen(p);
         } else {
@@ -483,7 +489,7 @@ static void dxl_parser_hunt(dxl_parser *p, uint8_t byte)
         return;
     }
     uint8_t next = byte != 0xFF ? DXL_PS_H1 : (k == DXL_PS_H3 ? DXL_PS_H3 : DXL_PS_H2);
-    p->stats.garbage = (uint16_t)(p->stats.garbage + k + 1u - next);
+    DXL_COUNT(p->stats.garbage = (uint16_t)(p->stats.garbage + k + 1u - next));
     p->state = next;
 }
 
@@ -496,7 +502,7 @@ int8_t dxl_parser_feed(dxl_parser *p, uint8_t byte)
     switch (p->state) {
     case DXL_PS_ID:
         if (byte == 0xFF) {
-            p->stats.garbage = (uint16_t)(p->stats.garbage + 4u);
+            DXL_COUNT(p->stats.garbage = (uint16_t)(p->stats.garbage + 4u));
             p->state = DXL_PS_H2;
             return 1;
         }
@@ -517,7 +523,7 @@ int8_t dxl_parser_feed(dxl_parser *p, uint8_t byte)
         uint16_t room = (uint16_t)(UINT16_MAX - third);
         uint16_t most = p->cap < room ? (uint16_t)(p->cap + third + 1u) : UINT16_MAX; /* any LEN */
         if (field < 3u || (uint16_t)(field - 2u) > most) {
-            p->stats.length++;
+            DXL_COUNT(p->stats.length++);
             p->state = DXL_PS_H1;
             return -DXL_E_LENGTH;
         }
@@ -542,11 +548,11 @@ int8_t dxl_parser_feed(dxl_parser *p, uint8_t byte)
         p->rx_crc = (uint16_t)(p->rx_crc | ((uint16_t)byte << 8));
         p->state = DXL_PS_H1;
         if (p->rx_crc != p->crc) {
-            p->stats.crc++;
+            DXL_COUNT(p->stats.crc++);
             dxl_parser_rescan(p);
             return -DXL_E_CRC;
         }
-        p->stats.packets++;
+        DXL_COUNT(p->stats.packets++);
         return 0;
     default:
         dxl_parser_reset(p);

@@ -180,6 +180,19 @@ int8_t dxl_build_bulk_write(uint8_t *buf, uint16_t cap, const dxl_bulk_item *ite
 int8_t dxl_build_status(uint8_t *buf, uint16_t cap, uint8_t id, uint8_t err, const uint8_t *params,
                         uint16_t n, uint16_t *len);
 
+/* The counters of the parser and the master (dxl_parser.stats,
+ * dxl_master.stats) are kept unless this is 0: the firmware, which reports
+ * none of them, builds with -DDXL_STATS=0 (24 bytes of RAM and the code that
+ * counts). */
+#ifndef DXL_STATS
+#define DXL_STATS 1
+#endif
+#if DXL_STATS
+#define DXL_COUNT(x) ((void)(x))
+#else
+#define DXL_COUNT(x) ((void)0)
+#endif
+
 /* --- packet parser ------------------------------------------------------------
  * Fed one byte at a time. Finds the header (skipping anything before it),
  * checks the reserved byte, LEN and CRC, removes stuffing and stores INST and
@@ -220,7 +233,9 @@ typedef struct {
     uint16_t blk_crc;
     uint16_t blk_ok;
     uint8_t blk_n;
+#if DXL_STATS
     dxl_parse_stats stats;
+#endif
 } dxl_parser;
 
 /* Prepares a parser that stores packet bodies in buf[0..cap). Statistics start at 0. */

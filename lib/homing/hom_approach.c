@@ -52,7 +52,7 @@ HOM_NOINLINE void hom_begin_tendon(hom_t *h, uint8_t i)
     h->pos_at_sample = h->present[i];
     t->engaged = 0;
     t->retries = 0;
-    hom_push_event(h, HOM_EV_PHASE, HOM_PH_TENDON, i, 0, 0);
+    hom_phase_event(h, HOM_PH_TENDON, i);
     h->quick_leg = 0;
     if (h->mode == HOM_MODE_QUICK) {
         /* straight to just short of the stored home: a tenth of the expected
@@ -74,7 +74,7 @@ HOM_NOINLINE void hom_begin_tendon(hom_t *h, uint8_t i)
  * past engagement. Returns 1 if it did. */
 HOM_NOINLINE static int beyond_limit(hom_t *h, int32_t x)
 {
-    const hom_tendon_t *t = &h->tendon[h->cur];
+    const hom_tendon_t *t = hom_cur(h);
     int32_t d;
     if (!t->engaged) {
         return 0;
@@ -99,7 +99,7 @@ HOM_NOINLINE int hom_pull_to(hom_t *h, int32_t g, uint16_t v)
 
 HOM_NOINLINE static void begin_moderate(hom_t *h)
 {
-    hom_tendon_t *t = &h->tendon[h->cur];
+    hom_tendon_t *t = hom_cur(h);
     int32_t g;
     if (t->retries != 0u) {
         g = h->mod_goal;
@@ -117,14 +117,8 @@ HOM_NOINLINE static void begin_moderate(hom_t *h)
     }
 }
 
-HOM_NOINLINE void hom_begin_fine_move(hom_t *h)
-{
-    h->state = ST_FINE_MOVE;
-    h->t_phase = h->now_ms;
-}
-
 /* The field b has come within permille of the target. */
-HOM_NOINLINE static int near_target(const hom_tendon_t *t, uint32_t b, uint16_t permille)
+static int near_target(const hom_tendon_t *t, uint32_t b, uint16_t permille)
 {
     return (int32_t)b >= hom_muldiv((int32_t)t->target_cuT, permille, 1000);
 }
@@ -133,20 +127,20 @@ HOM_NOINLINE static int near_target(const hom_tendon_t *t, uint32_t b, uint16_t 
  * position p (unless the goal is nearer) and go on with fine points. */
 HOM_NOINLINE static void stop_short(hom_t *h, int32_t p)
 {
-    const hom_tendon_t *t = &h->tendon[h->cur];
+    const hom_tendon_t *t = hom_cur(h);
     uint8_t state = h->state;
     int32_t g = p + hom_pull(t, 2);
     if (hom_pull(t, h->out.goal[h->cur] - g) > 0) {
         (void)hom_pull_to(h, g, h->cfg.v_moderate);
     }
     if (h->state == state) {
-        hom_begin_fine_move(h);
+        hom_enter(h, ST_FINE_MOVE);
     }
 }
 
 HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
 {
-    hom_tendon_t *t = &h->tendon[h->cur];
+    hom_tendon_t *t = hom_cur(h);
     uint8_t sel = t->sensor;
     int fresh = in->sensor[sel].status == HOM_SENS_NEW;
     uint32_t b = fresh ? hom_delta_of(h, sel, in->sensor[sel].b_cuT) : 0u;
@@ -162,7 +156,7 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
         return;
     }
     if (t->engaged && hom_pull(t, p - h->out.goal[h->cur]) > HOM_DROOP_TICKS &&
-        hom_since(h, h->moved_ms[h->cur]) >= 10u) {
+        hom_still_ms(h, h->cur) >= 10u) {
         /* pulling past the goal last sent: the servo missed that goal (a
          * sync write gets no status) and still runs to an older one; send
          * it again, every 10 ms until it takes */
@@ -175,7 +169,7 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
             t->engage = h->pos_at_sample; /* the last position seen slack */
             t->eng_lo = t->engage;
             t->eng_hi = t->engage;
-            h->win_changed |= (uint16_t)(1u << h->cur);
+            h->win_changed |= hom_bit(h->cur);
             hom_push_event(h, HOM_EV_ENGAGED, 0, h->cur, t->engage, (int32_t)b);
             if (!h->quick_leg) {
                 begin_moderate(h);
@@ -189,7 +183,7 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
             stop_short(h, p); /* the stored home is further than the field says */
         } else if (hom_reached(h, h->cur)) {
             if (h->quick_leg && t->engaged) {
-                hom_begin_fine_move(h);
+                hom_enter(h, ST_FINE_MOVE);
             } else if (h->quick_leg) {
                 /* no engagement where the stored home put it: search as usual */
                 h->quick_leg = 0;
@@ -205,17 +199,17 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
         if (fresh && near_target(t, m, t->retries != 0u ? 1000u : h->cfg.near_permille)) {
             stop_short(h, p);
         } else if (hom_reached(h, h->cur)) {
-            hom_begin_fine_move(h);
+            hom_enter(h, ST_FINE_MOVE);
         }
         break;
     case ST_FINE_MOVE: {
         int32_t err = p - h->out.goal[h->cur];
-        if (hom_since(h, h->t_phase) >= h->cfg.settle_ms &&
-            hom_since(h, h->moved_ms[h->cur]) >= h->cfg.settle_ms / 2u &&
+        if (hom_phase_ms(h) >= h->cfg.settle_ms &&
+            hom_still_ms(h, h->cur) >= h->cfg.settle_ms / 2u &&
             ((err >= -1 && err <= 1) || hom_reached(h, h->cur))) {
             hom_start_avg(h);
             h->state = ST_FINE_AVG;
-        } else if (hom_since(h, h->t_phase) > h->cfg.move_timeout_ms) {
+        } else if (hom_phase_ms(h) > h->cfg.move_timeout_ms) {
             hom_fail(h, HOM_F_SERVO_STALL, HOM_DEV_SERVO, h->cur, err);
         }
         break;

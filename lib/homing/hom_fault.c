@@ -50,7 +50,7 @@ HOM_NOINLINE void hom_fail_tendon(hom_t *h, hom_fault_t f, int32_t detail)
 }
 
 /* Sensor bookkeeping and health checks of one step. Returns 1 if it failed. */
-HOM_NOINLINE int hom_check_sensors(hom_t *h, const hom_in_t *in)
+int hom_check_sensors(hom_t *h, const hom_in_t *in)
 {
     uint8_t k;
     int a;
@@ -109,7 +109,7 @@ fault: /* one exit for every fault: the call is set up once */
     return 1;
 }
 
-HOM_NOINLINE int hom_check_servos(hom_t *h, const hom_in_t *in)
+int hom_check_servos(hom_t *h, const hom_in_t *in)
 {
     uint8_t i;
     for (i = 0; i < h->n_tendons; i++) {

@@ -54,7 +54,7 @@ HOM_NOINLINE void hom_begin_final(hom_t *h)
     uint8_t i;
     int32_t dmax = 1;
     int32_t g;
-    hom_push_event(h, HOM_EV_PHASE, HOM_PH_FINAL, 0, 0, 0);
+    hom_phase_event(h, HOM_PH_FINAL, 0);
     for (i = 0; i < h->n_tendons; i++) {
         int32_t d = final_dist(h, i, &g);
         if (d > dmax) {
@@ -70,8 +70,7 @@ HOM_NOINLINE void hom_begin_final(hom_t *h)
             hom_set_goal(h, i, g, (uint16_t)(v == 0u ? 1u : v));
         }
     }
-    h->state = ST_FINAL;
-    h->t_phase = h->now_ms;
+    hom_enter(h, ST_FINAL);
 }
 
 /* Samples to average at a point near the target: enough that the noise of
@@ -79,7 +78,7 @@ HOM_NOINLINE void hom_begin_final(hom_t *h)
  * field change of one tick; at least twice avg_samples, at most HOM_MAX_AVG.
  * A weak field (sensors far from the magnet, a high tension where |dB|
  * flattens) needs many; a strong one needs the minimum. */
-HOM_NOINLINE static uint8_t near_samples(const hom_t *h, int32_t s_q8)
+static uint8_t near_samples(const hom_t *h, int32_t s_q8)
 {
     int32_t q = ((int32_t)h->noise_cuT * 7 * 256 + s_q8 - 1) / s_q8; /* ceil(7 noise / slope) */
     int32_t n = q > 6 ? (int32_t)HOM_MAX_AVG : q * q;
@@ -117,9 +116,9 @@ static void keep_point(hom_t *h, int32_t p, uint32_t b, uint8_t n)
  * the same factor, so sums of y beyond what the products below hold in 32
  * bits (|sy| >= 2^21: points 164 uT or more from the target on average) are
  * halved together until they fit; below that the result is exact. */
-HOM_NOINLINE static int32_t fit_or(const hom_t *h, int32_t p, int32_t fallback)
+static int32_t fit_or(const hom_t *h, int32_t p, int32_t fallback)
 {
-    const hom_tendon_t *t = &h->tendon[h->cur];
+    const hom_tendon_t *t = hom_cur(h);
     /* at most 4 points of at most 32 samples with |x| <= 4: the sums without
      * y fit 16 bits (|sx| <= 512, sxx <= 2048, d < 2^18); with |y| < 2^20
      * the others fit 32; |sy| < 2^21 and |sxy| < 2^23 keep each product of
@@ -181,16 +180,15 @@ HOM_NOINLINE static int32_t fit_or(const hom_t *h, int32_t p, int32_t fallback)
  * (hom_release_check()). */
 HOM_NOINLINE static void finish_tendon(hom_t *h, int32_t p, int32_t fallback)
 {
-    hom_tendon_t *t = &h->tendon[h->cur];
+    hom_tendon_t *t = hom_cur(h);
     int32_t home_q8 = fit_or(h, p, fallback);
     t->home = hom_floor_div256(home_q8);
     h->home_res = home_q8 - t->home * 256;
     t->home_frac = (int8_t)h->home_res;
     h->home_dB = hom_delta_of(h, t->sensor, h->sensor[t->sensor].last);
     hom_set_goal(h, h->cur, hom_slack_goal(t), h->cfg.v_release);
-    h->state = ST_TENDON_RELEASE;
+    hom_enter(h, ST_TENDON_RELEASE);
     h->settled = 0;
-    h->t_phase = h->now_ms;
 }
 
 /* Remaining travel from a field b to the target along the table's own
@@ -202,7 +200,7 @@ HOM_NOINLINE static int32_t table_remaining_q8(const hom_t *h, uint32_t b)
 {
     tbl_tendon_t row;
     tbl_info_t info;
-    const hom_tendon_t *t = &h->tendon[h->cur];
+    const hom_tendon_t *t = hom_cur(h);
     uint32_t x0 = 0;
     uint32_t y0 = 0;
     int32_t travel_b = -1;
@@ -243,7 +241,7 @@ HOM_NOINLINE static int32_t table_remaining_q8(const hom_t *h, uint32_t b)
  * again to the last point known to be short of it. */
 void hom_fine_point(hom_t *h)
 {
-    hom_tendon_t *t = &h->tendon[h->cur];
+    hom_tendon_t *t = hom_cur(h);
     int32_t avg[3];
     int32_t p = h->present[h->cur];
     uint32_t b;
@@ -362,6 +360,6 @@ void hom_fine_point(hom_t *h)
     h->b_prev = b;
     h->have_prev = 1;
     if (hom_pull_to(h, p + hom_pull(t, (int32_t)step), h->cfg.v_fine) == 0) {
-        hom_begin_fine_move(h);
+        hom_enter(h, ST_FINE_MOVE);
     }
 }

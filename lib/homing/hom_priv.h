@@ -37,7 +37,10 @@ enum {
 };
 
 /* Functions that measured smaller on the AVR as calls than inlined (each
- * inlined copy of 32-bit arithmetic costs more than the call). */
+ * inlined copy of 32-bit arithmetic costs more than the call). The health
+ * checks, the fit, the straight-pose shift, the table set-up step, the
+ * release check and the near-target test measured smaller without it, and
+ * have no HOM_NOINLINE. */
 #if defined(__GNUC__)
 #define HOM_NOINLINE __attribute__((noinline))
 #else
@@ -52,6 +55,9 @@ enum {
 
 /* ---- homing.c: API and shared helpers ---- */
 void hom_push_event(hom_t *h, uint8_t type, uint8_t code, uint8_t index, int32_t a, int32_t b);
+/* HOM_EV_PHASE code (HOM_PH_*) for index */
+void hom_phase_event(hom_t *h, uint8_t code, uint8_t index);
+void hom_done(hom_t *h);
 int32_t hom_muldiv(int32_t a, int32_t b, int32_t c);
 int32_t hom_um_to_ticks(uint32_t um, uint32_t nm_per_tick);
 int32_t hom_unwrap_home(int32_t stored, int32_t present);
@@ -76,6 +82,16 @@ int32_t hom_further_back(const hom_tendon_t *t, int32_t g, int32_t x);
 int32_t hom_um_ticks_cur(const hom_t *h, uint8_t i, uint32_t um);
 uint8_t hom_next_tendon(const hom_t *h, uint8_t from);
 int hom_move_done(hom_t *h, int arrived, uint8_t dev, uint8_t index);
+uint16_t hom_bit(uint8_t i);
+uint8_t hom_has(uint16_t m, uint8_t i);
+/* the tendon being calibrated */
+hom_tendon_t *hom_cur(const hom_t *h);
+/* ms since tendon i's goal was last set or its servo last moved */
+uint32_t hom_still_ms(const hom_t *h, uint8_t i);
+/* ms since the current state was entered (hom_enter()) */
+uint32_t hom_phase_ms(const hom_t *h);
+/* Enters state (ST_*) now: the phase's waits and timeouts count from this step. */
+void hom_enter(hom_t *h, uint8_t state);
 
 /* ---- hom_fault.c: faults and health checks ---- */
 void hom_fail(hom_t *h, hom_fault_t f, uint8_t dev, uint8_t index, int32_t detail);
@@ -93,7 +109,6 @@ void hom_do_slack_avg(hom_t *h);
 /* ---- hom_approach.c: take-up and approach ---- */
 void hom_begin_tendon(hom_t *h, uint8_t i);
 int hom_pull_to(hom_t *h, int32_t g, uint16_t v);
-void hom_begin_fine_move(hom_t *h);
 void hom_do_tendon(hom_t *h, const hom_in_t *in);
 
 /* ---- hom_fine.c: fine approach, fit, final move ---- */

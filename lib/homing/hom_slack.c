@@ -31,7 +31,7 @@ void hom_do_preflight(hom_t *h, const hom_in_t *in)
         h->t_phase = h->now_ms;
         h->t_start = h->now_ms;
         hom_push_event(h, HOM_EV_START, h->mode, 0, h->tension_mN, 0);
-        hom_push_event(h, HOM_EV_PHASE, HOM_PH_PREFLIGHT, 0, 0, 0);
+        hom_phase_event(h, HOM_PH_PREFLIGHT, 0);
         memset(h->seen, 0, sizeof h->seen);
         for (i = 0; i < h->n_tendons; i++) {
             h->servo_ok_ms[i] = 0xFFFFFFFFu; /* not yet answered */
@@ -69,7 +69,7 @@ void hom_do_preflight(hom_t *h, const hom_in_t *in)
         for (i = 0; i < h->n_sensors; i++) {
             h->sensor[i].last_ms = h->now_ms;
         }
-        hom_push_event(h, HOM_EV_PHASE, HOM_PH_RELEASE, 0, 0, 0);
+        hom_phase_event(h, HOM_PH_RELEASE, 0);
         for (i = 0; i < h->n_tendons; i++) {
             hom_tendon_t *t = &h->tendon[i];
             int32_t g;
@@ -77,7 +77,7 @@ void hom_do_preflight(hom_t *h, const hom_in_t *in)
             if (h->mode == HOM_MODE_DRY) {
                 continue;
             }
-            if (!((h->win_known >> i) & 1u)) {
+            if (!hom_has(h->win_known, i)) {
                 /* nothing known: the engagement may lie up to the release
                  * that frees a tendon left at the top of the grid behind the
                  * present position, or (slack) ahead of it */
@@ -89,19 +89,18 @@ void hom_do_preflight(hom_t *h, const hom_in_t *in)
                     t->eng_hi = t->est_home - hom_pull(t, t->travel_ticks);
                     t->eng_lo = t->eng_hi;
                 }
-                h->win_known |= (uint16_t)(1u << i);
-                h->win_changed |= (uint16_t)(1u << i);
+                h->win_known |= hom_bit(i);
+                h->win_changed |= hom_bit(i);
             }
             g = release_base(h, i);
             hom_set_goal(h, i, hom_further_back(t, h->present[i], g), h->cfg.v_release);
         }
         /* a dry run moves nothing: straight to the baseline average */
-        h->state = h->mode == HOM_MODE_DRY ? ST_SLACK_AVG : ST_RELEASE_ALL;
-        h->t_phase = h->now_ms;
+        hom_enter(h, h->mode == HOM_MODE_DRY ? ST_SLACK_AVG : ST_RELEASE_ALL);
         h->steps = 0;
         return;
     }
-    if (hom_since(h, h->t_phase) < h->cfg.preflight_ms) {
+    if (hom_phase_ms(h) < h->cfg.preflight_ms) {
         return;
     }
     for (i = 0; i < h->n_sensors; i++) {
@@ -128,9 +127,9 @@ void hom_do_preflight(hom_t *h, const hom_in_t *in)
  * means something moved that no tendon moves (a magnet, a sensor, iron
  * nearby) and the home measured against it is wrong: HOM_F_FIELD_STEP, the
  * home is not recorded. Otherwise the home is recorded and reported. */
-HOM_NOINLINE void hom_release_check(hom_t *h)
+void hom_release_check(hom_t *h)
 {
-    hom_tendon_t *t = &h->tendon[h->cur];
+    hom_tendon_t *t = hom_cur(h);
     int32_t avg[3];
     uint32_t d;
     if (!h->settled) {
@@ -141,7 +140,7 @@ HOM_NOINLINE void hom_release_check(hom_t *h)
         return;
     }
     if (h->settled == 1u) {
-        if (hom_since(h, h->t_phase) >= h->cfg.settle_ms) {
+        if (hom_phase_ms(h) >= h->cfg.settle_ms) {
             hom_start_avg(h);
             h->settled = 2;
         }
@@ -176,7 +175,7 @@ static void slack_done(hom_t *h)
             int32_t lo = h->present[i] + hom_pull(t, t->margin_ticks);
             if (hom_further_back(t, lo, t->eng_lo) == lo) {
                 t->eng_lo = lo;
-                h->win_changed |= (uint16_t)(1u << i);
+                h->win_changed |= hom_bit(i);
             }
         }
     }
@@ -197,15 +196,14 @@ static void slack_done(hom_t *h)
             return;
         }
     }
-    hom_push_event(h, HOM_EV_PHASE, HOM_PH_BASELINE, 0, 0, 0);
+    hom_phase_event(h, HOM_PH_BASELINE, 0);
     if (h->mode == HOM_MODE_DRY) {
         for (i = 0; i < h->n_tendons; i++) {
             hom_push_event(
                 h, HOM_EV_TARGET, 0, i, (int32_t)h->tendon[i].target_cuT,
                 hom_muldiv(h->tendon[i].travel_ticks, (int32_t)h->tendon[i].nm_per_tick, 1000));
         }
-        hom_push_event(h, HOM_EV_DONE, 0, 0, (int32_t)hom_since(h, h->t_start), 0);
-        h->state = ST_DONE;
+        hom_done(h);
         return;
     }
     h->settled = 3; /* the next step begins the first tendon */
@@ -228,7 +226,7 @@ HOM_NOINLINE void hom_do_slack_avg(hom_t *h)
         return;
     }
     if (!h->settled) {
-        if (hom_since(h, h->t_phase) < h->cfg.settle_ms) {
+        if (hom_phase_ms(h) < h->cfg.settle_ms) {
             return;
         }
         hom_start_avg(h);
@@ -281,6 +279,5 @@ HOM_NOINLINE void hom_do_slack_avg(hom_t *h)
                     hom_pull(t, h->steps * hom_um_ticks_cur(h, i, h->cfg.slack_step_um));
         hom_set_goal(h, i, hom_further_back(t, h->present[i], g), h->cfg.v_release);
     }
-    h->state = ST_RELEASE_ALL;
-    h->t_phase = h->now_ms;
+    hom_enter(h, ST_RELEASE_ALL);
 }

@@ -123,13 +123,27 @@ HOM_NOINLINE void hom_push_event(hom_t *h, uint8_t type, uint8_t code, uint8_t i
         return;
     }
     e = &h->ev[(h->ev_head + h->ev_count) % HOM_EV_CAP];
+#if HOM_EV_TIME
     e->t_ms = h->now_ms;
+#endif
     e->type = type;
     e->code = code;
     e->index = index;
     e->a = a;
     e->b = b;
     h->ev_count++;
+}
+
+HOM_NOINLINE void hom_phase_event(hom_t *h, uint8_t code, uint8_t index)
+{
+    hom_push_event(h, HOM_EV_PHASE, code, index, 0, 0);
+}
+
+/* The run is over: HOM_EV_DONE with its time. */
+HOM_NOINLINE void hom_done(hom_t *h)
+{
+    hom_push_event(h, HOM_EV_DONE, 0, 0, (int32_t)hom_since(h, h->t_start), 0);
+    h->state = ST_DONE;
 }
 
 int hom_event_pop(hom_t *h, hom_event_t *ev)
@@ -150,7 +164,7 @@ uint8_t hom_event_count(const hom_t *h)
 
 int hom_window(const hom_t *h, uint8_t i, int32_t *lo, int32_t *hi)
 {
-    if (h == NULL || lo == NULL || hi == NULL || i >= h->n_tendons || !((h->win_known >> i) & 1u)) {
+    if (h == NULL || lo == NULL || hi == NULL || i >= h->n_tendons || !hom_has(h->win_known, i)) {
         return HOM_E_ARG;
     }
     *lo = h->tendon[i].eng_lo;
@@ -245,7 +259,7 @@ HOM_NOINLINE int32_t hom_um_to_ticks(uint32_t um, uint32_t nm_per_tick)
     return hom_muldiv((int32_t)um, 1000, (int32_t)nm_per_tick) + 1;
 }
 
-HOM_NOINLINE int32_t hom_straight_q8(const hom_tendon_t *t, int16_t straight_um)
+int32_t hom_straight_q8(const hom_tendon_t *t, int16_t straight_um)
 {
     return -(int32_t)t->dir * hom_muldiv(straight_um, 256000, (int32_t)t->nm_per_tick);
 }
@@ -356,7 +370,7 @@ HOM_NOINLINE static void load_tendon(hom_t *h, uint8_t i)
  * AVR, too much for twelve tendons in one pass of the main loop. Absolute
  * mode first each sensor's straight-pose |b|, then each tendon's row.
  * Returns 1 once everything is loaded. */
-HOM_NOINLINE int hom_load_step(hom_t *h)
+int hom_load_step(hom_t *h)
 {
     uint8_t k = (uint8_t)(h->pf_started - 1u);
     uint8_t ns = h->amb != NULL ? h->n_sensors : 0u;
@@ -396,7 +410,7 @@ int hom_start(hom_t *h, const tbl_src_t *table, const hom_cmd_t *cmd)
         return HOM_E_ARG;
     }
     if (cmd->mode == HOM_MODE_QUICK &&
-        (cmd->stored_mask & ((1u << info.n_tendons) - 1u)) != ((1u << info.n_tendons) - 1u)) {
+        (cmd->stored_mask & (hom_bit(info.n_tendons) - 1u)) != (hom_bit(info.n_tendons) - 1u)) {
         return HOM_E_HOMES;
     }
     tension = cmd->tension_mN != 0u ? cmd->tension_mN : info.default_mN;
@@ -409,17 +423,17 @@ int hom_start(hom_t *h, const tbl_src_t *table, const hom_cmd_t *cmd)
     memset(&h->table, 0, sizeof *h - offsetof(hom_t, table));
     for (i = 0; i < info.n_tendons; i++) {
         hom_tendon_t *t = &h->tendon[i];
-        if ((cmd->stored_mask >> i) & 1u) {
+        if (hom_has(cmd->stored_mask, i)) {
             t->est_home = cmd->stored_home[i]; /* unwrapped once positions are known */
             t->have_home = 2;                  /* 2: stored, not yet measured */
         }
-        if ((cmd->win_mask >> i) & 1u) {
+        if (hom_has(cmd->win_mask, i)) {
             t->eng_lo = cmd->win_lo[i];
             t->eng_hi = cmd->win_hi[i];
         }
     }
     h->release_um = h->cfg.initial_release_um;
-    h->win_known = (uint16_t)(cmd->win_mask & ((1u << info.n_tendons) - 1u));
+    h->win_known = (uint16_t)(cmd->win_mask & (hom_bit(info.n_tendons) - 1u));
     h->table = *table;
     /* averages beyond the accumulator's reach would never complete */
     if (h->cfg.baseline_samples == 0u || h->cfg.baseline_samples > HOM_MAX_AVG) {
@@ -471,6 +485,41 @@ HOM_NOINLINE uint32_t hom_since(const hom_t *h, uint32_t t)
     return (uint32_t)(h->now_ms - t);
 }
 
+/* 1 << i and bit i of m: one routine each (a variable shift is a loop on
+ * the AVR) */
+HOM_NOINLINE uint16_t hom_bit(uint8_t i)
+{
+    return (uint16_t)(1u << i);
+}
+
+HOM_NOINLINE uint8_t hom_has(uint16_t m, uint8_t i)
+{
+    return (uint8_t)((m >> i) & 1u);
+}
+
+/* As strchr() does, a const run in, a writable tendon out: one routine for
+ * the readers and the writers. */
+HOM_NOINLINE hom_tendon_t *hom_cur(const hom_t *h)
+{
+    return (hom_tendon_t *)&h->tendon[h->cur];
+}
+
+HOM_NOINLINE uint32_t hom_still_ms(const hom_t *h, uint8_t i)
+{
+    return hom_since(h, h->moved_ms[i]);
+}
+
+HOM_NOINLINE uint32_t hom_phase_ms(const hom_t *h)
+{
+    return hom_since(h, h->t_phase);
+}
+
+HOM_NOINLINE void hom_enter(hom_t *h, uint8_t state)
+{
+    h->state = state;
+    h->t_phase = h->now_ms;
+}
+
 HOM_NOINLINE void hom_set_goal(hom_t *h, uint8_t i, int32_t goal, uint16_t vel)
 {
     h->moved_ms[i] = h->now_ms;
@@ -478,7 +527,7 @@ HOM_NOINLINE void hom_set_goal(hom_t *h, uint8_t i, int32_t goal, uint16_t vel)
     h->out.vel[i] = vel;
     h->out.acc[i] = h->cfg.acc;
     h->out.torque[i] = 1;
-    h->out.changed |= (uint16_t)(1u << i);
+    h->out.changed |= hom_bit(i);
     h->moved = 1;
 }
 
@@ -491,8 +540,7 @@ HOM_NOINLINE int hom_reached(const hom_t *h, uint8_t i)
     if (d >= -1 && d <= 1) {
         return 1;
     }
-    return d >= -HOM_DROOP_TICKS && d <= HOM_DROOP_TICKS &&
-           hom_since(h, h->moved_ms[i]) >= HOM_STILL_MS;
+    return d >= -HOM_DROOP_TICKS && d <= HOM_DROOP_TICKS && hom_still_ms(h, i) >= HOM_STILL_MS;
 }
 
 /* Every tendon whose goal was set in this run has reached it. */
@@ -595,7 +643,7 @@ uint8_t hom_next_tendon(const hom_t *h, uint8_t from)
  * than move_timeout_ms ends the run (HOM_F_SERVO_STALL). */
 HOM_NOINLINE int hom_move_done(hom_t *h, int arrived, uint8_t dev, uint8_t index)
 {
-    if (!arrived && hom_since(h, h->t_phase) > h->cfg.move_timeout_ms) {
+    if (!arrived && hom_phase_ms(h) > h->cfg.move_timeout_ms) {
         hom_fail(h, HOM_F_SERVO_STALL, dev, index, 0);
     }
     return arrived;
@@ -628,9 +676,8 @@ int hom_step(hom_t *h, const hom_in_t *in, hom_out_t *out)
             switch (h->state) {
             case ST_RELEASE_ALL:
                 if (hom_move_done(h, all_reached(h), HOM_DEV_NONE, 0)) {
-                    h->state = ST_SLACK_AVG;
+                    hom_enter(h, ST_SLACK_AVG);
                     h->settled = 0;
-                    h->t_phase = h->now_ms;
                 }
                 break;
             case ST_SLACK_AVG:
@@ -641,8 +688,7 @@ int hom_step(hom_t *h, const hom_in_t *in, hom_out_t *out)
                 break;
             case ST_FINAL:
                 if (hom_move_done(h, all_reached(h), HOM_DEV_NONE, 0)) {
-                    hom_push_event(h, HOM_EV_DONE, 0, 0, (int32_t)hom_since(h, h->t_start), 0);
-                    h->state = ST_DONE;
+                    hom_done(h);
                 }
                 break;
             default:

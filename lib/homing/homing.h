@@ -78,6 +78,12 @@
 
 #define HOM_RUNNING 1
 #define HOM_EV_CAP  12u /* event queue capacity */
+/* Events carry the time of their step (hom_event_t.t_ms) unless this is 0:
+ * the firmware, whose reports do not print it, keeps 4 bytes per queued
+ * event (48 bytes of RAM) by building with -DHOM_EV_TIME=0. */
+#ifndef HOM_EV_TIME
+#define HOM_EV_TIME 1
+#endif
 /* Sensors a run can use (the table format allows TBL_MAX_SENSORS): state is
  * kept per sensor, and the firmware's RAM is sized for this many. A table
  * with more is refused by hom_start() (HOM_E_TABLE). */
@@ -164,7 +170,9 @@ enum {
 };
 
 typedef struct {
+#if HOM_EV_TIME
     uint32_t t_ms;
+#endif
     uint8_t type;
     uint8_t code;
     uint8_t index;

@@ -117,20 +117,20 @@ static const icm_init_write_t icm_init_writes[] ICM_FLASH = {
      0},
 };
 
+/* Compares rather than a switch: GCC turns that switch into a lookup table,
+ * which the AVR keeps in RAM. */
 int8_t icm_bus_error(int8_t bus_rc)
 {
-    switch (bus_rc) {
-    case ICM_BUS_OK:
+    if (bus_rc == ICM_BUS_OK) {
         return 0;
-    case ICM_BUS_E_ADDR_NACK:
-        return ICM_E_ABSENT;
-    case ICM_BUS_E_DATA_NACK:
-        return ICM_E_NACK;
-    case ICM_BUS_E_TIMEOUT:
-        return ICM_E_TIMEOUT;
-    default:
-        return ICM_E_BUS;
     }
+    if (bus_rc == ICM_BUS_E_ADDR_NACK) {
+        return ICM_E_ABSENT;
+    }
+    if (bus_rc == ICM_BUS_E_DATA_NACK) {
+        return ICM_E_NACK;
+    }
+    return bus_rc == ICM_BUS_E_TIMEOUT ? ICM_E_TIMEOUT : ICM_E_BUS;
 }
 
 /* A failed transfer leaves the bank and mux state unknown; a stuck or timed
@@ -569,12 +569,16 @@ int8_t icm_read_fetch(icm_dev_t *dev, uint32_t now_us, icm_sample_t *out)
         out->flags |= ICM_SAMPLE_NEW;
         if (blk[0] & AK_REG_ST1_DOR) {
             out->flags |= ICM_SAMPLE_OVERRUN;
+#if ICM_STATS
             dev->overrun_count++;
+#endif
         }
         if (blk[8] & AK_REG_ST2_HOFL) {
             dev->overflow_count++;
         }
+#if ICM_STATS
         dev->new_count++;
+#endif
         dev->last_new_us = now_us;
         dev->have = 1;
         memcpy(dev->last, blk, sizeof(blk));

@@ -18,6 +18,14 @@
 
 /* --- abstract I2C bus ----------------------------------------------------- */
 
+/* The sample counters no console report prints (icm_dev_t.new_count and
+ * overrun_count, icm_set_slot_t.missed; icm_diag_t.samples and
+ * overrun_count read 0 without them) are kept unless this is 0: the firmware
+ * builds with -DICM_STATS=0 (8 bytes of RAM per sensor). */
+#ifndef ICM_STATS
+#define ICM_STATS 1
+#endif
+
 /* Bus results: 0 = transfer done, negative = one of these. */
 enum icm_bus_err {
     ICM_BUS_OK = 0,
@@ -114,9 +122,11 @@ typedef struct {
     uint32_t wait_us;
     uint32_t stale_us;
     uint32_t last_new_us;
-    uint32_t new_count;      /* new samples since init */
+#if ICM_STATS
+    uint32_t new_count;     /* new samples since init */
+    uint16_t overrun_count; /* new samples with DOR */
+#endif
     uint16_t overflow_count; /* new samples with HOFL */
-    uint16_t overrun_count;  /* new samples with DOR */
     uint16_t error_count;    /* failed transfers and stale fetches */
 } icm_dev_t;
 

@@ -122,9 +122,11 @@ static void icm_set_fetch(icm_set_slot_t *s, uint32_t now_us)
     }
     s->consec_err = 0;
     if (smp.flags & ICM_SAMPLE_NEW) {
+#if ICM_STATS
         if (s->fresh) {
             s->missed++;
         }
+#endif
         s->last = smp;
         s->fresh = 1;
         s->win_new++;
@@ -261,9 +263,11 @@ int8_t icm_set_diag(const icm_set_t *set, uint8_t idx, icm_diag_t *d)
     for (i = 0; i < 3u; i++) {
         d->field_cuT[i] = (int32_t)s->last.raw[i] * AK_REG_LSB_CUT;
     }
+#if ICM_STATS
     d->samples = s->dev.new_count;
-    d->overflow_count = s->dev.overflow_count;
     d->overrun_count = s->dev.overrun_count;
+#endif
+    d->overflow_count = s->dev.overflow_count;
     d->error_count = s->dev.error_count;
     d->reinits = s->reinits;
     return 0;

@@ -50,7 +50,9 @@ typedef struct {
     uint16_t win_new;
     uint16_t rate_dhz; /* new samples per second x10, last full window */
     uint16_t reinits;  /* inits started after the first */
-    uint16_t missed;   /* new samples overwritten before icm_set_take() */
+#if ICM_STATS
+    uint16_t missed; /* new samples overwritten before icm_set_take() */
+#endif
 } icm_set_slot_t;
 
 typedef struct {
@@ -86,8 +88,8 @@ typedef struct {
 } icm_diag_t;
 
 /* Prepares an empty set on bus with room for cap sensors in the caller's
- * slots array (83 bytes each on the AVR, so a 3-sensor frame does not pay
- * for 16); mux_addr is the TCA9548A address (0x70..0x77) or ICM_NO_MUX for
+ * slots array (85 bytes each on the AVR, 77 with ICM_STATS=0, so a 3-sensor
+ * frame does not pay for 16); mux_addr is the TCA9548A address (0x70..0x77) or ICM_NO_MUX for
  * sensors wired directly. Returns 0 or ICM_E_ARG (NULL, cap 0 or above
  * ICM_SET_MAX, bad mux address). */
 int8_t icm_set_setup(icm_set_t *set, const icm_bus_t *bus, uint8_t mux_addr, icm_set_slot_t *slots,
