@@ -80,10 +80,9 @@ def _edits(res: FitResult) -> dict:
     return out
 
 
-def _key_lines(src: list[str]) -> dict:
-    """{(table, index, key): line number} of every key line, and {(table,
-    index): line number} of each table's last key line."""
-    out: dict = {}
+def _walk(src: list[str]):
+    """Per line of a TOML text: (line number, line, table, index of the table
+    among those of its name, match of a `key = value` line or None)."""
     counts: dict[str, int] = {}
     table, index = None, 0
     for n, line in enumerate(src):
@@ -93,7 +92,15 @@ def _key_lines(src: list[str]) -> dict:
             counts[table] = counts.get(table, -1) + 1
             index = counts[table] if m.group(1) == "[[" else 0
         m = _KEY.match(line)
-        if m and table is not None:
+        yield n, line, table, index, (m if m and table is not None else None)
+
+
+def _key_lines(src: list[str]) -> dict:
+    """{(table, index, key): line number} of every key line, and {(table,
+    index): line number} of each table's last key line."""
+    out: dict = {}
+    for n, _, table, index, m in _walk(src):
+        if m:
             out[(table, index, m.group(2))] = n
             out[(table, index)] = n
     return out
@@ -111,18 +118,10 @@ def render_identified(res: FitResult, nominal: Robot, survey_name: str, when=Non
     for (t, i, k), (val, com) in sorted(edits.items()):
         if k in _OPTIONAL_KEYS and (t, i, k) not in where and (t, i) in where:
             extra.setdefault(where[(t, i)], []).append(f"{k} = {val}   {com}")
-    counts: dict[str, int] = {}
-    table, index = None, 0
     done = set()
     lines = []
-    for n, line in enumerate(src):
-        m = _TABLE.match(line)
-        if m:
-            table = m.group(2)
-            counts[table] = counts.get(table, -1) + 1
-            index = counts[table] if m.group(1) == "[[" else 0
-        m = _KEY.match(line)
-        if m and table is not None and (table, index, m.group(2)) in edits:
+    for n, line, table, index, m in _walk(src):
+        if m and (table, index, m.group(2)) in edits:
             val, com = edits[(table, index, m.group(2))]
             line = f"{m.group(1)}{m.group(2)}{m.group(3)}{val}   {com}"
             done.add((table, index, m.group(2)))
