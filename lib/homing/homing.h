@@ -328,6 +328,7 @@ typedef struct {
     uint32_t t_phase;      /* start of the current wait */
     uint32_t t_tendon;     /* start of the current tendon */
     int32_t pos_at_sample; /* active tendon's position at the previous selected-sensor sample */
+    int32_t takeup_from;   /* active tendon's position when its take-up began */
     int32_t home_res;      /* active tendon: sub-tick residue of its home (1/256 tick), reported
                               once the release check passed */
     uint32_t home_dB;      /* active tendon: |B - B0| of its selected sensor (cuT) when its home

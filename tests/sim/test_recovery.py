@@ -245,6 +245,30 @@ def test_a_field_step_no_motion_can_make_is_refused(tmp_path, step_uT, last_fine
         assert t["tension_now_mN"] < 1.0, f"tendon {t['tendon']} still at {t['tension_now_mN']} mN"
 
 
+def test_a_field_step_before_a_tendon_moves_is_not_its_engagement(tmp_path):
+    """A field step on the next tendon's sensor (sensor 0, tendon 2's; tendon
+    1 is checked on sensor 1) as that tendon's take-up begins once read as
+    its engagement at the first sample: the window narrowed to where the
+    tendon was still a margin slack, and every later run searched short of
+    the true engagement and ended in no_engagement (chaos seeds 1007, 1031,
+    1034). The run must end in field_step on that sensor instead, with
+    every tendon released, and the next press, the step gone, calibrate."""
+    r = bench(tmp_path, "--limit", "30s", "--at", "1s press 100",
+              "--at", "step on ^<progress.state=tendon.tendon=2 +0ms field 0 0 0 30",
+              "--at", "step on ^<released +0.3s field 0 0 0 0",
+              "--at", "step +0.5s press 100",
+              "--until", "^<done mode=full", "--linger", "300ms")
+    faults = r.of("fault")
+    assert faults and faults[0][1]["reason"] == "field_step", r.context()
+    assert faults[0][1]["dev"] == "sensor" and faults[0][1]["index"] == "0", r.context()
+    first_fault = faults[0][0]
+    assert not [t for t, f in r.of("progress")
+                if f.get("state") == "engaged" and f.get("tendon") == "2" and t < first_fault]
+    completes(r)
+    assert [f["tendon"] for t, f in r.of("result") if t > first_fault] == \
+        ["0", "1", "2", "3", "4", "5"], r.context()
+
+
 def test_stack_keeps_a_kilobyte_free_through_a_busy_calibration(tmp_path):
     """The board paints its stack at boot and `status` reports the least free
     stack since (stack_free): at least 1 KB must stay free through a full
