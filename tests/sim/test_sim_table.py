@@ -35,9 +35,12 @@ def test_every_failing_tendon_is_named_with_the_tolerance():
     assert len(header) == 1 and header[0].split()[-1] == "result"
 
 
-# hallhome.straight's shifts of paper_2seg at 0.8 N (python -m hallhome.straight
-# lookup_tables/robots/paper_2seg.toml --list)
-SHIFTS = "291.6,291.6,291.6,583.9,583.9,583.9"
+# hallhome.straight's shifts of paper_2seg at 0.8 N, as `make sim` passes them
+# (python -m hallhome.straight lookup_tables/robots/paper_2seg.toml --list)
+SHIFTS = subprocess.run(
+    [str(ROOT / ".venv" / "bin" / "python"), "-m", "hallhome.straight",
+     str(ROOT / "lookup_tables" / "robots" / "paper_2seg.toml"), "--list"],
+    capture_output=True, text=True, timeout=120, check=True, cwd=ROOT).stdout.strip()
 
 
 def columns(r, rows, *names):
