@@ -390,3 +390,20 @@ def test_friction_below_zero_is_refused_with_the_way_out(friction_case):
     assert "--no-friction" in res.refused
     kept = fit(desc, light, friction=False)
     assert "friction" not in [p.name for p in kept.params]
+
+
+def test_command_fits_the_friction_of_two_masses_unless_told(tmp_path, friction_case):
+    desc, true, sv = friction_case
+    robot = tmp_path / "paper_2seg.toml"
+    robot.write_text(desc.path.read_text())
+    d = synthetic_survey(true, seed=4, weights=((0, 40.0), (0, 120.0), (3, 40.0), (3, 120.0)))
+    path = tmp_path / "survey.json"
+    path.write_text(json.dumps(d))
+    names = {}
+    for flag in ([], ["--no-friction"]):
+        res = CliRunner().invoke(main, ["identify", "fit", str(robot), str(path), "--no-write",
+                                        "--json", *flag])
+        assert res.exit_code == 0, res.output
+        names[bool(flag)] = [r["name"] for r in json.loads(res.stdout)["parameters"]]
+    assert "friction" in names[False] and "friction" not in names[True]
+    assert "--no-friction" in CliRunner().invoke(main, ["identify", "fit", "--help"]).output
