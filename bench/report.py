@@ -467,9 +467,8 @@ def identify_notes(idf: Dict) -> List[str]:
     notes = []
     for st in idf.get("sets", []):
         nom = st["nominal"]["all"]
-        for mode, lab in (("weights", "one weight per segment"),
-                          ("tendons", "one weight per tendon"),
-                          ("friction", "two masses per segment")):
+        for mode in ("weights", "tendons", "friction"):
+            lab = ID_SHORT[mode]
             if mode not in st:
                 continue
             w = st[mode]["all"]

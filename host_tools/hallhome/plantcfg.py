@@ -51,16 +51,11 @@ FRICTION_MN = 10.0
 FRICTION_MU = 0.02
 
 
-def _friction_mN(t, given: float | None) -> float:
+def _given_or(given: float | None, described: float | None, default: float) -> float:
+    """An argument given, else the description's value, else the bench's."""
     if given is not None:
         return given
-    return FRICTION_MN if t.friction_N is None else t.friction_N * 1e3
-
-
-def _friction_mu(t, given: float | None) -> float:
-    if given is not None:
-        return given
-    return FRICTION_MU if t.friction_mu is None else t.friction_mu
+    return default if described is None else described
 
 
 def plant_lines(robot: Robot, seed: int | None = None, perturb: float = 0.0, *,
@@ -113,6 +108,9 @@ def plant_lines(robot: Robot, seed: int | None = None, perturb: float = 0.0, *,
     for t in robot.tendons:
         # the plant stretches the free length only: add the path inside the robot
         free = t.free_length + robot.segment_end(t.segment)
+        f0_mN = _given_or(friction_mN, None if t.friction_N is None else t.friction_N * 1e3,
+                          FRICTION_MN)
+        mu = _given_or(friction_mu, t.friction_mu, FRICTION_MU)
         p = f"tendon.{t.index}."
         lines += [
             p + f"angle_deg = {_fmt(math.degrees(t.routing_angle) + 5.0 * perturb * u())}",
@@ -124,8 +122,8 @@ def plant_lines(robot: Robot, seed: int | None = None, perturb: float = 0.0, *,
             p + f"ea_N = {_fmt(t.stiffness_ea * (1.0 + perturb * u()))}",
             p + f"free_len_mm = {_fmt(free * 1e3 * (1.0 + perturb * u()))}",
             p + f"slack_um = {_fmt(slack_um + 500.0 * perturb * u())}",
-            p + f"friction_mN = {_fmt(_friction_mN(t, friction_mN) * (1.0 + perturb * u()))}",
-            p + f"friction_mu = {_fmt(_friction_mu(t, friction_mu) * (1.0 + perturb * u()))}",
+            p + f"friction_mN = {_fmt(f0_mN * (1.0 + perturb * u()))}",
+            p + f"friction_mu = {_fmt(mu * (1.0 + perturb * u()))}",
             p + f"backlash_um = {_fmt(backlash_um * (1.0 + perturb * u()))}",
         ]
     for s in robot.sensors:

@@ -718,23 +718,21 @@ int main(int argc, char **argv)
         } else if (strcmp(a, "--survey-weight-all") == 0) {
             b->survey_weight_all = 1;
         } else if (strcmp(a, "--survey-weight") == 0) {
-            char *end = NULL;
+            const char *q;
+            char *end;
             NEEDV();
             b->survey_n_weights = 0;
-            for (const char *q = v; b->survey_n_weights < BENCH_SURVEY_MASSES; q = end + 1) {
+            for (q = v;; q = end + 1) {
                 double g = strtod(q, &end);
-                if (end == q || !(g >= 0.0 && g <= 10000.0) || (*end != '\0' && *end != ',')) {
-                    b->survey_n_weights = 0;
-                    break;
+                if (end == q || !(g >= 0.0 && g <= 10000.0) || (*end != '\0' && *end != ',') ||
+                    b->survey_n_weights == BENCH_SURVEY_MASSES) {
+                    fprintf(stderr, "hh_bench: --survey-weight takes G or G,G2: grams, 0..10000\n");
+                    return BENCH_EXIT_USAGE;
                 }
                 b->survey_weight_g[b->survey_n_weights++] = g;
                 if (*end == '\0') {
                     break;
                 }
-            }
-            if (b->survey_n_weights == 0 || (end != NULL && *end != '\0')) {
-                fprintf(stderr, "hh_bench: --survey-weight takes G or G,G2: grams, 0..10000\n");
-                return BENCH_EXIT_USAGE;
             }
         } else if (strcmp(a, "--tension") == 0) {
             NEEDV();
