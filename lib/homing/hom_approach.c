@@ -165,18 +165,18 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
     }
     switch (h->state) {
     case ST_TAKEUP:
+        if (fresh && !t->engaged && b >= h->engage_cuT &&
+            hom_pull(t, p - h->takeup_from) < t->margin_ticks / 2) {
+            /* the field changed before the tendon could have engaged: it
+             * was released a whole margin short of its engagement, and has
+             * taken up less than half of it. Something no tendon moves
+             * changed the field (a magnet, iron, a sensor knocked): taken
+             * for an engagement it would narrow the tendon's window to the
+             * wrong place and leave the next runs searching short of it */
+            hom_fail(h, HOM_F_FIELD_STEP, HOM_DEV_SENSOR, sel, (int32_t)b);
+            return;
+        }
         if (fresh && !t->engaged && b >= h->engage_cuT) {
-            if (hom_pull(t, p - h->takeup_from) < t->margin_ticks / 2) {
-                /* the field changed before the tendon could have engaged:
-                 * it was released a whole margin short of its engagement,
-                 * and has taken up less than half of it. Something no
-                 * tendon moves changed the field (a magnet, iron, a sensor
-                 * knocked): taken for an engagement it would narrow the
-                 * tendon's window to the wrong place and leave the next
-                 * runs searching short of it */
-                hom_fail(h, HOM_F_FIELD_STEP, HOM_DEV_SENSOR, sel, (int32_t)b);
-                return;
-            }
             t->engaged = 1;
             t->engage = h->pos_at_sample; /* the last position seen slack */
             t->eng_lo = t->engage;
