@@ -78,7 +78,9 @@ def plant_lines(robot: Robot, seed: int | None = None, perturb: float = 0.0, *,
     m = robot.magnet
     pol = np.asarray(m.rotation, dtype=float) @ np.asarray(m.polarization, dtype=float)
     moment = float(pol[2]) * m.volume / MU0
-    tip_mass = m.mass + robot.segments[-1].disk_mass
+    # the host's model spreads the backbone and disks along each segment and
+    # hangs the magnet at its centre: so does the plant
+    seg_mass_g = [s.linear_density * s.length * 1e3 for s in robot.segments]
 
     lines = [
         f"# plant config written by hallhome from {robot.path.name}",
@@ -94,7 +96,8 @@ def plant_lines(robot: Robot, seed: int | None = None, perturb: float = 0.0, *,
     ]
     if robot.gravity is not None and any(robot.gravity):
         g = np.asarray(robot.gravity, dtype=float)
-        lines += [f"tip_mass_g = {_fmt(tip_mass * 1e3)}",
+        lines += [f"tip_mass_g = {_fmt(m.mass * 1e3)}",
+                  "segment_mass_g = " + " ".join(_fmt(x) for x in seg_mass_g),
                   f"gravity_dir = {_vec(g / np.linalg.norm(g))}"]
     else:
         lines += ["tip_mass_g = 0"]

@@ -3,6 +3,7 @@
  * (see plant.h for the model).
  */
 #include "plant/plant.h"
+#include "plant/kinematics.h"
 #include "simrand.h"
 
 #include <math.h>
@@ -10,7 +11,6 @@
 
 #define PLANT_PI      3.14159265358979323846
 #define PLANT_MU0_4PI 1e-7
-#define PLANT_G       9.81
 
 /* ---- tendon geometry ------------------------------------------------------- */
 
@@ -19,12 +19,6 @@ static void tendon_dir(const plant_cfg_t *c, uint8_t i, double d[2])
     double a = c->tendon[i].angle_deg * PLANT_PI / 180.0;
     d[0] = cos(a);
     d[1] = sin(a);
-}
-
-/* Bending stiffness of segment j: its own when given, else the backbone's. */
-static double seg_ei(const plant_cfg_t *c, uint8_t j)
-{
-    return c->seg_ei_Nm2[j] > 0.0 ? c->seg_ei_Nm2[j] : c->ei_Nm2;
 }
 
 /* Path compliance between tendons i and m: how far tendon i's path shortens
@@ -42,7 +36,7 @@ static double compliance(const plant_cfg_t *c, uint8_t i, uint8_t m)
     tendon_dir(c, i, di);
     tendon_dir(c, m, dm);
     for (j = 0; j < top; j++) {
-        len += c->seg_len_mm[j] * 1e-3 / seg_ei(c, j);
+        len += c->seg_len_mm[j] * 1e-3 / plant_seg_ei(c, j);
         /* every tendon through segment j compresses it, shortening every path */
         if (c->seg_ea_N[j] > 0.0) {
             axial += c->seg_len_mm[j] * 1e-3 / c->seg_ea_N[j];
@@ -59,106 +53,6 @@ double plant_path_compliance(const plant_cfg_t *cfg, uint8_t i, uint8_t m)
         return 0.0;
     }
     return compliance(cfg, i, m);
-}
-
-/* Gravity curvature of segment j (1/m, body-frame vector, small-deflection):
- * the tip mass's lateral weight times the lever from the segment's middle. */
-static void gravity_curv(const plant_cfg_t *c, uint8_t j, double k[2])
-{
-    double total = 0.0;
-    double mid = 0.0;
-    double w = c->tip_mass_g * 1e-3 * PLANT_G;
-    uint8_t s;
-    for (s = 0; s < c->n_segments; s++) {
-        if (s < j) {
-            mid += c->seg_len_mm[s];
-        }
-        total += c->seg_len_mm[s];
-    }
-    mid += 0.5 * c->seg_len_mm[j];
-    /* a lateral force F bends towards F: curvature along F */
-    k[0] = w * c->gravity_dir[0] * (total - mid) * 1e-3 / seg_ei(c, j);
-    k[1] = w * c->gravity_dir[1] * (total - mid) * 1e-3 / seg_ei(c, j);
-}
-
-/* ---- kinematics ------------------------------------------------------------ */
-
-static void mat_mul(double out[3][3], double a[3][3], double b[3][3])
-{
-    double r[3][3];
-    int i;
-    int j;
-    for (i = 0; i < 3; i++) {
-        for (j = 0; j < 3; j++) {
-            r[i][j] = a[i][0] * b[0][j] + a[i][1] * b[1][j] + a[i][2] * b[2][j];
-        }
-    }
-    memcpy(out, r, sizeof r);
-}
-
-/* Constant-curvature arc of length len (m) with curvature vector k (1/m) in
- * its base frame: bending towards k. Writes the end frame's rotation and
- * position relative to the base. */
-static void arc(const double k[2], double len, double rot[3][3], double pos[3])
-{
-    double kap = sqrt(k[0] * k[0] + k[1] * k[1]);
-    double th = kap * len;
-    double c = kap > 0.0 ? k[0] / kap : 1.0;
-    double s = kap > 0.0 ? k[1] / kap : 0.0;
-    double ct = cos(th);
-    double st = sin(th);
-    double r;
-    double z;
-    /* rotation by th about the axis (-s, c, 0) */
-    double ax[3];
-    double v = 1.0 - ct;
-    int i;
-    int j;
-    if (th < 1e-6) {
-        r = kap * len * len / 2.0;
-        z = len;
-    } else {
-        r = (1.0 - ct) / kap;
-        z = st / kap;
-    }
-    pos[0] = r * c;
-    pos[1] = r * s;
-    pos[2] = z;
-    ax[0] = -s;
-    ax[1] = c;
-    ax[2] = 0.0;
-    for (i = 0; i < 3; i++) {
-        for (j = 0; j < 3; j++) {
-            rot[i][j] = v * ax[i] * ax[j] + (i == j ? ct : 0.0);
-        }
-    }
-    rot[0][1] -= st * ax[2];
-    rot[0][2] += st * ax[1];
-    rot[1][0] += st * ax[2];
-    rot[1][2] -= st * ax[0];
-    rot[2][0] -= st * ax[1];
-    rot[2][1] += st * ax[0];
-}
-
-static void forward_kinematics(plant_t *p)
-{
-    double rot[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
-    double pos[3] = {0, 0, 0};
-    uint8_t j;
-    int a;
-    for (j = 0; j < p->cfg.n_segments; j++) {
-        double r[3][3];
-        double d[3];
-        arc(p->curv[j], p->cfg.seg_len_mm[j] * 1e-3, r, d);
-        for (a = 0; a < 3; a++) {
-            pos[a] += rot[a][0] * d[0] + rot[a][1] * d[1] + rot[a][2] * d[2];
-        }
-        mat_mul(rot, rot, r);
-    }
-    for (a = 0; a < 3; a++) {
-        p->tip.pos_mm[a] = pos[a] * 1e3;
-    }
-    memcpy(p->tip.rot, rot, sizeof rot);
 }
 
 /* ---- statics --------------------------------------------------------------- */
@@ -238,42 +132,32 @@ static void backlash_update(plant_t *p, uint8_t i)
     }
 }
 
-int plant_solve(plant_t *p)
+/* Path shortening of every tendon by the gravity curvature gk. */
+static void gravity_shortening(const plant_cfg_t *c, double gk[][2], double gshort[])
 {
-    const plant_cfg_t *c;
-    double prev[PLANT_MAX_TENDONS];
-    double cmat[PLANT_MAX_TENDONS][PLANT_MAX_TENDONS];
-    double gshort[PLANT_MAX_TENDONS];
-    double gk[PLANT_MAX_SEGMENTS][2];
     uint8_t i;
-    uint8_t m;
     uint8_t j;
-    uint32_t it;
-
-    if (p == NULL) {
-        return PLANT_E_ARG;
-    }
-    c = &p->cfg;
-    for (j = 0; j < c->n_segments; j++) {
-        gravity_curv(c, j, gk[j]);
-    }
     for (i = 0; i < c->n_tendons; i++) {
         double d[2];
-        backlash_update(p, i);
-        prev[i] = p->tip_tension_N[i];
         tendon_dir(c, i, d);
         gshort[i] = 0.0;
         for (j = 0; j < c->tendon[i].segment; j++) {
             gshort[i] += c->seg_len_mm[j] * 1e-3 * c->tendon[i].radius_mm * 1e-3 *
                          (d[0] * gk[j][0] + d[1] * gk[j][1]);
         }
-        for (m = 0; m < c->n_tendons; m++) {
-            cmat[i][m] = compliance(c, i, m);
-        }
     }
-    /* projected Gauss-Seidel: each tendon in turn given the others' tip
-     * tensions; the system matrix I + kC is symmetric positive definite up to
-     * scaling, so the sweeps converge */
+}
+
+/* Projected Gauss-Seidel over the tendons: each tendon in turn given the
+ * others' tip tensions; the system matrix I + kC is symmetric positive
+ * definite up to scaling, so the sweeps converge. Returns the sweeps. */
+static uint32_t tension_sweeps(plant_t *p, const double prev[], double cmat[][PLANT_MAX_TENDONS],
+                               const double gshort[])
+{
+    const plant_cfg_t *c = &p->cfg;
+    uint32_t it;
+    uint8_t i;
+    uint8_t m;
     for (it = 0; it < 400u; it++) {
         double change = 0.0;
         for (i = 0; i < c->n_tendons; i++) {
@@ -299,7 +183,15 @@ int plant_solve(plant_t *p)
             break;
         }
     }
-    p->iterations = it + 1u;
+    return it + 1u;
+}
+
+/* Segment curvatures: gravity's gk plus every tendon's moment. */
+static void curvatures(plant_t *p, double gk[][2])
+{
+    const plant_cfg_t *c = &p->cfg;
+    uint8_t i;
+    uint8_t j;
     for (j = 0; j < c->n_segments; j++) {
         p->curv[j][0] = gk[j][0];
         p->curv[j][1] = gk[j][1];
@@ -309,11 +201,63 @@ int plant_solve(plant_t *p)
         double mom = p->tip_tension_N[i] * c->tendon[i].radius_mm * 1e-3;
         tendon_dir(c, i, d);
         for (j = 0; j < c->tendon[i].segment; j++) {
-            p->curv[j][0] += mom * d[0] / seg_ei(c, j);
-            p->curv[j][1] += mom * d[1] / seg_ei(c, j);
+            p->curv[j][0] += mom * d[0] / plant_seg_ei(c, j);
+            p->curv[j][1] += mom * d[1] / plant_seg_ei(c, j);
         }
     }
-    forward_kinematics(p);
+}
+
+int plant_solve(plant_t *p)
+{
+    const plant_cfg_t *c;
+    double prev[PLANT_MAX_TENDONS];
+    double cmat[PLANT_MAX_TENDONS][PLANT_MAX_TENDONS];
+    double gshort[PLANT_MAX_TENDONS];
+    double gk[PLANT_MAX_SEGMENTS][2];
+    double next[PLANT_MAX_SEGMENTS][2];
+    int grav;
+    uint8_t i;
+    uint8_t m;
+    uint8_t j;
+    uint8_t round;
+
+    if (p == NULL) {
+        return PLANT_E_ARG;
+    }
+    c = &p->cfg;
+    grav = plant_has_gravity(c);
+    memset(gk, 0, sizeof gk);
+    if (grav) {
+        plant_gravity_curv(c, p->curv, gk); /* from the last pose */
+    }
+    for (i = 0; i < c->n_tendons; i++) {
+        backlash_update(p, i);
+        prev[i] = p->tip_tension_N[i];
+        for (m = 0; m < c->n_tendons; m++) {
+            cmat[i][m] = compliance(c, i, m);
+        }
+    }
+    /* gravity's moment depends on the pose it bends: fixed-point rounds
+     * until its curvature moves less than PLANT_GRAVITY_TOL */
+    p->iterations = 0u;
+    for (round = 0u;; round++) {
+        double delta = 0.0;
+        gravity_shortening(c, gk, gshort);
+        p->iterations += tension_sweeps(p, prev, cmat, gshort);
+        curvatures(p, gk);
+        if (!grav || round + 1u >= PLANT_GRAVITY_ROUNDS) {
+            break;
+        }
+        plant_gravity_curv(c, p->curv, next);
+        for (j = 0; j < c->n_segments; j++) {
+            delta = fmax(delta, fabs(next[j][0] - gk[j][0]) + fabs(next[j][1] - gk[j][1]));
+        }
+        memcpy(gk, next, sizeof gk);
+        if (delta < PLANT_GRAVITY_TOL) {
+            break;
+        }
+    }
+    plant_forward_kinematics(p);
     return 0;
 }
 

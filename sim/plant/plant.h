@@ -7,8 +7,10 @@
  * model error a real robot brings is present in simulation too:
  *   - piecewise constant curvature: segment j bends with the moment of every
  *     tendon that ends at or beyond it (tendons coupled across segments),
- *     curvature = sum(T_tip * r * direction) / EI (EI per segment), plus an
- *     optional gravity term;
+ *     curvature = sum(T_tip * r * direction) / EI (EI per segment), plus
+ *     gravity's: the moment of the weight distal of each point of the bent
+ *     robot (segment masses spread along the arcs, a tip mass), averaged over
+ *     the segment, solved as a fixed point with the pose;
  *   - tendon path shortening r * (direction . curvature) * L per segment,
  *     plus the backbone's axial compression L * (sum of the tip tensions of
  *     the tendons through the segment) / EA when a segment's EA is given;
@@ -96,10 +98,11 @@ typedef struct {
     double ei_Nm2;                         /* backbone bending stiffness */
     double seg_ei_Nm2[PLANT_MAX_SEGMENTS]; /* per segment, when > 0 (else ei_Nm2) */
     double seg_ea_N[PLANT_MAX_SEGMENTS];   /* backbone axial stiffness, 0 = inextensible */
+    double seg_mass_g[PLANT_MAX_SEGMENTS]; /* gravity: mass spread along the segment */
     double nm_per_tick;                    /* spool take-up per encoder tick */
     double magnet_moment_Am2;   /* dipole moment along the tip's z axis (0 = magnet missing) */
     double magnet_offset_mm;    /* magnet centre beyond the tip along tip z */
-    double tip_mass_g;          /* gravity: lumped mass at the tip */
+    double tip_mass_g;          /* gravity: lumped mass at the magnet's centre */
     double gravity_dir[3];      /* unit vector of gravity in the world frame */
     double noise_uT;            /* sensor noise, 1 sigma per axis */
     double servo_tau_ms;        /* first-order servo time constant */

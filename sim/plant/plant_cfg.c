@@ -333,29 +333,34 @@ static int parse_line(plant_cfg_t *cfg, char *line)
         cfg->n_segments = (uint8_t)n;
         return 0;
     }
-    if (strcmp(key, "segment_ei_Nm2") == 0) {
-        if (n > (int)PLANT_MAX_SEGMENTS) {
-            return PLANT_E_RANGE;
-        }
-        for (i = 0; i < n; i++) {
-            if (v[i] <= 0.0) {
+    {
+        /* per-segment lists: key, field, the lowest value allowed (and whether it is) */
+        static const struct {
+            const char *key;
+            size_t offset;
+            int zero_ok;
+        } lists[] = {
+            {"segment_ei_Nm2", offsetof(plant_cfg_t, seg_ei_Nm2), 0},
+            {"segment_ea_N", offsetof(plant_cfg_t, seg_ea_N), 1},
+            {"segment_mass_g", offsetof(plant_cfg_t, seg_mass_g), 1},
+        };
+        size_t l;
+        for (l = 0; l < sizeof lists / sizeof lists[0]; l++) {
+            double *dst = (double *)(void *)((unsigned char *)cfg + lists[l].offset);
+            if (strcmp(key, lists[l].key) != 0) {
+                continue;
+            }
+            if (n > (int)PLANT_MAX_SEGMENTS) {
                 return PLANT_E_RANGE;
             }
-            cfg->seg_ei_Nm2[i] = v[i];
-        }
-        return 0;
-    }
-    if (strcmp(key, "segment_ea_N") == 0) {
-        if (n > (int)PLANT_MAX_SEGMENTS) {
-            return PLANT_E_RANGE;
-        }
-        for (i = 0; i < n; i++) {
-            if (v[i] < 0.0) {
-                return PLANT_E_RANGE;
+            for (i = 0; i < n; i++) {
+                if (v[i] < 0.0 || (v[i] == 0.0 && !lists[l].zero_ok)) {
+                    return PLANT_E_RANGE;
+                }
+                dst[i] = v[i];
             }
-            cfg->seg_ea_N[i] = v[i];
+            return 0;
         }
-        return 0;
     }
     if (strcmp(key, "grid_mN") == 0) {
         for (i = 0; i < n; i++) {

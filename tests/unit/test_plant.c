@@ -13,6 +13,7 @@
 #include <cmocka.h>
 
 #include "hom_fixture.h"
+#include "plant/kinematics.h"
 
 static plant_cfg_t g_cfg;
 static plant_t g_p;
@@ -252,6 +253,79 @@ static void test_gravity_optional(void **state)
     assert_true(g_p.tip.pos_mm[0] > 0.1); /* sags towards gravity */
 }
 
+/* A robot lying sideways: its own weight, spread along the segment, bends it
+ * with the cantilever's mean moment w L^2 / 6 over the segment (the plant's
+ * one curvature per segment), to the midpoint rule's 2 %. */
+static void test_gravity_spread_mass_sags_like_a_cantilever(void **state)
+{
+    double len = 0.053;
+    double w;
+    double kap;
+    (void)state;
+    load_min(&g_cfg);
+    g_cfg.n_segments = 1;
+    g_cfg.n_tendons = 1;
+    g_cfg.seg_len_mm[0] = len * 1e3;
+    g_cfg.seg_mass_g[0] = 20.0;
+    g_cfg.gravity_dir[0] = 1.0;
+    g_cfg.gravity_dir[2] = 0.0;
+    assert_int_equal(plant_init(&g_p, &g_cfg, 1), 0);
+    w = 20e-3 * PLANT_G / len;
+    kap = w * len * len / 6.0 / g_cfg.ei_Nm2;
+    assert_true(g_p.curv[0][0] > 0.98 * kap && g_p.curv[0][0] < 1.0 * kap);
+    assert_true(fabs(g_p.curv[0][1]) < 1e-12);
+}
+
+/* Upright, gravity along the backbone: the straight robot does not sag; bent
+ * by a tendon, its weight bends it further, and the solve ends at the fixed
+ * point: the pose's gravity curvature plus the tendons' is the curvature. */
+static void test_gravity_bends_a_bent_upright_robot_further(void **state)
+{
+    plant_cfg_t bare;
+    plant_t p0;
+    double gk[PLANT_MAX_SEGMENTS][2];
+    double home;
+    double gain;
+    double lat0;
+    double lat;
+    uint8_t i;
+    uint8_t j;
+    (void)state;
+    assert_int_equal(hom_fix_paper_desc(&g_cfg, NULL), 0); /* the description's masses */
+    assert_true(plant_has_gravity(&g_cfg));
+    bare = g_cfg;
+    bare.tip_mass_g = 0.0;
+    memset(bare.seg_mass_g, 0, sizeof bare.seg_mass_g);
+    assert_int_equal(plant_init(&g_p, &g_cfg, 1), 0);
+    assert_true(hypot(g_p.tip.pos_mm[0], g_p.tip.pos_mm[1]) < 1e-9);
+    /* distal tendon 3 pulled alone to 1.5 N, with and without the masses */
+    assert_int_equal(plant_true_home(&bare, 3, 1500, &home), 0);
+    assert_int_equal(plant_pull_alone(&bare, 3, home, &p0), 0);
+    assert_int_equal(plant_true_home(&g_cfg, 3, 1500, &home), 0);
+    assert_int_equal(plant_pull_alone(&g_cfg, 3, home, &g_p), 0);
+    lat0 = hypot(p0.tip.pos_mm[0], p0.tip.pos_mm[1]);
+    lat = hypot(g_p.tip.pos_mm[0], g_p.tip.pos_mm[1]);
+    assert_true(lat0 > 5.0);
+    gain = lat / lat0 - 1.0;
+    /* small-deflection theory: +1.6 % (+1.5 % with one curvature per
+     * segment); the host's Cosserat model of this robot: +1.65 % */
+    assert_true(gain > 0.013 && gain < 0.018);
+    plant_gravity_curv(&g_p.cfg, g_p.curv, gk);
+    for (j = 0; j < g_cfg.n_segments; j++) {
+        double c[2] = {gk[j][0], gk[j][1]};
+        for (i = 0; i < g_cfg.n_tendons; i++) {
+            double a = g_cfg.tendon[i].angle_deg * 3.14159265358979323846 / 180.0;
+            double mom = g_p.tip_tension_N[i] * g_cfg.tendon[i].radius_mm * 1e-3 /
+                         plant_seg_ei(&g_cfg, j);
+            if (g_cfg.tendon[i].segment > j) {
+                c[0] += mom * cos(a);
+                c[1] += mom * sin(a);
+            }
+        }
+        assert_true(fabs(c[0] - g_p.curv[j][0]) < 1e-6 && fabs(c[1] - g_p.curv[j][1]) < 1e-6);
+    }
+}
+
 static void test_sensor_quantisation_noise_saturation(void **state)
 {
     int32_t b[3];
@@ -388,6 +462,8 @@ int main(void)
         cmocka_unit_test(test_tendon_elasticity_and_slack),
         cmocka_unit_test(test_friction_and_backlash_hysteresis),
         cmocka_unit_test(test_gravity_optional),
+        cmocka_unit_test(test_gravity_spread_mass_sags_like_a_cantilever),
+        cmocka_unit_test(test_gravity_bends_a_bent_upright_robot_further),
         cmocka_unit_test(test_sensor_quantisation_noise_saturation),
         cmocka_unit_test(test_sensor_frame_rotation),
         cmocka_unit_test(test_dipole_on_axis),
