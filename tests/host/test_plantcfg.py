@@ -42,6 +42,11 @@ def test_paper_values():
     v = math.pi * 1.75e-3**2 * 3e-3
     assert float(kv["magnet_moment_Am2"]) == pytest.approx(1.3 * v / (4e-7 * math.pi))
     assert float(kv["magnet_offset_mm"]) == pytest.approx(2.5)
+    # gravity as the host's model has it: backbone and six 0.2 g disks spread
+    # along each segment, the magnet at its centre
+    rod = math.pi * 0.5e-3**2 * 53e-3 * 6450.0 * 1e3
+    assert nums(kv["segment_mass_g"]) == pytest.approx([rod + 1.2, rod + 1.2])
+    assert float(kv["tip_mass_g"]) == pytest.approx(r.magnet.mass * 1e3)
     assert [int(x) for x in kv["grid_mN"].split()][0] == 200
     assert kv["default_mN"] == "800"
     assert float(kv["travel_limit_um"]) == pytest.approx(2500.0)
