@@ -30,6 +30,8 @@ from hallhome.usable import UnusableRobot, check_limits, firmware_limits, robot_
 
 TABLE_HEADER = LIB_DIR / "table" / "table.h"
 SENSITIVITY_STEP_N = 0.01  # central difference for d|dB|/dT at the default tension
+# |dB| must rise up to the top of the grid plus this part of its last interval
+RISE_MARGIN = 0.25
 MODEL_STEPS = 8  # integration steps per segment (docs/model.md: < 1 um at the tip)
 
 _CTYPES = {"uint8_t": ("B", 0, 0xFF), "int8_t": ("b", -0x80, 0x7F),
@@ -130,9 +132,10 @@ class TendonResult:
     sensitivity: np.ndarray  # (n_sensors,) d|dB|/dT at the default tension, T/N
     geometric: np.ndarray  # (n_grid,) path shortening from engagement, m
     stretch: np.ndarray  # (n_grid,) elastic stretch, m
-    selected: int  # sensor with the largest sensitivity
+    selected: int  # sensor with the largest sensitivity among those rising over the grid
     closest: int  # sensor closest to the magnet at the default tension
     closest_distance: float  # m
+    rises_to: np.ndarray  # (n_sensors,) tension up to which |dB| keeps rising, N
 
     @property
     def travel(self) -> np.ndarray:
@@ -160,6 +163,34 @@ def _pick(values: np.ndarray, largest: bool) -> int:
     return int(np.nonzero(np.abs(v - best) <= tol)[0][0])
 
 
+def _fine_tensions(grid: np.ndarray) -> np.ndarray:
+    """The grid, the midpoint of each interval, and the top plus
+    RISE_MARGIN of its last interval: where |dB| must keep rising."""
+    mids = 0.5 * (grid[1:] + grid[:-1])
+    past = grid[-1] + RISE_MARGIN * (grid[-1] - grid[-2])
+    return np.sort(np.concatenate([grid, mids, [past]]))
+
+
+def _rises_to(fine: np.ndarray, delta: np.ndarray) -> np.ndarray:
+    """Per sensor: the highest tension of fine up to which |dB| (rows of
+    delta, one per tension) rises strictly from the lowest."""
+    out = np.empty(delta.shape[1])
+    for k in range(delta.shape[1]):
+        falls = np.nonzero(np.diff(delta[:, k]) <= 0)[0]
+        out[k] = fine[falls[0]] if len(falls) else fine[-1]
+    return out
+
+
+def _select(sens: np.ndarray, rises_to: np.ndarray, top: float) -> int:
+    """The sensor a tendon's targets use: the most sensitive at the default
+    tension among those whose |dB| rises past the top of the grid; when none
+    does, the one that rises furthest (then the most sensitive of those)."""
+    ok = rises_to > top
+    if not ok.any():
+        ok = rises_to >= rises_to.max()
+    return _pick(np.where(ok, sens, -np.inf), True)
+
+
 def compute(robot: Robot, steps: int = MODEL_STEPS, progress=None) -> RobotResult:
     """Sweep every tendon alone over the tension grid with the Cosserat model
     and the field model. ``progress(n)`` is called after each tendon."""
@@ -171,27 +202,36 @@ def compute(robot: Robot, steps: int = MODEL_STEPS, progress=None) -> RobotResul
     td = robot.default_tension
     sensor_pos = np.array([s.position for s in robot.sensors])
     out = RobotResult(robot, straight, b0, [])
+    fine = _fine_tensions(grid)
+    on_grid = np.isin(fine, grid)
     for i, tendon in enumerate(robot.tendons):
-        sols = []
+        fsols = []
         guess = None
         # the grid's tensions are the spool's (what the servo holds); the
-        # robot bends under what friction lets through to the tendon's end
-        for T in grid:
+        # robot bends under what friction lets through to the tendon's end.
+        # Between the grid's tensions and a little past the top, the field
+        # must keep rising: a magnet that passes a sensor makes |dB| peak,
+        # and a pull stops at the target's first crossing
+        for T in fine:
             tau = np.zeros(nt)
             tau[i] = robot.tip_tension(tendon, T)
             sol = model.solve(tau, base_moment_guess=guess)
             guess = sol.base_moment
-            sols.append(sol)
+            fsols.append(sol)
+        sols = [sl for sl, g in zip(fsols, on_grid) if g]
         extra = []
         for T in (td - SENSITIVITY_STEP_N, td + SENSITIVITY_STEP_N):
             tau = np.zeros(nt)
             tau[i] = robot.tip_tension(tendon, T)
             extra.append(model.solve(tau, base_moment_guess=guess))
-        allsol = sols + extra
+        allsol = fsols + extra
         B = field_at_sensors(robot, np.array([s.tip_position for s in allsol]),
                              np.array([s.tip_rotation for s in allsol]))
-        delta = np.linalg.norm(B - b0[None], axis=-1)
-        sens = (delta[-1] - delta[-2]) / (2 * SENSITIVITY_STEP_N)
+        delta_all = np.linalg.norm(B - b0[None], axis=-1)
+        sens = (delta_all[-1] - delta_all[-2]) / (2 * SENSITIVITY_STEP_N)
+        rises_to = _rises_to(fine, delta_all[:-2])
+        B = B[:-2][on_grid]
+        delta = delta_all[:-2][on_grid]
         # the magnet at the default tension, for the paper's closest-sensor rule
         tau = np.zeros(nt)
         tau[i] = robot.tip_tension(tendon, td)
@@ -201,9 +241,9 @@ def compute(robot: Robot, steps: int = MODEL_STEPS, progress=None) -> RobotResul
         geometric = np.array([straight.path_lengths[i] - s.path_lengths[i] for s in sols])
         stretch = np.array([robot.tendon_stretch(tendon, T, s.path_lengths[i])
                             for T, s in zip(grid, sols)])
-        out.tendons.append(TendonResult(sols, B[:-2], delta[:-2], sens, geometric, stretch,
-                                        _pick(sens, True), _pick(dist, False),
-                                        float(dist[_pick(dist, False)])))
+        out.tendons.append(TendonResult(sols, B, delta, sens, geometric, stretch,
+                                        _select(sens, rises_to, grid[-1]), _pick(dist, False),
+                                        float(dist[_pick(dist, False)]), rises_to))
         if progress is not None:
             progress(i + 1)
     single_um = np.array([[s.displacements[i] * 1e6 for s in tr.solutions]
@@ -227,7 +267,18 @@ def _warnings(res: RobotResult) -> list[str]:
     for i, tr in enumerate(res.tendons):
         name = _tendon_name(robot, i)
         sel = tr.selected
-        if tr.selected != tr.closest:
+        if tr.rises_to[sel] <= robot.tension_grid[-1]:
+            w.append(f"{name}: no sensor's field keeps rising up to "
+                     f"{robot.tension_grid[-1]:g} N (the magnet passes a sensor); on sensor "
+                     f"{sel} it stops rising at {tr.rises_to[sel]:g} N, and a calibration "
+                     f"above that lands early, short of its tension")
+        elif sel != _pick(tr.sensitivity, True):
+            best = _pick(tr.sensitivity, True)
+            w.append(f"{name}: sensor {best} is the most sensitive "
+                     f"({tr.sensitivity[best] * 1e6:.1f} uT/N) but its field stops rising at "
+                     f"{tr.rises_to[best]:g} N; using sensor {sel} "
+                     f"({tr.sensitivity[sel] * 1e6:.1f} uT/N)")
+        if tr.selected != tr.closest and sel == _pick(tr.sensitivity, True):
             w.append(f"{name}: sensor {tr.selected} has the largest sensitivity "
                      f"({tr.sensitivity[tr.selected] * 1e6:.1f} uT/N), the closest sensor "
                      f"{tr.closest} has {tr.sensitivity[tr.closest] * 1e6:.1f} uT/N; "

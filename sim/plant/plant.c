@@ -515,6 +515,31 @@ static uint32_t round_field(double cuT)
     return round_u32(cuT / (double)TBL_CUT_PER_LSB) * TBL_CUT_PER_LSB;
 }
 
+/* |B - B0| and |B| of the magnet alone (cuT) at every sensor with tendon i
+ * pulled alone to motor position x, into column g of dt and ab. */
+static void field_delta(const plant_cfg_t *cfg, uint8_t i, double x,
+                        double b0[][3], plant_t *p, double dt[][TBL_MAX_GRID],
+                        double ab[][TBL_MAX_GRID], uint8_t g)
+{
+    uint8_t k;
+    int a;
+    (void)pull_from_slack(cfg, i, x, 0, p);
+    for (k = 0; k < cfg->n_sensors; k++) {
+        double b[3];
+        double bm[3];
+        double s = 0.0;
+        double sm = 0.0;
+        plant_field_true(p, k, b);
+        plant_dipole_uT(cfg, &p->tip, cfg->sensor[k].pos_mm, bm);
+        for (a = 0; a < 3; a++) {
+            s += (b[a] - b0[k][a]) * (b[a] - b0[k][a]);
+            sm += bm[a] * bm[a];
+        }
+        dt[k][g] = sqrt(s) * 100.0;
+        ab[k][g] = sqrt(sm) * 100.0;
+    }
+}
+
 int plant_make_table(const plant_cfg_t *cfg, tbl_wide_t *t)
 {
     plant_t p;
@@ -569,6 +594,8 @@ int plant_make_table(const plant_cfg_t *cfg, tbl_wide_t *t)
         double dtarget[PLANT_MAX_SENSORS][TBL_MAX_GRID];
         double abst[PLANT_MAX_SENSORS][TBL_MAX_GRID];
         double travel[TBL_MAX_GRID];
+        double home[TBL_MAX_GRID];
+        int rising[PLANT_MAX_SENSORS];
         int best = -1;
         double best_val = 0.0;
         int rc = plant_true_engagement(cfg, i, &eng);
@@ -580,36 +607,36 @@ int plant_make_table(const plant_cfg_t *cfg, tbl_wide_t *t)
         row->segment = tc->segment;
         row->nm_per_tick = round_u32(plant_nm_per_tick(cfg, i));
         for (g = 0; g < cfg->n_grid; g++) {
-            double home;
-            rc = plant_true_home(cfg, i, cfg->grid_mN[g], &home);
+            rc = plant_true_home(cfg, i, cfg->grid_mN[g], &home[g]);
             if (rc != 0) {
                 return rc;
             }
-            travel[g] = (home - eng) * (double)tc->pull_dir * plant_nm_per_tick(cfg, i) * 1e-3;
-            (void)pull_from_slack(cfg, i, home, 0, &p);
+            travel[g] = (home[g] - eng) * (double)tc->pull_dir * plant_nm_per_tick(cfg, i) * 1e-3;
+            field_delta(cfg, i, home[g], b0, &p, dtarget, abst, g);
+        }
+        /* the field must keep rising between the grid's homes and a little
+         * past the top (a magnet that passes a sensor makes |dB| peak, and a
+         * pull stops at the target's first crossing): midpoints, then the
+         * top plus a quarter of its last interval */
+        for (k = 0; k < cfg->n_sensors; k++) {
+            rising[k] = 1;
+        }
+        for (g = 1; g <= cfg->n_grid; g++) {
+            double mid[PLANT_MAX_SENSORS][TBL_MAX_GRID];
+            double unused[PLANT_MAX_SENSORS][TBL_MAX_GRID];
+            uint8_t top = (uint8_t)(cfg->n_grid - 1u);
+            double x = g < cfg->n_grid ? 0.5 * (home[g - 1u] + home[g])
+                                       : home[top] + 0.25 * (home[top] - home[top - 1u]);
+            field_delta(cfg, i, x, b0, &p, mid, unused, 0);
             for (k = 0; k < cfg->n_sensors; k++) {
-                double b[3];
-                double bm[3];
-                double s = 0.0;
-                double sm = 0.0;
-                plant_field_true(&p, k, b);
-                plant_dipole_uT(cfg, &p.tip, cfg->sensor[k].pos_mm, bm);
-                for (a = 0; a < 3; a++) {
-                    s += (b[a] - b0[k][a]) * (b[a] - b0[k][a]);
-                    sm += bm[a] * bm[a];
+                if (mid[k][0] <= dtarget[k][g - 1u] ||
+                    (g < cfg->n_grid && dtarget[k][g] <= mid[k][0])) {
+                    rising[k] = 0;
                 }
-                dtarget[k][g] = sqrt(s) * 100.0;
-                abst[k][g] = sqrt(sm) * 100.0;
             }
         }
         for (k = 0; k < cfg->n_sensors; k++) {
-            int rising = 1;
-            for (g = 1; g < cfg->n_grid; g++) {
-                if (dtarget[k][g] <= dtarget[k][g - 1u]) {
-                    rising = 0;
-                }
-            }
-            if (rising && dtarget[k][0] > best_val) {
+            if (rising[k] && dtarget[k][0] > best_val) {
                 best_val = dtarget[k][0];
                 best = k;
             }

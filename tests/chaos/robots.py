@@ -64,8 +64,11 @@ class Robot:
 
 
 def robot_toml(seed: int, segments: int | None = None, tendons: int | None = None,
-               sensors: int | None = None) -> tuple[str, int, int, int]:
-    """A robot description drawn from seed (counts may be forced)."""
+               sensors: int | None = None, friction: bool = False) -> tuple[str, int, int, int]:
+    """A robot description drawn from seed (counts may be forced). With
+    friction, every tendon declares the path friction the plant gives it
+    (10 mN + 2 %, hallhome.plantcfg's default) as a lab that measured it
+    would; without, the description leaves it out and the robot has it."""
     rng = random.Random(seed)
     n_seg = segments or rng.randint(1, 3)
     n_ten = tendons or rng.randint(max(3, n_seg), MAX_TENDONS)
@@ -92,7 +95,8 @@ def robot_toml(seed: int, segments: int | None = None, tendons: int | None = Non
             lines += ["[[tendons]]", f"segment = {s + 1}", "routing_radius_mm = 4.5",
                       f"routing_angle_deg = {angle:.1f}", f"servo_id = {sid}", "pull_dir = 1",
                       "spool_radius_mm = 4.0", "ticks_per_rev = 4096",
-                      "stiffness_EA_N = 2000.0", "free_length_mm = 150.0", ""]
+                      "stiffness_EA_N = 2000.0", "free_length_mm = 150.0"]
+            lines += ["friction_mN = 10.0", "friction_mu = 0.02", ""] if friction else [""]
             sid += 1
     lines += ["[magnet]", 'shape = "cylinder"', "diameter_mm = 3.5", "length_mm = 3.0",
               "polarization_T = [0.0, 0.0, 1.3]", "offset_mm = [0.0, 0.0, 2.5]", ""]
@@ -111,8 +115,8 @@ def robot_toml(seed: int, segments: int | None = None, tendons: int | None = Non
     return "\n".join(lines), n_seg, n_ten, n_sen
 
 
-def make_robot(seed: int, **counts) -> Robot:
-    text, n_seg, n_ten, n_sen = robot_toml(seed, **counts)
+def make_robot(seed: int, friction: bool = False, **counts) -> Robot:
+    text, n_seg, n_ten, n_sen = robot_toml(seed, friction=friction, **counts)
     # robot names are at most 15 characters (TBL_NAME_LEN): counts + hash
     h = hashlib.sha256(text.encode()).hexdigest()[:5]
     name = f"c{n_seg}s{n_ten}t{n_sen}k{h}"
@@ -202,9 +206,10 @@ POOL = [
 ]
 
 
-def pool() -> list[Robot]:
-    """The robots of the pool; build() makes one when a schedule draws it."""
-    return [make_robot(seed, **counts) for seed, counts in POOL]
+def pool(friction: bool = False) -> list[Robot]:
+    """The robots of the pool; build() makes one when a schedule draws it.
+    friction: descriptions that declare the plant's friction (robot_toml)."""
+    return [make_robot(seed, friction=friction, **counts) for seed, counts in POOL]
 
 
 if __name__ == "__main__":

@@ -6,6 +6,7 @@ import dataclasses
 import json
 import shutil
 import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -329,3 +330,36 @@ def test_field_rounding_is_far_below_the_noise():
         for h in twin["human"]["tendons"]:
             sens = h["sensitivity_uT_per_N"][h["selected_sensor"]]
             assert half_lsb_uT / sens < h["tick_resolution_N"] / 10
+
+
+def test_a_sensor_the_magnet_passes_is_not_selected(tmp_path):
+    """A three-segment robot whose distal tendons swing the magnet past the
+    nearest sensor: there |dB| peaks at 1.4 N, so a pull to 1.5 N would stop
+    at the target's first crossing, 0.16 N short. The generator takes the
+    most sensitive sensor whose field keeps rising past the grid's top, and
+    says so."""
+    import importlib.util
+    spec = importlib.util.spec_from_file_location(
+        "chaos_robots", ROBOTS_DIR.parents[1] / "tests" / "chaos" / "robots.py")
+    chaos = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = chaos  # its dataclasses look their module up
+    spec.loader.exec_module(chaos)
+    text, *_ = chaos.robot_toml(103, segments=3, tendons=9, sensors=2)
+    path = tmp_path / "pass3.toml"
+    path.write_text(text)
+    robot = load_robot(path)
+    res = compute(robot)
+    top = robot.tension_grid[-1]
+    passed = [i for i, tr in enumerate(res.tendons) if tr.rises_to.min() <= top]
+    assert passed, "the robot no longer has a tendon whose magnet passes a sensor"
+    for i in passed:
+        tr = res.tendons[i]
+        best = _pick(tr.sensitivity, True)
+        assert tr.rises_to[best] <= top < tr.rises_to[tr.selected]
+        assert tr.selected != best
+        assert np.all(np.diff(tr.delta[:, tr.selected]) > 0)
+    assert any("stops rising" in w and f"using sensor {res.tendons[passed[0]].selected}" in w
+               for w in res.warnings)
+    # every tendon of the paper robot keeps its most sensitive sensor
+    paper = compute(load_robot(ROBOTS_DIR / "paper_2seg.toml"))
+    assert all(tr.selected == _pick(tr.sensitivity, True) for tr in paper.tendons)

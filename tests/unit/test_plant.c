@@ -326,6 +326,47 @@ static void test_gravity_bends_a_bent_upright_robot_further(void **state)
     }
 }
 
+/* |B - B0| on sensor 0 (uT) with tendon i pulled alone to x, B0 all slack. */
+static double delta_s0(uint8_t i, double x, plant_t *p)
+{
+    double b0[3];
+    double b[3];
+    double s = 0.0;
+    int a;
+    assert_int_equal(plant_pull_alone(&g_cfg, i, -1e5, p), 0);
+    plant_field_true(p, 0, b0);
+    assert_int_equal(plant_pull_alone(&g_cfg, i, x, p), 0);
+    plant_field_true(p, 0, b);
+    for (a = 0; a < 3; a++) {
+        s += (b[a] - b0[a]) * (b[a] - b0[a]);
+    }
+    return sqrt(s);
+}
+
+/* The plant's own table takes, per tendon, the most sensitive sensor whose
+ * |dB| keeps rising between the grid's homes and past the top: on c3s9_pass
+ * the segment-3 tendons swing the magnet past sensor 0, whose |dB| peaks
+ * near 1.4 N between two grid tensions (still rising at the grid points). */
+static void test_table_skips_a_sensor_the_magnet_passes(void **state)
+{
+    static tbl_wide_t t;
+    plant_t p;
+    double home;
+    uint8_t g;
+    (void)state;
+    assert_int_equal(hom_fix_load("c3s9_pass.cfg", &g_cfg, &t), 0);
+    assert_int_equal(t.tendons[0].sensor, 0); /* segment 1: sensor 0 rises */
+    assert_int_equal(t.tendons[4].sensor, 1); /* segment 3, towards sensor 0 */
+    for (g = 1; g < t.n_grid; g++) {
+        assert_true(t.tendons[4].target_cuT[g] > t.tendons[4].target_cuT[g - 1u]);
+    }
+    /* sensor 0's |dB| is larger 25 ticks (0.15 N) short of the 1.5 N home
+     * than at it: the peak lies before the top of the grid */
+    assert_int_equal(plant_true_home(&g_cfg, 4, 1500, &home), 0);
+    assert_true(delta_s0(4, home - 25.0, &p) > delta_s0(4, home, &p));
+    assert_true(p.tension_N[4] > 1.45);
+}
+
 static void test_sensor_quantisation_noise_saturation(void **state)
 {
     int32_t b[3];
@@ -462,6 +503,7 @@ int main(void)
         cmocka_unit_test(test_tendon_elasticity_and_slack),
         cmocka_unit_test(test_friction_and_backlash_hysteresis),
         cmocka_unit_test(test_gravity_optional),
+        cmocka_unit_test(test_table_skips_a_sensor_the_magnet_passes),
         cmocka_unit_test(test_gravity_spread_mass_sags_like_a_cantilever),
         cmocka_unit_test(test_gravity_bends_a_bent_upright_robot_further),
         cmocka_unit_test(test_sensor_quantisation_noise_saturation),
