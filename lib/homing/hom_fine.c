@@ -229,6 +229,15 @@ HOM_NOINLINE static int32_t table_remaining_q8(const hom_t *h, uint32_t b)
     return hom_muldiv(travel_t - travel_b, 1000, (int32_t)t->nm_per_tick);
 }
 
+void hom_back_off(hom_t *h)
+{
+    h->have_prev = 0;
+    h->n_pts = 0;
+    h->far = 0;
+    hom_set_goal(h, h->cur, hom_slack_goal(hom_cur(h)), h->cfg.v_release);
+    h->state = ST_BACKOFF;
+}
+
 /* One averaged fine point at the present position. Finishes by interpolation
  * when the target is bracketed by two points at most 3 ticks apart, or by
  * extrapolation with the local slope when it is less than half a tick away
@@ -254,6 +263,20 @@ void hom_fine_point(hom_t *h)
     hom_avg_of(h, t->sensor, avg);
     b = hom_meas_of(h, t->sensor, avg);
     dp = h->have_prev ? hom_pull(t, p - h->p_prev) : 0;
+    if (b < t->target_cuT && hom_pull(t, h->furthest - p) > HOM_REVERSED_TICKS) {
+        /* the servo came back to p from further on (a take-up that ran on
+         * past the approach's start while the engagement was detected): the
+         * path's friction now holds the tip's tension above the spool's, so
+         * the field reads high for p and the home would come early (a 0.3 N
+         * tendon homed at 0.23 N). Back to slack, and up to p again */
+        if (++t->retries > HOM_MAX_RETRIES) {
+            hom_fail_tendon(h, HOM_F_NO_PROGRESS, (int32_t)b);
+            return;
+        }
+        h->mod_goal = p;
+        hom_back_off(h);
+        return;
+    }
     if (h->near) {
         keep_point(h, p, b, h->sensor[t->sensor].n_acc);
     }
@@ -270,7 +293,7 @@ void hom_fine_point(hom_t *h)
             finish_tendon(h, p, h->p_prev * 256 + f);
             return;
         }
-        if (++t->retries > 2u) {
+        if (++t->retries > HOM_MAX_RETRIES) {
             hom_fail_tendon(h, HOM_F_NO_PROGRESS, (int32_t)b);
             return;
         }
@@ -287,11 +310,7 @@ void hom_fine_point(hom_t *h)
                           hom_muldiv(hom_muldiv(p - t->engage, (int32_t)t->target_cuT, (int32_t)b),
                                      h->cfg.near_permille, 1000);
         }
-        h->have_prev = 0;
-        h->n_pts = 0;
-        h->far = 0;
-        hom_set_goal(h, h->cur, hom_slack_goal(t), h->cfg.v_release);
-        h->state = ST_BACKOFF;
+        hom_back_off(h);
         return;
     }
     /* a slope measured over 3 ticks or more replaces the estimate; one over

@@ -49,6 +49,12 @@ enum {
 
 #define HOM_MAX_AVG             32u
 #define HOM_QUICK_STOP_PERMILLE 975u /* quick leg: stop when the field is this close */
+#define HOM_MAX_RETRIES         3u   /* back-offs of one tendon before HOM_F_NO_PROGRESS:
+                                        a take-up that ran on, then two overshoots */
+#define HOM_TAKEUP_LEAD_MS      16u  /* how long a take-up may have run on beyond the
+                                        last position read when the engagement is seen */
+#define HOM_REVERSED_TICKS      1    /* a fine point this far back from the furthest position
+                                        is on the release side of the friction */
 #define HOM_DROOP_TICKS         8    /* a servo stopped this close counts as arrived ... */
 #define HOM_STILL_MS            100u /* ... after this long without motion */
 #define HOM_FIT_POINTS          4u   /* near points kept for the final fit (hom_t.pts) */
@@ -115,5 +121,8 @@ void hom_do_tendon(hom_t *h, const hom_in_t *in);
 int32_t hom_table_slope(const hom_t *h, uint8_t i);
 void hom_begin_final(hom_t *h);
 void hom_fine_point(hom_t *h);
+/* Back to slack; the approach comes again to h->mod_goal from there, on the
+ * pulling side of the path's friction and the spool's backlash. */
+void hom_back_off(hom_t *h);
 
 #endif /* HALLHOME_HOM_PRIV_H */
