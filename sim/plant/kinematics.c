@@ -112,8 +112,8 @@ int plant_has_gravity(const plant_cfg_t *c)
 
 void plant_gravity_curv(const plant_cfg_t *c, double curv[][2], double gk[][2])
 {
-    double pt[GRAV_MAX_POINTS][3];     /* mass points, world frame, in arc order */
-    double wt[GRAV_MAX_POINTS];        /* their weights, N */
+    double pt[GRAV_MAX_POINTS][3]; /* mass points, world frame, in arc order */
+    double wt[GRAV_MAX_POINTS];    /* their weights, N */
     double base_rot[PLANT_MAX_SEGMENTS][3][3];
     double rot[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
     double pos[3] = {0, 0, 0};

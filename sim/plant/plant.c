@@ -517,9 +517,8 @@ static uint32_t round_field(double cuT)
 
 /* |B - B0| and |B| of the magnet alone (cuT) at every sensor with tendon i
  * pulled alone to motor position x, into column g of dt and ab. */
-static void field_delta(const plant_cfg_t *cfg, uint8_t i, double x,
-                        double b0[][3], plant_t *p, double dt[][TBL_MAX_GRID],
-                        double ab[][TBL_MAX_GRID], uint8_t g)
+static void field_delta(const plant_cfg_t *cfg, uint8_t i, double x, double b0[][3], plant_t *p,
+                        double dt[][TBL_MAX_GRID], double ab[][TBL_MAX_GRID], uint8_t g)
 {
     uint8_t k;
     int a;

@@ -315,8 +315,8 @@ static void test_gravity_bends_a_bent_upright_robot_further(void **state)
         double c[2] = {gk[j][0], gk[j][1]};
         for (i = 0; i < g_cfg.n_tendons; i++) {
             double a = g_cfg.tendon[i].angle_deg * 3.14159265358979323846 / 180.0;
-            double mom = g_p.tip_tension_N[i] * g_cfg.tendon[i].radius_mm * 1e-3 /
-                         plant_seg_ei(&g_cfg, j);
+            double mom =
+                g_p.tip_tension_N[i] * g_cfg.tendon[i].radius_mm * 1e-3 / plant_seg_ei(&g_cfg, j);
             if (g_cfg.tendon[i].segment > j) {
                 c[0] += mom * cos(a);
                 c[1] += mom * sin(a);
