@@ -28,9 +28,10 @@ description):
   with the description's friction folded in, two tell the offset f0 from
   the slope (mu stays the description's: it scales like the stiffness).
 
-The model is the host's constant-curvature model (no gravity) and field
-model: cheap enough for finite-difference Jacobians, and within a few um of
-the Cosserat model the tables use on straight-routed robots. The magnet
+The model is the host's constant-curvature model, with gravity's moment in
+the pulled tendon's bending plane (``cc_single``), and field model: cheap
+enough for finite-difference Jacobians, and within some 15 um of the
+Cosserat model the tables use on straight-routed robots. The magnet
 field change is compared, so ambient fields cancel. ``scipy.optimize.
 least_squares`` minimises the residuals (field / ``sigma_uT``) plus the
 priors; the 1-sigma uncertainties come from the Jacobian at the solution,
@@ -216,12 +217,72 @@ def apply(robot: Robot, params: list[Param], values) -> Robot:
                                magnet=magnet, sensors=tuple(sensors))
 
 
-def cc_single(robot: Robot, i: int, tensions) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+GRAVITY_POINTS = 8  # mass points per segment for gravity's moment (midpoint rule)
+GRAVITY_ROUNDS = 4  # fixed-point rounds of gravity and the pose it bends
+
+
+def _plane_gravity(robot: Robot, i: int, kap_t: np.ndarray) -> np.ndarray:
+    """Segment curvatures (n, n_seg), 1/m, of tendon ``i``'s bending plane:
+    the tendon's kap_t plus gravity's, from the weight distal of each point
+    of the pose (each segment's mass spread over GRAVITY_POINTS points, the
+    magnet at its centre) times its lever, averaged over the segment, over
+    EI; fixed-point rounds with the pose. Gravity's component across the
+    plane is left out (a robot lying across the bend twists out of it)."""
+    t = robot.tendons[i]
+    segs = robot.segments
+    g = np.zeros(3) if robot.gravity is None else np.asarray(robot.gravity, float)
+    g_lat = g[0] * np.cos(t.routing_angle) + g[1] * np.sin(t.routing_angle)
+    g_ax = g[2]
+    masses = np.concatenate([[sg.linear_density * sg.length / GRAVITY_POINTS] * GRAVITY_POINTS
+                             for sg in segs] + [[robot.magnet.mass]])
+    if not masses.any() or (g_lat == 0.0 and g_ax == 0.0):
+        return kap_t
+    u = (np.arange(GRAVITY_POINTS) + 0.5) / GRAVITY_POINTS
+    kap = kap_t.copy()
+    n = kap.shape[0]
+    ei = np.array([sg.bending_stiffness for sg in segs])
+    for _ in range(GRAVITY_ROUNDS):
+        xs, zs = [], []
+        x0, z0, phi = np.zeros(n), np.zeros(n), np.zeros(n)
+        for k, sg in enumerate(segs):
+            for arc in list(sg.length * u) + [sg.length]:
+                th = kap[:, k] * arc
+                with np.errstate(invalid="ignore", divide="ignore"):
+                    lx = np.where(kap[:, k] != 0, (1.0 - np.cos(th)) / np.where(
+                        kap[:, k] != 0, kap[:, k], 1.0), 0.0)
+                    lz = np.where(kap[:, k] != 0, np.sin(th) / np.where(
+                        kap[:, k] != 0, kap[:, k], 1.0), arc)
+                x = x0 + lx * np.cos(phi) + lz * np.sin(phi)
+                z = z0 - lx * np.sin(phi) + lz * np.cos(phi)
+                if arc != sg.length:
+                    xs.append(x)
+                    zs.append(z)
+            x0, z0, phi = x, z, phi + kap[:, k] * sg.length
+        off = robot.magnet.offset[2]
+        xs.append(x0 + off * np.sin(phi))
+        zs.append(z0 + off * np.cos(phi))
+        X, Z = np.array(xs), np.array(zs)  # (points, n)
+        # moment about each point of the weight beyond it: r x F, the
+        # component that bends towards +lateral: (r_ax F_lat - r_lat F_ax)
+        rx = X[None, :, :] - X[:, None, :]
+        rz = Z[None, :, :] - Z[:, None, :]
+        beyond = np.triu(np.ones((len(X), len(X)), bool), 1)[:, :, None]
+        mom = np.sum(np.where(beyond, masses[None, :, None] * (rz * g_lat - rx * g_ax), 0.0),
+                     axis=1)  # (points, n)
+        grav = mom[:-1].reshape(len(segs), GRAVITY_POINTS, n).mean(axis=1).T / ei[None, :]
+        kap = kap_t + grav
+    return kap
+
+
+def cc_single(robot: Robot, i: int, tensions, gravity: bool = True
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Tendon ``i`` pulled alone: the host's constant-curvature model
     (``ConstantCurvatureModel``, straight routing) in closed form, vectorised
-    over ``tensions`` (N). Returns tip positions (n, 3) m, tip rotations
-    (n, 3, 3) and the take-up (n,) m (path shortening plus stretch).
-    tests/host/test_identify.py checks it against the model itself."""
+    over ``tensions`` (N), with gravity's moment in the tendon's bending plane
+    (``_plane_gravity``; ``gravity=False``: the model itself). Returns tip
+    positions (n, 3) m, tip rotations (n, 3, 3) and the take-up (n,) m (path
+    shortening plus stretch). tests/host/test_identify.py checks it against
+    the model itself and the Cosserat model."""
     t = robot.tendons[i]
     T = np.asarray(tensions, float)
     n = len(T)
@@ -230,20 +291,22 @@ def cc_single(robot: Robot, i: int, tensions) -> tuple[np.ndarray, np.ndarray, n
     R = np.tile(np.eye(3), (n, 1, 1))
     p = np.zeros((n, 3))
     path = np.zeros(n)
-    for seg in robot.segments[:t.segment]:
-        kap = T * t.routing_radius / seg.bending_stiffness
+    kap_t = np.array([T * t.routing_radius / seg.bending_stiffness if k < t.segment
+                      else np.zeros(n) for k, seg in enumerate(robot.segments)]).T
+    kaps = _plane_gravity(robot, i, kap_t) if gravity else kap_t
+    for k, seg in enumerate(robot.segments):
+        kap = kaps[:, k]
         th = kap * seg.length
-        path += seg.length * (1.0 - kap * t.routing_radius)
+        if k < t.segment:
+            path += seg.length * (1.0 - kap * t.routing_radius)
         with np.errstate(invalid="ignore", divide="ignore"):
-            lx = np.where(kap > 0, (1.0 - np.cos(th)) / np.where(kap > 0, kap, 1.0), 0.0)
-            lz = np.where(kap > 0, np.sin(th) / np.where(kap > 0, kap, 1.0), seg.length)
+            lx = np.where(kap != 0, (1.0 - np.cos(th)) / np.where(kap != 0, kap, 1.0), 0.0)
+            lz = np.where(kap != 0, np.sin(th) / np.where(kap != 0, kap, 1.0), seg.length)
         local_p = lx[:, None] * np.array([c, s, 0.0]) + lz[:, None] * np.array([0.0, 0.0, 1.0])
         st, ct = np.sin(th)[:, None, None], np.cos(th)[:, None, None]
         local_R = np.eye(3) + st * K + (1.0 - ct) * (K @ K)
         p = p + np.einsum("nij,nj->ni", R, local_p)
         R = R @ local_R
-    for seg in robot.segments[t.segment:]:
-        p = p + R[:, :, 2] * seg.length
     straight = robot.segment_end(t.segment)
     take = (straight - path) + T * (path + t.free_length) / t.stiffness_ea
     return p, R, take
