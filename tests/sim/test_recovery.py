@@ -96,6 +96,21 @@ def test_press_after_a_stop_calibrates(tmp_path, name, stop):
     completes(r)
 
 
+def test_a_press_right_after_a_sensor_is_plugged_back_calibrates(tmp_path):
+    """A sensor unplugged during the release ends the run; it is plugged back
+    0.3 s after the fault and pressed for 0.3 s later. The press brings the
+    devices up again because the board still counts the sensor missing: that
+    bring-up must try it again at once, not leave it to its once-a-second
+    retry (the press was refused with the sensor present: chaos seeds 1009,
+    1036)."""
+    r = bench(tmp_path, "--limit", "30s", "--at", "1s press 100",
+              "--at", "step on ^<progress.state=release +10ms sensor-unplug 0",
+              "--at", "step on ^<released +0.3s sensor-plug 0",
+              "--at", "step +0.3s press 100", "--until", "^<done mode=full")
+    assert not [f for _, f in r.of("fault") if f.get("reason") == "refused"], r.context()
+    completes(r)
+
+
 def test_repeated_stops_pay_out_a_bounded_amount(tmp_path):
     """Five stops in a row at different phases, then a press: every tendon is
     found, and after the last stop no tendon stands more than the first
