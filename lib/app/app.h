@@ -205,6 +205,7 @@ typedef struct {
     uint16_t torque_on;  /* bit i: torque on sent since tendon i's goal (hom_goal()) became valid */
     uint16_t txn_mask;   /* tendons of the transaction in flight */
     uint16_t acc;        /* profile acceleration of every goal */
+    uint16_t t_all_ok;   /* ms (low 16 bits): the last position read every servo answered */
     uint8_t ids[TBL_MAX_TENDONS];
     uint8_t hw_err[TBL_MAX_TENDONS];
     int32_t present[TBL_MAX_TENDONS];

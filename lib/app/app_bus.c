@@ -66,7 +66,18 @@ APP_NOINLINE static void servo_done(app_t *a, int8_t rc)
         }
         if (a->bus.txn == APP_TX_POS) {
             if (got == a->bus.txn_mask) {
+                uint16_t now = (uint16_t)app_now_ms(a);
                 a->bus.pos_streak = 0;
+                /* A servo silent this long (a loose cable) may have missed
+                 * every instruction past its Bus Watchdog: it then refuses
+                 * every goal, a release too, until the watchdog is cleared
+                 * (chaos seed 1016: silent 0.25 s while idle, the next run's
+                 * release stalled and the fault's release was refused).
+                 * Clear and arm them all again, as after a bring-up. */
+                if ((uint16_t)(now - a->bus.t_all_ok) > APP_SERVO_TIMEOUT_MS) {
+                    a->bus.wdog_step = (uint8_t)(2u * a->info.n_tendons);
+                }
+                a->bus.t_all_ok = now;
             } else if (a->bus.pos_streak < APP_POS_RETRIES) {
                 a->bus.pos_streak++;
                 a->bus.pos_force = 1;

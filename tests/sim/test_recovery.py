@@ -111,6 +111,20 @@ def test_a_press_right_after_a_sensor_is_plugged_back_calibrates(tmp_path):
     completes(r)
 
 
+def test_a_servo_silent_while_idle_takes_goals_again(tmp_path):
+    """A servo cut off from the bus for 0.25 s while the robot rests at its
+    homes misses every instruction past its 200 ms Bus Watchdog and refuses
+    goals from then on. The next run's release stalled (servo_stall after
+    3 s) and the fault's release was refused too: the tendon stayed at
+    95 mN (chaos seed 1016). The board clears the watchdog once the servo
+    answers again: the next calibration completes."""
+    r = bench(tmp_path, "--limit", "30s", "--at", "1s press 100",
+              "--at", "step on ^<done +0.33s servo-silent 3", "--at", "step +0.25s servo-answer 3",
+              "--at", "step +0.77s send cal", "--until", "^<done mode=full.*count=2")
+    assert not r.of("fault"), r.context()
+    assert r.rc == 0 and r.summary["reason"] == "until matched", r.context()
+
+
 def test_repeated_stops_pay_out_a_bounded_amount(tmp_path):
     """Five stops in a row at different phases, then a press: every tendon is
     found, and after the last stop no tendon stands more than the first
