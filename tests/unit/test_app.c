@@ -221,6 +221,41 @@ static void test_realtime_abort_releases(void **state)
     }
 }
 
+/* A fault ends the run in the step that queues its release goals. Until
+ * they are on the bus the console stays in realtime mode: a listing being
+ * written then (a burst of `help` lines, 1.3 KB, 115 ms at 115200 baud on
+ * the board) would otherwise hold the loop and the release with it (chaos
+ * seed 1024: the goals went out 46 ms after the fault, the tendon slack
+ * after 150 ms). Checked in every pass from the stop until the goals are
+ * out, for stops at several moments of the pull. */
+static void test_release_goals_never_wait_for_console_output(void **state)
+{
+    uint32_t k, waited = 0;
+    (void)state;
+    boot(&g_b, 1);
+    cmd(&g_b, "cal", "ok");
+    for (k = 0; k < 6; k++) {
+        uint32_t n;
+        assert_true(app_bench_wait_line(&g_b, "<progress state=engaged", g_line, sizeof g_line,
+                                        10000));
+        app_bench_run_ms(&g_b, 3u + 7u * k);
+        (void)con_rt_byte(&g_b.rt, '!');
+        for (n = 0; n < 2000u && (g_b.app.state == APP_ST_CAL ||
+                                  (g_b.app.bus.goal_due | g_b.app.bus.torque_due) != 0u);
+             n++) {
+            app_bench_step(&g_b);
+            if ((g_b.app.bus.goal_due | g_b.app.bus.torque_due) != 0u) {
+                assert_int_equal(g_b.app.cmd.con.realtime, 1);
+                waited += g_b.app.state != APP_ST_CAL;
+            }
+        }
+        assert_int_equal(g_b.app.state, APP_ST_FAULT);
+        app_bench_run_ms(&g_b, 300);
+        cmd(&g_b, "cal", "ok");
+    }
+    assert_true(waited > 0u); /* the goals did wait for the bus after the run ended */
+}
+
 /* A long press aborts too; a short press while running does nothing. */
 static void test_long_press_aborts(void **state)
 {
@@ -721,6 +756,7 @@ int main(void)
         cmocka_unit_test(test_learn_with_weight),
         cmocka_unit_test(test_learn_installs_a_given_target),
         cmocka_unit_test(test_realtime_abort_releases),
+        cmocka_unit_test(test_release_goals_never_wait_for_console_output),
         cmocka_unit_test(test_long_press_aborts),
         cmocka_unit_test(test_servo_fault_mid_run),
         cmocka_unit_test(test_debounce_led_and_eeprom_failure),
