@@ -8,6 +8,8 @@ are reported (pytest -rx shows them), marked expected failures, not
 skipped; a seed that passes passes (and should then leave the list).
 """
 
+import re
+
 import pytest
 
 from . import check as chk
@@ -146,3 +148,65 @@ def test_check_finds_a_failed_recovery_and_bad_records():
     off = _summary()
     off["tendons"][0]["tension_at_home_mN"] = 1000.0
     assert "accuracy" in chk.check(_Sch(), off, CLEAN).violations
+
+
+def test_a_refused_press_at_rest_is_not_a_stop():
+    """A press the board refuses while idle (a sensor missing) moves and
+    stops nothing: the robot stays at its homes, as the last calibration
+    left it (chaos seed 1018: counted as a stop never released). Any other
+    fault report still is a stop."""
+    held = {"stops": [{"kind": "fault", "t_s": 4.0, "tension_mN": 900.0, "released_after_ms": -1,
+                       "tendon_ms": [-1]}]}
+    refused = CLEAN + "[  4.000000] <fault reason=refused error=13 dev=none index=0>\n"
+    v = chk.check(_Sch(), _summary(**held), refused)
+    assert v.violations == {}, v.violations
+    other = CLEAN + "[  4.000000] <fault reason=sensor_error code=4 dev=sensor index=0>\n"
+    assert list(chk.check(_Sch(), _summary(**held), other).violations) == ["release"]
+
+
+class _SchCut:
+    """A clean `cal` (step 1) sent 2.6 s after an overrun cut a long line;
+    the final calibration (step 2) 7 s later."""
+    clean_steps = [1, 2]
+    lines = ["step on ^<ready within 16s +0.5s nop", "step +0.5s send cal",
+             "step on ^<fault within 16s +7s press 100",
+             "5.078s raw " + "x" * 90 + "\\r\\n", "8.000s send history"]
+
+
+def test_a_start_line_that_completes_a_line_cut_by_an_overrun_is_excused():
+    """36 bytes lost and reported (`<overrun>`), among them a long line's
+    line end: the `cal` sent next completes that line and is answered
+    `error:6 line too long` (chaos seed 1027). The clean calibration was
+    never asked for: excused, not a failed recovery. A `cal` refused with a
+    line end sent between the overrun and it is still a violation."""
+    later = re.sub(r"\[\s*([0-9.]+)\]", lambda m: f"[{float(m.group(1)) + 14.0:10.6f}]", CLEAN)
+    out = ("[  5.091000] <overrun bytes=36 total=36>\n"
+           "[  7.800137] error:6 line too long\n") + later
+    summ = _summary()
+    summ["steps"] = {"count": 3, "log": [[1.0, 0], [7.79, 0], [15.0, 0]]}
+    v = chk.check(_SchCut(), summ, out)
+    assert "recovery" not in v.violations and v.figures.get("starts_cut_by_overrun") == 1
+    assert chk.line_ends_sent(_SchCut(), summ["steps"]["log"]) == [5.078, 7.79, 8.0]
+    no_report = out.replace("[  5.091000] <overrun bytes=36 total=36>\n", "")
+    assert "recovery" in chk.check(_SchCut(), summ, no_report).violations
+    _SchCut.lines = _SchCut.lines + ["6.000s raw help\\r\\nhelp\\n"]
+    try:
+        assert "recovery" in chk.check(_SchCut(), summ, out).violations
+    finally:
+        _SchCut.lines = _SchCut.lines[:-1]
+
+
+def test_a_calibration_ends_only_with_its_done_or_fault():
+    """The chain waits for a calibration's end with RUN_END: the reports of
+    a release the board makes on its own after a stop are not one (seed
+    1027: a `<done mode=release>` after a servo's reboot ended the wait for
+    the final calibration, and the power cycle cut it)."""
+    end = re.compile(sc.RUN_END)
+    for ln in ["<done mode=full target=delta time_ms=1 tension_mN=800 count=1>",
+               "<done mode=quick target=delta>", "<done mode=single target=delta>",
+               "<fault reason=aborted code=1 dev=none index=0 detail=0>",
+               "<fault reason=refused error=13 dev=none index=0>"]:
+        assert end.search(ln), ln
+    for ln in ["<done mode=release time_ms=453 baseline=1>", "<done mode=home time_ms=9>",
+               "<released reason=servo_error id=2>", "<released reason=reset>"]:
+        assert not end.search(ln), ln
