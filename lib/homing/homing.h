@@ -276,6 +276,7 @@ typedef struct {
     int32_t est_home;     /* quick mode: stored home in this power cycle's frame */
     int32_t eng_lo;       /* engagement window (see hom_cmd_t.win_*): lowest and highest */
     int32_t eng_hi;       /* position, in the pull direction, the engagement may lie at */
+    uint16_t release_ticks; /* the release that frees this tendon of unknown state */
     int16_t to_straight;  /* the table's straight-pose shift at the run's tension as a
                              position change, ticks rounded to nearest ... */
     int8_t straight_frac; /* ... and what the rounding left (1/256 tick, -128..127) */
@@ -343,7 +344,6 @@ typedef struct {
     uint16_t tension_mN;
     uint16_t noise_cuT;
     uint32_t t_start;    /* run start */
-    uint32_t release_um; /* release that frees a tendon of unknown state (full and single modes) */
     hom_config_t cfg;
     tbl_src_t table;     /* the run's table: it must stay readable until the run ends */
     int32_t (*amb)[3];   /* absolute mode: the caller's ambient offsets (NULL: delta mode) */

@@ -125,6 +125,39 @@ def test_a_servo_silent_while_idle_takes_goals_again(tmp_path):
     assert r.rc == 0 and r.summary["reason"] == "until matched", r.context()
 
 
+@pytest.mark.parametrize("phase", ["baseline +5ms", "tendon.tendon=0 +200ms",
+                                   "tendon.tendon=3 +100ms"])
+def test_a_press_after_a_power_cycle_mid_run_calibrates(tmp_path, phase):
+    """The power fails after the first run's release, before some tendons
+    engaged; the engagement windows (in RAM a power-up clears) are gone.
+    The first run after the power-up released those tendons once more and
+    searched only 4 mm past where they stood: they were 4-5.5 mm slack and
+    the run ended in no_engagement (chaos seed 1034). The search of a
+    tendon of unknown state now covers the release a cut run may have made
+    (docs/app.md, "Recovery"), and the next press completes."""
+    at, delay = phase.split()
+    r = bench(tmp_path, "--limit", "40s", "--at", "1s press 100",
+              "--at", f"step on ^<progress.state={at} {delay} power-cycle",
+              "--at", "step on ^<ready +0.5s press 100", "--until", "^<(done|fault)")
+    assert not r.of("fault"), r.context()
+    completes(r)
+
+
+def test_power_cycles_cutting_runs_after_a_calibration(tmp_path):
+    """A completed calibration, a power cycle at the homes, then two `cal`
+    runs each cut by a power cycle (the spool moved from its recorded rest,
+    so the stored homes are not usable: homes=moved): the third `cal`
+    completes, every tendon found within its search."""
+    r = bench(tmp_path, "--limit", "60s", "--at", "1s press 100",
+              "--at", "step on ^<done +1.5s power-cycle", "--at", "step on ^<ready +0.5s send cal",
+              "--at", "step on ^<progress.state=tendon.tendon=1 +100ms power-cycle",
+              "--at", "step on ^<ready +0.5s send cal",
+              "--at", "step on ^<progress.state=tendon.tendon=2 +100ms power-cycle",
+              "--at", "step on ^<ready +0.5s send cal", "--until", "^<(done.*count=2|fault)")
+    assert not r.of("fault"), r.context()
+    assert r.rc == 0 and r.summary["reason"] == "until matched", r.context()
+
+
 def test_repeated_stops_pay_out_a_bounded_amount(tmp_path):
     """Five stops in a row at different phases, then a press: every tendon is
     found, and after the last stop no tendon stands more than the first
