@@ -93,7 +93,8 @@ def runs(console: list[tuple[float, str]]) -> list[dict]:
             if ln.startswith("<result "):
                 f = fields(ln)
                 cur["results"][int(f.get("tendon", -1))] = int(f.get("home", -1))
-            elif ln.startswith(("<done", "<fault", "<released", "<boot")):
+            elif ln.startswith(("<done", "<fault", "<released")) or "<boot name=" in ln:
+                # (a reset may cut a report: the boot report then ends its line)
                 cur["end"], cur["end_t"] = ln, t
     return out
 

@@ -201,6 +201,7 @@ def test_a_calibration_ends_only_with_its_done_or_fault():
     a release the board makes on its own after a stop are not one (seed
     1027: a `<done mode=release>` after a servo's reboot ended the wait for
     the final calibration, and the power cycle cut it)."""
+    assert " " not in sc.RUN_END  # the bench reads a step's pattern up to a space
     end = re.compile(sc.RUN_END)
     for ln in ["<done mode=full target=delta time_ms=1 tension_mN=800 count=1>",
                "<done mode=quick target=delta>", "<done mode=single target=delta>",
