@@ -124,6 +124,7 @@ typedef struct {
 } app_win_t;
 
 #define APP_WIN_MAGIC 0x5748u
+#define APP_RECOVER_NEW 0xFFu
 
 /* The board as the app sees it. Every function must return at once. */
 typedef struct {
@@ -227,7 +228,8 @@ typedef struct {
     uint8_t auto_release;  /* ID of a servo in hardware error: reboot it, then release */
     uint8_t reset_release; /* a reset cut a run or move: 1 owed, 2-3 early release under way, 4
                               released early or nothing to (app_boot_poll) */
-    uint8_t recover_left;  /* device bring-ups left before the pending request is refused */
+    uint8_t recover_left;  /* device bring-ups left before the pending request is refused
+                              (APP_RECOVER_NEW: a new request, not counted yet) */
     uint8_t bring_up;      /* the last run ended in a servo timeout or stall: the next run
                               brings the devices up again first (their Bus Watchdogs) */
     uint8_t survey_n;      /* survey: selected-sensor samples since the last <sv> line */

@@ -158,6 +158,38 @@ def test_power_cycles_cutting_runs_after_a_calibration(tmp_path):
     assert r.rc == 0 and r.summary["reason"] == "until matched", r.context()
 
 
+def test_a_press_kept_while_a_record_is_written_still_brings_the_devices_up(tmp_path):
+    """A sensor fault after a completed calibration; the press comes 1.03 s
+    later, while the rest positions are being written (EEPROM), and is kept
+    until the write is done; the sensor is plugged back meanwhile. The kept
+    press found the sensor missing and was refused without the bring-up a
+    press gets (its budget of bring-ups was only set for requests that were
+    not kept: chaos seed 2033). It brings the devices up and calibrates."""
+    r = bench(tmp_path, "--limit", "40s", "--at", "1s press 100",
+              "--at", "step on ^<done +1.5s send cal",
+              "--at", "step on ^<progress.state=release +250ms sensor-unplug 0",
+              "--at", "step on ^<fault +1.03s press 100", "--at", "step +0.15s sensor-plug 0",
+              "--until", "^<(done.mode=full.*count=2|fault.reason=refused)")
+    assert not [f for _, f in r.of("fault") if f.get("reason") == "refused"], r.context()
+    assert r.rc == 0 and r.summary["reason"] == "until matched", r.context()
+
+
+@pytest.mark.parametrize("start", ["send cal", "press 100"])
+def test_a_start_during_the_release_after_a_stop_waits_for_it(tmp_path, start):
+    """A servo overload ends the run; the board reboots the servo and
+    releases its tendon (<released reason=servo_error id=3>, then <done
+    mode=release>). A `cal` sent during that release was answered
+    `error:9 busy` and a press did nothing (chaos seed 2013): the next press
+    after a stop did not calibrate. Both now wait for the release and start
+    the run (the `cal` gets its `ok` then)."""
+    r = bench(tmp_path, "--limit", "40s", "--at", "1s press 100",
+              "--at", "step on ^<progress.state=tendon.tendon=1 +100ms servo-hwerr 2 32",
+              "--at", f"step on ^<released.reason=servo_error.id +0.1s {start}",
+              "--until", "^<(done.mode=full|fault.reason=refused)")
+    assert "error:9 busy" not in r.out, r.context()
+    completes(r)
+
+
 def test_repeated_stops_pay_out_a_bounded_amount(tmp_path):
     """Five stops in a row at different phases, then a press: every tendon is
     found, and after the last stop no tendon stands more than the first
