@@ -138,6 +138,27 @@ def cut_by_overrun(console, sent: list[float], t0: float) -> bool:
     return bool(reports) and not [t for t in sent if reports[-1] < t < t0 - 1e-6]
 
 
+def motion_spans(console, attempts: list[dict]) -> list[tuple[float, float]]:
+    """When anything moved: every calibration attempt from its start report
+    to its end (its done, fault, or the reset that cut it), and every app
+    move from its `<released` report (or `home`'s start) to its `<done
+    mode=release|home>` or the next reset."""
+    spans = [(a["t"], a["end_t"] if a["end_t"] is not None else float("inf")) for a in attempts]
+    start, after_fault = None, False
+    for t, ln in console:
+        if ln.startswith("<released") and start is None and not after_fault:
+            start = t  # a fault's own <released> ends its run: no move follows
+        elif start is not None and (ln.startswith(("<done mode=release", "<done mode=home"))
+                                    or "<boot name=" in ln):
+            spans.append((start, t))
+            start = None
+        if ln.startswith("<"):
+            after_fault = ln.startswith("<fault")
+    if start is not None:
+        spans.append((start, float("inf")))
+    return spans
+
+
 def first_attempt(attempts: list[dict], console, t0: float, within: float = 6.0):
     """The calibration a press or `cal` at t0 started: its start report, or a
     fault that refused it, within `within` s."""
@@ -225,9 +246,15 @@ def check(sch, summary: dict, out: str, ref: dict | None = None) -> Verdict:
                 if key in f and f[key].isdigit():
                     excused.add(int(f[key]))
     refusals = {round(t, 6) for t, ln in console if ln.startswith(NOT_A_STOP)}
+    moving = motion_spans(console, attempts)
     for s in tr.get("stops", []):
         if s["kind"] == "fault" and round(s["t_s"], 6) in refusals:
             v.fig("refusals_at_rest", 1)
+            continue
+        if s["kind"] == "external" and not any(a <= s["t_s"] <= b for a, b in moving):
+            # the reset pin (a host opening the port) with nothing moving:
+            # the board keeps the robot as it rests (docs/app.md, Button and LED)
+            v.fig("resets_at_rest", 1)
             continue
         lat = [ms for i, ms in enumerate(s["tendon_ms"]) if i not in excused]
         worst = -1.0 if any(ms < 0 for ms in lat) else max(lat, default=0.0)
