@@ -12,7 +12,7 @@
 
 /* um of tendon travel in encoder ticks at npt nm per tick (rounded; travel
  * is at most metres, so 32 bits hold um * 1000). */
-static int32_t um_ticks(uint32_t npt, uint32_t um)
+APP_NOINLINE static int32_t um_ticks(uint32_t npt, uint32_t um)
 {
     if (npt == 0u) {
         npt = 1u;
@@ -353,13 +353,14 @@ static uint8_t release_goals(app_t *a, uint8_t blind)
     for (i = 0; i < a->info.n_tendons; i++) {
         tbl_point_t pt;
         tbl_tendon_t row;
-        int32_t g, dir, lo, hi;
+        int32_t g, dir, lo, hi, m;
         if (app_has(a->bus.absent, i) ||
             (blind && (a->io->win == NULL || !app_has(a->io->win->mask, i)))) {
             continue;
         }
         (void)tbl_tendon(&a->tab, i, &row);
         dir = row.pull_dir < 0 ? -1 : 1;
+        m = dir * um_ticks(row.nm_per_tick, cfg.slack_margin_um);
         if (a->io->win != NULL && app_has(a->io->win->mask, i)) {
             lo = a->io->win->lo[i];
         } else {
@@ -371,13 +372,19 @@ static uint8_t release_goals(app_t *a, uint8_t blind)
                 hi = app_rec_home(a, i) - dir * um_ticks(row.nm_per_tick, trav);
                 lo = hi;
             } else {
-                hi = a->bus.present[i];
-                lo = hi -
-                     dir * um_ticks(row.nm_per_tick, row.travel_um[a->info.n_grid - 1u] * 3u / 2u);
+                /* as the homing does (docs/app.md, "Recovery"): a stop
+                 * that cost the window (a servo's reboot, a power-up) may
+                 * have come after a release that tendon had not engaged
+                 * since, so the search covers one release ahead (chaos seed
+                 * 2017: a servo rebooted in the run's slack check, its
+                 * tendon released again and searched short of it) */
+                hi = dir * um_ticks(row.nm_per_tick, row.travel_um[a->info.n_grid - 1u] * 3u / 2u);
+                lo = a->bus.present[i] - hi;
+                hi = a->bus.present[i] + hi + m;
             }
             app_win_set(a, i, lo, hi, 1);
         }
-        g = lo - dir * um_ticks(row.nm_per_tick, cfg.slack_margin_um);
+        g = lo - m;
         if (!blind && dir * (g - a->bus.present[i]) > 0) {
             g = a->bus.present[i]; /* already slacker than the release point */
         }
