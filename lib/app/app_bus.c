@@ -92,11 +92,17 @@ APP_NOINLINE static void servo_done(app_t *a, int8_t rc)
             a->bus.reboot_id = 0;
         } else {
             /* the servo lost its multi-turn count: bring the bus up again
-             * and recover the homes as after a power cycle; its engagement
-             * window is in the old frame */
+             * and recover the homes as after a power cycle. It restarts in
+             * the turn its shaft stands in (position 0..4095), the spool
+             * where it was: its engagement window moves by the turns lost
+             * (forgotten, it cost a release: the tendon of a servo
+             * rebooted in a run's slack check was released again and
+             * searched short of, chaos seed 2017) */
             for (i = 0; i < a->info.n_tendons; i++) {
-                if (a->bus.ids[i] == a->bus.reboot_id) {
-                    app_win_set(a, i, 0, 0, 0);
+                app_win_t *w = a->io->win;
+                if (a->bus.ids[i] == a->bus.reboot_id && w != NULL) {
+                    int32_t d = (int32_t)((uint32_t)a->bus.present[i] & 4095u) - a->bus.present[i];
+                    app_win_set(a, i, w->lo[i] + d, w->hi[i] + d, app_has(w->mask, i));
                 }
             }
             app_boot_again(a);
