@@ -123,7 +123,7 @@ typedef struct {
     uint16_t crc; /* store_crc16() of everything before it */
 } app_win_t;
 
-#define APP_WIN_MAGIC 0x5748u
+#define APP_WIN_MAGIC   0x5748u
 #define APP_RECOVER_NEW 0xFFu
 
 /* The board as the app sees it. Every function must return at once. */

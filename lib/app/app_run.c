@@ -490,11 +490,10 @@ static void keep_request(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendo
  * error is not refused at once (every new request, app_run_press() and
  * app_run_request(), gets its budget of bring-ups here; it once did only
  * when no request was kept, and a press kept while the rest positions were
- * written was refused without a bring-up: chaos seed 2033): the devices are brought up again first (a
- * servo in hardware error is rebooted, Protocol 2.0 Reboot; a sensor or
- * servo that stopped answering is looked for again), and the run starts
- * after the new <ready>. Each servo in hardware error costs one bring-up, so
- * a request gets one more than there are such servos; a device still
+ * written was refused without a bring-up: chaos seed 2033): the devices are brought up again first
+ * (a servo in hardware error is rebooted, Protocol 2.0 Reboot; a sensor or servo that stopped
+ * answering is looked for again), and the run starts after the new <ready>. Each servo in hardware
+ * error costs one bring-up, so a request gets one more than there are such servos; a device still
  * missing after them refuses the run as before. Returns 1 when a bring-up
  * was started for the request (kept in req_*), 0 when none is left. */
 static uint8_t defer_for_devices(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon,

@@ -236,8 +236,8 @@ static void test_release_goals_never_wait_for_console_output(void **state)
     cmd(&g_b, "cal", "ok");
     for (k = 0; k < 6; k++) {
         uint32_t n;
-        assert_true(app_bench_wait_line(&g_b, "<progress state=engaged", g_line, sizeof g_line,
-                                        10000));
+        assert_true(
+            app_bench_wait_line(&g_b, "<progress state=engaged", g_line, sizeof g_line, 10000));
         app_bench_run_ms(&g_b, 3u + 7u * k);
         (void)con_rt_byte(&g_b.rt, '!');
         for (n = 0; n < 2000u && (g_b.app.state == APP_ST_CAL ||
