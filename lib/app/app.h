@@ -123,7 +123,8 @@ typedef struct {
     uint16_t crc; /* store_crc16() of everything before it */
 } app_win_t;
 
-#define APP_WIN_MAGIC 0x5748u
+#define APP_WIN_MAGIC   0x5748u
+#define APP_RECOVER_NEW 0xFFu
 
 /* The board as the app sees it. Every function must return at once. */
 typedef struct {
@@ -205,6 +206,7 @@ typedef struct {
     uint16_t torque_on;  /* bit i: torque on sent since tendon i's goal (hom_goal()) became valid */
     uint16_t txn_mask;   /* tendons of the transaction in flight */
     uint16_t acc;        /* profile acceleration of every goal */
+    uint16_t t_all_ok;   /* ms (low 16 bits): the last position read every servo answered */
     uint8_t ids[TBL_MAX_TENDONS];
     uint8_t hw_err[TBL_MAX_TENDONS];
     int32_t present[TBL_MAX_TENDONS];
@@ -226,7 +228,8 @@ typedef struct {
     uint8_t auto_release;  /* ID of a servo in hardware error: reboot it, then release */
     uint8_t reset_release; /* a reset cut a run or move: 1 owed, 2-3 early release under way, 4
                               released early or nothing to (app_boot_poll) */
-    uint8_t recover_left;  /* device bring-ups left before the pending request is refused */
+    uint8_t recover_left;  /* device bring-ups left before the pending request is refused
+                              (APP_RECOVER_NEW: a new request, not counted yet) */
     uint8_t bring_up;      /* the last run ended in a servo timeout or stall: the next run
                               brings the devices up again first (their Bus Watchdogs) */
     uint8_t survey_n;      /* survey: selected-sensor samples since the last <sv> line */

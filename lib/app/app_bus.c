@@ -66,7 +66,18 @@ APP_NOINLINE static void servo_done(app_t *a, int8_t rc)
         }
         if (a->bus.txn == APP_TX_POS) {
             if (got == a->bus.txn_mask) {
+                uint16_t now = (uint16_t)app_now_ms(a);
                 a->bus.pos_streak = 0;
+                /* A servo silent this long (a loose cable) may have missed
+                 * every instruction past its Bus Watchdog: it then refuses
+                 * every goal, a release too, until the watchdog is cleared
+                 * (chaos seed 1016: silent 0.25 s while idle, the next run's
+                 * release stalled and the fault's release was refused).
+                 * Clear and arm them all again, as after a bring-up. */
+                if ((uint16_t)(now - a->bus.t_all_ok) > APP_SERVO_TIMEOUT_MS) {
+                    a->bus.wdog_step = (uint8_t)(2u * a->info.n_tendons);
+                }
+                a->bus.t_all_ok = now;
             } else if (a->bus.pos_streak < APP_POS_RETRIES) {
                 a->bus.pos_streak++;
                 a->bus.pos_force = 1;
@@ -81,11 +92,17 @@ APP_NOINLINE static void servo_done(app_t *a, int8_t rc)
             a->bus.reboot_id = 0;
         } else {
             /* the servo lost its multi-turn count: bring the bus up again
-             * and recover the homes as after a power cycle; its engagement
-             * window is in the old frame */
+             * and recover the homes as after a power cycle. It restarts in
+             * the turn its shaft stands in (position 0..4095), the spool
+             * where it was: its engagement window moves by the turns lost
+             * (forgotten, it cost a release: the tendon of a servo
+             * rebooted in a run's slack check was released again and
+             * searched short of, chaos seed 2017) */
             for (i = 0; i < a->info.n_tendons; i++) {
-                if (a->bus.ids[i] == a->bus.reboot_id) {
-                    app_win_set(a, i, 0, 0, 0);
+                app_win_t *w = a->io->win;
+                if (a->bus.ids[i] == a->bus.reboot_id && w != NULL) {
+                    int32_t d = (int32_t)((uint32_t)a->bus.present[i] & 4095u) - a->bus.present[i];
+                    app_win_set(a, i, w->lo[i] + d, w->hi[i] + d, app_has(w->mask, i));
                 }
             }
             app_boot_again(a);

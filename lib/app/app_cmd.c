@@ -10,10 +10,15 @@
 
 /* The console in realtime mode while anything moves (output never waits;
  * docs/console.md), and the losses reported: console bytes lost to a full
- * receive buffer at once, report lines dropped once nothing moves. */
+ * receive buffer at once, report lines dropped once nothing moves. A fault
+ * ends the run in the step that queues its release goals: until they are on
+ * the bus the motion still counts as running, or a listing being written
+ * (a burst of `help` lines) held the loop and the release with it (45 ms
+ * late on chaos seed 1024). */
 APP_NOINLINE void app_cmd_poll(app_t *a)
 {
-    uint8_t moving = (uint8_t)(a->state == APP_ST_CAL || a->state == APP_ST_MOVE);
+    uint8_t moving = (uint8_t)(a->state == APP_ST_CAL || a->state == APP_ST_MOVE ||
+                               (a->bus.goal_due | a->bus.torque_due) != 0u);
     uint16_t n = a->io->board->rx_lost != NULL ? a->io->board->rx_lost(a->io->board->ctx) : 0u;
     con_set_realtime(&a->cmd.con, moving);
     if (n != a->cmd.rx_lost) {

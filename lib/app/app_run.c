@@ -12,7 +12,7 @@
 
 /* um of tendon travel in encoder ticks at npt nm per tick (rounded; travel
  * is at most metres, so 32 bits hold um * 1000). */
-static int32_t um_ticks(uint32_t npt, uint32_t um)
+APP_NOINLINE static int32_t um_ticks(uint32_t npt, uint32_t um)
 {
     if (npt == 0u) {
         npt = 1u;
@@ -353,13 +353,14 @@ static uint8_t release_goals(app_t *a, uint8_t blind)
     for (i = 0; i < a->info.n_tendons; i++) {
         tbl_point_t pt;
         tbl_tendon_t row;
-        int32_t g, dir, lo, hi;
+        int32_t g, dir, lo, hi, m;
         if (app_has(a->bus.absent, i) ||
             (blind && (a->io->win == NULL || !app_has(a->io->win->mask, i)))) {
             continue;
         }
         (void)tbl_tendon(&a->tab, i, &row);
         dir = row.pull_dir < 0 ? -1 : 1;
+        m = dir * um_ticks(row.nm_per_tick, cfg.slack_margin_um);
         if (a->io->win != NULL && app_has(a->io->win->mask, i)) {
             lo = a->io->win->lo[i];
         } else {
@@ -371,13 +372,19 @@ static uint8_t release_goals(app_t *a, uint8_t blind)
                 hi = app_rec_home(a, i) - dir * um_ticks(row.nm_per_tick, trav);
                 lo = hi;
             } else {
-                hi = a->bus.present[i];
-                lo = hi -
-                     dir * um_ticks(row.nm_per_tick, row.travel_um[a->info.n_grid - 1u] * 3u / 2u);
+                /* as the homing does (docs/app.md, "Recovery"): a stop
+                 * that cost the window (a servo's reboot, a power-up) may
+                 * have come after a release that tendon had not engaged
+                 * since, so the search covers one release ahead (chaos seed
+                 * 2017: a servo rebooted in the run's slack check, its
+                 * tendon released again and searched short of it) */
+                hi = dir * um_ticks(row.nm_per_tick, row.travel_um[a->info.n_grid - 1u] * 3u / 2u);
+                lo = a->bus.present[i] - hi;
+                hi = a->bus.present[i] + hi + m;
             }
             app_win_set(a, i, lo, hi, 1);
         }
-        g = lo - dir * um_ticks(row.nm_per_tick, cfg.slack_margin_um);
+        g = lo - m;
         if (!blind && dir * (g - a->bus.present[i]) > 0) {
             g = a->bus.present[i]; /* already slacker than the release point */
         }
@@ -480,11 +487,13 @@ static void keep_request(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendo
 }
 
 /* A run asked for while a device is missing or a servo reports a hardware
- * error is not refused at once: the devices are brought up again first (a
- * servo in hardware error is rebooted, Protocol 2.0 Reboot; a sensor or
- * servo that stopped answering is looked for again), and the run starts
- * after the new <ready>. Each servo in hardware error costs one bring-up, so
- * a request gets one more than there are such servos; a device still
+ * error is not refused at once (every new request, app_run_press() and
+ * app_run_request(), gets its budget of bring-ups here; it once did only
+ * when no request was kept, and a press kept while the rest positions were
+ * written was refused without a bring-up: chaos seed 2033): the devices are brought up again first
+ * (a servo in hardware error is rebooted, Protocol 2.0 Reboot; a sensor or servo that stopped
+ * answering is looked for again), and the run starts after the new <ready>. Each servo in hardware
+ * error costs one bring-up, so a request gets one more than there are such servos; a device still
  * missing after them refuses the run as before. Returns 1 when a bring-up
  * was started for the request (kept in req_*), 0 when none is left. */
 static uint8_t defer_for_devices(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon,
@@ -492,7 +501,7 @@ static uint8_t defer_for_devices(app_t *a, uint8_t mode, uint16_t tension, uint8
 {
     uint8_t i;
     uint8_t id = 0;
-    if (!a->run.req_start) {
+    if (a->run.recover_left == APP_RECOVER_NEW) {
         a->run.recover_left = 1;
         for (i = 0; i < a->info.n_tendons; i++) {
             if (a->bus.hw_err[i] != 0u) {
@@ -518,14 +527,26 @@ static uint8_t defer_for_devices(app_t *a, uint8_t mode, uint16_t tension, uint8
     return 1;
 }
 
-/* Starts the run now, defers it (EEPROM write in flight, bring-up under way,
- * devices to bring up again), or refuses it: 0, CON_PENDING or a CON_E_*. */
+/* The board is busy with what follows a reset or a stop, not with what
+ * someone asked for: the bring-up, a release and the baseline capture after
+ * it (a servo rebooted after a hardware error is released so; a `cal` then
+ * was answered `error:9 busy` and a press did nothing: chaos seed 2013). A
+ * run asked for meanwhile waits for the end. */
+static uint8_t settling(const app_t *a)
+{
+    return (uint8_t)(a->state == APP_ST_BOOT ||
+                     (a->state == APP_ST_MOVE && a->run.move_kind == APP_MOVE_RELEASE) ||
+                     (a->state == APP_ST_LEARN && a->learn.tendon == APP_LEARN_BASELINE));
+}
+
+/* Starts the run now, defers it (EEPROM write in flight, bring-up or a
+ * release under way, devices to bring up again), or refuses it: 0,
+ * CON_PENDING or a CON_E_*. */
 static int8_t run_or_defer(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon,
                            uint8_t from_con)
 {
     int8_t rc;
-    if (a->state == APP_ST_BOOT ||
-        (app_idle_state(a) && (store_busy(&a->rec.store) || app_rec_busy(a)))) {
+    if (settling(a) || (app_idle_state(a) && (store_busy(&a->rec.store) || app_rec_busy(a)))) {
         keep_request(a, mode, tension, tendon, from_con);
         return CON_PENDING;
     }
@@ -547,9 +568,10 @@ static int8_t run_or_defer(app_t *a, uint8_t mode, uint16_t tension, uint8_t ten
 void app_run_press(app_t *a)
 {
     int8_t rc;
-    if (a->state == APP_ST_BOOT) {
-        /* pressed before <ready>: the run starts once the bring-up is done,
-         * quick or full as it then offers */
+    a->run.recover_left = APP_RECOVER_NEW;
+    if (settling(a)) {
+        /* pressed before <ready> or during the release after a stop: the
+         * run starts once that is done, quick or full as it then offers */
         a->run.req_start = 1;
         a->run.req_con = 0;
         a->run.req_btn = 1;
@@ -582,31 +604,13 @@ uint8_t app_run_reboot_failed(app_t *a)
     return 1;
 }
 
-/* Between the steps: a run requested while the bring-up or an EEPROM write
- * was under way starts, and the releases owed after a reset or a servo's
- * hardware error go out once nothing else moves. */
+/* Between the steps: the releases owed after a reset or a servo's hardware
+ * error go out once nothing else moves, then a run requested while the
+ * bring-up, that release or an EEPROM write was under way starts (in this
+ * order: a run started first left the owed release for its end, and it
+ * released the robot from the homes the run had just found). */
 void app_run_poll(app_t *a)
 {
-    if (a->run.req_start && a->state != APP_ST_BOOT && store_busy(&a->rec.store) == 0u &&
-        !app_rec_busy(a) && a->bus.reboot_id == 0u && !a->bus.reboot_req) {
-        int8_t rc;
-        if (a->run.req_btn) {
-            a->run.req_btn = 0;
-            a->run.req_mode = a->boot.offer_quick ? HOM_MODE_QUICK : HOM_MODE_FULL;
-            a->run.req_tension = 0;
-            a->run.req_tendon = 0;
-        }
-        rc =
-            run_or_defer(a, a->run.req_mode, a->run.req_tension, a->run.req_tendon, a->run.req_con);
-        if (rc == CON_PENDING) {
-            return; /* the devices are brought up again first */
-        }
-        if (a->run.req_con && con_pending(&a->cmd.con)) {
-            (void)con_complete(&a->cmd.con, rc);
-        } else if (rc != 0) {
-            app_rep_fault(a, app_w_refused, rc, HOM_DEV_NONE, 0);
-        }
-    }
     if (a->run.reset_release && a->state == APP_ST_IDLE) {
         a->run.reset_release = 0;
         (void)app_run_release_goals(a);
@@ -624,10 +628,31 @@ void app_run_poll(app_t *a)
         a->run.auto_release = 0;
         app_run_move(a, APP_MOVE_RELEASE);
     }
+    if (a->run.req_start && a->state != APP_ST_BOOT && store_busy(&a->rec.store) == 0u &&
+        !app_rec_busy(a) && a->bus.reboot_id == 0u && !a->bus.reboot_req) {
+        int8_t rc;
+        if (a->run.req_btn) {
+            a->run.req_btn = 0;
+            a->run.req_mode = a->boot.offer_quick ? HOM_MODE_QUICK : HOM_MODE_FULL;
+            a->run.req_tension = 0;
+            a->run.req_tendon = 0;
+        }
+        rc =
+            run_or_defer(a, a->run.req_mode, a->run.req_tension, a->run.req_tendon, a->run.req_con);
+        if (rc == CON_PENDING) {
+            return; /* the devices are brought up again first, or the release ends */
+        }
+        if (a->run.req_con && con_pending(&a->cmd.con)) {
+            (void)con_complete(&a->cmd.con, rc);
+        } else if (rc != 0) {
+            app_rep_fault(a, app_w_refused, rc, HOM_DEV_NONE, 0);
+        }
+    }
 }
 
 int8_t app_run_request(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon)
 {
     a->run.req_start = 0;
+    a->run.recover_left = APP_RECOVER_NEW;
     return run_or_defer(a, mode, tension, tendon, 1);
 }

@@ -8,11 +8,16 @@
 
 /* The sensor set of the table, once: its slots, one sensor per table entry
  * (mux channel and address), started at once (reads begin with the next
- * icm_set_poll()). */
+ * icm_set_poll()). A later bring-up (a press that found a sensor missing,
+ * `servos`, a reboot) tries the failed sensors again at once: one plugged
+ * back since its last attempt would otherwise wait up to a second for its
+ * retry, and the press was refused with the sensor present (chaos seeds
+ * 1009, 1036). */
 void app_sense_start(app_t *a)
 {
     uint8_t k;
     if (a->sense.set.n != 0u) {
+        icm_set_retry(&a->sense.set, app_now_us(a));
         return;
     }
     (void)icm_set_setup(&a->sense.set, a->io->sensor_bus, a->io->mux_addr, a->sense.slot,

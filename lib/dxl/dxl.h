@@ -65,7 +65,10 @@ typedef struct {
     uint8_t retries;      /* extra attempts after a timeout or CRC error */
     uint16_t byte_us;     /* time of one byte on the wire, rounded up */
     uint16_t timeout_us;  /* allowance per expected reply beyond its bytes
-                             (return delay, servo latency, port latency) */
+                             (return delay, servo latency, port latency); an
+                             attempt whose line stays quiet that long (no
+                             first byte after the request, no next byte in a
+                             reply) gets nothing more and ends there */
     uint16_t tx_slack_us; /* allowance for the port to finish sending */
 } dxl_config;
 
@@ -113,6 +116,7 @@ struct dxl_master {
     uint16_t tx_len;
     uint16_t tx_sent;
     uint32_t deadline;
+    uint32_t heard_by; /* the next reply byte is due by then (see timeout_us) */
     /* Reply handler of a transaction whose answer is not one status packet
      * per servo (fast sync read); NULL otherwise. Set when the transaction
      * starts, so the code of a reply format the firmware never asks for is

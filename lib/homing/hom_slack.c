@@ -78,13 +78,26 @@ void hom_do_preflight(hom_t *h, const hom_in_t *in)
                 continue;
             }
             if (!hom_has(h->win_known, i)) {
-                /* nothing known: the engagement may lie up to the release
-                 * that frees a tendon left at the top of the grid behind the
-                 * present position, or (slack) ahead of it */
-                t->eng_hi = h->present[i];
-                t->eng_lo =
-                    h->present[i] -
-                    hom_pull(t, hom_um_to_ticks(h->release_um, t->nm_per_tick) - t->margin_ticks);
+                /* Nothing known this power cycle (the window is kept across
+                 * resets, not power-ups): the engagement may lie up to the
+                 * release that frees a tendon left at the top of the grid
+                 * behind the present position, or ahead of it by what a
+                 * run cut by the power-up released (and the start slack the
+                 * search covers). A stored home tells more: the engagement
+                 * lies near it less the travel, and no release goes beyond
+                 * the release before that (every power-up's first run paid
+                 * out a release more: chaos seed 1034). */
+                int32_t p = h->present[i];
+                int32_t r = t->release_ticks;
+                if (t->have_home) {
+                    int32_t e = t->est_home - hom_pull(t, t->travel_ticks);
+                    if (hom_further_back(t, e, p) == p) {
+                        p = e;
+                    }
+                    r = 0;
+                }
+                t->eng_hi = p + hom_pull(t, r);
+                t->eng_lo = p - hom_pull(t, (int32_t)t->release_ticks - t->margin_ticks);
                 if (h->mode == HOM_MODE_QUICK) {
                     t->eng_hi = t->est_home - hom_pull(t, t->travel_ticks);
                     t->eng_lo = t->eng_hi;

@@ -357,13 +357,16 @@ HOM_NOINLINE static void load_tendon(hom_t *h, uint8_t i)
     if (h->amb != NULL) {
         t->abs_sign = pt.abs_target_cuT < h->sensor[t->sensor].p0 ? -1 : 1;
     }
-    /* The initial release must free a tendon left anywhere up to the top of
-     * the grid: one and a half times that travel plus the margin. */
+    /* The initial release must free the tendon left anywhere up to the top
+     * of its grid: one and a half times its travel there plus the margin
+     * (each tendon its own, as the app's releases: the largest of them,
+     * robot-wide, paid out 6.6 mm on a 3-segment robot's short tendons). */
     r = row.travel_um[info.n_grid - 1u];
     r = r + r / 2u + h->cfg.slack_margin_um;
-    if (h->cfg.initial_release_um == 0u && r > h->release_um) {
-        h->release_um = r;
+    if (h->cfg.initial_release_um != 0u) {
+        r = h->cfg.initial_release_um;
     }
+    t->release_ticks = (uint16_t)hom_um_to_ticks(r, row.nm_per_tick);
 }
 
 /* One piece of the run's set-up per preflight step: the table work of a
@@ -433,7 +436,6 @@ int hom_start(hom_t *h, const tbl_src_t *table, const hom_cmd_t *cmd)
             t->eng_hi = cmd->win_hi[i];
         }
     }
-    h->release_um = h->cfg.initial_release_um;
     h->win_known = (uint16_t)(cmd->win_mask & (hom_bit(info.n_tendons) - 1u));
     h->table = *table;
     /* averages beyond the accumulator's reach would never complete */

@@ -259,27 +259,28 @@ typedef struct {
 } hom_config_t;
 
 typedef struct {
-    int8_t dir;           /* table pull_dir */
-    uint8_t sensor;       /* selected sensor */
-    uint8_t engaged;      /* engage is valid */
-    uint8_t have_home;    /* home is valid (this run or stored, for the final move) */
-    uint8_t retries;      /* re-approaches after overshooting the target */
-    int8_t abs_sign;      /* absolute mode: +1 when |B| rises towards the target, -1 falls */
-    uint32_t target_cuT;  /* |B - B0| target at the requested tension; absolute mode:
-                             ||B_magnet(p_T)| - |b_straight|| (see hom_cmd_t) */
-    int32_t travel_ticks; /* expected take-up from engagement */
-    int32_t limit_ticks;  /* travel limit from engagement */
-    int32_t margin_ticks; /* slack margin */
-    uint32_t nm_per_tick; /* table spool factor */
-    int32_t engage;       /* engagement position, ticks */
-    int32_t home;         /* home, ticks */
-    int32_t est_home;     /* quick mode: stored home in this power cycle's frame */
-    int32_t eng_lo;       /* engagement window (see hom_cmd_t.win_*): lowest and highest */
-    int32_t eng_hi;       /* position, in the pull direction, the engagement may lie at */
-    int16_t to_straight;  /* the table's straight-pose shift at the run's tension as a
-                             position change, ticks rounded to nearest ... */
-    int8_t straight_frac; /* ... and what the rounding left (1/256 tick, -128..127) */
-    int8_t home_frac;     /* what rounding a measured home left (1/256 tick) */
+    int8_t dir;             /* table pull_dir */
+    uint8_t sensor;         /* selected sensor */
+    uint8_t engaged;        /* engage is valid */
+    uint8_t have_home;      /* home is valid (this run or stored, for the final move) */
+    uint8_t retries;        /* re-approaches after overshooting the target */
+    int8_t abs_sign;        /* absolute mode: +1 when |B| rises towards the target, -1 falls */
+    uint32_t target_cuT;    /* |B - B0| target at the requested tension; absolute mode:
+                               ||B_magnet(p_T)| - |b_straight|| (see hom_cmd_t) */
+    int32_t travel_ticks;   /* expected take-up from engagement */
+    int32_t limit_ticks;    /* travel limit from engagement */
+    int32_t margin_ticks;   /* slack margin */
+    uint32_t nm_per_tick;   /* table spool factor */
+    int32_t engage;         /* engagement position, ticks */
+    int32_t home;           /* home, ticks */
+    int32_t est_home;       /* quick mode: stored home in this power cycle's frame */
+    int32_t eng_lo;         /* engagement window (see hom_cmd_t.win_*): lowest and highest */
+    int32_t eng_hi;         /* position, in the pull direction, the engagement may lie at */
+    uint16_t release_ticks; /* the release that frees this tendon of unknown state */
+    int16_t to_straight;    /* the table's straight-pose shift at the run's tension as a
+                               position change, ticks rounded to nearest ... */
+    int8_t straight_frac;   /* ... and what the rounding left (1/256 tick, -128..127) */
+    int8_t home_frac;       /* what rounding a measured home left (1/256 tick) */
 } hom_tendon_t;
 
 typedef struct {
@@ -344,8 +345,7 @@ typedef struct {
     uint32_t engage_cuT;  /* engagement threshold */
     uint16_t tension_mN;
     uint16_t noise_cuT;
-    uint32_t t_start;    /* run start */
-    uint32_t release_um; /* release that frees a tendon of unknown state (full and single modes) */
+    uint32_t t_start; /* run start */
     hom_config_t cfg;
     tbl_src_t table;     /* the run's table: it must stay readable until the run ends */
     int32_t (*amb)[3];   /* absolute mode: the caller's ambient offsets (NULL: delta mode) */

@@ -94,6 +94,21 @@ int8_t icm_set_begin(icm_set_t *set, uint32_t now_us)
     return 0;
 }
 
+void icm_set_retry(icm_set_t *set, uint32_t now_us)
+{
+    uint8_t i;
+    if (set->has_mux) {
+        tca_invalidate(&set->mux); /* the mux may have been unplugged too */
+    }
+    for (i = 0; i < set->n; i++) {
+        icm_set_slot_t *s = &set->slot[i];
+        if (s->state == ICM_SET_S_FAIL) {
+            s->due_us = now_us;
+            s->retry = 1;
+        }
+    }
+}
+
 static uint8_t icm_set_due(uint32_t now_us, uint32_t due_us)
 {
     return (uint8_t)((int32_t)(now_us - due_us) >= 0);
@@ -142,6 +157,9 @@ static void icm_set_fetch(icm_set_slot_t *s, uint32_t now_us)
 static void icm_set_init_step(icm_set_slot_t *s, uint32_t now_us)
 {
     int8_t rc = icm_init_poll(&s->dev, now_us);
+    if (rc <= 0) {
+        s->retry = 0;
+    }
     if (rc == 0) {
         s->state = ICM_SET_S_RUN;
         s->last_err = 0;
@@ -217,7 +235,8 @@ uint8_t icm_set_settled(const icm_set_t *set)
         return 0;
     }
     for (i = 0; i < set->n; i++) {
-        if (set->slot[i].state == ICM_SET_S_INIT && set->slot[i].reinits == 0u) {
+        if ((set->slot[i].state == ICM_SET_S_INIT && set->slot[i].reinits == 0u) ||
+            set->slot[i].retry) {
             return 0;
         }
     }

@@ -50,6 +50,7 @@ typedef struct {
     uint16_t win_new;
     uint16_t rate_dhz; /* new samples per second x10, last full window */
     uint16_t reinits;  /* inits started after the first */
+    uint8_t retry;     /* icm_set_retry() asked for an attempt not finished yet */
 #if ICM_STATS
     uint16_t missed; /* new samples overwritten before icm_set_take() */
 #endif
@@ -110,12 +111,19 @@ int8_t icm_set_stale_limit_us(icm_set_t *set, uint32_t stale_us);
 /* Starts initialising every sensor. Returns 0 or ICM_E_ARG (empty set). */
 int8_t icm_set_begin(icm_set_t *set, uint32_t now_us);
 
+/* Makes every sensor whose init failed due for its next attempt now, as a
+ * bring-up wants: one plugged back since its last attempt must not wait for
+ * its retry period (up to ICM_SET_RETRY_US). icm_set_settled() waits for
+ * these attempts. No-op before icm_set_begin(). */
+void icm_set_retry(icm_set_t *set, uint32_t now_us);
+
 /* Does the next due step. Returns 0, or ICM_E_ARG / ICM_E_STATE (before
  * icm_set_begin). Sensor errors are not returned here: see icm_set_diag(). */
 int8_t icm_set_poll(icm_set_t *set, uint32_t now_us);
 
 /* Number of sensors sampling, and whether every sensor has finished its
- * first init attempt (running or failed). */
+ * first init attempt and the one icm_set_retry() asked for (running or
+ * failed). */
 uint8_t icm_set_ready_count(const icm_set_t *set);
 uint8_t icm_set_settled(const icm_set_t *set);
 

@@ -26,6 +26,12 @@ BUS_GAP_MS = 50.0
 # lose power and the robot rests where it was (at its homes after a
 # calibration, which the quick re-home relies on).
 RELEASE_STOPS = {"bang", "fault", "released", "watchdog", "external"}
+# Fault reports that stop nothing: `refused` answers a press or `cal` the
+# board could not act on while idle (a device missing). Nothing moved and
+# nothing starts; the robot stays as the last run or move left it (held at
+# its homes after a completed calibration, the documented idle state), so
+# the bench's stop at that line is not one the release bound applies to.
+NOT_A_STOP = ("<fault reason=refused",)
 
 LINE = re.compile(r"^\[\s*([0-9.]+)\] (.*)$")
 FIELDS = re.compile(r'(\w+)=("[^"]*"|\S+?)(?=\s|>|$)')
@@ -87,9 +93,70 @@ def runs(console: list[tuple[float, str]]) -> list[dict]:
             if ln.startswith("<result "):
                 f = fields(ln)
                 cur["results"][int(f.get("tendon", -1))] = int(f.get("home", -1))
-            elif ln.startswith(("<done", "<fault", "<released", "<boot")):
+            elif ln.startswith(("<done", "<fault", "<released")) or "<boot name=" in ln:
+                # (a reset may cut a report: the boot report then ends its line)
                 cur["end"], cur["end_t"] = ln, t
     return out
+
+
+_EVENT = re.compile(r"(?:^|\s)(send|raw)(?: (.*))?$")
+
+
+def line_ends_sent(sch, steps: list) -> list[float]:
+    """When the schedule sent each console line end (CR, or LF not right
+    after CR, as the bench counts them): its timed traffic and the step
+    chain's `send` / `raw` events, at the times the bench fired them."""
+    out, n = [], -1
+    for ln in getattr(sch, "lines", []):
+        if ln.startswith("step "):
+            n += 1
+            if n >= len(steps):
+                continue
+            t, body = steps[n][0], ln[5:]
+        else:
+            m = re.match(r"([0-9.]+)s (.*)$", ln)
+            if not m:
+                continue
+            t, body = float(m.group(1)), m.group(2)
+        m = _EVENT.search(body)
+        if not m:
+            continue
+        if m.group(1) == "send":
+            out.append(t)
+        else:
+            text = (m.group(2) or "").encode("latin-1", "replace").decode("unicode_escape")
+            out += [t] * len(re.findall(r"\r\n?|\n", text))
+    return sorted(out)
+
+
+def cut_by_overrun(console, sent: list[float], t0: float) -> bool:
+    """Whether the line sent at t0 is the first line end after a reported
+    overrun: the bytes lost may have held the end of the line before it, so
+    this line completes that cut line and its reply is the cut line's (an
+    `error:6 line too long`, say). docs/chaos.md, "replies"."""
+    reports = [t for t, ln in console if t < t0 and ln.startswith("<overrun")]
+    return bool(reports) and not [t for t in sent if reports[-1] < t < t0 - 1e-6]
+
+
+def motion_spans(console, attempts: list[dict]) -> list[tuple[float, float]]:
+    """When anything moved: every calibration attempt from its start report
+    to its end (its done, fault, or the reset that cut it), and every app
+    move from its `<released` report (or `home`'s start) to its `<done
+    mode=release|home>` or the next reset."""
+    spans = [(a["t"], a["end_t"] if a["end_t"] is not None else float("inf")) for a in attempts]
+    start, after_fault = None, False
+    for t, ln in console:
+        if ln.startswith("<released") and start is None and not after_fault:
+            start = t  # a fault's own <released> ends its run: no move follows
+        elif start is not None and (ln.startswith(("<done mode=release", "<done mode=home"))
+                                    or "<boot name=" in ln):
+            spans.append((start, t))
+            start = None
+        if ln.startswith("<"):
+            after_fault = ln.startswith("<fault")
+    if start is not None:
+        spans.append((start, float("inf")))
+    return spans
 
 
 def first_attempt(attempts: list[dict], console, t0: float, within: float = 6.0):
@@ -136,6 +203,12 @@ def check(sch, summary: dict, out: str, ref: dict | None = None) -> Verdict:
         if a is None:
             said = [ln for t, ln in console if t0 <= t <= t0 + 6.0
                     and ln.startswith(("error:", "<fault", "<missing"))]
+            if said and said[0].startswith("error:") and cut_by_overrun(
+                    console, line_ends_sent(sch, steps), t0):
+                # the start line completed a line an overrun had cut: its
+                # reply is that line's, nothing was asked to start
+                v.fig("starts_cut_by_overrun", 1)
+                continue
             v.add("recovery", f"{tag} at {t0:.2f}s: no calibration started"
                   + (f" ({said[0]})" if said else ""))
             continue
@@ -172,7 +245,17 @@ def check(sch, summary: dict, out: str, ref: dict | None = None) -> Verdict:
             for key in ("tendon", "index"):
                 if key in f and f[key].isdigit():
                     excused.add(int(f[key]))
+    refusals = {round(t, 6) for t, ln in console if ln.startswith(NOT_A_STOP)}
+    moving = motion_spans(console, attempts)
     for s in tr.get("stops", []):
+        if s["kind"] == "fault" and round(s["t_s"], 6) in refusals:
+            v.fig("refusals_at_rest", 1)
+            continue
+        if s["kind"] == "external" and not any(a <= s["t_s"] <= b for a, b in moving):
+            # the reset pin (a host opening the port) with nothing moving:
+            # the board keeps the robot as it rests (docs/app.md, Button and LED)
+            v.fig("resets_at_rest", 1)
+            continue
         lat = [ms for i, ms in enumerate(s["tendon_ms"]) if i not in excused]
         worst = -1.0 if any(ms < 0 for ms in lat) else max(lat, default=0.0)
         if s["kind"] in RELEASE_STOPS:

@@ -29,8 +29,16 @@ PHASES = {
     "eeprom_save": (r"^<done", 0.0, 0.8),
 }
 
-# The end of a calibration attempt, whatever it was.
-RUN_END = r"^<(released|done|fault)"
+# The end of a calibration attempt, whatever it was: its `<done>` or its
+# `<fault>` (docs/app.md: a calibration ends with exactly one of them). Not
+# the end of an app move (`<done mode=release|home>`) nor a `<released>`
+# report: after a stop the board may still release on its own (a servo in
+# hardware error rebooted, then `<released reason=servo_error>`, `<done
+# mode=release>`), and a calibration started meanwhile was taken for ended
+# by those reports (chaos seed 1027: the power cycle then cut the final
+# calibration). The bench reads a step's pattern up to the next space: `.`
+# stands for one.
+RUN_END = r"^<(done.mode=(full|quick|single)|fault)"
 def run_within(robot) -> str:
     """How long to wait for a phase or a calibration's end: a bring-up and
     a calibration of this robot with room to spare (about 1.5 s per tendon
@@ -172,7 +180,9 @@ def _disturbance(rng, sch: Schedule, robot, kind: str) -> None:
 def _wait_boot(sch: Schedule, robot, then: str) -> None:
     """After a reset: the boot report, then the end of the bring-up (a
     `servos` scan reports `<ready` too, so the boot comes first)."""
-    _step(sch, f"on ^<boot within {run_within(robot)} nop")
+    # not anchored: a reset in the middle of a report leaves that line
+    # unfinished and the boot report follows on it (seed 1034 waited 26 s)
+    _step(sch, f"on <boot.name= within {run_within(robot)} nop")
     _step(sch, f"on ^<ready within {run_within(robot)} {then}")
 
 

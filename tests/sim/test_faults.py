@@ -138,18 +138,20 @@ def test_long_press_aborts_a_taut_run(tmp_path, limits_mm):
     """A long press acts 2 s after it starts (sim/bench/scenarios/abort_button.scn
     shows it in `make sim`). Which tendon is taut 2 s on depends on the build's
     timing, so the moment comes from a clean run of the same seed (the bench
-    is deterministic): the middle of tendon 1's fine approach. A held button
+    is deterministic): the middle of tendon 2's fine approach (tendon 1's
+    came before the long press could start once the 1 s press was over,
+    when the initial release became each tendon's own). A held button
     changes the firmware's loop timing by a few cycles, which can move the
     fine approach's samples and its end by a few hundred ms: when the abort
     landed between two tendons or while the fine approach had backed off to
     slack, the press moves 0.1 s later and the run is repeated, across tendon
-    1's approach and into tendon 2's (every run's abort is checked; one must
+    2's approach and into tendon 3's (every run's abort is checked; one must
     catch a taut tendon)."""
     clean = bench(tmp_path, "--limit", "15s", "--at", "1s press 100",
-                  "--until", "^<result tendon=1 ")
+                  "--until", "^<result tendon=2 ")
     (t_eng, _), = [(t, f) for t, f in clean.of("progress")
-                   if f.get("state") == "engaged" and f.get("tendon") == "1"]
-    (t_res, _), = [(t, f) for t, f in clean.of("result") if f.get("tendon") == "1"]
+                   if f.get("state") == "engaged" and f.get("tendon") == "2"]
+    (t_res, _), = [(t, f) for t, f in clean.of("result") if f.get("tendon") == "2"]
     act = (t_eng + t_res) / 2.0
     tried = []
     for _ in range(16):

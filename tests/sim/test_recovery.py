@@ -96,6 +96,100 @@ def test_press_after_a_stop_calibrates(tmp_path, name, stop):
     completes(r)
 
 
+def test_a_press_right_after_a_sensor_is_plugged_back_calibrates(tmp_path):
+    """A sensor unplugged during the release ends the run; it is plugged back
+    0.3 s after the fault and pressed for 0.3 s later. The press brings the
+    devices up again because the board still counts the sensor missing: that
+    bring-up must try it again at once, not leave it to its once-a-second
+    retry (the press was refused with the sensor present: chaos seeds 1009,
+    1036)."""
+    r = bench(tmp_path, "--limit", "30s", "--at", "1s press 100",
+              "--at", "step on ^<progress.state=release +10ms sensor-unplug 0",
+              "--at", "step on ^<released +0.3s sensor-plug 0",
+              "--at", "step +0.3s press 100", "--until", "^<done mode=full")
+    assert not [f for _, f in r.of("fault") if f.get("reason") == "refused"], r.context()
+    completes(r)
+
+
+def test_a_servo_silent_while_idle_takes_goals_again(tmp_path):
+    """A servo cut off from the bus for 0.25 s while the robot rests at its
+    homes misses every instruction past its 200 ms Bus Watchdog and refuses
+    goals from then on. The next run's release stalled (servo_stall after
+    3 s) and the fault's release was refused too: the tendon stayed at
+    95 mN (chaos seed 1016). The board clears the watchdog once the servo
+    answers again: the next calibration completes."""
+    r = bench(tmp_path, "--limit", "30s", "--at", "1s press 100",
+              "--at", "step on ^<done +0.33s servo-silent 3", "--at", "step +0.25s servo-answer 3",
+              "--at", "step +0.77s send cal", "--until", "^<done mode=full.*count=2")
+    assert not r.of("fault"), r.context()
+    assert r.rc == 0 and r.summary["reason"] == "until matched", r.context()
+
+
+@pytest.mark.parametrize("phase", ["baseline +5ms", "tendon.tendon=0 +200ms",
+                                   "tendon.tendon=3 +100ms"])
+def test_a_press_after_a_power_cycle_mid_run_calibrates(tmp_path, phase):
+    """The power fails after the first run's release, before some tendons
+    engaged; the engagement windows (in RAM a power-up clears) are gone.
+    The first run after the power-up released those tendons once more and
+    searched only 4 mm past where they stood: they were 4-5.5 mm slack and
+    the run ended in no_engagement (chaos seed 1034). The search of a
+    tendon of unknown state now covers the release a cut run may have made
+    (docs/app.md, "Recovery"), and the next press completes."""
+    at, delay = phase.split()
+    r = bench(tmp_path, "--limit", "40s", "--at", "1s press 100",
+              "--at", f"step on ^<progress.state={at} {delay} power-cycle",
+              "--at", "step on ^<ready +0.5s press 100", "--until", "^<(done|fault)")
+    assert not r.of("fault"), r.context()
+    completes(r)
+
+
+def test_power_cycles_cutting_runs_after_a_calibration(tmp_path):
+    """A completed calibration, a power cycle at the homes, then two `cal`
+    runs each cut by a power cycle (the spool moved from its recorded rest,
+    so the stored homes are not usable: homes=moved): the third `cal`
+    completes, every tendon found within its search."""
+    r = bench(tmp_path, "--limit", "60s", "--at", "1s press 100",
+              "--at", "step on ^<done +1.5s power-cycle", "--at", "step on ^<ready +0.5s send cal",
+              "--at", "step on ^<progress.state=tendon.tendon=1 +100ms power-cycle",
+              "--at", "step on ^<ready +0.5s send cal",
+              "--at", "step on ^<progress.state=tendon.tendon=2 +100ms power-cycle",
+              "--at", "step on ^<ready +0.5s send cal", "--until", "^<(done.*count=2|fault)")
+    assert not r.of("fault"), r.context()
+    assert r.rc == 0 and r.summary["reason"] == "until matched", r.context()
+
+
+def test_a_press_kept_while_a_record_is_written_still_brings_the_devices_up(tmp_path):
+    """A sensor fault after a completed calibration; the press comes 1.03 s
+    later, while the rest positions are being written (EEPROM), and is kept
+    until the write is done; the sensor is plugged back meanwhile. The kept
+    press found the sensor missing and was refused without the bring-up a
+    press gets (its budget of bring-ups was only set for requests that were
+    not kept: chaos seed 2033). It brings the devices up and calibrates."""
+    r = bench(tmp_path, "--limit", "40s", "--at", "1s press 100",
+              "--at", "step on ^<done +1.5s send cal",
+              "--at", "step on ^<progress.state=release +250ms sensor-unplug 0",
+              "--at", "step on ^<fault +1.03s press 100", "--at", "step +0.15s sensor-plug 0",
+              "--until", "^<(done.mode=full.*count=2|fault.reason=refused)")
+    assert not [f for _, f in r.of("fault") if f.get("reason") == "refused"], r.context()
+    assert r.rc == 0 and r.summary["reason"] == "until matched", r.context()
+
+
+@pytest.mark.parametrize("start", ["send cal", "press 100"])
+def test_a_start_during_the_release_after_a_stop_waits_for_it(tmp_path, start):
+    """A servo overload ends the run; the board reboots the servo and
+    releases its tendon (<released reason=servo_error id=3>, then <done
+    mode=release>). A `cal` sent during that release was answered
+    `error:9 busy` and a press did nothing (chaos seed 2013): the next press
+    after a stop did not calibrate. Both now wait for the release and start
+    the run (the `cal` gets its `ok` then)."""
+    r = bench(tmp_path, "--limit", "40s", "--at", "1s press 100",
+              "--at", "step on ^<progress.state=tendon.tendon=1 +100ms servo-hwerr 2 32",
+              "--at", f"step on ^<released.reason=servo_error.id +0.1s {start}",
+              "--until", "^<(done.mode=full|fault.reason=refused)")
+    assert "error:9 busy" not in r.out, r.context()
+    completes(r)
+
+
 def test_repeated_stops_pay_out_a_bounded_amount(tmp_path):
     """Five stops in a row at different phases, then a press: every tendon is
     found, and after the last stop no tendon stands more than the first

@@ -391,6 +391,44 @@ static void test_fast_sync_read_with_silent_servo_times_out(void **state)
     assert_int_equal(R.bus.collisions, 0);
 }
 
+/* A request no servo heard (absent here; on the bench a byte corrupted on
+ * the way) gets no reply at all: each attempt ends once timeout_us passes
+ * without a byte, not after the allowance of every reply (9 ms for six
+ * servos, 18 ms for twelve; the goals of a pull waited behind it). */
+static void test_fast_sync_read_nobody_heard_ends_early(void **state)
+{
+    (void)state;
+    rig_init(&R, 2, 0);
+    const uint8_t ids[N_SERVOS] = {11, 12, 13, 14, 15, 16};
+    uint32_t t0 = R.bus.now;
+    assert_int_equal(dxl_fast_sync_read(&R.m, DXL_XL430_PRESENT_POSITION_ADDR, 4, ids, N_SERVOS),
+                     1);
+    assert_int_equal(run(), -DXL_E_TIMEOUT);
+    assert_int_equal(R.m.stats.requests, 3);
+    /* three attempts of 20 request bytes (200 us) and 1.5 ms of silence */
+    assert_true(R.bus.now - t0 < 3u * (200u + 1500u + 200u));
+    assert_int_equal(dxl_busy(&R.m), 0);
+}
+
+/* A reply cut short (here: a servo's block missing from the combined reply
+ * because it is absent; on the bench a corrupted header or length byte)
+ * leaves the line quiet: the attempt ends timeout_us after the last byte,
+ * not after the allowance of every reply. */
+static void test_fast_sync_read_quiet_line_ends_the_attempt(void **state)
+{
+    (void)state;
+    rig_init(&R, N_SERVOS, 0);
+    const uint8_t ids[N_SERVOS] = {1, 2, 3, 4, 5, 16};
+    R.m.cfg.retries = 0;
+    uint32_t t0 = R.bus.now;
+    assert_int_equal(dxl_fast_sync_read(&R.m, DXL_XL430_PRESENT_POSITION_ADDR, 4, ids, N_SERVOS),
+                     1);
+    assert_int_equal(run(), -DXL_E_TIMEOUT);
+    assert_int_equal(dxl_reply_value(dxl_reply_for(&R.m, 5), 4), 500);
+    /* request, five blocks and 1.5 ms of quiet line: well short of 9 ms */
+    assert_true(R.bus.now - t0 < 200u + 8u * 10u + 5u * 8u * 10u + 1500u + 600u);
+}
+
 static void test_57600_baud(void **state)
 {
     (void)state;
@@ -671,6 +709,8 @@ int main(void)
         cmocka_unit_test(test_abort),
         cmocka_unit_test(test_bulk_write_and_signed_values),
         cmocka_unit_test(test_fast_sync_read_with_silent_servo_times_out),
+        cmocka_unit_test(test_fast_sync_read_nobody_heard_ends_early),
+        cmocka_unit_test(test_fast_sync_read_quiet_line_ends_the_attempt),
         cmocka_unit_test(test_57600_baud),
         cmocka_unit_test(test_bringup_configures_every_servo),
         cmocka_unit_test(test_bringup_skips_eeprom_writes_already_done),

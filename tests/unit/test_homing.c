@@ -407,7 +407,7 @@ static void test_tendon_time_limit(void **state)
 static void test_abort_releases(void **state)
 {
     unsigned k;
-    static const uint32_t when[] = {200, 800, 1900, 4200};
+    static const uint32_t when[] = {200, 800, 1900, 3700};
     (void)state;
     for (k = 0; k < sizeof when / sizeof when[0]; k++) {
         expect_fault(PLANT_FI_ABORT, 0, when[k], HOM_F_ABORTED, 1);

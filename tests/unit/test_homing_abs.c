@@ -182,7 +182,7 @@ static void expect_abs_fault(plant_fault_t fi, uint8_t index, uint32_t at_ms, ho
 
 static void test_abort_paths_release(void **state)
 {
-    static const uint32_t when[] = {200, 1900, 4200};
+    static const uint32_t when[] = {200, 1900, 3700};
     unsigned k;
     (void)state;
     capture(12);
