@@ -51,7 +51,6 @@ HOM_NOINLINE void hom_begin_tendon(hom_t *h, uint8_t i)
     h->slope_min_q8 = (h->slope_q8 >> 1) + 1; /* at least 1: a divisor */
     h->pos_at_sample = h->present[i];
     h->takeup_from = h->present[i];
-    h->furthest = h->present[i];
     t->engaged = 0;
     t->retries = 0;
     hom_phase_event(h, HOM_PH_TENDON, i);
@@ -103,7 +102,7 @@ HOM_NOINLINE static void begin_moderate(hom_t *h)
 {
     hom_tendon_t *t = hom_cur(h);
     int32_t g;
-    int32_t lead;
+    int32_t d;
     if (t->retries != 0u) {
         g = h->mod_goal;
     } else {
@@ -112,23 +111,20 @@ HOM_NOINLINE static void begin_moderate(hom_t *h)
     if (hom_pull(t, g - t->engage) > t->limit_ticks) {
         g = t->engage + hom_pull(t, t->limit_ticks);
     }
-    /* how far the take-up may have run beyond the last position read: its
-     * speed (0.229 rpm = 15.6 ticks/s per unit) over HOM_TAKEUP_LEAD_MS */
-    lead = t->retries == 0u
-               ? (int32_t)((uint32_t)h->out.vel[h->cur] * (HOM_TAKEUP_LEAD_MS * 16u) / 1024u)
-               : 0;
-    if (hom_pull(t, g - h->present[h->cur]) < 2 + lead) {
-        if (t->retries == 0u) {
-            /* the take-up has run on to where the approach starts (a short
-             * travel, a low tension): stopping it there would bring the
-             * servo back through the spool's backlash and the path's
-             * friction, and every point after would read the field of a
-             * position further on. Back to slack, and up to g again */
-            t->retries = 1u;
-            h->mod_goal = g;
-            hom_back_off(h);
-            return;
-        }
+    d = hom_pull(t, g - h->present[h->cur]);
+    if (t->retries == 0u && d < 2 + (int32_t)(h->out.vel[h->cur] >> 2)) {
+        /* the take-up has run on to where the approach starts (a short
+         * travel, a low tension; it may be its speed over 16 ms, a quarter
+         * tick per 0.229 rpm unit, beyond the last position read): stopping
+         * it there would bring the servo back through the spool's backlash
+         * and the path's friction, and every point after would read the
+         * field of a position further on. Back to slack, and up to g again */
+        t->retries = 1u;
+        h->mod_goal = g;
+        hom_back_off(h);
+        return;
+    }
+    if (d < 2) {
         g = h->present[h->cur] + hom_pull(t, 2);
     }
     if (hom_pull_to(h, g, h->cfg.v_moderate) == 0) {
@@ -180,9 +176,6 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
          * sync write gets no status) and still runs to an older one; send
          * it again, every 10 ms until it takes */
         hom_set_goal(h, h->cur, h->out.goal[h->cur], h->out.vel[h->cur]);
-    }
-    if (hom_pull(t, p - h->furthest) > 0) {
-        h->furthest = p;
     }
     switch (h->state) {
     case ST_TAKEUP:
@@ -255,7 +248,6 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
         break;
     case ST_BACKOFF:
         if (hom_reached(h, h->cur)) {
-            h->furthest = p;
             begin_moderate(h);
         }
         break;

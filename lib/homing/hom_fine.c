@@ -263,20 +263,6 @@ void hom_fine_point(hom_t *h)
     hom_avg_of(h, t->sensor, avg);
     b = hom_meas_of(h, t->sensor, avg);
     dp = h->have_prev ? hom_pull(t, p - h->p_prev) : 0;
-    if (b < t->target_cuT && hom_pull(t, h->furthest - p) > HOM_REVERSED_TICKS) {
-        /* the servo came back to p from further on (a take-up that ran on
-         * past the approach's start while the engagement was detected): the
-         * path's friction now holds the tip's tension above the spool's, so
-         * the field reads high for p and the home would come early (a 0.3 N
-         * tendon homed at 0.23 N). Back to slack, and up to p again */
-        if (++t->retries > HOM_MAX_RETRIES) {
-            hom_fail_tendon(h, HOM_F_NO_PROGRESS, (int32_t)b);
-            return;
-        }
-        h->mod_goal = p;
-        hom_back_off(h);
-        return;
-    }
     if (h->near) {
         keep_point(h, p, b, h->sensor[t->sensor].n_acc);
     }

@@ -52,12 +52,6 @@ enum {
 #define HOM_MAX_RETRIES                                                                            \
     3u /* back-offs of one tendon before HOM_F_NO_PROGRESS:                                        \
           a take-up that ran on, then two overshoots */
-#define HOM_TAKEUP_LEAD_MS                                                                         \
-    16u /* how long a take-up may have run on beyond the                                           \
-           last position read when the engagement is seen */
-#define HOM_REVERSED_TICKS                                                                         \
-    1                        /* a fine point this far back from the furthest position              \
-                                is on the release side of the friction */
 #define HOM_DROOP_TICKS 8    /* a servo stopped this close counts as arrived ... */
 #define HOM_STILL_MS    100u /* ... after this long without motion */
 #define HOM_FIT_POINTS  4u   /* near points kept for the final fit (hom_t.pts) */
