@@ -424,6 +424,11 @@ def section_identify(res: Dict) -> List[str]:
         "tendon of every robot counts. A refused fit keeps the nominal targets, as the user "
         f"would. Goals: mean within ±{g['mean_abs_N']} N, SD ≤ {g['sd_N']} N, worst |error| "
         f"≤ {g['worst_N']} N.")
+    if idf.get("reused_from"):
+        src = idf["reused_from"]
+        out.append(f"Measured by the run of {src.get('git')} ({src.get('date')}), taken over "
+                   "with `--identify-from` (this section depends on the host tools and the "
+                   "plant, not the firmware).")
     out.append("")
     if not idf or idf.get("not_measured"):
         out.append(f"| robots | targets from | tension (N) | mean (N) | SD (N) | worst (N) | "

@@ -534,6 +534,10 @@ def main(argv=None) -> int:
     p.add_argument("--id-weight-g", type=float, default=80.0,
                    help="the survey's weight per segment (g)")
     p.add_argument("--no-identify", action="store_true", help="skip section 7")
+    p.add_argument("--identify-from", default=None, metavar="RESULTS_JSON",
+                   help="section 7 from an earlier run's results.json instead of measuring it "
+                   "again (it depends on the host tools and the plant, not the firmware); "
+                   "the report names that run")
     a = p.parse_args(argv)
     t0 = time.time()
     os.makedirs(a.out, exist_ok=True)
@@ -557,6 +561,11 @@ def main(argv=None) -> int:
     size_item(a, res)
     if a.no_identify:
         res["identify"] = {"not_measured": "skipped (--no-identify)"}
+    elif a.identify_from:
+        with open(a.identify_from) as fh:
+            earlier = json.load(fh)
+        res["identify"] = dict(earlier.get("identify") or {"not_measured": "none in the file"})
+        res["identify"]["reused_from"] = {k: earlier.get("meta", {}).get(k) for k in ("git", "date")}
     else:
         identify_item(a, res)
     res["resources"]["bus"] = native.dxl_bench(a.dxl_bench if os.path.exists(a.dxl_bench) else None)

@@ -339,6 +339,17 @@ def test_identification_section_rows_and_notes():
     assert "worst 0.0500 N (at 1.5 N)" in sec and "missed: SD (missed by 0.0001 N), worst (missed by 0.0100 N)" in sec
 
 
+def test_identification_taken_from_an_earlier_run_says_which():
+    r = _results()
+    text = report.build_report(r)
+    assert "--identify-from" not in text
+    r["identify"]["reused_from"] = {"git": "abc1234", "date": "2026-11-26 20:56 UTC"}
+    sec = report.build_report(r)
+    sec = sec[sec.index(report.SECTIONS[7]):]
+    assert "Measured by the run of abc1234 (2026-11-26 20:56 UTC)" in sec
+    assert "| 2 x ±5 % | nominal TOML (today) | 0.3 |" in sec
+
+
 def test_identification_not_measured_fails_the_check(tmp_path):
     r = _results()
     r["identify"] = {"not_measured": "no bench binary"}
