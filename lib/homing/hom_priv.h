@@ -50,8 +50,8 @@ enum {
 #define HOM_MAX_AVG             32u
 #define HOM_QUICK_STOP_PERMILLE 975u /* quick leg: stop when the field is this close */
 #define HOM_MAX_RETRIES                                                                            \
-    3u /* back-offs of one tendon before HOM_F_NO_PROGRESS:                                        \
-          a take-up that ran on, then two overshoots */
+    3u                       /* back-offs of one tendon before HOM_F_NO_PROGRESS:                  \
+                                a take-up that ran on, then two overshoots */
 #define HOM_DROOP_TICKS 8    /* a servo stopped this close counts as arrived ... */
 #define HOM_STILL_MS    100u /* ... after this long without motion */
 #define HOM_FIT_POINTS  4u   /* near points kept for the final fit (hom_t.pts) */
