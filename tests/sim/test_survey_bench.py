@@ -122,7 +122,10 @@ def test_hallhome_identify_survey_end_to_end(tmp_path):
         assert r.returncode == 0, r.stdout + r.stderr
         summary = json.loads(r.stdout)
         assert [p["tendon"] for p in summary["pulls"]] == list(range(6))
-        assert all(p["steps"] >= 30 for p in summary["pulls"]), summary
+        # a pull's steps scale with its travel: the segment-1 tendons travel
+        # half as far as the segment-2 ones (28-33 steps against 57-62)
+        assert all(p["steps"] >= 20 for p in summary["pulls"]), summary["pulls"]
+        assert all(p["steps"] >= 45 for p in summary["pulls"][3:]), summary["pulls"]
     finally:
         bench.terminate()
         bench.wait(10)
