@@ -31,7 +31,9 @@
 #define BOARD_TWI_SCL_BIT PD0
 #define BOARD_MUX_ADDR    0x70
 
-/* Button: momentary switch to GND, internal pull-up, PE5 (pin 3). */
+/* Button: momentary switch to GND, internal pull-up, PE5 (pin 3). The 1 ms
+ * tick samples it every 4 ms too (board_io.c): a press is counted once the
+ * pin has read up for 8 samples in a row after 8 down. */
 #define BOARD_BTN_DDR  DDRE
 #define BOARD_BTN_PORT PORTE
 #define BOARD_BTN_PIN  PINE

@@ -14,9 +14,29 @@ void board_io_init(void)
     BOARD_LED_DDR |= (uint8_t)(1u << BOARD_LED_BIT);
 }
 
+static uint8_t btn_hist;             /* the last 8 samples, 1 bits released */
+static volatile uint8_t btn_presses; /* bit 0: settled down; bits 1-7: releases */
+
+void board_io_sample(void)
+{
+    uint8_t h = (uint8_t)(btn_hist << 1);
+    uint8_t p = btn_presses;
+    if (BOARD_BTN_PIN & (1u << BOARD_BTN_BIT)) {
+        h |= 1u;
+    }
+    btn_hist = h;
+    if (h == 0u) {
+        p |= 1u; /* down for 8 samples */
+    } else if (h == 0xFFu && (p & 1u)) {
+        p = (uint8_t)(p + 1u); /* up for 8 samples after a settled press: counted */
+    }
+    btn_presses = p;
+}
+
 uint8_t board_io_button(void)
 {
-    return (uint8_t)((BOARD_BTN_PIN & (1u << BOARD_BTN_BIT)) == 0u);
+    uint8_t pin = (uint8_t)((BOARD_BTN_PIN & (1u << BOARD_BTN_BIT)) == 0u);
+    return (uint8_t)((btn_presses & 0xFEu) | pin); /* one byte: read atomically */
 }
 
 void board_io_led(uint8_t on)

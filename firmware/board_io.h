@@ -12,8 +12,15 @@
 /* Button as an input with pull-up, LED as an output (off). */
 void board_io_init(void);
 
-/* Nonzero while the button is pressed (the pin reads low). */
+/* Bit 0: the button is pressed now (the pin reads low). Bits 1-7: presses
+ * counted by board_io_sample() (modulo 128), so a press that comes and
+ * goes within one long main-loop pass is not lost (app.h, button). */
 uint8_t board_io_button(void);
+
+/* Samples the button; called by the tick interrupt every 4 ms, so a press
+ * counts once it has held 32 ms and let go for 32 ms (the debounce time of
+ * lib/app, APP_DEBOUNCE_MS, about the same). */
+void board_io_sample(void);
 
 /* Drives the LED. */
 void board_io_led(uint8_t on);

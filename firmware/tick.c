@@ -1,5 +1,7 @@
 #include "tick.h"
 
+#include "board_io.h"
+
 #include <avr/interrupt.h>
 #include <avr/io.h>
 #include <util/atomic.h>
@@ -14,6 +16,9 @@ static volatile uint32_t tick_count_ms;
 ISR(TIMER0_COMPA_vect)
 {
     tick_count_ms++;
+    if (((uint8_t)tick_count_ms & 3u) == 0u) {
+        board_io_sample();
+    }
 }
 
 void tick_init(void)

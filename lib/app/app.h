@@ -131,7 +131,9 @@ typedef struct {
     void *ctx;
     uint32_t (*now_ms)(void *ctx); /* free-running milliseconds */
     uint32_t (*now_us)(void *ctx); /* free-running microseconds (may wrap) */
-    uint8_t (*button)(void *ctx);  /* nonzero while the button is pressed (raw level) */
+    /* bit 0: the button is pressed (raw level); bits 1-7: presses the board
+     * counted itself (settled, modulo 128), or 0 when it counts none */
+    uint8_t (*button)(void *ctx);
     void (*led)(void *ctx, uint8_t on);
     void (*wdt_kick)(void *ctx);
     void (*reboot)(void *ctx);      /* resets the board (NULL: not available) */
@@ -196,12 +198,14 @@ typedef struct {
     uint8_t pos_force;  /* the next cycle reads positions (a servo was missed) */
     uint8_t pos_streak; /* position reads in a row that missed a servo */
     uint8_t wdog_step;  /* Bus Watchdog writes left after a bring-up (two per servo) */
+    uint8_t wdog_gap;   /* 1: a position read comes before the next Bus Watchdog write */
     uint8_t reboot_id;
     uint8_t reboot_req;  /* `reboot` waits for the bus */
     uint16_t absent;     /* bit i: tendon i's servo did not answer the bring-up */
     uint16_t fresh;      /* bit i: a position arrived since the last homing step */
     uint16_t seen;       /* bit i: a position has arrived since boot */
     uint16_t goal_due;   /* bit i: goal/velocity of tendon i to send */
+    uint16_t goal_again; /* bit i: a new goal of tendon i, to send once more */
     uint16_t torque_due; /* bit i: torque of tendon i to send */
     uint16_t torque_on;  /* bit i: torque on sent since tendon i's goal (hom_goal()) became valid */
     uint16_t txn_mask;   /* tendons of the transaction in flight */
@@ -226,7 +230,7 @@ typedef struct {
     uint8_t req_mode;
     uint8_t req_tendon;
     uint8_t auto_release;  /* ID of a servo in hardware error: reboot it, then release */
-    uint8_t reset_release; /* a reset cut a run or move: 1 owed, 2-3 early release under way, 4
+    uint8_t reset_release; /* a reset cut a run or move: 1 owed, 2-5 early release under way, 6
                               released early or nothing to (app_boot_poll) */
     uint8_t recover_left;  /* device bring-ups left before the pending request is refused
                               (APP_RECOVER_NEW: a new request, not counted yet) */
@@ -279,6 +283,8 @@ typedef struct {
     uint8_t long_done;
     uint8_t led; /* APP_LED_* last set by a room (app_led_pattern() has the rest) */
     uint8_t led_on;
+    uint8_t presses;   /* the board's press count last seen (bits 1-7) */
+    uint8_t owed;      /* 1: the debounce saw a release the board's count has not shown yet */
     uint16_t t_change; /* 16-bit ms, compared as 16-bit differences */
     uint16_t t_down;
 } app_panel_t;

@@ -6,7 +6,21 @@
 
 void app_panel_button(app_t *a, uint16_t t)
 {
-    uint8_t raw = a->io->board->button(a->io->board->ctx) ? 1u : 0u;
+    uint8_t b = a->io->board->button(a->io->board->ctx);
+    uint8_t raw = b & 1u;
+    b ^= raw; /* the count */
+    if (b != a->panel.presses && !a->panel.state) {
+        /* the board counted a press (it settles in 8 ms, before the
+         * debounce below): the release the debounce saw, or one it missed
+         * (it came and went within one long pass: a status burst at rest
+         * writes for 100 ms, chaos seeds 2035 and 2083), which starts a run */
+        a->panel.presses = b;
+        if (a->panel.owed) {
+            a->panel.owed = 0;
+        } else {
+            app_run_press(a);
+        }
+    }
     if (raw != a->panel.raw) {
         a->panel.raw = raw;
         a->panel.t_change = t;
@@ -16,8 +30,11 @@ void app_panel_button(app_t *a, uint16_t t)
         if (a->panel.state) {
             a->panel.t_down = t;
             a->panel.long_done = 0;
-        } else if (!a->panel.long_done) {
-            app_run_press(a);
+        } else {
+            a->panel.owed = 1;
+            if (!a->panel.long_done) {
+                app_run_press(a);
+            }
         }
     }
     if (a->panel.state && !a->panel.long_done &&

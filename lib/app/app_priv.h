@@ -374,8 +374,8 @@ void app_run_move_step(app_t *a);
 uint8_t app_run_release_goals(app_t *a);
 /* After a reset that cut a run: the release goals of the tendons whose
  * engagement window survived, before the bring-up (which switches torque
- * off and on, and a servo takes its present position as goal then): step 1
- * writes the release velocity, step 2 the goals. 1 when sent. */
+ * off and on, and a servo takes its present position as goal then): steps 1
+ * and 3 write the release velocity, steps 2 and 4 the goals. 1 when sent. */
 uint8_t app_run_early_release(app_t *a, uint8_t step);
 /* Engagement windows kept across resets (app_win_t): checked at boot, set
  * (keep 0: forgotten) per tendon. */

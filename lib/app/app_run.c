@@ -407,12 +407,25 @@ uint8_t app_run_early_release(app_t *a, uint8_t step)
     if (step == 1u && !release_goals(a, 1)) {
         return 0;
     }
-    return app_bus_goals_now(a, (uint8_t)(step - 1u));
+    return app_bus_goals_now(a, (uint8_t)((step - 1u) & 1u));
 }
 
 void app_abort(app_t *app)
 {
-    if (app == NULL || app->state == APP_ST_BOOT) {
+    if (app == NULL) {
+        return;
+    }
+    if (app->state == APP_ST_BOOT) {
+        if (app->boot.con_wait && app->table_ok) {
+            /* a bring-up again (`servos`, a servo's reboot) holds the bus
+             * for 0.1-0.3 s with the robot as it rests: a stop in it
+             * releases at once, as after a reset (the early release, then
+             * the bring-up from its start; chaos seed 2090: a `!` during
+             * `servos` was dropped and the robot stayed taut 1.7 s) */
+            dxl_abort(&app->bus.dxl);
+            app->run.reset_release = 1;
+            app_boot_again(app);
+        }
         return;
     }
     if (app->run.req_start && app->run.req_con && con_pending(&app->cmd.con)) {

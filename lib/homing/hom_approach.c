@@ -18,6 +18,29 @@ HOM_NOINLINE static int32_t search_goal(const hom_t *h, uint8_t i)
                : g;
 }
 
+/* The take-up's goal: at most a lease of 30 ms of motion at its speed
+ * ahead of the position last read, never past the search's end. A servo
+ * cut off the bus runs on to the last goal it took until its Bus Watchdog
+ * stops it 200 ms later: with the search's end as its goal, a take-up at
+ * 1400 ticks/s that lost its servo on engagement pulled to 3.7 times the
+ * target (chaos seed 3008). The lease is about the tendon's travel at the
+ * run's tension (the speed is tied to it, hom_begin_tendon()), renewed when
+ * half of it is left. */
+static int32_t lease_ticks(uint16_t v)
+{
+    return 8 + (int32_t)((v * 15u) >> 5); /* 0.229 rpm units: 15.6 ticks/s each */
+}
+
+HOM_NOINLINE static void lease(hom_t *h, uint16_t v)
+{
+    const hom_tendon_t *t = hom_cur(h);
+    int32_t g = h->present[h->cur] + hom_pull(t, lease_ticks(v));
+    if (hom_pull(t, g - h->search_end) > 0) {
+        g = h->search_end;
+    }
+    hom_set_goal(h, h->cur, g, v);
+}
+
 HOM_NOINLINE void hom_begin_tendon(hom_t *h, uint8_t i)
 {
     hom_tendon_t *t;
@@ -67,7 +90,8 @@ HOM_NOINLINE void hom_begin_tendon(hom_t *h, uint8_t i)
             return;
         }
     }
-    hom_set_goal(h, i, search_goal(h, i), h->mode == HOM_MODE_QUICK ? h->cfg.v_moderate : v);
+    h->search_end = search_goal(h, i);
+    lease(h, h->mode == HOM_MODE_QUICK ? h->cfg.v_moderate : v);
     h->state = ST_TAKEUP;
 }
 
@@ -205,6 +229,11 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
         if (fresh && !t->engaged) {
             h->pos_at_sample = p;
         }
+        if (!h->quick_leg && !t->engaged && h->out.goal[h->cur] != h->search_end &&
+            hom_pull(t, h->out.goal[h->cur] - p) <= lease_ticks(h->out.vel[h->cur]) / 2) {
+            lease(h, h->out.vel[h->cur]); /* half of the lease left: renew it */
+            break;
+        }
         if (h->quick_leg && t->engaged && fresh && near_target(t, m, HOM_QUICK_STOP_PERMILLE)) {
             stop_short(h, p); /* the stored home is further than the field says */
         } else if (hom_reached(h, h->cur)) {
@@ -213,7 +242,8 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
             } else if (h->quick_leg) {
                 /* no engagement where the stored home put it: search as usual */
                 h->quick_leg = 0;
-                hom_set_goal(h, h->cur, search_goal(h, h->cur), h->cfg.v_moderate);
+                h->search_end = search_goal(h, h->cur);
+                lease(h, h->cfg.v_moderate);
             } else {
                 hom_fail_tendon(h, HOM_F_NO_ENGAGEMENT, hom_pull(t, p - h->pos_at_sample));
             }

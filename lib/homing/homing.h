@@ -338,6 +338,7 @@ typedef struct {
     int32_t p_prev;        /* fine: previous point (position, |dB|) */
     uint32_t b_prev;
     int32_t mod_goal;     /* re-approach: moderate goal after an overshoot */
+    int32_t search_end;   /* take-up: where the search for engagement ends */
     int32_t slope_q8;     /* fine: current slope estimate, cuT per tick * 256 */
     int32_t slope_min_q8; /* fine: half the table's slope, the floor of every estimate */
     uint32_t engage_cuT;  /* engagement threshold */

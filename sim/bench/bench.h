@@ -138,6 +138,7 @@ typedef struct {
     /* MCU bytes in flight: delivered to the servos at the end of their frame */
     uint8_t mcu_q[256];
     uint64_t mcu_start[256];
+    uint64_t mcu_out[256]; /* when simavr gave the byte (its UDR1 write) */
     uint8_t mcu_head, mcu_tail;
     uint64_t mcu_busy_until; /* end of the last MCU frame on the wire */
     /* bytes waiting for room in simavr's RX FIFO */

@@ -201,6 +201,7 @@ static void bus_mcu_byte(avr_irq_t *irq, uint32_t value, void *param)
     truth_bus_byte(b, now);
     s->mcu_q[s->mcu_head] = (uint8_t)value;
     s->mcu_start[s->mcu_head] = start;
+    s->mcu_out[s->mcu_head] = now;
     s->mcu_head++;
     bench_rearm(b);
 }
@@ -246,12 +247,21 @@ static void bus_dir(avr_irq_t *irq, uint32_t value, void *param)
     uint8_t keep = s->mcu_tail;
     for (uint8_t q = s->mcu_tail; q != s->mcu_head; q++) {
         uint64_t st = s->mcu_start[q];
-        if (st >= now) {
+        /* Cut or not is judged on simavr's own frame clock, the one its
+         * TXC follows: a UDR1 write that an interrupt delayed past a frame
+         * time goes out at once, but simavr's next UDRE (and TXC) keeps its
+         * period, so the wire here (one frame after another) lags it by a
+         * few microseconds. A firmware that turns the bus round at TXC, as
+         * a real USART's TXC allows, was then seen to cut its last byte
+         * (chaos seed 2090: the early release after a watchdog reset lost
+         * its goals to a CRC error). Turning round before TXC still cuts. */
+        uint64_t out = s->mcu_out[q];
+        if (out >= now) {
             s->mcu_bytes_no_dir++;
             continue;
         }
-        if (st + s->byte_us > now) {
-            uint64_t bits = (now - st) * s->mcu_baud / 1000000u; /* start bit first */
+        if (out + s->byte_us > now) {
+            uint64_t bits = (now - out) * s->mcu_baud / 1000000u; /* start bit first */
             unsigned sent = bits > 1u ? (unsigned)(bits - 1u) : 0u;
             if (sent < 8u) {
                 s->mcu_q[q] |= (uint8_t)(0xFFu << sent);

@@ -46,13 +46,17 @@ def max_takeup_mm() -> float:
 
 def search_covers_mm(robot: str) -> list[float]:
     """Per tendon, the slack the firmware's take-up finds from where a run
-    may leave it: what a tendon of unknown state is released by before its
-    engagement window is known (1.5 x the top-grid travel + the 0.6 mm slack
-    margin, docs/app.md "Recovery") plus the search past the window
-    (max_takeup_um). Repeated stops add nothing to it."""
+    may leave it (docs/app.md "Recovery"): the search past the engagement
+    window (max_takeup_um) plus the window's width and the slack margin
+    before it. A tendon never seen engaged has a window of one release (1.5 x
+    the top-grid travel + the 0.6 mm margin) each side of where it stood
+    when the first run after a power-up without stored homes found it: that
+    run may come after one whose release the power-up cut (chaos seed 2065:
+    release, power cycle in the slack check, release, fault before the
+    tendon's take-up: 7.56 mm, found). Repeated stops add nothing to it."""
     from .robots import ROBOTS  # local: robots imports this module's callers
     table = json.loads((ROBOTS / robot / "tables" / f"{robot}.json").read_text())["table"]
-    return [max_takeup_mm() + 1.5 * t["travel_um"][-1] / 1000.0 + 0.6 + 0.05
+    return [max_takeup_mm() + 2.0 * (1.5 * t["travel_um"][-1] / 1000.0 + 0.6) + 0.6 + 0.05
             for t in table["tendons"][: table["n_tendons"]]]
 
 

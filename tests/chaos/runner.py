@@ -145,8 +145,8 @@ WORST = [("peak_ratio", "worst peak tension before home / target", "{:.2f}x (bou
          ("release_ms", "worst release after a stop", "{:.1f} ms (bound 100 ms)"),
          ("baseline_max_mN", "highest tension during a baseline", "{:.1f} mN"),
          ("bus_gap_ms", "longest servo-bus silence in a run", "{:.1f} ms (bound 50 ms)"),
-         ("max_start_slack_mm", "deepest slack at a run's start", "{:.2f} mm (search covers "
-          f"{chk.max_takeup_mm():.1f} mm)"),
+         ("max_start_slack_mm", "deepest slack at a run's start", "{:.2f} mm (bound per tendon: "
+          f"the {chk.max_takeup_mm():.1f} mm search past its window, two releases and the margin)"),
          ("max_paid_out_mm", "most tendon paid out in one schedule", "{:.1f} mm"),
          ("final_err_pct", "worst final tension error", "{:.1f} % (bound 15 %, or 5 % of an "
           "undisturbed calibration's)"),

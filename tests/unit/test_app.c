@@ -277,6 +277,28 @@ static void test_long_press_aborts(void **state)
     assert_int_equal(g_b.app.state, APP_ST_FAULT);
 }
 
+/* A board that counts presses itself (bits 1-7 of its button byte): a press
+ * that came and went between two passes, never seen down by the debounce,
+ * starts a run; the count of a release the debounce saw (here the end of a
+ * long press that aborted) starts nothing. */
+static void test_board_counted_press(void **state)
+{
+    (void)state;
+    boot(&g_b, 1);
+    g_b.button = 2; /* one press counted, the level never seen down */
+    app_bench_run_ms(&g_b, 50);
+    assert_int_equal(g_b.app.state, APP_ST_CAL);
+    g_b.button = 3; /* held: the debounce sees it and aborts after the long press */
+    app_bench_run_ms(&g_b, 2200);
+    assert_true(app_bench_wait_line(&g_b, "<fault ", g_line, sizeof g_line, 100));
+    assert_non_null(strstr(g_line, "reason=aborted"));
+    g_b.button = 4; /* released: the board counts that press too */
+    app_bench_run_ms(&g_b, 400);
+    assert_int_equal(g_b.app.state, APP_ST_FAULT);
+    g_b.button = 6; /* a later press between two passes: a run again */
+    assert_true(app_bench_wait_line(&g_b, "<progress state=start", g_line, sizeof g_line, 1000));
+}
+
 /* Missing devices are named before any motion and refuse the calibration. */
 static void test_missing_sensor_and_servo(void **state)
 {
@@ -720,7 +742,7 @@ static void test_bus_watchdog_stops_servos_when_the_board_hangs(void **state)
     cmd(&g_b, "set approach_fast 5", "ok");
     cmd(&g_b, "cal 0.8 0", "ok");
     assert_true(app_bench_wait_line(&g_b, "<progress state=tendon", g_line, sizeof g_line, 5000));
-    app_bench_run_ms(&g_b, 300);
+    app_bench_run_ms(&g_b, 600); /* past the release point, so that the release moves it */
     s0 = xl430_shaft_ticks(&g_b.servo[0]);
     app_bench_run_ms(&g_b, 300); /* fed by the bus cycle: still running */
     s1 = xl430_shaft_ticks(&g_b.servo[0]);
@@ -767,6 +789,7 @@ int main(void)
         cmocka_unit_test(test_realtime_abort_releases),
         cmocka_unit_test(test_release_goals_never_wait_for_console_output),
         cmocka_unit_test(test_long_press_aborts),
+        cmocka_unit_test(test_board_counted_press),
         cmocka_unit_test(test_servo_fault_mid_run),
         cmocka_unit_test(test_debounce_led_and_eeprom_failure),
         cmocka_unit_test(test_slow_loop_single_tendon),
