@@ -597,6 +597,18 @@ static uint8_t help_line(con_t *c)
 
 /* ---- line handling ----------------------------------------------- */
 
+/* A handler's result: the final reply now, or the command pending. */
+static void end_call(con_t *c, int8_t rc)
+{
+    if (rc > 0) {
+        c->state = ST_PENDING;
+        c->t_pending = c->now;
+        return;
+    }
+    c->state = ST_READ;
+    reply(c, rc);
+}
+
 static void execute(con_t *c)
 {
     char *tok[CON_MAX_ARGS + 2];
@@ -645,20 +657,18 @@ static void execute(con_t *c)
         help_set(c, con_cmd_text);
         return;
     }
+    if (c->handlers == NULL) {
+        c->state = ST_CALL; /* the application runs it: con_call() */
+        c->call = (uint8_t)cmd;
+        return;
+    }
     c->copy(&h, &c->handlers[cmd], sizeof(h));
     if (h == NULL) {
         reply(c, CON_E_NOT_AVAILABLE);
         return;
     }
     c->state = ST_CALL;
-    rc = h(c, &c->args, c->app);
-    if (rc > 0) {
-        c->state = ST_PENDING;
-        c->t_pending = c->now;
-        return;
-    }
-    c->state = ST_READ;
-    reply(c, rc);
+    end_call(c, h(c, &c->args, c->app));
 }
 
 static void end_line(con_t *c)
@@ -814,6 +824,20 @@ int8_t con_complete(con_t *con, int8_t rc)
 uint8_t con_pending(const con_t *con)
 {
     return con->state == ST_PENDING;
+}
+
+int8_t con_call(const con_t *con)
+{
+    return (con->state == ST_CALL && con->handlers == NULL) ? (int8_t)con->call : -1;
+}
+
+int8_t con_called(con_t *con, int8_t rc)
+{
+    if (con_call(con) < 0) {
+        return CON_E_NOT_PENDING;
+    }
+    end_call(con, rc);
+    return 0;
 }
 
 uint8_t con_rt_byte(con_rt_t *rt, uint8_t byte)
