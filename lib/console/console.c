@@ -16,6 +16,14 @@
 #define CON_SYN_MAX    64u /* longest synopsis (checked by the unit tests) */
 #define CON_MAG_MAX    2147483647UL
 
+/* Functions that measured smaller on the AVR as calls than inlined into the
+ * line handling (argument checks, a handler's result). */
+#if defined(__GNUC__)
+#define CON_NOINLINE __attribute__((noinline))
+#else
+#define CON_NOINLINE
+#endif
+
 /* name, synopsis and help of every command, NUL-separated, in enum order:
  * one flash string instead of 3 * N pointers. */
 static const char con_cmd_text[] CON_FLASH =
@@ -510,7 +518,7 @@ static int8_t check_word(const char *tok, const char *choices, int32_t *v)
 
 /* Checks every argument against the synopsis and fills c->args; the first
  * failure decides the error. */
-static int8_t check_args(con_t *c, uint8_t cmd, char **tok, uint8_t ntok)
+CON_NOINLINE static int8_t check_args(con_t *c, uint8_t cmd, char **tok, uint8_t ntok)
 {
     char syn[CON_SYN_MAX];
     char *q = syn;
@@ -598,7 +606,7 @@ static uint8_t help_line(con_t *c)
 /* ---- line handling ----------------------------------------------- */
 
 /* A handler's result: the final reply now, or the command pending. */
-static void end_call(con_t *c, int8_t rc)
+CON_NOINLINE static void end_call(con_t *c, int8_t rc)
 {
     if (rc > 0) {
         c->state = ST_PENDING;
