@@ -23,7 +23,7 @@ APP_NOINLINE uint16_t app_bit16(uint8_t i)
 }
 
 /* Bit i of m (one routine: a variable shift is a loop on the AVR). */
-uint8_t app_has(uint16_t m, uint8_t i)
+APP_NOINLINE uint8_t app_has(uint16_t m, uint8_t i)
 {
     return (uint8_t)((m >> i) & 1u);
 }

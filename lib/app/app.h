@@ -379,7 +379,4 @@ void app_table_copy(app_t *app, void *dst, const void *src, size_t n);
 /* Current LED pattern (APP_LED_*). */
 uint8_t app_led_pattern(const app_t *app);
 
-/* The console handler table (CON_CMD_COUNT entries, in CON_FLASH). */
-extern const con_handler_fn app_handlers[CON_CMD_COUNT];
-
 #endif /* HALLHOME_APP_H */

@@ -46,7 +46,7 @@ int8_t app_init(app_t *app, const app_io_t *io)
     }
     memset(app, 0, sizeof *app);
     app->io = io;
-    (void)con_init(&app->cmd.con, io->console, app_handlers, app, io->con_copy, io->rt);
+    (void)con_init(&app->cmd.con, io->console, NULL, NULL, io->con_copy, io->rt);
     (void)store_init(&app->rec.store, io->eeprom, io->store_copy);
     (void)store_settings_load(&app->rec.store, &app->rec.set);
     load_table(app);

@@ -354,7 +354,7 @@ void app_bus_inputs(app_t *a, hom_in_t *in)
     a->bus.fresh = 0;
 }
 
-void app_bus_take(app_t *a, const hom_out_t *out)
+APP_NOINLINE void app_bus_take(app_t *a, const hom_out_t *out)
 {
     uint8_t i;
     for (i = 0; i < a->info.n_tendons; i++) {

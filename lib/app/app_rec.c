@@ -11,7 +11,7 @@
 
 #define REST_DELAY_MS 1000u /* the servos have stopped this long after a release */
 
-int32_t app_rec_home(const app_t *a, uint8_t i)
+APP_NOINLINE int32_t app_rec_home(const app_t *a, uint8_t i)
 {
     return a->rec.homes.t[i].home_ticks - a->rec.offset[i];
 }

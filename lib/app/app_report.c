@@ -41,7 +41,7 @@ void app_rep_end(app_t *a)
 }
 
 /* Hex words (table_id) without a printf. */
-void app_rep_hex(app_t *a, const char *key, uint32_t v)
+APP_NOINLINE void app_rep_hex(app_t *a, const char *key, uint32_t v)
 {
     char buf[11];
     uint8_t i;

@@ -489,7 +489,8 @@ APP_NOINLINE void app_run_move_step(app_t *a)
 }
 
 /* Keeps a run request for app_run_poll() to start once it can. */
-static void keep_request(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon, uint8_t from_con)
+APP_NOINLINE static void keep_request(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon,
+                                      uint8_t from_con)
 {
     a->run.req_start = 1;
     a->run.req_con = from_con;
@@ -663,7 +664,7 @@ void app_run_poll(app_t *a)
     }
 }
 
-int8_t app_run_request(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon)
+APP_NOINLINE int8_t app_run_request(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon)
 {
     a->run.req_start = 0;
     a->run.recover_left = APP_RECOVER_NEW;

@@ -16,6 +16,14 @@
 #define CON_SYN_MAX    64u /* longest synopsis (checked by the unit tests) */
 #define CON_MAG_MAX    2147483647UL
 
+/* Functions that measured smaller on the AVR as calls than inlined into the
+ * line handling (argument checks, a handler's result). */
+#if defined(__GNUC__)
+#define CON_NOINLINE __attribute__((noinline))
+#else
+#define CON_NOINLINE
+#endif
+
 /* name, synopsis and help of every command, NUL-separated, in enum order:
  * one flash string instead of 3 * N pointers. */
 static const char con_cmd_text[] CON_FLASH =
@@ -519,7 +527,7 @@ static int8_t check_word(const char *tok, const char *choices, int32_t *v)
 
 /* Checks every argument against the synopsis and fills c->args; the first
  * failure decides the error. */
-static int8_t check_args(con_t *c, uint8_t cmd, char **tok, uint8_t ntok)
+CON_NOINLINE static int8_t check_args(con_t *c, uint8_t cmd, char **tok, uint8_t ntok)
 {
     char syn[CON_SYN_MAX];
     char *q = syn;
@@ -606,6 +614,18 @@ static uint8_t help_line(con_t *c)
 
 /* ---- line handling ----------------------------------------------- */
 
+/* A handler's result: the final reply now, or the command pending. */
+CON_NOINLINE static void end_call(con_t *c, int8_t rc)
+{
+    if (rc > 0) {
+        c->state = ST_PENDING;
+        c->t_pending = c->now;
+        return;
+    }
+    c->state = ST_READ;
+    reply(c, rc);
+}
+
 static void execute(con_t *c)
 {
     char *tok[CON_MAX_ARGS + 2];
@@ -654,20 +674,18 @@ static void execute(con_t *c)
         help_set(c, con_cmd_text);
         return;
     }
+    if (c->handlers == NULL) {
+        c->state = ST_CALL; /* the application runs it: con_call() */
+        c->call = (uint8_t)cmd;
+        return;
+    }
     c->copy(&h, &c->handlers[cmd], sizeof(h));
     if (h == NULL) {
         reply(c, CON_E_NOT_AVAILABLE);
         return;
     }
     c->state = ST_CALL;
-    rc = h(c, &c->args, c->app);
-    if (rc > 0) {
-        c->state = ST_PENDING;
-        c->t_pending = c->now;
-        return;
-    }
-    c->state = ST_READ;
-    reply(c, rc);
+    end_call(c, h(c, &c->args, c->app));
 }
 
 static void end_line(con_t *c)
@@ -823,6 +841,20 @@ int8_t con_complete(con_t *con, int8_t rc)
 uint8_t con_pending(const con_t *con)
 {
     return con->state == ST_PENDING;
+}
+
+int8_t con_call(const con_t *con)
+{
+    return (con->state == ST_CALL && con->handlers == NULL) ? (int8_t)con->call : -1;
+}
+
+int8_t con_called(con_t *con, int8_t rc)
+{
+    if (con_call(con) < 0) {
+        return CON_E_NOT_PENDING;
+    }
+    end_call(con, rc);
+    return 0;
 }
 
 uint8_t con_rt_byte(con_rt_t *rt, uint8_t byte)

@@ -23,7 +23,10 @@
  *
  * What this module does not do: any behaviour. The application supplies one
  * handler per command (a table indexed by con_cmd_t) and performs the
- * command; the module depends on no other hallhome module.
+ * command; the module depends on no other hallhome module. An application
+ * may instead run the commands itself (no table: con_init() with handlers
+ * NULL): a validated line then waits in con_call() until the application
+ * hands its handler's result to con_called(), with the same contract.
  *
  * Handlers and the one-reply guarantee. A handler returns
  *   0            done: the console replies `ok`;
@@ -138,11 +141,11 @@ struct con_s;
 /* Command handler: see the file comment for the result contract. */
 typedef int8_t (*con_handler_fn)(struct con_s *con, const con_args_t *args, void *app);
 
-/* Caller-owned console state (88 bytes on the AVR). Treat as opaque. */
+/* Caller-owned console state (287 bytes on the AVR). Treat as opaque. */
 typedef struct con_s {
     const con_io_t *io;
     const con_handler_fn *handlers; /* CON_CMD_COUNT entries, read via copy; NULL entry:
-                                       error:NOT_AVAILABLE */
+                                       error:NOT_AVAILABLE; NULL: con_call() */
     void *app;                      /* passed to every handler */
     con_copy_fn copy;
     con_rt_t *rt;
@@ -156,6 +159,7 @@ typedef struct con_s {
     uint8_t flags;
     uint8_t state; /* reading, pending, help, reply held */
     uint8_t help_i;
+    uint8_t call;     /* the command con_call() returns */
     uint8_t realtime; /* con_set_realtime() */
     int8_t held_rc;   /* final reply waiting for room */
     uint8_t olen;     /* bytes in obuf; CON_OUT_MAX + 1 when the line overflowed */
@@ -165,8 +169,9 @@ typedef struct con_s {
 } con_t;
 
 /* Binds the console. handlers must hold CON_CMD_COUNT entries (the HELP
- * entry is not used: help is built in); rt may be shared with the RX
- * interrupt's hook. Returns 0. */
+ * entry is not used: help is built in), or be NULL: the application runs
+ * the commands (con_call()). rt may be shared with the RX interrupt's hook.
+ * Returns 0. */
 int8_t con_init(con_t *con, const con_io_t *io, const con_handler_fn *handlers, void *app,
                 con_copy_fn copy, con_rt_t *rt);
 
@@ -209,6 +214,17 @@ int8_t con_complete(con_t *con, int8_t rc);
 
 /* Nonzero while a command waits for con_complete(). */
 uint8_t con_pending(const con_t *con);
+
+/* Without a handler table (con_init() with handlers NULL): the command
+ * (con_cmd_t) of a validated line waiting for the application to run it, or
+ * -1. Its arguments are in con->args. The console reads nothing more until
+ * con_called() takes the result. Call it after each con_poll(). */
+int8_t con_call(const con_t *con);
+
+/* Hands the result of the command con_call() returned to the console, as a
+ * handler's return value (0, CON_E_* or CON_PENDING: see the file comment).
+ * Returns 0, or CON_E_NOT_PENDING (nothing written) when no command waits. */
+int8_t con_called(con_t *con, int8_t rc);
 
 /* RX-interrupt hook: counts `!` and returns 1 (byte consumed); returns 0 for
  * every other byte. Wrap it in a function of the uart0 hook type. */

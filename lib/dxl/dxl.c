@@ -157,7 +157,8 @@ void dxl_malformed(dxl_master *m)
 
 /* The error number makes the data meaningless; the alert bit alone only says
  * that Hardware Error Status is nonzero, the data is still the servo's. */
-void dxl_settle(dxl_master *m, dxl_reply *r, uint8_t err, const uint8_t *data, uint16_t n)
+DXL_NOINLINE void dxl_settle(dxl_master *m, dxl_reply *r, uint8_t err, const uint8_t *data,
+                             uint16_t n)
 {
     r->err = err;
     r->len = (uint8_t)n;
@@ -319,7 +320,7 @@ const dxl_reply *dxl_reply_for(const dxl_master *m, uint8_t id)
     return NULL;
 }
 
-int32_t dxl_reply_value(const dxl_reply *r, uint8_t size)
+DXL_NOINLINE int32_t dxl_reply_value(const dxl_reply *r, uint8_t size)
 {
     if (r == NULL || r->len < size || (size != 1u && size != 2u && size != 4u)) {
         return 0;
@@ -336,7 +337,7 @@ int32_t dxl_reply_value(const dxl_reply *r, uint8_t size)
 
 /* --- starting transactions --------------------------------------------------------- */
 
-static int8_t dxl_prepare(dxl_master *m, uint8_t inst, uint16_t addr, uint16_t n)
+DXL_NOINLINE static int8_t dxl_prepare(dxl_master *m, uint8_t inst, uint16_t addr, uint16_t n)
 {
     if (m->phase != DXL_PH_IDLE) {
         return -DXL_E_BUSY;
@@ -351,7 +352,7 @@ static int8_t dxl_prepare(dxl_master *m, uint8_t inst, uint16_t addr, uint16_t n
     return 0;
 }
 
-static void dxl_expect(dxl_master *m, uint8_t id, uint16_t n)
+DXL_NOINLINE static void dxl_expect(dxl_master *m, uint8_t id, uint16_t n)
 {
     dxl_reply *r = &m->reply[m->n_reply++];
     r->id = id;
@@ -608,7 +609,7 @@ int8_t dxl_bringup_start(dxl_bringup *b, dxl_master *m, const uint8_t *ids, uint
     return 1;
 }
 
-static int8_t dxl_bu_done(dxl_bringup *b, int8_t result)
+DXL_NOINLINE static int8_t dxl_bu_done(dxl_bringup *b, int8_t result)
 {
     b->step = DXL_BU_DONE;
     b->result = result;

@@ -21,6 +21,15 @@
 #define DXL_FLASH_WORD(addr) (*(addr))
 #endif
 
+/* Functions that measured smaller on the AVR as calls than inlined into their
+ * callers (the packet set-up, the reply bookkeeping, the parser's reset and
+ * rescan, the bring-up's end). */
+#if defined(__GNUC__)
+#define DXL_NOINLINE __attribute__((noinline))
+#else
+#define DXL_NOINLINE
+#endif
+
 /* Starts a sync read or fast sync read (`inst`); same returns as
  * dxl_sync_read(). */
 int8_t dxl_group_read(dxl_master *m, uint8_t inst, uint16_t addr, uint16_t n, const uint8_t *ids,

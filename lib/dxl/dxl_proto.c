@@ -367,7 +367,7 @@ void dxl_parser_init(dxl_parser *p, uint8_t *buf, uint16_t cap)
     dxl_parser_reset(p);
 }
 
-void dxl_parser_reset(dxl_parser *p)
+DXL_NOINLINE void dxl_parser_reset(dxl_parser *p)
 {
     p->state = DXL_PS_H1;
     p->body_len = 0;
@@ -451,7 +451,7 @@ static int8_t dxl_parser_body(dxl_parser *p, uint8_t byte)
  * bytes and the CRC field: look for it there. At most six bytes are fed
  * again and a packet is at least ten, so this never recurses further. The
  * bytes were already counted as part of the bad packet, not as garbage. */
-static void dxl_parser_rescan(dxl_parser *p)
+DXL_NOINLINE static void dxl_parser_rescan(dxl_parser *p)
 {
     uint8_t again[6];
     uint8_t n = 0;

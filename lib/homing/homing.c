@@ -391,7 +391,7 @@ int hom_load_step(hom_t *h)
     return 0;
 }
 
-int hom_start(hom_t *h, const tbl_src_t *table, const hom_cmd_t *cmd)
+HOM_NOINLINE int hom_start(hom_t *h, const tbl_src_t *table, const hom_cmd_t *cmd)
 {
     tbl_info_t info;
     uint16_t tension;
@@ -588,7 +588,7 @@ HOM_NOINLINE static uint32_t diff_norm(const int32_t b[3], const int32_t r[3])
     return hom_norm3(d);
 }
 
-uint32_t hom_delta_of(const hom_t *h, uint8_t k, const int32_t b[3])
+HOM_NOINLINE uint32_t hom_delta_of(const hom_t *h, uint8_t k, const int32_t b[3])
 {
     return diff_norm(b, h->sensor[k].b0);
 }
@@ -611,7 +611,7 @@ HOM_NOINLINE uint32_t hom_meas_of(const hom_t *h, uint8_t k, const int32_t b[3])
 }
 
 /* q8 / 256 rounded to nearest, halves up (the remainder is -128..127). */
-int32_t hom_floor_div256(int32_t q8)
+HOM_NOINLINE int32_t hom_floor_div256(int32_t q8)
 {
     return q8 >= 0 ? (q8 + 128) / 256 : -((-q8 + 127) / 256);
 }
@@ -652,7 +652,7 @@ HOM_NOINLINE int hom_move_done(hom_t *h, int arrived, uint8_t dev, uint8_t index
     return arrived;
 }
 
-int hom_step(hom_t *h, const hom_in_t *in, hom_out_t *out)
+HOM_NOINLINE int hom_step(hom_t *h, const hom_in_t *in, hom_out_t *out)
 {
     uint8_t i;
     if (h == NULL || in == NULL || out == NULL) {

@@ -5,6 +5,14 @@
 
 #include "icm20948/icm20948_reg.h"
 
+/* Functions that measured smaller on the AVR as calls than inlined into their
+ * callers (a slot's init start, the count of sampling sensors). */
+#if defined(__GNUC__)
+#define ICM_NOINLINE __attribute__((noinline))
+#else
+#define ICM_NOINLINE
+#endif
+
 int8_t icm_set_setup(icm_set_t *set, const icm_bus_t *bus, uint8_t mux_addr, icm_set_slot_t *slots,
                      uint8_t cap)
 {
@@ -67,7 +75,7 @@ int8_t icm_set_stale_limit_us(icm_set_t *set, uint32_t stale_us)
     return 0;
 }
 
-static void icm_set_start_init(icm_set_slot_t *s, uint32_t now_us)
+ICM_NOINLINE static void icm_set_start_init(icm_set_slot_t *s, uint32_t now_us)
 {
     (void)icm_init_start(&s->dev, now_us);
     s->state = ICM_SET_S_INIT;
@@ -216,7 +224,7 @@ int8_t icm_set_poll(icm_set_t *set, uint32_t now_us)
     return 0;
 }
 
-uint8_t icm_set_ready_count(const icm_set_t *set)
+ICM_NOINLINE uint8_t icm_set_ready_count(const icm_set_t *set)
 {
     uint8_t i, n = 0;
     if (set == NULL) {

@@ -12,6 +12,14 @@
 
 #define STORE_NO_HEAD 0xFFu
 
+/* Functions that measured smaller on the AVR as calls than inlined into their
+ * callers (a record's write set-up, the history slots' checks). */
+#if defined(__GNUC__)
+#define STORE_NOINLINE __attribute__((noinline))
+#else
+#define STORE_NOINLINE
+#endif
+
 /* ---- layout checks (compile time; C99 has no _Static_assert) ----- */
 
 #define STORE_ASSERT(name, cond) typedef char store_assert_##name[(cond) ? 1 : -1]
@@ -154,8 +162,8 @@ static int8_t pair_load(store_t *st, uint16_t base, uint16_t stride, uint8_t kin
     return 0;
 }
 
-static int8_t save_begin(store_t *st, uint16_t addr, uint8_t kind, uint8_t ver, uint16_t seq,
-                         const void *body, uint16_t len)
+STORE_NOINLINE static int8_t save_begin(store_t *st, uint16_t addr, uint8_t kind, uint8_t ver,
+                                        uint16_t seq, const void *body, uint16_t len)
 {
     st->addr = addr;
     st->len = len;
@@ -199,7 +207,7 @@ static uint8_t slot_byte(const store_t *st, uint16_t pos)
     return (pos == st->len) ? (uint8_t)st->crc : (uint8_t)(st->crc >> 8);
 }
 
-static uint8_t hist_slot_valid(const store_t *st, uint8_t i, uint16_t *seq)
+STORE_NOINLINE static uint8_t hist_slot_valid(const store_t *st, uint8_t i, uint16_t *seq)
 {
     return slot_valid(st, (uint16_t)(STORE_ADDR_HIST + i * STORE_HIST_STRIDE), STORE_KIND_HIST,
                       STORE_HIST_VERSION, (uint16_t)sizeof(store_hist_t), seq);
@@ -512,7 +520,7 @@ int8_t store_hist_get(store_t *st, uint8_t age, store_hist_t *e)
     return 0;
 }
 
-uint8_t store_hist_count(store_t *st)
+STORE_NOINLINE uint8_t store_hist_count(store_t *st)
 {
     store_hist_t e;
     uint8_t n = 0;

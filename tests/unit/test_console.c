@@ -320,6 +320,47 @@ static void test_pending_defers_input(void **state)
     assert_string_equal(run(""), "ok\r\n");
 }
 
+/* Without a handler table the application runs each validated line
+ * itself: con_call() names it until con_called() takes the result, which
+ * gets the reply a handler's would; nothing more is read meanwhile and bad
+ * lines never reach the application. */
+static void test_application_runs_commands(void **state)
+{
+    int i;
+    (void)state;
+    assert_int_equal(con_init(&con, &fake.io, NULL, NULL, con_fake_copy, &rt), 0);
+    assert_int_equal(con_call(&con), -1);
+    assert_int_equal(con_called(&con, 0), CON_E_NOT_PENDING);
+    con_fake_feed(&fake, "cal 0.5\nstatus\n", 15);
+    assert_int_equal(con_poll(&con, clock_ms++), 1);
+    assert_int_equal(con_call(&con), CON_CMD_CAL);
+    assert_int_equal(con.args.given, 1);
+    assert_int_equal(con.args.v[0], 500);
+    for (i = 0; i < 10; i++) {
+        assert_int_equal(con_poll(&con, clock_ms++), 1);
+    }
+    assert_int_equal(con_fake_unread(&fake), strlen("status\n"));
+    assert_int_equal(fake.out_len, 0u);
+    /* reports of the command come before its reply */
+    con_report_begin(&con, "rep");
+    con_report_int(&con, "cmd", CON_CMD_CAL);
+    con_report_end(&con);
+    assert_int_equal(con_called(&con, 0), 0);
+    assert_int_equal(con_call(&con), -1);
+    assert_string_equal(run(""), "<rep cmd=5>\r\nok\r\n");
+    assert_int_equal(con_poll(&con, clock_ms++), 1);
+    assert_int_equal(con_call(&con), CON_CMD_STATUS);
+    assert_int_equal(con_called(&con, CON_PENDING), 0);
+    assert_true(con_pending(&con));
+    assert_int_equal(con_complete(&con, CON_E_BUSY), 0);
+    assert_int_equal(con_call(&con), -1);
+    assert_true(strncmp(run(""), "error:", 6) == 0);
+    assert_true(strncmp(run("servos bogus\n"), "error:", 6) == 0);
+    assert_int_equal(con_call(&con), -1);
+    assert_true(strncmp(run("help\n"), "<help cmd=help", 14) == 0);
+    assert_int_equal(con_call(&con), -1);
+}
+
 static void test_pending_deadline(void **state)
 {
     int i;
@@ -866,6 +907,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test_setup(test_every_command_dispatches, setup),
+        cmocka_unit_test_setup(test_application_runs_commands, setup),
         cmocka_unit_test_setup(test_arguments_parsed, setup),
         cmocka_unit_test_setup(test_bad_arguments_change_nothing, setup),
         cmocka_unit_test_setup(test_handler_results, setup),
