@@ -199,6 +199,7 @@ typedef struct {
     uint8_t pos_streak; /* position reads in a row that missed a servo */
     uint8_t wdog_step;  /* Bus Watchdog writes left after a bring-up (two per servo) */
     uint8_t wdog_gap;   /* 1: a position read comes before the next Bus Watchdog write */
+    uint8_t wdog_bcast; /* broadcast Bus Watchdog writes left: 2 clear, 1 arm */
     uint8_t reboot_id;
     uint8_t reboot_req;  /* `reboot` waits for the bus */
     uint16_t absent;     /* bit i: tendon i's servo did not answer the bring-up */

@@ -76,6 +76,7 @@ APP_NOINLINE static void servo_done(app_t *a, int8_t rc)
                  * Clear and arm them all again, as after a bring-up. */
                 if ((uint16_t)(now - a->bus.t_all_ok) > APP_SERVO_TIMEOUT_MS) {
                     a->bus.wdog_step = (uint8_t)(2u * a->info.n_tendons);
+                    a->bus.wdog_bcast = 2;
                 }
                 a->bus.t_all_ok = now;
             } else if (a->bus.pos_streak < APP_POS_RETRIES) {
@@ -143,6 +144,17 @@ APP_NOINLINE static void servo_next(app_t *a)
             a->bus.txn = APP_TX_REBOOT;
         } else if (con_pending(&a->cmd.con)) {
             (void)con_complete(&a->cmd.con, CON_E_INTERNAL);
+        }
+        return;
+    }
+    if (a->bus.wdog_bcast != 0u) {
+        /* every watchdog cleared and armed at once, by two broadcast
+         * writes, before the writes one by one that confirm it: cleared
+         * one by one, twelve servos took 130 ms to take the release goals
+         * a 100 ms `status` burst at rest had let expire (chaos seed 3079) */
+        v = --a->bus.wdog_bcast != 0u ? 0u : APP_BUS_WATCHDOG;
+        if (dxl_write_value(&a->bus.dxl, DXL_BROADCAST_ID, DXL_XL430_BUS_WATCHDOG_ADDR, v, 1) > 0) {
+            a->bus.txn = APP_TX_WDOG;
         }
         return;
     }

@@ -114,7 +114,8 @@ int8_t icm_set_begin(icm_set_t *set, uint32_t now_us);
 /* Makes every sensor whose init failed due for its next attempt now, as a
  * bring-up wants: one plugged back since its last attempt must not wait for
  * its retry period (up to ICM_SET_RETRY_US). icm_set_settled() waits for
- * these attempts. No-op before icm_set_begin(). */
+ * these attempts, and for an init already under way. No-op before
+ * icm_set_begin(). */
 void icm_set_retry(icm_set_t *set, uint32_t now_us);
 
 /* Does the next due step. Returns 0, or ICM_E_ARG / ICM_E_STATE (before
