@@ -52,7 +52,9 @@ FIXED = [3, 5, 9, 10, 187,
          # watchdogs a 100 ms `status` burst at rest let expire (cleared by broadcast)
          3079,
          # a press while a sensor's periodic retry is in its reset wait
-         3195]
+         3195,
+         # power cycles that cut three runs in their release, before a tendon's take-up
+         3049]
 # seed: what fails on the firmware of this commit (docs/chaos.md). Seeds 3, 5,
 # 9, 10 and 187 were here (tendons pulled to 1.4-4x their target): the slack a
 # calibrated tendon keeps was too small for the other tendons' pulls, which
@@ -61,7 +63,12 @@ FIXED = [3, 5, 9, 10, 187,
 # (1021 was here: tendon 5 of the 12-tendon robot carried 1.81x its target while
 # tendon 4 was pulled, on one build; it passes on every build since the slack
 # margin's change, seeds 1000-1039 run three times.)
-KNOWN_FAILING: dict[int, str] = {}
+KNOWN_FAILING: dict[int, str] = {
+    3049: "three power cycles in a row, each cutting a run after its release and before "
+          "tendons 9-11 were taken up, paid each of them out three releases (13 mm); the "
+          "windows live in RAM that a power-up clears, so the first run after it searches "
+          "one release ahead only and ends in no_engagement (docs/chaos.md, Known failing)",
+}
 
 
 @pytest.fixture(scope="module")
