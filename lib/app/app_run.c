@@ -286,7 +286,12 @@ APP_NOINLINE void app_run_step(app_t *a, hom_in_t *in)
     /* one report per pass, of an event of an earlier step: a step that
      * pushes several events (a result and the next tendon's start) would
      * otherwise format them all in the pass that did the step's work */
-    reported = (uint8_t)hom_event_pop(&a->u.hom, &ev);
+    /* ... and only with room for it in the console's output: a run's
+     * events wait in the homing's queue rather than be dropped (seven
+     * `<missing>` lines filled the ring and the run's `<fault>` and
+     * `<released>` were lost: the host never saw the run end, chaos seed
+     * 2053) */
+    reported = (uint8_t)(con_report_fits(&a->cmd.con) && hom_event_pop(&a->u.hom, &ev));
     if (reported) {
         app_rep_event(a, &ev);
     }

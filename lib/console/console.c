@@ -272,13 +272,18 @@ static void reply(con_t *c, int8_t rc)
 
 /* ---- reports ----------------------------------------------------- */
 
+uint8_t con_report_fits(const con_t *con)
+{
+    return (uint8_t)(!con->realtime || con->io->room == NULL ||
+                     con->io->room(con->io->ctx) >=
+                         (con->state == ST_CALL ? CON_OUT_MAX + CON_RESERVE : CON_MIN_ROOM));
+}
+
 void con_report_begin(con_t *con, const char *kind)
 {
     con->olen = 0;
     con->mute = 0;
-    if (con->realtime && con->io->room != NULL &&
-        con->io->room(con->io->ctx) <
-            (con->state == ST_CALL ? CON_OUT_MAX + CON_RESERVE : CON_MIN_ROOM)) {
+    if (!con_report_fits(con)) {
         con->mute = 1; /* dropped: assembling it would only cost time */
         return;
     }

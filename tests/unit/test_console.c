@@ -797,12 +797,14 @@ static void test_realtime_drops_reports_without_room(void **state)
 {
     (void)state;
     realtime_setup(10);
+    assert_int_equal(con_report_fits(&con), 0); /* what a caller that must not lose it asks */
     con_report_begin(&con, "progress");
     con_report_int(&con, "tendon", 3);
     con_report_end(&con);
     assert_int_equal(fake.out_len, 0u);
     assert_int_equal(con_dropped(&con), 1u);
     g_room = 255;
+    assert_int_equal(con_report_fits(&con), 1);
     con_report_begin(&con, "progress");
     con_report_int(&con, "tendon", 3);
     con_report_end(&con);
