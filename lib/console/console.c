@@ -275,15 +275,16 @@ static void reply(con_t *c, int8_t rc)
 uint8_t con_report_fits(const con_t *con)
 {
     return (uint8_t)(!con->realtime || con->io->room == NULL ||
-                     con->io->room(con->io->ctx) >=
-                         (con->state == ST_CALL ? CON_OUT_MAX + CON_RESERVE : CON_MIN_ROOM));
+                     con->io->room(con->io->ctx) >= CON_OUT_MAX + CON_RESERVE);
 }
 
 void con_report_begin(con_t *con, const char *kind)
 {
     con->olen = 0;
     con->mute = 0;
-    if (!con_report_fits(con)) {
+    if (con->realtime && con->io->room != NULL &&
+        con->io->room(con->io->ctx) <
+            (con->state == ST_CALL ? CON_OUT_MAX + CON_RESERVE : CON_MIN_ROOM)) {
         con->mute = 1; /* dropped: assembling it would only cost time */
         return;
     }

@@ -242,9 +242,9 @@ uint8_t con_rt_take(con_rt_t *rt);
  * flash string. Keys and values must not contain '"', CR or LF (the host
  * parser could not split them); kind and keys are single words. */
 void con_report_begin(con_t *con, const char *kind);
-/* 1 when a report begun now would be written, 0 when it would be dropped
- * (realtime mode, the output ring short of room): a caller whose report
- * must not be lost waits for it. */
+/* 1 when a report of any length begun now would be written (realtime mode:
+ * room for the longest line and the reserve of command replies), 0 when it
+ * might be dropped: a caller whose report must not be lost waits for it. */
 uint8_t con_report_fits(const con_t *con);
 void con_report_int(con_t *con, const char *key, int32_t v);
 void con_report_fixed(con_t *con, const char *key, int32_t v, uint8_t decimals);
