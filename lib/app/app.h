@@ -231,6 +231,7 @@ typedef struct {
     uint8_t req_mode;
     uint8_t req_tendon;
     uint8_t auto_release;  /* ID of a servo in hardware error: reboot it, then release */
+    uint8_t abort_owed;    /* a stop came after the run's end, before its report: release then */
     uint8_t reset_release; /* a reset cut a run or move: 1 owed, 2-5 early release under way, 6
                               released early or nothing to (app_boot_poll) */
     uint8_t recover_left;  /* device bring-ups left before the pending request is refused

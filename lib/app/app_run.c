@@ -438,7 +438,10 @@ void app_abort(app_t *app)
     }
     app->run.req_start = 0;
     if (app->state == APP_ST_CAL) {
-        hom_abort(&app->u.hom);
+        /* a run that has ended but not yet reported it (its done waits for
+         * its last reports) releases once it has: a `!` 10 ms before the
+         * <done> left the robot at its homes 1.5 s (chaos seed 4135) */
+        app->run.abort_owed = (uint8_t)!hom_abort(&app->u.hom);
         return;
     }
     if (app->state == APP_ST_LEARN && app->learn.tendon != APP_LEARN_BASELINE &&
@@ -630,6 +633,10 @@ uint8_t app_run_reboot_failed(app_t *a)
  * released the robot from the homes the run had just found). */
 void app_run_poll(app_t *a)
 {
+    if (a->run.abort_owed && app_idle_state(a)) {
+        a->run.abort_owed = 0;
+        app_abort(a);
+    }
     if (a->run.reset_release && a->state == APP_ST_IDLE) {
         a->run.reset_release = 0;
         (void)app_run_release_goals(a);

@@ -464,11 +464,13 @@ HOM_NOINLINE int hom_start(hom_t *h, const tbl_src_t *table, const hom_cmd_t *cm
     return 0;
 }
 
-void hom_abort(hom_t *h)
+int hom_abort(hom_t *h)
 {
     if (h != NULL && h->state != ST_IDLE && h->state != ST_DONE && h->state != ST_FAULT) {
         h->abort_req = 1;
+        return 1;
     }
+    return 0;
 }
 
 /* d ticks in the tendon's pull direction (dir is +1 or -1). */

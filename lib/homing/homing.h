@@ -418,8 +418,9 @@ void hom_config_set(hom_t *h, const hom_config_t *cfg);
 int hom_start(hom_t *h, const tbl_src_t *table, const hom_cmd_t *cmd);
 
 /* Requests an abort: the next hom_step() ends the run with HOM_F_ABORTED and
- * releases every tendon. No effect when idle. */
-void hom_abort(hom_t *h);
+ * releases every tendon. Returns 1 when taken, 0 when no run goes on (idle,
+ * or the run has ended: done or fault). */
+int hom_abort(hom_t *h);
 
 /* Runs the machine once on the inputs; writes the commanded servo state to
  * *out (the `changed` bits say what to send). Returns HOM_RUNNING, 0 (idle or

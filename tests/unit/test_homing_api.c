@@ -142,7 +142,7 @@ static void test_idle_step_does_nothing(void **state)
     bench_init(&g_b, 0);
     assert_int_equal(bench_step(&g_b, &g_h), 0);
     assert_int_equal(g_b.out.changed, 0);
-    hom_abort(&g_h); /* no effect when idle */
+    assert_int_equal(hom_abort(&g_h), 0); /* no effect when idle, and it says so */
     assert_int_equal(bench_step(&g_b, &g_h), 0);
 }
 
@@ -155,8 +155,9 @@ static void test_abort_before_motion_moves_nothing(void **state)
     bench_init(&g_b, 0);
     assert_int_equal(hom_start(&g_h, &src, &c), 0);
     assert_int_equal(bench_step(&g_b, &g_h), HOM_RUNNING); /* preflight, no sample yet */
-    hom_abort(&g_h);
+    assert_int_equal(hom_abort(&g_h), 1);
     assert_int_equal(bench_step(&g_b, &g_h), -HOM_F_ABORTED);
+    assert_int_equal(hom_abort(&g_h), 0); /* the run has ended: the caller releases */
     assert_int_equal(g_b.out.changed, 0);
     assert_int_equal(g_h.fault, HOM_F_ABORTED);
     /* a new run may start after a fault */
