@@ -93,19 +93,8 @@ APP_NOINLINE static void servo_done(app_t *a, int8_t rc)
             a->bus.reboot_id = 0;
         } else {
             /* the servo lost its multi-turn count: bring the bus up again
-             * and recover the homes as after a power cycle. It restarts in
-             * the turn its shaft stands in (position 0..4095), the spool
-             * where it was: its engagement window moves by the turns lost
-             * (forgotten, it cost a release: the tendon of a servo
-             * rebooted in a run's slack check was released again and
-             * searched short of, chaos seed 2017) */
-            for (i = 0; i < a->info.n_tendons; i++) {
-                app_win_t *w = a->io->win;
-                if (a->bus.ids[i] == a->bus.reboot_id && w != NULL) {
-                    int32_t d = (int32_t)((uint32_t)a->bus.present[i] & 4095u) - a->bus.present[i];
-                    app_win_set(a, i, w->lo[i] + d, w->hi[i] + d, app_has(w->mask, i));
-                }
-            }
+             * and recover the homes as after a power cycle (its window
+             * moves by the turns lost: app_bus_found()) */
             app_boot_again(a);
         }
     }
@@ -323,6 +312,19 @@ uint8_t app_bus_found(app_t *a)
             n++;
             a->bus.hw_err[i] = s->hw_error;
             if (a->u.bring.result == 0) {
+                app_win_t *w = a->io->win;
+                if (a->bus.ids[i] == a->bus.reboot_id && w != NULL) {
+                    /* A rebooted servo restarts in the turn its shaft stands
+                     * in (0..4095), the spool where it was: its engagement
+                     * window moves by the whole turns between the position
+                     * read before and the one read now (forgotten, it cost
+                     * a release: chaos seed 2017). Taken from the position
+                     * before the reboot alone, a shaft that crossed a turn
+                     * while the reboot went out put the window a turn off
+                     * and released 27 mm (seed 5015). */
+                    int32_t d = (s->position - a->bus.present[i] + 2048) & ~(int32_t)4095;
+                    app_win_set(a, i, w->lo[i] + d, w->hi[i] + d, app_has(w->mask, i));
+                }
                 a->bus.present[i] = s->position;
                 a->bus.seen |= app_bit16(i);
             }
