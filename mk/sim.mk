@@ -25,7 +25,7 @@ BENCH_OBJS  := $(patsubst %.c,$(SIM_DIR)/obj/%.o,$(BENCH_SRCS))
 # through the real board-support drivers before the application uses them.
 TESTFW_SRCS := $(wildcard sim/bench/testfw/*.c)
 TESTFW_ELFS := $(patsubst sim/bench/testfw/%.c,$(SIM_DIR)/testfw/%.elf,$(TESTFW_SRCS))
-TESTFW_DRIVERS := firmware/tick.c firmware/uart0.c firmware/uart1.c firmware/twi.c firmware/reset.c
+TESTFW_DRIVERS := firmware/tick.c firmware/board_io.c firmware/uart0.c firmware/uart1.c firmware/twi.c firmware/reset.c
 
 ifeq ($(origin SEED),undefined)
 SEED        := $(shell od -An -N4 -tu4 /dev/urandom | tr -d ' ')
