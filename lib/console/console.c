@@ -808,8 +808,12 @@ int8_t con_poll(con_t *con, uint16_t now_ms)
         reply(con, 0);
         return 0;
     }
-    if (con->realtime && (uint16_t)(now_ms - con->t_line) < CON_RT_LINE_MS) {
-        return 0; /* realtime: one line per CON_RT_LINE_MS, the rest waits in the ring */
+    if (con->realtime &&
+        ((uint16_t)(now_ms - con->t_line) < CON_RT_LINE_MS || !con_report_fits(con))) {
+        /* realtime: one line per CON_RT_LINE_MS, and only when its output
+         * fits (a `version` taken just after a reset's <ready> and
+         * <released> lost its report); the rest waits in the ring */
+        return 0;
     }
     for (n = 0; n < CON_POLL_BYTES; n++) {
         int16_t b = con->io->read(con->io->ctx);
