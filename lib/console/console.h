@@ -193,7 +193,8 @@ void con_set_timeout(con_t *con, uint16_t ms);
  * (con_dropped()); command output (a handler's reports, help lines) also
  * leaves CON_RESERVE bytes free for the run's own reports, help waits for
  * room line by line, and a final reply waits (no input is read meanwhile).
- * Command lines are read at most one per CON_RT_LINE_MS, so a burst of
+ * Command lines are read at most one per CON_RT_LINE_MS, and only when
+ * CON_OUT_MAX + CON_RESERVE bytes are free (con_report_fits()), so a burst of
  * commands cannot take the loop's time from the motion (the rest waits in the
  * receive buffer: the streaming rule still holds). A report that cannot fit
  * is known at con_report_begin() (command output
