@@ -233,21 +233,27 @@ static void test_absent_and_wrong_sensors_reported(void **state)
     assert_int_equal(d.reinits, 1);
 }
 
+/* Three sensors sampling, then sensor k unplugged: it fails as absent. */
+static void run_then_unplug(bench_t *b, uint8_t k, icm_diag_t *d)
+{
+    bench_setup(b, 3);
+    assert_int_equal(icm_set_begin(&b->set, 0), 0);
+    bench_run(b, 200000);
+    assert_int_equal(icm_set_ready_count(&b->set), 3);
+    b->icm[k].present = 0; /* unplugged */
+    bench_run(b, 100000);
+    assert_int_equal(icm_set_diag(&b->set, k, d), 0);
+    assert_int_equal(d->state, ICM_SET_S_FAIL);
+    assert_int_equal(d->last_err, ICM_E_ABSENT);
+}
+
 static void test_sensor_lost_and_back(void **state)
 {
     bench_t b;
     icm_diag_t d;
     icm_sample_t s;
     (void)state;
-    bench_setup(&b, 3);
-    assert_int_equal(icm_set_begin(&b.set, 0), 0);
-    bench_run(&b, 200000);
-    assert_int_equal(icm_set_ready_count(&b.set), 3);
-    b.icm[0].present = 0; /* unplugged */
-    bench_run(&b, 100000);
-    assert_int_equal(icm_set_diag(&b.set, 0, &d), 0);
-    assert_int_equal(d.state, ICM_SET_S_FAIL);
-    assert_int_equal(d.last_err, ICM_E_ABSENT);
+    run_then_unplug(&b, 0, &d);
     assert_false(d.present);
     assert_int_equal(d.rate_dhz, 0);
     assert_true(d.error_count >= 2u); /* the failed read and the failed re-init */
@@ -302,13 +308,7 @@ static void test_settled_waits_for_an_init_under_way(void **state)
     icm_diag_t d;
     uint32_t t;
     (void)state;
-    bench_setup(&b, 3);
-    assert_int_equal(icm_set_begin(&b.set, 0), 0);
-    bench_run(&b, 200000);
-    b.icm[2].present = 0;
-    bench_run(&b, 100000);
-    assert_int_equal(icm_set_diag(&b.set, 2, &d), 0);
-    assert_int_equal(d.state, ICM_SET_S_FAIL);
+    run_then_unplug(&b, 2, &d);
     b.icm[2].present = 1; /* plugged back: its periodic retry finds it */
     for (t = 0; t < 2000000u; t += 1000u) {
         bench_run(&b, 1000);
