@@ -41,14 +41,6 @@ HOM_NOINLINE static void lease(hom_t *h, uint16_t v)
     hom_set_goal(h, h->cur, g, v);
 }
 
-/* The search for the current tendon's engagement: its end, then the first
- * lease towards it. */
-HOM_NOINLINE static void begin_search(hom_t *h, uint16_t v)
-{
-    h->search_end = search_goal(h, h->cur);
-    lease(h, v);
-}
-
 HOM_NOINLINE void hom_begin_tendon(hom_t *h, uint8_t i)
 {
     hom_tendon_t *t;
@@ -98,7 +90,8 @@ HOM_NOINLINE void hom_begin_tendon(hom_t *h, uint8_t i)
             return;
         }
     }
-    begin_search(h, h->mode == HOM_MODE_QUICK ? h->cfg.v_moderate : v);
+    h->search_end = search_goal(h, i);
+    lease(h, h->mode == HOM_MODE_QUICK ? h->cfg.v_moderate : v);
     h->state = ST_TAKEUP;
 }
 
@@ -249,7 +242,8 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
             } else if (h->quick_leg) {
                 /* no engagement where the stored home put it: search as usual */
                 h->quick_leg = 0;
-                begin_search(h, h->cfg.v_moderate);
+                h->search_end = search_goal(h, h->cur);
+                lease(h, h->cfg.v_moderate);
             } else {
                 hom_fail_tendon(h, HOM_F_NO_ENGAGEMENT, hom_pull(t, p - h->pos_at_sample));
             }
