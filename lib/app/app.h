@@ -61,6 +61,7 @@
 #define APP_LEARN_SAMPLES   16u    /* samples averaged by `learn` and the baseline */
 #define APP_HWERR_EVERY     8u     /* read Hardware Error Status every n-th cycle */
 #define APP_SERVO_REBOOT_MS 600u   /* wait after `reboot` before the bus is brought up */
+#define APP_REBOOT_TRIES    3u     /* reboots of a servo in hardware error before it is named */
 /* After a reset that cut a run: how long the bring-up waits for the early
  * release (v_release, about 3100 ticks/s) to slacken the tendons; a tendon
  * 150 ticks past engagement is slack after 50 ms. */
@@ -201,17 +202,18 @@ typedef struct {
     uint8_t wdog_gap;   /* 1: a position read comes before the next Bus Watchdog write */
     uint8_t wdog_bcast; /* broadcast Bus Watchdog writes left: 2 clear, 1 arm */
     uint8_t reboot_id;
-    uint8_t reboot_req;  /* `reboot` waits for the bus */
-    uint16_t absent;     /* bit i: tendon i's servo did not answer the bring-up */
-    uint16_t fresh;      /* bit i: a position arrived since the last homing step */
-    uint16_t seen;       /* bit i: a position has arrived since boot */
-    uint16_t goal_due;   /* bit i: goal/velocity of tendon i to send */
-    uint16_t goal_again; /* bit i: a new goal of tendon i, to send once more */
-    uint16_t torque_due; /* bit i: torque of tendon i to send */
-    uint16_t torque_on;  /* bit i: torque on sent since tendon i's goal (hom_goal()) became valid */
-    uint16_t txn_mask;   /* tendons of the transaction in flight */
-    uint16_t acc;        /* profile acceleration of every goal */
-    uint16_t t_all_ok;   /* ms (low 16 bits): the last position read every servo answered */
+    uint8_t reboot_req;   /* `reboot` waits for the bus */
+    uint8_t reboot_tries; /* reboots of reboot_id that left it in error or silent */
+    uint16_t absent;      /* bit i: tendon i's servo did not answer the bring-up */
+    uint16_t fresh;       /* bit i: a position arrived since the last homing step */
+    uint16_t seen;        /* bit i: a position has arrived since boot */
+    uint16_t goal_due;    /* bit i: goal/velocity of tendon i to send */
+    uint16_t goal_again;  /* bit i: a new goal of tendon i, to send once more */
+    uint16_t torque_due;  /* bit i: torque of tendon i to send */
+    uint16_t torque_on; /* bit i: torque on sent since tendon i's goal (hom_goal()) became valid */
+    uint16_t txn_mask;  /* tendons of the transaction in flight */
+    uint16_t acc;       /* profile acceleration of every goal */
+    uint16_t t_all_ok;  /* ms (low 16 bits): the last position read every servo answered */
     uint8_t ids[TBL_MAX_TENDONS];
     uint8_t hw_err[TBL_MAX_TENDONS];
     int32_t present[TBL_MAX_TENDONS];

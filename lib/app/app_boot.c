@@ -134,6 +134,7 @@ static const app_field_t ready_fields[] CON_FLASH = {
 
 APP_NOINLINE static void boot_ready(app_t *a)
 {
+    int8_t rc;
     a->boot.recover_rc = app_rec_recover(a);
     a->boot.offer_quick = (uint8_t)(a->table_ok && a->rec.home_now != 0u &&
                                     a->rec.home_now == app_all_mask(a) && a->bus.absent == 0u);
@@ -152,12 +153,17 @@ APP_NOINLINE static void boot_ready(app_t *a)
     app_rep_end(a);
     a->state = APP_ST_IDLE;
     a->boot.step = 3;
-    if (a->boot.con_wait && con_pending(&a->cmd.con) && !(a->run.req_start && a->run.req_con)) {
-        app_rep_servos(a, 1);
-        (void)con_complete(&a->cmd.con, 0);
+    rc = app_run_rebooted(a); /* 0 when no servo was rebooted */
+    if (rc != CON_PENDING && a->boot.con_wait && con_pending(&a->cmd.con) &&
+        !(a->run.req_start && a->run.req_con)) {
+        if (rc == 0) {
+            app_rep_servos(a, 1);
+        }
+        (void)con_complete(&a->cmd.con, rc);
     }
-    a->boot.con_wait = 0;
-    a->bus.reboot_id = 0;
+    if (rc != CON_PENDING) {
+        a->boot.con_wait = 0;
+    }
 }
 
 void app_boot_homes_new(app_t *a)

@@ -484,7 +484,7 @@ static int8_t h_save(app_t *a, const con_args_t *args)
 
 static int8_t h_reboot(app_t *a, const con_args_t *args)
 {
-    if (!app_idle_state(a) || app_rec_busy(a)) {
+    if (!app_idle_state(a) || app_rec_busy(a) || a->bus.reboot_id != 0u) {
         return CON_E_BUSY;
     }
     app_bus_reboot(a, (uint8_t)args->v[0]);

@@ -359,7 +359,11 @@ void app_run_poll(app_t *a);
 /* The reboot of bus.reboot_id failed: when it was owed a release after a
  * hardware error, that tendon is reported as not released and 1 returned;
  * else 0 (a console `reboot` is answered by the bus room). */
-uint8_t app_run_reboot_failed(app_t *a);
+/* After the bring-up that follows a servo's reboot: 0 when that servo is up
+ * and clear of errors (or none was rebooted), CON_PENDING when it is
+ * rebooted again (a stop's release is owed to it), else CON_E_SERVO_FAULT,
+ * with <fault reason=not_released> when its release was owed. */
+int8_t app_run_rebooted(app_t *a);
 /* 0 when a run or move may start: the bring-up is over, a table is loaded
  * and no device is missing (each missing one reported); else CON_E_*. */
 int8_t app_run_check(app_t *a);

@@ -550,13 +550,14 @@ static uint8_t defer_for_devices(app_t *a, uint8_t mode, uint16_t tension, uint8
 }
 
 /* The board is busy with what follows a reset or a stop, not with what
- * someone asked for: the bring-up, a release and the baseline capture after
- * it (a servo rebooted after a hardware error is released so; a `cal` then
+ * someone asked for: the bring-up, a servo's reboot and the bring-up after
+ * it, a release and the baseline capture after it (a servo rebooted after a
+ * hardware error is released so; a `cal` then
  * was answered `error:9 busy` and a press did nothing: chaos seed 2013). A
  * run asked for meanwhile waits for the end. */
 static uint8_t settling(const app_t *a)
 {
-    return (uint8_t)(a->state == APP_ST_BOOT ||
+    return (uint8_t)(a->state == APP_ST_BOOT || a->bus.reboot_id != 0u ||
                      (a->state == APP_ST_MOVE && a->run.move_kind == APP_MOVE_RELEASE) ||
                      (a->state == APP_ST_LEARN && a->learn.tendon == APP_LEARN_BASELINE));
 }
@@ -611,19 +612,31 @@ void app_run_press(app_t *a)
     }
 }
 
-uint8_t app_run_reboot_failed(app_t *a)
+int8_t app_run_rebooted(app_t *a)
 {
-    uint8_t i;
-    if (!a->run.auto_release) {
+    uint8_t i, id = a->bus.reboot_id;
+    if (id == 0u) {
         return 0;
     }
-    a->run.auto_release = 0; /* named: this tendon may still be taut */
-    for (i = 0; i < a->info.n_tendons; i++) {
-        if (a->bus.ids[i] == a->bus.reboot_id) {
-            app_rep_fault(a, app_w_not_released, CON_E_SERVO_FAULT, HOM_DEV_SERVO, i);
-        }
+    a->bus.reboot_id = 0;
+    for (i = 0; i < a->info.n_tendons && a->bus.ids[i] != id; i++) {
     }
-    return 1;
+    if (i < a->info.n_tendons && !app_has(a->bus.absent, i) && a->bus.hw_err[i] == 0u) {
+        a->bus.reboot_tries = 0;
+        return 0;
+    }
+    /* still in error, or silent: the reboot or its reply was lost (bus
+     * noise), or the servo is gone */
+    if (a->run.auto_release && ++a->bus.reboot_tries < APP_REBOOT_TRIES) {
+        app_bus_reboot(a, id);
+        return CON_PENDING;
+    }
+    a->bus.reboot_tries = 0;
+    if (a->run.auto_release && i < a->info.n_tendons) {
+        a->run.auto_release = 0; /* named: this tendon may still be taut */
+        app_rep_fault(a, app_w_not_released, CON_E_SERVO_FAULT, HOM_DEV_SERVO, i);
+    }
+    return CON_E_SERVO_FAULT;
 }
 
 /* Between the steps: the releases owed after a reset or a servo's hardware
@@ -645,7 +658,7 @@ void app_run_poll(app_t *a)
         app_rep_end(a);
         app_run_move(a, APP_MOVE_RELEASE);
     }
-    if (a->run.auto_release && a->state == APP_ST_IDLE && a->table_ok) {
+    if (a->run.auto_release && a->state == APP_ST_IDLE && a->table_ok && a->bus.reboot_id == 0u) {
         (void)app_run_release_goals(a);
         app_rep_begin(a, app_w_released);
         con_report_flash(&a->cmd.con, app_w_reason, app_w_servo_error);

@@ -555,6 +555,7 @@ static void xl430_instruction(xl430 *m, uint8_t id, const uint8_t *body, uint16_
         if (answer) {
             xl430_reply(m, 0, NULL, 0, t);
         }
+        m->reboots++;
         xl430_reboot(m, t);
         break;
     case DXL_INST_CLEAR: {

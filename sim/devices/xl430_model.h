@@ -96,6 +96,7 @@ typedef struct {
     /* counters */
     uint16_t instructions;  /* instruction packets addressed to this servo */
     uint16_t replies;       /* status packets queued */
+    uint16_t reboots;       /* Reboot instructions carried out */
     uint16_t eeprom_writes; /* writes stored into the EEPROM area (addresses 0..63) */
 } xl430;
 

@@ -388,6 +388,65 @@ static void test_servo_fault_mid_run(void **state)
     assert_int_equal(g_b.app.state, APP_ST_IDLE);
 }
 
+/* A servo overload mid-run whose reboot reply is lost: the servo rebooted
+ * all the same (torque off, turns forgotten), so the bus comes up again and
+ * its tendon is released. Chaos seed 3037: a bit flipped in the reply, the
+ * retries found the servo booting, the app named it not released and never
+ * brought the bus up; the next runs pulled against a taut tendon. */
+static void test_servo_reboot_reply_lost(void **state)
+{
+    (void)state;
+    boot(&g_b, 1);
+    cmd(&g_b, "cal", "ok");
+    assert_true(app_bench_wait_line(&g_b, "<progress state=tendon", g_line, sizeof g_line, 10000));
+    /* status return level 1: the reboot is carried out without a reply (a
+     * reboot puts the level back to its default, 2) */
+    g_b.servo[2].ct[DXL_XL430_STATUS_RETURN_LEVEL_ADDR] = 1;
+    xl430_inject_hw_error(&g_b.servo[2], DXL_XL430_HW_ERR_OVERLOAD);
+    assert_true(app_bench_wait_line(&g_b, "<fault ", g_line, sizeof g_line, 1000));
+    assert_non_null(strstr(g_line, "reason=servo_error"));
+    assert_true(app_bench_wait_line(&g_b, "<released reason=servo_error id=3", g_line,
+                                    sizeof g_line, 3000));
+    assert_true(app_bench_wait_line(&g_b, "<done mode=release", g_line, sizeof g_line, 3000));
+    assert_int_equal(g_b.app.bus.hw_err[2], 0);
+    assert_int_equal(xl430_get(&g_b.servo[2], DXL_XL430_TORQUE_ENABLE_ADDR, 1), 1);
+    for (uint8_t i = 0; i < 6; i++) {
+        assert_true(app_bench_tension(&g_b, i) < 0.001);
+    }
+    /* the next calibration runs */
+    cmd(&g_b, "cal", "ok");
+    assert_true(app_bench_wait_line(&g_b, "<done mode=full", g_line, sizeof g_line, 30000));
+}
+
+/* A jammed servo that trips its overload again as soon as it has rebooted
+ * is rebooted APP_REBOOT_TRIES times in all, then named: not released. */
+static void test_servo_jammed_through_its_reboots(void **state)
+{
+    (void)state;
+    uint32_t reboots0, ms;
+    int named = 0;
+    boot(&g_b, 1);
+    cmd(&g_b, "cal", "ok");
+    assert_true(app_bench_wait_line(&g_b, "<progress state=tendon", g_line, sizeof g_line, 10000));
+    reboots0 = g_b.servo[2].reboots;
+    xl430_inject_hw_error(&g_b.servo[2], DXL_XL430_HW_ERR_OVERLOAD);
+    for (ms = 0; ms < 8000u && !named; ms += 2u) {
+        app_bench_run_ms(&g_b, 2);
+        if (!g_b.servo[2].booting && xl430_get(&g_b.servo[2], DXL_XL430_HW_ERROR_ADDR, 1) == 0u) {
+            xl430_inject_hw_error(&g_b.servo[2], DXL_XL430_HW_ERR_OVERLOAD);
+        }
+        while (con_fake_line(&g_b.con, g_line, sizeof g_line)) {
+            named |= strncmp(g_line, "<fault reason=not_released", 26) == 0;
+            assert_null(strstr(g_line, "<released reason=servo_error id=3"));
+        }
+    }
+    assert_true(named);
+    assert_int_equal(app_bench_field(g_line, "index", -1), 2);
+    assert_int_equal(g_b.servo[2].reboots - reboots0, APP_REBOOT_TRIES);
+    assert_int_equal(g_b.app.bus.reboot_id, 0);
+    assert_int_equal(g_b.app.state, APP_ST_IDLE);
+}
+
 /* Settings: get/set/save survive a restart; bad names and values refused. */
 static void test_settings(void **state)
 {
@@ -782,6 +841,8 @@ int main(void)
         cmocka_unit_test(test_no_table),
         cmocka_unit_test(test_missing_sensor_and_servo),
         cmocka_unit_test(test_press_reboots_a_servo_in_hardware_error),
+        cmocka_unit_test(test_servo_reboot_reply_lost),
+        cmocka_unit_test(test_servo_jammed_through_its_reboots),
         cmocka_unit_test(test_settings),
         cmocka_unit_test(test_absolute_target_mode),
         cmocka_unit_test(test_learn_with_weight),
