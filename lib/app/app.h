@@ -349,6 +349,7 @@ typedef struct {
             union {
                 store_hist_t hist;
                 store_learned_t learned;
+                store_win_t win;
             } rec; /* kept until store_poll() is done */
         } idle;
     } u;

@@ -136,6 +136,7 @@ APP_NOINLINE static void boot_ready(app_t *a)
 {
     int8_t rc;
     a->boot.recover_rc = app_rec_recover(a);
+    app_win_recover(a); /* after the homes, which come first */
     a->boot.offer_quick = (uint8_t)(a->table_ok && a->rec.home_now != 0u &&
                                     a->rec.home_now == app_all_mask(a) && a->bus.absent == 0u);
     app_rep_begin(a, app_w_ready);

@@ -356,9 +356,6 @@ int8_t app_run_request(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon)
 void app_run_press(app_t *a);
 /* Each pass before the steps: deferred run requests and owed releases. */
 void app_run_poll(app_t *a);
-/* The reboot of bus.reboot_id failed: when it was owed a release after a
- * hardware error, that tendon is reported as not released and 1 returned;
- * else 0 (a console `reboot` is answered by the bus room). */
 /* After the bring-up that follows a servo's reboot: 0 when that servo is up
  * and clear of errors (or none was rebooted), CON_PENDING when it is
  * rebooted again (a stop's release is owed to it), else CON_E_SERVO_FAULT,
@@ -381,12 +378,42 @@ uint8_t app_run_release_goals(app_t *a);
  * off and on, and a servo takes its present position as goal then): steps 1
  * and 3 write the release velocity, steps 2 and 4 the goals. 1 when sent. */
 uint8_t app_run_early_release(app_t *a, uint8_t step);
+/* The target mode changed: the next absolute run captures the ambient again. */
+void app_run_ambient_reset(app_t *a);
+
+/* ---- app_win.c: engagement windows -------------------------------------------- */
+
+/* um of tendon travel in encoder ticks at npt nm per tick (rounded). */
+int32_t app_um_ticks(uint32_t npt, uint32_t um);
 /* Engagement windows kept across resets (app_win_t): checked at boot, set
  * (keep 0: forgotten) per tendon. */
 void app_win_check(app_t *a);
-/* The target mode changed: the next absolute run captures the ambient again. */
-void app_run_ambient_reset(app_t *a);
 void app_win_set(app_t *a, uint8_t i, int32_t lo, int32_t hi, uint8_t keep);
+/* Notes in the kept copy whether anything moves (a reset then releases). */
+void app_win_moving(app_t *a, uint8_t on);
+/* Takes the windows the run changed into the kept copy. */
+void app_win_take(app_t *a);
+/* Tendon i's slack margin (ticks, signed by its pull direction: the release
+ * goes that far before its window) and, in *span, the span of a fresh window
+ * either side of where it stands: one and a half times its top-grid travel. */
+int32_t app_win_margin(const app_t *a, uint8_t i, int32_t *span);
+/* Tendon i's window with nothing known this power cycle (no kept window, no
+ * stored home): around where it stands (docs/app.md, "Recovery"). Returns
+ * its bound on the slack side. */
+int32_t app_win_fresh(app_t *a, uint8_t i);
+/* Before a run: every tendon that answered and has neither a window nor a
+ * stored home gets a fresh one, and the windows are queued for the EEPROM
+ * (APP_SAVE_WIN), so a power cut in the run does not cost a release more.
+ * Nonzero while such a save is queued or under way: the run waits for it. */
+uint8_t app_win_before_run(app_t *a);
+/* Queues the record of the kept windows for the EEPROM (APP_SAVE_WIN). */
+void app_win_persist(app_t *a);
+/* That record, relative to where each servo stands now: built when its save
+ * starts (app_rec_poll()). */
+void app_win_record(app_t *a, store_win_t *r);
+/* After a bring-up: windows saved in EEPROM go to the tendons that have no
+ * window (a power-up clears them) and no stored home (recovered or not). */
+void app_win_recover(app_t *a);
 
 /* ---- app_learn.c: learn and forget -------------------------------------------- */
 
@@ -426,7 +453,13 @@ void app_learn_keep_baseline(app_t *a);
 /* ---- app_rec.c: EEPROM records and homes ---------------------------------------- */
 
 /* Records waiting for the EEPROM (rec.save_due, rec.save_now). */
-enum { APP_SAVE_HOMES = 1, APP_SAVE_HIST = 2, APP_SAVE_LEARNED = 4, APP_SAVE_SETTINGS = 8 };
+enum {
+    APP_SAVE_HOMES = 1,
+    APP_SAVE_HIST = 2,
+    APP_SAVE_LEARNED = 4,
+    APP_SAVE_SETTINGS = 8,
+    APP_SAVE_WIN = 16
+};
 
 /* Queues records (APP_SAVE_*) for the EEPROM. */
 void app_rec_queue(app_t *a, uint8_t what);

@@ -2,7 +2,7 @@
  * app_rec: the records room. The homes of this power cycle (stored homes
  * mapped into the servos' new frames), the rest positions recorded after a
  * release or a fault, and every EEPROM record (homes, history, learned
- * targets, settings): queued by the rooms, written one at a time, one byte
+ * targets, windows, settings): queued by the rooms, written one at a time, one byte
  * per pass and only while nothing moves.
  */
 #include <string.h>
@@ -49,12 +49,15 @@ int8_t app_rec_recover(app_t *a)
     return worst;
 }
 
-/* A history or learned record waits in u.idle: the homing and the bring-up
- * must not reuse that storage until it is written. */
+/* A history or learned record waits in u.idle, or the windows record is
+ * being written from it: the homing and the bring-up must not reuse that
+ * storage until it is written (the windows record is built when its save
+ * starts, so one only queued takes no room). */
 uint8_t app_rec_busy(const app_t *a)
 {
     return (uint8_t)((a->rec.save_due & (APP_SAVE_HIST | APP_SAVE_LEARNED)) != 0u ||
-                     a->rec.save_now == APP_SAVE_HIST || a->rec.save_now == APP_SAVE_LEARNED);
+                     a->rec.save_now == APP_SAVE_HIST || a->rec.save_now == APP_SAVE_LEARNED ||
+                     a->rec.save_now == APP_SAVE_WIN);
 }
 
 void app_rec_queue(app_t *a, uint8_t what)
@@ -134,6 +137,11 @@ APP_NOINLINE void app_rec_poll(app_t *a)
         a->rec.save_now = APP_SAVE_LEARNED;
         app_learn_saving(a);
         (void)store_save_learned(&a->rec.store, &a->u.idle.rec.learned);
+    } else if (a->rec.save_due & APP_SAVE_WIN) {
+        /* after the history and learned records, which share its storage */
+        a->rec.save_now = APP_SAVE_WIN;
+        app_win_record(a, &a->u.idle.rec.win);
+        (void)store_save_win(&a->rec.store, &a->u.idle.rec.win);
     } else {
         a->rec.save_now = APP_SAVE_SETTINGS;
         (void)store_save_settings(&a->rec.store, &a->rec.set);

@@ -2,98 +2,20 @@
  * app_run: the run room. Homing runs (cal, rehome, single, dry) from the
  * request to the stored result, the app's own moves (home, release) and
  * aborts, the releases owed after a reset or a servo's hardware error, and
- * the engagement windows kept across resets (app_win_t) that bound every
- * release (docs/app.md, "Recovery").
+ * the releases that the engagement windows bound (app_win.c; docs/app.md,
+ * "Recovery").
  */
 #include <stddef.h>
 #include <string.h>
 
 #include "app/app_priv.h"
 
-/* um of tendon travel in encoder ticks at npt nm per tick (rounded; travel
- * is at most metres, so 32 bits hold um * 1000). */
-APP_NOINLINE static int32_t um_ticks(uint32_t npt, uint32_t um)
-{
-    if (npt == 0u) {
-        npt = 1u;
-    }
-    return (int32_t)((um * 1000u + npt / 2u) / npt);
-}
-
-static uint16_t win_crc(const app_win_t *w)
-{
-    return store_crc16(0xFFFFu, w, offsetof(app_win_t, crc));
-}
-
-/* Checks the kept windows at boot: wrong magic, table or CRC clears them. */
-void app_win_check(app_t *a)
-{
-    app_win_t *w = a->io->win;
-    if (w != NULL && (w->magic != APP_WIN_MAGIC || w->table_id != a->info.table_id ||
-                      w->crc != win_crc(w) || !a->table_ok)) {
-        memset(w, 0, sizeof *w);
-        w->magic = APP_WIN_MAGIC;
-        w->table_id = a->info.table_id;
-        w->crc = win_crc(w);
-    }
-}
-
-/* Sets tendon i's window (or forgets it with keep 0); crc 0 leaves the CRC
- * to the caller, which sets several windows and seals them once. */
-APP_NOINLINE static void win_put(app_t *a, uint8_t i, int32_t lo, int32_t hi, uint8_t keep,
-                                 uint8_t crc)
-{
-    app_win_t *w = a->io->win;
-    if (w == NULL) {
-        return;
-    }
-    w->mask = (uint16_t)(keep ? (w->mask | app_bit16(i)) : (w->mask & ~app_bit16(i)));
-    w->lo[i] = lo;
-    w->hi[i] = hi;
-    if (crc) {
-        w->crc = win_crc(w);
-    }
-}
-
-void app_win_set(app_t *a, uint8_t i, int32_t lo, int32_t hi, uint8_t keep)
-{
-    win_put(a, i, lo, hi, keep, 1);
-}
-
-/* Notes in the kept copy whether anything moves: a watchdog or reset-pin
- * reset in the middle of a run leaves tendons taut, and the next boot
- * releases them. */
-APP_NOINLINE static void win_moving(app_t *a, uint8_t on)
-{
-    app_win_t *w = a->io->win;
-    if (w != NULL && w->moving != on) {
-        w->moving = on;
-        w->crc = win_crc(w);
-    }
-}
-
-/* Takes the windows a run changed into the kept copy. */
-static void win_take(app_t *a)
-{
-    uint8_t i;
-    uint16_t m = hom_win_take_changed(&a->u.hom);
-    for (i = 0; i < a->info.n_tendons; i++) {
-        int32_t lo, hi;
-        if (app_has(m, i) && hom_window(&a->u.hom, i, &lo, &hi) == 0) {
-            win_put(a, i, lo, hi, 1, 0);
-        }
-    }
-    if (m != 0u && a->io->win != NULL) {
-        a->io->win->crc = win_crc(a->io->win);
-    }
-}
-
 /* A run finished: keep its homes (calibration frame = this power cycle's
  * frame, so the offsets become 0), count it and queue the records. */
 static void run_done(app_t *a)
 {
     uint32_t t = app_now_ms(a);
-    win_moving(a, 0);
+    app_win_moving(a, 0);
     a->run.amb_ok |= hom_amb_captured(&a->u.hom); /* read before u.idle reuses the storage */
     if (a->run.mode != APP_MODE_SURVEY) {
         app_rec_take_homes(a, a->run.mask, a->run.tension);
@@ -133,7 +55,8 @@ void app_run_ambient_reset(app_t *a)
     a->run.amb_ok = 0;
 }
 
-/* Starts a homing run. Returns 0 or a CON_E_* code (nothing moves then). */
+/* Starts a homing run. Returns 0 or a CON_E_* code (nothing moves then), or
+ * CON_PENDING when tendons got fresh windows that go to the EEPROM first. */
 static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon)
 {
     hom_config_t cfg;
@@ -171,6 +94,9 @@ static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon
     }
     if (store_busy(&a->rec.store) || app_rec_busy(a)) {
         return CON_E_BUSY; /* finishes within a few hundred ms */
+    }
+    if (mode != HOM_MODE_DRY && app_win_before_run(a)) {
+        return CON_PENDING; /* started once they are saved (run_or_defer()) */
     }
     memset(&cmd, 0, sizeof cmd);
     a->run.abs = a->rec.set.v[STORE_SET_TARGET_MODE] != 0;
@@ -230,7 +156,7 @@ static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon
     a->run.t_start = app_now_ms(a);
     app_bus_positions_stale(a);
     a->state = APP_ST_CAL;
-    win_moving(a, 1);
+    app_win_moving(a, 1);
     app_panel_set(a, APP_LED_RUN);
     app_rec_rest_at(a, 0, 0);
     return 0;
@@ -240,7 +166,7 @@ static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon
  * servos have stopped. */
 APP_NOINLINE static void fault_rest(app_t *a, uint32_t t)
 {
-    win_moving(a, 0); /* the release goals are out: the servos finish them */
+    app_win_moving(a, 0); /* the release goals are out: the servos finish them */
     a->state = APP_ST_FAULT;
     app_panel_set(a, APP_LED_FAULT);
     app_rec_rest_at(a, 1, t);
@@ -297,7 +223,7 @@ APP_NOINLINE void app_run_step(app_t *a, hom_in_t *in)
     }
     app_bus_inputs(a, in);
     rc = hom_step(&a->u.hom, in, &out);
-    win_take(a);
+    app_win_take(a);
     app_bus_take(a, &out);
     if (rc <= 0 && (reported || hom_event_count(&a->u.hom) != 0u)) {
         /* the end of a run waits for its reports: hom_step() repeats its
@@ -330,7 +256,7 @@ APP_NOINLINE void app_run_step(app_t *a, hom_in_t *in)
 
 void app_run_move(app_t *a, uint8_t kind)
 {
-    win_moving(a, 1);
+    app_win_moving(a, 1);
     a->run.move_kind = kind;
     a->run.t_move = app_now_ms(a);
     app_bus_positions_stale(a);
@@ -353,41 +279,31 @@ void app_run_move(app_t *a, uint8_t kind)
 static uint8_t release_goals(app_t *a, uint8_t blind)
 {
     hom_config_t cfg;
-    uint8_t i, moved = 0;
+    uint8_t i, moved = 0, fresh = 0;
     hom_config_default(&cfg);
     for (i = 0; i < a->info.n_tendons; i++) {
-        tbl_point_t pt;
-        tbl_tendon_t row;
-        int32_t g, dir, lo, hi, m;
+        int32_t g, lo, s, m, dir;
         if (app_has(a->bus.absent, i) ||
             (blind && (a->io->win == NULL || !app_has(a->io->win->mask, i)))) {
             continue;
         }
-        (void)tbl_tendon(&a->tab, i, &row);
-        dir = row.pull_dir < 0 ? -1 : 1;
-        m = dir * um_ticks(row.nm_per_tick, cfg.slack_margin_um);
+        m = app_win_margin(a, i, &s);
+        dir = m < 0 ? -1 : 1;
         if (a->io->win != NULL && app_has(a->io->win->mask, i)) {
             lo = a->io->win->lo[i];
-        } else {
-            if (app_has(a->rec.home_now, i)) {
-                uint32_t trav = 0;
-                if (tbl_target(&a->tab, i, a->rec.homes.tension_mN, &pt) == 0) {
-                    trav = pt.travel_um;
-                }
-                hi = app_rec_home(a, i) - dir * um_ticks(row.nm_per_tick, trav);
-                lo = hi;
-            } else {
-                /* as the homing does (docs/app.md, "Recovery"): a stop
-                 * that cost the window (a servo's reboot, a power-up) may
-                 * have come after a release that tendon had not engaged
-                 * since, so the search covers one release ahead (chaos seed
-                 * 2017: a servo rebooted in the run's slack check, its
-                 * tendon released again and searched short of it) */
-                hi = dir * um_ticks(row.nm_per_tick, row.travel_um[a->info.n_grid - 1u] * 3u / 2u);
-                lo = a->bus.present[i] - hi;
-                hi = a->bus.present[i] + hi + m;
+        } else if (app_has(a->rec.home_now, i)) {
+            tbl_point_t pt;
+            tbl_tendon_t row;
+            uint32_t trav = 0;
+            (void)tbl_tendon(&a->tab, i, &row);
+            if (tbl_target(&a->tab, i, a->rec.homes.tension_mN, &pt) == 0) {
+                trav = pt.travel_um;
             }
-            app_win_set(a, i, lo, hi, 1);
+            lo = app_rec_home(a, i) - dir * app_um_ticks(row.nm_per_tick, trav);
+            app_win_set(a, i, lo, lo, 1);
+        } else {
+            lo = app_win_fresh(a, i);
+            fresh = 1;
         }
         g = lo - m;
         if (!blind && dir * (g - a->bus.present[i]) > 0) {
@@ -395,6 +311,9 @@ static uint8_t release_goals(app_t *a, uint8_t blind)
         }
         app_bus_goal(a, i, g, cfg.v_release, cfg.acc);
         moved = 1;
+    }
+    if (fresh) {
+        app_win_persist(a); /* saved once the release is over */
     }
     return moved;
 }
@@ -483,7 +402,7 @@ APP_NOINLINE void app_run_move_step(app_t *a)
         return;
     }
     app_rec_rest_at(a, 1, t);
-    win_moving(a, 0);
+    app_win_moving(a, 0);
     if (a->run.move_kind == APP_MOVE_RELEASE) {
         app_learn_begin(a, APP_LEARN_BASELINE); /* the robot stands straight: capture B0 */
         return;
@@ -580,6 +499,10 @@ static int8_t run_or_defer(app_t *a, uint8_t mode, uint16_t tension, uint8_t ten
         return CON_PENDING;
     }
     rc = run_start(a, mode, tension, tendon);
+    if (rc == CON_PENDING) {
+        keep_request(a, mode, tension, tendon, from_con);
+        return CON_PENDING; /* fresh windows go to the EEPROM first */
+    }
     if ((rc == CON_E_SENSOR_FAULT || rc == CON_E_SERVO_FAULT) &&
         defer_for_devices(a, mode, tension, tendon, from_con)) {
         return CON_PENDING;

@@ -30,9 +30,9 @@ void hom_config_default(hom_config_t *cfg)
     cfg->v_release = 265;
     cfg->v_final = 265;
     cfg->acc = 0;
-    cfg->slack_margin_um = 600; /* > the path shortening another tendon causes at 1 N;
-                                 * load_tendon() raises it with the tension and
-                                 * the tendon's own travel */
+    cfg->slack_margin_um = HOM_SLACK_MARGIN_UM; /* > the path shortening another tendon causes at 1
+                                                 * N; load_tendon() raises it with the tension and
+                                                 * the tendon's own travel */
     cfg->slack_step_um = 300;
     cfg->slack_max_steps = 6;
     cfg->baseline_samples = 16;

@@ -226,6 +226,8 @@ typedef struct {
 } hom_out_t;
 
 /* Tunables. hom_config_default() explains the defaults (docs/homing.md). */
+#define HOM_SLACK_MARGIN_UM 600u /* hom_config_t.slack_margin_um by default */
+
 typedef struct {
     uint16_t v_fast;             /* take-up before engagement, 0.229 rpm units */
     uint16_t v_moderate;         /* engagement to near the target */

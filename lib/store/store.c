@@ -27,11 +27,13 @@
 STORE_ASSERT(homes_size, sizeof(store_homes_t) == 184u);
 STORE_ASSERT(learned_size, sizeof(store_learned_t) == 32u);
 STORE_ASSERT(hist_size, sizeof(store_hist_t) == 64u);
+STORE_ASSERT(win_size, sizeof(store_win_t) == 80u);
 STORE_ASSERT(settings_fit, STORE_SETTING_COUNT <= STORE_SETTING_MAX &&
                                STORE_SLOT_LEN(4u * STORE_SETTING_MAX) <= STORE_SETTINGS_STRIDE);
 STORE_ASSERT(homes_fit, STORE_SLOT_LEN(sizeof(store_homes_t)) <= STORE_HOMES_STRIDE);
 STORE_ASSERT(learned_fit, STORE_SLOT_LEN(sizeof(store_learned_t)) <= STORE_LEARNED_STRIDE);
 STORE_ASSERT(hist_fit, STORE_SLOT_LEN(sizeof(store_hist_t)) <= STORE_HIST_STRIDE);
+STORE_ASSERT(win_fit, STORE_SLOT_LEN(sizeof(store_win_t)) <= STORE_WIN_STRIDE);
 STORE_ASSERT(order1, STORE_ADDR_SETTINGS + 2u * STORE_SETTINGS_STRIDE <= STORE_ADDR_HOMES);
 STORE_ASSERT(order2, STORE_ADDR_HOMES + 2u * STORE_HOMES_STRIDE <= STORE_ADDR_LEARNED);
 STORE_ASSERT(order3,
@@ -457,6 +459,48 @@ int8_t store_recover_position(const store_home_t *e, int32_t present, uint16_t t
         return STORE_E_MOVED;
     }
     *pos = e->rest_ticks + d;
+    return 0;
+}
+
+/* ---- windows ----------------------------------------------------- */
+
+int8_t store_win_load(store_t *st, uint32_t table_id, store_win_t *w)
+{
+    int8_t rc = pair_load(st, STORE_ADDR_WIN, STORE_WIN_STRIDE, STORE_KIND_WIN, STORE_WIN_VERSION,
+                          w, (uint16_t)sizeof(*w));
+    if (rc == 0 && w->table_id != table_id) {
+        rc = STORE_E_OTHER_TABLE;
+    }
+    return rc;
+}
+
+int8_t store_save_win(store_t *st, const store_win_t *w)
+{
+    if (w->n_tendons > STORE_MAX_TENDONS) {
+        return STORE_E_ARG;
+    }
+    return pair_save(st, STORE_ADDR_WIN, STORE_WIN_STRIDE, STORE_KIND_WIN, STORE_WIN_VERSION, w,
+                     (uint16_t)sizeof(*w));
+}
+
+int8_t store_win_recover(const store_win_tendon_t *e, int32_t present, uint16_t below,
+                         uint16_t above, int32_t *lo, int32_t *hi)
+{
+    /* x: where the spool stands relative to the saved position, known
+     * modulo a turn; taken in [min - below, that + 4095] (a tendon pulled
+     * towards lower ticks has its bounds the other way round) */
+    int32_t x0 = (e->lo < e->hi ? e->lo : e->hi) - (int32_t)below;
+    int32_t x1 = (e->lo < e->hi ? e->hi : e->lo) + (int32_t)above;
+    int32_t x;
+    if (x1 - x0 >= (int32_t)STORE_TICKS_PER_TURN) {
+        return STORE_E_ARG;
+    }
+    x = x0 + (int32_t)turn_of(present - (int32_t)e->at_turn - x0);
+    if (x > x1) {
+        return STORE_E_MOVED;
+    }
+    *lo = present - x + e->lo;
+    *hi = present - x + e->hi;
     return 0;
 }
 

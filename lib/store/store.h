@@ -4,12 +4,14 @@
  * What is kept: the settings (versioned, ranges checked, defaults restored
  * when invalid), the homes of the last calibration (multi-turn tick count,
  * single-turn remainder and the rest position the servo was left at, with the
- * tension, calibration count and table_id), learned (model-free) targets per
+ * tension, calibration count and table_id), the engagement windows a power
+ * cycle would otherwise forget (each tendon's window relative to the servo's
+ * single-turn position when it was saved), learned (model-free) targets per
  * tendon in the shape of the table's stored target row (uint16 LSB per grid
  * point, TBL_CUT_PER_LSB cuT each), and a ring of the last
  * STORE_HIST_N calibrations so tendon creep can be followed.
  *
- * Power-loss guarantee: settings, homes and each tendon's learned targets are
+ * Power-loss guarantee: settings, homes, windows and each tendon's learned targets are
  * kept in two slots (A and B). A slot holds
  *
  *     kind u8 | version u8 | seq u16 | body | crc u16      (little-endian)
@@ -48,7 +50,8 @@
  *   0x280  learned targets      24 slots of 64: tendon t at 0x280 + 128*t
  *                               (A) and +64 (B); 4 + 32 + 2 used
  *   0x880  history ring         STORE_HIST_N = 24 entries of 72 (4 + 64 + 2 used)
- *   0xF40  free                 192 bytes
+ *   0xF40  windows slot A       96 (4 + 80 + 2 used)
+ *   0xFA0  windows slot B       96
  */
 #ifndef HALLHOME_STORE_H
 #define HALLHOME_STORE_H
@@ -92,11 +95,13 @@ enum {
 #define STORE_KIND_HOMES       0x48u /* 'H' */
 #define STORE_KIND_LEARNED     0x4Cu /* 'L' */
 #define STORE_KIND_HIST        0x52u /* 'R' */
+#define STORE_KIND_WIN         0x57u /* 'W' */
 #define STORE_KIND_NONE        0x00u /* slot being rewritten */
 #define STORE_SETTINGS_VERSION 3u    /* raise when store_settings.def changes meaning/order */
 #define STORE_HOMES_VERSION    2u
 #define STORE_LEARNED_VERSION  2u /* 2: targets uint16 in table LSB (1: uint32 cuT) */
 #define STORE_HIST_VERSION     1u
+#define STORE_WIN_VERSION      1u
 
 #define STORE_HDR_LEN 4u /* kind, version, seq (2) */
 #define STORE_CRC_LEN 2u
@@ -201,6 +206,26 @@ typedef struct {
     int32_t home_ticks[STORE_MAX_TENDONS];
 } store_hist_t;
 
+/* ---- engagement windows ------------------------------------------------------ */
+
+/* One tendon's engagement window (docs/app.md, "Recovery"), kept for a power
+ * cycle: the servo's Present Position modulo 4096 when it was saved (a
+ * power-up keeps the single-turn angle and loses the turns) and the window's
+ * bounds relative to that position. */
+typedef struct {
+    uint16_t at_turn;
+    int16_t lo;
+    int16_t hi;
+} store_win_tendon_t;
+
+typedef struct {
+    uint32_t table_id;
+    uint16_t mask; /* bit t set: t[t] holds a window */
+    uint8_t n_tendons;
+    uint8_t reserved; /* 0 */
+    store_win_tendon_t t[STORE_MAX_TENDONS];
+} store_win_t;
+
 /* ---- layout ------------------------------------------------------------------- */
 
 #define STORE_SLOT_LEN(body) (STORE_HDR_LEN + (body) + STORE_CRC_LEN)
@@ -213,7 +238,9 @@ typedef struct {
 #define STORE_LEARNED_STRIDE  0x040u /* slot A of tendon t: base + 2*t*stride */
 #define STORE_ADDR_HIST       0x880u
 #define STORE_HIST_STRIDE     0x048u
-#define STORE_ADDR_END        (STORE_ADDR_HIST + STORE_HIST_N * STORE_HIST_STRIDE) /* 0xF40 */
+#define STORE_ADDR_WIN        (STORE_ADDR_HIST + STORE_HIST_N * STORE_HIST_STRIDE) /* 0xF40 */
+#define STORE_WIN_STRIDE      0x060u
+#define STORE_ADDR_END        (STORE_ADDR_WIN + 2u * STORE_WIN_STRIDE) /* 0x1000 */
 #define STORE_SLOT_MAX        STORE_SLOT_LEN(sizeof(store_homes_t))
 
 /* ---- state --------------------------------------------------------------------- */
@@ -304,6 +331,22 @@ void store_home_set(store_home_t *e, int32_t home_ticks, int32_t rest_ticks);
  * >= 2048. The app then uses offset = *pos - present to map stored homes
  * into the servo's new frame: home_now = home_ticks - offset. */
 int8_t store_recover_position(const store_home_t *e, int32_t present, uint16_t tol, int32_t *pos);
+
+/* Engagement windows. store_win_load(): 0, STORE_E_EMPTY, STORE_E_OTHER_TABLE
+ * (w filled, other table). store_save_win(): 1 started, STORE_E_BUSY,
+ * STORE_E_ARG (n_tendons too large).
+ * store_win_recover() finds tendon e's window in the servo's frame after a
+ * power-up: present is its Present Position then. Assumption: since the
+ * save, the spool stood between below ticks under the window's lower bound
+ * and above ticks over its upper bound (in ticks; e->lo is the bound on the
+ * slack side and may be the upper one), a span under one turn. Returns 0
+ * with *lo, *hi set (same order as e's); STORE_E_MOVED when present lies
+ * outside that span (the spool was turned: the window is not used);
+ * STORE_E_ARG when the span is a turn or more. */
+int8_t store_win_load(store_t *st, uint32_t table_id, store_win_t *w);
+int8_t store_save_win(store_t *st, const store_win_t *w);
+int8_t store_win_recover(const store_win_tendon_t *e, int32_t present, uint16_t below,
+                         uint16_t above, int32_t *lo, int32_t *hi);
 
 /* Learned targets of tendon l->tendon. load: 0, STORE_E_EMPTY, STORE_E_ARG
  * (tendon), STORE_E_OTHER_TABLE (l filled, other table). save: 1 started,

@@ -91,7 +91,8 @@ static void test_layout(void **state)
     (void)state;
     assert_true(STORE_HIST_N >= 16u);
     assert_true(STORE_ADDR_END <= STORE_EEPROM_SIZE);
-    assert_int_equal(STORE_ADDR_END, 0xF40);
+    assert_int_equal(STORE_ADDR_WIN, 0xF40);
+    assert_int_equal(STORE_ADDR_END, 0x1000);
     assert_true(STORE_SLOT_LEN(sizeof(store_homes_t)) <= STORE_HOMES_STRIDE);
     assert_true(sizeof(store_t) <= 64u); /* host pointers are wider than the AVR's */
 }
@@ -601,6 +602,44 @@ static void test_cut_history(void **state)
     cut_everywhere(start_hist, probe_hist);
 }
 
+static void make_win(store_win_t *w, uint32_t v)
+{
+    uint8_t i;
+    memset(w, 0, sizeof *w);
+    w->table_id = TABLE_ID;
+    w->n_tendons = 12;
+    w->mask = (uint16_t)(v & 0x0FFFu);
+    for (i = 0; i < 12u; i++) {
+        w->t[i].at_turn = (uint16_t)((v * 7u + i) & 4095u);
+        w->t[i].lo = (int16_t)(-(int16_t)(v % 1000u) - (int16_t)i);
+        w->t[i].hi = (int16_t)(v % 1000u + i);
+    }
+}
+
+static int8_t start_win(uint32_t v)
+{
+    static store_win_t w;
+    make_win(&w, v);
+    return store_save_win(&st, &w);
+}
+
+static uint32_t probe_win(void)
+{
+    store_win_t w, want;
+    if (store_win_load(&st, TABLE_ID, &w) != 0) {
+        return 0;
+    }
+    make_win(&want, w.mask);
+    assert_memory_equal(&w, &want, sizeof(w));
+    return w.mask;
+}
+
+static void test_cut_windows(void **state)
+{
+    (void)state;
+    cut_everywhere(start_win, probe_win);
+}
+
 /* ---- history ring ------------------------------------------------ */
 
 static void test_history_ring(void **state)
@@ -802,6 +841,52 @@ static void test_recover_position(void **state)
     assert_int_equal(store_recover_position(&e, 0, 100, &pos), STORE_E_ARG);
 }
 
+/* A window kept over a power-up: the servo restarts in the turn its shaft
+ * stands in; the window follows the spool, whatever turn the frame says. */
+static void test_win_recover(void **state)
+{
+    store_win_tendon_t e;
+    int32_t lo = 0, hi = 0;
+    (void)state;
+    /* saved standing at 3 turns + 1000, window 1000-600 .. 1000+700 */
+    e.at_turn = 1000;
+    e.lo = -600;
+    e.hi = 700;
+    /* power-up where it was saved: the window in the new frame (0..4095) */
+    assert_int_equal(store_win_recover(&e, 1000, 200, 900, &lo, &hi), 0);
+    assert_int_equal(lo, 400);
+    assert_int_equal(hi, 1700);
+    /* released below the window before the cut (power-up at 1000-800) */
+    assert_int_equal(store_win_recover(&e, 200, 200, 900, &lo, &hi), 0);
+    assert_int_equal(lo, 400);
+    assert_int_equal(hi, 1700);
+    /* pulled above it, across the 4095/0 seam of the new frame */
+    e.at_turn = 3900;
+    assert_int_equal(store_win_recover(&e, 3900 + 1500 - 4096, 200, 900, &lo, &hi), 0);
+    assert_int_equal(lo, 3300 - 4096);
+    assert_int_equal(hi, 4600 - 4096);
+    /* a present given in another turn is reduced modulo 4096 */
+    assert_int_equal(store_win_recover(&e, 3900 + 4096 * 2, 200, 900, &lo, &hi), 0);
+    assert_int_equal(lo, 3300 + 4096 * 2);
+    /* outside the span the spool can have reached: turned by hand */
+    lo = 42;
+    assert_int_equal(store_win_recover(&e, 3900 - 801, 200, 900, &lo, &hi), STORE_E_MOVED);
+    assert_int_equal(store_win_recover(&e, 3900 + 1601, 200, 900, &lo, &hi), STORE_E_MOVED);
+    assert_int_equal(lo, 42);
+    /* a span of a turn or more is ambiguous */
+    assert_int_equal(store_win_recover(&e, 3900, 2000, 1500, &lo, &hi), STORE_E_ARG);
+    /* a tendon pulled towards lower ticks: slack side above, order kept */
+    e.at_turn = 100;
+    e.lo = 600;
+    e.hi = -700;
+    assert_int_equal(store_win_recover(&e, 100 + 800, 900, 200, &lo, &hi), 0);
+    assert_int_equal(lo, 700);
+    assert_int_equal(hi, -600);
+    assert_int_equal(store_win_recover(&e, 100 + 801, 900, 200, &lo, &hi), STORE_E_MOVED);
+    assert_int_equal(store_win_recover(&e, 100 - 1600, 900, 200, &lo, &hi), 0);
+    assert_int_equal(store_win_recover(&e, 100 - 1601, 900, 200, &lo, &hi), STORE_E_MOVED);
+}
+
 static void test_load_during_save_sees_old_copy(void **state)
 {
     store_homes_t h, r;
@@ -860,6 +945,8 @@ int main(void)
         cmocka_unit_test(test_cut_settings),
         cmocka_unit_test(test_cut_learned),
         cmocka_unit_test(test_cut_history),
+        cmocka_unit_test(test_cut_windows),
+        cmocka_unit_test(test_win_recover),
         cmocka_unit_test(test_history_ring),
         cmocka_unit_test(test_history_gap_stops_count),
         cmocka_unit_test(test_settings_declaration),

@@ -212,6 +212,7 @@ void app_bench_restart(app_bench_t *b, uint8_t power_cycle)
         for (i = 0; i < b->bus.n; i++) {
             xl430_power_cycle(b->bus.servo[i], b->bus.now);
         }
+        memset(&b->win, 0, sizeof b->win); /* RAM the board keeps only across resets */
     }
     store_fake_power_on(&b->ee);
     app_start(b, b->io.table != NULL);
