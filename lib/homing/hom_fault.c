@@ -20,7 +20,12 @@ const char *hom_fault_name(int fault)
 /* Ends the run in a fault: the release goals go out in this very step. A
  * tendon that engaged goes back to the margin beyond its engagement; any
  * other goes back the margin from where it is (or keeps a release already
- * under way if that is further). Nothing moves if nothing had moved. */
+ * under way if that is further). The tendon being pulled goes back at
+ * least to where its take-up began, where it was slack: a tendon far softer
+ * than its table carries tension long before its field shows the
+ * engagement, and the margin before that late engagement left it taut 1.7 s
+ * (chaos seed 4039, `out_of_reach`, 216 mN). Nothing moves if nothing had
+ * moved. */
 HOM_NOINLINE void hom_fail(hom_t *h, hom_fault_t f, uint8_t dev, uint8_t index, int32_t detail)
 {
     uint8_t i;
@@ -36,6 +41,9 @@ HOM_NOINLINE void hom_fail(hom_t *h, hom_fault_t f, uint8_t dev, uint8_t index, 
              * release already going further, and never a pull */
             int32_t g = t->eng_lo - hom_pull(t, t->margin_ticks);
             g = hom_further_back(t, g, h->out.goal[i]);
+            if (i == h->cur && h->state >= ST_TAKEUP && h->state <= ST_BACKOFF) {
+                g = hom_further_back(t, g, h->takeup_from);
+            }
             hom_set_goal(h, i, hom_further_back(t, h->present[i], g), h->cfg.v_release);
         }
         hom_push_event(h, HOM_EV_RELEASED, 0, 0, (int32_t)f, 0);

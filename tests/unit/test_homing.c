@@ -421,6 +421,28 @@ static void test_travel_limit(void **state)
     }
 }
 
+/* A tendon far softer than its table (chaos `out_of_reach`): it carries
+ * tension long before its field shows the engagement, so the margin before
+ * that late engagement left it taut. The fault's release takes it back at
+ * least to where its take-up began (chaos seed 4039: 50 x softer on a
+ * 1-segment robot, 216 mN for 1.7 s). On this robot the same happens at
+ * 600 x: 2.9 mN left, never released, before. */
+static void test_soft_tendon_released(void **state)
+{
+    static plant_cfg_t cfg;
+    plant_run_cfg_t rc;
+    (void)state;
+    cfg = g_cfg;
+    cfg.tendon[0].ea_N /= 600.0;
+    plant_run_defaults(&rc, &cfg, hom_fix_pack(&g_tab));
+    rc.seed = 7;
+    assert_int_equal(plant_run(&rc, &g_res), 0);
+    assert_true(g_res.fault == HOM_F_TRAVEL_LIMIT || g_res.fault == HOM_F_NO_PROGRESS);
+    assert_int_equal(g_res.fault_index, 0);
+    print_message("soft tendon: release to slack %u ms\n", (unsigned)g_res.release_ms);
+    assert_true(g_res.released && g_res.release_ms <= 100u);
+}
+
 static void test_tendon_time_limit(void **state)
 {
     plant_run_cfg_t rc;
@@ -485,6 +507,7 @@ int main(void)
         cmocka_unit_test(test_magnet_missing_no_prediction),
         cmocka_unit_test(test_target_unreachable),
         cmocka_unit_test(test_travel_limit),
+        cmocka_unit_test(test_soft_tendon_released),
         cmocka_unit_test(test_tendon_time_limit),
         cmocka_unit_test(test_abort_releases),
         cmocka_unit_test(test_preflight_names_missing),
