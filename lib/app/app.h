@@ -304,6 +304,9 @@ typedef struct {
 typedef struct {
     uint16_t rx_lost; /* console bytes lost, last reported */
     uint16_t dropped; /* reports dropped, last reported */
+    uint8_t list;     /* APP_LIST_*: a listing being written, one line a pass */
+    uint8_t list_i;   /* its next item */
+    uint8_t list_arg; /* servos: with model and firmware; history: entries */
     con_t con;
 } app_cmd_t;
 

@@ -158,9 +158,10 @@ APP_NOINLINE static void boot_ready(app_t *a)
     if (rc != CON_PENDING && a->boot.con_wait && con_pending(&a->cmd.con) &&
         !(a->run.req_start && a->run.req_con)) {
         if (rc == 0) {
-            app_rep_servos(a, 1);
+            (void)app_cmd_list(a, APP_LIST_SERVOS, 1); /* answered after its lines */
+        } else {
+            (void)con_complete(&a->cmd.con, rc);
         }
-        (void)con_complete(&a->cmd.con, rc);
     }
     if (rc != CON_PENDING) {
         a->boot.con_wait = 0;

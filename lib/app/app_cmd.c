@@ -17,6 +17,8 @@ static int8_t cmd_run(app_t *a, uint8_t cmd);
  * the bus the motion still counts as running, or a listing being written
  * (a burst of `help` lines) held the loop and the release with it (45 ms
  * late on chaos seed 1024). */
+static void list_poll(app_t *a);
+
 APP_NOINLINE void app_cmd_poll(app_t *a)
 {
     uint8_t moving = (uint8_t)(a->state == APP_ST_CAL || a->state == APP_ST_MOVE ||
@@ -37,6 +39,7 @@ APP_NOINLINE void app_cmd_poll(app_t *a)
         app_rep_int(a, app_w_reports, a->cmd.dropped);
         app_rep_end(a);
     }
+    list_poll(a);
     (void)con_poll(&a->cmd.con, (uint16_t)app_now_ms(a));
     cmd = con_call(&a->cmd.con);
     if (cmd >= 0) {
@@ -80,7 +83,6 @@ static const app_field_t status_loop_fields[] CON_FLASH = {
 };
 static int8_t h_status(app_t *a, const con_args_t *args)
 {
-    uint8_t i;
     (void)args;
     app_rep_begin(a, app_w_status);
     app_rep_word(a, app_w_state, app_w_state_words, a->state);
@@ -95,22 +97,21 @@ static int8_t h_status(app_t *a, const con_args_t *args)
         app_rep_int(a, app_w_stack_free, (int32_t)a->io->stack_free());
     }
     app_rep_end(a);
-    for (i = 0; i < a->info.n_tendons; i++) {
-        if (app_has(a->rec.homes.valid_mask, i) == 0u) {
-            continue;
-        }
-        app_rep_begin(a, app_w_home);
-        app_rep_u8(a, app_w_tendon, i);
-        app_rep_int(a, app_w_home, a->rec.homes.t[i].home_ticks);
-        app_rep_int(a, app_w_straight, a->rec.homes.t[i].home_ticks + a->rec.homes.to_straight[i]);
-        app_rep_int(a, app_w_rest, a->rec.homes.t[i].rest_ticks);
-        app_rep_u8(a, app_w_usable, app_has(a->rec.home_now, i));
-        if (app_has(a->rec.home_now, i)) {
-            app_rep_int(a, app_w_now, app_rec_home(a, i));
-        }
-        app_rep_end(a);
+    return app_cmd_list(a, APP_LIST_HOMES, 0);
+}
+
+static void home_line(app_t *a, uint8_t i)
+{
+    app_rep_begin(a, app_w_home);
+    app_rep_u8(a, app_w_tendon, i);
+    app_rep_int(a, app_w_home, a->rec.homes.t[i].home_ticks);
+    app_rep_int(a, app_w_straight, a->rec.homes.t[i].home_ticks + a->rec.homes.to_straight[i]);
+    app_rep_int(a, app_w_rest, a->rec.homes.t[i].rest_ticks);
+    app_rep_u8(a, app_w_usable, app_has(a->rec.home_now, i));
+    if (app_has(a->rec.home_now, i)) {
+        app_rep_int(a, app_w_now, app_rec_home(a, i));
     }
-    return 0;
+    app_rep_end(a);
 }
 
 /* ok and mag: both 1 while the sensor samples (icm_diag_t.mag_ready is
@@ -131,25 +132,26 @@ static const app_field_t sensor_fields[] CON_FLASH = {
     APP_FIELD(reinits, icm_diag_t, reinits, APP_F_U),
 };
 
+static void sensor_line(app_t *a, uint8_t k)
+{
+    icm_diag_t d;
+    (void)icm_set_diag(&a->sense.set, k, &d);
+    app_rep_begin(a, app_w_sensor);
+    app_rep_u8(a, app_w_index, k);
+    APP_REP_FIELDS(a, &d, sensor_fields);
+    app_rep_end(a);
+}
+
 static int8_t h_sensors(app_t *a, const con_args_t *args)
 {
     if (quiet_needed(a) != 0) {
         return CON_E_BUSY;
     }
-    uint8_t k;
     (void)args;
     if (!a->table_ok) {
         return CON_E_NO_TABLE;
     }
-    for (k = 0; k < a->info.n_sensors; k++) {
-        icm_diag_t d;
-        (void)icm_set_diag(&a->sense.set, k, &d);
-        app_rep_begin(a, app_w_sensor);
-        app_rep_u8(a, app_w_index, k);
-        APP_REP_FIELDS(a, &d, sensor_fields);
-        app_rep_end(a);
-    }
-    return 0;
+    return app_cmd_list(a, APP_LIST_SENSORS, 0);
 }
 
 static int8_t h_servos(app_t *a, const con_args_t *args)
@@ -161,8 +163,7 @@ static int8_t h_servos(app_t *a, const con_args_t *args)
         return CON_E_BUSY;
     }
     if ((args->given & 1u) && args->v[0] != 0) {
-        app_rep_servos(a, 0); /* pos, err: the live cycle keeps both fresh */
-        return 0;
+        return app_cmd_list(a, APP_LIST_SERVOS, 0); /* pos, err: the live cycle keeps both fresh */
     }
     if (!app_idle_state(a) || app_rec_busy(a)) {
         return CON_E_BUSY; /* the bring-up reuses the record's storage */
@@ -330,7 +331,7 @@ static int8_t h_table(app_t *a, const con_args_t *args)
         return CON_E_BUSY;
     }
     char buf[TBL_MAX_GRID * 12u + 1u];
-    uint8_t i, g, pos;
+    uint8_t g, pos;
     (void)args;
     if (!a->table_ok) {
         return CON_E_NO_TABLE;
@@ -346,23 +347,26 @@ static int8_t h_table(app_t *a, const con_args_t *args)
     con_report_str(&a->cmd.con, app_w_grid_mN, buf);
     APP_REP_FIELDS(a, &a->info, table_fields);
     app_rep_end(a);
-    for (i = 0; i < a->info.n_tendons; i++) {
-        tbl_tendon_t row, eff;
-        (void)tbl_tendon(&a->tab, i, &row);
-        (void)tbl_tendon(&a->htab, i, &eff);
-        app_rep_begin(a, app_w_tendon);
-        app_rep_u8(a, app_w_tendon, i);
-        APP_REP_FIELDS(a, &row, tendon_fields);
-        pos = 0;
-        buf[0] = '\0';
-        for (g = 0; g < a->info.n_grid; g++) {
-            app_list_add(buf, sizeof buf, &pos, (int32_t)eff.target_cuT[g],
-                         eff.target_cuT[g] != row.target_cuT[g] ? '*' : '\0');
-        }
-        con_report_str(&a->cmd.con, app_w_target_cuT, buf);
-        app_rep_end(a);
+    return app_cmd_list(a, APP_LIST_TENDONS, 0);
+}
+
+static void tendon_line(app_t *a, uint8_t i)
+{
+    char buf[TBL_MAX_GRID * 12u + 1u];
+    uint8_t g, pos = 0;
+    tbl_tendon_t row, eff;
+    (void)tbl_tendon(&a->tab, i, &row);
+    (void)tbl_tendon(&a->htab, i, &eff);
+    app_rep_begin(a, app_w_tendon);
+    app_rep_u8(a, app_w_tendon, i);
+    APP_REP_FIELDS(a, &row, tendon_fields);
+    buf[0] = '\0';
+    for (g = 0; g < a->info.n_grid; g++) {
+        app_list_add(buf, sizeof buf, &pos, (int32_t)eff.target_cuT[g],
+                     eff.target_cuT[g] != row.target_cuT[g] ? '*' : '\0');
     }
-    return 0;
+    con_report_str(&a->cmd.con, app_w_target_cuT, buf);
+    app_rep_end(a);
 }
 
 static const app_field_t hist_fields[] CON_FLASH = {
@@ -376,27 +380,28 @@ static int8_t h_history(app_t *a, const con_args_t *args)
     if (quiet_needed(a) != 0) {
         return CON_E_BUSY;
     }
-    uint8_t n, age, i, pos;
+    (void)args;
+    return app_cmd_list(a, APP_LIST_HISTORY, store_hist_count(&a->rec.store));
+}
+
+/* The history entry `age` calibrations back: 0 when written, else it is lost. */
+static int8_t hist_line(app_t *a, uint8_t age)
+{
+    uint8_t i, pos = 0;
     char buf[TBL_MAX_TENDONS * 12u + 1u];
     store_hist_t e;
-    (void)args;
-    n = store_hist_count(&a->rec.store);
-    for (age = 0; age < n; age++) {
-        if (store_hist_get(&a->rec.store, age, &e) != 0) {
-            break;
-        }
-        app_rep_begin(a, app_w_hist);
-        app_rep_u8(a, app_w_age, age);
-        APP_REP_FIELDS(a, &e, hist_fields);
-        pos = 0;
-        buf[0] = '\0';
-        for (i = 0; i < e.n_tendons && i < TBL_MAX_TENDONS; i++) {
-            app_list_add(buf, sizeof buf, &pos, e.home_ticks[i],
-                         app_has(e.valid_mask, i) ? 0 : '?');
-        }
-        con_report_str(&a->cmd.con, app_w_homes, buf);
-        app_rep_end(a);
+    if (store_hist_get(&a->rec.store, age, &e) != 0) {
+        return -1;
     }
+    app_rep_begin(a, app_w_hist);
+    app_rep_u8(a, app_w_age, age);
+    APP_REP_FIELDS(a, &e, hist_fields);
+    buf[0] = '\0';
+    for (i = 0; i < e.n_tendons && i < TBL_MAX_TENDONS; i++) {
+        app_list_add(buf, sizeof buf, &pos, e.home_ticks[i], app_has(e.valid_mask, i) ? 0 : '?');
+    }
+    con_report_str(&a->cmd.con, app_w_homes, buf);
+    app_rep_end(a);
     return 0;
 }
 
@@ -432,7 +437,6 @@ static int8_t h_get(app_t *a, const con_args_t *args)
     if (quiet_needed(a) != 0) {
         return CON_E_BUSY;
     }
-    uint8_t id;
     if (args->given & 1u) {
         int8_t f = find_setting(a, args);
         if (f < 0) {
@@ -441,10 +445,7 @@ static int8_t h_get(app_t *a, const con_args_t *args)
         setting_line(a, (uint8_t)f);
         return 0;
     }
-    for (id = 0; id < STORE_SETTING_COUNT; id++) {
-        setting_line(a, id);
-    }
-    return 0;
+    return app_cmd_list(a, APP_LIST_SETTINGS, 0);
 }
 
 static int8_t h_set(app_t *a, const con_args_t *args)
@@ -489,6 +490,76 @@ static int8_t h_reboot(app_t *a, const con_args_t *args)
     }
     app_bus_reboot(a, (uint8_t)args->v[0]);
     return CON_PENDING;
+}
+
+/* The next line of the listing under way: 1 when one was written (or an
+ * item skipped), 0 at its end. */
+APP_NOINLINE static uint8_t list_line(app_t *a)
+{
+    uint8_t i = a->cmd.list_i++;
+    switch (a->cmd.list) {
+    case APP_LIST_HOMES:
+        if (i >= a->info.n_tendons) {
+            return 0;
+        }
+        if (app_has(a->rec.homes.valid_mask, i)) {
+            home_line(a, i);
+        }
+        return 1;
+    case APP_LIST_SENSORS:
+        if (i >= a->info.n_sensors) {
+            return 0;
+        }
+        sensor_line(a, i);
+        return 1;
+    case APP_LIST_SERVOS:
+        if (i >= a->info.n_tendons) {
+            return 0;
+        }
+        app_rep_servo(a, i, a->cmd.list_arg);
+        return 1;
+    case APP_LIST_TENDONS:
+        if (i >= a->info.n_tendons) {
+            return 0;
+        }
+        tendon_line(a, i);
+        return 1;
+    case APP_LIST_HISTORY:
+        return (uint8_t)(i < a->cmd.list_arg && hist_line(a, i) == 0);
+    case APP_LIST_SETTINGS:
+        if (i >= STORE_SETTING_COUNT) {
+            return 0;
+        }
+        setting_line(a, i);
+        return 1;
+    default:
+        return 0;
+    }
+}
+
+int8_t app_cmd_list(app_t *a, uint8_t list, uint8_t arg)
+{
+    a->cmd.list = list;
+    a->cmd.list_i = 0;
+    a->cmd.list_arg = arg;
+    return CON_PENDING;
+}
+
+/* A listing goes out a line a pass, each when the output ring has room for
+ * the longest line: written at once, the UART (11.5 bytes a millisecond at
+ * 115200) held the main loop 13-73 ms at rest (`table` 73 ms, `get` and
+ * `servos` 34 ms; the servos' Bus Watchdogs run meanwhile). */
+static void list_poll(app_t *a)
+{
+    if (a->cmd.list == APP_LIST_NONE || !con_report_fits(&a->cmd.con)) {
+        return;
+    }
+    if (!list_line(a)) {
+        a->cmd.list = APP_LIST_NONE;
+        if (con_pending(&a->cmd.con)) {
+            (void)con_complete(&a->cmd.con, 0);
+        }
+    }
 }
 
 /* The command of a validated line (con_call()), run with this app: direct

@@ -252,7 +252,8 @@ void app_rep_fault(app_t *a, const char *reason_f, int8_t err, uint8_t dev, uint
  * CON_E_SERVO_FAULT when a servo is, else 0. */
 int8_t app_rep_missing(app_t *a);
 /* One <servo ...> per tendon (with_model: model and firmware of the bring-up). */
-void app_rep_servos(app_t *a, uint8_t with_model);
+/* One `<servo ...>` line: what the bus knows of tendon i's servo. */
+void app_rep_servo(app_t *a, uint8_t i, uint8_t with_model);
 /* A homing event as a console report. */
 void app_rep_event(app_t *a, const hom_event_t *ev);
 
@@ -495,8 +496,23 @@ void app_rec_save_run(app_t *a);
 /* ---- app_cmd.c: the console ----------------------------------------------------- */
 
 /* The console's step: realtime mode while anything moves, lost bytes and
- * dropped reports reported, one byte or line handled. */
+ * dropped reports reported, a listing's next line, one byte or line handled. */
 void app_cmd_poll(app_t *a);
+
+/* Listings (app_cmd_t.list): written one line a pass, when the console's
+ * output has room for it, and answered `ok` after the last. */
+enum {
+    APP_LIST_NONE = 0,
+    APP_LIST_HOMES,   /* `status`: a <home> line per stored home */
+    APP_LIST_SENSORS, /* `sensors` */
+    APP_LIST_SERVOS,  /* `servos`: list_arg 1 with model and firmware (after a bring-up) */
+    APP_LIST_TENDONS, /* `table`: a <tendon> line per tendon */
+    APP_LIST_HISTORY, /* `history`: list_arg entries */
+    APP_LIST_SETTINGS /* `get` */
+};
+/* Starts a listing; the pending console line is answered at its end.
+ * Returns CON_PENDING. */
+int8_t app_cmd_list(app_t *a, uint8_t list, uint8_t arg);
 
 /* ---- app_panel.c: button and LED ------------------------------------------ */
 

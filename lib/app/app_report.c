@@ -206,26 +206,22 @@ int8_t app_rep_missing(app_t *a)
     return rc;
 }
 
-/* One `<servo ...>` line per tendon: what the bus knows of its servo. */
-void app_rep_servos(app_t *a, uint8_t with_model)
+void app_rep_servo(app_t *a, uint8_t i, uint8_t with_model)
 {
-    uint8_t i;
-    for (i = 0; i < a->info.n_tendons; i++) {
-        app_rep_begin(a, app_w_servo);
-        app_rep_tendon(a, i);
-        app_rep_int(a, app_w_found, app_has(a->bus.absent, i) == 0u);
-        if (with_model) {
-            const dxl_servo_info *s = app_boot_servo_info(a, a->bus.ids[i]);
-            if (s != NULL) {
-                app_rep_int(a, app_w_model, s->model);
-                app_rep_u8(a, app_w_fw, s->firmware);
-            }
+    app_rep_begin(a, app_w_servo);
+    app_rep_tendon(a, i);
+    app_rep_int(a, app_w_found, app_has(a->bus.absent, i) == 0u);
+    if (with_model) {
+        const dxl_servo_info *s = app_boot_servo_info(a, a->bus.ids[i]);
+        if (s != NULL) {
+            app_rep_int(a, app_w_model, s->model);
+            app_rep_u8(a, app_w_fw, s->firmware);
         }
-        app_rep_int(a, app_w_pos, a->bus.present[i]);
-        app_rep_int(a, app_w_cal_pos, a->bus.present[i] + a->rec.offset[i]);
-        app_rep_u8(a, app_w_hw_error, a->bus.hw_err[i]);
-        app_rep_end(a);
     }
+    app_rep_int(a, app_w_pos, a->bus.present[i]);
+    app_rep_int(a, app_w_cal_pos, a->bus.present[i] + a->rec.offset[i]);
+    app_rep_u8(a, app_w_hw_error, a->bus.hw_err[i]);
+    app_rep_end(a);
 }
 
 /* Ticks to um, split so that the products stay in 32 bits for any
