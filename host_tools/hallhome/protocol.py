@@ -32,7 +32,7 @@ SETTINGS_DEF = LIB_DIR / "store" / "store_settings.def"
 CONSOLE_DOC = PROJECT_ROOT / "docs" / "console.md"
 
 CONSOLE_H = LIB_DIR / "console" / "console.h"
-CONSOLE_C = LIB_DIR / "console" / "console.c"
+CON_PARSE_C = LIB_DIR / "console" / "con_parse.c"  # the command table: CON_SYN_MAX
 
 
 def c_define(path: Path, name: str) -> int:
@@ -45,7 +45,7 @@ def c_define(path: Path, name: str) -> int:
 
 LINE_MAX = c_define(CONSOLE_H, "CON_LINE_MAX")  # characters per command line
 MAX_ARGS = c_define(CONSOLE_H, "CON_MAX_ARGS")  # arguments after the command name
-SYN_MAX = c_define(CONSOLE_C, "CON_SYN_MAX")    # synopsis buffer, terminator included
+SYN_MAX = c_define(CON_PARSE_C, "CON_SYN_MAX")  # synopsis buffer, terminator included
 MAG_MAX = 2147483647   # largest magnitude a number may have after scaling
 DECIMALS = {"i": 0, "d": 3}
 

@@ -471,12 +471,45 @@ static inline uint64_t bench_now_us(const bench_t *b)
     return b->avr->cycle / (BENCH_F_CPU / 1000000u);
 }
 
+/* main.c: the run loop */
 void bench_finish(bench_t *b, int code, const char *reason);
 void bench_console_line(bench_t *b, const char *line);
 void bench_rearm(bench_t *b);
+
+/* options.c: the command line. What the end of the run reads of it and
+ * bench_t does not hold. */
+typedef struct {
+    double check_pct;   /* --check-tension PCT; < 0: no check */
+    uint8_t table;      /* --table */
+    uint8_t use_stdin;  /* --stdin */
+    uint8_t loop_table; /* --loop-table */
+} bench_cli_t;
+/* Sets the defaults of b and cli, then the options of argv. Returns -1 to
+ * run, else the exit code: BENCH_EXIT_OK after --help (usage on stdout),
+ * BENCH_EXIT_USAGE after a bad or missing argument (the reason on stderr). */
+int bench_options(bench_t *b, bench_cli_t *cli, int argc, char **argv);
 /* Adds an --until (fail = 0) or --fail-on (fail = 1) pattern. Returns 0, or
  * -1 when the expression does not compile or the table is full. */
 int bench_add_pattern(bench_t *b, uint8_t fail, const char *re, uint64_t from_us, uint64_t to_us);
+
+/* board.c: the LED pin, the EEPROM image and resets. led_pin is the notify
+ * hook of PB7, eecr_write the write hook of EECR (counts EEPROM writes,
+ * --power-loss-after-eewrites), reset_hook the io reset hook (notes the
+ * reset for the run loop). ee_load reads --eeprom into the EEPROM (erased
+ * when the file does not exist) and ee_save writes it back: 0 or -1.
+ * after_reset puts back what the board holds after any reset; do_reset
+ * performs a reset of kind EV_POWER_CYCLE, EV_WDT_RESET or else external. */
+void bench_led_pin(avr_irq_t *irq, uint32_t value, void *param);
+void bench_eecr_write(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param);
+void bench_reset_hook(avr_io_t *io);
+int bench_ee_load(bench_t *b);
+int bench_ee_save(bench_t *b);
+void bench_after_reset(bench_t *b);
+void bench_do_reset(bench_t *b, uint8_t kind);
+
+/* summary.c: writes the JSON summary to b->summary_path (wall and cpu: the
+ * run's seconds of wall and CPU time). */
+void bench_write_summary(bench_t *b, double wall, double cpu);
 
 /* scenario.c */
 int scen_parse_time(const char *s, uint64_t *us);

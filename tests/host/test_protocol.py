@@ -2,9 +2,10 @@
 
 The .def files are read here a second, independent way (the C preprocessor
 expands them into Python literals), so a drift between protocol.py's parser
-and the declarations fails. A small native program built from
-lib/console/console.c answers the same command lines as check_command(), so
-a drift between the host's validation and the firmware's fails too.
+and the declarations fails. A small native program built from the
+console's sources (lib/console/*.c) answers the same command lines as
+check_command(), so a drift between the host's validation and the
+firmware's fails too.
 """
 
 import ast
@@ -212,8 +213,8 @@ def native_console(tmp_path_factory):
     d = tmp_path_factory.mktemp("con")
     (d / "echo.c").write_text(ECHO_C)
     exe = d / "echo"
-    subprocess.run([CC, "-std=c99", "-I", str(LIB_DIR), "-o", str(exe), str(d / "echo.c"),
-                    str(LIB_DIR / "console/console.c")], check=True)
+    subprocess.run([CC, "-std=c99", "-I", str(LIB_DIR), "-o", str(exe), str(d / "echo.c")]
+                   + [str(src) for src in sorted((LIB_DIR / "console").glob("*.c"))], check=True)
 
     def run(data: bytes):
         out = subprocess.run([str(exe)], input=data, capture_output=True, check=True).stdout

@@ -1,0 +1,321 @@
+/*
+ * The console's output: lines assembled and written (realtime mode: whole or
+ * not at all), the final reply of every line, the report lines and the
+ * fixed-point numbers they print. con_priv.h lists the console's files.
+ */
+#include <string.h>
+
+#include "console/con_priv.h"
+
+static const uint8_t con_err_codes[] CON_FLASH = {
+#define CON_ERR(code, id, text) (code),
+#include "console/con_errors.def"
+#undef CON_ERR
+};
+
+static const char con_err_text[] CON_FLASH =
+#define CON_ERR(code, id, text) text "\0"
+#include "console/con_errors.def"
+#undef CON_ERR
+    ;
+
+/* Fixed output text, kept in flash (a string literal would cost AVR RAM). */
+static const char s_ok[] CON_FLASH = "ok\r\n";
+static const char s_error[] CON_FLASH = "error:";
+static const char s_crlf[] CON_FLASH = "\r\n";
+static const char s_rep_end[] CON_FLASH = ">\r\n";
+
+/* ---- flash access ------------------------------------------------ */
+
+/* One byte of a flash string (CON_FLASH_BYTE; con_parse.c has the same
+ * function: con_priv.h says why). */
+static char con_fl_char(const con_t *c, const char *p)
+{
+    (void)c;
+    return CON_FLASH_BYTE(p);
+}
+
+/* Pointer past the next n NUL-terminated strings at p. */
+const char *con_fl_skip(const con_t *c, const char *p, uint16_t n)
+{
+    while (n > 0u) {
+        if (con_fl_char(c, p++) == '\0') {
+            n--;
+        }
+    }
+    return p;
+}
+
+/* ---- output ------------------------------------------------------ */
+
+/* In realtime mode output is assembled a line at a time in obuf (see
+ * con_set_realtime()); otherwise it is written at once. */
+void con_out(con_t *c, const char *s, uint8_t n)
+{
+    if (!c->realtime) {
+        if (n > 0u) {
+            c->io->write(c->io->ctx, s, n); /* may wait: nothing moves */
+        }
+        return;
+    }
+    if (c->olen > CON_OUT_MAX || (uint16_t)c->olen + n > CON_OUT_MAX) {
+        c->olen = CON_OUT_MAX + 1u; /* too long: never written in part */
+        return;
+    }
+    memcpy(&c->obuf[c->olen], s, n);
+    c->olen = (uint8_t)(c->olen + n);
+}
+
+/* Writes the assembled line when it may be written now, keeping `reserve`
+ * bytes of room free in realtime mode. Returns 1 when written (or dropped for
+ * length), 0 when it must wait; the buffer is empty afterwards either way. */
+uint8_t con_flush(con_t *c, uint16_t reserve)
+{
+    uint8_t n = c->olen;
+    c->olen = 0;
+    if (n > CON_OUT_MAX) {
+        c->dropped++;
+        return 1;
+    }
+    if (c->realtime && c->io->room != NULL && c->io->room(c->io->ctx) < (uint16_t)(n + reserve)) {
+        return 0;
+    }
+    if (n > 0u) {
+        c->io->write(c->io->ctx, c->obuf, n);
+    }
+    return 1;
+}
+
+void con_out_ch(con_t *c, char ch)
+{
+    con_out(c, &ch, 1);
+}
+
+void con_out_ram(con_t *c, const char *s)
+{
+    size_t n = strlen(s);
+    while (n > 0u) {
+        uint8_t k = (n > 255u) ? 255u : (uint8_t)n;
+        con_out(c, s, k);
+        s += k;
+        n -= k;
+    }
+}
+
+/* Writes a flash string in small chunks (no read past its NUL). */
+void con_out_flash(con_t *c, const char *p)
+{
+    char buf[16];
+    uint8_t n = 0;
+    char ch;
+    while ((ch = con_fl_char(c, p++)) != '\0') {
+        buf[n++] = ch;
+        if (n == sizeof(buf)) {
+            con_out(c, buf, n);
+            n = 0;
+        }
+    }
+    con_out(c, buf, n);
+}
+
+static uint8_t needs_quotes(const con_t *c, const char *s, uint8_t flash)
+{
+    char ch = flash ? con_fl_char(c, s) : *s;
+    if (ch == '\0') {
+        return 1;
+    }
+    while (ch != '\0') {
+        if (ch == ' ' || ch == '>' || ch == '=') {
+            return 1;
+        }
+        s++;
+        ch = flash ? con_fl_char(c, s) : *s;
+    }
+    return 0;
+}
+
+static void out_key(con_t *c, const char *key)
+{
+    con_out_ch(c, ' ');
+    con_out_flash(c, key);
+    con_out_ch(c, '=');
+}
+
+int8_t con_format_fixed(char *buf, uint8_t cap, int32_t v, uint8_t decimals)
+{
+    uint32_t pw[10];
+    uint32_t m, p;
+    uint8_t n = 1, nd, i, len, k = 0;
+    if (decimals > 9u) {
+        decimals = 9u;
+    }
+    m = (v < 0) ? (uint32_t)0 - (uint32_t)v : (uint32_t)v;
+    /* the powers of ten up to m's leading digit only (a report is mostly
+     * short numbers), then the digits by subtraction: no divide on the AVR */
+    pw[0] = 1u;
+    while (n < 10u) {
+        p = pw[n - 1u] * 10u; /* at most 10^9: no overflow */
+        if (p > m) {
+            break;
+        }
+        pw[n++] = p;
+    }
+    nd = n > decimals ? n : (uint8_t)(decimals + 1u);
+    len = (uint8_t)(nd + (v < 0 ? 1u : 0u) + (decimals ? 1u : 0u));
+    if (cap <= len) {
+        if (cap > 0u) {
+            buf[0] = '\0';
+        }
+        return -1;
+    }
+    if (v < 0) {
+        buf[k++] = '-';
+    }
+    for (i = nd; i-- > 0u;) {
+        char d = '0';
+        if (i < n) {
+            while (m >= pw[i]) {
+                m -= pw[i];
+                d++;
+            }
+        }
+        if (decimals != 0u && i == (uint8_t)(decimals - 1u)) {
+            buf[k++] = '.';
+        }
+        buf[k++] = d;
+    }
+    buf[k] = '\0';
+    return (int8_t)k;
+}
+
+static void out_fixed(con_t *c, int32_t v, uint8_t decimals)
+{
+    char buf[13];
+    int8_t n = con_format_fixed(buf, sizeof(buf), v, decimals);
+    con_out(c, buf, (uint8_t)n);
+}
+
+/* The one place a final reply is written; in realtime mode without room it
+ * is held (CON_ST_HELD) and written by a later con_poll(). */
+void con_reply(con_t *c, int8_t rc)
+{
+    const char *text = con_err_text;
+    uint8_t i, code;
+    c->olen = 0;
+    if (rc >= 0) {
+        con_out_flash(c, s_ok);
+        if (!con_flush(c, 0)) {
+            c->held_rc = rc;
+            c->state = CON_ST_HELD;
+        }
+        return;
+    }
+    for (i = 0;; i++) {
+        if (i == sizeof(con_err_codes)) {
+            rc = CON_E_INTERNAL; /* not a declared code: say so, once */
+            i = 0;
+            text = con_err_text;
+        }
+        c->copy(&code, &con_err_codes[i], 1);
+        if (code == (uint8_t)-rc) {
+            break;
+        }
+        text = con_fl_skip(c, text, 1);
+    }
+    con_out_flash(c, s_error);
+    out_fixed(c, -(int32_t)rc, 0);
+    con_out_ch(c, ' ');
+    con_out_flash(c, text);
+    con_out_flash(c, s_crlf);
+    if (!con_flush(c, 0)) {
+        c->held_rc = rc;
+        c->state = CON_ST_HELD;
+    }
+}
+
+/* ---- reports ----------------------------------------------------- */
+
+uint8_t con_report_fits(const con_t *con)
+{
+    return (uint8_t)(!con->realtime || con->io->room == NULL ||
+                     con->io->room(con->io->ctx) >= CON_OUT_MAX + CON_RESERVE);
+}
+
+void con_report_begin(con_t *con, const char *kind)
+{
+    con->olen = 0;
+    con->mute = 0;
+    if (con->realtime && con->io->room != NULL &&
+        con->io->room(con->io->ctx) <
+            (con->state == CON_ST_CALL ? CON_OUT_MAX + CON_RESERVE : CON_MIN_ROOM)) {
+        con->mute = 1; /* dropped: assembling it would only cost time */
+        return;
+    }
+    con_out_ch(con, '<');
+    con_out_flash(con, kind);
+}
+
+void con_report_int(con_t *con, const char *key, int32_t v)
+{
+    if (con->mute) {
+        return;
+    }
+    out_key(con, key);
+    out_fixed(con, v, 0);
+}
+
+void con_report_fixed(con_t *con, const char *key, int32_t v, uint8_t decimals)
+{
+    if (con->mute) {
+        return;
+    }
+    out_key(con, key);
+    out_fixed(con, v, decimals);
+}
+
+void con_report_str(con_t *con, const char *key, const char *s)
+{
+    uint8_t q;
+    if (con->mute) {
+        return;
+    }
+    q = needs_quotes(con, s, 0);
+    out_key(con, key);
+    if (q) {
+        con_out_ch(con, '"');
+    }
+    con_out_ram(con, s);
+    if (q) {
+        con_out_ch(con, '"');
+    }
+}
+
+void con_report_flash(con_t *con, const char *key, const char *s)
+{
+    uint8_t q;
+    if (con->mute) {
+        return;
+    }
+    q = needs_quotes(con, s, 1);
+    out_key(con, key);
+    if (q) {
+        con_out_ch(con, '"');
+    }
+    con_out_flash(con, s);
+    if (q) {
+        con_out_ch(con, '"');
+    }
+}
+
+void con_report_end(con_t *con)
+{
+    if (con->mute) {
+        con->mute = 0;
+        con->dropped++;
+        return;
+    }
+    con_out_flash(con, s_rep_end);
+    if (!con_flush(con, con->state == CON_ST_CALL ? CON_RESERVE : 0u)) {
+        con->dropped++;
+    }
+}
