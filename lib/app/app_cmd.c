@@ -551,7 +551,7 @@ int8_t app_cmd_list(app_t *a, uint8_t list, uint8_t arg)
  * `servos` 34 ms; the servos' Bus Watchdogs run meanwhile). */
 static void list_poll(app_t *a)
 {
-    if (a->cmd.list == APP_LIST_NONE || !con_report_fits(&a->cmd.con)) {
+    if (a->cmd.list == APP_LIST_NONE || !con_line_fits(&a->cmd.con)) {
         return;
     }
     if (!list_line(a)) {

@@ -192,10 +192,9 @@ int8_t con_poll(con_t *con, uint16_t now_ms)
     }
     if (con->state == CON_ST_HELP) {
         if (con->help_i < CON_CMD_COUNT) {
-            /* realtime: a line is assembled only when the longest fits, so
-             * a full ring costs no work per pass */
-            if (!con->realtime || con->io->room == NULL ||
-                con->io->room(con->io->ctx) >= CON_OUT_MAX + CON_RESERVE) {
+            /* a line is assembled only when the longest fits, so a full
+             * ring costs no work per pass and no pass waits for the UART */
+            if (con_line_fits(con)) {
                 con->help_i = (uint8_t)(con->help_i + con_help_line(con));
             }
             return 1;

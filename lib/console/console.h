@@ -247,6 +247,10 @@ void con_report_begin(con_t *con, const char *kind);
  * room for the longest line and the reserve of command replies), 0 when it
  * might be dropped: a caller whose report must not be lost waits for it. */
 uint8_t con_report_fits(const con_t *con);
+/* 1 when the longest line (and in realtime mode the reserve) fits the
+ * output ring now, in either mode: a listing writes its next line only then,
+ * so no pass waits for the UART (docs/console.md). */
+uint8_t con_line_fits(const con_t *con);
 void con_report_int(con_t *con, const char *key, int32_t v);
 void con_report_fixed(con_t *con, const char *key, int32_t v, uint8_t decimals);
 void con_report_str(con_t *con, const char *key, const char *s);

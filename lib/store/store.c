@@ -370,26 +370,34 @@ int8_t store_save_settings(store_t *st, const store_settings_t *s)
 
 int16_t store_setting_text(const store_t *st, uint8_t id, uint8_t which, char *buf, uint8_t cap)
 {
-    uint16_t skip, i = 0, n = 0;
+    /* the texts are read from flash 16 bytes a call: one call a byte took
+     * 3 ms to walk to the last setting's texts (`get` held a pass 4.6 ms) */
+    char chunk[16];
+    uint16_t skip = (uint16_t)(3u * id + which), i = 0, n = 0;
+    uint8_t k = sizeof chunk;
     char c;
     if (id >= STORE_SETTING_COUNT || which > 2u || cap == 0u) {
         return STORE_E_ARG;
     }
-    /* Walk past 3 * id + which NUL-terminated strings. */
-    for (skip = (uint16_t)(3u * id + which); skip > 0; i++) {
-        st->copy(&c, &store_text[i], 1);
-        if (c == '\0') {
-            skip--;
+    for (;; i++, k++) {
+        if (k == sizeof chunk) {
+            uint16_t left = (uint16_t)(sizeof store_text - i);
+            st->copy(chunk, &store_text[i], left < sizeof chunk ? left : sizeof chunk);
+            k = 0;
         }
-    }
-    for (;; i++, n++) {
-        st->copy(&c, &store_text[i], 1);
+        c = chunk[k];
+        if (skip > 0u) {
+            /* walk past 3 * id + which NUL-terminated strings */
+            skip = (uint16_t)(skip - (c == '\0'));
+            continue;
+        }
         if (c == '\0') {
             break;
         }
         if (n + 1u < cap) {
             buf[n] = c;
         }
+        n++;
     }
     buf[(n < cap) ? n : (uint16_t)(cap - 1u)] = '\0';
     return (int16_t)n;
