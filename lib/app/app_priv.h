@@ -6,12 +6,13 @@
  *   app_boot.c    app_init, the table, device bring-up and <ready>        (app_t.boot)
  *   app_bus.c     the servo-bus scheduler: one transaction at a time      (app_t.bus)
  *   app_sense.c   the sensor set and its samples for the homing           (app_t.sense)
- *   app_run.c     runs (cal, rehome), app moves (home, release), aborts,
- *                 the kept engagement windows                             (app_t.run)
+ *   app_run.c     runs (cal, rehome), app moves (home, release), aborts   (app_t.run)
+ *   app_win.c     the engagement windows that bound every release: kept
+ *                 in .noinit across resets, in EEPROM across power cycles (io->win)
  *   app_learn.c   learn, forget and the learned-target table copy         (app_t.learn)
  *   app_rec.c     the EEPROM records: homes, rest positions, history,
  *                 settings, written one byte per pass while idle          (app_t.rec)
- *   app_cmd.c     the console: its poll and the command handlers          (app_t.cmd)
+ *   app_cmd.c     the console: its poll, the command handlers, listings   (app_t.cmd)
  *   app_report.c  report lines and the flash words they use
  *   app_panel.c   button and LED                                          (app_t.panel)
  *
