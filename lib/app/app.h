@@ -234,6 +234,8 @@ typedef struct {
     uint8_t req_tendon;
     uint8_t auto_release;  /* ID of a servo in hardware error: reboot it, then release */
     uint8_t abort_owed;    /* a stop came after the run's end, before its report: release then */
+    uint8_t done_out;      /* the end of a run or move is noted in the kept windows once its
+                              <done> has left the board (a reset before that releases) */
     uint8_t reset_release; /* a reset cut a run or move: 1 owed, 2-5 early release under way, 6
                               released early or nothing to (app_boot_poll) */
     uint8_t recover_left;  /* device bring-ups left before the pending request is refused
@@ -269,6 +271,8 @@ typedef struct {
 /* app_rec.c: the EEPROM records and the homes of this power cycle. */
 typedef struct {
     uint8_t save_due;                /* records waiting for the EEPROM */
+    uint8_t win_fresh;               /* a run's fresh windows set, their record not yet queued */
+    uint8_t win_loop;                /* low byte of loops when the last fresh window was set */
     uint8_t save_now;                /* the record being written */
     uint8_t rest_due;                /* rest positions to record once the servos have stopped */
     int8_t homes_rc;                 /* store_homes_load() result */

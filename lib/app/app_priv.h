@@ -400,14 +400,16 @@ void app_win_take(app_t *a);
  * either side of where it stands: one and a half times its top-grid travel. */
 int32_t app_win_margin(const app_t *a, uint8_t i, int32_t *span);
 /* Tendon i's window with nothing known this power cycle (no kept window, no
- * stored home): around where it stands (docs/app.md, "Recovery"). Returns
- * its bound on the slack side. */
-int32_t app_win_fresh(app_t *a, uint8_t i);
-/* Before a run: every tendon that answered and has neither a window nor a
- * stored home gets a fresh one, and the windows are queued for the EEPROM
- * (APP_SAVE_WIN), so a power cut in the run does not cost a release more.
- * Nonzero while such a save is queued or under way: the run waits for it. */
-uint8_t app_win_before_run(app_t *a);
+ * stored home): the homing's own for a run at tension_mN, around where the
+ * tendon stands (docs/app.md, "Recovery"). Returns its bound on the slack
+ * side. */
+int32_t app_win_fresh(app_t *a, uint8_t i, uint16_t tension_mN);
+/* Before a run at tension_mN: every tendon that answered and has neither a
+ * window nor a stored home gets a fresh one (one tendon a call), then the
+ * windows are queued for the EEPROM (APP_SAVE_WIN), so a power cut in the
+ * run does not cost a release more. Nonzero while windows are being set or
+ * their save is queued or under way: the run waits. */
+uint8_t app_win_before_run(app_t *a, uint16_t tension_mN);
 /* Queues the record of the kept windows for the EEPROM (APP_SAVE_WIN). */
 void app_win_persist(app_t *a);
 /* That record, relative to where each servo stands now: built when its save

@@ -15,7 +15,7 @@
 static void run_done(app_t *a)
 {
     uint32_t t = app_now_ms(a);
-    app_win_moving(a, 0);
+    a->run.done_out = 1; /* the robot stands at its homes: noted once <done> is out */
     a->run.amb_ok |= hom_amb_captured(&a->u.hom); /* read before u.idle reuses the storage */
     if (a->run.mode != APP_MODE_SURVEY) {
         app_rec_take_homes(a, a->run.mask, a->run.tension);
@@ -95,7 +95,7 @@ static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon
     if (store_busy(&a->rec.store) || app_rec_busy(a)) {
         return CON_E_BUSY; /* finishes within a few hundred ms */
     }
-    if (mode != HOM_MODE_DRY && app_win_before_run(a)) {
+    if (mode != HOM_MODE_DRY && app_win_before_run(a, tension)) {
         return CON_PENDING; /* started once they are saved (run_or_defer()) */
     }
     memset(&cmd, 0, sizeof cmd);
@@ -157,6 +157,7 @@ static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon
     app_bus_positions_stale(a);
     a->state = APP_ST_CAL;
     app_win_moving(a, 1);
+    a->run.done_out = 0;
     app_panel_set(a, APP_LED_RUN);
     app_rec_rest_at(a, 0, 0);
     return 0;
@@ -257,6 +258,7 @@ APP_NOINLINE void app_run_step(app_t *a, hom_in_t *in)
 void app_run_move(app_t *a, uint8_t kind)
 {
     app_win_moving(a, 1);
+    a->run.done_out = 0;
     a->run.move_kind = kind;
     a->run.t_move = app_now_ms(a);
     app_bus_positions_stale(a);
@@ -302,7 +304,7 @@ static uint8_t release_goals(app_t *a, uint8_t blind)
             lo = app_rec_home(a, i) - dir * app_um_ticks(row.nm_per_tick, trav);
             app_win_set(a, i, lo, lo, 1);
         } else {
-            lo = app_win_fresh(a, i);
+            lo = app_win_fresh(a, i, (uint16_t)a->rec.set.v[STORE_SET_CAL_TENSION]);
             fresh = 1;
         }
         g = lo - m;
@@ -402,7 +404,7 @@ APP_NOINLINE void app_run_move_step(app_t *a)
         return;
     }
     app_rec_rest_at(a, 1, t);
-    app_win_moving(a, 0);
+    a->run.done_out = 1;
     if (a->run.move_kind == APP_MOVE_RELEASE) {
         app_learn_begin(a, APP_LEARN_BASELINE); /* the robot stands straight: capture B0 */
         return;
@@ -569,6 +571,15 @@ int8_t app_run_rebooted(app_t *a)
  * released the robot from the homes the run had just found). */
 void app_run_poll(app_t *a)
 {
+    if (a->run.done_out && con_out_drained(&a->cmd.con)) {
+        /* A reset-pin reset while a run's <done> was still in the output
+         * ring took the robot for at rest and left it at its homes, taut,
+         * while the host had not been told the run was over (chaos seed
+         * 7071: 823 mN for 1.9 s). Until the report is out, a reset counts
+         * as one in the run: the boot releases. */
+        a->run.done_out = 0;
+        app_win_moving(a, 0);
+    }
     if (a->run.abort_owed && app_idle_state(a)) {
         a->run.abort_owed = 0;
         app_abort(a);

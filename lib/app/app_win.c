@@ -100,36 +100,51 @@ APP_NOINLINE int32_t app_win_margin(const app_t *a, uint8_t i, int32_t *span)
     return dir * app_um_ticks(row.nm_per_tick, HOM_SLACK_MARGIN_UM);
 }
 
-int32_t app_win_fresh(app_t *a, uint8_t i)
+int32_t app_win_fresh(app_t *a, uint8_t i, uint16_t tension_mN)
 {
-    /* as the homing does: a stop that cost the window (a servo's reboot, a
-     * power-up) may have come after a release that tendon had not engaged
-     * since, so the search covers one release ahead (chaos seed 2017: a
-     * servo rebooted in the run's slack check, its tendon released again
-     * and searched short of it) */
-    int32_t s, m = app_win_margin(a, i, &s);
-    app_win_set(a, i, a->bus.present[i] - s, a->bus.present[i] + s + m, 1);
-    return a->bus.present[i] - s;
+    /* the homing's own (hom_fresh_window()): a stop that cost the window (a
+     * servo's reboot, a power-up) may have come after a release that tendon
+     * had not engaged since, so the search covers one release ahead (chaos
+     * seed 2017: a servo rebooted in the run's slack check, its tendon
+     * released again and searched short of it) */
+    hom_config_t cfg;
+    int32_t lo, hi;
+    hom_config_default(&cfg);
+    if (hom_fresh_window(&cfg, &a->htab, i, tension_mN, a->bus.present[i], &lo, &hi) != 0) {
+        lo = a->bus.present[i];
+        hi = lo;
+    }
+    app_win_set(a, i, lo, hi, 1);
+    return lo;
 }
 
-APP_NOINLINE uint8_t app_win_before_run(app_t *a)
+APP_NOINLINE uint8_t app_win_before_run(app_t *a, uint16_t tension_mN)
 {
-    uint8_t i, fresh = 0;
+    uint8_t i;
     if (a->io->win == NULL || !a->table_ok) {
         return 0;
     }
+    /* one tendon a pass: the table work takes 1-2 ms each (a press and the
+     * request it leaves both come here in the pass of the press) */
+    if (a->rec.win_fresh && a->rec.win_loop == (uint8_t)a->loops) {
+        return 1;
+    }
+    a->rec.win_loop = (uint8_t)a->loops;
     for (i = 0; i < a->info.n_tendons; i++) {
         if (!app_has(a->bus.absent, i) && app_has(a->bus.seen, i) &&
             !app_has(a->io->win->mask, i) && !app_has(a->rec.home_now, i)) {
-            app_win_fresh(a, i);
-            fresh = 1;
+            (void)app_win_fresh(a, i, tension_mN);
+            a->rec.win_fresh = 1;
+            return 1;
         }
     }
-    if (fresh) {
+    if (a->rec.win_fresh) {
+        /* every fresh window is set: their record goes to the EEPROM */
+        a->rec.win_fresh = 0;
         app_win_persist(a);
+        return 1;
     }
-    return (uint8_t)(fresh || (a->rec.save_due & APP_SAVE_WIN) != 0u ||
-                     a->rec.save_now == APP_SAVE_WIN);
+    return (uint8_t)((a->rec.save_due & APP_SAVE_WIN) != 0u || a->rec.save_now == APP_SAVE_WIN);
 }
 
 void app_win_persist(app_t *a)

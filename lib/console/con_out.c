@@ -241,6 +241,12 @@ uint8_t con_report_fits(const con_t *con)
                      con->io->room(con->io->ctx) >= CON_OUT_MAX + CON_RESERVE);
 }
 
+uint8_t con_out_drained(const con_t *con)
+{
+    return (uint8_t)(con->io->room == NULL ||
+                     con->io->room(con->io->ctx) >= CON_OUT_MAX + CON_RESERVE);
+}
+
 uint8_t con_line_fits(const con_t *con)
 {
     return (uint8_t)(con->io->room == NULL || con->io->room(con->io->ctx) >=

@@ -251,6 +251,8 @@ uint8_t con_report_fits(const con_t *con);
  * output ring now, in either mode: a listing writes its next line only then,
  * so no pass waits for the UART (docs/console.md). */
 uint8_t con_line_fits(const con_t *con);
+/* 1 when the output ring is (all but) empty: what was written has left. */
+uint8_t con_out_drained(const con_t *con);
 void con_report_int(con_t *con, const char *key, int32_t v);
 void con_report_fixed(con_t *con, const char *key, int32_t v, uint8_t decimals);
 void con_report_str(con_t *con, const char *key, const char *s);

@@ -67,6 +67,10 @@ int32_t hom_unwrap_home(int32_t stored, int32_t present);
 uint32_t hom_work_target(const hom_t *h, uint8_t k, uint32_t d, uint32_t abs_t);
 void hom_work_point(const hom_t *h, uint8_t i, uint16_t mN, tbl_point_t *pt);
 int32_t hom_pull(const hom_tendon_t *t, int32_t d);
+/* The engagement window around p: ahead ticks ahead of it in the pull
+ * direction dir, behind ticks behind it. */
+void hom_window_around(int8_t dir, int32_t ahead, int32_t behind, int32_t p, int32_t *lo,
+                       int32_t *hi);
 int32_t hom_slack_goal(const hom_tendon_t *t);
 uint32_t hom_since(const hom_t *h, uint32_t t);
 void hom_set_goal(hom_t *h, uint8_t i, int32_t goal, uint16_t vel);

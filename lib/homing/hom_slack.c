@@ -96,8 +96,8 @@ void hom_do_preflight(hom_t *h, const hom_in_t *in)
                     }
                     r = 0;
                 }
-                t->eng_hi = p + hom_pull(t, r);
-                t->eng_lo = p - hom_pull(t, (int32_t)t->release_ticks - t->margin_ticks);
+                hom_window_around(t->dir, r, (int32_t)t->release_ticks - t->margin_ticks, p,
+                                  &t->eng_lo, &t->eng_hi);
                 if (h->mode == HOM_MODE_QUICK) {
                     t->eng_hi = t->est_home - hom_pull(t, t->travel_ticks);
                     t->eng_lo = t->eng_hi;

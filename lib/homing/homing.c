@@ -308,6 +308,38 @@ HOM_NOINLINE void hom_work_point(const hom_t *h, uint8_t i, uint16_t mN, tbl_poi
     pt->target_cuT = hom_work_target(h, h->tendon[i].sensor, pt->target_cuT, pt->abs_target_cuT);
 }
 
+/* The slack kept beyond engagement at tension_mN for a tendon whose travel
+ * there is travel_um (load_tendon() says why). */
+HOM_NOINLINE static uint32_t margin_um(const hom_config_t *cfg, uint16_t tension_mN,
+                                       uint32_t travel_um)
+{
+    uint32_t r = cfg->slack_margin_um;
+    if (tension_mN > 1000u) {
+        r = r * tension_mN / 1000u;
+    }
+    if (travel_um + cfg->slack_margin_um / 4u > r) {
+        r = travel_um + cfg->slack_margin_um / 4u;
+    }
+    return r;
+}
+
+/* The first release when positions are unknown, for a tendon whose travel at
+ * the top of its grid is top_um (load_tendon() says why). */
+HOM_NOINLINE static uint32_t release_um(const hom_config_t *cfg, uint32_t top_um)
+{
+    if (cfg->initial_release_um != 0u) {
+        return cfg->initial_release_um;
+    }
+    return top_um + top_um / 2u + cfg->slack_margin_um;
+}
+
+void hom_window_around(int8_t dir, int32_t ahead, int32_t behind, int32_t p, int32_t *lo,
+                       int32_t *hi)
+{
+    *hi = p + dir * ahead;
+    *lo = p - dir * behind;
+}
+
 /* Tendon i's row for the run at its tension: what hom_start() left for the
  * preflight (the cmd fields are set). tbl_target() cannot fail here:
  * hom_start() checked the tendon count and the tension's range. */
@@ -317,7 +349,6 @@ HOM_NOINLINE static void load_tendon(hom_t *h, uint8_t i)
     tbl_point_t pt;
     tbl_info_t info;
     hom_tendon_t *t = &h->tendon[i];
-    uint32_t r;
     int32_t q8;
     (void)tbl_info(&h->table, &info);
     (void)tbl_tendon(&h->table, i, &row);
@@ -335,14 +366,8 @@ HOM_NOINLINE static void load_tendon(hom_t *h, uint8_t i)
      * the geometric take-up of that tendon's own pull (same moment, same
      * segments): its travel at the tension, plus a quarter of the margin
      * for a late engagement. */
-    r = h->cfg.slack_margin_um;
-    if (h->tension_mN > 1000u) {
-        r = r * h->tension_mN / 1000u;
-    }
-    if (pt.travel_um + h->cfg.slack_margin_um / 4u > r) {
-        r = pt.travel_um + h->cfg.slack_margin_um / 4u;
-    }
-    t->margin_ticks = hom_um_to_ticks(r, row.nm_per_tick);
+    t->margin_ticks =
+        hom_um_to_ticks(margin_um(&h->cfg, h->tension_mN, pt.travel_um), row.nm_per_tick);
     t->limit_ticks = hom_muldiv((int32_t)row.travel_limit_um, 1000, (int32_t)row.nm_per_tick);
     q8 = hom_straight_q8(t, pt.straight_um);
     t->to_straight = (int16_t)hom_floor_div256(q8);
@@ -361,12 +386,25 @@ HOM_NOINLINE static void load_tendon(hom_t *h, uint8_t i)
      * of its grid: one and a half times its travel there plus the margin
      * (each tendon its own, as the app's releases: the largest of them,
      * robot-wide, paid out 6.6 mm on a 3-segment robot's short tendons). */
-    r = row.travel_um[info.n_grid - 1u];
-    r = r + r / 2u + h->cfg.slack_margin_um;
-    if (h->cfg.initial_release_um != 0u) {
-        r = h->cfg.initial_release_um;
+    t->release_ticks = (uint16_t)hom_um_to_ticks(
+        release_um(&h->cfg, row.travel_um[info.n_grid - 1u]), row.nm_per_tick);
+}
+
+int hom_fresh_window(const hom_config_t *cfg, const tbl_src_t *table, uint8_t i,
+                     uint16_t tension_mN, int32_t p, int32_t *lo, int32_t *hi)
+{
+    tbl_tendon_t row;
+    tbl_point_t pt;
+    tbl_info_t info;
+    int32_t r, m;
+    if (tbl_info(table, &info) != 0 || tbl_tendon(table, i, &row) != 0 ||
+        tbl_target(table, i, tension_mN, &pt) != 0) {
+        return HOM_E_ARG;
     }
-    t->release_ticks = (uint16_t)hom_um_to_ticks(r, row.nm_per_tick);
+    r = hom_um_to_ticks(release_um(cfg, row.travel_um[info.n_grid - 1u]), row.nm_per_tick);
+    m = hom_um_to_ticks(margin_um(cfg, tension_mN, pt.travel_um), row.nm_per_tick);
+    hom_window_around(row.pull_dir < 0 ? -1 : 1, r, r - m, p, lo, hi);
+    return 0;
 }
 
 /* One piece of the run's set-up per preflight step: the table work of a

@@ -454,6 +454,15 @@ int hom_home(const hom_t *h, uint8_t i, int32_t *ticks);
  * 0 when i is out of range. */
 int16_t hom_to_straight(const hom_t *h, uint8_t i);
 
+/* The engagement window a run gives tendon i of table at tension_mN when
+ * nothing is known of it this power cycle (no window, no stored home),
+ * standing at p: from one initial release behind p, less the slack margin,
+ * to one initial release ahead (docs/homing.md, "Release decision"). The app
+ * takes it before the run starts, to save it for a power cycle. 0, or
+ * HOM_E_ARG when the table has no such tendon or tension. */
+int hom_fresh_window(const hom_config_t *cfg, const tbl_src_t *table, uint8_t i,
+                     uint16_t tension_mN, int32_t p, int32_t *lo, int32_t *hi);
+
 /* Tendon i's engagement window as the last run left it: the run's own
  * engagement when it engaged (low = high), otherwise the window it started
  * with. Returns 0 and writes *lo and *hi, or HOM_E_ARG when i is out of range

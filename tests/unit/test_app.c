@@ -484,6 +484,38 @@ static void test_servo_jammed_through_its_reboots(void **state)
     assert_int_equal(g_b.app.state, APP_ST_IDLE);
 }
 
+/* A reset-pin reset while a run's <done> is still in the output ring: the
+ * host was not told the run was over, so the boot releases (chaos seed
+ * 7071: the robot stayed at its homes, 823 mN, 1.9 s). Once the report is
+ * out, the robot rests at its homes and a reset leaves it there. */
+static void test_reset_before_the_done_is_out_releases(void **state)
+{
+    (void)state;
+    boot(&g_b, 1);
+    cmd(&g_b, "cal", "ok");
+    /* the pass that writes <done>, then a UART that has not sent it yet */
+    assert_true(app_bench_wait_line(&g_b, "<done mode=full", g_line, sizeof g_line, 30000));
+    con_fake_set_room(&g_b.con, 100);
+    app_bench_run_ms(&g_b, 20);
+    assert_int_equal(g_b.win.moving, 1);
+    app_bench_restart(&g_b, 0);
+    assert_true(app_bench_wait_line(&g_b, "<released reason=reset", g_line, sizeof g_line, 4000));
+    app_bench_run_ms(&g_b, 500);
+    for (uint8_t i = 0; i < 6; i++) {
+        assert_true(app_bench_tension(&g_b, i) < 0.001);
+    }
+    /* the same with the report out: the robot stays at its homes */
+    con_fake_set_room(&g_b.con, -1);
+    cmd(&g_b, "cal", "ok");
+    assert_true(app_bench_wait_line(&g_b, "<done mode=full", g_line, sizeof g_line, 30000));
+    app_bench_run_ms(&g_b, 20);
+    assert_int_equal(g_b.win.moving, 0);
+    app_bench_restart(&g_b, 0);
+    assert_true(app_bench_wait_line(&g_b, "<ready ", g_line, sizeof g_line, 4000));
+    app_bench_run_ms(&g_b, 500);
+    assert_true(app_bench_tension(&g_b, 0) > 0.3);
+}
+
 /* Listings go out a line a main-loop pass and are answered after the last:
  * written at once they held the loop 13-73 ms at rest. Each is complete and
  * in order. */
@@ -936,6 +968,7 @@ int main(void)
         cmocka_unit_test(test_servo_reboot_reply_lost),
         cmocka_unit_test(test_power_cuts_after_the_release_pay_out_once),
         cmocka_unit_test(test_listings_one_line_a_pass),
+        cmocka_unit_test(test_reset_before_the_done_is_out_releases),
         cmocka_unit_test(test_servo_jammed_through_its_reboots),
         cmocka_unit_test(test_settings),
         cmocka_unit_test(test_absolute_target_mode),

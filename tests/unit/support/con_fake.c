@@ -25,6 +25,17 @@ static void fake_write(void *ctx, const char *buf, uint8_t n)
     f->out[f->out_len] = '\0';
 }
 
+static uint16_t fake_room(void *ctx)
+{
+    return ((con_fake_t *)ctx)->room;
+}
+
+void con_fake_set_room(con_fake_t *f, int32_t room)
+{
+    f->room = (uint16_t)(room < 0 ? 0 : room);
+    f->io.room = room < 0 ? NULL : fake_room;
+}
+
 void con_fake_init(con_fake_t *f)
 {
     memset(f, 0, sizeof(*f));

@@ -20,10 +20,16 @@ typedef struct {
     char out[CON_FAKE_OUT_MAX + 1];
     size_t out_len, out_taken;
     uint32_t overflow; /* output bytes lost because the buffer was full */
+    uint16_t room;     /* what io.room reports, once con_fake_set_room() installed it */
     con_io_t io;
 } con_fake_t;
 
 void con_fake_init(con_fake_t *f);
+
+/* Gives the console a transmit-ring room of `room` bytes (a UART still
+ * sending); room < 0 takes the room function away again (none: the
+ * console's writes never wait). */
+void con_fake_set_room(con_fake_t *f, int32_t room);
 
 /* Appends n input bytes (dropped beyond CON_FAKE_IN_MAX). */
 void con_fake_feed(con_fake_t *f, const void *bytes, size_t n);
