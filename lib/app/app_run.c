@@ -423,7 +423,10 @@ APP_NOINLINE static void keep_request(app_t *a, uint8_t mode, uint16_t tension, 
 {
     a->run.req_start = 1;
     a->run.req_con = from_con;
-    a->run.req_btn = 0;
+    /* a press asks for the run the board offers when it starts: a quick
+     * re-home kept while the devices came up again was refused (error 22)
+     * once that bring-up found the homes moved (chaos seed 7416) */
+    a->run.req_btn = (uint8_t)!from_con;
     a->run.req_mode = mode;
     a->run.req_tension = tension;
     a->run.req_tendon = tendon;

@@ -516,6 +516,45 @@ static void test_reset_before_the_done_is_out_releases(void **state)
     assert_true(app_bench_tension(&g_b, 0) > 0.3);
 }
 
+/* A press asks for the run the board offers when the run starts: a quick
+ * re-home kept while a missing sensor was brought up again was refused
+ * (error 22) once that bring-up found a spool moved (chaos seed 7416). */
+static void test_press_kept_over_a_bring_up_takes_the_new_offer(void **state)
+{
+    int moved = 0;
+    (void)state;
+    boot(&g_b, 1);
+    cmd(&g_b, "cal", "ok");
+    assert_true(app_bench_wait_line(&g_b, "<done mode=full", g_line, sizeof g_line, 30000));
+    app_bench_run_ms(&g_b, 3000); /* homes and rest positions written */
+    app_bench_restart(&g_b, 1);
+    assert_true(app_bench_wait_line(&g_b, "<ready ", g_line, sizeof g_line, 4000));
+    assert_int_equal(app_bench_field(g_line, "rehome", -1), 1);
+    /* a sensor unplugged: the press (a quick re-home, as offered) is kept
+     * while the devices come up again; meanwhile the record of tendon 3's
+     * rest says its spool stood 1500 ticks away (as when a run cut by the
+     * power moved it before its rest was recorded): that bring-up finds the
+     * homes moved and offers a full calibration instead */
+    g_b.icm[1].present = 0;
+    app_bench_run_ms(&g_b, 300);
+    store_home_set(&g_b.app.rec.homes.t[3], g_b.app.rec.homes.t[3].home_ticks,
+                   g_b.app.rec.homes.t[3].rest_ticks + 1500);
+    g_b.button = 1;
+    app_bench_run_ms(&g_b, 100);
+    g_b.icm[1].present = 1; /* plugged back as the button is let go */
+    g_b.button = 0;
+    for (;;) {
+        assert_true(app_bench_wait_line(&g_b, "<", g_line, sizeof g_line, 6000));
+        assert_null(strstr(g_line, "reason=refused"));
+        moved |= strncmp(g_line, "<ready ", 7) == 0 && strstr(g_line, "homes=moved") != NULL;
+        if (strncmp(g_line, "<progress state=start", 21) == 0) {
+            break;
+        }
+    }
+    assert_true(moved);
+    assert_non_null(strstr(g_line, "mode=full"));
+}
+
 /* Listings go out a line a main-loop pass and are answered after the last:
  * written at once they held the loop 13-73 ms at rest. Each is complete and
  * in order. */
@@ -969,6 +1008,7 @@ int main(void)
         cmocka_unit_test(test_power_cuts_after_the_release_pay_out_once),
         cmocka_unit_test(test_listings_one_line_a_pass),
         cmocka_unit_test(test_reset_before_the_done_is_out_releases),
+        cmocka_unit_test(test_press_kept_over_a_bring_up_takes_the_new_offer),
         cmocka_unit_test(test_servo_jammed_through_its_reboots),
         cmocka_unit_test(test_settings),
         cmocka_unit_test(test_absolute_target_mode),
