@@ -165,7 +165,14 @@ def motion_spans(console, attempts: list[dict]) -> list[tuple[float, float]]:
 
 def first_attempt(attempts: list[dict], console, t0: float, within: float = 6.0):
     """The calibration a press or `cal` at t0 started: its start report, or a
-    fault that refused it, within `within` s."""
+    fault that refused it, within `within` s. A run already under way at t0
+    (a press kept over a release started it just before) is the one that
+    answers: a press while a run goes is ignored, as documented (seed 8387:
+    the final press came 0.27 s into such a run, and the checker took a
+    background `cal 99`'s error for its answer)."""
+    for a in attempts:
+        if a["t"] < t0 and (a["end_t"] is None or a["end_t"] > t0):
+            return a
     for t, ln in console:
         if t < t0:
             continue

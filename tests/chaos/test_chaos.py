@@ -204,6 +204,19 @@ def test_a_refused_press_at_rest_is_not_a_stop():
     assert list(chk.check(_Sch(), _summary(**held), other).violations) == ["release"]
 
 
+def test_a_press_during_a_run_is_answered_by_that_run():
+    """A press kept over a release started a run 0.27 s before the final
+    press, which the board ignores while a run goes (seed 8387: the checker
+    took a background `cal 99`'s error:3 for the final press's answer)."""
+    console = [(8.317, "<progress state=start mode=full tension_mN=800>"),
+               (8.664, "error:3 argument out of range"),
+               (12.0, "<done mode=full target=delta time_ms=1 tension_mN=800 count=1>")]
+    a = chk.first_attempt(chk.runs(console), console, 8.59)
+    assert a is not None and a["end"].startswith("<done mode=full"), a
+    # a run that ended before the press does not answer it
+    assert chk.first_attempt(chk.runs(console), console, 12.5) is None
+
+
 class _SchCut:
     """A clean `cal` (step 1) sent 2.6 s after an overrun cut a long line;
     the final calibration (step 2) 7 s later."""
