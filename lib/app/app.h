@@ -64,8 +64,11 @@
 #define APP_REBOOT_TRIES    3u     /* reboots of a servo in hardware error before it is named */
 /* After a reset that cut a run: how long the bring-up waits for the early
  * release (v_release, about 3100 ticks/s) to slacken the tendons; a tendon
- * 150 ticks past engagement is slack after 50 ms. */
-#define APP_EARLY_RELEASE_MS 60u
+ * 150 ticks past engagement is slack after 50 ms, one in the final move
+ * (its straight-pose goal, the profile's acceleration) took longer, and the
+ * bring-up's torque cycle stopped it taut until the full release after the
+ * bring-up: 171-380 ms (chaos seeds 8153, 7421). */
+#define APP_EARLY_RELEASE_MS 120u
 #define APP_BUS_WATCHDOG                                                                           \
     10u                           /* XL430 Bus Watchdog, 20 ms units: servos stop 200 ms           \
                                        after the last instruction (board hung or reset) */

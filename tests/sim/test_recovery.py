@@ -169,7 +169,9 @@ def test_a_press_kept_while_a_record_is_written_still_brings_the_devices_up(tmp_
               "--at", "step on ^<done +1.5s send cal",
               "--at", "step on ^<progress.state=release +250ms sensor-unplug 0",
               "--at", "step on ^<fault +1.03s press 100", "--at", "step +0.15s sensor-plug 0",
-              "--until", "^<(done.mode=full.*count=2|fault.reason=refused)")
+              "--until", "^<(done.mode=(full|quick).*count=2|fault.reason=refused)")
+    # (the press takes the board's offer when its run starts: the bring-up
+    # recovered every home, so a quick re-home)
     assert not [f for _, f in r.of("fault") if f.get("reason") == "refused"], r.context()
     assert r.rc == 0 and r.summary["reason"] == "until matched", r.context()
 
