@@ -38,7 +38,7 @@ APP_NOINLINE static void put32(uint8_t *p, uint32_t v)
     p[3] = (uint8_t)(v >> 24);
 }
 
-APP_NOINLINE static void servo_done(app_t *a, int8_t rc)
+APP_NOINLINE static void servo_done(app_t *a)
 {
     uint8_t i;
     uint16_t got = 0;
@@ -94,7 +94,6 @@ APP_NOINLINE static void servo_done(app_t *a, int8_t rc)
          * 3037: the reply's length byte flipped, the two retries found the
          * servo booting, and the runs that followed pulled against a tendon
          * whose servo never took its release. */
-        (void)rc;
         app_boot_again(a);
     }
     a->bus.txn = APP_TX_NONE;
@@ -271,9 +270,10 @@ void app_bus_poll(app_t *a)
         if (rc > 0) {
             return;
         }
-        servo_done(a, rc);
+        servo_done(a);
     } else if (a->bus.txn != APP_TX_NONE) {
-        servo_done(a, dxl_poll(&a->bus.dxl));
+        (void)dxl_poll(&a->bus.dxl);
+        servo_done(a);
     }
     if (a->state != APP_ST_BOOT || a->boot.step == 2u) {
         servo_next(a);

@@ -492,48 +492,51 @@ static int8_t h_reboot(app_t *a, const con_args_t *args)
     return CON_PENDING;
 }
 
+/* Items of the listing under way. */
+static uint8_t list_len(const app_t *a)
+{
+    switch (a->cmd.list) {
+    case APP_LIST_SENSORS:
+        return a->info.n_sensors;
+    case APP_LIST_HISTORY:
+        return a->cmd.list_arg;
+    case APP_LIST_SETTINGS:
+        return STORE_SETTING_COUNT;
+    case APP_LIST_NONE:
+        return 0;
+    default:
+        return a->info.n_tendons; /* homes, servos, tendons */
+    }
+}
+
 /* The next line of the listing under way: 1 when one was written (or an
  * item skipped), 0 at its end. */
 APP_NOINLINE static uint8_t list_line(app_t *a)
 {
     uint8_t i = a->cmd.list_i++;
+    if (i >= list_len(a)) {
+        return 0;
+    }
     switch (a->cmd.list) {
     case APP_LIST_HOMES:
-        if (i >= a->info.n_tendons) {
-            return 0;
-        }
         if (app_has(a->rec.homes.valid_mask, i)) {
             home_line(a, i);
         }
         return 1;
     case APP_LIST_SENSORS:
-        if (i >= a->info.n_sensors) {
-            return 0;
-        }
         sensor_line(a, i);
         return 1;
     case APP_LIST_SERVOS:
-        if (i >= a->info.n_tendons) {
-            return 0;
-        }
         app_rep_servo(a, i, a->cmd.list_arg);
         return 1;
     case APP_LIST_TENDONS:
-        if (i >= a->info.n_tendons) {
-            return 0;
-        }
         tendon_line(a, i);
         return 1;
     case APP_LIST_HISTORY:
-        return (uint8_t)(i < a->cmd.list_arg && hist_line(a, i) == 0);
-    case APP_LIST_SETTINGS:
-        if (i >= STORE_SETTING_COUNT) {
-            return 0;
-        }
+        return (uint8_t)(hist_line(a, i) == 0); /* a lost entry ends it */
+    default:
         setting_line(a, i);
         return 1;
-    default:
-        return 0;
     }
 }
 

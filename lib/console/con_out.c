@@ -235,22 +235,26 @@ void con_reply(con_t *c, int8_t rc)
 
 /* ---- reports ----------------------------------------------------- */
 
+/* 1 when the output ring has room for n bytes (always, without a room
+ * function: writes then never wait). */
+static uint8_t has_room(const con_t *con, uint16_t n)
+{
+    return (uint8_t)(con->io->room == NULL || con->io->room(con->io->ctx) >= n);
+}
+
 uint8_t con_report_fits(const con_t *con)
 {
-    return (uint8_t)(!con->realtime || con->io->room == NULL ||
-                     con->io->room(con->io->ctx) >= CON_OUT_MAX + CON_RESERVE);
+    return (uint8_t)(!con->realtime || has_room(con, CON_OUT_MAX + CON_RESERVE));
 }
 
 uint8_t con_out_drained(const con_t *con)
 {
-    return (uint8_t)(con->io->room == NULL ||
-                     con->io->room(con->io->ctx) >= CON_OUT_MAX + CON_RESERVE);
+    return has_room(con, CON_OUT_MAX + CON_RESERVE);
 }
 
 uint8_t con_line_fits(const con_t *con)
 {
-    return (uint8_t)(con->io->room == NULL || con->io->room(con->io->ctx) >=
-                                                  CON_OUT_MAX + (con->realtime ? CON_RESERVE : 0u));
+    return has_room(con, CON_OUT_MAX + (con->realtime ? CON_RESERVE : 0u));
 }
 
 void con_report_begin(con_t *con, const char *kind)
