@@ -9,6 +9,7 @@
 #include <string.h>
 
 #include "app/app_priv.h"
+#include "dxl/dxl_xl430_reg.h"
 
 /* A run finished: keep its homes (calibration frame = this power cycle's
  * frame, so the offsets become 0), count it and queue the records. */
@@ -349,6 +350,12 @@ void app_abort(app_t *app)
              * the bring-up from its start; chaos seed 2090: a `!` during
              * `servos` was dropped and the robot stayed taut 1.7 s) */
             dxl_abort(&app->bus.dxl);
+            /* torque on first, broadcast: a servo the bring-up had
+             * switched off to check its EEPROM area takes no goal, and
+             * the tendon stayed taut until the bring-up's end (seed 2090:
+             * 243 ms at 778 mN). Nothing else switches torque off. */
+            (void)dxl_write_value(&app->bus.dxl, DXL_BROADCAST_ID, DXL_XL430_TORQUE_ENABLE_ADDR, 1u,
+                                  1u);
             app->run.reset_release = 1;
             app_boot_again(app);
         }

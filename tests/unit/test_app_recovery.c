@@ -335,6 +335,57 @@ static void test_press_kept_over_a_bring_up_takes_the_new_offer(void **state)
     assert_non_null(strstr(g_line, "mode=full"));
 }
 
+/* True when no tendon carries more than 1 mN. */
+static int all_slack(const app_bench_t *b)
+{
+    uint8_t i;
+    for (i = 0; i < 6; i++) {
+        if (app_bench_tension(b, i) > 0.001) {
+            return 0;
+        }
+    }
+    return 1;
+}
+
+/* A stop during a bring-up again (`servos` at rest, the robot taut at its
+ * homes). The bring-up switches each servo's torque off in turn to check its
+ * EEPROM area, and a servo with torque off takes no goal. Whichever servo is
+ * off at the stop, every tendon is slack within 100 ms (chaos seed 2090: the
+ * early release skipped the servo that was off, and its tendon stayed at
+ * 778 mN for 243 ms, until the bring-up's end). */
+static void test_stop_in_a_bring_up_with_a_servo_off_releases(void **state)
+{
+    uint8_t k;
+    (void)state;
+    boot(&g_b, 1);
+    press(&g_b, 100);
+    assert_true(app_bench_wait_line(&g_b, "<done mode=full", g_line, sizeof g_line, 30000));
+    for (k = 0; k < 6; k++) {
+        uint64_t t0;
+        if (k > 0) {
+            press(&g_b, 100);
+            assert_true(
+                app_bench_wait_line(&g_b, "<done mode=quick", g_line, sizeof g_line, 30000));
+        }
+        app_bench_run_ms(&g_b, 1500); /* the homes' save is over */
+        assert_false(all_slack(&g_b));
+        app_bench_send(&g_b, "servos");
+        t0 = g_b.now_us;
+        while (g_b.now_us - t0 < 300000u &&
+               xl430_get(&g_b.servo[k], DXL_XL430_TORQUE_ENABLE_ADDR, 1) != 0u) {
+            app_bench_step(&g_b);
+        }
+        assert_int_equal(xl430_get(&g_b.servo[k], DXL_XL430_TORQUE_ENABLE_ADDR, 1), 0);
+        (void)con_rt_byte(&g_b.rt, '!');
+        t0 = g_b.now_us;
+        while (g_b.now_us - t0 < 100000u && !all_slack(&g_b)) {
+            app_bench_step(&g_b);
+        }
+        assert_true(all_slack(&g_b));
+        assert_true(app_bench_wait_line(&g_b, "<done mode=release", g_line, sizeof g_line, 3000));
+    }
+}
+
 /* The board stops running passes for this long while the bus and the servos
  * run on (a hang; the AVR's watchdog resets it after 500 ms). */
 static void hang(app_bench_t *b, uint32_t us)
@@ -403,6 +454,7 @@ int main(void)
         cmocka_unit_test(test_press_kept_over_a_bring_up_takes_the_new_offer),
         cmocka_unit_test(test_servo_jammed_through_its_reboots),
         cmocka_unit_test(test_realtime_abort_releases),
+        cmocka_unit_test(test_stop_in_a_bring_up_with_a_servo_off_releases),
         cmocka_unit_test(test_release_goals_never_wait_for_console_output),
         cmocka_unit_test(test_long_press_aborts),
         cmocka_unit_test(test_servo_fault_mid_run),
