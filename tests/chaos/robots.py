@@ -174,7 +174,8 @@ def build(r: Robot) -> Robot:
 
 # What a cached table and plant config are made by: a newer one of these
 # (a new table format, say) makes them again.
-GENERATOR = [ROOT / "lib" / "table" / "table.h", ROOT / "host_tools" / "hallhome" / "tablegen.py",
+GENERATOR = [ROOT / "lib" / "table" / "table.h",
+             *sorted((ROOT / "host_tools" / "hallhome").glob("tablegen*.py")),
              ROOT / "host_tools" / "hallhome" / "plantcfg.py"]
 
 
