@@ -70,6 +70,7 @@ HOM_NOINLINE void hom_begin_tendon(hom_t *h, uint8_t i)
     h->n_pts = 0;
     h->steps = 0;
     h->far = 0;
+    h->b_top = 0;
     h->slope_q8 = hom_table_slope(h, i);
     h->slope_min_q8 = (h->slope_q8 >> 1) + 1; /* at least 1: a divisor */
     h->pos_at_sample = h->present[i];
@@ -162,6 +163,31 @@ static int near_target(const hom_tendon_t *t, uint32_t b, uint16_t permille)
     return (int32_t)b >= hom_muldiv((int32_t)t->target_cuT, permille, 1000);
 }
 
+/* An engaged tendon is only pulled further (a back-off starts afresh), so
+ * the field it moves may not fall. Two fresh samples in a row more than an
+ * eighth of the highest since the engagement (and eight times the noise)
+ * below it: the field no longer follows the tendon (the magnet moved or
+ * gone, an ambient field changed, a sensor knocked), and steps that chase
+ * the target would pull on to the travel limit (chaos seed 8390: the magnet
+ * removed after the first fine point, 4.9 x the target). Returns 1 when the
+ * run ended in HOM_F_FIELD_STEP. */
+HOM_NOINLINE static int field_fell(hom_t *h, uint8_t sel, uint32_t b)
+{
+    uint32_t tol = h->b_top / 8u + 8u * (uint32_t)h->noise_cuT;
+    if (b > h->b_top) {
+        h->b_top = b;
+    }
+    if (b + tol >= h->b_top) {
+        h->b_low = 0;
+        return 0;
+    }
+    if (++h->b_low < 2u) {
+        return 0;
+    }
+    hom_fail(h, HOM_F_FIELD_STEP, HOM_DEV_SENSOR, sel, (int32_t)(h->b_top - b));
+    return 1;
+}
+
 /* Close to the target while moving: stop two ticks on from the present
  * position p (unless the goal is nearer) and go on with fine points. */
 HOM_NOINLINE static void stop_short(hom_t *h, int32_t p)
@@ -200,6 +226,9 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
          * sync write gets no status) and still runs to an older one; send
          * it again, every 10 ms until it takes */
         hom_set_goal(h, h->cur, h->out.goal[h->cur], h->out.vel[h->cur]);
+    }
+    if (fresh && t->engaged && h->state != ST_BACKOFF && field_fell(h, sel, b)) {
+        return;
     }
     switch (h->state) {
     case ST_TAKEUP:

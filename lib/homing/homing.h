@@ -322,6 +322,7 @@ typedef struct {
     uint8_t n_near;     /* fine: samples to average at a near point */
     uint8_t n_pts;      /* fine: near points kept */
     uint8_t far;        /* fine: the last point put the target beyond the travel limit */
+    uint8_t b_low;      /* pull: samples in a row below b_top by more than the tolerance */
     uint8_t ev_head;
     uint8_t ev_count;
     uint8_t ev_dropped;
@@ -339,6 +340,7 @@ typedef struct {
     uint32_t tendon_ms;    /* the last tendon's time from its start to its recorded home */
     int32_t p_prev;        /* fine: previous point (position, |dB|) */
     uint32_t b_prev;
+    uint32_t b_top;       /* pull: highest |dB| since the engagement or the last back-off */
     int32_t mod_goal;     /* re-approach: moderate goal after an overshoot */
     int32_t search_end;   /* take-up: where the search for engagement ends */
     int32_t slope_q8;     /* fine: current slope estimate, cuT per tick * 256 */

@@ -58,6 +58,8 @@ int plant_run(const plant_run_cfg_t *rc, plant_run_result_t *res)
     int ended = 0;
     int step_rc = HOM_RUNNING;
     int32_t engage[TBL_MAX_TENDONS];
+    double b_start[3] = {0.0, 0.0, 0.0};
+    uint8_t fall_set = 0;
     uint8_t engaged[TBL_MAX_TENDONS];
     int8_t pull_dir[TBL_MAX_TENDONS];
     tbl_info_t info;
@@ -112,6 +114,9 @@ int plant_run(const plant_run_cfg_t *rc, plant_run_result_t *res)
         engage[i] = 0;
     }
     (void)plant_solve(&plant);
+    if (rc->fault == PLANT_FI_FIELD_FALL && rc->fault_index < pcfg.n_sensors) {
+        plant_field_true(&plant, rc->fault_index, b_start);
+    }
 
     hom_init(&h, rc->hom);
     step_rc = hom_start(&h, &src, &rc->cmd);
@@ -141,6 +146,26 @@ int plant_run(const plant_run_cfg_t *rc, plant_run_result_t *res)
             } else {
                 plant.extra_uT[rc->fault_index][0] = 3000.0;
             }
+        }
+        if (faulting && rc->fault == PLANT_FI_FIELD_FALL && !fall_set &&
+            rc->fault_index < pcfg.n_sensors) {
+            double b_now[3], d2 = 0.0;
+            int ax;
+            plant_field_true(&plant, rc->fault_index, b_now);
+            for (ax = 0; ax < 3; ax++) {
+                d2 += (b_now[ax] - b_start[ax]) * (b_now[ax] - b_start[ax]);
+            }
+            if (d2 >= rc->fall_at_uT * rc->fall_at_uT) {
+                for (ax = 0; ax < 3; ax++) {
+                    plant.extra_uT[rc->fault_index][ax] = -0.5 * (b_now[ax] - b_start[ax]);
+                }
+                fall_set = 1;
+            }
+        }
+        if (faulting && rc->fault == PLANT_FI_MAGNET_REMOVED &&
+            plant.cfg.magnet_moment_Am2 != 0.0) {
+            plant.cfg.magnet_moment_Am2 = 0.0;
+            moved = 1;
         }
         if (moved) {
             (void)plant_solve(&plant);

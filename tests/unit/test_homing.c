@@ -376,6 +376,92 @@ static void test_magnet_missing_no_prediction(void **state)
     assert_true(g_res.released && g_res.release_ms <= 400u);
 }
 
+/* On a run without faults: when tendon k engages (ms). */
+static uint32_t engaged_at(plant_run_cfg_t *rc, uint8_t k)
+{
+    uint32_t t = 0;
+    uint16_t e;
+    rc->fault = PLANT_FI_NONE;
+    assert_int_equal(plant_run(rc, &g_res), 0);
+    for (e = 0; e < g_res.n_events; e++) {
+        if (g_res.events[e].index == k && g_res.events[e].type == HOM_EV_ENGAGED) {
+            t = g_res.events[e].t_ms;
+        }
+    }
+    assert_true(t > 0u);
+    return t;
+}
+
+/* Tendon k's table target at tension mN (the grid point at or above it), uT. */
+static double target_uT(uint8_t k, uint16_t mN)
+{
+    uint8_t g = 0;
+    while (g + 1u < g_tab.n_grid && g_tab.grid_mN[g] < mN) {
+        g++;
+    }
+    return g_tab.tendons[k].target_cuT[g] / 100.0;
+}
+
+/* The run ended in a fault with every tendon released within 100 ms, none
+ * past 1.25 x the target + 0.1 N. */
+static void assert_bounded_and_released(const plant_run_cfg_t *rc)
+{
+    uint8_t i;
+    assert_true(g_res.released && g_res.release_ms <= 100u);
+    for (i = 0; i < g_res.n_tendons; i++) {
+        assert_true(g_res.max_tension_N[i] <= 1.25e-3 * rc->cmd.tension_mN + 0.1);
+    }
+}
+
+/* The field stops following the tendon in its pull, after the engagement
+ * (each tendon in turn, 30-80 % of the way to its target): an ambient field
+ * against the tendon's cancels half of its change. The run ends at once in
+ * HOM_F_FIELD_STEP on that sensor. Before, steps that chase a target the
+ * field no longer shows went on to the travel limit (chaos seed 8390: the
+ * magnet removed, 4.9 x the target). */
+static void test_field_falls_while_pulling(void **state)
+{
+    plant_run_cfg_t rc;
+    uint8_t k;
+    (void)state;
+    plant_run_defaults(&rc, &g_cfg, hom_fix_pack(&g_tab));
+    rc.seed = 11;
+    rc.cmd.tension_mN = 800;
+    for (k = 0; k < g_tab.n_tendons; k++) {
+        /* past a take-up's overshoot and its back-off, when the field has
+         * come 30-80 % of the way */
+        rc.fault_ms = engaged_at(&rc, k) + 130u;
+        rc.fall_at_uT = target_uT(k, 800) * (0.3 + 0.1 * k);
+        rc.fault = PLANT_FI_FIELD_FALL;
+        rc.fault_index = g_tab.tendons[k].sensor;
+        assert_int_equal(plant_run(&rc, &g_res), 0);
+        assert_int_equal(g_res.fault, HOM_F_FIELD_STEP);
+        assert_int_equal(g_res.fault_index, rc.fault_index);
+        assert_bounded_and_released(&rc);
+    }
+}
+
+/* The magnet taken off the tip in each tendon's pull: on this robot the
+ * field then jumps past the target, and the run ends without a home
+ * (HOM_F_NO_PROGRESS), released, the pull bounded. */
+static void test_magnet_removed_while_pulling(void **state)
+{
+    plant_run_cfg_t rc;
+    uint8_t k;
+    (void)state;
+    plant_run_defaults(&rc, &g_cfg, hom_fix_pack(&g_tab));
+    rc.seed = 11;
+    rc.cmd.tension_mN = 800;
+    for (k = 0; k < g_tab.n_tendons; k++) {
+        rc.fault_ms = engaged_at(&rc, k) + 130u;
+        rc.fault = PLANT_FI_MAGNET_REMOVED;
+        assert_int_equal(plant_run(&rc, &g_res), 0);
+        assert_true(g_res.fault == HOM_F_NO_PROGRESS || g_res.fault == HOM_F_FIELD_STEP);
+        assert_int_equal(g_res.have_home[k], 0);
+        assert_bounded_and_released(&rc);
+    }
+}
+
 static void test_target_unreachable(void **state)
 {
     /* targets three times what the robot can give within its travel limit */
@@ -505,6 +591,8 @@ int main(void)
         cmocka_unit_test(test_field_rate),
         cmocka_unit_test(test_magnet_missing),
         cmocka_unit_test(test_magnet_missing_no_prediction),
+        cmocka_unit_test(test_field_falls_while_pulling),
+        cmocka_unit_test(test_magnet_removed_while_pulling),
         cmocka_unit_test(test_target_unreachable),
         cmocka_unit_test(test_travel_limit),
         cmocka_unit_test(test_soft_tendon_released),
