@@ -161,5 +161,6 @@ int main(void)
          * (sim/bench/looptime.c); one OUT instruction on the chip */
         GPIOR0 = 0;
         (void)app_poll(&app);
+        stack_sweep();
     }
 }

@@ -356,7 +356,10 @@ static void tendon_line(app_t *a, uint8_t i)
     uint8_t g, pos = 0;
     tbl_tendon_t row, eff;
     (void)tbl_tendon(&a->tab, i, &row);
-    (void)tbl_tendon(&a->htab, i, &eff);
+    eff = row;
+    if (app_has(a->learn.mask, i)) {
+        (void)tbl_tendon(&a->htab, i, &eff); /* its learned targets (0.4 ms) */
+    }
     app_rep_begin(a, app_w_tendon);
     app_rep_u8(a, app_w_tendon, i);
     APP_REP_FIELDS(a, &row, tendon_fields);

@@ -212,7 +212,10 @@ void app_rep_end(app_t *a);
 /* key=0x%08x (table_id) without a printf */
 void app_rep_hex(app_t *a, const char *key, uint32_t v);
 /* key=<word i of the flash list words_f> ("?" past its end) */
-void app_rep_word(app_t *a, const char *key, const char *words_f, uint8_t i);
+static inline void app_rep_word(app_t *a, const char *key, const char *words_f, uint8_t i)
+{
+    con_report_word(&a->cmd.con, key, words_f, i);
+}
 /* Appends the decimal v (and mark unless '\0') to the comma list in buf at
  * *pos (capacity cap); a value that does not fit is left out. */
 void app_list_add(char *buf, uint8_t cap, uint8_t *pos, int32_t v, char mark);

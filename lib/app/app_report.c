@@ -99,30 +99,6 @@ void app_list_add(char *buf, uint8_t cap, uint8_t *pos, int32_t v, char mark)
     buf[*pos] = '\0';
 }
 
-/* Writes key=<word i of the flash list words_f> (space-separated; "?" past
- * its end): one routine instead of a table of string pointers in RAM. */
-void app_rep_word(app_t *a, const char *key, const char *words_f, uint8_t i)
-{
-    char buf[16], c;
-    uint8_t n = 0;
-    for (;;) {
-        a->io->con_copy(&c, words_f++, 1);
-        if (c == '\0' || c == ' ') {
-            if (i == 0u || c == '\0') {
-                break;
-            }
-            i--;
-        } else if (i == 0u && n < sizeof buf - 1u) {
-            buf[n++] = c;
-        }
-    }
-    if (i != 0u || n == 0u) {
-        buf[n++] = '?';
-    }
-    buf[n] = '\0';
-    con_report_str(&a->cmd.con, key, buf);
-}
-
 /* name=hallhome version=... board=... (those the board names) */
 void app_rep_ident(app_t *a)
 {

@@ -323,6 +323,33 @@ void con_report_flash(con_t *con, const char *key, const char *s)
     }
 }
 
+void con_report_word(con_t *con, const char *key, const char *words, uint8_t i)
+{
+    /* read here a byte at a time with LPM: through the copy function (a call
+     * per byte) the fault word of a `status` took 1 ms */
+    char buf[16], ch;
+    uint8_t n = 0;
+    if (con->mute) {
+        return;
+    }
+    for (;; words++) {
+        ch = con_fl_char(con, words);
+        if (ch == '\0' || ch == ' ') {
+            if (i == 0u || ch == '\0') {
+                break;
+            }
+            i--;
+        } else if (i == 0u && n < sizeof buf - 1u) {
+            buf[n++] = ch;
+        }
+    }
+    if (i != 0u || n == 0u) {
+        buf[n++] = '?';
+    }
+    buf[n] = '\0';
+    con_report_str(con, key, buf);
+}
+
 void con_report_end(con_t *con)
 {
     if (con->mute) {

@@ -3,6 +3,7 @@
  * checks against the synopses, number parsing, command names and the help
  * listing. con_priv.h lists the console's files.
  */
+#include <stddef.h>
 #include <string.h>
 
 #include "console/con_priv.h"
@@ -25,6 +26,33 @@ static const char con_cmd_text[] CON_FLASH =
 #include "console/con_commands.def"
 #undef CON_CMD
     ;
+
+/* The same strings as members of a struct (of chars: no padding), so that
+ * offsetof() says at compile time where each command's entry starts. */
+typedef struct {
+#define CON_CMD(id, name, synopsis, help)                                                          \
+    char n_##id[sizeof(name)];                                                                     \
+    char s_##id[sizeof(synopsis)];                                                                 \
+    char h_##id[sizeof(help)];
+#include "console/con_commands.def"
+#undef CON_CMD
+} con_cmd_layout_t;
+
+/* Where each command's name starts in con_cmd_text: the lookup of a line's
+ * command and its synopsis read only what they need. Skipping every earlier
+ * command's help text, a byte at a time, cost about 1 ms of each command
+ * line on the AVR (an unknown command 1.15 ms, `get cal_tension` 2.4 ms). */
+static const uint16_t con_cmd_at[CON_CMD_COUNT] CON_FLASH = {
+#define CON_CMD(id, name, synopsis, help) (uint16_t) offsetof(con_cmd_layout_t, n_##id),
+#include "console/con_commands.def"
+#undef CON_CMD
+};
+
+/* Command cmd's entry (its name; the synopsis and help follow). */
+static const char *cmd_entry(uint8_t cmd)
+{
+    return con_cmd_text + CON_FLASH_U16(&con_cmd_at[cmd]);
+}
 
 static const char s_help_cmd[] CON_FLASH = "<help cmd=";
 static const char s_help_args[] CON_FLASH = " args=\"";
@@ -82,7 +110,7 @@ int8_t con_cmd_name(const con_t *con, uint8_t cmd, char *buf, uint8_t cap)
     if (cmd >= CON_CMD_COUNT || cap == 0u) {
         return CON_E_INTERNAL;
     }
-    p = con_fl_skip(con, con_cmd_text, (uint16_t)(3u * cmd));
+    p = cmd_entry(cmd);
     while ((ch = con_fl_char(con, p++)) != '\0') {
         if (n + 1u < cap) {
             buf[n] = ch;
@@ -95,9 +123,9 @@ int8_t con_cmd_name(const con_t *con, uint8_t cmd, char *buf, uint8_t cap)
 
 int8_t con_find_cmd(const con_t *c, const char *tok)
 {
-    const char *p = con_cmd_text;
     uint8_t i, j;
     for (i = 0; i < CON_CMD_COUNT; i++) {
+        const char *p = cmd_entry(i);
         for (j = 0;; j++) {
             char ch = con_fl_char(c, p + j);
             if (ch != tok[j]) {
@@ -107,7 +135,6 @@ int8_t con_find_cmd(const con_t *c, const char *tok)
                 return (int8_t)i;
             }
         }
-        p = con_fl_skip(c, p, 3);
     }
     return CON_E_UNKNOWN_COMMAND;
 }
@@ -126,7 +153,7 @@ static void get_synopsis_at(const con_t *c, const char *p, char *syn)
 
 static void get_synopsis(const con_t *c, uint8_t cmd, char *syn)
 {
-    get_synopsis_at(c, con_fl_skip(c, con_cmd_text, (uint16_t)(3u * cmd + 1u)), syn);
+    get_synopsis_at(c, con_fl_skip(c, cmd_entry(cmd), 1), syn);
 }
 
 /* One argument spec of a synopsis, split in place. */

@@ -47,8 +47,10 @@
 #ifdef __AVR__
 #include <avr/pgmspace.h>
 #define CON_FLASH_BYTE(p) ((char)pgm_read_byte(p))
+#define CON_FLASH_U16(p)  ((uint16_t)pgm_read_word(p))
 #else
 #define CON_FLASH_BYTE(p) (*(p))
+#define CON_FLASH_U16(p)  (*(p))
 #endif
 
 /* Pointer past the next n NUL-terminated strings at p (con_out.c). */

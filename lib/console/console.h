@@ -257,6 +257,8 @@ void con_report_int(con_t *con, const char *key, int32_t v);
 void con_report_fixed(con_t *con, const char *key, int32_t v, uint8_t decimals);
 void con_report_str(con_t *con, const char *key, const char *s);
 void con_report_flash(con_t *con, const char *key, const char *s);
+/* key=<word i of the space-separated flash list words> ("?" past its end). */
+void con_report_word(con_t *con, const char *key, const char *words, uint8_t i);
 void con_report_end(con_t *con);
 
 /* Formats v / 10^decimals into buf (capacity cap, NUL-terminated; 13 bytes
