@@ -306,13 +306,16 @@ typedef struct {
     uint64_t last_bus_us, max_bus_gap_us, max_bus_gap_at_us;
 } bench_truth_t;
 
-/* ---- step chains (steps.c): events triggered by console lines ------------- */
+/* ---- step chains (steps.c): events triggered by console lines or tension - */
 
 #define STEPS_MAX 160u
 
 typedef struct {
     regex_t re;
     uint8_t has_re;
+    uint8_t has_taut; /* waits for a tendon's true tension instead of a line */
+    uint8_t taut_tendon;
+    double taut_N;
     uint64_t within_us; /* give up waiting after this long (0 = never) */
     uint64_t delay_us;  /* the event runs this long after the match */
     char event[200];    /* "EVENT ARGS", or "nop" */

@@ -4,7 +4,7 @@
  * tendon's fine approach, the EEPROM save) whatever time the earlier phases
  * took. Script and --at lines:
  *
- *     step [on REGEX] [within TIME] [+DELAY] EVENT [ARGS]
+ *     step [on REGEX | taut T:MN] [within TIME] [+DELAY] EVENT [ARGS]
  *
  * The steps run in order. A step waits for a console line matching REGEX
  * (POSIX extended, no spaces: write `.` or `[^0-9]` for them) that comes
@@ -14,10 +14,14 @@
  * the event runs DELAY after the previous one. `within` bounds the wait,
  * counted from the previous event: when no line matched in that time the
  * event runs anyway (counted as timed out), so a stuck firmware does not
- * stop the rest of the script. EVENT is any timed event (docs/bench.md) or
- * `nop`.
+ * stop the rest of the script. `taut T:MN` waits instead until tendon T's
+ * true tension (the plant's, at the spool) reaches MN millinewtons: a fault
+ * meant for a taut tendon then hits one, whatever the firmware's timing
+ * (150 ms after an engagement a take-up that ran on may be back at slack).
+ * EVENT is any timed event (docs/bench.md) or `nop`.
  */
 #define _POSIX_C_SOURCE 200809L
+#include <stdio.h>
 #include <string.h>
 
 #include "bench.h"
@@ -48,7 +52,21 @@ int steps_add(bench_t *b, const char *spec)
         }
         memcpy(word, p, wl);
         word[wl] = '\0';
-        if (strcmp(word, "on") == 0 || strcmp(word, "within") == 0) {
+        if (strcmp(word, "taut") == 0) {
+            char *v = end + strspn(end, " \t");
+            char *vend = v + strcspn(v, " \t");
+            unsigned tendon;
+            double mn;
+            int used = 0;
+            if (s->has_re || s->has_taut || sscanf(v, "%u:%lf%n", &tendon, &mn, &used) != 2 ||
+                v + used != vend || tendon >= PLANT_MAX_TENDONS || mn <= 0.0) {
+                return -1;
+            }
+            s->has_taut = 1;
+            s->taut_tendon = (uint8_t)tendon;
+            s->taut_N = mn * 1e-3;
+            p = vend;
+        } else if (strcmp(word, "on") == 0 || strcmp(word, "within") == 0) {
             char *v = end + strspn(end, " \t");
             char *vend = v + strcspn(v, " \t");
             size_t vl = (size_t)(vend - v);
@@ -59,7 +77,8 @@ int steps_add(bench_t *b, const char *spec)
             memcpy(val, v, vl);
             val[vl] = '\0';
             if (word[0] == 'o') {
-                if (s->has_re || regcomp(&s->re, val, REG_EXTENDED | REG_NOSUB) != 0) {
+                if (s->has_re || s->has_taut ||
+                    regcomp(&s->re, val, REG_EXTENDED | REG_NOSUB) != 0) {
                     return -1;
                 }
                 s->has_re = 1;
@@ -119,7 +138,7 @@ static void fire(bench_t *b, uint64_t at_us, uint8_t timed_out)
     c->cur++;
     /* the next step sees the lines after this match (those during this
      * step's delay too: a run that ends before the event is not missed) */
-    c->armed_us = s->has_re && !timed_out ? at_us : t;
+    c->armed_us = (s->has_re || s->has_taut) && !timed_out ? at_us : t;
     c->last_fire_us = t;
 }
 
@@ -129,7 +148,12 @@ void steps_poll(bench_t *b, uint64_t now)
     bench_steps_t *c = &b->steps;
     while (c->cur < c->n) {
         bench_step_t *s = &c->step[c->cur];
-        if (!s->has_re) {
+        /* a tension counts from the previous step's event on */
+        if (s->has_taut && now >= c->armed_us && now >= c->last_fire_us &&
+            s->taut_tendon < b->plant.cfg.n_tendons &&
+            b->plant.tension_N[s->taut_tendon] >= s->taut_N) {
+            fire(b, now, 0);
+        } else if (!s->has_re && !s->has_taut) {
             fire(b, c->last_fire_us, 0);
         } else if (s->within_us != 0 && now >= c->last_fire_us + s->within_us) {
             fire(b, now, 1);

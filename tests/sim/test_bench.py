@@ -188,6 +188,26 @@ def test_scenario_expectations_have_time_windows(tmp_path):
     assert r.rc == 3
 
 
+def test_taut_step_waits_for_the_true_tension(tmp_path):
+    """`step taut T:MN` fires once tendon T's true tension reaches MN, from
+    the previous step's event on; a malformed one is a usage error."""
+    for bad in ("step taut 0 press 100", "step taut x:300 press 100", "step taut 0:-5 press 100",
+                "step taut 0:300 on ^<ready press 100", "step taut 99:300 press 100"):
+        assert bench(tmp_path, FW, "--plant", PLANT, "--at", bad).rc == 2, bad
+    r = bench(tmp_path, FW, "--plant", PLANT, "--seed", "3", "--limit", "15s", "--timestamps",
+              "--at", "1s press 100",
+              "--at", "step on ^<progress.state=engaged.tendon=0[^0-9] +100ms nop",
+              "--at", "step taut 0:300 sensor-unplug 0",
+              "--until", "^<fault", "--linger", "300ms")
+    assert r.rc == 0, r.err
+    (after, t0), (fired, t1) = r.summary["steps"]["log"]
+    assert not t0 and not t1
+    engaged = [float(l[1:l.index("]")]) for l in r.lines if "<progress state=engaged tendon=0 " in l]
+    assert engaged and after == pytest.approx(engaged[0] + 0.1, abs=1e-3) and fired >= after
+    # the sensor's fault comes a few samples later, the tendon still taut
+    assert r.summary["fault"]["max_tension_mN"] >= 300.0, r.summary["fault"]
+
+
 def test_every_fault_scenario_parses(tmp_path):
     for scn in sorted(SCENARIOS.glob("*.scn")):
         r = bench(tmp_path, FW, "--plant", PLANT, "--scenario", scn, "--limit", "10ms")
