@@ -239,6 +239,41 @@ void hom_back_off(hom_t *h)
     h->state = ST_BACKOFF;
 }
 
+/* The field must rise as the tendon is pulled. Measured from the last point
+ * it rose enough to (an eighth of what the table's slope says), a pull of a
+ * quarter of the tendon's travel (at least HOM_FLAT_TICKS) with less rise
+ * ends the run in HOM_F_NO_PROGRESS: the field no longer follows the tendon
+ * (chaos seed 9145: the magnet removed left the field flat just below the
+ * target, and fine steps of 2 ticks went on 35 points, to 1.64 x the target,
+ * before HOM_F_NO_PROGRESS; a tendon far softer than its table, or a target
+ * beyond what the robot gives, end here too, before the travel limit).
+ * Returns 1 when the run ended. */
+HOM_NOINLINE static int not_following(hom_t *h, const hom_tendon_t *t, int32_t p, uint32_t b)
+{
+    int32_t d = hom_pull(t, p - h->ref_p);
+    int32_t rise = (int32_t)b - (int32_t)h->ref_b;
+    int32_t span = t->travel_ticks >> 2;
+    if (span < HOM_FLAT_TICKS) {
+        span = HOM_FLAT_TICKS;
+    }
+    /* from a point whose field shows the engagement: after a take-up that
+     * ran on, the detected engagement is early, and the re-approach's first
+     * points may still be slack. d * slope_min_q8 fits 32 bits while d
+     * (within the travel limit) times the slope stays below 2^31 / 256 cuT:
+     * 500 ticks at 160 uT a tick, far beyond any table; past it the check
+     * errs to no check (a negative product) or to a run ended early */
+    if (!h->have_prev || d <= 0 || b < h->engage_cuT || rise >= ((d * h->slope_min_q8) >> 10)) {
+        h->ref_p = p;
+        h->ref_b = b;
+        return 0;
+    }
+    if (d < span) {
+        return 0;
+    }
+    hom_fail_tendon(h, HOM_F_NO_PROGRESS, rise);
+    return 1;
+}
+
 /* One averaged fine point at the present position. Finishes by interpolation
  * when the target is bracketed by two points at most 3 ticks apart, or by
  * extrapolation with the local slope when it is less than half a tick away
@@ -298,6 +333,9 @@ void hom_fine_point(hom_t *h)
                                      h->cfg.near_permille, 1000);
         }
         hom_back_off(h);
+        return;
+    }
+    if (not_following(h, t, p, b)) {
         return;
     }
     /* a slope measured over 3 ticks or more replaces the estimate; one over

@@ -341,6 +341,8 @@ typedef struct {
     int32_t p_prev;        /* fine: previous point (position, |dB|) */
     uint32_t b_prev;
     uint32_t b_top;       /* pull: highest |dB| since the engagement or the last back-off */
+    int32_t ref_p;        /* fine: the point the field's rise is measured from (position, */
+    uint32_t ref_b;       /*   |dB|): the last one the field rose enough to */
     int32_t mod_goal;     /* re-approach: moderate goal after an overshoot */
     int32_t search_end;   /* take-up: where the search for engagement ends */
     int32_t slope_q8;     /* fine: current slope estimate, cuT per tick * 256 */

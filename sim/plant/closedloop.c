@@ -59,6 +59,7 @@ int plant_run(const plant_run_cfg_t *rc, plant_run_result_t *res)
     int step_rc = HOM_RUNNING;
     int32_t engage[TBL_MAX_TENDONS];
     double b_start[3] = {0.0, 0.0, 0.0};
+    double b_stuck[3] = {0.0, 0.0, 0.0};
     uint8_t fall_set = 0;
     uint8_t engaged[TBL_MAX_TENDONS];
     int8_t pull_dir[TBL_MAX_TENDONS];
@@ -114,7 +115,8 @@ int plant_run(const plant_run_cfg_t *rc, plant_run_result_t *res)
         engage[i] = 0;
     }
     (void)plant_solve(&plant);
-    if (rc->fault == PLANT_FI_FIELD_FALL && rc->fault_index < pcfg.n_sensors) {
+    if ((rc->fault == PLANT_FI_FIELD_FALL || rc->fault == PLANT_FI_FIELD_STUCK) &&
+        rc->fault_index < pcfg.n_sensors) {
         plant_field_true(&plant, rc->fault_index, b_start);
     }
 
@@ -147,19 +149,28 @@ int plant_run(const plant_run_cfg_t *rc, plant_run_result_t *res)
                 plant.extra_uT[rc->fault_index][0] = 3000.0;
             }
         }
-        if (faulting && rc->fault == PLANT_FI_FIELD_FALL && !fall_set &&
+        if (faulting && (rc->fault == PLANT_FI_FIELD_FALL || rc->fault == PLANT_FI_FIELD_STUCK) &&
             rc->fault_index < pcfg.n_sensors) {
             double b_now[3], d2 = 0.0;
+            double *x = plant.extra_uT[rc->fault_index];
             int ax;
+            if (moved) {
+                (void)plant_solve(&plant);
+            }
             plant_field_true(&plant, rc->fault_index, b_now);
             for (ax = 0; ax < 3; ax++) {
+                b_now[ax] -= x[ax]; /* the robot's own field */
                 d2 += (b_now[ax] - b_start[ax]) * (b_now[ax] - b_start[ax]);
             }
-            if (d2 >= rc->fall_at_uT * rc->fall_at_uT) {
-                for (ax = 0; ax < 3; ax++) {
-                    plant.extra_uT[rc->fault_index][ax] = -0.5 * (b_now[ax] - b_start[ax]);
-                }
+            if (!fall_set && d2 >= rc->fall_at_uT * rc->fall_at_uT) {
                 fall_set = 1;
+                for (ax = 0; ax < 3; ax++) {
+                    b_stuck[ax] = b_now[ax];
+                    x[ax] = -0.5 * (b_now[ax] - b_start[ax]);
+                }
+            }
+            for (ax = 0; fall_set && rc->fault == PLANT_FI_FIELD_STUCK && ax < 3; ax++) {
+                x[ax] = b_stuck[ax] - b_now[ax]; /* it reads the field it stuck at */
             }
         }
         if (faulting && rc->fault == PLANT_FI_MAGNET_REMOVED &&

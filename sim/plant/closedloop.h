@@ -33,6 +33,9 @@ typedef enum {
     PLANT_FI_SERVO_ABSENT,   /* servo of tendon `index` not found at the probe */
     PLANT_FI_MAGNET_MISSING, /* no magnet on the tip */
     PLANT_FI_MAGNET_REMOVED, /* the magnet taken off the tip at fault_ms */
+    PLANT_FI_FIELD_STUCK,    /* from fault_ms, once sensor `index`'s field has changed by
+                                fall_at_uT since the run's start, it stays at that field
+                                (the magnet come off the tip and left where it was) */
     PLANT_FI_FIELD_FALL,     /* from fault_ms, once sensor `index`'s field has changed by
                                 fall_at_uT since the run's start, a field appears there
                                 that cancels half of that change (an ambient change against
@@ -54,7 +57,7 @@ typedef struct {
     uint8_t fault_index;
     uint32_t fault_ms;
     uint32_t max_ms;            /* give up after this simulated time (0 = 60 s) */
-    double fall_at_uT;          /* PLANT_FI_FIELD_FALL: the change that sets it off */
+    double fall_at_uT;          /* PLANT_FI_FIELD_FALL, _STUCK: the change that sets it off */
     double ambient_shift_uT[3]; /* added to every sensor's ambient field (world frame) for
                                    this run: the bench moved or iron came near since the
                                    absolute mode's ambient capture (cmd.ambient_cuT) */

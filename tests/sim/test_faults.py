@@ -119,7 +119,8 @@ MID_RUN = [
      {"reason": "servo_error", "dev": "servo", "index": "1", "id": "2", "detail": "32"}, True),
     ("saturate", None, {"reason": "saturated", "dev": "sensor", "index": "0"}, True),
     ("magnet_missing", 1.0, {"reason": "magnet_missing", "dev": "sensor"}, False),
-    ("out_of_reach", 2.0, {"reason": "travel_limit", "dev": "tendon", "index": "0", "id": "1"}, True),
+    ("out_of_reach", 2.0,
+     {"reason": "travel_limit|no_progress", "dev": "tendon", "index": "0", "id": "1"}, True),
     ("abort_console", None, {"reason": "aborted"}, True),
 ]
 
@@ -192,9 +193,11 @@ def check_reported_and_released(r, limits_mm, name, at, expect, taut):
     assert_within_travel_limit(r, limits_mm)
     if name == "servo_hwerr":
         assert r.summary["tendons"][1]["hw_error"] == 32
-    if name == "out_of_reach":  # stopped before the limit, predicting it
+    if name == "out_of_reach":  # stopped before the limit
         assert r.summary["tendons"][0]["max_take_up_mm"] < limits_mm[0]
-        assert int(f["detail"]) * 6.136e-3 > limits_mm[0]  # the predicted travel, ticks
+        if f["reason"] == "travel_limit":  # predicting it: the predicted travel, ticks
+            assert int(f["detail"]) * 6.136e-3 > limits_mm[0]
+        # no_progress: the field rose far slower than the table's slope says
 
 
 def test_sensor_missing_at_boot_refuses_before_any_motion(tmp_path):

