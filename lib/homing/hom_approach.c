@@ -169,13 +169,18 @@ static int near_target(const hom_tendon_t *t, uint32_t b, uint16_t permille)
  * below it: the field no longer follows the tendon (the magnet moved or
  * gone, an ambient field changed, a sensor knocked), and steps that chase
  * the target would pull on to the travel limit (chaos seed 8390: the magnet
- * removed after the first fine point, 4.9 x the target). Returns 1 when the
- * run ended in HOM_F_FIELD_STEP. */
-HOM_NOINLINE static int field_fell(hom_t *h, uint8_t sel, uint32_t b)
+ * removed after the first fine point, 4.9 x the target). The top is taken
+ * again wherever the servo is found back from it. Returns 1 when the run
+ * ended in HOM_F_FIELD_STEP. */
+HOM_NOINLINE static int field_fell(hom_t *h, const hom_tendon_t *t, uint32_t b, int32_t p)
 {
     uint32_t tol = h->b_top / 8u + 8u * (uint32_t)h->noise_cuT;
-    if (b > h->b_top) {
+    if (b > h->b_top || hom_pull(t, p - h->p_top) < 0) {
+        /* a new top, or the servo came back: it ran past a goal the
+         * approach set behind it (the take-up's lease ahead of the
+         * moderate goal), and the field fell with it (chaos seed 3049) */
         h->b_top = b;
+        h->p_top = p;
     }
     if (b + tol >= h->b_top) {
         h->b_low = 0;
@@ -184,7 +189,7 @@ HOM_NOINLINE static int field_fell(hom_t *h, uint8_t sel, uint32_t b)
     if (++h->b_low < 2u) {
         return 0;
     }
-    hom_fail(h, HOM_F_FIELD_STEP, HOM_DEV_SENSOR, sel, (int32_t)(h->b_top - b));
+    hom_fail(h, HOM_F_FIELD_STEP, HOM_DEV_SENSOR, t->sensor, (int32_t)(h->b_top - b));
     return 1;
 }
 
@@ -227,7 +232,7 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
          * it again, every 10 ms until it takes */
         hom_set_goal(h, h->cur, h->out.goal[h->cur], h->out.vel[h->cur]);
     }
-    if (fresh && t->engaged && h->state != ST_BACKOFF && field_fell(h, sel, b)) {
+    if (fresh && t->engaged && h->state != ST_BACKOFF && field_fell(h, t, b, p)) {
         return;
     }
     switch (h->state) {

@@ -340,7 +340,8 @@ typedef struct {
     uint32_t tendon_ms;    /* the last tendon's time from its start to its recorded home */
     int32_t p_prev;        /* fine: previous point (position, |dB|) */
     uint32_t b_prev;
-    uint32_t b_top;       /* pull: highest |dB| since the engagement or the last back-off */
+    uint32_t b_top;       /* pull: highest |dB| since the engagement or the last back-off, */
+    int32_t p_top;        /*   and where the servo was then */
     int32_t ref_p;        /* fine: the point the field's rise is measured from (position, */
     uint32_t ref_b;       /*   |dB|): the last one the field rose enough to */
     int32_t mod_goal;     /* re-approach: moderate goal after an overshoot */
