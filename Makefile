@@ -63,8 +63,9 @@ AVR_SIZE_OPT := -fno-ipa-sra -fno-ipa-cp-clone -flto-partition=none \
 # 12 servos); homing events without their step time, which no report prints
 # (48 bytes); no servo-bus counters, which no report prints either (24 bytes
 # and the code that counts), nor the sensors' sample counters that no report
-# prints (32 bytes).
-AVR_LIB_CFG := -DDXL_REPLY_DATA=4u -DHOM_EV_TIME=0 -DDXL_STATS=0 -DICM_STATS=0
+# prints (32 bytes); no settings' help texts, which no reply prints (about 300
+# bytes of flash).
+AVR_LIB_CFG := -DDXL_REPLY_DATA=4u -DHOM_EV_TIME=0 -DDXL_STATS=0 -DICM_STATS=0 -DSTORE_SETTING_HELP=0
 AVR_CFLAGS := $(AVR_LIB_CFG) -mmcu=$(MCU) -DF_CPU=$(F_CPU) -std=c99 -Os -g -Wall -Wextra -Werror -pedantic \
 	-Wshadow -Wstrict-prototypes -Wmissing-prototypes -ffunction-sections -fdata-sections \
 	-mcall-prologues -mstrict-X -fno-inline-small-functions $(AVR_SIZE_OPT) -flto -mrelax -Ilib -Ifirmware -I$(FW_GEN_DIR) -DTBL_FLASH=__attribute__\(\(__progmem__\)\) \

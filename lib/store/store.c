@@ -69,8 +69,18 @@ static const store_setting_info_t store_decl[STORE_SETTING_COUNT] STORE_FLASH = 
 
 /* name, unit and help of every setting, in declaration order, NUL-separated:
  * one flash string instead of 3 * N pointers. */
+#if STORE_SETTING_HELP
+#define STORE_HELP_TEXT(help)       help "\0"
+#define STORE_HELP_MEMBER(id, help) char h_##id[sizeof(help)];
+#define STORE_TEXTS                 3u
+#else
+#define STORE_HELP_TEXT(help)
+#define STORE_HELP_MEMBER(id, help)
+#define STORE_TEXTS 2u
+#endif
 static const char store_text[] STORE_FLASH =
-#define STORE_SETTING(id, name, type, min, max, def, unit, help) name "\0" unit "\0" help "\0"
+#define STORE_SETTING(id, name, type, min, max, def, unit, help)                                   \
+    name "\0" unit "\0" STORE_HELP_TEXT(help)
 #include "store/store_settings.def"
 #undef STORE_SETTING
     ;
@@ -81,7 +91,7 @@ typedef struct {
 #define STORE_SETTING(id, name, type, min, max, def, unit, help)                                   \
     char n_##id[sizeof(name)];                                                                     \
     char u_##id[sizeof(unit)];                                                                     \
-    char h_##id[sizeof(help)];
+    STORE_HELP_MEMBER(id, help)
 #include "store/store_settings.def"
 #undef STORE_SETTING
 } store_text_layout_t;
@@ -396,7 +406,7 @@ int16_t store_setting_text(const store_t *st, uint8_t id, uint8_t which, char *b
     uint16_t skip = which, i, n = 0;
     uint8_t k = sizeof chunk;
     char c;
-    if (id >= STORE_SETTING_COUNT || which > 2u || cap == 0u) {
+    if (id >= STORE_SETTING_COUNT || which >= STORE_TEXTS || cap == 0u) {
         return STORE_E_ARG;
     }
     st->copy(&i, &store_text_at[id], sizeof i);

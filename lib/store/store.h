@@ -72,6 +72,13 @@
 #endif
 #endif
 
+/* 1: the settings' help texts are kept (store_setting_text() which 2); 0: not
+ * (the firmware, which prints none: about 300 bytes of flash). The host tools
+ * read them from store_settings.def itself. */
+#ifndef STORE_SETTING_HELP
+#define STORE_SETTING_HELP 1
+#endif
+
 enum {
     STORE_E_BUSY = -1,        /* a save is already in progress */
     STORE_E_EMPTY = -2,       /* no valid copy of the record (never saved, or both slots bad) */
@@ -300,9 +307,10 @@ int8_t store_setting_set(const store_t *st, store_settings_t *s, uint8_t id, int
 /* Declaration of setting id: 0 with *info filled, STORE_E_ARG. */
 int8_t store_setting_info(const store_t *st, uint8_t id, store_setting_info_t *info);
 
-/* Copies the NUL-terminated name (which = 0), unit (1) or help text (2) of
- * setting id into buf of capacity cap (truncated to cap - 1 characters).
- * Returns the full length of the text, or STORE_E_ARG (id, which or cap 0). */
+/* Copies the NUL-terminated name (which = 0), unit (1) or help text (2, with
+ * STORE_SETTING_HELP) of setting id into buf of capacity cap (truncated to
+ * cap - 1 characters). Returns the full length of the text, or STORE_E_ARG
+ * (id, which or cap 0). */
 int16_t store_setting_text(const store_t *st, uint8_t id, uint8_t which, char *buf, uint8_t cap);
 
 /* Id of the setting called name (len characters, not NUL-terminated), or
