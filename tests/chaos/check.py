@@ -94,12 +94,13 @@ def runs(console: list[tuple[float, str]]) -> list[dict]:
             cur = {"t": t, "end": None, "end_t": None, "results": {}, "mode": fields(ln).get("mode")}
             out.append(cur)
         elif cur is not None and cur["end"] is None:
-            if ln.startswith("<result "):
+            if ln.startswith(("<done", "<fault", "<released")) or "<boot name=" in ln:
+                # (a reset may cut a report: the boot report then ends its
+                # line, a cut <result> too: seed 9140's power cycle)
+                cur["end"], cur["end_t"] = ln, t
+            elif ln.startswith("<result "):
                 f = fields(ln)
                 cur["results"][int(f.get("tendon", -1))] = int(f.get("home", -1))
-            elif ln.startswith(("<done", "<fault", "<released")) or "<boot name=" in ln:
-                # (a reset may cut a report: the boot report then ends its line)
-                cur["end"], cur["end_t"] = ln, t
     return out
 
 

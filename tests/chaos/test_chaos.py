@@ -271,6 +271,22 @@ def test_a_calibration_ends_only_with_its_done_or_fault():
         assert not end.search(ln), ln
 
 
+def test_a_power_cycle_that_cuts_a_result_line_ends_its_run():
+    """A reset cuts a report mid-line and the boot report ends that line: the
+    run ends there even when the cut line is a <result> (seed 9140: the
+    next calibration's check took the run as still going, "did not end")."""
+    out = "\n".join([
+        "[  8.715491] <progress state=start mode=full tension_mN=800>",
+        "[  9.571681] <result tendon=0 id=1 home=4320 straight=4272 target=delta>",
+        "[  9.990896] <result tendon=1 id=2 home=4321 straight=4274 target=d"
+        "<boot name=hallhome version=0.1.0 board=\"Arduino Mega 2560\" reset=power>",
+        "[ 10.198859] <ready table=x homes=stored count=1 rehome=1>",
+    ])
+    (a,) = chk.runs(chk.parse_console(out))
+    assert a["end_t"] == pytest.approx(9.990896) and "<boot name=" in a["end"]
+    assert a["results"] == {0: 4320}
+
+
 def test_a_reset_pin_reset_at_rest_is_not_a_stop():
     """A reset from the reset pin (a host opening the port) after a
     calibration's <done> leaves the robot at its homes, as docs/app.md has
