@@ -413,6 +413,22 @@ static void assert_bounded_and_released(const plant_run_cfg_t *rc)
     }
 }
 
+/* A run of the nominal robot at 800 mN whose tendon k meets fault f in its
+ * pull: from 130 ms after its engagement (past a take-up's overshoot and its
+ * back-off), once the field has come frac of the way to its target
+ * (PLANT_FI_FIELD_FALL, _STUCK). */
+static void fault_in_pull(plant_run_cfg_t *rc, uint8_t k, plant_fault_t f, double frac)
+{
+    plant_run_defaults(rc, &g_cfg, hom_fix_pack(&g_tab));
+    rc->seed = 11;
+    rc->cmd.tension_mN = 800;
+    rc->fault_ms = engaged_at(rc, k) + 130u;
+    rc->fall_at_uT = target_uT(k, 800) * frac;
+    rc->fault = f;
+    rc->fault_index = g_tab.tendons[k].sensor;
+    assert_int_equal(plant_run(rc, &g_res), 0);
+}
+
 /* The field stops following the tendon in its pull, after the engagement
  * (each tendon in turn, 30-80 % of the way to its target): an ambient field
  * against the tendon's cancels half of its change. The run ends at once in
@@ -424,17 +440,8 @@ static void test_field_falls_while_pulling(void **state)
     plant_run_cfg_t rc;
     uint8_t k;
     (void)state;
-    plant_run_defaults(&rc, &g_cfg, hom_fix_pack(&g_tab));
-    rc.seed = 11;
-    rc.cmd.tension_mN = 800;
     for (k = 0; k < g_tab.n_tendons; k++) {
-        /* past a take-up's overshoot and its back-off, when the field has
-         * come 30-80 % of the way */
-        rc.fault_ms = engaged_at(&rc, k) + 130u;
-        rc.fall_at_uT = target_uT(k, 800) * (0.3 + 0.1 * k);
-        rc.fault = PLANT_FI_FIELD_FALL;
-        rc.fault_index = g_tab.tendons[k].sensor;
-        assert_int_equal(plant_run(&rc, &g_res), 0);
+        fault_in_pull(&rc, k, PLANT_FI_FIELD_FALL, 0.3 + 0.1 * k);
         assert_int_equal(g_res.fault, HOM_F_FIELD_STEP);
         assert_int_equal(g_res.fault_index, rc.fault_index);
         assert_bounded_and_released(&rc);
@@ -453,15 +460,8 @@ static void test_field_stuck_while_pulling(void **state)
     plant_run_cfg_t rc;
     uint8_t k;
     (void)state;
-    plant_run_defaults(&rc, &g_cfg, hom_fix_pack(&g_tab));
-    rc.seed = 11;
-    rc.cmd.tension_mN = 800;
     for (k = 0; k < g_tab.n_tendons; k++) {
-        rc.fault_ms = engaged_at(&rc, k) + 130u;
-        rc.fall_at_uT = target_uT(k, 800) * (0.5 + 0.08 * k);
-        rc.fault = PLANT_FI_FIELD_STUCK;
-        rc.fault_index = g_tab.tendons[k].sensor;
-        assert_int_equal(plant_run(&rc, &g_res), 0);
+        fault_in_pull(&rc, k, PLANT_FI_FIELD_STUCK, 0.5 + 0.08 * k);
         print_message("stuck k=%u fault=%u max=%.3f N\n", k, g_res.fault, g_res.max_tension_N[k]);
         assert_true(g_res.fault == HOM_F_NO_PROGRESS || g_res.fault == HOM_F_TRAVEL_LIMIT);
         assert_int_equal(g_res.fault_index, k);
@@ -477,13 +477,8 @@ static void test_magnet_removed_while_pulling(void **state)
     plant_run_cfg_t rc;
     uint8_t k;
     (void)state;
-    plant_run_defaults(&rc, &g_cfg, hom_fix_pack(&g_tab));
-    rc.seed = 11;
-    rc.cmd.tension_mN = 800;
     for (k = 0; k < g_tab.n_tendons; k++) {
-        rc.fault_ms = engaged_at(&rc, k) + 130u;
-        rc.fault = PLANT_FI_MAGNET_REMOVED;
-        assert_int_equal(plant_run(&rc, &g_res), 0);
+        fault_in_pull(&rc, k, PLANT_FI_MAGNET_REMOVED, 0.0);
         assert_true(g_res.fault == HOM_F_NO_PROGRESS || g_res.fault == HOM_F_FIELD_STEP);
         assert_int_equal(g_res.have_home[k], 0);
         assert_bounded_and_released(&rc);
