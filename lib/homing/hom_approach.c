@@ -71,6 +71,7 @@ HOM_NOINLINE void hom_begin_tendon(hom_t *h, uint8_t i)
     h->steps = 0;
     h->far = 0;
     h->b_top = 0;
+    h->ref_b = 0;
     h->slope_q8 = hom_table_slope(h, i);
     h->slope_min_q8 = (h->slope_q8 >> 1) + 1; /* at least 1: a divisor */
     h->pos_at_sample = h->present[i];
@@ -232,7 +233,11 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
          * it again, every 10 ms until it takes */
         hom_set_goal(h, h->cur, h->out.goal[h->cur], h->out.vel[h->cur]);
     }
-    if (fresh && t->engaged && h->state != ST_BACKOFF && field_fell(h, t, b, p)) {
+    if (fresh && t->engaged && h->state != ST_BACKOFF &&
+        (field_fell(h, t, b, p) ||
+         /* per sample in delta mode, where the table's slope is |dB|'s */
+         (h->amb == NULL && (h->state == ST_MODERATE || h->state == ST_FINE_MOVE) &&
+          hom_not_following(h, t, p, b) == 1))) {
         return;
     }
     switch (h->state) {
@@ -251,9 +256,10 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
         if (fresh && !t->engaged && b >= h->engage_cuT) {
             t->engaged = 1;
             t->engage = h->pos_at_sample; /* the last position seen slack */
+            /* the window narrows here for this run's releases; the app
+             * keeps it (win_changed) once the home is recorded */
             t->eng_lo = t->engage;
             t->eng_hi = t->engage;
-            h->win_changed |= hom_bit(h->cur);
             hom_push_event(h, HOM_EV_ENGAGED, 0, h->cur, t->engage, (int32_t)b);
             if (!h->quick_leg) {
                 begin_moderate(h);

@@ -232,6 +232,7 @@ HOM_NOINLINE static int32_t table_remaining_q8(const hom_t *h, uint32_t b)
 void hom_back_off(hom_t *h)
 {
     h->b_top = 0; /* the field falls with the release; the next pull starts afresh */
+    h->ref_b = 0;
     h->have_prev = 0;
     h->n_pts = 0;
     h->far = 0;
@@ -239,36 +240,40 @@ void hom_back_off(hom_t *h)
     h->state = ST_BACKOFF;
 }
 
-/* The field must rise as the tendon is pulled. Measured from the last point
- * it rose enough to (an eighth of what the table's slope says), a pull of a
- * quarter of the tendon's travel (at least HOM_FLAT_TICKS) with less rise
- * ends the run in HOM_F_NO_PROGRESS: the field no longer follows the tendon
- * (chaos seed 9145: the magnet removed left the field flat just below the
- * target, and fine steps of 2 ticks went on 35 points, to 1.64 x the target,
- * before HOM_F_NO_PROGRESS; a tendon far softer than its table, or a target
- * beyond what the robot gives, end here too, before the travel limit).
- * Returns 1 when the run ended. */
-HOM_NOINLINE static int not_following(hom_t *h, const hom_tendon_t *t, int32_t p, uint32_t b)
+/* The field must rise as the tendon is pulled, checked at every sample of
+ * its moves and at every fine point. Measured from the last point it rose
+ * enough to (an eighth of what the table's slope says, less four times the
+ * noise), a pull of a sixth of the tendon's travel (at least
+ * HOM_FLAT_TICKS) with less rise ends the run in HOM_F_NO_PROGRESS: the
+ * field no longer follows the tendon (chaos seed 9145: the magnet removed
+ * left the field flat just below the target, and fine steps of 2 ticks
+ * went on 35 points, to 1.64 x the target, before HOM_F_NO_PROGRESS; a
+ * tendon far softer than its table, or a target beyond what the robot
+ * gives, end here too, before the travel limit). Returns 1 when the run
+ * ended, 2 while the field is flat so far (the next fine step is then at
+ * most HOM_FLAT_STEP). */
+HOM_NOINLINE int hom_not_following(hom_t *h, const hom_tendon_t *t, int32_t p, uint32_t b)
 {
     int32_t d = hom_pull(t, p - h->ref_p);
-    int32_t rise = (int32_t)b - (int32_t)h->ref_b;
-    int32_t span = t->travel_ticks >> 2;
+    int32_t rise = (int32_t)b + 4 * (int32_t)h->noise_cuT - (int32_t)h->ref_b;
+    int32_t span = t->travel_ticks / 6;
     if (span < HOM_FLAT_TICKS) {
         span = HOM_FLAT_TICKS;
     }
-    /* from a point whose field shows the engagement: after a take-up that
-     * ran on, the detected engagement is early, and the re-approach's first
-     * points may still be slack. d * slope_min_q8 fits 32 bits while d
-     * (within the travel limit) times the slope stays below 2^31 / 256 cuT:
-     * 500 ticks at 160 uT a tick, far beyond any table; past it the check
-     * errs to no check (a negative product) or to a run ended early */
-    if (!h->have_prev || d <= 0 || b < h->engage_cuT || rise >= ((d * h->slope_min_q8) >> 10)) {
+    /* from a point whose field shows the engagement (ref_b 0: none yet):
+     * after a take-up that ran on, the detected engagement is early, and
+     * the re-approach's first points may still be slack. d * slope_min_q8
+     * fits 32 bits while d (within the travel limit) times the slope stays
+     * below 2^31 / 256 cuT: 500 ticks at 160 uT a tick, far beyond any
+     * table; past it the check errs to no check (a negative product) or to
+     * a run ended early */
+    if (h->ref_b == 0u || b < h->engage_cuT || (d > 0 && rise >= ((d * h->slope_min_q8) >> 10))) {
         h->ref_p = p;
-        h->ref_b = b;
+        h->ref_b = b < h->engage_cuT ? 0u : b;
         return 0;
     }
     if (d < span) {
-        return 0;
+        return d > 0 ? 2 : 0;
     }
     hom_fail_tendon(h, HOM_F_NO_PROGRESS, rise);
     return 1;
@@ -295,6 +300,7 @@ void hom_fine_point(hom_t *h)
     int32_t step;
     int32_t room;
     int32_t dp;
+    uint8_t flat;
 
     hom_avg_of(h, t->sensor, avg);
     b = hom_meas_of(h, t->sensor, avg);
@@ -335,7 +341,8 @@ void hom_fine_point(hom_t *h)
         hom_back_off(h);
         return;
     }
-    if (not_following(h, t, p, b)) {
+    flat = (uint8_t)hom_not_following(h, t, p, b);
+    if (flat == 1u) {
         return;
     }
     /* a slope measured over 3 ticks or more replaces the estimate; one over
@@ -397,6 +404,9 @@ void hom_fine_point(hom_t *h)
     }
     h->near = (uint8_t)(r_q8 <= 4 * 256);
     h->n_near = near_samples(h, s_q8); /* as measured: a flat slope asks for many */
+    if (flat && step > HOM_FLAT_STEP) {
+        step = HOM_FLAT_STEP; /* a field that stopped following: pull on slowly */
+    }
     if (step > t->limit_ticks + 1) {
         step = t->limit_ticks + 1; /* refused below as beyond the limit */
     }

@@ -55,11 +55,12 @@ enum {
 #define HOM_DROOP_TICKS 8    /* a servo stopped this close counts as arrived ... */
 #define HOM_STILL_MS    100u /* ... after this long without motion */
 #define HOM_FIT_POINTS  4u   /* near points kept for the final fit (hom_t.pts) */
-#define HOM_FLAT_TICKS                                                                             \
-    12 /* fine: the least pull the field may stay flat over before it no longer                    \
-          follows the tendon: a point after the servo ran past its goal and came back              \
-          reads flat through the spool's backlash (5 ticks on the bench) and the                   \
-          friction band: 10 ticks measured at the lowest grid tension */
+#define HOM_FLAT_TICKS                                                                                 \
+    12                  /* fine: the least pull the field may stay flat over before it no longer       \
+                           follows the tendon: a point after the servo ran past its goal and came back \
+                           reads flat through the spool's backlash (5 ticks on the bench) and the      \
+                           friction band: 10 ticks measured at the lowest grid tension */
+#define HOM_FLAT_STEP 4 /* fine: the longest step while the field is flat */
 
 /* ---- homing.c: API and shared helpers ---- */
 void hom_push_event(hom_t *h, uint8_t type, uint8_t code, uint8_t index, int32_t a, int32_t b);
@@ -127,6 +128,9 @@ void hom_do_tendon(hom_t *h, const hom_in_t *in);
 int32_t hom_table_slope(const hom_t *h, uint8_t i);
 void hom_begin_final(hom_t *h);
 void hom_fine_point(hom_t *h);
+/* The field follows the pull of tendon t, now at p with |dB| b: 0, 2 while
+ * flat so far, 1 when the run ended (HOM_F_NO_PROGRESS). */
+int hom_not_following(hom_t *h, const hom_tendon_t *t, int32_t p, uint32_t b);
 /* Back to slack; the approach comes again to h->mod_goal from there, on the
  * pulling side of the path's friction and the spool's backlash. */
 void hom_back_off(hom_t *h);

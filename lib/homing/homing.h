@@ -314,7 +314,8 @@ typedef struct {
     uint8_t fault_dev;
     uint8_t steps;      /* slack-check steps or fine points so far */
     uint8_t have_prev;  /* fine: a previous point below the target exists */
-    uint8_t settled;    /* slack average: settle time over, averaging */
+    uint8_t settled;    /* slack average: settle time over, averaging; after a home: the
+                           steps until the next tendon begins (3, 4) */
     uint8_t pf_started; /* preflight: first step seen, t_phase valid; then 1 + the
                            sensors and tendons of the table loaded (hom_load_step()) */
     uint8_t quick_leg;  /* quick mode: fast leg to just before the expected engagement */

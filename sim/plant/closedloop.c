@@ -61,6 +61,8 @@ int plant_run(const plant_run_cfg_t *rc, plant_run_result_t *res)
     double b_start[3] = {0.0, 0.0, 0.0};
     double b_stuck[3] = {0.0, 0.0, 0.0};
     uint8_t fall_set = 0;
+    uint8_t pulling = 0; /* a tendon's pull has begun */
+    uint16_t win;
     uint8_t engaged[TBL_MAX_TENDONS];
     int8_t pull_dir[TBL_MAX_TENDONS];
     tbl_info_t info;
@@ -223,6 +225,8 @@ int plant_run(const plant_run_cfg_t *rc, plant_run_result_t *res)
         }
         if (!ended) {
             step_rc = hom_step(&h, &in, &out);
+            win = hom_win_take_changed(&h);
+            res->win_kept |= pulling ? win : 0u;
             for (i = 0; i < res->n_tendons; i++) {
                 if ((out.changed >> i) & 1u) {
                     /* a servo that stopped answering still obeys broadcast
@@ -236,6 +240,9 @@ int plant_run(const plant_run_cfg_t *rc, plant_run_result_t *res)
                 }
             }
             while (hom_event_pop(&h, &ev)) {
+                if (ev.type == HOM_EV_PHASE && ev.code == HOM_PH_TENDON) {
+                    pulling = 1;
+                }
                 if (ev.type == HOM_EV_ENGAGED && ev.index < TBL_MAX_TENDONS) {
                     engaged[ev.index] = 1;
                     engage[ev.index] = ev.a;

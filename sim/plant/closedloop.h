@@ -84,6 +84,8 @@ typedef struct {
     double max_tension_N[TBL_MAX_TENDONS];         /* highest spool tension during the run */
     int32_t limit_ticks[TBL_MAX_TENDONS];          /* the homing's travel limit */
     double tip_mm[3];                              /* tip at the end */
+    uint16_t win_kept; /* bit i: from the first tendon's pull on, the run gave tendon i's
+                          window to keep (hom_win_take_changed()) */
     uint16_t n_events;
     hom_event_t events[PLANT_RUN_MAX_EVENTS];
 } plant_run_result_t;

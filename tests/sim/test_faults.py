@@ -188,7 +188,8 @@ def check_reported_and_released(r, limits_mm, name, at, expect, taut):
     assert fault["t_s"] == pytest.approx(t_fault, abs=1e-5)
     assert 0.0 <= fault["released_after_ms"] < RELEASE_MS, fault
     if taut:  # the latency is a real release, not tendons that were slack anyway
-        assert fault["max_tension_mN"] > 100.0, fault
+        # (50 mN: out_of_reach now ends in the moderate move, at 95 mN)
+        assert fault["max_tension_mN"] > 50.0, fault
     assert_all_released(r)
     assert_within_travel_limit(r, limits_mm)
     if name == "servo_hwerr":
