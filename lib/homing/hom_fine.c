@@ -260,16 +260,22 @@ HOM_NOINLINE int hom_not_following(hom_t *h, const hom_tendon_t *t, int32_t p, u
     if (span < HOM_FLAT_TICKS) {
         span = HOM_FLAT_TICKS;
     }
-    /* from a point whose field shows the engagement (ref_b 0: none yet):
-     * after a take-up that ran on, the detected engagement is early, and
-     * the re-approach's first points may still be slack. d * slope_min_q8
+    /* from a point whose field is a quarter of the target or more (ref_b
+     * 0: none yet): just past the engagement the field rises far slower
+     * than the table's slope at the target (chaos seed 2010: no_progress 30
+     * ms after an engagement), and after a take-up that ran on the detected
+     * engagement is early and the re-approach's first points still slack. d * slope_min_q8
      * fits 32 bits while d (within the travel limit) times the slope stays
      * below 2^31 / 256 cuT: 500 ticks at 160 uT a tick, far beyond any
      * table; past it the check errs to no check (a negative product) or to
      * a run ended early */
-    if (h->ref_b == 0u || b < h->engage_cuT || (d > 0 && rise >= ((d * h->slope_min_q8) >> 10))) {
+    uint32_t low = t->target_cuT / 4u; /* the curve's toe: the field rises slowly first */
+    if (low < h->engage_cuT) {
+        low = h->engage_cuT;
+    }
+    if (h->ref_b == 0u || b < low || (d > 0 && rise >= ((d * h->slope_min_q8) >> 10))) {
         h->ref_p = p;
-        h->ref_b = b < h->engage_cuT ? 0u : b;
+        h->ref_b = b < low ? 0u : b;
         return 0;
     }
     if (d < span) {
