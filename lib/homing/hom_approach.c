@@ -233,11 +233,7 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
          * it again, every 10 ms until it takes */
         hom_set_goal(h, h->cur, h->out.goal[h->cur], h->out.vel[h->cur]);
     }
-    if (fresh && t->engaged && h->state != ST_BACKOFF &&
-        (field_fell(h, t, b, p) ||
-         /* per sample in delta mode, where the table's slope is |dB|'s */
-         (h->amb == NULL && (h->state == ST_MODERATE || h->state == ST_FINE_MOVE) &&
-          hom_not_following(h, t, p, b) == 1))) {
+    if (fresh && t->engaged && h->state != ST_BACKOFF && field_fell(h, t, b, p)) {
         return;
     }
     switch (h->state) {

@@ -240,8 +240,8 @@ void hom_back_off(hom_t *h)
     h->state = ST_BACKOFF;
 }
 
-/* The field must rise as the tendon is pulled, checked at every sample of
- * its moves and at every fine point. Measured from the last point it rose
+/* The field must rise as the tendon is pulled, checked at every fine
+ * point. Measured from the last point it rose
  * enough to (an eighth of what the table's slope says, less four times the
  * noise), a pull of a sixth of the tendon's travel (at least
  * HOM_FLAT_TICKS) with less rise ends the run in HOM_F_NO_PROGRESS: the
