@@ -165,7 +165,7 @@ static int near_target(const hom_tendon_t *t, uint32_t b, uint16_t permille)
 }
 
 /* An engaged tendon is only pulled further (a back-off starts afresh), so
- * the field it moves may not fall. Three fresh samples in a row more than an
+ * the field it moves may not fall. Two fresh samples in a row more than an
  * eighth of the highest since the engagement (and eight times the noise)
  * below it: the field no longer follows the tendon (the magnet moved or
  * gone, an ambient field changed, a sensor knocked), and steps that chase
