@@ -170,9 +170,7 @@ static int near_target(const hom_tendon_t *t, uint32_t b, uint16_t permille)
  * below it: the field no longer follows the tendon (the magnet moved or
  * gone, an ambient field changed, a sensor knocked), and steps that chase
  * the target would pull on to the travel limit (chaos seed 8390: the magnet
- * removed after the first fine point, 4.9 x the target). Three samples in
- * a row, not two: seed 2010 read two low ones where the servo came back
- * unseen between position reads. The top is taken
+ * removed after the first fine point, 4.9 x the target). The top is taken
  * again wherever the servo is found back from it. Returns 1 when the run
  * ended in HOM_F_FIELD_STEP. */
 HOM_NOINLINE static int field_fell(hom_t *h, const hom_tendon_t *t, uint32_t b, int32_t p)
@@ -189,7 +187,7 @@ HOM_NOINLINE static int field_fell(hom_t *h, const hom_tendon_t *t, uint32_t b, 
         h->b_low = 0;
         return 0;
     }
-    if (++h->b_low < 3u) {
+    if (++h->b_low < 2u) {
         return 0;
     }
     hom_fail(h, HOM_F_FIELD_STEP, HOM_DEV_SENSOR, t->sensor, (int32_t)(h->b_top - b));
