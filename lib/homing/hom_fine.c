@@ -252,7 +252,7 @@ void hom_back_off(hom_t *h)
  * gives, end here too, before the travel limit). Returns 1 when the run
  * ended, 2 while the field is flat so far (the next fine step is then at
  * most HOM_FLAT_STEP). */
-HOM_NOINLINE int hom_not_following(hom_t *h, const hom_tendon_t *t, int32_t p, uint32_t b)
+HOM_NOINLINE static int not_following(hom_t *h, const hom_tendon_t *t, int32_t p, uint32_t b)
 {
     int32_t d = hom_pull(t, p - h->ref_p);
     int32_t rise = (int32_t)b + 4 * (int32_t)h->noise_cuT - (int32_t)h->ref_b;
@@ -347,7 +347,7 @@ void hom_fine_point(hom_t *h)
         hom_back_off(h);
         return;
     }
-    flat = (uint8_t)hom_not_following(h, t, p, b);
+    flat = (uint8_t)not_following(h, t, p, b);
     if (flat == 1u) {
         return;
     }

@@ -128,9 +128,6 @@ void hom_do_tendon(hom_t *h, const hom_in_t *in);
 int32_t hom_table_slope(const hom_t *h, uint8_t i);
 void hom_begin_final(hom_t *h);
 void hom_fine_point(hom_t *h);
-/* The field follows the pull of tendon t, now at p with |dB| b: 0, 2 while
- * flat so far, 1 when the run ended (HOM_F_NO_PROGRESS). */
-int hom_not_following(hom_t *h, const hom_tendon_t *t, int32_t p, uint32_t b);
 /* Back to slack; the approach comes again to h->mod_goal from there, on the
  * pulling side of the path's friction and the spool's backlash. */
 void hom_back_off(hom_t *h);
