@@ -165,33 +165,62 @@ static int near_target(const hom_tendon_t *t, uint32_t b, uint16_t permille)
 }
 
 /* An engaged tendon is only pulled further (a back-off starts afresh), so
- * the field it moves may not fall. Two fresh samples in a row more than an
- * eighth of the highest since the engagement (and eight times the noise)
- * below it: the field no longer follows the tendon (the magnet moved or
- * gone, an ambient field changed, a sensor knocked), and steps that chase
- * the target would pull on to the travel limit (chaos seed 8390: the magnet
- * removed after the first fine point, 4.9 x the target). The top is taken
- * again wherever the servo is found back from it. Returns 1 when the run
- * ended in HOM_F_FIELD_STEP. */
-HOM_NOINLINE static int field_fell(hom_t *h, const hom_tendon_t *t, uint32_t b, int32_t p)
+ * the field it moves may not fall. Two samples more than an eighth of the
+ * highest since the engagement (and eight times the noise) below it, the
+ * servo not found back from where it was at that top: the field no longer
+ * follows the tendon (the magnet moved or gone, an ambient field changed, a
+ * sensor knocked), and steps that chase the target would pull on to the
+ * travel limit (chaos seed 8390: the magnet removed after the first fine
+ * point, 4.9 x the target). A servo found back (the take-up's lease ran
+ * past the moderate goal and the servo returns to it) takes the top again
+ * (chaos seed 3049).
+ * Each sample is judged against a position read after it: with 12 servos
+ * positions come every 7-18 ms, and a top taken at a stale position the
+ * servo never came back behind read a return as a fall (chaos seed 2010).
+ * A low sample while the top's position is still unread is not counted.
+ * Called every step: b is a fresh sample's |dB| (0: none), fresh_p whether
+ * p was read this step. Returns 1 when the run ended in HOM_F_FIELD_STEP. */
+HOM_NOINLINE static int field_fell(hom_t *h, const hom_tendon_t *t, uint32_t b, int32_t p,
+                                   uint8_t fresh_p)
 {
-    uint32_t tol = h->b_top / 8u + 8u * (uint32_t)h->noise_cuT;
-    if (b > h->b_top || hom_pull(t, p - h->p_top) < 0) {
-        /* a new top, or the servo came back: it ran past a goal the
-         * approach set behind it (the take-up's lease ahead of the
-         * moderate goal), and the field fell with it (chaos seed 3049) */
+    uint32_t top = h->b_top;
+    uint8_t low = h->b_low;
+    if (b > top) {
         h->b_top = b;
-        h->p_top = p;
+        h->b_low = HOM_TOP_UNREAD;
+        return 0; /* its position: the next read */
     }
-    if (b + tol >= h->b_top) {
-        h->b_low = 0;
+    if (b != 0u) {
+        h->b_pend = b; /* judged at the next position read */
+    }
+    if (!fresh_p) {
         return 0;
     }
-    if (++h->b_low < 2u) {
-        return 0;
+    b = h->b_pend;
+    h->b_pend = 0;
+    if (!(low & HOM_TOP_UNREAD)) {
+        if (b == 0u) {
+            return 0; /* no sample since the last read */
+        }
+        if (b + top / 8u + 8u * (uint32_t)h->noise_cuT >= top) {
+            h->b_low = 0; /* not low */
+            return 0;
+        }
+        if (hom_pull(t, p - h->p_top) >= 0) {
+            if (++low >= 2u) {
+                hom_fail(h, HOM_F_FIELD_STEP, HOM_DEV_SENSOR, t->sensor, (int32_t)(top - b));
+                return 1;
+            }
+            h->b_low = low;
+            return 0;
+        }
+        h->b_top = b; /* found back: the field fell with the servo */
     }
-    hom_fail(h, HOM_F_FIELD_STEP, HOM_DEV_SENSOR, t->sensor, (int32_t)(h->b_top - b));
-    return 1;
+    /* the top's position (a sample that came before this read is not
+     * counted), or a new top where the servo was found back */
+    h->p_top = p;
+    h->b_low = 0;
+    return 0;
 }
 
 /* Close to the target while moving: stop two ticks on from the present
@@ -233,7 +262,8 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
          * it again, every 10 ms until it takes */
         hom_set_goal(h, h->cur, h->out.goal[h->cur], h->out.vel[h->cur]);
     }
-    if (fresh && t->engaged && h->state != ST_BACKOFF && field_fell(h, t, b, p)) {
+    if (t->engaged && h->state != ST_BACKOFF &&
+        field_fell(h, t, b, p, (uint8_t)(in->servo[h->cur].status == HOM_SERVO_OK))) {
         return;
     }
     switch (h->state) {

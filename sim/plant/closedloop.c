@@ -39,6 +39,8 @@ static void fill_ground_truth(const plant_run_cfg_t *rc, const plant_t *p, const
     memcpy(res->tip_mm, p->tip.pos_mm, sizeof res->tip_mm);
 }
 
+#define CL_MAX_LAG 32u
+
 int plant_run(const plant_run_cfg_t *rc, plant_run_result_t *res)
 {
     plant_t plant;
@@ -48,6 +50,11 @@ int plant_run(const plant_run_cfg_t *rc, plant_run_result_t *res)
     hom_t h;
     hom_in_t in;
     hom_out_t out;
+    hom_out_t line[CL_MAX_LAG];            /* goal writes on their way to the servos */
+    hom_sensor_in_t held[HOM_MAX_SENSORS]; /* samples on their way to the homing */
+    uint32_t held_at[HOM_MAX_SENSORS] = {0};
+    const hom_out_t *o = &out;
+    uint32_t lag = rc->goal_lag_ms < CL_MAX_LAG ? rc->goal_lag_ms : CL_MAX_LAG - 1u;
     tbl_src_t src;
     uint64_t rng;
     uint32_t t;
@@ -201,12 +208,26 @@ int plant_run(const plant_run_cfg_t *rc, plant_run_result_t *res)
             }
             s->status =
                 plant_read_sensor(&plant, k, s->b_cuT) == 1 ? HOM_SENS_OVERFLOW : HOM_SENS_NEW;
+            if (rc->sample_lag_ms != 0u) {
+                held[k] = *s; /* read now, handed over sample_lag_ms later */
+                held_at[k] = t + (rc->sample_lag_ms < 10u ? rc->sample_lag_ms : 9u);
+                s->status = HOM_SENS_NONE;
+            }
+        }
+        for (k = 0; k < HOM_MAX_SENSORS && rc->sample_lag_ms != 0u; k++) {
+            if (held_at[k] == t) {
+                in.sensor[k] = held[k];
+            }
         }
         for (i = 0; i < TBL_MAX_TENDONS; i++) {
             hom_servo_in_t *s = &in.servo[i];
             s->status = HOM_SERVO_OK;
             s->hw_error = 0;
             if (i >= res->n_tendons) {
+                continue;
+            }
+            if (rc->pos_period_ms > 1u && t % rc->pos_period_ms != 0u) {
+                s->status = HOM_SERVO_NOREPLY; /* not read in this step's bus cycle */
                 continue;
             }
             s->pos = plant_servo_present(&servo[i]) - rc->frame_offset;
@@ -223,22 +244,32 @@ int plant_run(const plant_run_cfg_t *rc, plant_run_result_t *res)
         if (rc->fault == PLANT_FI_ABORT && t == rc->fault_ms) {
             hom_abort(&h);
         }
+        out.changed = 0;
         if (!ended) {
             step_rc = hom_step(&h, &in, &out);
             win = hom_win_take_changed(&h);
             res->win_kept |= pulling ? win : 0u;
-            for (i = 0; i < res->n_tendons; i++) {
-                if ((out.changed >> i) & 1u) {
-                    /* a servo that stopped answering still obeys broadcast
-                     * writes in this model only if it is alive: the silent one
-                     * keeps its last goal */
-                    if (!(rc->fault == PLANT_FI_SERVO_SILENT && faulting && rc->fault_index == i)) {
-                        servo[i].goal = out.goal[i] + rc->frame_offset;
-                        servo[i].vel_units = out.vel[i];
-                        servo[i].torque = out.torque[i];
-                    }
+        }
+        if (lag != 0u) {
+            /* the writes reach the servos lag ms later, in order (those of
+             * the run's last steps too) */
+            line[t % CL_MAX_LAG] = out;
+            out.changed = 0;
+            o = t > lag ? &line[(t - lag) % CL_MAX_LAG] : &out;
+        }
+        for (i = 0; i < res->n_tendons; i++) {
+            if ((o->changed >> i) & 1u) {
+                /* a servo that stopped answering still obeys broadcast
+                 * writes in this model only if it is alive: the silent one
+                 * keeps its last goal */
+                if (!(rc->fault == PLANT_FI_SERVO_SILENT && faulting && rc->fault_index == i)) {
+                    servo[i].goal = o->goal[i] + rc->frame_offset;
+                    servo[i].vel_units = o->vel[i];
+                    servo[i].torque = o->torque[i];
                 }
             }
+        }
+        if (!ended) {
             while (hom_event_pop(&h, &ev)) {
                 if (ev.type == HOM_EV_PHASE && ev.code == HOM_PH_TENDON) {
                     pulling = 1;

@@ -5,7 +5,8 @@
  *
  * Time runs in 1 ms steps: the servos move, the plant finds its equilibrium,
  * each sensor delivers a sample every 10 ms (100 Hz, staggered), every servo
- * reports its present position every step (a 1 ms bus cycle), hom_step()
+ * reports its present position every step (a 1 ms bus cycle; pos_period_ms
+ * sets a slower one), hom_step()
  * runs and its changed goals go to the servos. Faults can be injected at a
  * chosen time. Ground truth (true homes, tensions, travel) comes back in the
  * result.
@@ -58,6 +59,12 @@ typedef struct {
     uint32_t fault_ms;
     uint32_t max_ms;            /* give up after this simulated time (0 = 60 s) */
     double fall_at_uT;          /* PLANT_FI_FIELD_FALL, _STUCK: the change that sets it off */
+    uint8_t pos_period_ms;      /* positions read every this many ms (0, 1: every step; a
+                                   12-servo bus reads them every 5-7 ms), no reply between */
+    uint8_t goal_lag_ms;        /* goal writes reach the servos this much later (a slow main
+                                   loop and a busy bus: up to 20 ms on 12 servos), < 32 */
+    uint8_t sample_lag_ms;      /* sensor samples reach the homing this much later (a slow
+                                   main loop), < 10 */
     double ambient_shift_uT[3]; /* added to every sensor's ambient field (world frame) for
                                    this run: the bench moved or iron came near since the
                                    absolute mode's ambient capture (cmd.ambient_cuT) */
