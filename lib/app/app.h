@@ -120,11 +120,14 @@ enum {
 typedef struct {
     uint16_t magic; /* APP_WIN_MAGIC */
     uint16_t mask;  /* bit i: lo[i], hi[i] valid */
-    uint8_t moving; /* a run or move was under way: a reset then releases at boot */
     uint32_t table_id;
     int32_t lo[TBL_MAX_TENDONS];
     int32_t hi[TBL_MAX_TENDONS];
-    uint16_t crc; /* store_crc16() of everything before it */
+    uint16_t crc;   /* store_crc16() of everything before it */
+    uint8_t moving; /* a run or move was under way: a reset then releases at boot. Outside
+                       the CRC: one byte, written in one store, and a reset between it and
+                       a CRC update cost every window (chaos seed 8153: a watchdog as a
+                       run's end cleared it, no early release, 172 ms taut) */
 } app_win_t;
 
 #define APP_WIN_MAGIC   0x5748u

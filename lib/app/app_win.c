@@ -34,7 +34,9 @@ void app_win_check(app_t *a)
     app_win_t *w = a->io->win;
     if (w != NULL && (w->magic != APP_WIN_MAGIC || w->table_id != a->info.table_id ||
                       w->crc != win_crc(w) || !a->table_ok)) {
+        uint8_t moving = w->moving; /* outside the CRC: kept */
         memset(w, 0, sizeof *w);
+        w->moving = moving;
         w->magic = APP_WIN_MAGIC;
         w->table_id = a->info.table_id;
         w->crc = win_crc(w);
@@ -69,9 +71,8 @@ void app_win_set(app_t *a, uint8_t i, int32_t lo, int32_t hi, uint8_t keep)
 APP_NOINLINE void app_win_moving(app_t *a, uint8_t on)
 {
     app_win_t *w = a->io->win;
-    if (w != NULL && w->moving != on) {
+    if (w != NULL) {
         w->moving = on;
-        w->crc = win_crc(w);
     }
 }
 

@@ -296,6 +296,36 @@ static void test_reset_before_the_done_is_out_releases(void **state)
     assert_true(app_bench_tension(&g_b, 0) > 0.3);
 }
 
+/* A watchdog reset just as a run ends, between the kept copy's "moving"
+ * flag and the CRC over the windows: the windows were then refused at
+ * boot, the reset released only after the bring-up (chaos seed 8153: 172
+ * ms at 718 mN). The flag is outside the CRC: whatever its value, the
+ * windows stay and the early release frees every tendon within 100 ms. */
+static void test_watchdog_as_a_run_ends_keeps_the_windows(void **state)
+{
+    uint16_t mask;
+    uint8_t flag;
+    (void)state;
+    for (flag = 0; flag < 2u; flag++) {
+        boot(&g_b, 1);
+        cmd(&g_b, "cal", "ok");
+        assert_true(app_bench_wait_line(&g_b, "<done mode=full", g_line, sizeof g_line, 30000));
+        app_bench_run_ms(&g_b, 20);
+        mask = g_b.win.mask;
+        assert_int_equal(mask, 0x3Fu);
+        g_b.win.moving = flag; /* the flag's store done, nothing after it */
+        g_b.wdt_reset = 1;
+        app_bench_restart(&g_b, 0);
+        app_bench_run_ms(&g_b, 100);
+        assert_int_equal(g_b.win.mask, mask);
+        for (uint8_t i = 0; i < 6; i++) {
+            assert_true(app_bench_tension(&g_b, i) < 0.001);
+        }
+        assert_true(
+            app_bench_wait_line(&g_b, "<released reason=reset", g_line, sizeof g_line, 4000));
+    }
+}
+
 /* A press asks for the run the board offers when the run starts: a quick
  * re-home kept while a missing sensor was brought up again was refused
  * (error 22) once that bring-up found a spool moved (chaos seed 7416). */
@@ -451,6 +481,7 @@ int main(void)
         cmocka_unit_test(test_servo_reboot_reply_lost),
         cmocka_unit_test(test_power_cuts_after_the_release_pay_out_once),
         cmocka_unit_test(test_reset_before_the_done_is_out_releases),
+        cmocka_unit_test(test_watchdog_as_a_run_ends_keeps_the_windows),
         cmocka_unit_test(test_press_kept_over_a_bring_up_takes_the_new_offer),
         cmocka_unit_test(test_servo_jammed_through_its_reboots),
         cmocka_unit_test(test_realtime_abort_releases),

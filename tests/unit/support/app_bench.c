@@ -157,6 +157,8 @@ static void app_start(app_bench_t *b, uint8_t with_table)
     b->io.board_f = "native bench";
     b->io.reset_f = "power";
     b->io.win = &b->win;
+    b->io.release_at_boot = b->wdt_reset;
+    b->wdt_reset = 0;
     memset(&b->rt, 0, sizeof b->rt);
     g_bench = b;
     (void)app_init(&b->app, &b->io);

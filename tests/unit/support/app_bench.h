@@ -67,7 +67,8 @@ typedef struct {
     /* the app */
     app_board_t board;
     con_io_t con_io;
-    app_win_t win; /* the board's kept engagement windows */
+    app_win_t win;     /* the board's kept engagement windows */
+    uint8_t wdt_reset; /* the next app_bench_restart() is a watchdog reset (io.release_at_boot) */
     app_io_t io;
     app_t app;
 } app_bench_t;
