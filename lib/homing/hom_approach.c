@@ -167,28 +167,30 @@ static int near_target(const hom_tendon_t *t, uint32_t b, uint16_t permille)
 /* An engaged tendon is only pulled further (a back-off starts afresh), so
  * the field it moves may not fall. Two samples more than an eighth of the
  * highest since the engagement (and eight times the noise) below it, the
- * servo not found back from where it was at that top: the field no longer
- * follows the tendon (the magnet moved or gone, an ambient field changed, a
- * sensor knocked), and steps that chase the target would pull on to the
- * travel limit (chaos seed 8390: the magnet removed after the first fine
- * point, 4.9 x the target). A servo found back (the take-up's lease ran
- * past the moderate goal and the servo returns to it) takes the top again
- * (chaos seed 3049).
- * Each sample is judged against a position read after it: with 12 servos
- * positions come every 7-18 ms, and a top taken at a stale position the
- * servo never came back behind read a return as a fall (chaos seed 2010).
- * A low sample while the top's position is still unread is not counted.
- * Called every step: b is a fresh sample's |dB| (0: none), fresh_p whether
- * p was read this step. Returns 1 when the run ended in HOM_F_FIELD_STEP. */
+ * servo not back from the furthest it was read at since that top: the
+ * field no longer follows the tendon (the magnet moved or gone, an ambient
+ * field changed, a sensor knocked), and steps that chase the target would
+ * pull on to the travel limit (chaos seed 8390: the magnet removed after
+ * the first fine point, 4.9 x the target).
+ * A servo read more than HOM_BACK_TICKS behind that furthest point takes
+ * the top again: the take-up ran past the goal the approach set at the
+ * engagement and returns to it, and the field falls with it (chaos seeds
+ * 3049, 2010, 12091). Each sample is judged at the next position read, which
+ * shows any return that lowered it: with 12 servos positions come every
+ * 7-18 ms, and the last read before a sample may not show it yet.
+ * Called every step: b is a fresh sample's |dB| (0: none), p the position,
+ * fresh_p whether it was read this step. Returns 1 when the run ended in
+ * HOM_F_FIELD_STEP. */
 HOM_NOINLINE static int field_fell(hom_t *h, const hom_tendon_t *t, uint32_t b, int32_t p,
                                    uint8_t fresh_p)
 {
     uint32_t top = h->b_top;
-    uint8_t low = h->b_low;
     if (b > top) {
         h->b_top = b;
-        h->b_low = HOM_TOP_UNREAD;
-        return 0; /* its position: the next read */
+        h->p_top = p;
+        h->b_low = 0;
+        h->b_pend = 0;
+        return 0;
     }
     if (b != 0u) {
         h->b_pend = b; /* judged at the next position read */
@@ -196,31 +198,29 @@ HOM_NOINLINE static int field_fell(hom_t *h, const hom_tendon_t *t, uint32_t b, 
     if (!fresh_p) {
         return 0;
     }
+    if (hom_pull(t, p - h->p_top) > 0) {
+        h->p_top = p; /* the furthest read since the top */
+    }
     b = h->b_pend;
     h->b_pend = 0;
-    if (!(low & HOM_TOP_UNREAD)) {
-        if (b == 0u) {
-            return 0; /* no sample since the last read */
-        }
-        if (b + top / 8u + 8u * (uint32_t)h->noise_cuT >= top) {
-            h->b_low = 0; /* not low */
-            return 0;
-        }
-        if (hom_pull(t, p - h->p_top) >= 0) {
-            if (++low >= 2u) {
-                hom_fail(h, HOM_F_FIELD_STEP, HOM_DEV_SENSOR, t->sensor, (int32_t)(top - b));
-                return 1;
-            }
-            h->b_low = low;
-            return 0;
-        }
-        h->b_top = b; /* found back: the field fell with the servo */
+    if (b == 0u) {
+        return 0; /* no sample since the last read */
     }
-    /* the top's position (a sample that came before this read is not
-     * counted), or a new top where the servo was found back */
-    h->p_top = p;
-    h->b_low = 0;
-    return 0;
+    if (b + top / 8u + 8u * (uint32_t)h->noise_cuT >= top) {
+        h->b_low = 0; /* not low */
+        return 0;
+    }
+    if (hom_pull(t, p - h->p_top) < -HOM_BACK_TICKS) {
+        h->b_top = b; /* back: the field fell with the servo */
+        h->p_top = p;
+        h->b_low = 0;
+        return 0;
+    }
+    if (++h->b_low < 2u) {
+        return 0;
+    }
+    hom_fail(h, HOM_F_FIELD_STEP, HOM_DEV_SENSOR, t->sensor, (int32_t)(top - b));
+    return 1;
 }
 
 /* Close to the target while moving: stop two ticks on from the present

@@ -323,8 +323,7 @@ typedef struct {
     uint8_t n_near;     /* fine: samples to average at a near point */
     uint8_t n_pts;      /* fine: near points kept */
     uint8_t far;        /* fine: the last point put the target beyond the travel limit */
-    uint8_t b_low;      /* pull: samples in a row below b_top by more than the tolerance;
-                           HOM_TOP_UNREAD: b_top's position not read yet */
+    uint8_t b_low;      /* pull: samples in a row below b_top by more than the tolerance */
     uint8_t ev_head;
     uint8_t ev_count;
     uint8_t ev_dropped;
@@ -343,7 +342,7 @@ typedef struct {
     int32_t p_prev;        /* fine: previous point (position, |dB|) */
     uint32_t b_prev;
     uint32_t b_top;       /* pull: highest |dB| since the engagement or the last back-off, */
-    int32_t p_top;        /*   and where the servo was read next */
+    int32_t p_top;        /*   and the furthest the servo was read at since */
     uint32_t b_pend;      /* pull: a sample below b_top awaiting the next position read */
     int32_t ref_p;        /* fine: the point the field's rise is measured from (position, */
     uint32_t ref_b;       /*   |dB|): the last one the field rose enough to */
