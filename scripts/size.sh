@@ -7,13 +7,14 @@
 # identification survey and the safety fixes after it to about 64.5 KB, shared
 # routines for repeated code, the libraries sized to what the firmware uses
 # and the single-call functions merged where that measured smaller back to
-# 61.2 KB; raised to 63808 B for the field-fall check that judges each
-# sample against a later position read, 63744 B). Static RAM: 3990 B (3887 B used; the rest of the chip's 8 KB is
+# 61.2 KB; raised to 63872 B for the field-fall check that judges each
+# sample against a later position read and the approach's estimate of where
+# a servo ran on since its last read, 63810 B). Static RAM: 3990 B (3887 B used; the rest of the chip's 8 KB is
 # stack). Issue 14's goal is 48 KB / 3 KB: lower these as savings land.
 set -euo pipefail
 elf=$1
 flash_cap=262144 ram_cap=8192
-flash_max=63808 ram_max=3990
+flash_max=63872 ram_max=3990
 read -r text data bss noinit < <(avr-size -A "$elf" | awk '
     $1==".text"{t=$2} $1==".data"{d=$2} $1==".bss"{b=$2} $1==".noinit"{n=$2}
     END{print t+0, d+0, b+0, n+0}')

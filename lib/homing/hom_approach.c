@@ -129,6 +129,7 @@ HOM_NOINLINE static void begin_moderate(hom_t *h)
     hom_tendon_t *t = hom_cur(h);
     int32_t g;
     int32_t d;
+    uint16_t since;
     if (t->retries != 0u) {
         g = h->mod_goal;
     } else {
@@ -138,6 +139,16 @@ HOM_NOINLINE static void begin_moderate(hom_t *h)
         g = t->engage + hom_pull(t, t->limit_ticks);
     }
     d = hom_pull(t, g - h->present[h->cur]);
+    since = (uint16_t)((uint16_t)h->now_ms - (uint16_t)h->servo_ok_ms[h->cur]);
+    if (since > 40u) {
+        since = 40u;
+    }
+    /* the servo ran on since its position was read (7-18 ms with 12
+     * servos on the bus): 1/64 tick per ms per 0.229 rpm unit (chaos seed
+     * 12141: a take-up 5 ticks past the goal set here read short of it; the
+     * return through the spool's backlash left the field flat, and the fine
+     * points predicted the target beyond the travel limit) */
+    d -= (int16_t)((uint16_t)(since * h->out.vel[h->cur]) >> 6);
     if (t->retries == 0u && d < 2 + (int32_t)(h->out.vel[h->cur] >> 2)) {
         /* the take-up has run on to where the approach starts (a short
          * travel, a low tension; it may be its speed over 16 ms, a quarter
@@ -185,12 +196,11 @@ HOM_NOINLINE static int field_fell(hom_t *h, const hom_tendon_t *t, uint32_t b, 
                                    uint8_t fresh_p)
 {
     uint32_t top = h->b_top;
+    int32_t d;
     if (b > top) {
-        h->b_top = b;
+        h->b_top = b; /* a new top: judged "not low" at the next read */
         h->p_top = p;
-        h->b_low = 0;
-        h->b_pend = 0;
-        return 0;
+        top = b;
     }
     if (b != 0u) {
         h->b_pend = b; /* judged at the next position read */
@@ -198,7 +208,8 @@ HOM_NOINLINE static int field_fell(hom_t *h, const hom_tendon_t *t, uint32_t b, 
     if (!fresh_p) {
         return 0;
     }
-    if (hom_pull(t, p - h->p_top) > 0) {
+    d = hom_pull(t, p - h->p_top);
+    if (d > 0) {
         h->p_top = p; /* the furthest read since the top */
     }
     b = h->b_pend;
@@ -206,21 +217,19 @@ HOM_NOINLINE static int field_fell(hom_t *h, const hom_tendon_t *t, uint32_t b, 
     if (b == 0u) {
         return 0; /* no sample since the last read */
     }
-    if (b + top / 8u + 8u * (uint32_t)h->noise_cuT >= top) {
-        h->b_low = 0; /* not low */
-        return 0;
-    }
-    if (hom_pull(t, p - h->p_top) < -HOM_BACK_TICKS) {
+    if (b + top / 8u + 8u * (uint32_t)h->noise_cuT < top) {
+        if (d >= -HOM_BACK_TICKS) {
+            if (++h->b_low < 2u) {
+                return 0;
+            }
+            hom_fail(h, HOM_F_FIELD_STEP, HOM_DEV_SENSOR, t->sensor, (int32_t)(top - b));
+            return 1;
+        }
         h->b_top = b; /* back: the field fell with the servo */
         h->p_top = p;
-        h->b_low = 0;
-        return 0;
     }
-    if (++h->b_low < 2u) {
-        return 0;
-    }
-    hom_fail(h, HOM_F_FIELD_STEP, HOM_DEV_SENSOR, t->sensor, (int32_t)(top - b));
-    return 1;
+    h->b_low = 0;
+    return 0;
 }
 
 /* Close to the target while moving: stop two ticks on from the present
