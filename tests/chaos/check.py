@@ -321,7 +321,10 @@ def check(sch, summary: dict, out: str, ref: dict | None = None) -> Verdict:
         boots = [t for t, ln in console if t > final["end_t"] and "<boot name=" in ln]
         t_boot = boots[-1] if boots else final["end_t"]
         ready = [ln for t, ln in console if t > t_boot and ln.startswith("<ready")][:1]
-        hist = [ln for t, ln in console if t > final["end_t"] and ln.startswith("<hist age=0")]
+        # whole lines only: the bench's end may cut the last (seed 12302:
+        # a background `history` 3 ms before the end, "homes=221")
+        hist = [ln for t, ln in console
+                if t > final["end_t"] and ln.startswith("<hist age=0") and ln.endswith(">")]
         if not ready:
             v.add("eeprom", "no boot after the final calibration")
         else:

@@ -195,6 +195,16 @@ def test_check_finds_a_failed_recovery_and_bad_records():
     assert "accuracy" in chk.check(_Sch(), off, CLEAN).violations
 
 
+def test_a_history_line_cut_by_the_end_is_not_a_record():
+    """The bench's end cuts a background `history` reply mid-line (seed
+    12302: "stored homes 221, calibrated 221,224,224,223"): only whole
+    lines count; a whole one that differs still is a violation."""
+    cut = CLEAN + "[  9.000000] <hist age=0 count=1 table_id=0x1 tension_mN=800 homes=43"
+    assert chk.check(_Sch(), _summary(), cut).violations == {}
+    moved = CLEAN + "[  9.000000] <hist age=0 count=1 table_id=0x1 tension_mN=800 homes=4290>\n"
+    assert list(chk.check(_Sch(), _summary(), moved).violations) == ["eeprom"]
+
+
 def test_a_refused_press_at_rest_is_not_a_stop():
     """A press the board refuses while idle (a sensor missing) moves and
     stops nothing: the robot stays at its homes, as the last calibration
