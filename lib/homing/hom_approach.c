@@ -177,8 +177,7 @@ static int near_target(const hom_tendon_t *t, uint32_t b, uint16_t permille)
 
 /* An engaged tendon is only pulled further (a back-off starts afresh), so
  * the field it moves may not fall. Two samples more than an eighth of the
- * highest since the engagement (and eight times the noise) below it, or one
- * more than twice that, the
+ * highest since the engagement (and eight times the noise) below it, the
  * servo not back from the furthest it was read at since that top: the
  * field no longer follows the tendon (the magnet moved or gone, an ambient
  * field changed, a sensor knocked), and steps that chase the target would
@@ -197,7 +196,6 @@ HOM_NOINLINE static int field_fell(hom_t *h, const hom_tendon_t *t, uint32_t b, 
                                    uint8_t fresh_p)
 {
     uint32_t top = h->b_top;
-    uint32_t tol;
     int32_t d;
     if (b > top) {
         h->b_top = b; /* a new top: judged "not low" at the next read */
@@ -219,13 +217,9 @@ HOM_NOINLINE static int field_fell(hom_t *h, const hom_tendon_t *t, uint32_t b, 
     if (b == 0u) {
         return 0; /* no sample since the last read */
     }
-    tol = top / 8u + 8u * (uint32_t)h->noise_cuT;
-    if (b + tol < top) {
+    if (b + top / 8u + 8u * (uint32_t)h->noise_cuT < top) {
         if (d >= -HOM_BACK_TICKS) {
-            /* a fall of twice the tolerance at once: the pull that chases
-             * the target would raise the field again before a second sample
-             * (chaos seed 8397: an ambient step of 27 uT, 1.38 x) */
-            if (++h->b_low < 2u && b + 2u * tol >= top) {
+            if (++h->b_low < 2u) {
                 return 0;
             }
             hom_fail(h, HOM_F_FIELD_STEP, HOM_DEV_SENSOR, t->sensor, (int32_t)(top - b));
