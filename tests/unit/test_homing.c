@@ -162,7 +162,7 @@ static void test_slow_position_reads(void **state)
     hom_config_default(&hc);
     hc.v_fast = 265;
     hc.takeup_per_tick = 255;
-    for (run = 0; run < 48; run++) {
+    for (run = 0; run < 24; run++) {
         plant_run_defaults(&rc, &g_cfg, hom_fix_pack(&g_tab));
         rc.seed = 300 + run;
         rc.pos_period_ms = (uint8_t)(6u + run % 13u);
