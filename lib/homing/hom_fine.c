@@ -398,6 +398,14 @@ void hom_fine_point(hom_t *h)
              * keeps the measured slope: a field that really is flat still
              * ends at the travel limit as before. */
             r_q8 = hom_muldiv((int32_t)(t->target_cuT - b), 65536, h->slope_min_q8);
+            if (r_q8 < 128 && h->near) {
+                /* by that slope the target is within half a tick: a step
+                 * of 0 sent the servo where it stood, point after point,
+                 * until the tendon's timeout (chaos seed 13376: a slope
+                 * measured across the spool's backlash, 3 cuT per tick) */
+                finish_tendon(h, p, p * 256 + hom_pull(t, (int32_t)r_q8));
+                return;
+            }
         }
     }
     if (++h->steps > h->cfg.fine_max_steps) {
