@@ -2,16 +2,19 @@
  * of a run) against a scripted bench: servos that reach their goal at once,
  * sensors that stand still at the straight-pose field. Also: a run whose
  * first step comes at an even millisecond runs its preflight like any other
- * (the application once shifted that step to an odd time). */
+ * (the application once shifted that step to an odd time); and one fine
+ * point whose state is set by hand (hom_priv.h). */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
 #include <stdint.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include <cmocka.h>
 
 #include "hom_fixture.h"
+#include "homing/hom_priv.h"
 
 static plant_cfg_t g_cfg;
 static tbl_wide_t g_tab;
@@ -227,10 +230,55 @@ static void test_straight_home_rounds_once(void **state)
     assert_int_equal(hom_to_straight(&g_h, 200), 0); /* out of range */
 }
 
+/* A fine point near the target whose measured slope is nearly flat (a
+ * secant across the spool's backlash: 3 cuT per tick) puts the target 18
+ * ticks on; the floor slope (half the table's) puts it within half a
+ * tick. The step by the floor slope rounded to 0: the servo was sent where
+ * it stood, point after point, until tendon_timeout (chaos seed 13376).
+ * The point records the home instead. */
+static void test_floor_slope_within_half_a_tick_records_the_home(void **state)
+{
+    hom_tendon_t *t;
+    hom_sensor_t *st;
+    int32_t p;
+    uint32_t x;
+    int n;
+    (void)state;
+    start_full(0);
+    for (n = 0; n < 20000 && g_h.state != ST_TAKEUP; n++) {
+        assert_int_equal(step(), HOM_RUNNING);
+    }
+    assert_int_equal(g_h.state, ST_TAKEUP);
+    assert_int_equal(g_h.cur, 0);
+    t = &g_h.tendon[0];
+    st = &g_h.sensor[t->sensor];
+    p = g_h.present[0];
+    x = (uint32_t)g_h.slope_min_q8 / 1024u + 2u; /* floor: under half a tick short */
+    t->engaged = 1;
+    t->engage = p - hom_pull(t, 20);
+    g_h.state = ST_FINE_AVG;
+    g_h.near = 1;
+    g_h.have_prev = 1;
+    g_h.p_prev = p;
+    g_h.b_prev = t->target_cuT - 2u * x;
+    g_h.ref_b = 0;
+    g_h.slope_q8 = 768;
+    st->n_acc = 1;
+    st->acc[0] = st->b0[0] + (int32_t)(t->target_cuT - x);
+    st->acc[1] = st->b0[1];
+    st->acc[2] = st->b0[2];
+    assert_true((int32_t)x * 65536 / 769 >= 128);             /* measured: not yet */
+    assert_true((int32_t)x * 65536 / g_h.slope_min_q8 < 128); /* floor: there */
+    hom_fine_point(&g_h);
+    assert_int_equal(g_h.state, ST_TENDON_RELEASE);
+    assert_true(abs(t->home - p) <= 1);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_goal_slots),
+        cmocka_unit_test(test_floor_slope_within_half_a_tick_records_the_home),
         cmocka_unit_test(test_goals_follow_the_run),
         cmocka_unit_test(test_fault_and_index),
         cmocka_unit_test(test_window_changes_taken_once),
