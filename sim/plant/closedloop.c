@@ -154,8 +154,10 @@ int plant_run(const plant_run_cfg_t *rc, plant_run_result_t *res)
         if (faulting && (rc->fault == PLANT_FI_SATURATE || rc->fault == PLANT_FI_FIELD_JUMP)) {
             if (rc->fault == PLANT_FI_SATURATE) {
                 plant.extra_uT[rc->fault_index][2] = 6000.0;
-            } else {
+            } else if (rc->jump_uT[0] == 0.0 && rc->jump_uT[1] == 0.0 && rc->jump_uT[2] == 0.0) {
                 plant.extra_uT[rc->fault_index][0] = 3000.0;
+            } else {
+                memcpy(plant.extra_uT[rc->fault_index], rc->jump_uT, sizeof rc->jump_uT);
             }
         }
         if (faulting && (rc->fault == PLANT_FI_FIELD_FALL || rc->fault == PLANT_FI_FIELD_STUCK) &&

@@ -28,7 +28,8 @@ typedef enum {
     PLANT_FI_SENSOR_ERROR,   /* sensor `index` reports read errors from fault_ms */
     PLANT_FI_SENSOR_ABSENT,  /* sensor `index` not found at the probe */
     PLANT_FI_SATURATE,       /* a 6 mT field appears at sensor `index` at fault_ms */
-    PLANT_FI_FIELD_JUMP,     /* a 3 mT step (x axis) appears at sensor `index` at fault_ms */
+    PLANT_FI_FIELD_JUMP,     /* a step appears at sensor `index` at fault_ms: jump_uT, or
+                                3 mT along x when jump_uT is all zero */
     PLANT_FI_SERVO_SILENT,   /* servo of tendon `index` stops answering at fault_ms */
     PLANT_FI_SERVO_HWERR,    /* servo of tendon `index` reports overload at fault_ms */
     PLANT_FI_SERVO_ABSENT,   /* servo of tendon `index` not found at the probe */
@@ -59,6 +60,7 @@ typedef struct {
     uint32_t fault_ms;
     uint32_t max_ms;            /* give up after this simulated time (0 = 60 s) */
     double fall_at_uT;          /* PLANT_FI_FIELD_FALL, _STUCK: the change that sets it off */
+    double jump_uT[3];          /* PLANT_FI_FIELD_JUMP: the step (world frame); 0: 3 mT x */
     uint8_t pos_period_ms;      /* positions read every this many ms (0, 1: every step; a
                                    12-servo bus reads them every 5-7 ms), no reply between */
     uint8_t goal_lag_ms;        /* goal writes reach the servos this much later (a slow main

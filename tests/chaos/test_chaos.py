@@ -195,6 +195,24 @@ def test_check_finds_a_failed_recovery_and_bad_records():
     assert "accuracy" in chk.check(_Sch(), off, CLEAN).violations
 
 
+def test_accuracy_is_judged_against_a_first_or_a_repeat_undisturbed_calibration():
+    """A final calibration outside 15 % passes when an undisturbed one of
+    the same robot and seed lands within 5 % of target of it: the first of
+    a boot, or one after it in the same boot (seed 13335: the first homed a
+    tendon 4 ticks early, every later one where the disturbed run did)."""
+    off = _summary()
+    off["tendons"][0]["tension_at_home_mN"] = 933.0
+    done = "<done mode=full target=delta time_ms=2400 tension_mN=800 count=1>"
+    first = {"end": done, "tendons": [{"tendon": 0, "tension_at_home_mN": 874.0}]}
+    repeat = {"end": done.replace("count=1", "count=2"),
+              "tendons": [{"tendon": 0, "tension_at_home_mN": 927.0}]}
+    assert "accuracy" in chk.check(_Sch(), off, CLEAN, dict(first)).violations
+    assert "accuracy" in chk.check(_Sch(), off, CLEAN, dict(first, repeat=None)).violations
+    assert chk.check(_Sch(), off, CLEAN, dict(first, repeat=repeat)).violations == {}
+    failed = dict(repeat, end="<fault reason=slack code=14 dev=tendon index=0>")
+    assert "accuracy" in chk.check(_Sch(), off, CLEAN, dict(first, repeat=failed)).violations
+
+
 def test_a_history_line_cut_by_the_end_is_not_a_record():
     """The bench's end cuts a background `history` reply mid-line (seed
     12302: "stored homes 221, calibrated 221,224,224,223"): only whole

@@ -530,6 +530,45 @@ static void test_field_stuck_while_pulling(void **state)
     }
 }
 
+/* An ambient field step one sample before a tendon's engagement, of nine
+ * tenths of its target, along each axis in both directions: taken for the
+ * engagement, or coming just after it, it adds to the field the fine
+ * points chase. On this robot every such run ends without a home for that
+ * tendon (HOM_F_FIELD_STEP: the field fell, or did not come back to the
+ * baseline on the release; HOM_F_NO_PROGRESS: it stopped rising), released,
+ * the pull bounded. A step against the tendon's own field within a sample
+ * of its engagement can still pull past the bound on other robots (chaos
+ * seed 13456, docs/chaos.md). */
+static void test_field_step_as_the_tendon_engages(void **state)
+{
+    plant_run_cfg_t rc;
+    uint8_t k;
+    uint8_t d;
+    (void)state;
+    for (k = 0; k < g_tab.n_tendons; k++) {
+        uint32_t at;
+        plant_run_defaults(&rc, &g_cfg, hom_fix_pack(&g_tab));
+        rc.seed = 11;
+        rc.cmd.tension_mN = 800;
+        at = engaged_at(&rc, k) - 10u;
+        for (d = 0; d < 6u; d++) {
+            plant_run_defaults(&rc, &g_cfg, hom_fix_pack(&g_tab));
+            rc.seed = 11;
+            rc.cmd.tension_mN = 800;
+            rc.fault_ms = at;
+            rc.fault = PLANT_FI_FIELD_JUMP;
+            rc.fault_index = g_tab.tendons[k].sensor;
+            rc.jump_uT[d / 2u] = (d & 1u ? -0.9 : 0.9) * target_uT(k, 800);
+            assert_int_equal(plant_run(&rc, &g_res), 0);
+            print_message("step %u k=%u: fault %u max %.3f N\n", d, k, g_res.fault,
+                          g_res.max_tension_N[k]);
+            assert_true(g_res.fault == HOM_F_FIELD_STEP || g_res.fault == HOM_F_NO_PROGRESS);
+            assert_int_equal(g_res.have_home[k], 0);
+            assert_bounded_and_released(&rc);
+        }
+    }
+}
+
 /* A run stopped after a tendon's engagement and before its home gives no
  * window of that tendon to keep; those of the tendons homed before it, yes.
  * A field step in a take-up (once half the slack margin is taken up) reads
@@ -701,6 +740,7 @@ int main(void)
         cmocka_unit_test(test_magnet_missing_no_prediction),
         cmocka_unit_test(test_slow_position_reads),
         cmocka_unit_test(test_field_falls_while_pulling),
+        cmocka_unit_test(test_field_step_as_the_tendon_engages),
         cmocka_unit_test(test_field_stuck_while_pulling),
         cmocka_unit_test(test_magnet_removed_while_pulling),
         cmocka_unit_test(test_window_kept_only_with_a_home),
