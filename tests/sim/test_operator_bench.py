@@ -126,10 +126,18 @@ def hh(*args, input=None, timeout=120, env=None, **popen):
                           capture_output=True, text=True, timeout=timeout, env=env, cwd=popen.get("cwd"))
 
 
+def sigint_default():
+    """A child's Ctrl-C as a user's terminal gives it: a test suite started
+    in the background of a shell without job control inherits SIGINT
+    ignored, and Python then never raises KeyboardInterrupt."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def hh_start(*args, cwd=None):
     env = dict(os.environ, COLUMNS="160", HALLHOME_HISTORY=os.devnull, HALLHOME_RUNS=os.devnull)
     return subprocess.Popen([sys.executable, "-m", "hallhome", *map(str, args)], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, stdin=subprocess.DEVNULL, text=True, env=env, cwd=cwd)
+                            stderr=subprocess.PIPE, stdin=subprocess.DEVNULL, text=True, env=env, cwd=cwd,
+                            preexec_fn=sigint_default)
 
 
 # --- status, console, errors ---------------------------------------------------------
@@ -638,6 +646,7 @@ def test_console_ctrl_c_clears_the_line_and_ctrl_d_quits(bench, tmp_path):
     def controlling_tty():  # the pty is the console's terminal: Ctrl-C there is SIGINT
         os.setsid()
         fcntl.ioctl(0, termios.TIOCSCTTY, 0)
+        sigint_default()
     p = subprocess.Popen([sys.executable, "-m", "hallhome", "console", "--port", str(b.pty)],
                          stdin=slave, stdout=slave, stderr=slave, env=env, close_fds=True,
                          preexec_fn=controlling_tty)
