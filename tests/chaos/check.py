@@ -303,7 +303,8 @@ def check(sch, summary: dict, out: str, ref: dict | None = None) -> Verdict:
         final = first_attempt(attempts, console, steps[sch.clean_steps[-1]][0])
     if final and final["end"] and final["end"].startswith("<done"):
         # the undisturbed first calibration of a boot, and a repeat one
-        refs = [x for x in (ref, (ref or {}).get("repeat")) if x and x.get("end", "").startswith("<done")]
+        refs = [x for x in (ref, (ref or {}).get("repeat"))
+                if x and x.get("end", "").startswith("<done")]
         ref_mN = {}
         for x in refs:
             for t in x.get("tendons", []):

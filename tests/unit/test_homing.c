@@ -546,18 +546,14 @@ static void test_field_step_as_the_tendon_engages(void **state)
     uint8_t d;
     (void)state;
     for (k = 0; k < g_tab.n_tendons; k++) {
-        uint32_t at;
         plant_run_defaults(&rc, &g_cfg, hom_fix_pack(&g_tab));
         rc.seed = 11;
         rc.cmd.tension_mN = 800;
-        at = engaged_at(&rc, k) - 10u;
+        rc.fault_ms = engaged_at(&rc, k) - 10u;
+        rc.fault = PLANT_FI_FIELD_JUMP;
+        rc.fault_index = g_tab.tendons[k].sensor;
         for (d = 0; d < 6u; d++) {
-            plant_run_defaults(&rc, &g_cfg, hom_fix_pack(&g_tab));
-            rc.seed = 11;
-            rc.cmd.tension_mN = 800;
-            rc.fault_ms = at;
-            rc.fault = PLANT_FI_FIELD_JUMP;
-            rc.fault_index = g_tab.tendons[k].sensor;
+            memset(rc.jump_uT, 0, sizeof rc.jump_uT);
             rc.jump_uT[d / 2u] = (d & 1u ? -0.9 : 0.9) * target_uT(k, 800);
             assert_int_equal(plant_run(&rc, &g_res), 0);
             print_message("step %u k=%u: fault %u max %.3f N\n", d, k, g_res.fault,
