@@ -62,6 +62,7 @@
 #define APP_HWERR_EVERY     8u     /* read Hardware Error Status every n-th cycle */
 #define APP_SERVO_REBOOT_MS 600u   /* wait after `reboot` before the bus is brought up */
 #define APP_REBOOT_TRIES    3u     /* reboots of a servo in hardware error before it is named */
+#define APP_REBOOT_WAIT     64u    /* bus transactions a reboot waits at most for the other goals */
 /* After a reset that cut a run: how long the bring-up waits for the early
  * release (v_release, about 3100 ticks/s) to slacken the tendons; a tendon
  * 150 ticks past engagement is slack after 50 ms, one in the final move
@@ -208,7 +209,7 @@ typedef struct {
     uint8_t wdog_gap;   /* 1: a position read comes before the next Bus Watchdog write */
     uint8_t wdog_bcast; /* broadcast Bus Watchdog writes left: 2 clear, 1 arm */
     uint8_t reboot_id;
-    uint8_t reboot_req;   /* `reboot` waits for the bus */
+    uint8_t reboot_req;   /* a reboot of reboot_id waits: bus transactions left at most (0: none) */
     uint8_t reboot_tries; /* reboots of reboot_id that left it in error or silent */
     uint16_t absent;      /* bit i: tendon i's servo did not answer the bring-up */
     uint16_t fresh;       /* bit i: a position arrived since the last homing step */

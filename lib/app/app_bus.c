@@ -103,14 +103,16 @@ APP_NOINLINE static void servo_done(app_t *a)
  * sync write carries no reply: a servo that missed one to a corrupted byte
  * keeps its old goal, so these goals go out again every few cycles. A servo
  * that is really stuck stays where it is and the homing's stall check still
- * sees it; a servo on its way gets the goal it already has. */
+ * sees it; a servo on its way gets the goal it already has. A servo waiting
+ * for its reboot (torque off) is left out. */
 static uint16_t off_goal(const app_t *a)
 {
     uint8_t i = a->info.n_tendons;
     uint16_t m = 0;
     while (i-- > 0u) {
         m = (uint16_t)(m << 1);
-        if ((uint32_t)(a->bus.present[i] - hom_goal(&a->u.hom, i)) + 1u > 2u) {
+        if ((a->bus.reboot_req == 0u || a->bus.ids[i] != a->bus.reboot_id) &&
+            (uint32_t)(a->bus.present[i] - hom_goal(&a->u.hom, i)) + 1u > 2u) {
             m |= 1u;
         }
     }
@@ -123,9 +125,16 @@ APP_NOINLINE static void servo_next(app_t *a)
     uint8_t data[GOALS_PER_TXN * 12u];
     uint8_t i, n = 0, txn, v, force;
     uint16_t mask, addr;
-    if (a->bus.reboot_req && a->bus.goal_due == 0u && a->bus.torque_due == 0u) {
-        /* after the release goals of every other tendon are out: the
-         * bring-up that follows a reboot owns the bus for a while */
+    if (a->bus.reboot_req != 0u &&
+        (a->bus.goal_due | a->bus.goal_again | a->bus.torque_due) == 0u &&
+        (--a->bus.reboot_req == 0u || off_goal(a) == 0u)) {
+        /* once every other tendon stands at its goal (a release), or after
+         * APP_REBOOT_WAIT transactions: the bring-up that follows a reboot
+         * owns the bus for 0.9 s and forgets the goals still queued. Chaos
+         * seed 15309: the first copy of six release goals was lost to bus
+         * noise, the reboot went before the second, and five tendons stayed
+         * at 2 N for 940 ms. Both copies lost, the refresh of goals not
+         * reached sends them again before the reboot goes. */
         a->bus.reboot_req = 0;
         if (dxl_reboot(&a->bus.dxl, a->bus.reboot_id) > 0) {
             a->bus.txn = APP_TX_REBOOT;
@@ -257,7 +266,7 @@ uint8_t app_bus_goals_now(app_t *a, uint8_t what)
 void app_bus_reboot(app_t *a, uint8_t id)
 {
     a->bus.reboot_id = id;
-    a->bus.reboot_req = 1;
+    a->bus.reboot_req = APP_REBOOT_WAIT;
 }
 
 void app_bus_poll(app_t *a)

@@ -6,6 +6,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "dxl/dxl_proto.h"
+#include "dxl/dxl_xl430_reg.h"
 #include "hom_fixture.h"
 #include "simrand.h"
 
@@ -86,6 +88,11 @@ static uint16_t noisy_write(void *ctx, const uint8_t *data, uint16_t n)
     }
     for (i = 0; i < n; i++) {
         buf[i] = noisy(b, data[i]);
+    }
+    if (b->lose_goal_writes != 0u && n > 9u && buf[7] == DXL_INST_SYNC_WRITE &&
+        buf[8] == DXL_XL430_PROFILE_ACCELERATION_ADDR && buf[9] == 0u) {
+        b->lose_goal_writes--;
+        buf[n - 1u] ^= 0x01u;
     }
     return b->bus_port.write(ctx, buf, n);
 }

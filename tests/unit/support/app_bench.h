@@ -64,6 +64,10 @@ typedef struct {
     uint64_t noise_seed;
     uint32_t noise_hits;
     dxl_port bus_port; /* the fake bus's own port, under the noise */
+    /* the next lose_goal_writes sync writes of goals (profile, velocity and
+     * position from Profile Acceleration on) reach the servos with a bit of
+     * their CRC flipped: every servo drops them */
+    uint8_t lose_goal_writes;
     /* the app */
     app_board_t board;
     con_io_t con_io;
