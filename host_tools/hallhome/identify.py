@@ -16,6 +16,8 @@ description):
   A tendon's take-up is its path change plus its stretch, and the survey
   alone cannot tell one from the other; its own weight tells how far a
   known force bends the robot through it;
+- ``angle<i>``: routing angle of each pulled tendon, degrees: the plane it
+  bends the robot in;
 - ``sensor<k>_<x|y|z>``: sensor k's position, mm (its rotation stays);
 - ``engage<i>``: take-up from the pull's first step to the tendon's
   engagement, um (no prior: the slack at the start is unknown);
@@ -112,6 +114,13 @@ def weighs_every_tendon(survey: Survey) -> bool:
                                      >= {p.tendon for p in survey.pulls})
 
 
+# A tendon's routing angle: prior 1-sigma and plausible range about the
+# description's, degrees (a routing hole drilled a millimetre off at a 4.5 mm
+# radius turns it by some 13 degrees: beyond that it is another robot).
+ANGLE_PRIOR_DEG = 2.0
+ANGLE_RANGE_DEG = 10.0
+
+
 # Two masses on one tendon tell the friction when the heavier is at least
 # this many times the lighter (closer masses leave it to the noise).
 FRICTION_MASS_RATIO = 1.5
@@ -162,6 +171,14 @@ def _params(robot: Robot, survey: Survey, stiffness: bool, mechanics: bool,
             out.append(Param(f"EA{p.tendon}", "N", ea, 0.2 * ea, 0.5 * ea, 2.0 * ea, 0.05 * ea))
     elif mechanics:
         out.append(Param("radius", "mm", r, 0.05 * r, 0.7 * r, 1.3 * r, 0.01 * r))
+    if mechanics:
+        # the plane a tendon bends the robot in: the field's direction at
+        # every sensor tells it, and at an off-plane sensor a tenth of a
+        # degree moves a target by a few mN (bench robots at 10 %: +-0.5 deg)
+        for p in survey.pulls:
+            a0 = float(np.degrees(robot.tendons[p.tendon].routing_angle))
+            out.append(Param(f"angle{p.tendon}", "deg", a0, ANGLE_PRIOR_DEG, a0 - ANGLE_RANGE_DEG,
+                             a0 + ANGLE_RANGE_DEG, 0.05))
     for k, s in enumerate(robot.sensors):
         for a, ax in enumerate("xyz"):
             q = s.position[a] * 1e3
@@ -205,6 +222,8 @@ def apply(robot: Robot, params: list[Param], values) -> Robot:
     tendons = [dataclasses.replace(t, routing_radius=v[f"radius{i}"] * 1e-3 if f"radius{i}" in v
                                    else t.routing_radius * f,
                                    stiffness_ea=v.get(f"EA{i}", t.stiffness_ea),
+                                   routing_angle=np.radians(v[f"angle{i}"]) if f"angle{i}" in v
+                                   else t.routing_angle,
                                    friction_N=v["friction"] * 1e-3 if "friction" in v
                                    else t.friction_N)
                for i, t in enumerate(robot.tendons)]
@@ -320,13 +339,16 @@ class _Model:
         self.robot, self.survey = robot, survey
         self.key = None
         self.wcache: dict = {}  # weight record poses, by what they depend on
+        self.pcache: dict = {}  # each pull's poses, by what they depend on
 
     def _weight_pose(self, r: Robot, mech: tuple, tendon: int | None, force: float):
         """Tip pose of the Cosserat model with ``force`` on ``tendon`` (None:
-        no load), cached on the segments and that tendon's radius: a tendon's
-        stiffness, or another tendon's radius, leaves it as it is."""
+        no load), cached on the segments and that tendon's radius and angle:
+        a tendon's stiffness, or another tendon's geometry, leaves it as it
+        is."""
         key = (mech, tendon, force,
-               None if tendon is None else r.tendons[tendon].routing_radius)
+               None if tendon is None else (r.tendons[tendon].routing_radius,
+                                            r.tendons[tendon].routing_angle))
         hit = self.wcache.get(key)
         if hit is None:
             if len(self.wcache) > 4096:
@@ -341,18 +363,33 @@ class _Model:
             hit = self.wcache[key] = (sol.tip_position[None], sol.tip_rotation[None])
         return hit
 
+    def _pull(self, r: Robot, mech: tuple, tendon: int, tensions):
+        """cc_single of one tendon, cached on the segments and that
+        tendon's own parameters: a finite difference in another tendon's
+        angle or radius leaves it as it is."""
+        t = r.tendons[tendon]
+        key = (mech, tendon, len(tensions), t.routing_radius, t.routing_angle, t.stiffness_ea,
+               t.friction_N)
+        hit = self.pcache.get(key)
+        if hit is None:
+            if len(self.pcache) > 4096:
+                self.pcache.clear()
+            hit = self.pcache[key] = cc_single(r, tendon, tensions)
+        return hit
+
     def poses(self, r: Robot):
         key = (tuple(s.length for s in r.segments), tuple(s.youngs_modulus for s in r.segments),
                tuple(t.routing_radius for t in r.tendons), tuple(t.stiffness_ea for t in r.tendons),
-               tuple(t.friction_N for t in r.tendons))
+               tuple(t.friction_N for t in r.tendons), tuple(t.routing_angle for t in r.tendons))
         if key != self.key:
             pos, rot, take = [], [], []
+            mech = key[:2]
             for p in self.survey.pulls:
-                a, b, c = cc_single(r, p.tendon, TENSION_GRID)
+                a, b, c = self._pull(r, mech, p.tendon, TENSION_GRID)
                 pos.append(a)
                 rot.append(b)
                 take.append(c)
-            a, b, _ = cc_single(r, 0, [0.0])
+            a, b, _ = self._pull(r, mech, 0, [0.0])
             pos.append(a)
             rot.append(b)
             if self.survey.weights:
@@ -361,7 +398,6 @@ class _Model:
                 # robot's own weight adds to its bending), and a weight hung
                 # from slack reaches the tendon's end through its friction as
                 # a calibration's pull does (Robot.tip_tension)
-                mech = key[:2]
                 for tendon, force in [(None, 0.0)] + [
                         (w.tendon, r.tip_tension(r.tendons[w.tendon], w.force))
                         for w in self.survey.weights]:

@@ -30,8 +30,9 @@ def identify_group():
        times the first, on the same tendon and the fit finds the friction
        too.
     3. Fit: `hallhome identify fit ROBOT.toml SURVEY.json` fits the magnet,
-       segment lengths, routing radius, sensor positions, each tendon's
-       engagement and the stiffness, reports them against the nominal
+       segment lengths, routing radius, each tendon's routing angle and
+       engagement, sensor positions and the stiffness, reports them against
+       the nominal
        values with their uncertainty, plots the residuals per tendon, and
        writes ROBOT_id.toml beside the original (refused fits write
        nothing).

@@ -49,6 +49,7 @@ def truth_values(robot: Robot, survey: Survey) -> dict[str, float]:
     out["radius"] = float(np.mean([t["radius_mm"] for t in tr["tendons"]]))
     for i, t in enumerate(tr["tendons"]):
         out[f"radius{i}"] = t["radius_mm"]
+        out[f"angle{i}"] = t["angle_deg"]
     out["friction"] = float(np.mean([t["friction_mN"] for t in tr["tendons"]]))
     for k, s in enumerate(tr["sensors"]):
         for a, ax in enumerate("xyz"):
@@ -228,7 +229,7 @@ def one_seed(robot_path: Path, seed: int, perturb: float, weight_g: float, bench
         for r in res.table():
             if r["name"] not in tv:
                 continue
-            name = re.sub(r"^(engage|radius)\d+$", r"\1 (per tendon)", r["name"])
+            name = re.sub(r"^(engage|radius|angle)\d+$", r"\1 (per tendon)", r["name"])
             rec = out["recovery"].setdefault(name, {})
             rec.setdefault(mode, []).append(r["value"] - tv[r["name"]])
             if mode == "weights" and not name.endswith("(per tendon)"):

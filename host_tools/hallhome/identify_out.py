@@ -63,6 +63,9 @@ def _edits(res: FitResult) -> dict:
             if name in rows:
                 out[("tendons", i, "routing_radius_mm")] = (f"{t.routing_radius * 1e3:.4f}",
                                                             note(name))
+        if f"angle{i}" in rows:
+            out[("tendons", i, "routing_angle_deg")] = (
+                f"{np.degrees(t.routing_angle):.4f}", note(f"angle{i}"))
         if f"EA{i}" in rows:
             out[("tendons", i, "stiffness_EA_N")] = (
                 f"{t.stiffness_ea:.1f}", note(f"EA{i}") + ", effective: with the free length's "
@@ -172,7 +175,9 @@ def write_identified(res: FitResult, nominal: Robot, survey_name: str,
                 np.linalg.norm(fitted.magnet.polarization))]
     checks += [(b.routing_radius, f.routing_radius) for b, f in zip(back.tendons, fitted.tendons)]
     checks += [(b.stiffness_ea, f.stiffness_ea) for b, f in zip(back.tendons, fitted.tendons)]
-    if any(abs(a - b) > 1e-3 * abs(b) for a, b in checks):
+    angles = [(b.routing_angle, f.routing_angle) for b, f in zip(back.tendons, fitted.tendons)]
+    if (any(abs(a - b) > 1e-3 * abs(b) for a, b in checks)
+            or any(abs(a - b) > 1e-5 for a, b in angles)):
         raise IdentifyError(f"{out}: read back, the values differ from the fit")
     return out, back
 
@@ -212,18 +217,24 @@ def plot_residuals(res: FitResult, path: Path) -> Path:
 
 def plot_parameters(res: FitResult, path: Path, truth: dict | None = None) -> Path:
     """Fitted against nominal with 1-sigma bars: relative change of the
-    magnet, lengths, radius and stiffness; shifts of the sensors in mm.
+    magnet, lengths, radius and stiffness; shifts of the sensors in mm; turns
+    of the tendons' routing angles in degrees.
     ``truth`` (bench surveys) adds the true values as crosses."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     rows = [r for r in res.table() if not r["name"].startswith("engage")]
-    rel = [r for r in rows if not r["name"].startswith("sensor")]
+    rel = [r for r in rows if not r["name"].startswith(("sensor", "angle"))]
     sen = [r for r in rows if r["name"].startswith("sensor")]
-    fig, (a1, a2) = plt.subplots(1, 2, figsize=(10, 0.35 * max(len(rel), len(sen)) + 1.5))
-    for ax, rr, fn, unit in ((a1, rel, lambda r, v: 100 * (v / r["nominal"] - 1), "%"),
-                             (a2, sen, lambda r, v: v - r["nominal"], "mm")):
+    ang = [r for r in rows if r["name"].startswith("angle")]
+    panels = [(rr, fn, unit) for rr, fn, unit in (
+        (rel, lambda r, v: 100 * (v / r["nominal"] - 1), "%"),
+        (sen, lambda r, v: v - r["nominal"], "mm"),
+        (ang, lambda r, v: v - r["nominal"], "deg")) if rr]
+    fig, axs = plt.subplots(1, len(panels), squeeze=False,
+                            figsize=(5 * len(panels), 0.35 * max(len(p[0]) for p in panels) + 1.5))
+    for ax, (rr, fn, unit) in zip(axs[0], panels):
         y = np.arange(len(rr))
         ax.errorbar([fn(r, r["value"]) for r in rr], y,
                     xerr=[abs(fn(r, r["value"] + r["sigma"]) - fn(r, r["value"])) for r in rr],
@@ -236,7 +247,7 @@ def plot_parameters(res: FitResult, path: Path, truth: dict | None = None) -> Pa
         ax.set_yticks(y, [r["name"] for r in rr], fontsize=8)
         ax.set_xlabel(f"fitted - nominal ({unit})")
         ax.invert_yaxis()
-    a1.legend(fontsize=7)
+    axs[0][0].legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

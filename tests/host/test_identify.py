@@ -29,8 +29,8 @@ def nominal():
 
 def perturbed(r):
     """A robot as built: magnet +6 %, segment 1 +2 % long and 8 % stiffer,
-    segment 2 1.5 % short and 7 % softer, tendons 3 % further out, sensor 0
-    0.5 mm off."""
+    segment 2 1.5 % short and 7 % softer, tendons 3 % further out, tendon 2
+    routed 0.6 degrees and tendon 4 -0.8 degrees off, sensor 0 0.5 mm off."""
     s1, s2 = r.segments
     segs = (dataclasses.replace(s1, length=s1.length * 1.02,
                                 youngs_modulus=s1.youngs_modulus * 1.08),
@@ -39,10 +39,15 @@ def perturbed(r):
     J = tuple(np.array(r.magnet.polarization) * 1.06)
     return dataclasses.replace(
         r, segments=segs, magnet=dataclasses.replace(r.magnet, polarization=J),
-        tendons=tuple(dataclasses.replace(t, routing_radius=t.routing_radius * 1.03)
+        tendons=tuple(dataclasses.replace(t, routing_radius=t.routing_radius * 1.03,
+                                          routing_angle=t.routing_angle + np.radians(
+                                              ANGLE_OFF_DEG.get(t.index, 0.0)))
                       for t in r.tendons),
         sensors=(dataclasses.replace(r.sensors[0], position=(0.0225, 0.0003, 0.1215)),)
         + r.sensors[1:])
+
+
+ANGLE_OFF_DEG = {2: 0.6, 4: -0.8}
 
 
 @pytest.fixture(scope="module")
@@ -103,6 +108,10 @@ def test_fit_with_weights_recovers_the_robot_as_built(weighted_fit, true_robot, 
     assert res.value("radius") == pytest.approx(true_robot.tendons[0].routing_radius * 1e3,
                                                 rel=0.01)
     assert res.value("sensor0_x") == pytest.approx(22.5, abs=0.3)
+    # each tendon's bending plane, from the field's direction at the sensors
+    for t in true_robot.tendons:
+        assert res.value(f"angle{t.index}") == pytest.approx(np.degrees(t.routing_angle),
+                                                             abs=0.1), t.index
     for p in survey_dict["pulls"]:
         assert res.value(f"engage{p['tendon']}") == pytest.approx(p["engagement_um"], abs=5.0)
     # the nominal values are far from the truth where it was perturbed: the fit moved them
