@@ -32,10 +32,9 @@ def identify_group():
     3. Fit: `hallhome identify fit ROBOT.toml SURVEY.json` fits the magnet,
        segment lengths, routing radius, each tendon's routing angle and
        engagement, sensor positions and the stiffness, reports them against
-       the nominal
-       values with their uncertainty, plots the residuals per tendon, and
-       writes ROBOT_id.toml beside the original (refused fits write
-       nothing).
+       the nominal values with their uncertainty, plots the residuals per
+       tendon, and writes ROBOT_id.toml beside the original (refused fits
+       write nothing).
     4. Install: generate the table of the identified TOML
        (`hallhome tables ROBOT_id.toml`), build and flash its firmware
        (`make flash ROBOT=<robot>_id`), calibrate.
