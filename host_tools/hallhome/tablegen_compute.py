@@ -15,6 +15,7 @@ from hallhome.model import CosseratModel, Solution
 from hallhome.robot import Robot
 from hallhome.straight import straight_um_table
 from hallhome.tablegen_spec import TableError
+from hallhome.usable import firmware_limits, travel_limit
 
 SENSITIVITY_STEP_N = 0.01  # central difference for d|dB|/dT at the default tension
 # |dB| must rise up to the top of the grid plus this part of its last interval
@@ -163,6 +164,7 @@ def _tendon_name(robot: Robot, i: int) -> str:
 
 def _warnings(res: RobotResult) -> list[str]:
     robot = res.robot
+    limits = firmware_limits()
     w = []
     for i, tr in enumerate(res.tendons):
         name = _tendon_name(robot, i)
@@ -193,10 +195,11 @@ def _warnings(res: RobotResult) -> list[str]:
             k = int(np.nonzero(np.diff(abs_t) <= 0)[0][0])
             w.append(f"{name}: absolute target on sensor {sel} does not grow between "
                      f"{robot.tension_grid[k]:g} N and {robot.tension_grid[k + 1]:g} N")
+        limit, source = travel_limit(robot, i, limits)
         for T, tv in zip(robot.tension_grid, tr.travel):
-            if tv > robot.travel_limit:
-                w.append(f"{name}: expected travel {tv * 1e3:.3f} mm at {T:g} N exceeds the "
-                         f"travel limit {robot.travel_limit * 1e3:.3f} mm")
+            if tv > limit:
+                w.append(f"{name}: expected travel {tv * 1e3:.3f} mm at {T:g} N exceeds {source}: "
+                         f"a calibration at {T:g} N or more stops with travel_limit")
                 break
     # Saturation and targets lost in the noise are refusals (hallhome.usable).
     return w

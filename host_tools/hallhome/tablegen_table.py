@@ -12,6 +12,7 @@ import numpy as np
 
 from hallhome.tablegen_compute import RobotResult, _tendon_name
 from hallhome.tablegen_spec import _CTYPES, CField, TableError, TableSpec, parse_table_header
+from hallhome.usable import firmware_limits, travel_limit
 
 def _cuT(x: float) -> int:
     return int(round(x * 1e8))  # T -> centi-microtesla (10 nT)
@@ -49,12 +50,13 @@ def build_table(res: RobotResult, spec: TableSpec) -> dict:
         raise TableError(f"{robot.path.name}: tension grid is not strictly increasing in mN: "
                          f"{grid_mN}")
     default_mN = int(round(robot.default_tension * 1e3))
+    limits = firmware_limits()
     for i, tr in enumerate(res.tendons):
         t_def = float(np.interp(robot.default_tension, robot.tension_grid, tr.travel))
-        if t_def > robot.travel_limit:
+        limit, source = travel_limit(robot, i, limits)
+        if t_def > limit:
             raise TableError(f"{robot.path.name}: {_tendon_name(robot, i)}: expected travel "
-                             f"{t_def * 1e3:.3f} mm at the default tension exceeds "
-                             f"travel_limit_mm = {robot.travel_limit * 1e3:.3f}")
+                             f"{t_def * 1e3:.3f} mm at the default tension exceeds {source}")
     sensors = []
     for s, b in zip(robot.sensors, res.b_straight):
         sensors.append({"mux_channel": c["TBL_NO_MUX"] if s.mux_channel is None

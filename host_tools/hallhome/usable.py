@@ -62,6 +62,7 @@ class FirmwareLimits:
     sensors: Limit
     tendons: Limit
     name_chars: Limit
+    reach_ticks: Limit  # the furthest the firmware pulls a tendon past its engagement
 
 
 def header_constants(path: Path) -> dict[str, int]:
@@ -95,7 +96,21 @@ def firmware_limits(lib_dir: Path = LIB_DIR) -> FirmwareLimits:
     sensors = min(get("HOM_MAX_SENSORS"), get("TBL_MAX_SENSORS"), key=lambda lim: lim.value)
     name = get("TBL_NAME_LEN")
     return FirmwareLimits(sensors=sensors, tendons=get("TBL_MAX_TENDONS"),
-                          name_chars=Limit(name.value - 1, f"{name.source}, with the NUL"))
+                          name_chars=Limit(name.value - 1, f"{name.source}, with the NUL"),
+                          reach_ticks=get("HOM_RELEASE_REACH_TICKS"))
+
+
+def travel_limit(robot: Robot, i: int, limits: FirmwareLimits) -> tuple[float, str]:
+    """Tendon i's travel limit past engagement as the firmware applies it, m,
+    and where it comes from: the description's ``travel_limit_mm``, or less,
+    the travel the servo unwinds within the release bound at its top speed
+    (HOM_RELEASE_REACH_TICKS; docs/app.md, release)."""
+    reach = limits.reach_ticks.value * robot.tendons[i].metres_per_tick
+    if reach < robot.travel_limit:
+        return reach, (f"{reach * 1e3:.3f} mm, the travel the servo unwinds within the release "
+                       f"bound ({limits.reach_ticks.source}), below travel_limit_mm = "
+                       f"{robot.travel_limit * 1e3:.3f}")
+    return robot.travel_limit, f"travel_limit_mm = {robot.travel_limit * 1e3:.3f}"
 
 
 def tendon_key(robot: Robot, i: int) -> str:

@@ -7,51 +7,63 @@
 #include <stddef.h>
 #include <string.h>
 
+/* The defaults live in flash on the AVR (TBL_FLASH is __progmem__ there):
+ * one copy instead of 30 stores. */
+#ifdef __AVR__
+#include <avr/pgmspace.h>
+#define HOM_COPY_DEFAULTS memcpy_P
+#else
+#define HOM_COPY_DEFAULTS memcpy
+#endif
+
+/* Speeds in XL430 units (0.229 rpm = 15.63 ticks/s = 96 um/s on a 6.1 um
+ * tick). Take-up: twice the tendon's expected travel in ticks
+ * (hom_begin_tendon()), at most v_fast, only while the tendon is slack; the
+ * firmware's cap (setting approach_fast) is 90 units = 14 ticks per 100 Hz
+ * sample: 120 gave homes up to 30 ticks off on the distal tendons of
+ * paper_2seg at 1.5 N on the bench. Moderate: 60 units, 9 ticks per sample,
+ * so stopping at 80 % of the target leaves margin for a sample of latency.
+ * Fine steps are short moves, speed hardly matters. Release and final move:
+ * 265 units (the XL430 Velocity Limit) = 4.1 ticks/ms, a 1 mm release in
+ * 40 ms; no tendon is pulled further than it unwinds in 85 ms
+ * (HOM_RELEASE_REACH_TICKS), a tendon as elastic as a spring in line (the
+ * out_of_reach scenario) included. Settle: 10 ms after a fine step (5 ms
+ * standing still); 20 ms gave the same homes on the bench and cost 10 ms a
+ * point. */
+static const hom_config_t TBL_FLASH hom_defaults = {
+    .v_fast = 120,
+    .v_moderate = 60,
+    .v_fine = 60,
+    .v_release = HOM_V_RELEASE,
+    .v_final = 265,
+    .acc = 0,
+    .slack_margin_um = HOM_SLACK_MARGIN_UM, /* > the path shortening another tendon causes at
+                                             * 1 N; load_tendon() raises it with the tension
+                                             * and the tendon's own travel */
+    .slack_step_um = 300,
+    .slack_max_steps = 6,
+    .baseline_samples = 16,
+    .avg_samples = 2,
+    .fine_max_steps = 16,
+    .takeup_per_tick = 2,
+    .near_permille = 800,
+    .settle_ms = 10,
+    .preflight_ms = 200,
+    .sensor_timeout_ms = 100,
+    .servo_timeout_ms = 50,
+    .move_timeout_ms = 3000,
+    .tendon_timeout_ms = 4000,
+    .engage_min_cuT = 300,
+    .rate_limit_cuT = 250000, /* 2.5 mT per sample: 3x the fastest take-up seen */
+    .sat_cuT = 490000,        /* 4900 uT of the AK09916's 4912 uT */
+    .max_takeup_um = 4000,
+    .initial_release_um = 0,
+    .straight = 1,
+};
+
 void hom_config_default(hom_config_t *cfg)
 {
-    /* Speeds in XL430 units (0.229 rpm = 15.63 ticks/s = 96 um/s on a
-     * 6.1 um tick). Take-up: twice the tendon's expected travel in ticks
-     * (hom_begin_tendon()), at most v_fast, only while the tendon is slack;
-     * the firmware's cap (setting approach_fast) is 90 units = 14 ticks per
-     * 100 Hz sample: 120 gave homes up to 30 ticks off on the distal tendons
-     * of paper_2seg at 1.5 N on the bench. Moderate: 60 units,
-     * 9 ticks per sample, so stopping at 80 % of the target leaves margin for
-     * a sample of latency. Fine steps are short moves, speed hardly matters.
-     * Release and final move: 265 units (the XL430 Velocity Limit) =
-     * 4.1 ticks/ms, a 1 mm release in 40 ms; the 2.5 mm a travel limit allows
-     * in 100 ms, a tendon as elastic as a spring in line (the out_of_reach
-     * scenario) included. Settle: 10 ms after a fine step (5 ms standing
-     * still); 20 ms gave the same homes on the bench and cost 10 ms a
-     * point. */
-    memset(cfg, 0, sizeof *cfg);
-    cfg->v_fast = 120;
-    cfg->v_moderate = 60;
-    cfg->v_fine = 60;
-    cfg->v_release = 265;
-    cfg->v_final = 265;
-    cfg->acc = 0;
-    cfg->slack_margin_um = HOM_SLACK_MARGIN_UM; /* > the path shortening another tendon causes at 1
-                                                 * N; load_tendon() raises it with the tension and
-                                                 * the tendon's own travel */
-    cfg->slack_step_um = 300;
-    cfg->slack_max_steps = 6;
-    cfg->baseline_samples = 16;
-    cfg->avg_samples = 2;
-    cfg->fine_max_steps = 16;
-    cfg->takeup_per_tick = 2;
-    cfg->near_permille = 800;
-    cfg->settle_ms = 10;
-    cfg->preflight_ms = 200;
-    cfg->sensor_timeout_ms = 100;
-    cfg->servo_timeout_ms = 50;
-    cfg->move_timeout_ms = 3000;
-    cfg->tendon_timeout_ms = 4000;
-    cfg->engage_min_cuT = 300;
-    cfg->rate_limit_cuT = 250000; /* 2.5 mT per sample: 3x the fastest take-up seen */
-    cfg->sat_cuT = 490000;        /* 4900 uT of the AK09916's 4912 uT */
-    cfg->max_takeup_um = 4000;
-    cfg->initial_release_um = 0;
-    cfg->straight = 1;
+    HOM_COPY_DEFAULTS(cfg, &hom_defaults, sizeof *cfg);
 }
 
 void hom_init(hom_t *h, const hom_config_t *cfg)
@@ -369,6 +381,9 @@ HOM_NOINLINE static void load_tendon(hom_t *h, uint8_t i)
     t->margin_ticks =
         hom_um_to_ticks(margin_um(&h->cfg, h->tension_mN, pt.travel_um), row.nm_per_tick);
     t->limit_ticks = hom_muldiv((int32_t)row.travel_limit_um, 1000, (int32_t)row.nm_per_tick);
+    if (t->limit_ticks > HOM_RELEASE_REACH_TICKS) {
+        t->limit_ticks = HOM_RELEASE_REACH_TICKS;
+    }
     q8 = hom_straight_q8(t, pt.straight_um);
     t->to_straight = (int16_t)hom_floor_div256(q8);
     t->straight_frac = (int8_t)(q8 - (int32_t)t->to_straight * 256);

@@ -18,9 +18,9 @@ from hallhome.robot import load_robot
 from hallhome.tablegen import (CField, TableError, TableSpec, _pick, build_table,
                                canonical_bytes, check_table, compute, generate,
                                parse_table_header, table_size)
-from hallhome.usable import result_refusals
+from hallhome.usable import header_constants, result_refusals
 
-from test_model import make_robot
+from test_model import make_robot, tiny_robot_toml
 
 SPEC = parse_table_header()
 ROBOTS = sorted(p.stem for p in ROBOTS_DIR.glob("*.toml"))
@@ -233,9 +233,26 @@ def test_a_saturating_sensor_is_refused_not_warned(tmp_path):
 def test_travel_limit_below_default_travel_is_an_error(tmp_path):
     r = make_robot(tmp_path, travel=0.05)
     res = compute(r)
-    assert any("exceeds the travel limit" in w for w in res.warnings)
+    assert any("exceeds travel_limit_mm = 0.050" in w for w in res.warnings)
     with pytest.raises(TableError, match=r"expected travel .* at the default tension exceeds "
                                          r"travel_limit_mm = 0.050"):
+        build_table(res, SPEC)
+
+
+def test_travel_beyond_the_release_reach_is_an_error(tmp_path):
+    """The firmware pulls no tendon further past its engagement than the
+    servo unwinds within the release bound (HOM_RELEASE_REACH_TICKS): on a
+    spool of 0.1 mm radius that is 54 um, whatever travel_limit_mm says."""
+    p = tmp_path / "tiny.toml"
+    p.write_text(tiny_robot_toml(travel=2.5).replace("spool_radius_mm = 4.0",
+                                                     "spool_radius_mm = 0.1"))
+    res = compute(load_robot(p))
+    reach = header_constants(LIB_DIR / "homing" / "homing.h")["HOM_RELEASE_REACH_TICKS"]
+    assert reach * 2 * np.pi * 0.1e-3 / 4096 == pytest.approx(54e-6, abs=1e-6)
+    assert any("the travel the servo unwinds within the release bound" in w
+               for w in res.warnings)
+    with pytest.raises(TableError, match=r"exceeds 0.054 mm, the travel the servo unwinds "
+                                         r"within the release bound \(HOM_RELEASE_REACH_TICKS"):
         build_table(res, SPEC)
 
 

@@ -672,6 +672,47 @@ static void test_soft_tendon_released(void **state)
     assert_true(g_res.released && g_res.release_ms <= 100u);
 }
 
+/* A table whose travel limit lies beyond what the servo unwinds within the
+ * release bound (chaos seed 11282: a tendon 50 x softer than its table,
+ * stretched 2.36 mm towards a 2.5 mm limit, slack only 105 ms after the
+ * fault). Tendon 0 made softer step by step, so that its target lies ever
+ * further past its engagement: the pull never goes further than
+ * HOM_RELEASE_REACH_TICKS past the engagement, what lies beyond faults with
+ * travel_limit, and the fault's release is within 100 ms whatever the table
+ * allows (no_progress, when the rise per step falls below the floor first). */
+static void test_travel_limit_within_the_release_reach(void **state)
+{
+    static tbl_wide_t tab;
+    static plant_cfg_t cfg;
+    plant_run_cfg_t rc;
+    uint8_t i;
+    unsigned soft, faults = 0;
+    (void)state;
+    tab = g_tab;
+    for (i = 0; i < tab.n_tendons; i++) {
+        tab.tendons[i].travel_limit_um = 4000;
+    }
+    for (soft = 16; soft <= 40; soft += 4) {
+        cfg = g_cfg;
+        cfg.tendon[0].ea_N /= (double)soft;
+        plant_run_defaults(&rc, &cfg, hom_fix_pack(&tab));
+        rc.seed = soft;
+        assert_int_equal(plant_run(&rc, &g_res), 0);
+        assert_int_equal(g_res.limit_ticks[0], HOM_RELEASE_REACH_TICKS);
+        print_message("%u x softer: %s, %.0f ticks past engagement, released in %u ms\n", soft,
+                      hom_fault_name(g_res.fault), g_res.max_past_engage_ticks[0],
+                      (unsigned)g_res.release_ms);
+        assert_true(g_res.max_past_engage_ticks[0] <= HOM_RELEASE_REACH_TICKS);
+        if (g_res.fault != HOM_F_NONE) {
+            assert_true(g_res.fault == HOM_F_TRAVEL_LIMIT || g_res.fault == HOM_F_NO_PROGRESS);
+            assert_int_equal(g_res.fault_index, 0);
+            assert_true(g_res.released && g_res.release_ms <= 100u);
+            faults += g_res.fault == HOM_F_TRAVEL_LIMIT;
+        }
+    }
+    assert_true(faults > 0u);
+}
+
 static void test_tendon_time_limit(void **state)
 {
     plant_run_cfg_t rc;
@@ -742,6 +783,7 @@ int main(void)
         cmocka_unit_test(test_window_kept_only_with_a_home),
         cmocka_unit_test(test_target_unreachable),
         cmocka_unit_test(test_travel_limit),
+        cmocka_unit_test(test_travel_limit_within_the_release_reach),
         cmocka_unit_test(test_soft_tendon_released),
         cmocka_unit_test(test_tendon_time_limit),
         cmocka_unit_test(test_abort_releases),
