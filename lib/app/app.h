@@ -213,6 +213,7 @@ typedef struct {
     uint8_t reboot_tries; /* reboots of reboot_id that left it in error or silent */
     uint16_t absent;      /* bit i: tendon i's servo did not answer the bring-up */
     uint16_t fresh;       /* bit i: a position arrived since the last homing step */
+    uint16_t missed;      /* bit i: servo i silenced the group reads: it goes last in them */
     uint16_t seen;        /* bit i: a position has arrived since boot */
     uint16_t goal_due;    /* bit i: goal/velocity of tendon i to send */
     uint16_t goal_again;  /* bit i: a new goal of tendon i, to send once more */

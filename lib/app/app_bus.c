@@ -17,14 +17,24 @@ uint32_t app_bus_baud(const app_t *app)
     return (uint32_t)app->rec.set.v[STORE_SET_BUS_BAUD];
 }
 
+/* The IDs of a group read: the servos in `missed` go last. In a
+ * Sync Read each servo answers after the status of the one before it, in a
+ * Fast Sync Read it appends to it: one silent servo silences the ones after
+ * it in the list. First in the list, it silenced every servo, every position
+ * went stale at once and the servo timeout named one of the others (chaos
+ * seed 2004: servo 1 silent at 818 mN, servo 8 named, so servo 1's tendon
+ * was not reported as not released). Last, the others answer and only its
+ * own position goes stale. */
 static uint8_t present_ids(const app_t *a, uint8_t *ids, uint16_t *mask)
 {
-    uint8_t i, n = 0;
+    uint8_t i, pass, n = 0;
     *mask = 0;
-    for (i = 0; i < a->info.n_tendons; i++) {
-        if (app_has(a->bus.absent, i) == 0u) {
-            ids[n++] = a->bus.ids[i];
-            *mask |= app_bit16(i);
+    for (pass = 0; pass < 2u; pass++) {
+        for (i = 0; i < a->info.n_tendons; i++) {
+            if (app_has(a->bus.absent, i) == 0u && app_has(a->bus.missed, i) == pass) {
+                ids[n++] = a->bus.ids[i];
+                *mask |= app_bit16(i);
+            }
         }
     }
     return n;
@@ -41,7 +51,7 @@ APP_NOINLINE static void put32(uint8_t *p, uint32_t v)
 APP_NOINLINE static void servo_done(app_t *a)
 {
     uint8_t i;
-    uint16_t got = 0;
+    uint16_t got = 0, lost, first;
     if (a->bus.txn == APP_TX_POS || a->bus.txn == APP_TX_HWERR) {
         for (i = 0; i < a->info.n_tendons; i++) {
             const dxl_reply *r;
@@ -59,11 +69,18 @@ APP_NOINLINE static void servo_done(app_t *a)
                 a->bus.seen |= app_bit16(i);
             } else if (a->bus.txn == APP_TX_HWERR && r->len >= 1u) {
                 a->bus.hw_err[i] = r->data[0];
+                got |= app_bit16(i);
             }
             if (r->result == -DXL_E_ALERT && a->bus.txn == APP_TX_POS) {
                 a->bus.hwerr_due = 1;
             }
         }
+        /* The first servo of the list that did not answer silenced the ones
+         * after it: it goes last in the next group read, and so does every
+         * servo that went last and is still silent. */
+        lost = (uint16_t)(a->bus.txn_mask & ~got);
+        first = (uint16_t)(lost & ~a->bus.missed);
+        a->bus.missed = (uint16_t)((a->bus.missed & lost) | (first & (uint16_t)(0u - first)));
         if (a->bus.txn == APP_TX_POS) {
             if (got == a->bus.txn_mask) {
                 uint16_t now = (uint16_t)app_now_ms(a);
