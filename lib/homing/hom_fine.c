@@ -241,10 +241,12 @@ void hom_back_off(hom_t *h)
 }
 
 /* The field must rise as the tendon is pulled, checked at every fine
- * point. Measured from the last point it rose
- * enough to (an eighth of what the table's slope says, less four times the
- * noise), a pull of a sixth of the tendon's travel (at least
- * HOM_FLAT_TICKS) with less rise ends the run in HOM_F_NO_PROGRESS: the
+ * point. Measured from the last point it rose enough to (an eighth of what
+ * the table's slope says), a pull of a sixth of the tendon's travel (at
+ * least HOM_FLAT_TICKS) with less rise, four times the noise allowed, ends
+ * the run in HOM_F_NO_PROGRESS (a point within the noise allowance of the
+ * rise moved the reference too: chaos seed 16518, the field flat at 93 % of
+ * the target, 1-tick steps each moved it, 1.53 x the target): the
  * field no longer follows the tendon (chaos seed 9145: the magnet removed
  * left the field flat just below the target, and fine steps of 2 ticks
  * went on 35 points, to 1.64 x the target, before HOM_F_NO_PROGRESS; a
