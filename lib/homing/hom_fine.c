@@ -276,7 +276,7 @@ HOM_NOINLINE static int not_following(hom_t *h, const hom_tendon_t *t, int32_t p
         low = h->engage_cuT;
     }
     if (h->ref_b == 0u || b < low ||
-        (d > 0 && rise - 4 * (int32_t)h->noise_cuT >= ((d * h->slope_min_q8) >> 10))) {
+        (d > 0 && (int32_t)b - (int32_t)h->ref_b >= ((d * h->slope_min_q8) >> 10))) {
         h->ref_p = p;
         h->ref_b = b < low ? 0u : b;
         return 0;

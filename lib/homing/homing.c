@@ -30,12 +30,21 @@
  * out_of_reach scenario) included. Settle: 10 ms after a fine step (5 ms
  * standing still); 20 ms gave the same homes on the bench and cost 10 ms a
  * point. */
+/* HOM_RELEASE_REACH_TICKS is what HOM_V_TOP unwinds in HOM_RELEASE_REACH_MS
+ * (0.229 rpm x 4096 ticks per turn / 60000 ms = 229 x 64 / 937500 ticks per
+ * ms and unit): the build fails when one changes without the other. */
+typedef char
+    hom_reach_matches_the_speed[(HOM_RELEASE_REACH_TICKS ==
+                                 (long)HOM_V_TOP * 229L * 64L * HOM_RELEASE_REACH_MS / 937500L)
+                                    ? 1
+                                    : -1];
+
 static const hom_config_t TBL_FLASH hom_defaults = {
     .v_fast = 120,
     .v_moderate = 60,
     .v_fine = 60,
-    .v_release = HOM_V_RELEASE,
-    .v_final = 265,
+    .v_release = HOM_V_TOP,
+    .v_final = HOM_V_TOP,
     .acc = 0,
     .slack_margin_um = HOM_SLACK_MARGIN_UM, /* > the path shortening another tendon causes at
                                              * 1 N; load_tendon() raises it with the tension

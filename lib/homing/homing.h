@@ -74,6 +74,7 @@
 
 #include <stdint.h>
 
+#include "dxl/dxl_xl430_reg.h"
 #include "table/table.h"
 
 #define HOM_RUNNING 1
@@ -227,15 +228,18 @@ typedef struct {
 
 /* Tunables. hom_config_default() explains the defaults (docs/homing.md). */
 #define HOM_SLACK_MARGIN_UM 600u /* hom_config_t.slack_margin_um by default */
-#define HOM_V_RELEASE       265u /* hom_config_t.v_release: the XL430's Velocity Limit */
+/* hom_config_t.v_release and v_final by default: the servo's top speed */
+#define HOM_V_TOP DXL_XL430_VELOCITY_LIMIT_DEFAULT
 /* Every stop releases every tendon within 100 ms (docs/app.md), and a tendon
  * is slack only once its spool is back at its engagement: so no tendon is
- * pulled further past its (detected) engagement than HOM_V_RELEASE unwinds
- * in 85 ms, whatever the table's travel limit. The other 15 ms cover the
- * pass that sees the stop, the goals' sync write and an engagement detected
- * a few ticks late. 265 units x 0.229 rpm x 4096 ticks per turn = 4.14 ticks
- * per ms: 352 ticks, 2.16 mm at 6136 nm/tick. The host's table generator
- * reads this figure (hallhome/usable.py). */
+ * pulled further past its (detected) engagement than HOM_V_TOP unwinds in
+ * HOM_RELEASE_REACH_MS, whatever the table's travel limit. The other 15 ms
+ * cover the pass that sees the stop, the goals' sync write and an
+ * engagement detected a few ticks late. 265 units x 0.229 rpm x 4096 ticks
+ * per turn = 4.14 ticks per ms: 352 ticks, 2.16 mm at 6136 nm/tick. The
+ * host's table generator reads this figure (hallhome/usable.py), so it is a
+ * number here; homing.c checks it against the speed and the time. */
+#define HOM_RELEASE_REACH_MS    85L
 #define HOM_RELEASE_REACH_TICKS 352L
 
 typedef struct {
