@@ -368,7 +368,7 @@ class _Model:
         tendon's own parameters: a finite difference in another tendon's
         angle or radius leaves it as it is."""
         t = r.tendons[tendon]
-        key = (mech, tendon, len(tensions), t.routing_radius, t.routing_angle, t.stiffness_ea,
+        key = (mech, tendon, tuple(tensions), t.routing_radius, t.routing_angle, t.stiffness_ea,
                t.friction_N)
         hit = self.pcache.get(key)
         if hit is None:
