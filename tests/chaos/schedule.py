@@ -26,7 +26,11 @@ PHASES = {
     "take_up": (r"^<progress.state=tendon.tendon={k}[^0-9]", 0.0, 0.8),
     "fine_approach": (r"^<progress.state=engaged.tendon={k}[^0-9]", 0.0, 0.45),
     "final_move": (r"^<progress.state=final", 0.0, 0.12),
-    "eeprom_save": (r"^<done", 0.0, 0.8),
+    # a calibration's own done, when it saves its homes: not the done of a
+    # release the board makes after a servo's reboot (seed 17064: the magnet
+    # came off in the next calibration's fine approach, which was then judged
+    # as the final, undisturbed one)
+    "eeprom_save": (r"^<done.mode=(full|quick|single)", 0.0, 0.8),
 }
 
 # The end of a calibration attempt, whatever it was: its `<done>` or its

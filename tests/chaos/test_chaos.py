@@ -342,6 +342,20 @@ def test_a_calibration_ends_only_with_its_done_or_fault():
         assert not end.search(ln), ln
 
 
+def test_the_eeprom_save_phase_opens_at_a_calibrations_done_only():
+    """Seed 17064: the phase's `^<done` matched the `<done mode=release>` of a
+    servo's reboot, so the magnet came off inside the next calibration,
+    which the checker then judged as the undisturbed final one."""
+    regex = sc.PHASES["eeprom_save"][0]
+    assert " " not in regex
+    save = re.compile(regex)
+    for ln in ["<done mode=full target=delta time_ms=1 tension_mN=800 count=1>",
+               "<done mode=quick target=delta>", "<done mode=single target=delta>"]:
+        assert save.search(ln), ln
+    for ln in ["<done mode=release time_ms=453 baseline=1>", "<done mode=home time_ms=9>"]:
+        assert not save.search(ln), ln
+
+
 def test_a_power_cycle_that_cuts_a_result_line_ends_its_run():
     """A reset cuts a report mid-line and the boot report ends that line: the
     run ends there even when the cut line is a <result> (seed 9140: the
