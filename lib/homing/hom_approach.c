@@ -71,6 +71,7 @@ HOM_NOINLINE void hom_begin_tendon(hom_t *h, uint8_t i)
     h->steps = 0;
     h->far = 0;
     h->b_top = 0;
+    h->b_back = 0;
     h->ref_b = 0;
     h->slope_q8 = hom_table_slope(h, i);
     h->slope_min_q8 = (h->slope_q8 >> 1) + 1; /* at least 1: a divisor */
@@ -186,7 +187,13 @@ static int near_target(const hom_tendon_t *t, uint32_t b, uint16_t permille)
  * A servo read more than HOM_BACK_TICKS behind that furthest point takes
  * the top again: the take-up ran past the goal the approach set at the
  * engagement and returns to it, and the field falls with it (chaos seeds
- * 3049, 2010, 12091). Each sample is judged at the next position read, which
+ * 3049, 2010, 12091). Until the servo has stood still HOM_BACK_SETTLE_MS
+ * after such a return, each lower sample takes the top too: a sample is
+ * older than the position read that judges it, and the ones taken on the
+ * way back still fall after the servo has stopped (chaos seed 16831: the
+ * take-up ran on to 216, the approach sent it back to 192, and the field
+ * measured at the servo's stop was taken for a fall with the servo still).
+ * Each sample is judged at the next position read, which
  * shows any return that lowered it: with 12 servos positions come every
  * 7-18 ms, and the last read before a sample may not show it yet.
  * Called every step: b is a fresh sample's |dB| (0: none), p the position,
@@ -217,8 +224,13 @@ HOM_NOINLINE static int field_fell(hom_t *h, const hom_tendon_t *t, uint32_t b, 
     if (b == 0u) {
         return 0; /* no sample since the last read */
     }
+    if (d > HOM_BACK_TICKS) {
+        h->b_back = 0; /* pulling on again */
+    }
     if (b + top / 8u + 8u * (uint32_t)h->noise_cuT < top) {
-        if (d >= -HOM_BACK_TICKS) {
+        if (d < -HOM_BACK_TICKS) {
+            h->b_back = 1;
+        } else if (!h->b_back || hom_still_ms(h, h->cur) >= HOM_BACK_SETTLE_MS) {
             if (++h->b_low < 2u) {
                 return 0;
             }

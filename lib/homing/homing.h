@@ -338,6 +338,7 @@ typedef struct {
     uint8_t n_pts;      /* fine: near points kept */
     uint8_t far;        /* fine: the last point put the target beyond the travel limit */
     uint8_t b_low;      /* pull: samples in a row below b_top by more than the tolerance */
+    uint8_t b_back;     /* pull: the servo came back since b_top and has not pulled on */
     uint8_t ev_head;
     uint8_t ev_count;
     uint8_t ev_dropped;

@@ -50,9 +50,11 @@ int plant_run(const plant_run_cfg_t *rc, plant_run_result_t *res)
     hom_t h;
     hom_in_t in;
     hom_out_t out;
-    hom_out_t line[CL_MAX_LAG];            /* goal writes on their way to the servos */
-    hom_sensor_in_t held[HOM_MAX_SENSORS]; /* samples on their way to the homing */
-    uint32_t held_at[HOM_MAX_SENSORS] = {0};
+    hom_out_t line[CL_MAX_LAG]; /* goal writes on their way to the servos */
+    /* samples on their way to the homing: a sensor samples every 10 ms and a
+     * lag is below 20 ms, so two at most per sensor */
+    hom_sensor_in_t held[HOM_MAX_SENSORS][2];
+    uint32_t held_at[HOM_MAX_SENSORS][2] = {{0}};
     const hom_out_t *o = &out;
     uint32_t lag = rc->goal_lag_ms < CL_MAX_LAG ? rc->goal_lag_ms : CL_MAX_LAG - 1u;
     tbl_src_t src;
@@ -211,14 +213,20 @@ int plant_run(const plant_run_cfg_t *rc, plant_run_result_t *res)
             s->status =
                 plant_read_sensor(&plant, k, s->b_cuT) == 1 ? HOM_SENS_OVERFLOW : HOM_SENS_NEW;
             if (rc->sample_lag_ms != 0u) {
-                held[k] = *s; /* read now, handed over sample_lag_ms later */
-                held_at[k] = t + (rc->sample_lag_ms < 10u ? rc->sample_lag_ms : 9u);
+                /* read now, handed over sample_lag_ms later, in the slot
+                 * whose sample has been handed over already */
+                unsigned q = held_at[k][0] >= t ? 1u : 0u;
+                held[k][q] = *s;
+                held_at[k][q] = t + (rc->sample_lag_ms < 20u ? rc->sample_lag_ms : 19u);
                 s->status = HOM_SENS_NONE;
             }
         }
         for (k = 0; k < HOM_MAX_SENSORS && rc->sample_lag_ms != 0u; k++) {
-            if (held_at[k] == t) {
-                in.sensor[k] = held[k];
+            unsigned q;
+            for (q = 0; q < 2u; q++) {
+                if (held_at[k][q] == t) {
+                    in.sensor[k] = held[k][q];
+                }
             }
         }
         for (i = 0; i < TBL_MAX_TENDONS; i++) {

@@ -65,8 +65,9 @@ typedef struct {
                                    12-servo bus reads them every 5-7 ms), no reply between */
     uint8_t goal_lag_ms;        /* goal writes reach the servos this much later (a slow main
                                    loop and a busy bus: up to 20 ms on 12 servos), < 32 */
-    uint8_t sample_lag_ms;      /* sensor samples reach the homing this much later (a slow
-                                   main loop), < 10 */
+    uint8_t sample_lag_ms;      /* sensor samples reach the homing this much later (the
+                                   AK09916's period, the ICM-20948 master's poll, a slow main
+                                   loop), < 20 */
     double ambient_shift_uT[3]; /* added to every sensor's ambient field (world frame) for
                                    this run: the bench moved or iron came near since the
                                    absolute mode's ambient capture (cmd.ambient_cuT) */
