@@ -204,9 +204,10 @@ APP_NOINLINE void app_learn_step(app_t *a, const hom_in_t *in)
         uint8_t least = APP_LEARN_SAMPLES;
         for (k = first; k < last; k++) {
             if (in->sensor[k].status == HOM_SENS_NEW && a->u.idle.cnt[k] < APP_LEARN_SAMPLES) {
-                a->u.idle.acc[k][0] += in->sensor[k].b_cuT[0];
-                a->u.idle.acc[k][1] += in->sensor[k].b_cuT[1];
-                a->u.idle.acc[k][2] += in->sensor[k].b_cuT[2];
+                uint8_t ax;
+                for (ax = 0; ax < 3u; ax++) {
+                    a->u.idle.acc[k][ax] += in->sensor[k].b_cuT[ax];
+                }
                 a->u.idle.cnt[k]++;
             }
             if (a->u.idle.cnt[k] < least) {

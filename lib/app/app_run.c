@@ -326,6 +326,21 @@ uint8_t app_run_release_goals(app_t *a)
     return release_goals(a, 0);
 }
 
+/* Releases every tendon that answered, as an app move, and reports it:
+ * <released reason=...> with the ID of the servo it names (id 0: none). One
+ * copy for the stop and the releases owed after a reset or a servo's error. */
+APP_NOINLINE static void release_all(app_t *a, const char *reason_f, uint8_t id)
+{
+    (void)app_run_release_goals(a);
+    app_rep_begin(a, app_w_released);
+    con_report_flash(&a->cmd.con, app_w_reason, reason_f);
+    if (id != 0u) {
+        app_rep_u8(a, app_w_id, id);
+    }
+    app_rep_end(a);
+    app_run_move(a, APP_MOVE_RELEASE);
+}
+
 /* The stop releases within docs/app.md's 100 ms: the release velocity and
  * goals go out before the bring-up, which waits for the tendons to get
  * there; the full release follows once the bus is up. */
@@ -379,11 +394,7 @@ void app_abort(app_t *app)
     if (!app->table_ok) {
         return;
     }
-    (void)app_run_release_goals(app);
-    app_rep_begin(app, app_w_released);
-    con_report_flash(&app->cmd.con, app_w_reason, app_w_aborted);
-    app_rep_end(app);
-    app_run_move(app, APP_MOVE_RELEASE);
+    release_all(app, app_w_aborted, 0);
 }
 
 APP_NOINLINE void app_run_move_step(app_t *a)
@@ -596,20 +607,12 @@ void app_run_poll(app_t *a)
     }
     if (a->run.reset_release && a->state == APP_ST_IDLE) {
         a->run.reset_release = 0;
-        (void)app_run_release_goals(a);
-        app_rep_begin(a, app_w_released);
-        con_report_flash(&a->cmd.con, app_w_reason, app_w_reset);
-        app_rep_end(a);
-        app_run_move(a, APP_MOVE_RELEASE);
+        release_all(a, app_w_reset, 0);
     }
     if (a->run.auto_release && a->state == APP_ST_IDLE && a->table_ok && a->bus.reboot_id == 0u) {
-        (void)app_run_release_goals(a);
-        app_rep_begin(a, app_w_released);
-        con_report_flash(&a->cmd.con, app_w_reason, app_w_servo_error);
-        app_rep_u8(a, app_w_id, a->run.auto_release);
-        app_rep_end(a);
+        uint8_t id = a->run.auto_release;
         a->run.auto_release = 0;
-        app_run_move(a, APP_MOVE_RELEASE);
+        release_all(a, app_w_servo_error, id);
     }
     if (a->run.req_start && a->state != APP_ST_BOOT && store_busy(&a->rec.store) == 0u &&
         !app_rec_busy(a) && a->bus.reboot_id == 0u && !a->bus.reboot_req) {

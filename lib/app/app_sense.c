@@ -57,10 +57,11 @@ APP_NOINLINE void app_sense_poll(app_t *a, hom_in_t *in, uint32_t now_us)
         icm_diag_t d;
         (void)icm_set_diag(&a->sense.set, k, &d);
         if (rc == 1) {
+            uint8_t ax;
             o->status = (s.flags & ICM_SAMPLE_OVERFLOW) ? HOM_SENS_OVERFLOW : HOM_SENS_NEW;
-            o->b_cuT[0] = (int32_t)s.raw[0] * 15;
-            o->b_cuT[1] = (int32_t)s.raw[1] * 15;
-            o->b_cuT[2] = (int32_t)s.raw[2] * 15;
+            for (ax = 0; ax < 3u; ax++) {
+                o->b_cuT[ax] = (int32_t)s.raw[ax] * 15;
+            }
         } else if (d.state == ICM_SET_S_FAIL && !d.present) {
             o->status = HOM_SENS_ABSENT;
         } else if ((uint8_t)d.error_count != a->sense.err[k]) {

@@ -127,30 +127,36 @@ uint16_t store_crc16(uint16_t crc, const void *data, size_t n)
 
 /* ---- slots ------------------------------------------------------- */
 
+/* An EEPROM byte, and a little-endian word: one call through the port's
+ * function pointer here instead of one at every read. */
+STORE_NOINLINE static uint8_t ee_byte(const store_t *st, uint16_t addr)
+{
+    return st->ee->read_byte(st->ee->ctx, addr);
+}
+
+STORE_NOINLINE static uint16_t ee_word(const store_t *st, uint16_t addr)
+{
+    uint16_t lo = ee_byte(st, addr);
+    return (uint16_t)(lo | ((uint16_t)ee_byte(st, (uint16_t)(addr + 1u)) << 8));
+}
+
 /* A slot is valid when kind and version match and the CRC over header and
  * body agrees; its sequence number goes to *seq. */
 static uint8_t slot_valid(const store_t *st, uint16_t addr, uint8_t kind, uint8_t ver, uint16_t len,
                           uint16_t *seq)
 {
-    const store_eeprom_t *ee = st->ee;
     uint16_t crc = 0xFFFFu;
-    uint16_t i, stored;
-    uint8_t b;
-    if (ee->read_byte(ee->ctx, addr) != kind ||
-        ee->read_byte(ee->ctx, (uint16_t)(addr + 1u)) != ver) {
+    uint16_t i;
+    if (ee_byte(st, addr) != kind || ee_byte(st, (uint16_t)(addr + 1u)) != ver) {
         return 0;
     }
     for (i = 0; i < STORE_HDR_LEN + len; i++) {
-        b = ee->read_byte(ee->ctx, (uint16_t)(addr + i));
-        crc = crc_byte(crc, b);
+        crc = crc_byte(crc, ee_byte(st, (uint16_t)(addr + i)));
     }
-    stored = (uint16_t)(ee->read_byte(ee->ctx, (uint16_t)(addr + i)) |
-                        ((uint16_t)ee->read_byte(ee->ctx, (uint16_t)(addr + i + 1u)) << 8));
-    if (stored != crc) {
+    if (ee_word(st, (uint16_t)(addr + i)) != crc) {
         return 0;
     }
-    *seq = (uint16_t)(ee->read_byte(ee->ctx, (uint16_t)(addr + 2u)) |
-                      ((uint16_t)ee->read_byte(ee->ctx, (uint16_t)(addr + 3u)) << 8));
+    *seq = ee_word(st, (uint16_t)(addr + 2u));
     return 1;
 }
 
@@ -294,7 +300,7 @@ int8_t store_poll(store_t *st, uint8_t may_write)
         for (n = 0; n < STORE_SKIP_BUDGET && st->pos <= total; n++) {
             uint16_t a = (uint16_t)(st->addr + st->pos);
             if (st->pos == 0u) {
-                b = ee->read_byte(ee->ctx, a);
+                b = ee_byte(st, a);
                 if (b == st->hdr[0]) {
                     b = STORE_KIND_NONE; /* still looks like a record of this kind */
                 }
@@ -308,7 +314,7 @@ int8_t store_poll(store_t *st, uint8_t may_write)
                 }
             }
             st->pos++;
-            if (ee->read_byte(ee->ctx, a) != b) {
+            if (ee_byte(st, a) != b) {
                 ee->write_byte(ee->ctx, a, b);
                 return 1;
             }
@@ -323,7 +329,7 @@ int8_t store_poll(store_t *st, uint8_t may_write)
     ok = slot_valid(st, st->addr, st->hdr[0], st->hdr[1], st->len, &seq) &&
          seq == (uint16_t)(st->hdr[2] | ((uint16_t)st->hdr[3] << 8));
     for (i = 0; ok && i < st->len; i++) {
-        ok = ee->read_byte(ee->ctx, (uint16_t)(st->addr + STORE_HDR_LEN + i)) == st->body[i];
+        ok = ee_byte(st, (uint16_t)(st->addr + STORE_HDR_LEN + i)) == st->body[i];
     }
     if (!ok) {
         return STORE_E_VERIFY;

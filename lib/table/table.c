@@ -19,8 +19,19 @@ void tbl_copy_ram(void *dst, const void *src, size_t n)
 
 /* Address arithmetic on the table's own address: valid in flash too, since the
  * pointer is never dereferenced here, only handed to the copy function. */
-#define TBL_AT(src, off)   ((const void *)((const uint8_t *)(const void *)(src)->table + (off)))
-#define TBL_HEAD(src, fld) TBL_AT(src, offsetof(tbl_head_t, fld))
+#define TBL_AT(src, off)  ((const void *)((const uint8_t *)(const void *)(src)->table + (off)))
+#define TBL_HEAD_OFF(fld) ((uint16_t)offsetof(tbl_head_t, fld))
+
+/* n bytes at offset off of the table into dst: one call through the
+ * source's copy function here instead of one at every read. */
+#if defined(__GNUC__)
+__attribute__((noinline))
+#endif
+static void
+tbl_read(const tbl_src_t *src, void *dst, uint16_t off, size_t n)
+{
+    src->copy(dst, TBL_AT(src, off), n);
+}
 
 static int tbl_src_ok(const tbl_src_t *src)
 {
@@ -30,7 +41,7 @@ static int tbl_src_ok(const tbl_src_t *src)
 /* n_tendons, n_sensors, n_grid (adjacent in the header) into c[0..2]. */
 static void tbl_counts(const tbl_src_t *src, uint8_t c[3])
 {
-    src->copy(c, TBL_HEAD(src, n_tendons), 3);
+    tbl_read(src, c, TBL_HEAD_OFF(n_tendons), 3);
 }
 
 int tbl_check(const tbl_src_t *src)
@@ -43,15 +54,15 @@ int tbl_check(const tbl_src_t *src)
     if (!tbl_src_ok(src)) {
         return TBL_E_ARG;
     }
-    src->copy(&magic, TBL_HEAD(src, magic), sizeof magic);
+    tbl_read(src, &magic, TBL_HEAD_OFF(magic), sizeof magic);
     if (magic != TBL_MAGIC) {
         return TBL_E_MAGIC;
     }
-    src->copy(&version, TBL_HEAD(src, format_version), sizeof version);
+    tbl_read(src, &version, TBL_HEAD_OFF(format_version), sizeof version);
     if (version != TBL_FORMAT_VERSION) {
         return TBL_E_VERSION;
     }
-    src->copy(&size, TBL_HEAD(src, size), sizeof size);
+    tbl_read(src, &size, TBL_HEAD_OFF(size), sizeof size);
     (void)tbl_info(src, &info);
     if (info.n_tendons == 0u || info.n_tendons > TBL_MAX_TENDONS || info.n_sensors == 0u ||
         info.n_sensors > TBL_MAX_SENSORS || info.n_grid < 2u || info.n_grid > TBL_MAX_GRID ||
@@ -68,10 +79,10 @@ int tbl_check(const tbl_src_t *src)
     }
     for (i = 0; i < info.n_tendons; i++) {
         tbl_tendon_rec_t r;
-        src->copy(&r,
-                  TBL_AT(src, TBL_OFF_TENDONS(info.n_sensors, info.n_grid) +
-                                  i * sizeof(tbl_tendon_rec_t)),
-                  sizeof r);
+        tbl_read(
+            src, &r,
+            (uint16_t)(TBL_OFF_TENDONS(info.n_sensors, info.n_grid) + i * sizeof(tbl_tendon_rec_t)),
+            sizeof r);
         if (r.sensor >= info.n_sensors || r.nm_per_tick == 0u) {
             return TBL_E_FORMAT;
         }
@@ -86,15 +97,15 @@ int tbl_info(const tbl_src_t *src, tbl_info_t *info)
         return TBL_E_ARG;
     }
     memset(info->grid_mN, 0, sizeof info->grid_mN);
-    src->copy(&info->table_id, TBL_HEAD(src, table_id), sizeof info->table_id);
-    src->copy(info->name, TBL_HEAD(src, name), sizeof info->name);
+    tbl_read(src, &info->table_id, TBL_HEAD_OFF(table_id), sizeof info->table_id);
+    tbl_read(src, info->name, TBL_HEAD_OFF(name), sizeof info->name);
     info->name[TBL_NAME_LEN - 1u] = '\0';
     /* n_tendons, n_sensors, n_grid, mode: adjacent in both structs */
-    src->copy(&info->n_tendons, TBL_HEAD(src, n_tendons), 4);
-    src->copy(&info->default_mN, TBL_HEAD(src, default_mN), sizeof info->default_mN);
-    src->copy(&info->noise_cuT, TBL_HEAD(src, noise_cuT), sizeof info->noise_cuT);
+    tbl_read(src, &info->n_tendons, TBL_HEAD_OFF(n_tendons), 4);
+    tbl_read(src, &info->default_mN, TBL_HEAD_OFF(default_mN), sizeof info->default_mN);
+    tbl_read(src, &info->noise_cuT, TBL_HEAD_OFF(noise_cuT), sizeof info->noise_cuT);
     ng = info->n_grid <= TBL_MAX_GRID ? info->n_grid : TBL_MAX_GRID;
-    src->copy(info->grid_mN, TBL_AT(src, TBL_OFF_GRID), 2u * ng);
+    tbl_read(src, info->grid_mN, TBL_OFF_GRID, 2u * ng);
     return 0;
 }
 
@@ -125,7 +136,7 @@ int tbl_tendon(const tbl_src_t *src, uint8_t i, tbl_tendon_t *out)
         return TBL_E_ARG;
     }
     memset(out, 0, sizeof *out);
-    src->copy(&r, TBL_AT(src, TBL_OFF_TENDONS(c[1], c[2]) + i * sizeof r), sizeof r);
+    tbl_read(src, &r, (uint16_t)(TBL_OFF_TENDONS(c[1], c[2]) + i * sizeof r), sizeof r);
     out->servo_id = r.servo_id;
     out->pull_dir = r.pull_dir;
     out->segment = r.segment;
@@ -137,12 +148,12 @@ int tbl_tendon(const tbl_src_t *src, uint8_t i, tbl_tendon_t *out)
                       : row == TBL_ROW_ABS  ? out->abs_target_cuT
                                             : out->travel_um;
         uint8_t k = row == TBL_ROW_TRAVEL ? 1u : TBL_CUT_PER_LSB;
-        src->copy(v, TBL_AT(src, tbl_row_off(c, row, i, 0)), 2u * c[2]);
+        tbl_read(src, v, (uint16_t)(tbl_row_off(c, row, i, 0)), 2u * c[2]);
         for (g = 0; g < c[2]; g++) {
             d[g] = (uint32_t)v[g] * k;
         }
     }
-    src->copy(out->straight_um, TBL_AT(src, tbl_row_off(c, TBL_ROW_STRAIGHT, i, 0)), 2u * c[2]);
+    tbl_read(src, out->straight_um, (uint16_t)(tbl_row_off(c, TBL_ROW_STRAIGHT, i, 0)), 2u * c[2]);
     return 0;
 }
 
@@ -157,7 +168,7 @@ int tbl_sensor(const tbl_src_t *src, uint8_t i, tbl_sensor_t *out)
     if (i >= c[1] || i >= TBL_MAX_SENSORS) {
         return TBL_E_ARG;
     }
-    src->copy(&r, TBL_AT(src, TBL_OFF_SENSORS(c[2]) + i * sizeof r), sizeof r);
+    tbl_read(src, &r, (uint16_t)(TBL_OFF_SENSORS(c[2]) + i * sizeof r), sizeof r);
     out->mux_channel = r.mux_channel;
     out->i2c_addr = r.i2c_addr;
     for (a = 0; a < 3u; a++) {
@@ -259,7 +270,7 @@ int tbl_target(const tbl_src_t *src, uint8_t tendon, uint16_t tension_mN, tbl_po
     c[2] = info.n_grid;
     for (row = 0; row < TBL_ROWS; row++) {
         uint32_t y0, y1;
-        src->copy(y, TBL_AT(src, tbl_row_off(c, row, tendon, (uint8_t)k)), sizeof y);
+        tbl_read(src, y, (uint16_t)(tbl_row_off(c, row, tendon, (uint8_t)k)), sizeof y);
         if (row == TBL_ROW_STRAIGHT) {
             y0 = (uint32_t)((int32_t)(int16_t)y[0] + 32768);
             y1 = (uint32_t)((int32_t)(int16_t)y[1] + 32768);
