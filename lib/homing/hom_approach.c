@@ -71,7 +71,6 @@ HOM_NOINLINE void hom_begin_tendon(hom_t *h, uint8_t i)
     h->steps = 0;
     h->far = 0;
     h->b_top = 0;
-    h->t_back = (uint16_t)(h->now_ms - HOM_BACK_SETTLE_MS);
     h->ref_b = 0;
     h->slope_q8 = hom_table_slope(h, i);
     h->slope_min_q8 = (h->slope_q8 >> 1) + 1; /* at least 1: a divisor */
@@ -184,19 +183,10 @@ static int near_target(const hom_tendon_t *t, uint32_t b, uint16_t permille)
  * field changed, a sensor knocked), and steps that chase the target would
  * pull on to the travel limit (chaos seed 8390: the magnet removed after
  * the first fine point, 4.9 x the target).
- * A servo read more than HOM_BACK_TICKS behind that furthest point is
- * coming back: the take-up ran past the goal the approach set at the
+ * A servo read more than HOM_BACK_TICKS behind that furthest point takes
+ * the top again: the take-up ran past the goal the approach set at the
  * engagement and returns to it, and the field falls with it (chaos seeds
- * 3049, 2010, 12091). Until HOM_BACK_SETTLE_MS after the last read that
- * showed it coming back, a lower sample takes the top instead: a sample is
- * older than the position read that judges it, and the ones taken on the
- * way back still fall after the servo has stopped (chaos seed 16831: the
- * take-up ran on to 216, the approach sent it back to 192, and the field
- * measured as the servo stopped was taken for a fall with the servo still).
- * The window is a time from the return, not a state that fine steps of a
- * tick or two would never end (chaos seed 16518: a magnet removed then
- * went unseen through the whole approach, 1.66 x the target).
- * Each sample is judged at the next position read, which
+ * 3049, 2010, 12091). Each sample is judged at the next position read, which
  * shows any return that lowered it: with 12 servos positions come every
  * 7-18 ms, and the last read before a sample may not show it yet.
  * Called every step: b is a fresh sample's |dB| (0: none), p the position,
@@ -219,11 +209,8 @@ HOM_NOINLINE static int field_fell(hom_t *h, const hom_tendon_t *t, uint32_t b, 
         return 0;
     }
     d = hom_pull(t, p - h->p_top);
-    if (d > 0 || d < -HOM_BACK_TICKS) {
-        if (d < 0) {
-            h->t_back = (uint16_t)h->now_ms; /* coming back */
-        }
-        h->p_top = p; /* the furthest read since the top, or since the return */
+    if (d > 0) {
+        h->p_top = p; /* the furthest read since the top */
     }
     b = h->b_pend;
     h->b_pend = 0;
@@ -231,7 +218,7 @@ HOM_NOINLINE static int field_fell(hom_t *h, const hom_tendon_t *t, uint32_t b, 
         return 0; /* no sample since the last read */
     }
     if (b + top / 8u + 8u * (uint32_t)h->noise_cuT < top) {
-        if ((uint16_t)((uint16_t)h->now_ms - h->t_back) >= HOM_BACK_SETTLE_MS) {
+        if (d >= -HOM_BACK_TICKS) {
             if (++h->b_low < 2u) {
                 return 0;
             }
@@ -239,6 +226,7 @@ HOM_NOINLINE static int field_fell(hom_t *h, const hom_tendon_t *t, uint32_t b, 
             return 1;
         }
         h->b_top = b; /* back: the field fell with the servo */
+        h->p_top = p;
     }
     h->b_low = 0;
     return 0;

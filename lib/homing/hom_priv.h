@@ -61,12 +61,7 @@ enum {
                             reads flat through the spool's backlash (5 ticks on the bench) and the      \
                             friction band: 10 ticks measured at the lowest grid tension */
 #define HOM_BACK_TICKS 2 /* a servo read further back than this has come back */
-/* ... and its field samples fall with it until this long after the last read
- * that showed it coming back: a sample is up to one AK09916 period (10 ms),
- * one poll of the ICM-20948's I2C master (7.3 ms) and a few ms of the
- * firmware's sensor schedule old when the homing sees it. */
-#define HOM_BACK_SETTLE_MS 25u
-#define HOM_FLAT_STEP      4 /* fine: the longest step while the field is flat */
+#define HOM_FLAT_STEP  4 /* fine: the longest step while the field is flat */
 
 /* ---- homing.c: API and shared helpers ---- */
 void hom_push_event(hom_t *h, uint8_t type, uint8_t code, uint8_t index, int32_t a, int32_t b);

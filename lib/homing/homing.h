@@ -358,8 +358,6 @@ typedef struct {
     uint32_t b_top;       /* pull: highest |dB| since the engagement or the last back-off, */
     int32_t p_top;        /*   and the furthest the servo was read at since */
     uint32_t b_pend;      /* pull: the last sample since the last position read, judged there */
-    uint16_t t_back;      /* pull: the last read that showed the servo coming back (ms, low
-                             16 bits) */
     int32_t ref_p;        /* fine: the point the field's rise is measured from (position, */
     uint32_t ref_b;       /*   |dB|): the last one the field rose enough to */
     int32_t mod_goal;     /* re-approach: moderate goal after an overshoot */
