@@ -87,6 +87,11 @@
  * a healthy run; 120 ms is still well inside the servos' own 200 ms bus
  * watchdog. */
 #define APP_SERVO_TIMEOUT_MS 120u
+/* A servo that has not answered a position read for this long when a stop is
+ * reported may not hear the release either (a loose cable: it still runs to
+ * its last goal): the report names it. Longer than two reads lost to bus
+ * noise on 12 servos (positions every 7-18 ms). */
+#define APP_SERVO_SILENT_MS 40u
 
 enum {
     APP_E_ARG = -1 /* NULL pointer or missing interface in app_init() */

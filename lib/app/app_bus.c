@@ -367,6 +367,20 @@ uint8_t app_bus_found(app_t *a)
     return n;
 }
 
+uint8_t app_bus_silent(const app_t *a)
+{
+    uint8_t i;
+    if ((uint16_t)((uint16_t)app_now_ms(a) - a->bus.t_all_ok) < APP_SERVO_SILENT_MS) {
+        return 0;
+    }
+    for (i = 0; i < a->info.n_tendons; i++) {
+        if (app_has(a->bus.missed, i)) {
+            return (uint8_t)(i + 1u);
+        }
+    }
+    return 0;
+}
+
 void app_bus_goals_cleared(app_t *a)
 {
     a->bus.torque_on = 0; /* nothing to refresh until a goal is set */

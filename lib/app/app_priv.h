@@ -209,6 +209,9 @@ void app_rep_u8(app_t *a, const char *key, uint8_t v);
 /* tendon=i id=<its servo's ID> */
 void app_rep_tendon(app_t *a, uint8_t i);
 void app_rep_end(app_t *a);
+/* not_released=<ID> index=<i> for a servo silent since before the stop
+ * (app_bus_silent()); nothing when every servo answers */
+void app_rep_silent(app_t *a);
 /* key=0x%08x (table_id) without a printf */
 void app_rep_hex(app_t *a, const char *key, uint32_t v);
 /* key=<word i of the flash list words_f> ("?" past its end) */
@@ -311,6 +314,9 @@ void app_bus_stop(app_t *a);
 uint8_t app_bus_found(app_t *a);
 /* A run starts from cleared goals: none is refreshed until set again. */
 void app_bus_goals_cleared(app_t *a);
+/* The first servo that has been silent in the position reads for
+ * APP_SERVO_SILENT_MS or more, as its index + 1; 0: none. */
+uint8_t app_bus_silent(const app_t *a);
 /* Positions read before now are not news for the next step. */
 void app_bus_positions_stale(app_t *a);
 /* Every servo's input of a homing step (status, hardware error, position);

@@ -284,10 +284,21 @@ void app_rep_event(app_t *a, const hom_event_t *ev)
              * take the release: named (a hardware error is rebooted next) */
             app_rep_u8(a, app_w_not_released, a->bus.ids[hom_fault_index(&a->u.hom)]);
             app_rep_u8(a, app_w_index, hom_fault_index(&a->u.hom));
+        } else {
+            app_rep_silent(a);
         }
         app_rep_end(a);
         break;
     default:
         break;
+    }
+}
+
+void app_rep_silent(app_t *a)
+{
+    uint8_t i = app_bus_silent(a);
+    if (i != 0u) {
+        app_rep_u8(a, app_w_not_released, a->bus.ids[i - 1u]);
+        app_rep_u8(a, app_w_index, (uint8_t)(i - 1u));
     }
 }

@@ -253,6 +253,53 @@ static void test_silent_servo_is_the_one_named(void **state)
     }
 }
 
+/* A servo falls silent (a loose cable: it still runs to its last goal and
+ * hears nothing, a release neither) and the run stops for another reason
+ * before the homing's servo timeout: the release report names it, since
+ * its tendon may stay taut (chaos seed 17518: a take-up whose servo fell
+ * silent ended in field_step 110 ms later, and the tendon stayed at 0.4 N
+ * for 460 ms with nothing said). A servo that answers is never named. */
+static void test_stop_names_a_servo_silent_since_before_it(void **state)
+{
+    static const uint8_t which[] = {0, 3};
+    (void)state;
+    for (uint8_t w = 0; w < sizeof which; w++) {
+        uint8_t k = which[w];
+        char want[48];
+        boot(&g_b, 1);
+        cmd(&g_b, "cal", "ok");
+        snprintf(want, sizeof want, "<progress state=engaged tendon=%u", k);
+        assert_true(app_bench_wait_line(&g_b, want, g_line, sizeof g_line, 20000));
+        dxl_fakebus_init(&g_b.bus, 1000000u, 10);
+        for (uint8_t i = 0; i < g_b.cfg.n_tendons; i++) {
+            if (i != k) {
+                dxl_fakebus_add(&g_b.bus, &g_b.servo[i]);
+            }
+        }
+        app_bench_run_ms(&g_b, 60); /* silent 60 ms: not yet the 120 ms timeout */
+        assert_int_equal(g_b.app.state, APP_ST_CAL);
+        (void)con_rt_byte(&g_b.rt, '!');
+        assert_true(app_bench_wait_line(&g_b, "<released ", g_line, sizeof g_line, 100));
+        print_message("tendon %u silent, then '!': %s\n", k, g_line);
+        assert_non_null(strstr(g_line, "reason=aborted"));
+        assert_int_equal(app_bench_field(g_line, "not_released", -1), g_b.cfg.tendon[k].servo_id);
+        assert_int_equal(app_bench_field(g_line, "index", -1), k);
+        /* every servo answers again: the next stop names none */
+        for (uint8_t i = 0; i < g_b.cfg.n_tendons; i++) {
+            if (i == k) {
+                dxl_fakebus_add(&g_b.bus, &g_b.servo[i]);
+            }
+        }
+        app_bench_run_ms(&g_b, 3000);
+        cmd(&g_b, "cal", "ok");
+        assert_true(app_bench_wait_line(&g_b, "<progress state=engaged tendon=0", g_line,
+                                        sizeof g_line, 20000));
+        (void)con_rt_byte(&g_b.rt, '!');
+        assert_true(app_bench_wait_line(&g_b, "<released ", g_line, sizeof g_line, 100));
+        assert_null(strstr(g_line, "not_released"));
+    }
+}
+
 /* A servo overload in the final move, with the first copy of the fault's
  * release goals lost to bus noise: the servo's reboot, and the bring-up that
  * follows it and forgets queued goals, wait for the second copy. Every other
@@ -578,6 +625,7 @@ int main(void)
         cmocka_unit_test(test_long_press_aborts),
         cmocka_unit_test(test_servo_fault_mid_run),
         cmocka_unit_test(test_silent_servo_is_the_one_named),
+        cmocka_unit_test(test_stop_names_a_servo_silent_since_before_it),
         cmocka_unit_test(test_bus_watchdog_stops_servos_when_the_board_hangs),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
