@@ -205,6 +205,25 @@ static void test_servo_fault_mid_run(void **state)
     assert_int_equal(g_b.app.state, APP_ST_IDLE);
 }
 
+/* A fresh boot and `cal`; after_ms into tendon k's approach its servo falls
+ * off the bus (a loose cable: it hears nothing and answers nothing, and runs
+ * on to its last goal). */
+static void silent_in_its_pull(uint8_t k, uint32_t after_ms)
+{
+    char want[48];
+    boot(&g_b, 1);
+    cmd(&g_b, "cal", "ok");
+    snprintf(want, sizeof want, "<progress state=engaged tendon=%u", k);
+    assert_true(app_bench_wait_line(&g_b, want, g_line, sizeof g_line, 20000));
+    app_bench_run_ms(&g_b, after_ms);
+    dxl_fakebus_init(&g_b.bus, 1000000u, 10);
+    for (uint8_t i = 0; i < g_b.cfg.n_tendons; i++) {
+        if (i != k) {
+            dxl_fakebus_add(&g_b.bus, &g_b.servo[i]);
+        }
+    }
+}
+
 /* A servo that falls silent while its tendon is pulled (a loose cable) is the
  * one the fault names, and the release report owns up to its tendon. In a
  * group read each servo answers after the one before it in the list, so a
@@ -220,18 +239,7 @@ static void test_silent_servo_is_the_one_named(void **state)
     (void)state;
     for (uint8_t w = 0; w < sizeof which; w++) {
         uint8_t k = which[w];
-        char want[48];
-        boot(&g_b, 1);
-        cmd(&g_b, "cal", "ok");
-        snprintf(want, sizeof want, "<progress state=engaged tendon=%u", k);
-        assert_true(app_bench_wait_line(&g_b, want, g_line, sizeof g_line, 20000));
-        app_bench_run_ms(&g_b, 40);
-        dxl_fakebus_init(&g_b.bus, 1000000u, 10);
-        for (uint8_t i = 0; i < g_b.cfg.n_tendons; i++) {
-            if (i != k) {
-                dxl_fakebus_add(&g_b.bus, &g_b.servo[i]);
-            }
-        }
+        silent_in_its_pull(k, 40);
         /* the others are still read: every position stays fresh but its own */
         app_bench_run_ms(&g_b, 60);
         for (uint8_t i = 0; i < g_b.cfg.n_tendons; i++) {
@@ -265,17 +273,7 @@ static void test_stop_names_a_servo_silent_since_before_it(void **state)
     (void)state;
     for (uint8_t w = 0; w < sizeof which; w++) {
         uint8_t k = which[w];
-        char want[48];
-        boot(&g_b, 1);
-        cmd(&g_b, "cal", "ok");
-        snprintf(want, sizeof want, "<progress state=engaged tendon=%u", k);
-        assert_true(app_bench_wait_line(&g_b, want, g_line, sizeof g_line, 20000));
-        dxl_fakebus_init(&g_b.bus, 1000000u, 10);
-        for (uint8_t i = 0; i < g_b.cfg.n_tendons; i++) {
-            if (i != k) {
-                dxl_fakebus_add(&g_b.bus, &g_b.servo[i]);
-            }
-        }
+        silent_in_its_pull(k, 0);
         app_bench_run_ms(&g_b, 60); /* silent 60 ms: not yet the 120 ms timeout */
         assert_int_equal(g_b.app.state, APP_ST_CAL);
         (void)con_rt_byte(&g_b.rt, '!');
