@@ -70,7 +70,8 @@ HOM_NOINLINE void hom_begin_tendon(hom_t *h, uint8_t i)
     h->n_pts = 0;
     h->steps = 0;
     h->far = 0;
-    h->b_top = 0;
+    h->n_way = 0;
+    h->b_pend = 0;
     h->ref_b = 0;
     h->slope_q8 = hom_table_slope(h, i);
     h->slope_min_q8 = (h->slope_q8 >> 1) + 1; /* at least 1: a divisor */
@@ -176,59 +177,74 @@ static int near_target(const hom_tendon_t *t, uint32_t b, uint16_t permille)
 }
 
 /* An engaged tendon is only pulled further (a back-off starts afresh), so
- * the field it moves may not fall. Two samples more than an eighth of the
- * highest since the engagement (and eight times the noise) below it, the
- * servo not back from the furthest it was read at since that top: the
- * field no longer follows the tendon (the magnet moved or gone, an ambient
- * field changed, a sensor knocked), and steps that chase the target would
- * pull on to the travel limit (chaos seed 8390: the magnet removed after
- * the first fine point, 4.9 x the target).
- * A servo read more than HOM_BACK_TICKS behind that furthest point takes
- * the top again: the take-up ran past the goal the approach set at the
- * engagement and returns to it, and the field falls with it (chaos seeds
- * 3049, 2010, 12091). Each sample is judged at the next position read, which
- * shows any return that lowered it: with 12 servos positions come every
- * 7-18 ms, and the last read before a sample may not show it yet.
+ * the field it moves may not fall below what it was where the servo stands:
+ * the field rises with the pull, and on a way back the path's friction and
+ * the spool's backlash hold it higher still. Each sample is judged at the
+ * next position read (with 12 servos positions come every 7-18 ms), and a
+ * sample judged at a read further than any before was taken at that
+ * position or short of it: it is a floor for the field there and beyond,
+ * and the homing keeps the last HOM_WAY_PTS of them (the way out). Two
+ * samples in a row more than an eighth (and eight times the noise) below
+ * the highest floor at or short of their read: the field no longer follows
+ * the tendon (the magnet moved or gone, an ambient field changed, a sensor
+ * knocked), and steps that chase the target would pull on to the travel
+ * limit (chaos seed 8390: the magnet removed after the first fine point,
+ * 4.9 x the target).
+ * A servo that comes back (a take-up run past its goal, chaos seeds 3049,
+ * 2010, 12091; a fine point that returns, 16831 and 17633: from 218 to 196)
+ * is judged against the field on the way out at where it stands, like with
+ * like: not against a sample taken on the way back, further out than the
+ * read that judged it. Behind every floor kept, nothing is judged until the
+ * servo comes forward again.
  * Called every step: b is a fresh sample's |dB| (0: none), p the position,
  * fresh_p whether it was read this step. Returns 1 when the run ended in
  * HOM_F_FIELD_STEP. */
 HOM_NOINLINE static int field_fell(hom_t *h, const hom_tendon_t *t, uint32_t b, int32_t p,
                                    uint8_t fresh_p)
 {
-    uint32_t top = h->b_top;
-    int32_t d;
-    if (b > top) {
-        h->b_top = b; /* a new top: judged "not low" at the next read */
-        h->p_top = p;
-        top = b;
-    }
+    uint32_t floor_b = 0;
+    int16_t q;
+    uint8_t i;
+    uint8_t n = h->n_way;
     if (b != 0u) {
         h->b_pend = b; /* judged at the next position read */
     }
     if (!fresh_p) {
         return 0;
     }
-    d = hom_pull(t, p - h->p_top);
-    if (d > 0) {
-        h->p_top = p; /* the furthest read since the top */
-    }
     b = h->b_pend;
     h->b_pend = 0;
     if (b == 0u) {
         return 0; /* no sample since the last read */
     }
-    if (b + top / 8u + 8u * (uint32_t)h->noise_cuT < top) {
-        if (d >= -HOM_BACK_TICKS) {
-            if (++h->b_low < 2u) {
-                return 0;
-            }
-            hom_fail(h, HOM_F_FIELD_STEP, HOM_DEV_SENSOR, t->sensor, (int32_t)(top - b));
-            return 1;
+    q = (int16_t)hom_pull(t, p - t->engage);
+    for (i = 0; i < n; i++) {
+        uint32_t f = (uint32_t)h->way_b[i] << HOM_WAY_SHIFT;
+        if (h->way_q[i] <= q && f > floor_b) {
+            floor_b = f;
         }
-        h->b_top = b; /* back: the field fell with the servo */
-        h->p_top = p;
+    }
+    if (b + floor_b / 8u + 8u * (uint32_t)h->noise_cuT < floor_b) {
+        if (++h->b_low < 2u) {
+            return 0;
+        }
+        hom_fail(h, HOM_F_FIELD_STEP, HOM_DEV_SENSOR, t->sensor, (int32_t)(floor_b - b));
+        return 1;
     }
     h->b_low = 0;
+    if (n == 0u || q > h->way_q[n - 1u]) {
+        if (n == HOM_WAY_PTS) {
+            n--; /* the oldest goes */
+            for (i = 0; i < n; i++) {
+                h->way_q[i] = h->way_q[i + 1u];
+                h->way_b[i] = h->way_b[i + 1u];
+            }
+        }
+        h->way_q[n] = q;
+        b >>= HOM_WAY_SHIFT; /* rounded down: still a floor */
+        h->way_b[n] = (uint16_t)(b > 0xFFFFu ? 0xFFFFu : b);
+        h->n_way = (uint8_t)(n + 1u);
+    }
     return 0;
 }
 

@@ -231,7 +231,8 @@ HOM_NOINLINE static int32_t table_remaining_q8(const hom_t *h, uint32_t b)
 
 void hom_back_off(hom_t *h)
 {
-    h->b_top = 0; /* the field falls with the release; the next pull starts afresh */
+    h->n_way = 0; /* the field falls with the release; the next pull starts afresh */
+    h->b_pend = 0;
     h->ref_b = 0;
     h->have_prev = 0;
     h->n_pts = 0;

@@ -55,13 +55,12 @@ enum {
 #define HOM_DROOP_TICKS 8    /* a servo stopped this close counts as arrived ... */
 #define HOM_STILL_MS    100u /* ... after this long without motion */
 #define HOM_FIT_POINTS  4u   /* near points kept for the final fit (hom_t.pts) */
-#define HOM_FLAT_TICKS                                                                                  \
-    12                   /* fine: the least pull the field may stay flat over before it no longer       \
-                            follows the tendon: a point after the servo ran past its goal and came back \
-                            reads flat through the spool's backlash (5 ticks on the bench) and the      \
-                            friction band: 10 ticks measured at the lowest grid tension */
-#define HOM_BACK_TICKS 2 /* a servo read further back than this has come back */
-#define HOM_FLAT_STEP  4 /* fine: the longest step while the field is flat */
+#define HOM_FLAT_TICKS                                                                                 \
+    12                  /* fine: the least pull the field may stay flat over before it no longer       \
+                           follows the tendon: a point after the servo ran past its goal and came back \
+                           reads flat through the spool's backlash (5 ticks on the bench) and the      \
+                           friction band: 10 ticks measured at the lowest grid tension */
+#define HOM_FLAT_STEP 4 /* fine: the longest step while the field is flat */
 
 /* ---- homing.c: API and shared helpers ---- */
 void hom_push_event(hom_t *h, uint8_t type, uint8_t code, uint8_t index, int32_t a, int32_t b);

@@ -89,6 +89,8 @@
  * kept per sensor, and the firmware's RAM is sized for this many. A table
  * with more is refused by hom_start() (HOM_E_TABLE). */
 #define HOM_MAX_SENSORS 4u
+#define HOM_WAY_PTS     4u /* floors of the field kept on a pull's way out (hom_approach.c) */
+#define HOM_WAY_SHIFT   4u /* kept in units of 16 cuT: up to 10.4 mT */
 
 /* hom_start() errors (numbered apart from the -(hom_fault_t) that hom_step()
  * returns, so the two never collide) */
@@ -337,7 +339,10 @@ typedef struct {
     uint8_t n_near;     /* fine: samples to average at a near point */
     uint8_t n_pts;      /* fine: near points kept */
     uint8_t far;        /* fine: the last point put the target beyond the travel limit */
-    uint8_t b_low;      /* pull: samples in a row below b_top by more than the tolerance */
+    uint8_t b_low;      /* pull: samples in a row below the field's floor by more than the
+                           tolerance */
+    uint8_t n_way;      /* pull: floors kept in way_q/way_b since the engagement or the last
+                           back-off */
     uint8_t ev_head;
     uint8_t ev_count;
     uint8_t ev_dropped;
@@ -355,16 +360,18 @@ typedef struct {
     uint32_t tendon_ms;    /* the last tendon's time from its start to its recorded home */
     int32_t p_prev;        /* fine: previous point (position, |dB|) */
     uint32_t b_prev;
-    uint32_t b_top;       /* pull: highest |dB| since the engagement or the last back-off, */
-    int32_t p_top;        /*   and the furthest the servo was read at since */
-    uint32_t b_pend;      /* pull: the last sample since the last position read, judged there */
-    int32_t ref_p;        /* fine: the point the field's rise is measured from (position, */
-    uint32_t ref_b;       /*   |dB|): the last one the field rose enough to */
-    int32_t mod_goal;     /* re-approach: moderate goal after an overshoot */
-    int32_t search_end;   /* take-up: where the search for engagement ends */
-    int32_t slope_q8;     /* fine: current slope estimate, cuT per tick * 256 */
-    int32_t slope_min_q8; /* fine: half the table's slope, the floor of every estimate */
-    uint32_t engage_cuT;  /* engagement threshold */
+    uint32_t b_pend; /* pull: the last sample since the last position read, judged there */
+    int16_t way_q[HOM_WAY_PTS];  /* pull: the way out, furthest last: ticks past the engagement
+                                    of a position read further than any before, */
+    uint16_t way_b[HOM_WAY_PTS]; /*   and the |dB| (cuT >> HOM_WAY_SHIFT) of the sample judged
+                                    there, a floor for the field from there on */
+    int32_t ref_p;               /* fine: the point the field's rise is measured from (position, */
+    uint32_t ref_b;              /*   |dB|): the last one the field rose enough to */
+    int32_t mod_goal;            /* re-approach: moderate goal after an overshoot */
+    int32_t search_end;          /* take-up: where the search for engagement ends */
+    int32_t slope_q8;            /* fine: current slope estimate, cuT per tick * 256 */
+    int32_t slope_min_q8;        /* fine: half the table's slope, the floor of every estimate */
+    uint32_t engage_cuT;         /* engagement threshold */
     uint16_t tension_mN;
     uint16_t noise_cuT;
     uint32_t t_start; /* run start */
