@@ -209,9 +209,9 @@ void app_rep_u8(app_t *a, const char *key, uint8_t v);
 /* tendon=i id=<its servo's ID> */
 void app_rep_tendon(app_t *a, uint8_t i);
 void app_rep_end(app_t *a);
-/* not_released=<ID> index=<i> for a servo silent since before the stop
- * (app_bus_silent()); nothing when every servo answers */
-void app_rep_silent(app_t *a);
+/* not_released=<ID> index=<i-1> for servo i-1 when i > 0, else for a servo
+ * silent since before the stop (app_bus_silent()), else nothing */
+void app_rep_not_released(app_t *a, uint8_t i);
 /* key=0x%08x (table_id) without a printf */
 void app_rep_hex(app_t *a, const char *key, uint32_t v);
 /* key=<word i of the flash list words_f> ("?" past its end) */
