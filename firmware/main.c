@@ -89,6 +89,26 @@ static void b_reboot(void *ctx)
     board_io_reboot();
 }
 
+#if CON_IO_FIXED
+/* The console's byte I/O (lib/console/console.h, CON_IO_FIXED). */
+int16_t con_io_read(void)
+{
+    return uart0_read();
+}
+
+void con_io_write(const char *buf, uint8_t n)
+{
+    uint8_t i;
+    for (i = 0; i < n; i++) {
+        uart0_write((uint8_t)buf[i]);
+    }
+}
+
+uint16_t con_io_room(void)
+{
+    return uart0_tx_room();
+}
+#else
 static int16_t c_read(void *ctx)
 {
     (void)ctx;
@@ -110,6 +130,9 @@ static uint16_t c_room(void *ctx)
     return uart0_tx_room();
 }
 
+static const con_io_t con_io = {NULL, c_read, c_write, c_room};
+#endif
+
 static uint16_t b_rx_lost(void *ctx)
 {
     (void)ctx;
@@ -118,7 +141,6 @@ static uint16_t b_rx_lost(void *ctx)
 
 static const app_board_t board = {NULL,  b_now_ms, b_now_us, b_button,
                                   b_led, b_kick,   b_reboot, b_rx_lost};
-static const con_io_t con_io = {NULL, c_read, c_write, c_room};
 
 int main(void)
 {
@@ -132,13 +154,21 @@ int main(void)
 
     memset(&io, 0, sizeof io);
     io.board = &board;
+#if !DXL_PORT_FIXED
     io.servo_port = uart1_port();
+#endif
     io.servo_bits = 10;
+#if !ICM_BUS_FIXED
     io.sensor_bus = twi_bus();
+#endif
     io.mux_addr = BOARD_MUX_ADDR;
+#if !STORE_EE_FIXED
     io.eeprom = &eeprom_port;
+#endif
     io.store_copy = copy_P;
+#if !CON_IO_FIXED
     io.console = &con_io;
+#endif
     io.con_copy = copy_P;
     io.rt = &con_rt;
     io.stack_free = stack_free_min;

@@ -154,7 +154,11 @@ int8_t con_init(con_t *con, const con_io_t *io, const con_handler_fn *handlers, 
                 con_copy_fn copy, con_rt_t *rt)
 {
     memset(con, 0, sizeof(*con));
+#if CON_IO_FIXED
+    (void)io;
+#else
     con->io = io;
+#endif
     con->handlers = handlers;
     con->app = app;
     con->copy = copy;
@@ -211,7 +215,7 @@ int8_t con_poll(con_t *con, uint16_t now_ms)
         return 0;
     }
     for (n = 0; n < CON_POLL_BYTES; n++) {
-        int16_t b = con->io->read(con->io->ctx);
+        int16_t b = CON_IO_READ(con);
         if (b < 0) {
             break;
         }
