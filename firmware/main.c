@@ -52,43 +52,6 @@ static void copy_learned(void *dst, const void *src, size_t n)
     app_table_copy(&app, dst, src, n);
 }
 
-static uint32_t b_now_ms(void *ctx)
-{
-    (void)ctx;
-    return tick_ms();
-}
-
-static uint32_t b_now_us(void *ctx)
-{
-    (void)ctx;
-    return tick_us();
-}
-
-static uint8_t b_button(void *ctx)
-{
-    (void)ctx;
-    return board_io_button();
-}
-
-static void b_led(void *ctx, uint8_t on)
-{
-    (void)ctx;
-    board_io_led(on);
-}
-
-static void b_kick(void *ctx)
-{
-    (void)ctx;
-    board_io_wdt_kick();
-}
-
-static void b_reboot(void *ctx)
-{
-    (void)ctx;
-    uart0_flush();
-    board_io_reboot();
-}
-
 #if CON_IO_FIXED
 /* The console's byte I/O (lib/console/console.h, CON_IO_FIXED). */
 int16_t con_io_read(void)
@@ -133,6 +96,80 @@ static uint16_t c_room(void *ctx)
 static const con_io_t con_io = {NULL, c_read, c_write, c_room};
 #endif
 
+#if APP_BOARD_FIXED
+/* The board as the app sees it (lib/app/app.h, APP_BOARD_FIXED). */
+uint32_t app_board_now_ms(void)
+{
+    return tick_ms();
+}
+
+uint32_t app_board_now_us(void)
+{
+    return tick_us();
+}
+
+uint8_t app_board_button(void)
+{
+    return board_io_button();
+}
+
+void app_board_led(uint8_t on)
+{
+    board_io_led(on);
+}
+
+void app_board_wdt_kick(void)
+{
+    board_io_wdt_kick();
+}
+
+uint16_t app_board_rx_lost(void)
+{
+    return uart0_rx_overruns();
+}
+
+uint16_t app_board_stack_free(void)
+{
+    return stack_free_min();
+}
+#else
+static uint32_t b_now_ms(void *ctx)
+{
+    (void)ctx;
+    return tick_ms();
+}
+
+static uint32_t b_now_us(void *ctx)
+{
+    (void)ctx;
+    return tick_us();
+}
+
+static uint8_t b_button(void *ctx)
+{
+    (void)ctx;
+    return board_io_button();
+}
+
+static void b_led(void *ctx, uint8_t on)
+{
+    (void)ctx;
+    board_io_led(on);
+}
+
+static void b_kick(void *ctx)
+{
+    (void)ctx;
+    board_io_wdt_kick();
+}
+
+static void b_reboot(void *ctx)
+{
+    (void)ctx;
+    uart0_flush();
+    board_io_reboot();
+}
+
 static uint16_t b_rx_lost(void *ctx)
 {
     (void)ctx;
@@ -141,6 +178,7 @@ static uint16_t b_rx_lost(void *ctx)
 
 static const app_board_t board = {NULL,  b_now_ms, b_now_us, b_button,
                                   b_led, b_kick,   b_reboot, b_rx_lost};
+#endif
 
 int main(void)
 {
@@ -153,7 +191,10 @@ int main(void)
     sei();
 
     memset(&io, 0, sizeof io);
+#if !APP_BOARD_FIXED
     io.board = &board;
+    io.stack_free = stack_free_min;
+#endif
 #if !DXL_PORT_FIXED
     io.servo_port = uart1_port();
 #endif
@@ -171,7 +212,6 @@ int main(void)
 #endif
     io.con_copy = copy_P;
     io.rt = &con_rt;
-    io.stack_free = stack_free_min;
     io.table = &HH_TABLE;
     io.table_copy = copy_P;
     io.table_copy_learned = copy_learned;

@@ -23,7 +23,7 @@ APP_NOINLINE void app_cmd_poll(app_t *a)
 {
     uint8_t moving = (uint8_t)(a->state == APP_ST_CAL || a->state == APP_ST_MOVE ||
                                (a->bus.goal_due | a->bus.torque_due) != 0u);
-    uint16_t n = a->io->board->rx_lost != NULL ? a->io->board->rx_lost(a->io->board->ctx) : 0u;
+    uint16_t n = APP_HAS_RX_LOST(a) ? APP_RX_LOST(a) : 0u;
     int8_t cmd;
     con_set_realtime(&a->cmd.con, moving);
     if (n != a->cmd.rx_lost) {
@@ -93,8 +93,8 @@ static int8_t h_status(app_t *a, const con_args_t *args)
     APP_REP_FIELDS(a, a, status_learn_fields);
     app_rep_int(a, app_w_saving, store_busy(&a->rec.store) || a->rec.save_due != 0u);
     APP_REP_FIELDS(a, a, status_loop_fields);
-    if (a->io->stack_free != NULL) {
-        app_rep_int(a, app_w_stack_free, (int32_t)a->io->stack_free());
+    if (APP_HAS_STACK_FREE(a)) {
+        app_rep_int(a, app_w_stack_free, (int32_t)APP_STACK_FREE(a));
     }
     app_rep_end(a);
     return app_cmd_list(a, APP_LIST_HOMES, 0);
