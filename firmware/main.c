@@ -132,6 +132,16 @@ uint16_t app_board_stack_free(void)
 {
     return stack_free_min();
 }
+
+void app_board_con_copy(void *dst, const void *src, size_t n)
+{
+    memcpy_P(dst, src, n);
+}
+
+void app_board_table_copy(void *dst, const void *src, size_t n)
+{
+    memcpy_P(dst, src, n);
+}
 #else
 static uint32_t b_now_ms(void *ctx)
 {

@@ -49,25 +49,29 @@
  * APP_HAS_STACK_FREE(a): the board counts lost console bytes, knows its
  * least free stack. */
 #if APP_BOARD_FIXED
-#define APP_NOW_MS(a)         ((void)(a), app_board_now_ms())
-#define APP_NOW_US(a)         ((void)(a), app_board_now_us())
-#define APP_BUTTON(a)         app_board_button()
-#define APP_LED(a, on)        app_board_led(on)
-#define APP_WDT_KICK(a)       app_board_wdt_kick()
-#define APP_HAS_RX_LOST(a)    1
-#define APP_RX_LOST(a)        app_board_rx_lost()
-#define APP_HAS_STACK_FREE(a) 1
-#define APP_STACK_FREE(a)     app_board_stack_free()
+#define APP_NOW_MS(a)              ((void)(a), app_board_now_ms())
+#define APP_NOW_US(a)              ((void)(a), app_board_now_us())
+#define APP_BUTTON(a)              app_board_button()
+#define APP_LED(a, on)             app_board_led(on)
+#define APP_WDT_KICK(a)            app_board_wdt_kick()
+#define APP_HAS_RX_LOST(a)         1
+#define APP_RX_LOST(a)             app_board_rx_lost()
+#define APP_HAS_STACK_FREE(a)      1
+#define APP_STACK_FREE(a)          app_board_stack_free()
+#define APP_CON_COPY(a, d, s, n)   app_board_con_copy(d, s, n)
+#define APP_TABLE_COPY(a, d, s, n) app_board_table_copy(d, s, n)
 #else
-#define APP_NOW_MS(a)         (a)->io->board->now_ms((a)->io->board->ctx)
-#define APP_NOW_US(a)         (a)->io->board->now_us((a)->io->board->ctx)
-#define APP_BUTTON(a)         (a)->io->board->button((a)->io->board->ctx)
-#define APP_LED(a, on)        (a)->io->board->led((a)->io->board->ctx, on)
-#define APP_WDT_KICK(a)       (a)->io->board->wdt_kick((a)->io->board->ctx)
-#define APP_HAS_RX_LOST(a)    ((a)->io->board->rx_lost != NULL)
-#define APP_RX_LOST(a)        (a)->io->board->rx_lost((a)->io->board->ctx)
-#define APP_HAS_STACK_FREE(a) ((a)->io->stack_free != NULL)
-#define APP_STACK_FREE(a)     (a)->io->stack_free()
+#define APP_NOW_MS(a)              (a)->io->board->now_ms((a)->io->board->ctx)
+#define APP_NOW_US(a)              (a)->io->board->now_us((a)->io->board->ctx)
+#define APP_BUTTON(a)              (a)->io->board->button((a)->io->board->ctx)
+#define APP_LED(a, on)             (a)->io->board->led((a)->io->board->ctx, on)
+#define APP_WDT_KICK(a)            (a)->io->board->wdt_kick((a)->io->board->ctx)
+#define APP_HAS_RX_LOST(a)         ((a)->io->board->rx_lost != NULL)
+#define APP_RX_LOST(a)             (a)->io->board->rx_lost((a)->io->board->ctx)
+#define APP_HAS_STACK_FREE(a)      ((a)->io->stack_free != NULL)
+#define APP_STACK_FREE(a)          (a)->io->stack_free()
+#define APP_CON_COPY(a, d, s, n)   (a)->io->con_copy(d, s, n)
+#define APP_TABLE_COPY(a, d, s, n) (a)->io->table_copy(d, s, n)
 #endif
 
 /* Room marker for the virtual bench (sim/bench/looptime.c): app_poll() writes

@@ -61,7 +61,7 @@ void app_rep_fields(app_t *a, const void *base, const app_field_t *f, uint8_t n)
         app_field_t e;
         const uint8_t *p;
         int32_t v;
-        a->io->con_copy(&e, f, sizeof e);
+        APP_CON_COPY(a, &e, f, sizeof e);
         p = (const uint8_t *)base + e.off;
         if ((e.fmt & 7u) == 1u) {
             v = (e.fmt & APP_F_S) ? (int32_t)(int8_t)*p : (int32_t)*p;
