@@ -67,8 +67,8 @@ int8_t icm_bus_write_read(uint8_t addr, const uint8_t *wdata, uint8_t wlen, uint
 int8_t icm_bus_recover(void);
 
 /* The bus functions on `bus` (a const icm_bus_t *), and whether it is not
- * usable: ICM_BUS_BAD(bus) is 1 for NULL or a missing write (and
- * write_read too when need_wr). */
+ * usable: ICM_BUS_BAD(bus, need_wr) is 1 for NULL or a missing write (or a
+ * missing write_read when need_wr); always 0 with ICM_BUS_FIXED. */
 #if ICM_BUS_FIXED
 #define ICM_BUS_WRITE(bus, addr, data, len)           icm_bus_write(addr, data, len)
 #define ICM_BUS_WRITE_READ(bus, addr, wd, wl, rd, rl) icm_bus_write_read(addr, wd, wl, rd, rl)
