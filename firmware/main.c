@@ -52,6 +52,97 @@ static void copy_learned(void *dst, const void *src, size_t n)
     app_table_copy(&app, dst, src, n);
 }
 
+#if CON_IO_FIXED
+/* The console's byte I/O (lib/console/console.h, CON_IO_FIXED). */
+int16_t con_io_read(void)
+{
+    return uart0_read();
+}
+
+void con_io_write(const char *buf, uint8_t n)
+{
+    uint8_t i;
+    for (i = 0; i < n; i++) {
+        uart0_write((uint8_t)buf[i]);
+    }
+}
+
+uint16_t con_io_room(void)
+{
+    return uart0_tx_room();
+}
+#else
+static int16_t c_read(void *ctx)
+{
+    (void)ctx;
+    return uart0_read();
+}
+
+static void c_write(void *ctx, const char *buf, uint8_t n)
+{
+    uint8_t i;
+    (void)ctx;
+    for (i = 0; i < n; i++) {
+        uart0_write((uint8_t)buf[i]);
+    }
+}
+
+static uint16_t c_room(void *ctx)
+{
+    (void)ctx;
+    return uart0_tx_room();
+}
+
+static const con_io_t con_io = {NULL, c_read, c_write, c_room};
+#endif
+
+#if APP_BOARD_FIXED
+/* The board as the app sees it (lib/app/app.h, APP_BOARD_FIXED). */
+uint32_t app_board_now_ms(void)
+{
+    return tick_ms();
+}
+
+uint32_t app_board_now_us(void)
+{
+    return tick_us();
+}
+
+uint8_t app_board_button(void)
+{
+    return board_io_button();
+}
+
+void app_board_led(uint8_t on)
+{
+    board_io_led(on);
+}
+
+void app_board_wdt_kick(void)
+{
+    board_io_wdt_kick();
+}
+
+uint16_t app_board_rx_lost(void)
+{
+    return uart0_rx_overruns();
+}
+
+uint16_t app_board_stack_free(void)
+{
+    return stack_free_min();
+}
+
+void app_board_con_copy(void *dst, const void *src, size_t n)
+{
+    memcpy_P(dst, src, n);
+}
+
+void app_board_table_copy(void *dst, const void *src, size_t n)
+{
+    memcpy_P(dst, src, n);
+}
+#else
 static uint32_t b_now_ms(void *ctx)
 {
     (void)ctx;
@@ -89,27 +180,6 @@ static void b_reboot(void *ctx)
     board_io_reboot();
 }
 
-static int16_t c_read(void *ctx)
-{
-    (void)ctx;
-    return uart0_read();
-}
-
-static void c_write(void *ctx, const char *buf, uint8_t n)
-{
-    uint8_t i;
-    (void)ctx;
-    for (i = 0; i < n; i++) {
-        uart0_write((uint8_t)buf[i]);
-    }
-}
-
-static uint16_t c_room(void *ctx)
-{
-    (void)ctx;
-    return uart0_tx_room();
-}
-
 static uint16_t b_rx_lost(void *ctx)
 {
     (void)ctx;
@@ -118,7 +188,7 @@ static uint16_t b_rx_lost(void *ctx)
 
 static const app_board_t board = {NULL,  b_now_ms, b_now_us, b_button,
                                   b_led, b_kick,   b_reboot, b_rx_lost};
-static const con_io_t con_io = {NULL, c_read, c_write, c_room};
+#endif
 
 int main(void)
 {
@@ -131,17 +201,27 @@ int main(void)
     sei();
 
     memset(&io, 0, sizeof io);
+#if !APP_BOARD_FIXED
     io.board = &board;
+    io.stack_free = stack_free_min;
+#endif
+#if !DXL_PORT_FIXED
     io.servo_port = uart1_port();
+#endif
     io.servo_bits = 10;
+#if !ICM_BUS_FIXED
     io.sensor_bus = twi_bus();
+#endif
     io.mux_addr = BOARD_MUX_ADDR;
+#if !STORE_EE_FIXED
     io.eeprom = &eeprom_port;
+#endif
     io.store_copy = copy_P;
+#if !CON_IO_FIXED
     io.console = &con_io;
+#endif
     io.con_copy = copy_P;
     io.rt = &con_rt;
-    io.stack_free = stack_free_min;
     io.table = &HH_TABLE;
     io.table_copy = copy_P;
     io.table_copy_learned = copy_learned;

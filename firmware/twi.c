@@ -229,6 +229,24 @@ uint16_t twi_recoveries(void)
     return twi_recovery_count;
 }
 
+#if ICM_BUS_FIXED
+/* The sensors' bus (lib/icm20948/icm20948.h, ICM_BUS_FIXED). */
+int8_t icm_bus_write(uint8_t addr, const uint8_t *data, uint8_t len)
+{
+    return twi_write(addr, data, len);
+}
+
+int8_t icm_bus_write_read(uint8_t addr, const uint8_t *wdata, uint8_t wlen, uint8_t *rdata,
+                          uint8_t rlen)
+{
+    return twi_write_read(addr, wdata, wlen, rdata, rlen);
+}
+
+int8_t icm_bus_recover(void)
+{
+    return twi_recover();
+}
+#else
 static int8_t twi_bus_write(void *ctx, uint8_t addr, const uint8_t *data, uint8_t len)
 {
     (void)ctx;
@@ -254,3 +272,4 @@ const icm_bus_t *twi_bus(void)
 {
     return &twi_bus_if;
 }
+#endif

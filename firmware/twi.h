@@ -44,6 +44,8 @@ int8_t twi_recover(void);
 uint16_t twi_recoveries(void);
 
 /* The bus interface for icm_setup() / icm_set_setup(). */
+#if !ICM_BUS_FIXED
 const icm_bus_t *twi_bus(void);
+#endif
 
 #endif /* HALLHOME_TWI_H */

@@ -158,6 +158,33 @@ uint16_t uart1_rx_errors(void)
     return n;
 }
 
+#if DXL_PORT_FIXED
+/* The master's one port (lib/dxl/dxl.h, DXL_PORT_FIXED). */
+uint16_t dxl_port_write(const uint8_t *data, uint16_t n)
+{
+    return uart1_write(data, n);
+}
+
+uint16_t dxl_port_read(uint8_t *out, uint16_t cap)
+{
+    return uart1_read(out, cap);
+}
+
+void dxl_port_set_dir(uint8_t dir)
+{
+    uart1_set_dir(dir);
+}
+
+uint8_t dxl_port_tx_done(void)
+{
+    return uart1_tx_done();
+}
+
+uint32_t dxl_port_now_us(void)
+{
+    return tick_us();
+}
+#else
 static uint16_t uart1_port_write(void *ctx, const uint8_t *data, uint16_t n)
 {
     (void)ctx;
@@ -201,3 +228,4 @@ dxl_port uart1_port(void)
     p.now_us = uart1_port_now;
     return p;
 }
+#endif

@@ -9,7 +9,8 @@
  * The receiver is off while transmitting, so an echo of our own bytes is
  * never read back. Nothing here blocks.
  *
- * uart1_port() gives the dxl_port (lib/dxl/dxl.h) the servo master uses.
+ * uart1_port() gives the dxl_port (lib/dxl/dxl.h) the servo master uses, or
+ * with DXL_PORT_FIXED uart1.c defines the master's port functions.
  */
 #ifndef HALLHOME_UART1_H
 #define HALLHOME_UART1_H
@@ -48,7 +49,9 @@ uint8_t uart1_tx_done(void);
 uint16_t uart1_rx_overruns(void);
 uint16_t uart1_rx_errors(void);
 
+#if !DXL_PORT_FIXED
 /* The dxl_port on UART1 and tick_us(); the returned struct may be copied. */
 dxl_port uart1_port(void);
+#endif
 
 #endif /* HALLHOME_UART1_H */

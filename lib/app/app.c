@@ -9,12 +9,12 @@
 
 uint32_t app_now_ms(const app_t *a)
 {
-    return a->io->board->now_ms(a->io->board->ctx);
+    return APP_NOW_MS(a);
 }
 
 uint32_t app_now_us(const app_t *a)
 {
-    return a->io->board->now_us(a->io->board->ctx);
+    return APP_NOW_US(a);
 }
 
 APP_NOINLINE uint16_t app_bit16(uint8_t i)
@@ -44,7 +44,7 @@ int8_t app_poll(app_t *app)
     hom_in_t in;
     uint32_t t0 = app_now_us(a), t = app_now_ms(a), dt;
     uint8_t st = a->state; /* a run started in this pass steps from the next */
-    a->io->board->wdt_kick(a->io->board->ctx);
+    APP_WDT_KICK(a);
     if (con_rt_take(a->io->rt)) {
         app_abort(a);
     }

@@ -37,11 +37,13 @@ int8_t app_init(app_t *app, const app_io_t *io)
 {
     dxl_config dc;
     uint8_t t;
-    if (app == NULL || io == NULL || io->board == NULL || io->board->now_ms == NULL ||
-        io->board->now_us == NULL || io->board->button == NULL || io->board->led == NULL ||
-        io->board->wdt_kick == NULL || io->sensor_bus == NULL || io->eeprom == NULL ||
-        io->console == NULL || io->con_copy == NULL || io->store_copy == NULL || io->rt == NULL ||
-        io->table_copy == NULL) {
+    if (app == NULL || io == NULL ||
+        (!APP_BOARD_FIXED &&
+         (io->board == NULL || io->board->now_ms == NULL || io->board->now_us == NULL ||
+          io->board->button == NULL || io->board->led == NULL || io->board->wdt_kick == NULL)) ||
+        (io->sensor_bus == NULL && !ICM_BUS_FIXED) || (io->eeprom == NULL && !STORE_EE_FIXED) ||
+        (io->console == NULL && !CON_IO_FIXED) || io->con_copy == NULL || io->store_copy == NULL ||
+        io->rt == NULL || io->table_copy == NULL) {
         return APP_E_ARG;
     }
     memset(app, 0, sizeof *app);

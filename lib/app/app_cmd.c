@@ -23,7 +23,7 @@ APP_NOINLINE void app_cmd_poll(app_t *a)
 {
     uint8_t moving = (uint8_t)(a->state == APP_ST_CAL || a->state == APP_ST_MOVE ||
                                (a->bus.goal_due | a->bus.torque_due) != 0u);
-    uint16_t n = a->io->board->rx_lost != NULL ? a->io->board->rx_lost(a->io->board->ctx) : 0u;
+    uint16_t n = APP_HAS_RX_LOST(a) ? APP_RX_LOST(a) : 0u;
     int8_t cmd;
     con_set_realtime(&a->cmd.con, moving);
     if (n != a->cmd.rx_lost) {
@@ -45,14 +45,6 @@ APP_NOINLINE void app_cmd_poll(app_t *a)
     if (cmd >= 0) {
         (void)con_called(&a->cmd.con, cmd_run(a, (uint8_t)cmd));
     }
-}
-
-/* Console output waits for the UART0 ring (128 bytes, 11 ms per ring at
- * 115200): listings of several lines would hold the loop for tens of ms,
- * longer than the homing's servo deadline, so they wait until nothing moves. */
-static int8_t quiet_needed(const app_t *a)
-{
-    return (a->state == APP_ST_IDLE || a->state == APP_ST_FAULT) ? 0 : CON_E_BUSY;
 }
 
 static int8_t h_version(app_t *a, const con_args_t *args)
@@ -93,8 +85,8 @@ static int8_t h_status(app_t *a, const con_args_t *args)
     APP_REP_FIELDS(a, a, status_learn_fields);
     app_rep_int(a, app_w_saving, store_busy(&a->rec.store) || a->rec.save_due != 0u);
     APP_REP_FIELDS(a, a, status_loop_fields);
-    if (a->io->stack_free != NULL) {
-        app_rep_int(a, app_w_stack_free, (int32_t)a->io->stack_free());
+    if (APP_HAS_STACK_FREE(a)) {
+        app_rep_int(a, app_w_stack_free, (int32_t)APP_STACK_FREE(a));
     }
     app_rep_end(a);
     return app_cmd_list(a, APP_LIST_HOMES, 0);
@@ -144,28 +136,16 @@ static void sensor_line(app_t *a, uint8_t k)
 
 static int8_t h_sensors(app_t *a, const con_args_t *args)
 {
-    if (quiet_needed(a) != 0) {
-        return CON_E_BUSY;
-    }
     (void)args;
-    if (!a->table_ok) {
-        return CON_E_NO_TABLE;
-    }
     return app_cmd_list(a, APP_LIST_SENSORS, 0);
 }
 
 static int8_t h_servos(app_t *a, const con_args_t *args)
 {
-    if (!a->table_ok) {
-        return CON_E_NO_TABLE;
-    }
-    if (quiet_needed(a) != 0) {
-        return CON_E_BUSY;
-    }
     if ((args->given & 1u) && args->v[0] != 0) {
         return app_cmd_list(a, APP_LIST_SERVOS, 0); /* pos, err: the live cycle keeps both fresh */
     }
-    if (!app_idle_state(a) || app_rec_busy(a)) {
+    if (app_rec_busy(a)) {
         return CON_E_BUSY; /* the bring-up reuses the record's storage */
     }
     app_boot_again(a);
@@ -204,9 +184,6 @@ static int8_t h_home(app_t *a, const con_args_t *args)
     uint8_t i;
     int8_t e;
     (void)args;
-    if (!app_idle_state(a)) {
-        return CON_E_BUSY;
-    }
     e = app_run_check(a);
     if (e != 0) {
         return e;
@@ -226,9 +203,6 @@ static int8_t h_home(app_t *a, const con_args_t *args)
 static int8_t h_release(app_t *a, const con_args_t *args)
 {
     (void)args;
-    if (!a->table_ok) {
-        return CON_E_NO_TABLE;
-    }
     if (a->state == APP_ST_BOOT) {
         return CON_E_BUSY;
     }
@@ -241,16 +215,13 @@ static int8_t h_release(app_t *a, const con_args_t *args)
     return 0;
 }
 
-/* The checks `learn` and `target` share: a table, nothing moving or being
- * saved, tendon args->v[0] of the table, tension args->v[1] on its grid.
- * Returns the grid index, or a negative CON_E_*. */
+/* The checks of `learn` after cmd_run()'s: nothing being saved, tendon
+ * args->v[0] of the table, tension args->v[1] on its grid. Returns the grid
+ * index, or a negative CON_E_*. */
 static int8_t learn_grid(app_t *a, const con_args_t *args)
 {
     uint8_t g;
-    if (!a->table_ok) {
-        return CON_E_NO_TABLE;
-    }
-    if (!app_idle_state(a) || app_rec_busy(a) || a->learn.forget != 0u) {
+    if (app_rec_busy(a) || a->learn.forget != 0u) {
         return CON_E_BUSY;
     }
     if ((uint8_t)args->v[0] >= a->info.n_tendons) {
@@ -289,10 +260,7 @@ static int8_t h_forget(app_t *a, const con_args_t *args)
 {
     const char *w = args->s[0];
     uint16_t m = 0;
-    if (!a->table_ok) {
-        return CON_E_NO_TABLE;
-    }
-    if (!app_idle_state(a) || app_rec_busy(a) || a->learn.forget != 0u) {
+    if (app_rec_busy(a) || a->learn.forget != 0u) {
         return CON_E_BUSY;
     }
     if (w[0] == 'a' && w[1] == 'l' && w[2] == 'l' && w[3] == '\0') { /* no string in RAM */
@@ -327,15 +295,9 @@ static const app_field_t tendon_fields[] CON_FLASH = {
 
 static int8_t h_table(app_t *a, const con_args_t *args)
 {
-    if (quiet_needed(a) != 0) {
-        return CON_E_BUSY;
-    }
     char buf[TBL_MAX_GRID * 12u + 1u];
     uint8_t g, pos;
     (void)args;
-    if (!a->table_ok) {
-        return CON_E_NO_TABLE;
-    }
     app_rep_begin(a, app_w_table);
     con_report_str(&a->cmd.con, app_w_name, a->info.name);
     APP_REP_FIELDS(a, &a->info, app_info_fields);
@@ -380,9 +342,6 @@ static const app_field_t hist_fields[] CON_FLASH = {
 
 static int8_t h_history(app_t *a, const con_args_t *args)
 {
-    if (quiet_needed(a) != 0) {
-        return CON_E_BUSY;
-    }
     (void)args;
     return app_cmd_list(a, APP_LIST_HISTORY, store_hist_count(&a->rec.store));
 }
@@ -437,9 +396,6 @@ static int8_t find_setting(app_t *a, const con_args_t *args)
 
 static int8_t h_get(app_t *a, const con_args_t *args)
 {
-    if (quiet_needed(a) != 0) {
-        return CON_E_BUSY;
-    }
     if (args->given & 1u) {
         int8_t f = find_setting(a, args);
         if (f < 0) {
@@ -478,9 +434,8 @@ static int8_t h_set(app_t *a, const con_args_t *args)
 static int8_t h_save(app_t *a, const con_args_t *args)
 {
     (void)args;
-    if (!app_idle_state(a) || (a->rec.save_due & APP_SAVE_SETTINGS) ||
-        a->rec.save_now == APP_SAVE_SETTINGS) {
-        return CON_E_BUSY; /* EEPROM writes happen only while nothing moves */
+    if ((a->rec.save_due & APP_SAVE_SETTINGS) || a->rec.save_now == APP_SAVE_SETTINGS) {
+        return CON_E_BUSY;
     }
     app_rec_queue(a, APP_SAVE_SETTINGS);
     return CON_PENDING;
@@ -488,7 +443,7 @@ static int8_t h_save(app_t *a, const con_args_t *args)
 
 static int8_t h_reboot(app_t *a, const con_args_t *args)
 {
-    if (!app_idle_state(a) || app_rec_busy(a) || a->bus.reboot_id != 0u) {
+    if (app_rec_busy(a) || a->bus.reboot_id != 0u) {
         return CON_E_BUSY;
     }
     app_bus_reboot(a, (uint8_t)args->v[0]);
@@ -568,6 +523,29 @@ static void list_poll(app_t *a)
     }
 }
 
+/* What a command needs before its handler runs, as masks of CON_CMD_* bits,
+ * checked in this order:
+ *   CMD_TABLE_FIRST  a valid table (else CON_E_NO_TABLE)
+ *   CMD_QUIET        nothing moving (state idle or fault; else CON_E_BUSY):
+ *                    listings, because console output waits for the UART0
+ *                    ring (128 bytes, 11 ms per ring at 115200) and several
+ *                    lines would hold the loop for tens of ms, longer than
+ *                    the homing's servo deadline; EEPROM writes and bring-ups,
+ *                    which happen only while nothing moves
+ *   CMD_TABLE        a valid table, checked after CMD_QUIET
+ * The handlers check the rest themselves. */
+#define CMD_BIT(id)     ((uint32_t)1u << CON_CMD_##id)
+#define CMD_TABLE_FIRST (CMD_BIT(SERVOS) | CMD_BIT(RELEASE) | CMD_BIT(LEARN) | CMD_BIT(FORGET))
+#define CMD_QUIET                                                                                  \
+    (CMD_BIT(SENSORS) | CMD_BIT(SERVOS) | CMD_BIT(HOME) | CMD_BIT(LEARN) | CMD_BIT(TABLE) |        \
+     CMD_BIT(HISTORY) | CMD_BIT(GET) | CMD_BIT(SAVE) | CMD_BIT(REBOOT) | CMD_BIT(FORGET))
+#define CMD_TABLE (CMD_BIT(SENSORS) | CMD_BIT(TABLE))
+
+static uint8_t cmd_needs(uint32_t mask, uint8_t cmd)
+{
+    return (uint8_t)((mask >> cmd) & 1u);
+}
+
 /* The command of a validated line (con_call()), run with this app: direct
  * calls, not a table of handlers called through a pointer, so that the
  * compiler sees the one app every command works on (measured: -2.0 KB of
@@ -575,6 +553,15 @@ static void list_poll(app_t *a)
 static int8_t cmd_run(app_t *a, uint8_t cmd)
 {
     const con_args_t *args = &a->cmd.con.args;
+    if (cmd_needs(CMD_TABLE_FIRST, cmd) && !a->table_ok) {
+        return CON_E_NO_TABLE;
+    }
+    if (cmd_needs(CMD_QUIET, cmd) && !app_idle_state(a)) {
+        return CON_E_BUSY;
+    }
+    if (cmd_needs(CMD_TABLE, cmd) && !a->table_ok) {
+        return CON_E_NO_TABLE;
+    }
     switch (cmd) {
     case CON_CMD_VERSION:
         return h_version(a, args);

@@ -15,7 +15,7 @@
 void app_table_copy(app_t *app, void *dst, const void *src, size_t n)
 {
     uint8_t t;
-    app->io->table_copy(dst, src, n);
+    APP_TABLE_COPY(app, dst, src, n);
     if (app->io->table == NULL || app->learn.mask == 0u) {
         return;
     }

@@ -6,7 +6,7 @@
 
 void app_panel_button(app_t *a, uint16_t t)
 {
-    uint8_t b = a->io->board->button(a->io->board->ctx);
+    uint8_t b = APP_BUTTON(a);
     uint8_t raw = b & 1u;
     b ^= raw; /* the count */
     if (b != a->panel.presses && !a->panel.state) {
@@ -69,7 +69,7 @@ void app_panel_led(app_t *a, uint32_t t)
     }
     if (on != a->panel.led_on || a->loops == 0u) {
         a->panel.led_on = on;
-        a->io->board->led(a->io->board->ctx, on);
+        APP_LED(a, on);
     }
 }
 

@@ -45,6 +45,35 @@
 #define APP_NOINLINE
 #endif
 
+/* The board's functions (app.h, APP_BOARD_FIXED); APP_HAS_RX_LOST(a) and
+ * APP_HAS_STACK_FREE(a): the board counts lost console bytes, knows its
+ * least free stack. */
+#if APP_BOARD_FIXED
+#define APP_NOW_MS(a)              ((void)(a), app_board_now_ms())
+#define APP_NOW_US(a)              ((void)(a), app_board_now_us())
+#define APP_BUTTON(a)              app_board_button()
+#define APP_LED(a, on)             app_board_led(on)
+#define APP_WDT_KICK(a)            app_board_wdt_kick()
+#define APP_HAS_RX_LOST(a)         1
+#define APP_RX_LOST(a)             app_board_rx_lost()
+#define APP_HAS_STACK_FREE(a)      1
+#define APP_STACK_FREE(a)          app_board_stack_free()
+#define APP_CON_COPY(a, d, s, n)   app_board_con_copy(d, s, n)
+#define APP_TABLE_COPY(a, d, s, n) app_board_table_copy(d, s, n)
+#else
+#define APP_NOW_MS(a)              (a)->io->board->now_ms((a)->io->board->ctx)
+#define APP_NOW_US(a)              (a)->io->board->now_us((a)->io->board->ctx)
+#define APP_BUTTON(a)              (a)->io->board->button((a)->io->board->ctx)
+#define APP_LED(a, on)             (a)->io->board->led((a)->io->board->ctx, on)
+#define APP_WDT_KICK(a)            (a)->io->board->wdt_kick((a)->io->board->ctx)
+#define APP_HAS_RX_LOST(a)         ((a)->io->board->rx_lost != NULL)
+#define APP_RX_LOST(a)             (a)->io->board->rx_lost((a)->io->board->ctx)
+#define APP_HAS_STACK_FREE(a)      ((a)->io->stack_free != NULL)
+#define APP_STACK_FREE(a)          (a)->io->stack_free()
+#define APP_CON_COPY(a, d, s, n)   (a)->io->con_copy(d, s, n)
+#define APP_TABLE_COPY(a, d, s, n) (a)->io->table_copy(d, s, n)
+#endif
+
 /* Room marker for the virtual bench (sim/bench/looptime.c): app_poll() writes
  * a zero to the byte at APP_ROOM_MARK_ADDR before each room's call, and the
  * bench, which counts the writes of a pass, tells which room a long pass
@@ -209,9 +238,9 @@ void app_rep_u8(app_t *a, const char *key, uint8_t v);
 /* tendon=i id=<its servo's ID> */
 void app_rep_tendon(app_t *a, uint8_t i);
 void app_rep_end(app_t *a);
-/* not_released=<ID> index=<i> for a servo silent since before the stop
- * (app_bus_silent()); nothing when every servo answers */
-void app_rep_silent(app_t *a);
+/* not_released=<ID> index=<i-1> for servo i-1 when i > 0, else for a servo
+ * silent since before the stop (app_bus_silent()), else nothing */
+void app_rep_not_released(app_t *a, uint8_t i);
 /* key=0x%08x (table_id) without a printf */
 void app_rep_hex(app_t *a, const char *key, uint32_t v);
 /* key=<word i of the flash list words_f> ("?" past its end) */

@@ -61,7 +61,7 @@ void app_rep_fields(app_t *a, const void *base, const app_field_t *f, uint8_t n)
         app_field_t e;
         const uint8_t *p;
         int32_t v;
-        a->io->con_copy(&e, f, sizeof e);
+        APP_CON_COPY(a, &e, f, sizeof e);
         p = (const uint8_t *)base + e.off;
         if ((e.fmt & 7u) == 1u) {
             v = (e.fmt & APP_F_S) ? (int32_t)(int8_t)*p : (int32_t)*p;
@@ -278,15 +278,14 @@ void app_rep_event(app_t *a, const hom_event_t *ev)
     case HOM_EV_RELEASED:
         app_rep_begin(a, app_w_released);
         app_rep_word(a, app_w_reason, app_w_fault_words, (uint8_t)ev->a);
+        i = 0; /* the silent servo, if any */
         if ((ev->a == HOM_F_SERVO_TIMEOUT || ev->a == HOM_F_SERVO_ERROR) &&
             hom_fault_index(&a->u.hom) < a->info.n_tendons) {
             /* a servo that does not answer, or has its torque off, cannot
              * take the release: named (a hardware error is rebooted next) */
-            app_rep_u8(a, app_w_not_released, a->bus.ids[hom_fault_index(&a->u.hom)]);
-            app_rep_u8(a, app_w_index, hom_fault_index(&a->u.hom));
-        } else {
-            app_rep_silent(a);
+            i = (uint8_t)(hom_fault_index(&a->u.hom) + 1u);
         }
+        app_rep_not_released(a, i);
         app_rep_end(a);
         break;
     default:
@@ -294,9 +293,11 @@ void app_rep_event(app_t *a, const hom_event_t *ev)
     }
 }
 
-void app_rep_silent(app_t *a)
+void app_rep_not_released(app_t *a, uint8_t i)
 {
-    uint8_t i = app_bus_silent(a);
+    if (i == 0u) {
+        i = app_bus_silent(a);
+    }
     if (i != 0u) {
         app_rep_u8(a, app_w_not_released, a->bus.ids[i - 1u]);
         app_rep_u8(a, app_w_index, (uint8_t)(i - 1u));

@@ -337,7 +337,7 @@ APP_NOINLINE static void release_all(app_t *a, const char *reason_f, uint8_t id)
     if (id != 0u) {
         app_rep_u8(a, app_w_id, id);
     }
-    app_rep_silent(a);
+    app_rep_not_released(a, 0);
     app_rep_end(a);
     app_run_move(a, APP_MOVE_RELEASE);
 }

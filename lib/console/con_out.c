@@ -54,7 +54,7 @@ void con_out(con_t *c, const char *s, uint8_t n)
 {
     if (!c->realtime) {
         if (n > 0u) {
-            c->io->write(c->io->ctx, s, n); /* may wait: nothing moves */
+            CON_IO_WRITE(c, s, n); /* may wait: nothing moves */
         }
         return;
     }
@@ -77,11 +77,11 @@ uint8_t con_flush(con_t *c, uint16_t reserve)
         c->dropped++;
         return 1;
     }
-    if (c->realtime && c->io->room != NULL && c->io->room(c->io->ctx) < (uint16_t)(n + reserve)) {
+    if (c->realtime && CON_HAS_ROOM(c) && CON_IO_ROOM(c) < (uint16_t)(n + reserve)) {
         return 0;
     }
     if (n > 0u) {
-        c->io->write(c->io->ctx, c->obuf, n);
+        CON_IO_WRITE(c, c->obuf, n);
     }
     return 1;
 }
@@ -216,7 +216,7 @@ void con_reply(con_t *c, int8_t rc)
             i = 0;
             text = con_err_text;
         }
-        c->copy(&code, &con_err_codes[i], 1);
+        code = (uint8_t)CON_FLASH_BYTE(&con_err_codes[i]);
         if (code == (uint8_t)-rc) {
             break;
         }
@@ -239,7 +239,7 @@ void con_reply(con_t *c, int8_t rc)
  * function: writes then never wait). */
 static uint8_t has_room(const con_t *con, uint16_t n)
 {
-    return (uint8_t)(con->io->room == NULL || con->io->room(con->io->ctx) >= n);
+    return (uint8_t)(!CON_HAS_ROOM(con) || CON_IO_ROOM(con) >= n);
 }
 
 uint8_t con_report_fits(const con_t *con)
@@ -261,9 +261,8 @@ void con_report_begin(con_t *con, const char *kind)
 {
     con->olen = 0;
     con->mute = 0;
-    if (con->realtime && con->io->room != NULL &&
-        con->io->room(con->io->ctx) <
-            (con->state == CON_ST_CALL ? CON_OUT_MAX + CON_RESERVE : CON_MIN_ROOM)) {
+    if (con->realtime && CON_HAS_ROOM(con) &&
+        CON_IO_ROOM(con) < (con->state == CON_ST_CALL ? CON_OUT_MAX + CON_RESERVE : CON_MIN_ROOM)) {
         con->mute = 1; /* dropped: assembling it would only cost time */
         return;
     }

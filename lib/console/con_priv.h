@@ -53,6 +53,20 @@
 #define CON_FLASH_U16(p)  (*(p))
 #endif
 
+/* The console's byte I/O (console.h, CON_IO_FIXED); CON_HAS_ROOM(c): it
+ * has a room() function. */
+#if CON_IO_FIXED
+#define CON_IO_READ(c)          ((void)(c), con_io_read())
+#define CON_IO_WRITE(c, buf, n) ((void)(c), con_io_write(buf, n))
+#define CON_IO_ROOM(c)          ((void)(c), con_io_room())
+#define CON_HAS_ROOM(c)         ((void)(c), 1)
+#else
+#define CON_IO_READ(c)          (c)->io->read((c)->io->ctx)
+#define CON_IO_WRITE(c, buf, n) (c)->io->write((c)->io->ctx, buf, n)
+#define CON_IO_ROOM(c)          (c)->io->room((c)->io->ctx)
+#define CON_HAS_ROOM(c)         ((c)->io->room != NULL)
+#endif
+
 /* Pointer past the next n NUL-terminated strings at p (con_out.c). */
 const char *con_fl_skip(const con_t *c, const char *p, uint16_t n);
 

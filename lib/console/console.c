@@ -18,6 +18,13 @@
 
 /* ---- line handling ----------------------------------------------- */
 
+/* The console has a handler table (console.h, CON_HANDLERS). */
+#if CON_HANDLERS
+#define CON_TABLE(c) ((c)->handlers != NULL)
+#else
+#define CON_TABLE(c) 0
+#endif
+
 /* A handler's result: the final reply now, or the command pending. */
 CON_NOINLINE static void end_call(con_t *c, int8_t rc)
 {
@@ -36,7 +43,9 @@ static void execute(con_t *c)
     char *p = c->line;
     uint8_t ntok = 0, j;
     int8_t cmd, rc;
+#if CON_HANDLERS
     con_handler_fn h;
+#endif
     for (;;) {
         while (*p == ' ') {
             *p++ = '\0';
@@ -76,11 +85,12 @@ static void execute(con_t *c)
         con_help_start(c);
         return;
     }
-    if (c->handlers == NULL) {
+    if (!CON_TABLE(c)) {
         c->state = CON_ST_CALL; /* the application runs it: con_call() */
         c->call = (uint8_t)cmd;
         return;
     }
+#if CON_HANDLERS
     c->copy(&h, &c->handlers[cmd], sizeof(h));
     if (h == NULL) {
         con_reply(c, CON_E_NOT_AVAILABLE);
@@ -88,6 +98,7 @@ static void execute(con_t *c)
     }
     c->state = CON_ST_CALL;
     end_call(c, h(c, &c->args, c->app));
+#endif
 }
 
 static void end_line(con_t *c)
@@ -154,10 +165,20 @@ int8_t con_init(con_t *con, const con_io_t *io, const con_handler_fn *handlers, 
                 con_copy_fn copy, con_rt_t *rt)
 {
     memset(con, 0, sizeof(*con));
+#if CON_IO_FIXED
+    (void)io;
+#else
     con->io = io;
+#endif
+#if CON_HANDLERS
     con->handlers = handlers;
     con->app = app;
     con->copy = copy;
+#else
+    (void)handlers;
+    (void)app;
+    (void)copy;
+#endif
     con->rt = rt;
     con->state = CON_ST_READ;
     con->pending_ms = CON_PENDING_MS;
@@ -211,7 +232,7 @@ int8_t con_poll(con_t *con, uint16_t now_ms)
         return 0;
     }
     for (n = 0; n < CON_POLL_BYTES; n++) {
-        int16_t b = con->io->read(con->io->ctx);
+        int16_t b = CON_IO_READ(con);
         if (b < 0) {
             break;
         }
@@ -250,7 +271,7 @@ uint8_t con_pending(const con_t *con)
 
 int8_t con_call(const con_t *con)
 {
-    return (con->state == CON_ST_CALL && con->handlers == NULL) ? (int8_t)con->call : -1;
+    return (con->state == CON_ST_CALL && !CON_TABLE(con)) ? (int8_t)con->call : -1;
 }
 
 int8_t con_called(con_t *con, int8_t rc)

@@ -117,6 +117,20 @@ typedef struct {
     uint16_t (*room)(void *ctx);
 } con_io_t;
 
+/* A firmware with one console builds with -DCON_IO_FIXED=1: the console then
+ * calls the board's functions below (the con_io_t contracts without ctx;
+ * room() is not optional) directly, and the io given to con_init() is
+ * neither kept nor read (measured: 144 bytes less AVR code). The default, 0, takes a con_io_t per
+ * console, which the native tests fill with their fakes. */
+#ifndef CON_IO_FIXED
+#define CON_IO_FIXED 0
+#endif
+#if CON_IO_FIXED
+int16_t con_io_read(void);
+void con_io_write(const char *buf, uint8_t n);
+uint16_t con_io_room(void);
+#endif
+
 /* Realtime stop state, shared by the RX interrupt and the main loop. The
  * interrupt only increments `count`, the main loop only writes `seen`, so no
  * locking is needed. */
@@ -138,16 +152,29 @@ typedef struct {
 
 struct con_s;
 
+/* An application that runs every command itself (con_call()) builds with
+ * -DCON_HANDLERS=0: the console then has no handler table, and con_init()
+ * ignores its handlers, app and copy arguments (pass NULL). The firmware
+ * builds so (measured: 130 bytes less AVR code, 6 bytes less RAM); the
+ * default, 1, keeps the table the native tests and tools use. */
+#ifndef CON_HANDLERS
+#define CON_HANDLERS 1
+#endif
+
 /* Command handler: see the file comment for the result contract. */
 typedef int8_t (*con_handler_fn)(struct con_s *con, const con_args_t *args, void *app);
 
-/* Caller-owned console state (287 bytes on the AVR). Treat as opaque. */
+/* Caller-owned console state (285 bytes on the AVR with CON_IO_FIXED). Treat as opaque. */
 typedef struct con_s {
+#if !CON_IO_FIXED
     const con_io_t *io;
+#endif
+#if CON_HANDLERS
     const con_handler_fn *handlers; /* CON_CMD_COUNT entries, read via copy; NULL entry:
                                        error:NOT_AVAILABLE; NULL: con_call() */
     void *app;                      /* passed to every handler */
     con_copy_fn copy;
+#endif
     con_rt_t *rt;
     con_args_t args;
     char line[CON_LINE_MAX + 1];
@@ -170,8 +197,8 @@ typedef struct con_s {
 
 /* Binds the console. handlers must hold CON_CMD_COUNT entries (the HELP
  * entry is not used: help is built in), or be NULL: the application runs
- * the commands (con_call()). rt may be shared with the RX interrupt's hook.
- * Returns 0. */
+ * the commands (con_call()); with CON_HANDLERS 0 the application always
+ * does. rt may be shared with the RX interrupt's hook. Returns 0. */
 int8_t con_init(con_t *con, const con_io_t *io, const con_handler_fn *handlers, void *app,
                 con_copy_fn copy, con_rt_t *rt);
 

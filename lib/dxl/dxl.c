@@ -26,7 +26,7 @@ static uint8_t dxl_time_reached(uint32_t now, uint32_t t)
 
 static uint32_t dxl_now(const dxl_master *m)
 {
-    return m->port.now_us(m->port.ctx);
+    return DXL_PORT_NOW_US(m);
 }
 
 void dxl_config_default(dxl_config *cfg, uint32_t baud, uint8_t bits_per_byte)
@@ -39,7 +39,11 @@ void dxl_config_default(dxl_config *cfg, uint32_t baud, uint8_t bits_per_byte)
 
 void dxl_master_init(dxl_master *m, const dxl_port *port, const dxl_config *cfg)
 {
+#if DXL_PORT_FIXED
+    (void)port;
+#else
     m->port = *port;
+#endif
     m->cfg = *cfg;
     dxl_parser_init(&m->parser, m->rx, DXL_RX_CAP);
 #if DXL_STATS
@@ -64,7 +68,7 @@ static void dxl_drain(dxl_master *m)
 {
     uint8_t chunk[DXL_READ_CHUNK];
     for (uint8_t round = 0; round < DXL_READ_ROUNDS; round++) {
-        uint16_t got = m->port.read(m->port.ctx, chunk, DXL_READ_CHUNK);
+        uint16_t got = DXL_PORT_READ(m, chunk, DXL_READ_CHUNK);
         if (got == 0) {
             break;
         }
@@ -87,7 +91,7 @@ static void dxl_begin_attempt(dxl_master *m)
     }
     m->tx_sent = 0;
     DXL_COUNT(m->stats.requests++);
-    m->port.set_dir(m->port.ctx, DXL_DIR_TX);
+    DXL_PORT_SET_DIR(m, DXL_DIR_TX);
     m->phase = DXL_PH_SEND;
 }
 
@@ -107,7 +111,7 @@ static void dxl_finish(dxl_master *m, int8_t err)
         m->result = err;
     }
     m->phase = DXL_PH_IDLE;
-    m->port.set_dir(m->port.ctx, DXL_DIR_RX);
+    DXL_PORT_SET_DIR(m, DXL_DIR_RX);
 }
 
 static void dxl_end_attempt(dxl_master *m, int8_t err)
@@ -219,7 +223,7 @@ static void dxl_recv(dxl_master *m)
 {
     uint8_t chunk[DXL_READ_CHUNK];
     for (uint8_t round = 0; round < DXL_READ_ROUNDS && m->got < m->expect; round++) {
-        uint16_t n = m->port.read(m->port.ctx, chunk, DXL_READ_CHUNK);
+        uint16_t n = DXL_PORT_READ(m, chunk, DXL_READ_CHUNK);
         if (n == 0) {
             break;
         }
@@ -276,8 +280,7 @@ int8_t dxl_poll(dxl_master *m)
 {
     switch (m->phase) {
     case DXL_PH_SEND: {
-        uint16_t n =
-            m->port.write(m->port.ctx, m->tx + m->tx_sent, (uint16_t)(m->tx_len - m->tx_sent));
+        uint16_t n = DXL_PORT_WRITE(m, m->tx + m->tx_sent, (uint16_t)(m->tx_len - m->tx_sent));
         m->tx_sent = (uint16_t)(m->tx_sent + n);
         if (m->tx_sent >= m->tx_len) {
             m->deadline = dxl_now(m) + (uint32_t)m->tx_len * m->cfg.byte_us + m->cfg.tx_slack_us;
@@ -286,7 +289,7 @@ int8_t dxl_poll(dxl_master *m)
         return 1;
     }
     case DXL_PH_WAIT_TX:
-        if (m->port.tx_done(m->port.ctx)) {
+        if (DXL_PORT_TX_DONE(m)) {
             if (m->expect == 0) {
                 dxl_finish(m, 0);
                 return m->result;

@@ -219,7 +219,7 @@ static int8_t dxl_bu_after(dxl_bringup *b, int8_t rc)
             return dxl_bu_done(b, rc);
         }
         s->rebooted = 1;
-        b->wait_until = b->m->port.now_us(b->m->port.ctx) + b->cfg.reboot_wait_us;
+        b->wait_until = DXL_PORT_NOW_US(b->m) + b->cfg.reboot_wait_us;
         b->step = DXL_BU_REBOOT_WAIT;
         return 1;
     case DXL_BU_REPING:
@@ -277,7 +277,7 @@ int8_t dxl_bringup_poll(dxl_bringup *b)
         return b->result;
     }
     if (b->step == DXL_BU_REBOOT_WAIT) {
-        if (!dxl_time_reached(b->m->port.now_us(b->m->port.ctx), b->wait_until)) {
+        if (!dxl_time_reached(DXL_PORT_NOW_US(b->m), b->wait_until)) {
             return 1;
         }
         b->step = DXL_BU_REPING;

@@ -47,6 +47,21 @@
 #define DXL_NOINLINE
 #endif
 
+/* The port's functions, called on master m (dxl.h, DXL_PORT_FIXED). */
+#if DXL_PORT_FIXED
+#define DXL_PORT_WRITE(m, data, n) ((void)(m), dxl_port_write(data, n))
+#define DXL_PORT_READ(m, out, cap) ((void)(m), dxl_port_read(out, cap))
+#define DXL_PORT_SET_DIR(m, dir)   ((void)(m), dxl_port_set_dir(dir))
+#define DXL_PORT_TX_DONE(m)        ((void)(m), dxl_port_tx_done())
+#define DXL_PORT_NOW_US(m)         ((void)(m), dxl_port_now_us())
+#else
+#define DXL_PORT_WRITE(m, data, n) (m)->port.write((m)->port.ctx, data, n)
+#define DXL_PORT_READ(m, out, cap) (m)->port.read((m)->port.ctx, out, cap)
+#define DXL_PORT_SET_DIR(m, dir)   (m)->port.set_dir((m)->port.ctx, dir)
+#define DXL_PORT_TX_DONE(m)        (m)->port.tx_done((m)->port.ctx)
+#define DXL_PORT_NOW_US(m)         (m)->port.now_us((m)->port.ctx)
+#endif
+
 /* Starts a sync read or fast sync read (`inst`); same returns as
  * dxl_sync_read(). */
 int8_t dxl_group_read(dxl_master *m, uint8_t inst, uint16_t addr, uint16_t n, const uint8_t *ids,

@@ -19,6 +19,14 @@
 
 enum { ICM_ST_IDLE, ICM_ST_INIT, ICM_ST_RUN, ICM_ST_FAIL };
 
+/* A device icm_setup() has not prepared (icm20948.h, ICM_BUS_FIXED: without
+ * a bus of its own, by its address, which icm_setup() always sets). */
+#if ICM_BUS_FIXED
+#define ICM_DEV_UNSET(dev) ((dev)->addr == 0u)
+#else
+#define ICM_DEV_UNSET(dev) ((dev)->bus == NULL)
+#endif
+
 /* icm_wait() measured smaller on the AVR as a call than inlined at each wait. */
 #if defined(__GNUC__)
 #define ICM_NOINLINE __attribute__((noinline))
@@ -148,15 +156,15 @@ static int8_t icm_fail_xfer(icm_dev_t *dev, int8_t bus_rc)
     if (dev->mux != NULL) {
         tca_invalidate(dev->mux);
     }
-    if ((bus_rc == ICM_BUS_E_TIMEOUT || bus_rc == ICM_BUS_E_BUS) && dev->bus->recover != NULL) {
-        (void)dev->bus->recover(dev->bus->ctx);
+    if (bus_rc == ICM_BUS_E_TIMEOUT || bus_rc == ICM_BUS_E_BUS) {
+        ICM_BUS_RECOVER(dev->bus);
     }
     return icm_bus_error(bus_rc);
 }
 
 static int8_t icm_write(icm_dev_t *dev, const uint8_t *data, uint8_t len)
 {
-    int8_t rc = dev->bus->write(dev->bus->ctx, dev->addr, data, len);
+    int8_t rc = ICM_BUS_WRITE(dev->bus, dev->addr, data, len);
     return rc == ICM_BUS_OK ? 0 : icm_fail_xfer(dev, rc);
 }
 
@@ -200,7 +208,7 @@ static int8_t icm_rd(icm_dev_t *dev, uint8_t bank, uint8_t reg, uint8_t *buf, ui
     if (rc != 0) {
         return rc;
     }
-    rc = dev->bus->write_read(dev->bus->ctx, dev->addr, &reg, 1, buf, n);
+    rc = ICM_BUS_WRITE_READ(dev->bus, dev->addr, &reg, 1, buf, n);
     return rc == ICM_BUS_OK ? 0 : icm_fail_xfer(dev, rc);
 }
 
@@ -213,8 +221,8 @@ static int8_t icm_select(icm_dev_t *dev)
     rc = tca_select(dev->mux, dev->channel);
     if (rc != 0) {
         dev->bank = ICM_BANK_UNKNOWN;
-        if ((rc == TCA_E_BUS || rc == TCA_E_TIMEOUT) && dev->bus->recover != NULL) {
-            (void)dev->bus->recover(dev->bus->ctx);
+        if (rc == TCA_E_BUS || rc == TCA_E_TIMEOUT) {
+            ICM_BUS_RECOVER(dev->bus);
         }
         return ICM_E_MUX;
     }
@@ -224,7 +232,7 @@ static int8_t icm_select(icm_dev_t *dev)
 int8_t icm_setup(icm_dev_t *dev, const icm_bus_t *bus, struct tca *mux, uint8_t channel,
                  uint8_t addr)
 {
-    if (dev == NULL || bus == NULL || bus->write == NULL || bus->write_read == NULL) {
+    if (dev == NULL || ICM_BUS_BAD(bus, 1)) {
         return ICM_E_ARG;
     }
     if (addr != ICM_REG_ADDR_AD0_LOW && addr != ICM_REG_ADDR_AD0_HIGH) {
@@ -234,7 +242,9 @@ int8_t icm_setup(icm_dev_t *dev, const icm_bus_t *bus, struct tca *mux, uint8_t 
         return ICM_E_ARG;
     }
     memset(dev, 0, sizeof(*dev));
+#if !ICM_BUS_FIXED
     dev->bus = bus;
+#endif
     dev->mux = mux;
     dev->channel = channel;
     dev->addr = addr;
@@ -255,7 +265,7 @@ int8_t icm_set_stale_us(icm_dev_t *dev, uint32_t stale_us)
 
 int8_t icm_init_start(icm_dev_t *dev, uint32_t now_us)
 {
-    if (dev == NULL || dev->bus == NULL) {
+    if (dev == NULL || ICM_DEV_UNSET(dev)) {
         return ICM_E_ARG;
     }
     dev->state = ICM_ST_INIT;

@@ -51,6 +51,43 @@ typedef struct {
     int8_t (*recover)(void *ctx);
 } icm_bus_t;
 
+/* A firmware with one I2C bus builds with -DICM_BUS_FIXED=1: the driver and
+ * the multiplexer then call the board's functions below (the icm_bus_t
+ * contracts without ctx; recover() is not optional; defined by the board
+ * only when it builds so) directly, and the bus given to icm_set_setup(),
+ * icm_setup() and tca_setup() is neither checked, kept nor read (measured: 266 bytes less AVR code,
+ * 20 bytes less RAM). The default, 0, takes an icm_bus_t per device, which the native tests fill
+ * with their fakes. */
+#ifndef ICM_BUS_FIXED
+#define ICM_BUS_FIXED 0
+#endif
+int8_t icm_bus_write(uint8_t addr, const uint8_t *data, uint8_t len);
+int8_t icm_bus_write_read(uint8_t addr, const uint8_t *wdata, uint8_t wlen, uint8_t *rdata,
+                          uint8_t rlen);
+int8_t icm_bus_recover(void);
+
+/* The bus functions on `bus` (a const icm_bus_t *), and whether it is not
+ * usable: ICM_BUS_BAD(bus, need_wr) is 1 for NULL or a missing write (or a
+ * missing write_read when need_wr); always 0 with ICM_BUS_FIXED. */
+#if ICM_BUS_FIXED
+#define ICM_BUS_WRITE(bus, addr, data, len)           icm_bus_write(addr, data, len)
+#define ICM_BUS_WRITE_READ(bus, addr, wd, wl, rd, rl) icm_bus_write_read(addr, wd, wl, rd, rl)
+#define ICM_BUS_RECOVER(bus)                          ((void)icm_bus_recover())
+#define ICM_BUS_BAD(bus, need_wr)                     ((void)(bus), 0)
+#else
+#define ICM_BUS_WRITE(bus, addr, data, len) (bus)->write((bus)->ctx, addr, data, len)
+#define ICM_BUS_WRITE_READ(bus, addr, wd, wl, rd, rl)                                              \
+    (bus)->write_read((bus)->ctx, addr, wd, wl, rd, rl)
+#define ICM_BUS_RECOVER(bus)                                                                       \
+    do {                                                                                           \
+        if ((bus)->recover != NULL) {                                                              \
+            (void)(bus)->recover((bus)->ctx);                                                      \
+        }                                                                                          \
+    } while (0)
+#define ICM_BUS_BAD(bus, need_wr)                                                                  \
+    ((bus) == NULL || (bus)->write == NULL || ((need_wr) && (bus)->write_read == NULL))
+#endif
+
 /* --- driver ------------------------------------------------------------------ */
 
 enum icm_err {
@@ -102,7 +139,9 @@ struct tca;
 /* One ICM-20948. Caller-owned; set up with icm_setup(), then only touched
  * through these functions. */
 typedef struct {
+#if !ICM_BUS_FIXED
     const icm_bus_t *bus;
+#endif
     struct tca *mux;     /* NULL when wired directly */
     uint8_t channel;     /* mux channel 0..7, or ICM_NO_MUX */
     uint8_t addr;        /* 7-bit: 0x68 or 0x69 */

@@ -13,14 +13,24 @@
 #define ICM_NOINLINE
 #endif
 
+/* The bus the set's sensors are set up on (icm20948.h, ICM_BUS_FIXED). */
+#if ICM_BUS_FIXED
+#define ICM_SET_BUS(set) NULL
+#else
+#define ICM_SET_BUS(set) ((set)->bus)
+#endif
+
 int8_t icm_set_setup(icm_set_t *set, const icm_bus_t *bus, uint8_t mux_addr, icm_set_slot_t *slots,
                      uint8_t cap)
 {
-    if (set == NULL || bus == NULL || slots == NULL || cap == 0u || cap > ICM_SET_MAX) {
+    if (set == NULL || (bus == NULL && !ICM_BUS_FIXED) || slots == NULL || cap == 0u ||
+        cap > ICM_SET_MAX) {
         return ICM_E_ARG;
     }
     memset(set, 0, sizeof(*set));
+#if !ICM_BUS_FIXED
     set->bus = bus;
+#endif
     set->slot = slots;
     set->cap = cap;
     set->period_us = ICM_SET_PERIOD_US_DEFAULT;
@@ -48,7 +58,7 @@ int8_t icm_set_add(icm_set_t *set, uint8_t channel, uint8_t addr)
     }
     s = &set->slot[set->n];
     memset(s, 0, sizeof(*s));
-    if (icm_setup(&s->dev, set->bus, set->has_mux ? &set->mux : NULL, channel, addr) != 0) {
+    if (icm_setup(&s->dev, ICM_SET_BUS(set), set->has_mux ? &set->mux : NULL, channel, addr) != 0) {
         return ICM_E_ARG;
     }
     return (int8_t)set->n++;

@@ -65,7 +65,9 @@ typedef struct {
     uint8_t begun;
     uint32_t period_us;
     uint8_t cap; /* slots available */
+#if !ICM_BUS_FIXED
     const icm_bus_t *bus;
+#endif
     icm_set_slot_t *slot; /* caller-owned, cap entries */
 } icm_set_t;
 

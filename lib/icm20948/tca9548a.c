@@ -4,10 +4,12 @@
 
 int8_t tca_setup(tca_t *mux, const icm_bus_t *bus, uint8_t addr)
 {
-    if (mux == NULL || bus == NULL || bus->write == NULL || addr < 0x70u || addr > 0x77u) {
+    if (mux == NULL || ICM_BUS_BAD(bus, 0) || addr < 0x70u || addr > 0x77u) {
         return TCA_E_ARG;
     }
+#if !ICM_BUS_FIXED
     mux->bus = bus;
+#endif
     mux->addr = addr;
     mux->ctrl = 0;
     mux->valid = 0;
@@ -18,7 +20,7 @@ int8_t tca_setup(tca_t *mux, const icm_bus_t *bus, uint8_t addr)
 
 static int8_t tca_write_ctrl(tca_t *mux, uint8_t ctrl)
 {
-    int8_t rc = mux->bus->write(mux->bus->ctx, mux->addr, &ctrl, 1);
+    int8_t rc = ICM_BUS_WRITE(mux->bus, mux->addr, &ctrl, 1);
     mux->writes++;
     if (rc != ICM_BUS_OK) {
         mux->valid = 0;

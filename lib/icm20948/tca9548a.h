@@ -30,7 +30,9 @@ enum tca_err {
 };
 
 typedef struct tca {
+#if !ICM_BUS_FIXED
     const icm_bus_t *bus;
+#endif
     uint8_t addr;    /* 7-bit, 0x70..0x77 */
     uint8_t ctrl;    /* cached control register */
     uint8_t valid;   /* ctrl reflects the device */

@@ -127,11 +127,24 @@ uint16_t store_crc16(uint16_t crc, const void *data, size_t n)
 
 /* ---- slots ------------------------------------------------------- */
 
+/* The EEPROM's functions, called for store st (store.h, STORE_EE_FIXED). */
+#if STORE_EE_FIXED
+#define EE_READ_BYTE(st, addr)          ((void)(st), store_ee_read_byte(addr))
+#define EE_READ_BLOCK(st, dst, addr, n) ((void)(st), store_ee_read_block(dst, addr, n))
+#define EE_READY(st)                    ((void)(st), store_ee_ready())
+#define EE_WRITE_BYTE(st, addr, v)      ((void)(st), store_ee_write_byte(addr, v))
+#else
+#define EE_READ_BYTE(st, addr)          (st)->ee->read_byte((st)->ee->ctx, addr)
+#define EE_READ_BLOCK(st, dst, addr, n) (st)->ee->read_block((st)->ee->ctx, dst, addr, n)
+#define EE_READY(st)                    (st)->ee->ready((st)->ee->ctx)
+#define EE_WRITE_BYTE(st, addr, v)      (st)->ee->write_byte((st)->ee->ctx, addr, v)
+#endif
+
 /* An EEPROM byte, and a little-endian word: one call through the port's
  * function pointer here instead of one at every read. */
 STORE_NOINLINE static uint8_t ee_byte(const store_t *st, uint16_t addr)
 {
-    return st->ee->read_byte(st->ee->ctx, addr);
+    return EE_READ_BYTE(st, addr);
 }
 
 STORE_NOINLINE static uint16_t ee_word(const store_t *st, uint16_t addr)
@@ -193,8 +206,7 @@ static int8_t pair_load(store_t *st, uint16_t base, uint16_t stride, uint8_t kin
     if (which < 0) {
         return STORE_E_EMPTY;
     }
-    st->ee->read_block(st->ee->ctx, body, (uint16_t)(base + (which ? stride : 0u) + STORE_HDR_LEN),
-                       len);
+    EE_READ_BLOCK(st, body, (uint16_t)(base + (which ? stride : 0u) + STORE_HDR_LEN), len);
     return 0;
 }
 
@@ -268,7 +280,11 @@ static void hist_scan(store_t *st)
 int8_t store_init(store_t *st, const store_eeprom_t *ee, store_copy_fn copy)
 {
     memset(st, 0, sizeof(*st));
+#if STORE_EE_FIXED
+    (void)ee;
+#else
     st->ee = ee;
+#endif
     st->copy = copy;
     st->state = ST_IDLE;
     hist_scan(st);
@@ -282,14 +298,13 @@ uint8_t store_busy(const store_t *st)
 
 int8_t store_poll(store_t *st, uint8_t may_write)
 {
-    const store_eeprom_t *ee = st->ee;
     uint16_t total = (uint16_t)(STORE_HDR_LEN + st->len + STORE_CRC_LEN);
     uint16_t seq, i;
     uint8_t n, b, ok;
     if (st->state == ST_IDLE) {
         return STORE_E_IDLE;
     }
-    if (!may_write || !ee->ready(ee->ctx)) {
+    if (!may_write || !EE_READY(st)) {
         return 1;
     }
     if (st->state == ST_WRITE) {
@@ -315,7 +330,7 @@ int8_t store_poll(store_t *st, uint8_t may_write)
             }
             st->pos++;
             if (ee_byte(st, a) != b) {
-                ee->write_byte(ee->ctx, a, b);
+                EE_WRITE_BYTE(st, a, b);
                 return 1;
             }
         }
@@ -603,9 +618,8 @@ int8_t store_hist_get(store_t *st, uint8_t age, store_hist_t *e)
     if (!hist_slot_valid(st, i, &seq) || seq != (uint16_t)(st->hist_seq - age)) {
         return STORE_E_EMPTY;
     }
-    st->ee->read_block(st->ee->ctx, e,
-                       (uint16_t)(STORE_ADDR_HIST + i * STORE_HIST_STRIDE + STORE_HDR_LEN),
-                       (uint16_t)sizeof(*e));
+    EE_READ_BLOCK(st, e, (uint16_t)(STORE_ADDR_HIST + i * STORE_HIST_STRIDE + STORE_HDR_LEN),
+                  (uint16_t)sizeof(*e));
     return 0;
 }
 

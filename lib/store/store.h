@@ -128,6 +128,20 @@ typedef struct {
     void (*write_byte)(void *ctx, uint16_t addr, uint8_t value);
 } store_eeprom_t;
 
+/* A firmware with one EEPROM builds with -DSTORE_EE_FIXED=1: the store then
+ * calls the board's functions below (the store_eeprom_t contracts without
+ * ctx; defined by the board only when it builds so) directly, and the
+ * store_eeprom_t given to store_init() is neither kept nor read (measured: 142 bytes less AVR
+ * code). The default, 0, takes a store_eeprom_t per store, which the native tests fill with their
+ * fakes. */
+#ifndef STORE_EE_FIXED
+#define STORE_EE_FIXED 0
+#endif
+uint8_t store_ee_read_byte(uint16_t addr);
+void store_ee_read_block(void *dst, uint16_t addr, uint16_t n);
+uint8_t store_ee_ready(void);
+void store_ee_write_byte(uint16_t addr, uint8_t value);
+
 /* ---- settings (declared once in store_settings.def) ------------------------- */
 
 #define STORE_T_U8  0u
@@ -254,9 +268,11 @@ typedef struct {
 
 typedef void (*store_copy_fn)(void *dst, const void *src, size_t n);
 
-/* Caller-owned store state (23 bytes on the AVR). Treat as opaque. */
+/* Caller-owned store state (21 bytes on the AVR with STORE_EE_FIXED). Treat as opaque. */
 typedef struct {
+#if !STORE_EE_FIXED
     const store_eeprom_t *ee;
+#endif
     store_copy_fn copy;  /* reads the settings declaration (memcpy / memcpy_P) */
     const uint8_t *body; /* body of the record being saved (caller keeps it until done) */
     uint16_t addr;       /* slot being written */
