@@ -134,17 +134,24 @@ $(FW_DIR)/objects.txt: FORCE
 	@echo "$(FW_OBJS)" > $@.tmp
 	@cmp -s $@.tmp $@ && rm $@.tmp || mv $@.tmp $@
 
-$(AVR_DIR)/%.o: %.c $(VERSION_H) | $(STAMP)
+# The compile and link flags, rewritten only when they change: a knob of
+# AVR_LIB_CFG changes struct layouts, so every object is built again with it.
+$(FW_DIR)/flags.txt: FORCE
+	@mkdir -p $(@D)
+	@echo "$(AVR_CFLAGS) | $(AVR_LDFLAGS)" > $@.tmp
+	@cmp -s $@.tmp $@ && rm $@.tmp || mv $@.tmp $@
+
+$(AVR_DIR)/%.o: %.c $(VERSION_H) $(FW_DIR)/flags.txt | $(STAMP)
 	@mkdir -p $(@D)
 	$(AVR_CC) $(AVR_CFLAGS) -c $< -o $@
 
 ifneq ($(TABLE_OBJ),)
-$(TABLE_OBJ): $(TABLE_SRC) $(VERSION_H) | $(STAMP)
+$(TABLE_OBJ): $(TABLE_SRC) $(VERSION_H) $(FW_DIR)/flags.txt | $(STAMP)
 	@mkdir -p $(@D)
 	$(AVR_CC) $(AVR_CFLAGS) -c $< -o $@
 endif
 
-$(FW_ELF): $(FW_OBJS) $(FW_DIR)/objects.txt
+$(FW_ELF): $(FW_OBJS) $(FW_DIR)/objects.txt $(FW_DIR)/flags.txt
 	$(AVR_CC) $(AVR_LDFLAGS) $(FW_OBJS) -o $@
 
 $(FW_HEX): $(FW_ELF)
