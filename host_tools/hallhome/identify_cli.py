@@ -31,7 +31,8 @@ def identify_group():
        too.
     3. Fit: `hallhome identify fit ROBOT.toml SURVEY.json` fits the magnet,
        segment lengths, routing radius, each tendon's routing angle and
-       engagement, sensor positions and the stiffness, reports them against
+       engagement (and, with weights, its stretch), sensor positions and the
+       stiffness, reports them against
        the nominal values with their uncertainty, plots the residuals per
        tendon, and writes ROBOT_id.toml beside the original (refused fits
        write nothing).
