@@ -188,7 +188,7 @@ def _params(robot: Robot, survey: Survey, stiffness: bool, mechanics: bool,
             # segment cannot tell"). Left at the description's, a tendon
             # whose free length or EA differs pulled the magnet, the lengths
             # and the sensors to make up its take-up (bench robots at 10 %:
-            # magnet 6 % rms off, lengths 3 mm; with it 1.3 % and 1 mm)
+            # magnet 6 % rms off, lengths 3 mm; with it 1.4 % and 1 mm)
             for p in survey.pulls:
                 ea = robot.tendons[p.tendon].stiffness_ea
                 out.append(Param(f"EA{p.tendon}", "N", ea, EA_PRIOR * ea, 0.5 * ea, 2.0 * ea,
