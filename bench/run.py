@@ -493,7 +493,7 @@ def identify_item(a, res: Dict) -> None:
             for k, p, ps, full, modes, fr in ID_SETS]
     total = sum(len(st["seeds"]) for st in sets)
     log(f"identification: {total} seeded robots (a survey, two to four fits and tables each), "
-        f"{a.jobs} at a time; a fit takes 5-30 s")
+        f"{a.jobs} at a time; a fit takes 5-60 s")
     t0 = time.time()
     count = [0]
 

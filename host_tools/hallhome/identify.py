@@ -10,12 +10,15 @@ description):
 - ``magnet_J``: |polarization| of the tip magnet, T (its direction stays
   the TOML's);
 - ``length_<j>``: length of segment j, mm;
-- ``radius``: routing radius of every tendon (one common factor), mm; or,
-  when every pulled tendon has a weight record of its own, ``radius<i>``
-  and ``EA<i>``: each tendon's routing radius (mm) and axial stiffness (N).
-  A tendon's take-up is its path change plus its stretch, and the survey
-  alone cannot tell one from the other; its own weight tells how far a
-  known force bends the robot through it;
+- ``radius``: routing radius of every tendon (one common factor), mm, and,
+  with weight records, ``EA<i>``: each pulled tendon's axial stiffness, N;
+  or, when every pulled tendon has a weight record of its own,
+  ``radius<i>`` and ``EA<i>``: each tendon's routing radius (mm) and axial
+  stiffness. A tendon's take-up per bend is its radius plus its stretch,
+  and the survey alone cannot tell one from the other (docs/identify.md,
+  "What one weight per segment cannot tell"); its own weight tells how far
+  a known force bends the robot through it. Without one, its EA takes up
+  its take-up and its radius stays the common one;
 - ``angle<i>``: routing angle of each pulled tendon, degrees: the plane it
   bends the robot in;
 - ``sensor<k>_<x|y|z>``: sensor k's position, mm (its rotation stays);
@@ -121,6 +124,12 @@ ANGLE_PRIOR_DEG = 2.0
 ANGLE_RANGE_DEG = 10.0
 
 
+# A tendon's axial stiffness: prior 1-sigma, relative to the description's.
+# The fitted EA is effective: it carries the error of the free length (and, on
+# a tendon without a weight of its own, of the routing radius) as well.
+EA_PRIOR = 0.2
+
+
 # Two masses on one tendon tell the friction when the heavier is at least
 # this many times the lighter (closer masses leave it to the noise).
 FRICTION_MASS_RATIO = 1.5
@@ -168,9 +177,22 @@ def _params(robot: Robot, survey: Survey, stiffness: bool, mechanics: bool,
             out.append(Param(f"radius{p.tendon}", "mm", ri, 0.05 * ri, 0.7 * ri, 1.3 * ri,
                              0.01 * ri))
             ea = robot.tendons[p.tendon].stiffness_ea
-            out.append(Param(f"EA{p.tendon}", "N", ea, 0.2 * ea, 0.5 * ea, 2.0 * ea, 0.05 * ea))
+            out.append(Param(f"EA{p.tendon}", "N", ea, EA_PRIOR * ea, 0.5 * ea, 2.0 * ea,
+                             0.05 * ea))
     elif mechanics:
         out.append(Param("radius", "mm", r, 0.05 * r, 0.7 * r, 1.3 * r, 0.01 * r))
+        if stiffness:
+            # each tendon's stretch, radius shared: a tendon's take-up per
+            # bend is its radius plus its stretch, and without its own weight
+            # only the sum is seen (docs/identify.md, "What one weight per
+            # segment cannot tell"). Left at the description's, a tendon
+            # whose free length or EA differs pulled the magnet, the lengths
+            # and the sensors to make up its take-up (bench robots at 10 %:
+            # magnet 6 % rms off, lengths 3 mm; with it 1.4 % and 1 mm)
+            for p in survey.pulls:
+                ea = robot.tendons[p.tendon].stiffness_ea
+                out.append(Param(f"EA{p.tendon}", "N", ea, EA_PRIOR * ea, 0.5 * ea, 2.0 * ea,
+                                 0.05 * ea))
     if mechanics:
         # the plane a tendon bends the robot in: the field's direction at
         # every sensor tells it, and at an off-plane sensor a tenth of a
@@ -438,8 +460,10 @@ def fit(robot: Robot, survey: Survey, *, sigma_uT: float = 1.0,
     (default: when the survey has weight records) adds the segments' EI;
     ``per_tendon`` (default: when every pulled tendon has a weight record)
     fits each tendon's routing radius and axial stiffness instead of one
-    common radius; ``friction`` (default: when a tendon carries two masses,
-    ``measures_friction``) fits the tendons' friction force.
+    common radius (with the stiffness but not ``per_tendon``: the common
+    radius and each tendon's axial stiffness); ``friction`` (default: when
+    a tendon carries two masses, ``measures_friction``) fits the tendons'
+    friction force.
     ``max_nfev``: model evaluations before the fit gives up (default 200 per
     parameter; a fit that runs out is refused as not converged).
     ``progress(nfev, rms_uT)`` is called after every model evaluation."""

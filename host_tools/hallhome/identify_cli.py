@@ -31,7 +31,8 @@ def identify_group():
        too.
     3. Fit: `hallhome identify fit ROBOT.toml SURVEY.json` fits the magnet,
        segment lengths, routing radius, each tendon's routing angle and
-       engagement, sensor positions and the stiffness, reports them against
+       engagement (and, with weights, its stretch), sensor positions and the
+       stiffness, reports them against
        the nominal values with their uncertainty, plots the residuals per
        tendon, and writes ROBOT_id.toml beside the original (refused fits
        write nothing).
@@ -147,7 +148,7 @@ def fit_cmd(robot, survey, out, no_write, plot_dir, no_weights, no_friction, any
     n_par += friction
     say = (lambda m: click.echo(m, err=True)) if as_json else click.echo
     say(f"survey {survey}: {len(sv.pulls)} pulls, {len(sv.weights)} weight records "
-        f"(source {sv.source}); fitting {n_par} parameters (5-30 s) ...")
+        f"(source {sv.source}); fitting {n_par} parameters (5-60 s) ...")
     if not sv.weights:
         say("no weight records: the stiffness stays nominal, so the geometry is identified "
             "but not the tension a take-up means; hang one known weight per segment for "
