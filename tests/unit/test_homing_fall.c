@@ -60,10 +60,10 @@ static int32_t field_at(const fall_bench_t *b, int32_t p)
     return q > 0 ? q * b->slope : 0;
 }
 
-/* One millisecond: every sensor hands over a sample when (now + phase) is a
- * multiple of 10, tendon 0's sensor the field_at() where tendon 0 was lag ms
+/* One millisecond: every sensor hands over a sample when now is a multiple
+ * of 10, tendon 0's sensor the field_at() where tendon 0 was lag ms
  * before, and every position is read when read is set. */
-static int fall_step(fall_bench_t *b, uint32_t sample_phase, int read)
+static int fall_step(fall_bench_t *b, int read)
 {
     uint8_t k;
     uint8_t sel = g_h.tendon[0].sensor;
@@ -72,7 +72,7 @@ static int fall_step(fall_bench_t *b, uint32_t sample_phase, int read)
     for (k = 0; k < HOM_MAX_SENSORS; k++) {
         hom_sensor_in_t *s = &b->in.sensor[k];
         s->status = HOM_SENS_NONE;
-        if ((b->in.now_ms + sample_phase) % 10u == 0u) {
+        if (b->in.now_ms % 10u == 0u) {
             memcpy(s->b_cuT, b->base[k], sizeof s->b_cuT);
             if (k == sel) {
                 s->b_cuT[2] -= field_at(b, b->hist[(b->in.now_ms - b->lag) % 16u]);
@@ -103,7 +103,7 @@ static void follow_goal(fall_bench_t *b, uint8_t k)
 /* Tendon 0 calibrated alone up to its approach from the engagement (after
  * the back-off a fast take-up that ran on to the approach's start makes),
  * servos following their goals and read every step. */
-static void run_to_engagement(uint32_t sample_phase, uint32_t lag)
+static void run_to_engagement(uint32_t lag)
 {
     tbl_src_t src;
     hom_cmd_t c;
@@ -126,7 +126,7 @@ static void run_to_engagement(uint32_t sample_phase, uint32_t lag)
     hom_init(&g_h, NULL);
     assert_int_equal(hom_start(&g_h, &src, &c), 0);
     for (n = 0; n < 30000 && !(g_h.tendon[0].engaged && g_h.state == ST_MODERATE); n++) {
-        assert_int_equal(fall_step(&g_b, sample_phase, 1), HOM_RUNNING);
+        assert_int_equal(fall_step(&g_b, 1), HOM_RUNNING);
         if (g_h.state == ST_TAKEUP && g_b.eng == 0) {
             /* the tendon engages where the release left a margin of slack */
             g_b.eng = g_b.pos[0] + hom_pull(&g_h.tendon[0], g_h.tendon[0].margin_ticks);
@@ -147,8 +147,7 @@ static void run_to_engagement(uint32_t sample_phase, uint32_t lag)
  * OUT_TO, back at BACK_PER_MS, slowing to 1 tick per ms over the last 4 ticks
  * to BACK_TO, held there 120 ms. The magnet comes off as the
  * servo turns back when remove is set. Returns the homing's fault. */
-static hom_fault_t scripted_return(uint32_t sample_phase, uint32_t read_phase, uint32_t wait,
-                                   int remove)
+static hom_fault_t scripted_return(uint32_t read_phase, uint32_t wait, int remove)
 {
     const hom_tendon_t *t = &g_h.tendon[0];
     int32_t q = hom_pull(t, g_b.pos[0] - g_b.eng);
@@ -170,7 +169,7 @@ static hom_fault_t scripted_return(uint32_t sample_phase, uint32_t read_phase, u
             held++;
         }
         g_b.pos[0] = g_b.eng + hom_pull(t, q);
-        (void)fall_step(&g_b, sample_phase, (g_b.in.now_ms + read_phase) % READ_MS == 0u);
+        (void)fall_step(&g_b, (g_b.in.now_ms + read_phase) % READ_MS == 0u);
         if (g_h.state == ST_BACKOFF || g_h.cur != 0u) {
             break; /* the homing went on its own way: no longer the script */
         }
@@ -178,50 +177,56 @@ static hom_fault_t scripted_return(uint32_t sample_phase, uint32_t read_phase, u
     return g_h.fault;
 }
 
-/* A return the approach commands (or a take-up run past its goal) lowers the
- * field with the servo: no phase of reads and samples reads it as a fall. */
-static void test_return_is_no_fall(void **state)
+/* Every phase of the return against the position reads (every 7 ms) and the
+ * samples (every 10 ms), with samples 0, 3, 6 and 9 ms late: with the magnet
+ * in place (remove 0) no phase reads the return as a fall; with the magnet
+ * off as the servo turns back (remove 1) every phase ends in a field step on
+ * the tendon's sensor. */
+static void each_phase(int remove)
 {
     uint32_t wait, rp, lag;
-    (void)state;
     for (lag = 0; lag < 10u; lag += 3u) {
         for (wait = 0; wait < 10u; wait++) {
             for (rp = 0; rp < READ_MS; rp++) {
                 hom_fault_t f;
-                run_to_engagement(0, lag);
+                run_to_engagement(lag);
                 /* the fall over the last ticks of the return is the slope's, not noise */
                 assert_true(8 * (int32_t)g_h.noise_cuT < g_b.slope);
-                f = scripted_return(0, rp, wait, 0);
-                if (f != HOM_F_NONE) {
+                f = scripted_return(rp, wait, remove);
+                if (f != (remove ? HOM_F_FIELD_STEP : HOM_F_NONE)) {
                     print_message("lag %u ms, wait %u ms, read phase %u: fault %u\n", lag, wait, rp,
                                   f);
                 }
-                assert_int_equal(f, HOM_F_NONE);
-                assert_int_equal(g_h.cur, 0);
-                assert_true(g_h.state != ST_BACKOFF);
+                if (remove) {
+                    assert_int_equal(f, HOM_F_FIELD_STEP);
+                    assert_int_equal(g_h.fault_dev, HOM_DEV_SENSOR);
+                    assert_int_equal(g_h.fault_index, g_h.tendon[0].sensor);
+                } else {
+                    assert_int_equal(f, HOM_F_NONE);
+                    assert_int_equal(g_h.cur, 0);
+                    assert_true(g_h.state != ST_BACKOFF);
+                }
             }
         }
     }
 }
 
+/* A return the approach commands (or a take-up run past its goal) lowers the
+ * field with the servo: it is no fall. */
+static void test_return_is_no_fall(void **state)
+{
+    (void)state;
+    each_phase(0);
+}
+
 /* The magnet comes off as the servo turns back: the field where it settles
- * is far below the field on the way out there, whatever the phases. (A
- * return behind every floor the way out left is not judged: the fine
- * approach's flat check, HOM_FLAT_TICKS, ends that pull.) */
+ * is far below the field on the way out there. (A return behind every floor
+ * the way out left is not judged: the fine approach's flat check,
+ * HOM_FLAT_TICKS, ends that pull.) */
 static void test_magnet_off_on_the_way_back_is_seen(void **state)
 {
-    uint32_t wait, rp, lag;
     (void)state;
-    for (lag = 0; lag < 10u; lag += 3u) {
-        for (wait = 0; wait < 10u; wait++) {
-            for (rp = 0; rp < READ_MS; rp++) {
-                run_to_engagement(0, lag);
-                assert_int_equal(scripted_return(0, rp, wait, 1), HOM_F_FIELD_STEP);
-                assert_int_equal(g_h.fault_dev, HOM_DEV_SENSOR);
-                assert_int_equal(g_h.fault_index, g_h.tendon[0].sensor);
-            }
-        }
-    }
+    each_phase(1);
 }
 
 int main(void)
