@@ -85,7 +85,7 @@ FIXED = [3, 5, 9, 10, 187,
          # approach sent a servo back from 218 to 196 (a fall is now judged against the
          # field on the way out where the servo stands)
          17633]
-# seed: what fails on the firmware of this commit (docs/chaos.md). Seeds 3, 5,
+# seed: what fails on the firmware of this commit (docs/chaos-rounds.md). Seeds 3, 5,
 # 9, 10 and 187 were here (tendons pulled to 1.4-4x their target): the slack a
 # calibrated tendon keeps was too small for the other tendons' pulls, which
 # took it up and made it an antagonist; with the margin at least the tendon's

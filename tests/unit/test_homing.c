@@ -540,7 +540,7 @@ static void test_field_stuck_while_pulling(void **state)
  * baseline on the release; HOM_F_NO_PROGRESS: it stopped rising), released,
  * the pull bounded. A step against the tendon's own field within a sample
  * of its engagement can still pull past the bound on other robots (chaos
- * seed 13456, docs/chaos.md). */
+ * seed 13456, docs/chaos-rounds.md). */
 static void test_field_step_as_the_tendon_engages(void **state)
 {
     plant_run_cfg_t rc;
