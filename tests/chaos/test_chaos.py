@@ -84,7 +84,10 @@ FIXED = [3, 5, 9, 10, 187,
          # a clean calibration of a 12-tendon robot ended in a false field_step after the
          # approach sent a servo back from 218 to 196 (a fall is now judged against the
          # field on the way out where the servo stands)
-         17633]
+         17633,
+         # a clean calibration of a 12-tendon robot after a watchdog reset in the slack
+         # check ends in travel_limit (known failing, below)
+         18451]
 # seed: what fails on the firmware of this commit (docs/chaos-rounds.md). Seeds 3, 5,
 # 9, 10 and 187 were here (tendons pulled to 1.4-4x their target): the slack a
 # calibrated tendon keeps was too small for the other tendons' pulls, which
@@ -98,7 +101,12 @@ FIXED = [3, 5, 9, 10, 187,
 # no_engagement; the windows now survive a power cycle in EEPROM.)
 # (17633 was here: a false field_step after the approach sent tendon 7 back
 # from 218 to 196; the field-fall check now compares like with like.)
-KNOWN_FAILING: dict[int, str] = {}
+KNOWN_FAILING: dict[int, str] = {
+    18451: "a clean calibration after a watchdog reset in the slack check ended in "
+           "travel_limit on tendon 4 (two fine points put its target 845 ticks past its "
+           "engagement; no over-pull); timing-sensitive (docs/chaos-rounds.md, seeds "
+           "18231-18730)",
+}
 
 
 @pytest.fixture(scope="module")
