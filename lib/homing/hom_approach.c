@@ -125,12 +125,27 @@ HOM_NOINLINE int hom_pull_to(hom_t *h, int32_t g, uint16_t v)
     return 0;
 }
 
+/* How far the current servo may have run, in the pull direction, by the
+ * time a goal decided now reaches it: since its position was last read
+ * (7-18 ms with 12 servos on the bus) and until the next bus cycle carries
+ * the goal (taken as long as the last gap between two reads), at its
+ * profile velocity, 1/64 tick per ms per 0.229 rpm unit, at most 60 ms. An
+ * upper bound, as the servo never runs faster than its profile. */
+HOM_NOINLINE static int16_t run_on(const hom_t *h)
+{
+    uint16_t since = (uint16_t)((uint16_t)h->now_ms - (uint16_t)h->servo_ok_ms[h->cur]);
+    since += h->read_gap_ms;
+    if (since > 60u) {
+        since = 60u;
+    }
+    return (int16_t)((uint16_t)(since * h->out.vel[h->cur]) >> 6);
+}
+
 HOM_NOINLINE static void begin_moderate(hom_t *h)
 {
     hom_tendon_t *t = hom_cur(h);
     int32_t g;
     int32_t d;
-    uint16_t since;
     if (t->retries != 0u) {
         g = h->mod_goal;
     } else {
@@ -139,17 +154,11 @@ HOM_NOINLINE static void begin_moderate(hom_t *h)
     if (hom_pull(t, g - t->engage) > t->limit_ticks) {
         g = t->engage + hom_pull(t, t->limit_ticks);
     }
-    d = hom_pull(t, g - h->present[h->cur]);
-    since = (uint16_t)((uint16_t)h->now_ms - (uint16_t)h->servo_ok_ms[h->cur]);
-    if (since > 40u) {
-        since = 40u;
-    }
-    /* the servo ran on since its position was read (7-18 ms with 12
-     * servos on the bus): 1/64 tick per ms per 0.229 rpm unit (chaos seed
-     * 12141: a take-up 5 ticks past the goal set here read short of it; the
-     * return through the spool's backlash left the field flat, and the fine
-     * points predicted the target beyond the travel limit) */
-    d -= (int16_t)((uint16_t)(since * h->out.vel[h->cur]) >> 6);
+    /* the servo ran on since its position was read (chaos seed 12141: a
+     * take-up 5 ticks past the goal set here read short of it; the return
+     * through the spool's backlash left the field flat, and the fine points
+     * predicted the target beyond the travel limit) */
+    d = hom_pull(t, g - h->present[h->cur]) - run_on(h);
     if (t->retries == 0u && d < 2 + (int32_t)(h->out.vel[h->cur] >> 2)) {
         /* the take-up has run on to where the approach starts (a short
          * travel, a low tension; it may be its speed over 16 ms, a quarter
@@ -167,6 +176,7 @@ HOM_NOINLINE static void begin_moderate(hom_t *h)
     }
     if (hom_pull_to(h, g, h->cfg.v_moderate) == 0) {
         h->state = ST_MODERATE;
+        h->p_far = h->present[h->cur];
     }
 }
 
@@ -248,13 +258,18 @@ HOM_NOINLINE static int field_fell(hom_t *h, const hom_tendon_t *t, uint32_t b, 
     return 0;
 }
 
-/* Close to the target while moving: stop two ticks on from the present
- * position p (unless the goal is nearer) and go on with fine points. */
+/* Close to the target while moving: stop two ticks on from where the servo
+ * may have run since its position p was read (unless the goal is nearer)
+ * and go on with fine points. A stop at p itself sent a servo that had run
+ * on back through the spool's backlash: the spool stayed, the field of the
+ * next points was flat, and the fine points put the target beyond the
+ * travel limit (chaos seed 18451: a moderate approach to 217 read at 209,
+ * stopped at 211). */
 HOM_NOINLINE static void stop_short(hom_t *h, int32_t p)
 {
     const hom_tendon_t *t = hom_cur(h);
     uint8_t state = h->state;
-    int32_t g = p + hom_pull(t, 2);
+    int32_t g = p + hom_pull(t, 2 + run_on(h));
     if (hom_pull(t, h->out.goal[h->cur] - g) > 0) {
         (void)hom_pull_to(h, g, h->cfg.v_moderate);
     }
@@ -280,12 +295,35 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
     if (beyond_limit(h, p)) {
         return;
     }
-    if (t->engaged && hom_pull(t, p - h->out.goal[h->cur]) > HOM_DROOP_TICKS &&
-        hom_still_ms(h, h->cur) >= 10u) {
-        /* pulling past the goal last sent: the servo missed that goal (a
-         * sync write gets no status) and still runs to an older one; send
-         * it again, every 10 ms until it takes */
-        hom_set_goal(h, h->cur, h->out.goal[h->cur], h->out.vel[h->cur]);
+    if (t->engaged) {
+        /* a servo standing further than its goal: backing off, it missed
+         * the goal (a sync write gets no status) and still runs to an older
+         * one; send it again, every 10 ms until it takes. Pulling, it ran
+         * on before a stop reached it (a goal a bus cycle late, a stale
+         * read) or missed the goal and ran to an older one. Sent back, it
+         * would leave the spool where it was (the backlash, the path's
+         * friction) and every point after would read the field of the place
+         * further on: the goal goes up to the furthest read instead, and a
+         * point being averaged is taken again there. An engaged tendon is
+         * only pulled further (a back-off starts afresh) */
+        int32_t g = h->out.goal[h->cur];
+        int32_t past = HOM_DROOP_TICKS;
+        uint8_t back = 0;
+        if (h->state != ST_BACKOFF) {
+            if (hom_pull(t, p - h->p_far) > 0) {
+                h->p_far = p;
+            }
+            back = hom_pull(t, h->p_far - p) > 0; /* already on its way back */
+            p = h->p_far;
+            past = HOM_RUN_ON_TICKS;
+        }
+        if (hom_pull(t, p - g) > past && (back || hom_still_ms(h, h->cur) >= 10u)) {
+            hom_set_goal(h, h->cur, h->state != ST_BACKOFF ? p : g, h->out.vel[h->cur]);
+            if (h->state == ST_FINE_AVG) {
+                hom_enter(h, ST_FINE_MOVE);
+            }
+        }
+        p = h->present[h->cur];
     }
     if (t->engaged && h->state != ST_BACKOFF &&
         field_fell(h, t, b, p, (uint8_t)(in->servo[h->cur].status == HOM_SERVO_OK))) {
@@ -312,6 +350,7 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
             t->eng_lo = t->engage;
             t->eng_hi = t->engage;
             hom_push_event(h, HOM_EV_ENGAGED, 0, h->cur, t->engage, (int32_t)b);
+            h->p_far = p;
             if (!h->quick_leg) {
                 begin_moderate(h);
                 break;

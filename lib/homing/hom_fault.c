@@ -131,6 +131,10 @@ int hom_check_servos(hom_t *h, const hom_in_t *in)
                 h->moved_ms[i] = h->now_ms;
             }
             h->present[i] = s->pos;
+            if (i == h->cur) {
+                uint32_t gap = hom_since(h, h->servo_ok_ms[i]);
+                h->read_gap_ms = (uint8_t)(gap > 40u ? 40u : gap);
+            }
             h->servo_ok_ms[i] = h->now_ms;
         } else if (hom_since(h, h->servo_ok_ms[i]) > h->cfg.servo_timeout_ms) {
             hom_fail(h, HOM_F_SERVO_TIMEOUT, HOM_DEV_SERVO, i,

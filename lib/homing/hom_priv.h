@@ -50,11 +50,12 @@ enum {
 #define HOM_MAX_AVG             32u
 #define HOM_QUICK_STOP_PERMILLE 975u /* quick leg: stop when the field is this close */
 #define HOM_MAX_RETRIES                                                                            \
-    3u                       /* back-offs of one tendon before HOM_F_NO_PROGRESS:                  \
-                                a take-up that ran on, then two overshoots */
-#define HOM_DROOP_TICKS 8    /* a servo stopped this close counts as arrived ... */
-#define HOM_STILL_MS    100u /* ... after this long without motion */
-#define HOM_FIT_POINTS  4u   /* near points kept for the final fit (hom_t.pts) */
+    3u                        /* back-offs of one tendon before HOM_F_NO_PROGRESS:                 \
+                                 a take-up that ran on, then two overshoots */
+#define HOM_RUN_ON_TICKS 1    /* a servo standing further past its goal ran on */
+#define HOM_DROOP_TICKS  8    /* a servo stopped this close counts as arrived ... */
+#define HOM_STILL_MS     100u /* ... after this long without motion */
+#define HOM_FIT_POINTS   4u   /* near points kept for the final fit (hom_t.pts) */
 #define HOM_FLAT_TICKS                                                                                 \
     12                  /* fine: the least pull the field may stay flat over before it no longer       \
                            follows the tendon: a point after the servo ran past its goal and came back \

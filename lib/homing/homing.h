@@ -328,21 +328,22 @@ typedef struct {
     uint8_t fault; /* hom_fault_t of the last run */
     uint8_t fault_index;
     uint8_t fault_dev;
-    uint8_t steps;      /* slack-check steps or fine points so far */
-    uint8_t have_prev;  /* fine: a previous point below the target exists */
-    uint8_t settled;    /* slack average: settle time over, averaging; after a home: the
-                           steps until the next tendon begins (3, 4) */
-    uint8_t pf_started; /* preflight: first step seen, t_phase valid; then 1 + the
-                           sensors and tendons of the table loaded (hom_load_step()) */
-    uint8_t quick_leg;  /* quick mode: fast leg to just before the expected engagement */
-    uint8_t near;       /* fine: the next point is within a few ticks of the target */
-    uint8_t n_near;     /* fine: samples to average at a near point */
-    uint8_t n_pts;      /* fine: near points kept */
-    uint8_t far;        /* fine: the last point put the target beyond the travel limit */
-    uint8_t b_low;      /* pull: samples in a row below the field's floor by more than the
-                           tolerance */
-    uint8_t n_way;      /* pull: floors kept in way_q/way_b since the engagement or the last
-                           back-off */
+    uint8_t steps;       /* slack-check steps or fine points so far */
+    uint8_t have_prev;   /* fine: a previous point below the target exists */
+    uint8_t settled;     /* slack average: settle time over, averaging; after a home: the
+                            steps until the next tendon begins (3, 4) */
+    uint8_t pf_started;  /* preflight: first step seen, t_phase valid; then 1 + the
+                            sensors and tendons of the table loaded (hom_load_step()) */
+    uint8_t quick_leg;   /* quick mode: fast leg to just before the expected engagement */
+    uint8_t near;        /* fine: the next point is within a few ticks of the target */
+    uint8_t n_near;      /* fine: samples to average at a near point */
+    uint8_t n_pts;       /* fine: near points kept */
+    uint8_t far;         /* fine: the last point put the target beyond the travel limit */
+    uint8_t b_low;       /* pull: samples in a row below the field's floor by more than the
+                            tolerance */
+    uint8_t read_gap_ms; /* the current servo's last gap between two position reads */
+    uint8_t n_way;       /* pull: floors kept in way_q/way_b since the engagement or the last
+                            back-off */
     uint8_t ev_head;
     uint8_t ev_count;
     uint8_t ev_dropped;
@@ -368,6 +369,7 @@ typedef struct {
     int32_t ref_p;               /* fine: the point the field's rise is measured from (position, */
     uint32_t ref_b;              /*   |dB|): the last one the field rose enough to */
     int32_t mod_goal;            /* re-approach: moderate goal after an overshoot */
+    int32_t p_far;               /* the furthest position read in this pull */
     int32_t search_end;          /* take-up: where the search for engagement ends */
     int32_t slope_q8;            /* fine: current slope estimate, cuT per tick * 256 */
     int32_t slope_min_q8;        /* fine: half the table's slope, the floor of every estimate */

@@ -2,6 +2,7 @@
  * closedloop: homing state machine + plant + simple servos (closedloop.h).
  */
 #include "plant/closedloop.h"
+#include "homing/hom_priv.h" /* the state, to measure where fine points are taken */
 #include "simrand.h"
 
 #include <math.h>
@@ -74,6 +75,11 @@ int plant_run(const plant_run_cfg_t *rc, plant_run_result_t *res)
     uint16_t win;
     uint8_t engaged[TBL_MAX_TENDONS];
     int8_t pull_dir[TBL_MAX_TENDONS];
+    double far[TBL_MAX_TENDONS]; /* furthest motor position (pull sense) since last slack */
+    double avg_behind = 0.0;     /* the current tendon's motor behind it, the step before */
+    uint8_t avg_state = 0;       /* the homing's state the step before, */
+    int32_t pt_p = 0;            /*   and its last fine point */
+    uint32_t pt_b = 0;
     tbl_info_t info;
 
     src.table = rc != NULL ? rc->table : NULL;
@@ -123,6 +129,7 @@ int plant_run(const plant_run_cfg_t *rc, plant_run_result_t *res)
         (void)plant_set_motor(&plant, i, start);
         last_motor[i] = start;
         engaged[i] = 0;
+        far[i] = -1e18;
         engage[i] = 0;
     }
     (void)plant_solve(&plant);
@@ -297,6 +304,21 @@ int plant_run(const plant_run_cfg_t *rc, plant_run_result_t *res)
             if (plant.tension_N[i] > res->max_tension_N[i]) {
                 res->max_tension_N[i] = plant.tension_N[i];
             }
+            {
+                double m = (double)pull_dir[i] * (double)plant_servo_present(&servo[i]);
+                if (plant.tension_N[i] < 1e-3 || m > far[i]) {
+                    far[i] = m;
+                }
+                if (h.cur == i && avg_state == ST_FINE_AVG &&
+                    (h.p_prev != pt_p || h.b_prev != pt_b) &&
+                    avg_behind > res->max_behind_ticks[i]) {
+                    /* a point taken: where the servo stood while it was averaged */
+                    res->max_behind_ticks[i] = avg_behind;
+                }
+                if (h.cur == i) {
+                    avg_behind = far[i] - m;
+                }
+            }
             if (engaged[i]) {
                 double past = (double)pull_dir[i] * ((double)in.servo[i].pos - (double)engage[i]);
                 if (past > res->max_past_engage_ticks[i]) {
@@ -304,6 +326,9 @@ int plant_run(const plant_run_cfg_t *rc, plant_run_result_t *res)
                 }
             }
         }
+        avg_state = h.state;
+        pt_p = h.p_prev;
+        pt_b = h.b_prev;
         if (!ended && step_rc <= 0) {
             ended = 1;
             res->end_ms = t;

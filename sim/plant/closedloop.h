@@ -92,6 +92,11 @@ typedef struct {
     double final_tension_N[TBL_MAX_TENDONS];       /* spool tensions at the end (all at home) */
     double max_past_engage_ticks[TBL_MAX_TENDONS]; /* deepest pull past the detected engagement */
     double max_tension_N[TBL_MAX_TENDONS];         /* highest spool tension during the run */
+    double max_behind_ticks[TBL_MAX_TENDONS];      /* deepest a fine point of the tendon was
+                                                      taken behind the furthest its servo
+                                                      had been since it was last slack: the
+                                                      spool's backlash and the path's friction
+                                                      hold the field of the further place */
     int32_t limit_ticks[TBL_MAX_TENDONS];          /* the homing's travel limit */
     double tip_mm[3];                              /* tip at the end */
     uint16_t win_kept; /* bit i: from the first tendon's pull on, the run gave tendon i's
