@@ -98,9 +98,7 @@
     WS(state_words, "boot idle cal move learn fault")                                              \
     WS(dev_words, "none sensor servo tendon")                                                      \
     WS(phase_words, "- preflight release baseline tendon final")                                   \
-    W(fault)                                                                                       \
     W(reason)                                                                                      \
-    W(error)                                                                                       \
     W(dev)                                                                                         \
     W(index)                                                                                       \
     W(boot)                                                                                        \
@@ -113,18 +111,13 @@
     W(sensor)                                                                                      \
     W(ch)                                                                                          \
     W(addr)                                                                                        \
-    W(err)                                                                                         \
     W(servo)                                                                                       \
-    W(id)                                                                                          \
     W(hw_error)                                                                                    \
-    W(tendon)                                                                                      \
     W(found)                                                                                       \
     W(model)                                                                                       \
     W(fw)                                                                                          \
-    W(pos)                                                                                         \
     W(cal_pos)                                                                                     \
     W(ready)                                                                                       \
-    W(table)                                                                                       \
     W(table_id)                                                                                    \
     W(none)                                                                                        \
     W(sensors)                                                                                     \
@@ -146,7 +139,6 @@
     W(bits)                                                                                        \
     W(engaged)                                                                                     \
     W(result)                                                                                      \
-    W(home)                                                                                        \
     W(home_um)                                                                                     \
     W(straight)                                                                                    \
     W(dB_uT)                                                                                       \
@@ -155,7 +147,6 @@
     W(time_ms)                                                                                     \
     W(code)                                                                                        \
     W(detail)                                                                                      \
-    W(released)                                                                                    \
     W(done)                                                                                        \
     W(aborted)                                                                                     \
     W(servo_stall)                                                                                 \
@@ -174,7 +165,6 @@
     W(loops)                                                                                       \
     W(rest)                                                                                        \
     W(usable)                                                                                      \
-    W(now)                                                                                         \
     W(ok)                                                                                          \
     W(who)                                                                                         \
     W(mag)                                                                                         \
@@ -208,7 +198,6 @@
     W(not_released)                                                                                \
     W(servo_error)                                                                                 \
     W(sv)                                                                                          \
-    W(t)                                                                                           \
     W(p)                                                                                           \
     W(b)
 
@@ -217,6 +206,20 @@
 APP_WORDS(APP_W_DECL, APP_WS_DECL)
 #undef APP_W_DECL
 #undef APP_WS_DECL
+
+/* A word that ends another word is that word's tail, with no flash of its
+ * own (a word costs its length and the NUL). */
+#define app_w_fault    (app_w_default + 2)
+#define app_w_error    (app_w_servo_error + 6)
+#define app_w_err      (app_w_last_err + 5)
+#define app_w_id       (app_w_table_id + 6)
+#define app_w_pos      (app_w_cal_pos + 4)
+#define app_w_table    (app_w_other_table + 6)
+#define app_w_home     (app_w_hallhome + 4)
+#define app_w_released (app_w_not_released + 4)
+#define app_w_now      (app_w_homes_now + 6)
+#define app_w_t        (app_w_start + 4)
+#define app_w_tendon   (app_w_dev_words + 18) /* "none sensor servo tendon" */
 
 /* ---- app.c: helpers of every room ------------------------------------------ */
 
