@@ -101,10 +101,8 @@
     W(reason)                                                                                      \
     W(dev)                                                                                         \
     W(index)                                                                                       \
-    W(boot)                                                                                        \
     W(name)                                                                                        \
     W(hallhome)                                                                                    \
-    W(version)                                                                                     \
     W(board)                                                                                       \
     W(reset)                                                                                       \
     W(missing)                                                                                     \
@@ -120,16 +118,13 @@
     W(ready)                                                                                       \
     W(table_id)                                                                                    \
     W(none)                                                                                        \
-    W(sensors)                                                                                     \
     W(sensors_expected)                                                                            \
-    W(servos)                                                                                      \
     W(servos_expected)                                                                             \
     W(homes)                                                                                       \
     W(moved)                                                                                       \
     W(stored)                                                                                      \
     W(count)                                                                                       \
     W(other_table)                                                                                 \
-    W(rehome)                                                                                      \
     W(progress)                                                                                    \
     W(state)                                                                                       \
     W(start)                                                                                       \
@@ -150,14 +145,12 @@
     W(done)                                                                                        \
     W(aborted)                                                                                     \
     W(servo_stall)                                                                                 \
-    W(release)                                                                                     \
     W(baseline)                                                                                    \
     W(learned)                                                                                     \
     W(grid)                                                                                        \
     W(eeprom)                                                                                      \
     W(refused)                                                                                     \
     W(tendons)                                                                                     \
-    W(status)                                                                                      \
     W(homes_now)                                                                                   \
     W(saving)                                                                                      \
     W(loop_max_us)                                                                                 \
@@ -198,7 +191,6 @@
     W(not_released)                                                                                \
     W(servo_error)                                                                                 \
     W(sv)                                                                                          \
-    W(p)                                                                                           \
     W(b)
 
 #define APP_W_DECL(id)        extern const char app_w_##id[];
@@ -206,6 +198,17 @@
 APP_WORDS(APP_W_DECL, APP_WS_DECL)
 #undef APP_W_DECL
 #undef APP_WS_DECL
+
+/* The words that are command names, or end one, are the console's
+ * (console.h). */
+#define app_w_version CON_CMD_NAME_F(VERSION)
+#define app_w_status  CON_CMD_NAME_F(STATUS)
+#define app_w_sensors CON_CMD_NAME_F(SENSORS)
+#define app_w_servos  CON_CMD_NAME_F(SERVOS)
+#define app_w_rehome  CON_CMD_NAME_F(REHOME)
+#define app_w_release CON_CMD_NAME_F(RELEASE)
+#define app_w_boot    (CON_CMD_NAME_F(REBOOT) + 2)
+#define app_w_p       (CON_CMD_NAME_F(HELP) + 3)
 
 /* A word that ends another word is that word's tail, with no flash of its
  * own (a word costs its length and the NUL). */

@@ -82,6 +82,22 @@ typedef enum {
     CON_CMD_COUNT
 } con_cmd_t;
 
+/* name, synopsis and help of every command, NUL-separated, in enum order
+ * (con_parse.c), and the same strings as members of a struct (of chars: no
+ * padding), so that offsetof() says at compile time where each command's
+ * entry starts. CON_CMD_NAME_F(id): command id's name as a flash string, for
+ * a report that prints the same word (kept once). */
+extern const char con_cmd_text[];
+typedef struct {
+#define CON_CMD(id, name, synopsis, help)                                                          \
+    char n_##id[sizeof(name)];                                                                     \
+    char s_##id[sizeof(synopsis)];                                                                 \
+    char h_##id[sizeof(help)];
+#include "console/con_commands.def"
+#undef CON_CMD
+} con_cmd_layout_t;
+#define CON_CMD_NAME_F(id) (con_cmd_text + offsetof(con_cmd_layout_t, n_##id))
+
 /* Errors: CON_E_<ID> = -code of con_errors.def; these go on the wire. */
 enum {
 #define CON_ERR(code, id, text) CON_E_##id = -(code),
