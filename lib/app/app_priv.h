@@ -120,7 +120,6 @@
     W(none)                                                                                        \
     W(sensors_expected)                                                                            \
     W(servos_expected)                                                                             \
-    W(homes)                                                                                       \
     W(moved)                                                                                       \
     W(stored)                                                                                      \
     W(count)                                                                                       \
@@ -136,18 +135,15 @@
     W(result)                                                                                      \
     W(home_um)                                                                                     \
     W(straight)                                                                                    \
-    W(dB_uT)                                                                                       \
     W(target_uT)                                                                                   \
     W(travel_um)                                                                                   \
     W(time_ms)                                                                                     \
     W(code)                                                                                        \
     W(detail)                                                                                      \
     W(done)                                                                                        \
-    W(aborted)                                                                                     \
     W(servo_stall)                                                                                 \
     W(baseline)                                                                                    \
     W(learned)                                                                                     \
-    W(grid)                                                                                        \
     W(eeprom)                                                                                      \
     W(refused)                                                                                     \
     W(tendons)                                                                                     \
@@ -177,7 +173,6 @@
     W(target_cuT)                                                                                  \
     W(hist)                                                                                        \
     W(age)                                                                                         \
-    W(setting)                                                                                     \
     W(value)                                                                                       \
     W(unit)                                                                                        \
     W(min)                                                                                         \
@@ -199,8 +194,8 @@ APP_WORDS(APP_W_DECL, APP_WS_DECL)
 #undef APP_W_DECL
 #undef APP_WS_DECL
 
-/* The words that are command names, or end one, are the console's
- * (console.h). */
+/* The words that are command names, or end a command name, a help or an
+ * error text, are the console's (console.h). */
 #define app_w_version CON_CMD_NAME_F(VERSION)
 #define app_w_status  CON_CMD_NAME_F(STATUS)
 #define app_w_sensors CON_CMD_NAME_F(SENSORS)
@@ -209,6 +204,11 @@ APP_WORDS(APP_W_DECL, APP_WS_DECL)
 #define app_w_release CON_CMD_NAME_F(RELEASE)
 #define app_w_boot    (CON_CMD_NAME_F(REBOOT) + 2)
 #define app_w_p       (CON_CMD_NAME_F(HELP) + 3)
+#define app_w_homes   CON_CMD_HELP_TAIL_F(REHOME, "homes")
+#define app_w_dB_uT   CON_CMD_HELP_TAIL_F(LEARN, "dB_uT")
+#define app_w_aborted CON_ERR_TAIL_F(ABORTED, "aborted")
+#define app_w_setting CON_ERR_TAIL_F(UNKNOWN_SETTING, "setting")
+#define app_w_grid    CON_ERR_TAIL_F(TENSION_RANGE, "grid")
 
 /* A word that ends another word is that word's tail, with no flash of its
  * own (a word costs its length and the NUL). */

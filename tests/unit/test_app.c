@@ -581,8 +581,8 @@ static void test_bus_noise_calibrates(void **state)
     assert_true(g_b.app.bus.dxl.stats.retries > 0u);
 }
 
-/* The report words kept as the tail of another word or of a command name
- * (app_priv.h) read as themselves. */
+/* The report words kept as the tail of another word or of the console's
+ * texts (app_priv.h) read as themselves. */
 static void test_shared_words(void **state)
 {
     (void)state;
@@ -594,6 +594,11 @@ static void test_shared_words(void **state)
     assert_string_equal(app_w_release, "release");
     assert_string_equal(app_w_boot, "boot");
     assert_string_equal(app_w_p, "p");
+    assert_string_equal(app_w_homes, "homes");
+    assert_string_equal(app_w_dB_uT, "dB_uT");
+    assert_string_equal(app_w_aborted, "aborted");
+    assert_string_equal(app_w_setting, "setting");
+    assert_string_equal(app_w_grid, "grid");
     assert_string_equal(app_w_fault, "fault");
     assert_string_equal(app_w_error, "error");
     assert_string_equal(app_w_err, "err");
