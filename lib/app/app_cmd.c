@@ -414,7 +414,7 @@ static int8_t h_set(app_t *a, const con_args_t *args)
     if (f < 0) {
         return CON_E_UNKNOWN_SETTING;
     }
-    if ((a->rec.save_due & APP_SAVE_SETTINGS) || a->rec.save_now == APP_SAVE_SETTINGS) {
+    if (app_rec_saving(a, APP_SAVE_SETTINGS)) {
         return CON_E_BUSY; /* the record is being written */
     }
     if (f == STORE_SET_CAL_TENSION && a->table_ok &&
@@ -434,7 +434,7 @@ static int8_t h_set(app_t *a, const con_args_t *args)
 static int8_t h_save(app_t *a, const con_args_t *args)
 {
     (void)args;
-    if ((a->rec.save_due & APP_SAVE_SETTINGS) || a->rec.save_now == APP_SAVE_SETTINGS) {
+    if (app_rec_saving(a, APP_SAVE_SETTINGS)) {
         return CON_E_BUSY;
     }
     app_rec_queue(a, APP_SAVE_SETTINGS);

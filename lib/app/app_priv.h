@@ -511,6 +511,8 @@ enum {
 
 /* Queues records (APP_SAVE_*) for the EEPROM. */
 void app_rec_queue(app_t *a, uint8_t what);
+/* Record `what` (one APP_SAVE_*) is queued or being written. */
+uint8_t app_rec_saving(const app_t *a, uint8_t what);
 /* A history or learned record waits in u.idle: the homing and the bring-up
  * must not reuse that storage until it is written. */
 uint8_t app_rec_busy(const app_t *a);

@@ -145,7 +145,7 @@ APP_NOINLINE uint8_t app_win_before_run(app_t *a, uint16_t tension_mN)
         app_win_persist(a);
         return 1;
     }
-    return (uint8_t)((a->rec.save_due & APP_SAVE_WIN) != 0u || a->rec.save_now == APP_SAVE_WIN);
+    return app_rec_saving(a, APP_SAVE_WIN);
 }
 
 void app_win_persist(app_t *a)
