@@ -83,7 +83,7 @@ static int8_t h_status(app_t *a, const con_args_t *args)
     APP_REP_FIELDS(a, a, status_fields);
     app_rep_word(a, app_w_fault, app_w_fault_words, a->run.last_fault);
     APP_REP_FIELDS(a, a, status_learn_fields);
-    app_rep_int(a, app_w_saving, store_busy(&a->rec.store) || a->rec.save_due != 0u);
+    app_rep_u8(a, app_w_saving, (uint8_t)(store_busy(&a->rec.store) || a->rec.save_due != 0u));
     APP_REP_FIELDS(a, a, status_loop_fields);
     if (APP_HAS_STACK_FREE(a)) {
         app_rep_int(a, app_w_stack_free, (int32_t)APP_STACK_FREE(a));

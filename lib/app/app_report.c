@@ -186,7 +186,7 @@ void app_rep_servo(app_t *a, uint8_t i, uint8_t with_model)
 {
     app_rep_begin(a, app_w_servo);
     app_rep_tendon(a, i);
-    app_rep_int(a, app_w_found, app_has(a->bus.absent, i) == 0u);
+    app_rep_u8(a, app_w_found, (uint8_t)(app_has(a->bus.absent, i) == 0u));
     if (with_model) {
         const dxl_servo_info *s = app_boot_servo_info(a, a->bus.ids[i]);
         if (s != NULL) {
