@@ -28,15 +28,15 @@ APP_NOINLINE void app_cmd_poll(app_t *a)
     con_set_realtime(&a->cmd.con, moving);
     if (n != a->cmd.rx_lost) {
         app_rep_begin(a, app_w_overrun);
-        app_rep_int(a, app_w_bytes, (uint16_t)(n - a->cmd.rx_lost));
-        app_rep_int(a, app_w_total, n);
+        app_rep_u16(a, app_w_bytes, (uint16_t)(n - a->cmd.rx_lost));
+        app_rep_u16(a, app_w_total, n);
         app_rep_end(a);
         a->cmd.rx_lost = n;
     }
     if (!moving && con_dropped(&a->cmd.con) != a->cmd.dropped) {
         a->cmd.dropped = con_dropped(&a->cmd.con);
         app_rep_begin(a, app_w_dropped);
-        app_rep_int(a, app_w_reports, a->cmd.dropped);
+        app_rep_u16(a, app_w_reports, a->cmd.dropped);
         app_rep_end(a);
     }
     list_poll(a);

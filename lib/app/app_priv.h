@@ -241,6 +241,7 @@ uint8_t app_idle_state(const app_t *a);
 void app_rep_begin(app_t *a, const char *kind);
 void app_rep_int(app_t *a, const char *key, int32_t v);
 void app_rep_u8(app_t *a, const char *key, uint8_t v);
+void app_rep_u16(app_t *a, const char *key, uint16_t v);
 /* tendon=i id=<its servo's ID> */
 void app_rep_tendon(app_t *a, uint8_t i);
 void app_rep_end(app_t *a);

@@ -33,7 +33,7 @@ static void run_done(app_t *a)
     app_rep_word(a, app_w_mode, app_w_mode_words, a->run.mode);
     app_rep_word(a, app_w_target, app_w_target_words, a->run.abs);
     app_rep_int(a, app_w_time_ms, (int32_t)(t - a->run.t_start));
-    app_rep_int(a, app_w_tension_mN, a->run.tension);
+    app_rep_u16(a, app_w_tension_mN, a->run.tension);
     app_rep_int(a, app_w_count, (int32_t)a->rec.homes.cal_count);
     app_rep_end(a);
     app_panel_set(a, APP_LED_DONE);
