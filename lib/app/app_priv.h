@@ -47,7 +47,7 @@
 
 /* The board's functions (app.h, APP_BOARD_FIXED); APP_HAS_RX_LOST(a) and
  * APP_HAS_STACK_FREE(a): the board counts lost console bytes, knows its
- * least free stack. */
+ * least free stack; APP_WIN(a): the kept windows (app_io_t.win). */
 #if APP_BOARD_FIXED
 #define APP_NOW_MS(a)              ((void)(a), app_board_now_ms())
 #define APP_NOW_US(a)              ((void)(a), app_board_now_us())
@@ -60,6 +60,7 @@
 #define APP_STACK_FREE(a)          app_board_stack_free()
 #define APP_CON_COPY(a, d, s, n)   app_board_con_copy(d, s, n)
 #define APP_TABLE_COPY(a, d, s, n) app_board_table_copy(d, s, n)
+#define APP_WIN(a)                 ((void)(a), &app_board_win)
 #else
 #define APP_NOW_MS(a)              (a)->io->board->now_ms((a)->io->board->ctx)
 #define APP_NOW_US(a)              (a)->io->board->now_us((a)->io->board->ctx)
@@ -72,6 +73,7 @@
 #define APP_STACK_FREE(a)          (a)->io->stack_free()
 #define APP_CON_COPY(a, d, s, n)   (a)->io->con_copy(d, s, n)
 #define APP_TABLE_COPY(a, d, s, n) (a)->io->table_copy(d, s, n)
+#define APP_WIN(a)                 (a)->io->win
 #endif
 
 /* Room marker for the virtual bench (sim/bench/looptime.c): app_poll() writes
