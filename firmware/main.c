@@ -34,7 +34,7 @@ static app_t app;
 static con_rt_t con_rt;
 /* Kept across watchdog and reset-pin resets (the servos keep their positions
  * then); cleared after a power-up, when SRAM holds noise. */
-static app_win_t win __attribute__((section(".noinit")));
+app_win_t app_board_win __attribute__((section(".noinit")));
 
 static uint8_t rt_hook(uint8_t b)
 {
@@ -230,9 +230,9 @@ int main(void)
     io.reset_f = reset_cause_P();
     io.release_at_boot = (reset_flags() & RESET_WATCHDOG) != 0u;
     if (reset_flags() & (RESET_POWER | RESET_BROWNOUT)) {
-        memset(&win, 0, sizeof win);
+        memset(&app_board_win, 0, sizeof app_board_win);
     }
-    io.win = &win;
+    io.win = &app_board_win;
     (void)app_init(&app, &io);
     uart1_init(app_bus_baud(&app));
     board_io_wdt_start();

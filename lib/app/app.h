@@ -173,6 +173,10 @@ uint16_t app_board_rx_lost(void);
 uint16_t app_board_stack_free(void);
 void app_board_con_copy(void *dst, const void *src, size_t n);
 void app_board_table_copy(void *dst, const void *src, size_t n);
+/* The kept windows (app_io_t.win, not read): the board's copy at a fixed
+ * address, so that no access goes through a pointer and none checks for
+ * NULL (measured: 210 bytes less AVR code). */
+extern app_win_t app_board_win;
 
 /* Everything the app is wired to (the caller keeps it for the app's life). Strings marked _f are
  * read through con_copy (flash on the AVR). */

@@ -54,7 +54,8 @@ int8_t app_init(app_t *app, const app_io_t *io)
     load_table(app);
     app_win_check(app);
     app->run.reset_release =
-        (uint8_t)(io->win != NULL && (io->win->moving || io->release_at_boot) && app->table_ok);
+        (uint8_t)(APP_WIN(app) != NULL && (APP_WIN(app)->moving || io->release_at_boot) &&
+                  app->table_ok);
     hom_init(&app->u.hom, NULL);
     dxl_config_default(&dc, app_bus_baud(app), io->servo_bits != 0u ? io->servo_bits : 10u);
     dxl_master_init(&app->bus.dxl, &io->servo_port, &dc);

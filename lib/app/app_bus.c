@@ -337,7 +337,7 @@ uint8_t app_bus_found(app_t *a)
             n++;
             a->bus.hw_err[i] = s->hw_error;
             if (a->u.bring.result == 0) {
-                app_win_t *w = a->io->win;
+                app_win_t *w = APP_WIN(a);
                 if (a->bus.ids[i] == a->bus.reboot_id && w != NULL) {
                     /* A rebooted servo restarts in the turn its shaft stands
                      * in (0..4095), the spool where it was: its engagement

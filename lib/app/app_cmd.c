@@ -28,15 +28,15 @@ APP_NOINLINE void app_cmd_poll(app_t *a)
     con_set_realtime(&a->cmd.con, moving);
     if (n != a->cmd.rx_lost) {
         app_rep_begin(a, app_w_overrun);
-        app_rep_int(a, app_w_bytes, (uint16_t)(n - a->cmd.rx_lost));
-        app_rep_int(a, app_w_total, n);
+        app_rep_u16(a, app_w_bytes, (uint16_t)(n - a->cmd.rx_lost));
+        app_rep_u16(a, app_w_total, n);
         app_rep_end(a);
         a->cmd.rx_lost = n;
     }
     if (!moving && con_dropped(&a->cmd.con) != a->cmd.dropped) {
         a->cmd.dropped = con_dropped(&a->cmd.con);
         app_rep_begin(a, app_w_dropped);
-        app_rep_int(a, app_w_reports, a->cmd.dropped);
+        app_rep_u16(a, app_w_reports, a->cmd.dropped);
         app_rep_end(a);
     }
     list_poll(a);
@@ -83,7 +83,7 @@ static int8_t h_status(app_t *a, const con_args_t *args)
     APP_REP_FIELDS(a, a, status_fields);
     app_rep_word(a, app_w_fault, app_w_fault_words, a->run.last_fault);
     APP_REP_FIELDS(a, a, status_learn_fields);
-    app_rep_int(a, app_w_saving, store_busy(&a->rec.store) || a->rec.save_due != 0u);
+    app_rep_u8(a, app_w_saving, (uint8_t)(store_busy(&a->rec.store) || a->rec.save_due != 0u));
     APP_REP_FIELDS(a, a, status_loop_fields);
     if (APP_HAS_STACK_FREE(a)) {
         app_rep_int(a, app_w_stack_free, (int32_t)APP_STACK_FREE(a));
@@ -414,7 +414,7 @@ static int8_t h_set(app_t *a, const con_args_t *args)
     if (f < 0) {
         return CON_E_UNKNOWN_SETTING;
     }
-    if ((a->rec.save_due & APP_SAVE_SETTINGS) || a->rec.save_now == APP_SAVE_SETTINGS) {
+    if (app_rec_saving(a, APP_SAVE_SETTINGS)) {
         return CON_E_BUSY; /* the record is being written */
     }
     if (f == STORE_SET_CAL_TENSION && a->table_ok &&
@@ -434,7 +434,7 @@ static int8_t h_set(app_t *a, const con_args_t *args)
 static int8_t h_save(app_t *a, const con_args_t *args)
 {
     (void)args;
-    if ((a->rec.save_due & APP_SAVE_SETTINGS) || a->rec.save_now == APP_SAVE_SETTINGS) {
+    if (app_rec_saving(a, APP_SAVE_SETTINGS)) {
         return CON_E_BUSY;
     }
     app_rec_queue(a, APP_SAVE_SETTINGS);

@@ -97,8 +97,8 @@ static void learned_store(app_t *a, uint8_t t, uint32_t v)
     l->grid_mask |= app_bit16(a->learn.grid);
     app_rec_queue(a, APP_SAVE_LEARNED);
     app_rep_begin(a, app_w_learned);
-    app_rep_int(a, app_w_tendon, t);
-    app_rep_int(a, app_w_tension_mN, a->info.grid_mN[a->learn.grid]);
+    app_rep_u8(a, app_w_tendon, t);
+    app_rep_u16(a, app_w_tension_mN, a->info.grid_mN[a->learn.grid]);
     app_rep_u8(a, app_w_grid, a->learn.grid);
     app_rep_u8(a, app_w_sensor, a->learn.sensor);
     /* the stored value (whole LSB), the one `table` shows */
@@ -236,7 +236,7 @@ APP_NOINLINE void app_learn_step(app_t *a, const hom_in_t *in)
         app_rep_begin(a, app_w_done);
         con_report_flash(&a->cmd.con, app_w_mode, app_w_release);
         app_rep_int(a, app_w_time_ms, (int32_t)el);
-        app_rep_int(a, app_w_baseline, rc == 0);
+        app_rep_u8(a, app_w_baseline, (uint8_t)(rc == 0));
         app_rep_end(a);
         a->state = APP_ST_IDLE;
         app_panel_set(a, APP_LED_IDLE);

@@ -46,24 +46,28 @@ void app_panel_button(app_t *a, uint16_t t)
 
 void app_panel_led(app_t *a, uint32_t t)
 {
+    /* one 32-bit division a pass: the phase p in the pattern's period
+     * ((t / 100) & 1 is p >= 100 of t % 200, and so on) */
+    uint8_t pat = app_led_pattern(a);
     uint8_t on;
-    uint32_t p;
-    switch (app_led_pattern(a)) {
+    uint16_t p = (uint16_t)(t % (pat == APP_LED_BOOT    ? 200u
+                                 : pat == APP_LED_RUN   ? 250u
+                                 : pat == APP_LED_FAULT ? 1000u
+                                                        : 2000u));
+    switch (pat) {
     case APP_LED_BOOT:
-        on = (uint8_t)((t / 100u) & 1u);
+        on = (uint8_t)(p >= 100u);
         break;
     case APP_LED_RUN:
-        on = (uint8_t)((t / 125u) & 1u);
+        on = (uint8_t)(p >= 125u);
         break;
     case APP_LED_DONE:
         on = 1;
         break;
-    case APP_LED_FAULT:
-        p = t % 1000u;
+    case APP_LED_FAULT: /* 50 ms on, 50 off, three times */
         on = (uint8_t)(p < 300u && ((p / 50u) & 1u) == 0u);
         break;
     default:
-        p = t % 2000u;
         on = (uint8_t)(p < 50u || (a->boot.offer_quick && p >= 200u && p < 250u));
         break;
     }

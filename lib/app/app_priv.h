@@ -47,7 +47,7 @@
 
 /* The board's functions (app.h, APP_BOARD_FIXED); APP_HAS_RX_LOST(a) and
  * APP_HAS_STACK_FREE(a): the board counts lost console bytes, knows its
- * least free stack. */
+ * least free stack; APP_WIN(a): the kept windows (app_io_t.win). */
 #if APP_BOARD_FIXED
 #define APP_NOW_MS(a)              ((void)(a), app_board_now_ms())
 #define APP_NOW_US(a)              ((void)(a), app_board_now_us())
@@ -60,6 +60,7 @@
 #define APP_STACK_FREE(a)          app_board_stack_free()
 #define APP_CON_COPY(a, d, s, n)   app_board_con_copy(d, s, n)
 #define APP_TABLE_COPY(a, d, s, n) app_board_table_copy(d, s, n)
+#define APP_WIN(a)                 ((void)(a), &app_board_win)
 #else
 #define APP_NOW_MS(a)              (a)->io->board->now_ms((a)->io->board->ctx)
 #define APP_NOW_US(a)              (a)->io->board->now_us((a)->io->board->ctx)
@@ -72,6 +73,7 @@
 #define APP_STACK_FREE(a)          (a)->io->stack_free()
 #define APP_CON_COPY(a, d, s, n)   (a)->io->con_copy(d, s, n)
 #define APP_TABLE_COPY(a, d, s, n) (a)->io->table_copy(d, s, n)
+#define APP_WIN(a)                 (a)->io->win
 #endif
 
 /* Room marker for the virtual bench (sim/bench/looptime.c): app_poll() writes
@@ -98,45 +100,32 @@
     WS(state_words, "boot idle cal move learn fault")                                              \
     WS(dev_words, "none sensor servo tendon")                                                      \
     WS(phase_words, "- preflight release baseline tendon final")                                   \
-    W(fault)                                                                                       \
     W(reason)                                                                                      \
-    W(error)                                                                                       \
     W(dev)                                                                                         \
     W(index)                                                                                       \
-    W(boot)                                                                                        \
     W(name)                                                                                        \
     W(hallhome)                                                                                    \
-    W(version)                                                                                     \
     W(board)                                                                                       \
     W(reset)                                                                                       \
     W(missing)                                                                                     \
     W(sensor)                                                                                      \
     W(ch)                                                                                          \
     W(addr)                                                                                        \
-    W(err)                                                                                         \
     W(servo)                                                                                       \
-    W(id)                                                                                          \
     W(hw_error)                                                                                    \
-    W(tendon)                                                                                      \
     W(found)                                                                                       \
     W(model)                                                                                       \
     W(fw)                                                                                          \
-    W(pos)                                                                                         \
     W(cal_pos)                                                                                     \
     W(ready)                                                                                       \
-    W(table)                                                                                       \
     W(table_id)                                                                                    \
     W(none)                                                                                        \
-    W(sensors)                                                                                     \
     W(sensors_expected)                                                                            \
-    W(servos)                                                                                      \
     W(servos_expected)                                                                             \
-    W(homes)                                                                                       \
     W(moved)                                                                                       \
     W(stored)                                                                                      \
     W(count)                                                                                       \
     W(other_table)                                                                                 \
-    W(rehome)                                                                                      \
     W(progress)                                                                                    \
     W(state)                                                                                       \
     W(start)                                                                                       \
@@ -146,27 +135,20 @@
     W(bits)                                                                                        \
     W(engaged)                                                                                     \
     W(result)                                                                                      \
-    W(home)                                                                                        \
     W(home_um)                                                                                     \
     W(straight)                                                                                    \
-    W(dB_uT)                                                                                       \
     W(target_uT)                                                                                   \
     W(travel_um)                                                                                   \
     W(time_ms)                                                                                     \
     W(code)                                                                                        \
     W(detail)                                                                                      \
-    W(released)                                                                                    \
     W(done)                                                                                        \
-    W(aborted)                                                                                     \
     W(servo_stall)                                                                                 \
-    W(release)                                                                                     \
     W(baseline)                                                                                    \
     W(learned)                                                                                     \
-    W(grid)                                                                                        \
     W(eeprom)                                                                                      \
     W(refused)                                                                                     \
     W(tendons)                                                                                     \
-    W(status)                                                                                      \
     W(homes_now)                                                                                   \
     W(saving)                                                                                      \
     W(loop_max_us)                                                                                 \
@@ -174,7 +156,6 @@
     W(loops)                                                                                       \
     W(rest)                                                                                        \
     W(usable)                                                                                      \
-    W(now)                                                                                         \
     W(ok)                                                                                          \
     W(who)                                                                                         \
     W(mag)                                                                                         \
@@ -194,7 +175,6 @@
     W(target_cuT)                                                                                  \
     W(hist)                                                                                        \
     W(age)                                                                                         \
-    W(setting)                                                                                     \
     W(value)                                                                                       \
     W(unit)                                                                                        \
     W(min)                                                                                         \
@@ -208,8 +188,6 @@
     W(not_released)                                                                                \
     W(servo_error)                                                                                 \
     W(sv)                                                                                          \
-    W(t)                                                                                           \
-    W(p)                                                                                           \
     W(b)
 
 #define APP_W_DECL(id)        extern const char app_w_##id[];
@@ -217,6 +195,36 @@
 APP_WORDS(APP_W_DECL, APP_WS_DECL)
 #undef APP_W_DECL
 #undef APP_WS_DECL
+
+/* The words that are command names, or end a command name, a help or an
+ * error text, are the console's (console.h). */
+#define app_w_version CON_CMD_NAME_F(VERSION)
+#define app_w_status  CON_CMD_NAME_F(STATUS)
+#define app_w_sensors CON_CMD_NAME_F(SENSORS)
+#define app_w_servos  CON_CMD_NAME_F(SERVOS)
+#define app_w_rehome  CON_CMD_NAME_F(REHOME)
+#define app_w_release CON_CMD_NAME_F(RELEASE)
+#define app_w_boot    (CON_CMD_NAME_F(REBOOT) + 2)
+#define app_w_p       (CON_CMD_NAME_F(HELP) + 3)
+#define app_w_homes   CON_CMD_HELP_TAIL_F(REHOME, "homes")
+#define app_w_dB_uT   CON_CMD_HELP_TAIL_F(LEARN, "dB_uT")
+#define app_w_aborted CON_ERR_TAIL_F(ABORTED, "aborted")
+#define app_w_setting CON_ERR_TAIL_F(UNKNOWN_SETTING, "setting")
+#define app_w_grid    CON_ERR_TAIL_F(TENSION_RANGE, "grid")
+
+/* A word that ends another word is that word's tail, with no flash of its
+ * own (a word costs its length and the NUL). */
+#define app_w_fault    (app_w_default + 2)
+#define app_w_error    (app_w_servo_error + 6)
+#define app_w_err      (app_w_last_err + 5)
+#define app_w_id       (app_w_table_id + 6)
+#define app_w_pos      (app_w_cal_pos + 4)
+#define app_w_table    (app_w_other_table + 6)
+#define app_w_home     (app_w_hallhome + 4)
+#define app_w_released (app_w_not_released + 4)
+#define app_w_now      (app_w_homes_now + 6)
+#define app_w_t        (app_w_start + 4)
+#define app_w_tendon   (app_w_dev_words + 18) /* "none sensor servo tendon" */
 
 /* ---- app.c: helpers of every room ------------------------------------------ */
 
@@ -235,6 +243,7 @@ uint8_t app_idle_state(const app_t *a);
 void app_rep_begin(app_t *a, const char *kind);
 void app_rep_int(app_t *a, const char *key, int32_t v);
 void app_rep_u8(app_t *a, const char *key, uint8_t v);
+void app_rep_u16(app_t *a, const char *key, uint16_t v);
 /* tendon=i id=<its servo's ID> */
 void app_rep_tendon(app_t *a, uint8_t i);
 void app_rep_end(app_t *a);
@@ -505,6 +514,8 @@ enum {
 
 /* Queues records (APP_SAVE_*) for the EEPROM. */
 void app_rec_queue(app_t *a, uint8_t what);
+/* Record `what` (one APP_SAVE_*) is queued or being written. */
+uint8_t app_rec_saving(const app_t *a, uint8_t what);
 /* A history or learned record waits in u.idle: the homing and the bring-up
  * must not reuse that storage until it is written. */
 uint8_t app_rec_busy(const app_t *a);

@@ -60,6 +60,11 @@ uint8_t app_rec_busy(const app_t *a)
                      a->rec.save_now == APP_SAVE_WIN);
 }
 
+APP_NOINLINE uint8_t app_rec_saving(const app_t *a, uint8_t what)
+{
+    return (uint8_t)((a->rec.save_due & what) != 0u || a->rec.save_now == what);
+}
+
 void app_rec_queue(app_t *a, uint8_t what)
 {
     a->rec.save_due |= what;
@@ -82,7 +87,7 @@ APP_NOINLINE void app_rec_rest_poll(app_t *a)
     uint8_t i, changed = 0;
     if (!a->rec.rest_due || !app_idle_state(a) ||
         (uint16_t)((uint16_t)app_now_ms(a) - a->rec.t_rest) < REST_DELAY_MS ||
-        (a->rec.save_due & APP_SAVE_HOMES) || a->rec.save_now == APP_SAVE_HOMES) {
+        app_rec_saving(a, APP_SAVE_HOMES)) {
         return;
     }
     a->rec.rest_due = 0;

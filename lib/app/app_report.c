@@ -29,6 +29,11 @@ void app_rep_u8(app_t *a, const char *key, uint8_t v)
     con_report_int(&a->cmd.con, key, v);
 }
 
+void app_rep_u16(app_t *a, const char *key, uint16_t v)
+{
+    con_report_int(&a->cmd.con, key, v);
+}
+
 void app_rep_tendon(app_t *a, uint8_t i)
 {
     app_rep_u8(a, app_w_tendon, i);
@@ -186,11 +191,11 @@ void app_rep_servo(app_t *a, uint8_t i, uint8_t with_model)
 {
     app_rep_begin(a, app_w_servo);
     app_rep_tendon(a, i);
-    app_rep_int(a, app_w_found, app_has(a->bus.absent, i) == 0u);
+    app_rep_u8(a, app_w_found, (uint8_t)(app_has(a->bus.absent, i) == 0u));
     if (with_model) {
         const dxl_servo_info *s = app_boot_servo_info(a, a->bus.ids[i]);
         if (s != NULL) {
-            app_rep_int(a, app_w_model, s->model);
+            app_rep_u16(a, app_w_model, s->model);
             app_rep_u8(a, app_w_fw, s->firmware);
         }
     }

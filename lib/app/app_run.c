@@ -33,7 +33,7 @@ static void run_done(app_t *a)
     app_rep_word(a, app_w_mode, app_w_mode_words, a->run.mode);
     app_rep_word(a, app_w_target, app_w_target_words, a->run.abs);
     app_rep_int(a, app_w_time_ms, (int32_t)(t - a->run.t_start));
-    app_rep_int(a, app_w_tension_mN, a->run.tension);
+    app_rep_u16(a, app_w_tension_mN, a->run.tension);
     app_rep_int(a, app_w_count, (int32_t)a->rec.homes.cal_count);
     app_rep_end(a);
     app_panel_set(a, APP_LED_DONE);
@@ -117,10 +117,10 @@ static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon
             cmd.stored_mask |= app_bit16(i);
         }
     }
-    if (a->io->win != NULL) {
-        cmd.win_mask = a->io->win->mask;
-        memcpy(cmd.win_lo, a->io->win->lo, sizeof cmd.win_lo);
-        memcpy(cmd.win_hi, a->io->win->hi, sizeof cmd.win_hi);
+    if (APP_WIN(a) != NULL) {
+        cmd.win_mask = APP_WIN(a)->mask;
+        memcpy(cmd.win_lo, APP_WIN(a)->lo, sizeof cmd.win_lo);
+        memcpy(cmd.win_hi, APP_WIN(a)->hi, sizeof cmd.win_hi);
     }
     hom_config_default(&cfg);
     /* filter_k is the homing's own filter: samples averaged at each fine
@@ -287,13 +287,13 @@ static uint8_t release_goals(app_t *a, uint8_t blind)
     for (i = 0; i < a->info.n_tendons; i++) {
         int32_t g, lo, s, m, dir;
         if (app_has(a->bus.absent, i) ||
-            (blind && (a->io->win == NULL || !app_has(a->io->win->mask, i)))) {
+            (blind && (APP_WIN(a) == NULL || !app_has(APP_WIN(a)->mask, i)))) {
             continue;
         }
         m = app_win_margin(a, i, &s);
         dir = m < 0 ? -1 : 1;
-        if (a->io->win != NULL && app_has(a->io->win->mask, i)) {
-            lo = a->io->win->lo[i];
+        if (APP_WIN(a) != NULL && app_has(APP_WIN(a)->mask, i)) {
+            lo = APP_WIN(a)->lo[i];
         } else if (app_has(a->rec.home_now, i)) {
             tbl_point_t pt;
             tbl_tendon_t row;

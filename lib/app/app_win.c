@@ -31,7 +31,7 @@ static uint16_t win_crc(const app_win_t *w)
 /* Checks the kept windows at boot: wrong magic, table or CRC clears them. */
 void app_win_check(app_t *a)
 {
-    app_win_t *w = a->io->win;
+    app_win_t *w = APP_WIN(a);
     if (w != NULL && (w->magic != APP_WIN_MAGIC || w->table_id != a->info.table_id ||
                       w->crc != win_crc(w) || !a->table_ok)) {
         uint8_t moving = w->moving; /* outside the CRC: kept */
@@ -48,7 +48,7 @@ void app_win_check(app_t *a)
 APP_NOINLINE static void win_put(app_t *a, uint8_t i, int32_t lo, int32_t hi, uint8_t keep,
                                  uint8_t crc)
 {
-    app_win_t *w = a->io->win;
+    app_win_t *w = APP_WIN(a);
     if (w == NULL) {
         return;
     }
@@ -70,7 +70,7 @@ void app_win_set(app_t *a, uint8_t i, int32_t lo, int32_t hi, uint8_t keep)
  * releases them. */
 APP_NOINLINE void app_win_moving(app_t *a, uint8_t on)
 {
-    app_win_t *w = a->io->win;
+    app_win_t *w = APP_WIN(a);
     if (w != NULL) {
         w->moving = on;
     }
@@ -86,8 +86,8 @@ void app_win_take(app_t *a)
             win_put(a, i, lo, hi, 1, 0);
         }
     }
-    if (m != 0u && a->io->win != NULL) {
-        a->io->win->crc = win_crc(a->io->win);
+    if (m != 0u && APP_WIN(a) != NULL) {
+        APP_WIN(a)->crc = win_crc(APP_WIN(a));
     }
 }
 
@@ -122,7 +122,7 @@ int32_t app_win_fresh(app_t *a, uint8_t i, uint16_t tension_mN)
 APP_NOINLINE uint8_t app_win_before_run(app_t *a, uint16_t tension_mN)
 {
     uint8_t i;
-    if (a->io->win == NULL || !a->table_ok) {
+    if (APP_WIN(a) == NULL || !a->table_ok) {
         return 0;
     }
     /* one tendon a pass: the table work takes 1-2 ms each (a press and the
@@ -133,7 +133,7 @@ APP_NOINLINE uint8_t app_win_before_run(app_t *a, uint16_t tension_mN)
     a->rec.win_loop = (uint8_t)a->loops;
     for (i = 0; i < a->info.n_tendons; i++) {
         if (!app_has(a->bus.absent, i) && app_has(a->bus.seen, i) &&
-            !app_has(a->io->win->mask, i) && !app_has(a->rec.home_now, i)) {
+            !app_has(APP_WIN(a)->mask, i) && !app_has(a->rec.home_now, i)) {
             (void)app_win_fresh(a, i, tension_mN);
             a->rec.win_fresh = 1;
             return 1;
@@ -145,7 +145,7 @@ APP_NOINLINE uint8_t app_win_before_run(app_t *a, uint16_t tension_mN)
         app_win_persist(a);
         return 1;
     }
-    return (uint8_t)((a->rec.save_due & APP_SAVE_WIN) != 0u || a->rec.save_now == APP_SAVE_WIN);
+    return app_rec_saving(a, APP_SAVE_WIN);
 }
 
 void app_win_persist(app_t *a)
@@ -158,7 +158,7 @@ void app_win_persist(app_t *a)
 APP_NOINLINE void app_win_record(app_t *a, store_win_t *r)
 {
     uint8_t i;
-    const app_win_t *w = a->io->win;
+    const app_win_t *w = APP_WIN(a);
     memset(r, 0, sizeof *r);
     r->table_id = a->info.table_id;
     r->n_tendons = a->info.n_tendons;
@@ -180,7 +180,7 @@ APP_NOINLINE void app_win_recover(app_t *a)
     store_win_t r;
     uint8_t i;
     uint16_t tol = (uint16_t)a->rec.set.v[STORE_SET_REST_TOL];
-    if (a->io->win == NULL || !a->table_ok ||
+    if (APP_WIN(a) == NULL || !a->table_ok ||
         store_win_load(&a->rec.store, a->info.table_id, &r) != 0) {
         return;
     }
@@ -189,7 +189,7 @@ APP_NOINLINE void app_win_recover(app_t *a)
         /* a stored home, recovered or found moved (a spool turned while
          * powered off: its rest-position check is the tighter one), says
          * more than a window */
-        if (!app_has(r.mask, i) || !app_has(a->bus.seen, i) || app_has(a->io->win->mask, i) ||
+        if (!app_has(r.mask, i) || !app_has(a->bus.seen, i) || app_has(APP_WIN(a)->mask, i) ||
             (a->rec.homes_rc == 0 && app_has(a->rec.homes.valid_mask, i))) {
             continue;
         }

@@ -13,7 +13,8 @@ static const uint8_t con_err_codes[] CON_FLASH = {
 #undef CON_ERR
 };
 
-static const char con_err_text[] CON_FLASH =
+/* console.h */
+const char con_err_text[] CON_FLASH =
 #define CON_ERR(code, id, text) text "\0"
 #include "console/con_errors.def"
 #undef CON_ERR

@@ -20,23 +20,12 @@ static char con_fl_char(const con_t *c, const char *p)
 }
 
 /* name, synopsis and help of every command, NUL-separated, in enum order:
- * one flash string instead of 3 * N pointers. */
-static const char con_cmd_text[] CON_FLASH =
+ * one flash string instead of 3 * N pointers (console.h). */
+const char con_cmd_text[] CON_FLASH =
 #define CON_CMD(id, name, synopsis, help) name "\0" synopsis "\0" help "\0"
 #include "console/con_commands.def"
 #undef CON_CMD
     ;
-
-/* The same strings as members of a struct (of chars: no padding), so that
- * offsetof() says at compile time where each command's entry starts. */
-typedef struct {
-#define CON_CMD(id, name, synopsis, help)                                                          \
-    char n_##id[sizeof(name)];                                                                     \
-    char s_##id[sizeof(synopsis)];                                                                 \
-    char h_##id[sizeof(help)];
-#include "console/con_commands.def"
-#undef CON_CMD
-} con_cmd_layout_t;
 
 /* Where each command's name starts in con_cmd_text: the lookup of a line's
  * command and its synopsis read only what they need. Skipping every earlier

@@ -82,6 +82,26 @@ typedef enum {
     CON_CMD_COUNT
 } con_cmd_t;
 
+/* name, synopsis and help of every command, NUL-separated, in enum order
+ * (con_parse.c), and the same strings as members of a struct (of chars: no
+ * padding), so that offsetof() says at compile time where each command's
+ * entry starts. CON_CMD_NAME_F(id): command id's name as a flash string, for
+ * a report that prints the same word (kept once). */
+extern const char con_cmd_text[];
+typedef struct {
+#define CON_CMD(id, name, synopsis, help)                                                          \
+    char n_##id[sizeof(name)];                                                                     \
+    char s_##id[sizeof(synopsis)];                                                                 \
+    char h_##id[sizeof(help)];
+#include "console/con_commands.def"
+#undef CON_CMD
+} con_cmd_layout_t;
+#define CON_CMD_NAME_F(id) (con_cmd_text + offsetof(con_cmd_layout_t, n_##id))
+/* The last `word` (a string literal) of command id's help text. */
+#define CON_CMD_HELP_TAIL_F(id, word)                                                              \
+    (con_cmd_text + offsetof(con_cmd_layout_t, h_##id) + sizeof(((con_cmd_layout_t *)0)->h_##id) - \
+     sizeof(word))
+
 /* Errors: CON_E_<ID> = -code of con_errors.def; these go on the wire. */
 enum {
 #define CON_ERR(code, id, text) CON_E_##id = -(code),
@@ -91,6 +111,19 @@ enum {
      * non-final result. */
     CON_E_NOT_PENDING = -100
 };
+
+/* The error texts, NUL-separated, in con_errors.def order (con_out.c), laid
+ * out as con_cmd_text is. CON_ERR_TAIL_F(id, word): the last `word` (a
+ * string literal) of error id's text, for a report that prints it. */
+extern const char con_err_text[];
+typedef struct {
+#define CON_ERR(code, id, text) char t_##id[sizeof(text)];
+#include "console/con_errors.def"
+#undef CON_ERR
+} con_err_layout_t;
+#define CON_ERR_TAIL_F(id, word)                                                                   \
+    (con_err_text + offsetof(con_err_layout_t, t_##id) + sizeof(((con_err_layout_t *)0)->t_##id) - \
+     sizeof(word))
 
 #define CON_PENDING    1     /* handler result: reply comes later via con_complete() */
 #define CON_LINE_MAX   48    /* characters in a command line, terminator excluded */

@@ -54,7 +54,6 @@ void dxl_master_init(dxl_master *m, const dxl_port *port, const dxl_config *cfg)
     m->got = 0;
     m->phase = DXL_PH_IDLE;
     m->result = 0;
-    m->on_status = NULL;
 }
 
 uint8_t dxl_busy(const dxl_master *m)
@@ -191,8 +190,8 @@ static void dxl_on_packet(dxl_master *m)
     if (dxl_parser_status(&m->parser, &st) != 0) {
         return; /* an instruction packet (our own echo on an unbuffered bus) */
     }
-    if (m->on_status != NULL) {
-        m->on_status(m, &st);
+    if (m->inst == DXL_INST_FAST_SYNC_READ) {
+        dxl_fast_on_status(m, &st);
         return;
     }
     dxl_reply *r = dxl_claim(m, st.id);
@@ -222,6 +221,7 @@ static uint16_t dxl_reply_bytes(const dxl_master *m)
 static void dxl_recv(dxl_master *m)
 {
     uint8_t chunk[DXL_READ_CHUNK];
+    uint8_t fast = m->inst == DXL_INST_FAST_SYNC_READ;
     for (uint8_t round = 0; round < DXL_READ_ROUNDS && m->got < m->expect; round++) {
         uint16_t n = DXL_PORT_READ(m, chunk, DXL_READ_CHUNK);
         if (n == 0) {
@@ -232,21 +232,21 @@ static void dxl_recv(dxl_master *m)
             int8_t rc = dxl_parser_feed(&m->parser, chunk[i]);
             if (rc == 0) {
                 dxl_on_packet(m);
-                if (m->on_status != NULL && m->got < m->expect && m->attempt_err != 0) {
+                if (fast && m->got < m->expect && m->attempt_err != 0) {
                     /* the one combined reply is in, with bad blocks: retry now */
                     dxl_end_attempt(m, m->attempt_err);
                     return;
                 }
             } else if (rc < 0) {
                 dxl_note(m, rc == -DXL_E_CRC ? -DXL_E_CRC : -DXL_E_MALFORMED);
-                if (m->on_status != NULL) {
-                    m->on_status(m, NULL); /* keep the blocks that check out */
+                if (fast) {
+                    dxl_fast_on_status(m, NULL); /* keep the blocks that check out */
                 }
                 if (m->got >= m->expect) {
                     dxl_finish(m, 0);
                     return;
                 }
-                if (m->expect == 1u || m->on_status != NULL) {
+                if (m->expect == 1u || fast) {
                     /* the one reply is spoilt and the bus is free: retry now */
                     dxl_end_attempt(m, m->attempt_err);
                     return;
@@ -265,8 +265,8 @@ static void dxl_recv(dxl_master *m)
         dxl_finish(m, 0);
     } else if (dxl_time_reached(dxl_now(m), m->deadline) ||
                dxl_time_reached(dxl_now(m), m->heard_by)) {
-        if (m->on_status != NULL) {
-            m->on_status(m, NULL);
+        if (fast) {
+            dxl_fast_on_status(m, NULL);
         }
         if (m->got >= m->expect) {
             dxl_finish(m, 0);
@@ -352,7 +352,6 @@ DXL_NOINLINE static int8_t dxl_prepare(dxl_master *m, uint8_t inst, uint16_t add
         return -DXL_E_BUSY;
     }
     m->inst = inst;
-    m->on_status = NULL;
     m->addr = addr;
     m->n = n;
     m->n_reply = 0;

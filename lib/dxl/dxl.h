@@ -135,12 +135,6 @@ struct dxl_master {
     uint16_t tx_sent;
     uint32_t deadline;
     uint32_t heard_by; /* the next reply byte is due by then (see timeout_us) */
-    /* Reply handler of a transaction whose answer is not one status packet
-     * per servo (fast sync read); NULL otherwise. Set when the transaction
-     * starts, so the code of a reply format the firmware never asks for is
-     * not linked. Called with st NULL when an attempt ends on a corrupted
-     * packet or its deadline, to take what can be trusted of a partial one. */
-    void (*on_status)(dxl_master *m, const dxl_status *st);
 };
 
 /* Defaults for `baud` with `bits_per_byte` (10 on real hardware): 2 retries,

@@ -1,8 +1,7 @@
 /*
  * Fast sync read (instruction 0x8A): the request, the view of its combined
  * reply and the master's handler for it. Kept apart from the plain status
- * packets of dxl.c so that a firmware that never asks for it does not carry
- * it (the master reaches dxl_fast_on_status only through m->on_status).
+ * packets of dxl.c.
  */
 #include <stddef.h>
 
@@ -59,7 +58,7 @@ static void dxl_fast_take(dxl_master *m, uint16_t mask, uint8_t blocks)
  * With st NULL (the attempt ended on a spoilt or cut-short reply) the blocks
  * that check out one by one are kept: only the servos from a silent one or
  * a flipped byte on are asked again, as with a plain sync read. */
-static void dxl_fast_on_status(dxl_master *m, const dxl_status *st)
+void dxl_fast_on_status(dxl_master *m, const dxl_status *st)
 {
     const dxl_parser *p = &m->parser; /* blk_ok: blocks checked on arrival */
     uint8_t count = m->n_reply;
@@ -84,9 +83,5 @@ static void dxl_fast_on_status(dxl_master *m, const dxl_status *st)
 int8_t dxl_fast_sync_read(dxl_master *m, uint16_t addr, uint16_t n, const uint8_t *ids,
                           uint8_t count)
 {
-    int8_t rc = dxl_group_read(m, DXL_INST_FAST_SYNC_READ, addr, n, ids, count);
-    if (rc > 0) {
-        m->on_status = dxl_fast_on_status;
-    }
-    return rc;
+    return dxl_group_read(m, DXL_INST_FAST_SYNC_READ, addr, n, ids, count);
 }

@@ -80,4 +80,10 @@ void dxl_note(dxl_master *m, int8_t err);
 /* Counts and notes a valid frame with the wrong content (-DXL_E_MALFORMED). */
 void dxl_malformed(dxl_master *m);
 
+/* The reply handler of a fast sync read (m->inst), whose answer is one
+ * packet of blocks rather than one status packet per servo. Called with st
+ * NULL when an attempt ends on a corrupted packet or its deadline, to take
+ * what can be trusted of a partial one. */
+void dxl_fast_on_status(dxl_master *m, const dxl_status *st);
+
 #endif /* HALLHOME_DXL_PRIV_H */

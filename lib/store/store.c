@@ -394,16 +394,15 @@ int8_t store_settings_load(store_t *st, store_settings_t *s)
 {
     store_setting_info_t info;
     int8_t rc;
-    uint8_t i;
+    uint8_t i, lost;
     rc = pair_load(st, STORE_ADDR_SETTINGS, STORE_SETTINGS_STRIDE, STORE_KIND_SETTINGS,
                    STORE_SETTINGS_VERSION, s, (uint16_t)sizeof(*s));
-    if (rc < 0) {
-        store_settings_defaults(st, s);
-        return STORE_E_DEFAULTS;
-    }
+    /* no valid record: every default, in the one loop that also puts back
+     * the default of a stored value out of its range */
+    lost = rc < 0;
     for (i = 0; i < STORE_SETTING_COUNT; i++) {
         (void)store_setting_info(st, i, &info);
-        if (s->v[i] < info.min || s->v[i] > info.max) {
+        if (lost || s->v[i] < info.min || s->v[i] > info.max) {
             s->v[i] = info.def;
             rc = STORE_E_DEFAULTS;
         }

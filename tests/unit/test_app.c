@@ -13,6 +13,7 @@
 
 #include <cmocka.h>
 
+#include "app/app_priv.h"
 #include "app_bench.h"
 #include "app_steps.h"
 
@@ -580,9 +581,41 @@ static void test_bus_noise_calibrates(void **state)
     assert_true(g_b.app.bus.dxl.stats.retries > 0u);
 }
 
+/* The report words kept as the tail of another word or of the console's
+ * texts (app_priv.h) read as themselves. */
+static void test_shared_words(void **state)
+{
+    (void)state;
+    assert_string_equal(app_w_version, "version");
+    assert_string_equal(app_w_status, "status");
+    assert_string_equal(app_w_sensors, "sensors");
+    assert_string_equal(app_w_servos, "servos");
+    assert_string_equal(app_w_rehome, "rehome");
+    assert_string_equal(app_w_release, "release");
+    assert_string_equal(app_w_boot, "boot");
+    assert_string_equal(app_w_p, "p");
+    assert_string_equal(app_w_homes, "homes");
+    assert_string_equal(app_w_dB_uT, "dB_uT");
+    assert_string_equal(app_w_aborted, "aborted");
+    assert_string_equal(app_w_setting, "setting");
+    assert_string_equal(app_w_grid, "grid");
+    assert_string_equal(app_w_fault, "fault");
+    assert_string_equal(app_w_error, "error");
+    assert_string_equal(app_w_err, "err");
+    assert_string_equal(app_w_id, "id");
+    assert_string_equal(app_w_pos, "pos");
+    assert_string_equal(app_w_table, "table");
+    assert_string_equal(app_w_home, "home");
+    assert_string_equal(app_w_released, "released");
+    assert_string_equal(app_w_now, "now");
+    assert_string_equal(app_w_t, "t");
+    assert_string_equal(app_w_tendon, "tendon");
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_shared_words),
         cmocka_unit_test(test_boot_banner_and_ready),
         cmocka_unit_test(test_no_table),
         cmocka_unit_test(test_missing_sensor_and_servo),
