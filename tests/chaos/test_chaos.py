@@ -86,7 +86,8 @@ FIXED = [3, 5, 9, 10, 187,
          # field on the way out where the servo stands)
          17633,
          # a clean calibration of a 12-tendon robot after a watchdog reset in the slack
-         # check ends in travel_limit (known failing, below)
+         # check ended in travel_limit (a stop sent the servo back through the spool's
+         # backlash; a stop now allows for the servo's run until the goal lands)
          18451]
 # seed: what fails on the firmware of this commit (docs/chaos-rounds.md). Seeds 3, 5,
 # 9, 10 and 187 were here (tendons pulled to 1.4-4x their target): the slack a
@@ -101,12 +102,12 @@ FIXED = [3, 5, 9, 10, 187,
 # no_engagement; the windows now survive a power cycle in EEPROM.)
 # (17633 was here: a false field_step after the approach sent tendon 7 back
 # from 218 to 196; the field-fall check now compares like with like.)
-KNOWN_FAILING: dict[int, str] = {
-    18451: "a clean calibration after a watchdog reset in the slack check ended in "
-           "travel_limit on tendon 4 (two fine points put its target 845 ticks past its "
-           "engagement; no over-pull); timing-sensitive (docs/chaos-rounds.md, seeds "
-           "18231-18730)",
-}
+# (18451 was here: a moderate approach read at 209 while its servo ran on to
+# 217 was stopped at 211, back through the spool's backlash; the fine points
+# read a flat field and put the target beyond the travel limit. A stop now
+# allows for the servo's run until the goal lands, and an engaged tendon is
+# only pulled further: test_homing_runon.c.)
+KNOWN_FAILING: dict[int, str] = {}
 
 
 @pytest.fixture(scope="module")
