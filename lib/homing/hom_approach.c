@@ -130,7 +130,8 @@ HOM_NOINLINE int hom_pull_to(hom_t *h, int32_t g, uint16_t v)
  * (7-18 ms with 12 servos on the bus) and until the next bus cycle carries
  * the goal (taken as long as the last gap between two reads), at its
  * profile velocity, 1/64 tick per ms per 0.229 rpm unit, at most 60 ms. An
- * upper bound, as the servo never runs faster than its profile. */
+ * upper bound, as the servo never runs faster than its profile. Only for a
+ * servo moving in the pull direction. */
 HOM_NOINLINE static int16_t run_on(const hom_t *h)
 {
     uint16_t since = (uint16_t)((uint16_t)h->now_ms - (uint16_t)h->servo_ok_ms[h->cur]);
@@ -158,7 +159,14 @@ HOM_NOINLINE static void begin_moderate(hom_t *h)
      * take-up 5 ticks past the goal set here read short of it; the return
      * through the spool's backlash left the field flat, and the fine points
      * predicted the target beyond the travel limit) */
-    d = hom_pull(t, g - h->present[h->cur]) - run_on(h);
+    d = hom_pull(t, g - h->present[h->cur]);
+    if (t->retries == 0u) {
+        /* from the take-up, still running; a re-approach starts from slack,
+         * where the servo stands (taken as run on at the back-off's speed
+         * it went to 2 ticks from there, and its fine points met a flat
+         * field up to the travel limit: chaos seed 17633 on another build) */
+        d -= run_on(h);
+    }
     if (t->retries == 0u && d < 2 + (int32_t)(h->out.vel[h->cur] >> 2)) {
         /* the take-up has run on to where the approach starts (a short
          * travel, a low tension; it may be its speed over 16 ms, a quarter
