@@ -92,7 +92,10 @@ FIXED = [3, 5, 9, 10, 187,
          # the last tendon's <result> waited behind a `help` listing and went out after
          # the final move had raised every tendon to the straight pose (1.39 x): the
          # bench now closes the windows at the final move it sees on the bus
-         18834]
+         18834,
+         # a clean calibration of a 4-tendon robot ended in no_progress (known failing,
+         # below)
+         19418]
 # seed: what fails on the firmware of this commit (docs/chaos-rounds.md). Seeds 3, 5,
 # 9, 10 and 187 were here (tendons pulled to 1.4-4x their target): the slack a
 # calibrated tendon keeps was too small for the other tendons' pulls, which
@@ -111,7 +114,11 @@ FIXED = [3, 5, 9, 10, 187,
 # read a flat field and put the target beyond the travel limit. A stop now
 # allows for the servo's run until the goal lands, and an engaged tendon is
 # only pulled further: test_homing_runon.c.)
-KNOWN_FAILING: dict[int, str] = {}
+KNOWN_FAILING: dict[int, str] = {
+    19418: "a clean calibration ended in no_progress on tendon 3 (35 uT target) of "
+           "c1s4t2k04561: fine steps of 4-8 ticks crossed the target wider than the 3-tick "
+           "bracket four times (back-offs); passes on ff7d839 by timing (docs/chaos-rounds.md)",
+}
 
 
 @pytest.fixture(scope="module")
