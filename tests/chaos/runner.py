@@ -4,6 +4,8 @@
     python -m tests.chaos replay SEED                         one, console shown
     python -m tests.chaos seeds FILE                          the seeds listed in FILE
     python -m tests.chaos recheck [-n N] [--seed0 S]          the checks again on earlier runs
+    python -m tests.chaos trace SEED TENDON --to S [--from S] a replayed schedule's bus, one
+                                                              tendon's goals and positions
 
 Each schedule's files go to build/chaos/runs/<seed>/: the script
 (schedule.scn), the console log, the bench summary and the verdict. Seeds
@@ -16,14 +18,17 @@ import argparse
 import hashlib
 import json
 import os
+import re
 import shlex
 import subprocess
 import sys
+import tempfile
 import time
 from collections import Counter
 from concurrent.futures import ThreadPoolExecutor, as_completed
 from pathlib import Path
 
+from . import bustrace as bt
 from . import check as chk
 from . import robots as rb
 from . import schedule as sc
@@ -245,6 +250,51 @@ def run_many(seeds: list[int], jobs: int, quiet: bool = False) -> list[dict]:
     return sorted(results, key=lambda r: r["seed"])
 
 
+def trace(seed: int, tendon: int, t0: float, t1: float) -> int:
+    """Runs the seed's bench command again up to t1 with --trace-bus and
+    prints, from t0 on, the console and tendon's goals and positions."""
+    rundir = RUNS / str(seed)
+    cmdfile = rundir / "command.txt"
+    if not cmdfile.exists():
+        print(f"{cmdfile} missing: run `python -m tests.chaos replay {seed}` first",
+              file=sys.stderr)
+        return 2
+    if t1 <= t0:
+        print(f"--to {t1} is not after --from {t0}", file=sys.stderr)
+        return 2
+    cmd = shlex.split(cmdfile.read_text())
+    plant = Path(cmd[cmd.index("--plant") + 1])
+    ids = {}
+    for ln in plant.read_text().splitlines():
+        m = re.match(r"tendon\.(\d+)\.servo_id\s*=\s*(\d+)", ln.strip())
+        if m:
+            ids[int(m.group(1))] = int(m.group(2))
+    if tendon not in ids:
+        print(f"tendon {tendon}: the robot has tendons 0-{len(ids) - 1}", file=sys.stderr)
+        return 2
+    with tempfile.TemporaryDirectory() as tmp:
+        # a fresh EEPROM and summary, as the schedule's own run began
+        for opt, name in (("--eeprom", "eeprom.bin"), ("--summary", "summary.json"),
+                          ("--limit", None)):
+            i = cmd.index(opt)
+            cmd[i + 1] = f"{t1:.3f}s" if name is None else str(Path(tmp) / name)
+        p = subprocess.run(cmd + ["--trace-bus"], capture_output=True, text=True, cwd=ROOT)
+    rows = [(e.t_s, (e.kind, e.addr), bt.describe(e))
+            for e in bt.decode(p.stderr.splitlines(), tendon, ids[tendon])]
+    for ln in p.stdout.splitlines():
+        m = re.match(r"^\[\s*([0-9.]+)\]\s(.*)$", ln)
+        if m:
+            rows.append((float(m.group(1)), None, "console " + m.group(2)))
+    last: dict = {}
+    for t, key, text in sorted(rows, key=lambda r: r[0]):
+        # a goal sent again each cycle, a position read unchanged: shown once
+        if t0 <= t <= t1 and (key is None or last.get(key) != text):
+            print(f"{t:10.5f}  {text}")
+        if key is not None:
+            last[key] = text
+    return 0
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m tests.chaos", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -258,6 +308,14 @@ def main(argv=None) -> int:
     d = sub.add_parser("recheck", help="check N earlier runs again (no bench run)")
     d.add_argument("-n", type=int, default=20)
     d.add_argument("--seed0", type=int, default=1)
+    e = sub.add_parser("trace", help="one tendon's goals and positions on the bus, with the "
+                       "console, in a window of a replayed schedule")
+    e.add_argument("seed", type=int)
+    e.add_argument("tendon", type=int)
+    e.add_argument("--from", dest="t0", type=float, default=0.0, metavar="S",
+                   help="window start, simulated seconds")
+    e.add_argument("--to", dest="t1", type=float, required=True, metavar="S",
+                   help="window end (the bench stops there)")
     c = sub.add_parser("seeds", help="the seeds listed in a file")
     c.add_argument("file", type=Path)
     c.add_argument("--jobs", type=int, default=os.cpu_count() or 2)
@@ -276,6 +334,8 @@ def main(argv=None) -> int:
             for m in msgs:
                 print(f"  {k}: {m}")
         return 1 if r["violations"] else 0
+    if args.cmd == "trace":
+        return trace(args.seed, args.tendon, args.t0, args.t1)
     if args.cmd == "recheck":
         pool = rb.pool()
         seeds = [s for s in range(args.seed0, args.seed0 + args.n)

@@ -14,6 +14,7 @@ import subprocess
 
 import pytest
 
+from . import bustrace as bt
 from . import check as chk
 from . import robots as rb
 from . import runner
@@ -441,3 +442,31 @@ def test_short_travel_homes_are_not_early(pool):
         assert p.returncode == 0, p.stderr[-400:]
         homes = [t["tension_at_home_mN"] for t in json.loads(summ.read_text())["tendons"]]
         assert min(homes) >= 280.0, f"seed {seed}: {homes}"
+
+
+def _bus_lines(src: str, data: list[int], t_us: int) -> list[str]:
+    who = "mcu" if src == "mcu" else f"servo {src}"
+    return [f"bus {t_us + 11 * i:8d} us {who} {b:02X} start {t_us + 11 * i}"
+            for i, b in enumerate(data)]
+
+
+def test_bustrace_reads_a_servos_goal_and_position():
+    def le(v):
+        return list((v & 0xFFFFFFFF).to_bytes(4, "little"))
+    write = [0x6C, 0x00, 0x0C, 0x00] + [1] + le(0) + le(90) + le(-154) + [2] + le(0) + le(60) + le(217)
+    read = [0x84, 0x00, 0x04, 0x00, 1, 2]
+    lines = (_bus_lines("mcu", [0xFF, 0xFF, 0xFD, 0x00, 0xFE, len(write) + 3, 0, 0x83] + write
+                        + [0, 0], 1000)
+             + _bus_lines("mcu", [0xFF, 0xFF, 0xFD, 0x00, 0xFE, len(read) + 3, 0, 0x8A] + read
+                          + [0, 0], 2000)
+             + _bus_lines("0", [0xFF, 0xFF, 0xFD, 0x00, 0xFE, 19, 0, 0x55, 0, 1] + le(209)
+                          + [0, 0], 3000)
+             + _bus_lines("1", [0x80, 2] + le(-211) + [0, 0], 3200)
+             + _bus_lines("mcu", [0xFF], 4000))
+    ev = bt.decode(lines, 1, 2)
+    assert [(e.kind, e.addr, e.values, e.error) for e in ev] == [
+        ("write", 108, [0, 60, 217], 0), ("read", 132, [-211], 0x80)]
+    assert bt.describe(ev[0]) == "goal 217 at 60 units"
+    assert bt.describe(ev[1]) == "position -211 (error 0x80)"
+    first = bt.decode(lines, 0, 1)
+    assert [(e.kind, e.values) for e in first] == [("write", [0, 90, -154]), ("read", [209])]
