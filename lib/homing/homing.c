@@ -389,7 +389,20 @@ HOM_NOINLINE static void load_tendon(hom_t *h, uint8_t i)
      * for a late engagement. */
     t->margin_ticks =
         hom_um_to_ticks(margin_um(&h->cfg, h->tension_mN, pt.travel_um), row.nm_per_tick);
-    t->limit_ticks = hom_muldiv((int32_t)row.travel_limit_um, 1000, (int32_t)row.nm_per_tick);
+    /* The bounded pull (docs/homing.md): no further past the engagement
+     * than where the tension could pass 1.25 x the run's + HOM_BOUND_MN on
+     * the robot the table describes, the travel taken in proportion to the
+     * tension. The field decides where a tendon stops; this bounds what a
+     * field that lies can ask (an ambient step against the tendon's own
+     * field, chaos seeds 13456 and 19952: 1.41 and 2.10 x the target). The
+     * engagement is the last position seen slack, at or short of the real
+     * one, so the bound errs short (hom_over_limit()). */
+    q8 = hom_muldiv((int32_t)pt.travel_um, h->tension_mN + h->tension_mN / 4u + HOM_BOUND_MN,
+                    h->tension_mN);
+    if (q8 > (int32_t)row.travel_limit_um) {
+        q8 = (int32_t)row.travel_limit_um;
+    }
+    t->limit_ticks = hom_muldiv(q8, 1000, (int32_t)row.nm_per_tick);
     if (t->limit_ticks > HOM_RELEASE_REACH_TICKS) {
         t->limit_ticks = HOM_RELEASE_REACH_TICKS;
     }
