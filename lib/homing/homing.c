@@ -392,13 +392,12 @@ HOM_NOINLINE static void load_tendon(hom_t *h, uint8_t i)
     /* The bounded pull (docs/homing.md): no further past the engagement
      * than where the tension could pass 1.25 x the run's + HOM_BOUND_MN on
      * the robot the table describes, the travel taken in proportion to the
-     * tension. The field decides where a tendon stops; this bounds what a
-     * field that lies can ask (an ambient step against the tendon's own
-     * field, chaos seeds 13456 and 19952: 1.41 and 2.10 x the target). The
-     * engagement is the last position seen slack, at or short of the real
-     * one, so the bound errs short (hom_over_limit()). */
-    q8 = hom_muldiv((int32_t)pt.travel_um, h->tension_mN + h->tension_mN / 4u + HOM_BOUND_MN,
-                    h->tension_mN);
+     * tension and a HOM_BOUND_SHORT-th short. The field decides where a tendon stops; this bounds
+     * what a field that lies can ask (an ambient step against the tendon's own field, chaos seeds
+     * 13456 and 19952: 1.41 and 2.10 x the target). The engagement is the last position seen slack,
+     * at or short of the real one, so the bound errs short (hom_over_limit()). */
+    q8 = hom_muldiv((int32_t)(pt.travel_um - pt.travel_um / HOM_BOUND_SHORT),
+                    h->tension_mN + h->tension_mN / 4u + HOM_BOUND_MN, h->tension_mN);
     if (q8 > (int32_t)row.travel_limit_um) {
         q8 = (int32_t)row.travel_limit_um;
     }
