@@ -178,12 +178,55 @@ static void test_undisturbed_runs_are_not_limited(void **state)
     }
 }
 
+/* An engagement found at the take-up's top speed (265 units, about 40
+ * ticks a sample) is the last position seen slack, up to a sample's run
+ * short of the real one: the home then lies past the bounded pull's limit
+ * measured from it. The tendon goes back to slack and searches for its
+ * engagement again, slowly (a second phase event for the tendon), and the
+ * run completes with every home where it belongs. (A take-up this fast
+ * runs on past the engagement before the moderate speed takes over and
+ * breaks the bounded pull by itself: the default ties its speed to the
+ * travel, 2 units a tick, for that.) */
+static void test_an_early_engagement_is_searched_again(void **state)
+{
+    plant_run_cfg_t rc;
+    hom_config_t hc;
+    unsigned run, retakes = 0;
+    uint16_t e;
+    uint8_t i;
+    (void)state;
+    use_robot("paper_2seg.cfg");
+    for (run = 0; run < 6u; run++) {
+        unsigned phases = 0;
+        hom_config_default(&hc);
+        hc.v_fast = 265;
+        hc.takeup_per_tick = 255;
+        plant_run_defaults(&rc, &g_cfg, hom_fix_pack(&g_tab));
+        rc.hom = &hc;
+        rc.cmd.tension_mN = 800;
+        rc.seed = 60u + run;
+        rc.sample_lag_ms = (uint8_t)(2u * run);
+        assert_int_equal(plant_run(&rc, &g_res), 0);
+        assert_int_equal(g_res.rc, 0);
+        for (e = 0; e < g_res.n_events; e++) {
+            phases += g_res.events[e].type == HOM_EV_PHASE && g_res.events[e].code == HOM_PH_TENDON;
+        }
+        retakes += phases - g_res.n_tendons;
+        for (i = 0; i < g_res.n_tendons; i++) {
+            assert_true(fabs(g_res.err_ticks[i]) <= 1.0);
+        }
+    }
+    print_message("6 runs at the top take-up speed: %u tendons searched again\n", retakes);
+    assert_true(retakes > 0u);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_steps_that_pulled_past_the_bound),
         cmocka_unit_test(test_random_steps_hold_the_bound),
         cmocka_unit_test(test_undisturbed_runs_are_not_limited),
+        cmocka_unit_test(test_an_early_engagement_is_searched_again),
     };
     return cmocka_run_group_tests(tests, group_setup, NULL);
 }
