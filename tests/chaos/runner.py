@@ -281,10 +281,7 @@ def trace(seed: int, tendon: int, t0: float, t1: float) -> int:
         p = subprocess.run(cmd + ["--trace-bus"], capture_output=True, text=True, cwd=ROOT)
     rows = [(e.t_s, (e.kind, e.addr), bt.describe(e))
             for e in bt.decode(p.stderr.splitlines(), tendon, ids[tendon])]
-    for ln in p.stdout.splitlines():
-        m = re.match(r"^\[\s*([0-9.]+)\]\s(.*)$", ln)
-        if m:
-            rows.append((float(m.group(1)), None, "console " + m.group(2)))
+    rows += [(t, None, "console " + text) for t, text in chk.parse_console(p.stdout)]
     last: dict = {}
     for t, key, text in sorted(rows, key=lambda r: r[0]):
         # a goal sent again each cycle, a position read unchanged: shown once
