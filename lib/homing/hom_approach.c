@@ -63,6 +63,10 @@ HOM_NOINLINE void hom_begin_tendon(hom_t *h, uint8_t i)
     if (v > h->cfg.v_fast) {
         v = h->cfg.v_fast;
     }
+    if (h->retake != 0u) {
+        /* hom_over_limit(): a sample's run, a thirteenth of the travel */
+        v = (uint16_t)((uint16_t)t->travel_ticks / 2u + 1u);
+    }
     h->cur = i;
     h->t_tendon = h->now_ms;
     h->have_prev = 0;
@@ -76,7 +80,11 @@ HOM_NOINLINE void hom_begin_tendon(hom_t *h, uint8_t i)
     h->slope_q8 = hom_table_slope(h, i);
     h->slope_min_q8 = (h->slope_q8 >> 1) + 1; /* at least 1: a divisor */
     h->pos_at_sample = h->present[i];
-    h->takeup_from = h->present[i];
+    if (h->retake == 0u) {
+        /* a fault's release goes back at least here: a tendon far softer
+         * than its table is taut where a search again starts */
+        h->takeup_from = h->present[i];
+    }
     t->engaged = 0;
     t->retries = 0;
     hom_phase_event(h, HOM_PH_TENDON, i);
@@ -98,18 +106,37 @@ HOM_NOINLINE void hom_begin_tendon(hom_t *h, uint8_t i)
     h->state = ST_TAKEUP;
 }
 
+/* The target of the current tendon lies d ticks past its engagement,
+ * beyond its limit. That limit is often the bounded pull's (bound_limit(),
+ * homing.c), and the engagement it is measured from may be the cause:
+ * found at the take-up's speed, it is the last position seen slack, up to
+ * a sample's run (a third of the travel) short of the real one, and the
+ * bound leaves less room than that at 1 N and more. So, once a tendon, it
+ * goes back to slack and searches for its engagement again, at half a unit
+ * of speed per tick of travel (a sample's run is a thirteenth of it); the
+ * next time the run ends in HOM_F_TRAVEL_LIMIT. */
+HOM_NOINLINE void hom_over_limit(hom_t *h, int32_t d)
+{
+    if (h->retake == 0u) {
+        h->retake = 1;
+        hom_back_off(h);
+        return;
+    }
+    hom_fail_tendon(h, HOM_F_TRAVEL_LIMIT, d);
+}
+
 /* Faults when position x of the engaged tendon lies beyond its travel limit
  * past engagement. Returns 1 if it did. */
 HOM_NOINLINE static int beyond_limit(hom_t *h, int32_t x)
 {
     const hom_tendon_t *t = hom_cur(h);
     int32_t d;
-    if (!t->engaged) {
-        return 0;
+    if (!t->engaged || h->retake == 1u) {
+        return 0; /* hom_over_limit() backs off from beyond it */
     }
     d = hom_pull(t, x - t->engage);
     if (d > t->limit_ticks) {
-        hom_fail_tendon(h, HOM_F_TRAVEL_LIMIT, d);
+        hom_over_limit(h, d);
         return 1;
     }
     return 0;
@@ -415,7 +442,10 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
         }
         break;
     case ST_BACKOFF:
-        if (hom_reached(h, h->cur)) {
+        if (hom_reached(h, h->cur) && h->retake == 1u) {
+            h->retake = 2;
+            hom_begin_tendon(h, h->cur);
+        } else if (hom_reached(h, h->cur)) {
             begin_moderate(h);
         }
         break;

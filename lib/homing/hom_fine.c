@@ -185,6 +185,7 @@ HOM_NOINLINE static void finish_tendon(hom_t *h, int32_t p, int32_t fallback)
     t->home = hom_floor_div256(home_q8);
     h->home_res = home_q8 - t->home * 256;
     t->home_frac = (int8_t)h->home_res;
+    h->retake = 0; /* the next tendon's take-up at its own speed */
     h->home_dB = hom_delta_of(h, t->sensor, h->sensor[t->sensor].last);
     hom_set_goal(h, h->cur, hom_slack_goal(t), h->cfg.v_release);
     hom_enter(h, ST_TENDON_RELEASE);
@@ -381,7 +382,7 @@ void hom_fine_point(hom_t *h)
          * output) can read almost no rise: its step goes by the table's
          * slope instead, within the room left. */
         if (h->far) {
-            hom_fail_tendon(h, HOM_F_TRAVEL_LIMIT, hom_pull(t, p - t->engage) + r_q8 / 256);
+            hom_over_limit(h, hom_pull(t, p - t->engage) + r_q8 / 256);
             return;
         }
         h->far = 1;

@@ -389,16 +389,32 @@ HOM_NOINLINE static void load_tendon(hom_t *h, uint8_t i)
      * for a late engagement. */
     t->margin_ticks =
         hom_um_to_ticks(margin_um(&h->cfg, h->tension_mN, pt.travel_um), row.nm_per_tick);
-    t->limit_ticks = hom_muldiv((int32_t)row.travel_limit_um, 1000, (int32_t)row.nm_per_tick);
-    if (t->limit_ticks > HOM_RELEASE_REACH_TICKS) {
-        t->limit_ticks = HOM_RELEASE_REACH_TICKS;
-    }
     q8 = hom_straight_q8(t, pt.straight_um);
     t->to_straight = (int16_t)hom_floor_div256(q8);
     t->straight_frac = (int8_t)(q8 - (int32_t)t->to_straight * 256);
     /* the engagement threshold is at most a quarter of every delta target */
     if (pt.target_cuT / 4u < h->engage_cuT) {
         h->engage_cuT = pt.target_cuT / 4u;
+    }
+    /* The bounded pull (docs/homing.md): no further past the engagement
+     * than where the tension could pass 1.25 x the run's + HOM_BOUND_MN on
+     * the robot the table describes, the travel taken in proportion to the
+     * tension and a HOM_BOUND_SHORT-th short. The engagement is the last
+     * position seen below the threshold, where the tendon may already carry
+     * the threshold's share of the target (its field's): that much less.
+     * The field decides where a tendon stops; this bounds what a field that
+     * lies can ask (an ambient step against the tendon's own field, chaos
+     * seeds 13456, 19346 and 19952: 1.39-2.10 x the target). */
+    q8 = hom_muldiv((int32_t)(pt.travel_um - pt.travel_um / HOM_BOUND_SHORT),
+                    h->tension_mN + h->tension_mN / 4u + HOM_BOUND_MN -
+                        hom_muldiv(h->tension_mN, (int32_t)h->engage_cuT, (int32_t)pt.target_cuT),
+                    h->tension_mN);
+    if (q8 > (int32_t)row.travel_limit_um) {
+        q8 = (int32_t)row.travel_limit_um;
+    }
+    t->limit_ticks = hom_muldiv(q8, 1000, (int32_t)row.nm_per_tick);
+    if (t->limit_ticks > HOM_RELEASE_REACH_TICKS) {
+        t->limit_ticks = HOM_RELEASE_REACH_TICKS;
     }
     /* absolute mode: the engagement threshold stays the delta mode's; the
      * target becomes the distance of |B_magnet(p_T)| from |b_straight| */

@@ -244,6 +244,18 @@ typedef struct {
 #define HOM_RELEASE_REACH_MS    85L
 #define HOM_RELEASE_REACH_TICKS 352L
 
+/* The bounded pull (docs/homing.md): a tendon's true tension stays below
+ * 1.25 x the run's tension + HOM_BOUND_MN before its home is recorded.
+ * Besides the field's own checks, the homing never pulls further past the
+ * engagement than the table's travel at that tension. */
+#define HOM_BOUND_MN 100u
+/* The table's travel is taken a sixteenth short: a robot may be
+ * stiffer than its table says. The bench's plant is 2-4 % stiffer than the
+ * host's model of the chaos pool's robots at that travel, and the path's
+ * friction adds about 2 % while pulling; at the full travel an ambient step
+ * took chaos seeds 13456, 19952 and 19346 to 1.39-1.45 x at 0.8 N. */
+#define HOM_BOUND_SHORT 16u
+
 typedef struct {
     uint16_t v_fast;             /* take-up before engagement, 0.229 rpm units */
     uint16_t v_moderate;         /* engagement to near the target */
@@ -339,6 +351,8 @@ typedef struct {
     uint8_t n_near;      /* fine: samples to average at a near point */
     uint8_t n_pts;       /* fine: near points kept */
     uint8_t far;         /* fine: the last point put the target beyond the travel limit */
+    uint8_t retake;      /* the current tendon reached its bounded pull's limit: 1 backing off
+                            to search its engagement again, 2 searching slowly (hom_over_limit()) */
     uint8_t b_low;       /* pull: samples in a row below the field's floor by more than the
                             tolerance */
     uint8_t read_gap_ms; /* the current servo's last gap between two position reads */

@@ -304,6 +304,10 @@ int plant_run(const plant_run_cfg_t *rc, plant_run_result_t *res)
             if (plant.tension_N[i] > res->max_tension_N[i]) {
                 res->max_tension_N[i] = plant.tension_N[i];
             }
+            if (h.cur == i && pulling && h.state != ST_FINAL && h.tendon[i].have_home != 1u &&
+                plant.tension_N[i] > res->max_pull_N[i]) {
+                res->max_pull_N[i] = plant.tension_N[i];
+            }
             {
                 double m = (double)pull_dir[i] * (double)plant_servo_present(&servo[i]);
                 if (plant.tension_N[i] < 1e-3 || m > far[i]) {

@@ -92,6 +92,9 @@ typedef struct {
     double final_tension_N[TBL_MAX_TENDONS];       /* spool tensions at the end (all at home) */
     double max_past_engage_ticks[TBL_MAX_TENDONS]; /* deepest pull past the detected engagement */
     double max_tension_N[TBL_MAX_TENDONS];         /* highest spool tension during the run */
+    double max_pull_N[TBL_MAX_TENDONS];            /* highest spool tension while the tendon was
+                                                      the one pulled and had no home yet: the
+                                                      bounded pull (docs/homing.md) */
     double max_behind_ticks[TBL_MAX_TENDONS];      /* deepest a fine point of the tendon was
                                                       taken behind the furthest its servo
                                                       had been since it was last slack: the

@@ -489,7 +489,8 @@ static void fault_in_pull(plant_run_cfg_t *rc, uint8_t k, plant_fault_t f, doubl
  * field no longer shows went on to the travel limit (chaos seed 8390: the
  * magnet removed, 4.9 x the target). Again on the slow bus of 12 servos
  * (positions every 12 ms, samples 5 ms late): there a fall the fine points
- * see first ends in HOM_F_NO_PROGRESS on the tendon, which is as safe. */
+ * see first ends in HOM_F_NO_PROGRESS on the tendon, which is as safe, as
+ * is HOM_F_TRAVEL_LIMIT, the bounded pull's limit reached first. */
 static void test_field_falls_while_pulling(void **state)
 {
     plant_run_cfg_t rc;
@@ -499,7 +500,7 @@ static void test_field_falls_while_pulling(void **state)
     for (k = 0; k < 2u * n; k++) {
         uint8_t i = k % n;
         fault_in_pull_on(&rc, i, PLANT_FI_FIELD_FALL, 0.3 + 0.1 * i, k >= n);
-        if (k >= n && g_res.fault == HOM_F_NO_PROGRESS) {
+        if ((k >= n && g_res.fault == HOM_F_NO_PROGRESS) || g_res.fault == HOM_F_TRAVEL_LIMIT) {
             assert_int_equal(g_res.fault_index, i);
         } else {
             assert_int_equal(g_res.fault, HOM_F_FIELD_STEP);
@@ -526,8 +527,13 @@ static void test_field_stuck_while_pulling(void **state)
     (void)state;
     for (k = 0; k < g_tab.n_tendons; k++) {
         fault_in_pull(&rc, k, PLANT_FI_FIELD_STUCK, k == 2u ? 0.8 : 0.5 + 0.08 * k);
-        assert_true(g_res.fault == HOM_F_NO_PROGRESS || g_res.fault == HOM_F_TRAVEL_LIMIT);
-        assert_int_equal(g_res.fault_index, k);
+        /* field_step: the bounded pull's limit reached, the search for the
+         * engagement again finds the field changed while slack */
+        assert_true(g_res.fault == HOM_F_NO_PROGRESS || g_res.fault == HOM_F_TRAVEL_LIMIT ||
+                    g_res.fault == HOM_F_FIELD_STEP);
+        if (g_res.fault != HOM_F_FIELD_STEP) {
+            assert_int_equal(g_res.fault_index, k); /* field_step names the sensor */
+        }
         assert_bounded_and_released(&rc);
     }
 }
@@ -668,14 +674,19 @@ static void test_soft_tendon_released(void **state)
     plant_run_defaults(&rc, &cfg, hom_fix_pack(&g_tab));
     rc.seed = 7;
     assert_int_equal(plant_run(&rc, &g_res), 0);
-    assert_true(g_res.fault == HOM_F_TRAVEL_LIMIT || g_res.fault == HOM_F_NO_PROGRESS);
+    /* the bounded pull's limit, then the slow search for its engagement
+     * again (hom_over_limit()), which finds the field changed before the
+     * tendon could have engaged: field_step */
+    assert_true(g_res.fault == HOM_F_TRAVEL_LIMIT || g_res.fault == HOM_F_NO_PROGRESS ||
+                g_res.fault == HOM_F_FIELD_STEP);
     assert_int_equal(g_res.fault_index, 0);
-    print_message("soft tendon: release to slack %u ms\n", (unsigned)g_res.release_ms);
+    print_message("soft tendon: %s, release to slack %u ms\n", hom_fault_name(g_res.fault),
+                  (unsigned)g_res.release_ms);
     assert_true(g_res.released && g_res.release_ms <= 100u);
 }
 
-/* A table whose travel limit lies beyond what the servo unwinds within the
- * release bound (chaos seed 11282: a tendon 50 x softer than its table,
+/* A table whose travel limit and bounded pull lie beyond what the servo
+ * unwinds within the release bound (chaos seed 11282: a tendon 50 x softer than its table,
  * stretched 2.36 mm towards a 2.5 mm limit, slack only 105 ms after the
  * fault). Tendon 0 made softer step by step, so that its target lies ever
  * further past its engagement: the pull never goes further than
@@ -697,6 +708,12 @@ static void test_travel_limit_within_the_release_reach(void **state)
     for (soft = 16; soft <= 40; soft += 4) {
         cfg = g_cfg;
         cfg.tendon[0].ea_N /= (double)soft;
+        /* the table says the tendon is soft too, so that the bounded pull's
+         * limit (its travel at 1.25 x the tension + 0.1 N) is beyond the
+         * release reach and the reach is the limit in force */
+        for (i = 0; i < tab.n_grid; i++) {
+            tab.tendons[0].travel_um[i] = g_tab.tendons[0].travel_um[i] * 8u;
+        }
         plant_run_defaults(&rc, &cfg, hom_fix_pack(&tab));
         rc.seed = soft;
         assert_int_equal(plant_run(&rc, &g_res), 0);

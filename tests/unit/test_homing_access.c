@@ -256,6 +256,9 @@ static void test_floor_slope_within_half_a_tick_records_the_home(void **state)
     x = (uint32_t)g_h.slope_min_q8 / 1024u + 2u; /* floor: under half a tick short */
     t->engaged = 1;
     t->engage = p - hom_pull(t, 20);
+    /* the measured slope's remainder (about 97 ticks) is what the floor
+     * overrules: not the bounded pull's limit (hom_over_limit()) */
+    t->limit_ticks = HOM_RELEASE_REACH_TICKS;
     g_h.state = ST_FINE_AVG;
     g_h.near = 1;
     g_h.have_prev = 1;

@@ -1,0 +1,232 @@
+/* The bounded pull under ambient field steps (docs/homing.md, "Bounded
+ * pull"). A step of up to 30 uT per axis on one sensor, at a random moment
+ * of a calibration, turns or cancels part of a tendon's own field change.
+ * One magnetometer cannot tell it from the tendon: a step against the
+ * tendon's field asks for more pull, and where the field flattens near the
+ * target a small step asks for much more. The field's own checks end such
+ * a run in field_step, but only after the pull (chaos seeds 13456, 19346,
+ * 19952: 1.41-2.10 x the target). The homing now never pulls a tendon past
+ * its engagement further than the table's travel at 1.25 x the tension +
+ * 100 mN; a target beyond that searches for the engagement once more,
+ * slowly, then ends in travel_limit. Measured by the plant: the highest
+ * tension of each tendon while it was pulled and had no home yet
+ * (max_pull_N). Every run here holds 1.25 x the target + 0.1 N. */
+#include <math.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <cmocka.h>
+
+#include "hom_fixture.h"
+
+static plant_cfg_t g_cfg;
+static tbl_wide_t g_tab;
+static plant_run_result_t g_res;
+
+/* The robots, each loaded (and its table computed) once. */
+static const char *const g_names[] = {"paper_2seg.cfg", "c3s9_pass.cfg", "c3s12t3k9ccfb.cfg"};
+static plant_cfg_t g_cfgs[3];
+static tbl_wide_t g_tabs[3];
+
+static int group_setup(void **state)
+{
+    unsigned r;
+    (void)state;
+    for (r = 0; r < 3u; r++) {
+        if (hom_fix_load(g_names[r], &g_cfgs[r], &g_tabs[r]) != 0) {
+            return -1;
+        }
+    }
+    return 0;
+}
+
+static void use_robot(const char *cfg)
+{
+    unsigned r;
+    for (r = 0; r < 3u; r++) {
+        if (strcmp(cfg, g_names[r]) == 0) {
+            g_cfg = g_cfgs[r];
+            g_tab = g_tabs[r];
+            return;
+        }
+    }
+    fail_msg("robot %s not loaded", cfg);
+}
+
+/* A uniform draw in [0, 1) from a linear congruence (the scan that found
+ * the cases below drew its steps so). */
+static double draw(uint32_t *s)
+{
+    *s = *s * 1664525u + 1013904223u;
+    return (double)(*s >> 8) / 16777216.0;
+}
+
+/* Run `run` of the series s0 on robot `cfg` at tension_mN: bus timing from
+ * the run number, and with `step`, an ambient step on a random sensor at a
+ * random moment. Returns the worst pull over the bound's share (<= 1: held). */
+static double run_one(const char *cfg, uint32_t s0, unsigned run, uint16_t tension_mN, int step)
+{
+    plant_run_cfg_t rc;
+    uint32_t rs = s0 * 7919u + run * 104729u + 1u;
+    double bound = 1.25 * tension_mN * 1e-3 + 0.1;
+    double worst = 0.0;
+    uint8_t i, a;
+    use_robot(cfg);
+    plant_run_defaults(&rc, &g_cfg, hom_fix_pack(&g_tab));
+    rc.seed = s0 + 500u + run;
+    rc.pos_period_ms = (uint8_t)(6u + run % 13u);
+    rc.goal_lag_ms = (uint8_t)(2u + run % 11u);
+    rc.sample_lag_ms = (uint8_t)(run % 13u);
+    rc.cmd.tension_mN = tension_mN;
+    if (step) {
+        rc.fault = PLANT_FI_FIELD_JUMP;
+        rc.fault_index = (uint8_t)(draw(&rs) * g_cfg.n_sensors);
+        rc.fault_ms = (uint32_t)(300.0 + draw(&rs) * 1300.0 * g_cfg.n_tendons);
+        for (a = 0; a < 3u; a++) {
+            rc.jump_uT[a] = round((draw(&rs) * 60.0 - 30.0) * 10.0) / 10.0;
+        }
+        if (rc.jump_uT[0] == 0.0) {
+            rc.jump_uT[0] = 0.1; /* all zero would be the plant's 3 mT default */
+        }
+    }
+    assert_int_equal(plant_run(&rc, &g_res), 0);
+    for (i = 0; i < g_res.n_tendons; i++) {
+        if (g_res.max_pull_N[i] / bound > worst) {
+            worst = g_res.max_pull_N[i] / bound;
+        }
+    }
+    if (worst > 1.0) {
+        print_message("%s at %u mN, run %u: %.3f of the bound (%s)\n", cfg, tension_mN, run, worst,
+                      hom_fault_name(g_res.fault));
+    }
+    return worst;
+}
+
+/* The runs of the scan that went past the bound before the limit: 3.76 N
+ * (2.51 x) on c3s12t3k9ccfb, 2.02 N (1.34 x, bound 1.975 N) on c3s9_pass,
+ * each at 1.5 N, each ending in field_step or travel_limit only after the
+ * pull. */
+static void test_steps_that_pulled_past_the_bound(void **state)
+{
+    static const struct {
+        const char *cfg;
+        unsigned run;
+    } cases[] = {{"c3s12t3k9ccfb.cfg", 13},
+                 {"c3s12t3k9ccfb.cfg", 38},
+                 {"c3s12t3k9ccfb.cfg", 60},
+                 {"c3s9_pass.cfg", 6},
+                 {"c3s9_pass.cfg", 60}};
+    unsigned k;
+    (void)state;
+    for (k = 0; k < sizeof cases / sizeof cases[0]; k++) {
+        double w = run_one(cases[k].cfg, 1000u, cases[k].run, 1500u, 1);
+        print_message("%s run %u: worst pull %.3f of the bound, %s\n", cases[k].cfg, cases[k].run,
+                      w, hom_fault_name(g_res.fault));
+        assert_true(w <= 1.0);
+    }
+}
+
+/* Random steps on three robots at 0.8 and 1.5 N. */
+static void test_random_steps_hold_the_bound(void **state)
+{
+    const char *const *robots = g_names;
+    static const uint16_t tensions[] = {800u, 1500u};
+    unsigned r, t, run, faults = 0, n = 0;
+    double worst = 0.0;
+    (void)state;
+    for (r = 0; r < 3u; r++) {
+        for (t = 0; t < 2u; t++) {
+            for (run = 0; run < 6u; run++) {
+                double w = run_one(robots[r], 3000u, run, tensions[t], 1);
+                worst = w > worst ? w : worst;
+                faults += g_res.rc != 0;
+                n++;
+            }
+        }
+    }
+    print_message("%u runs with a step: %u ended in a fault, worst pull %.3f of the bound\n", n,
+                  faults, worst);
+    assert_true(worst <= 1.0);
+}
+
+/* Undisturbed, the limit never stops a calibration: no travel_limit, every
+ * home found, on the robots above at 0.3 and 0.8 N (the engagement found at
+ * the take-up's speed may be a third of the travel early, and then the
+ * search again finds it). */
+static void test_undisturbed_runs_are_not_limited(void **state)
+{
+    const char *const *robots = g_names;
+    static const uint16_t tensions[] = {300u, 800u};
+    unsigned r, t, run;
+    (void)state;
+    for (r = 0; r < 3u; r++) {
+        for (t = 0; t < 2u; t++) {
+            for (run = 0; run < 4u; run++) {
+                double w = run_one(robots[r], 4000u, run, tensions[t], 0);
+                if (g_res.rc != 0) {
+                    print_message("%s at %u mN run %u: %s\n", robots[r], tensions[t], run,
+                                  hom_fault_name(g_res.fault));
+                }
+                assert_int_equal(g_res.rc, 0);
+                assert_true(w <= 1.0);
+            }
+        }
+    }
+}
+
+/* An engagement found at the take-up's top speed (265 units, about 40
+ * ticks a sample) is the last position seen slack, up to a sample's run
+ * short of the real one: the home then lies past the bounded pull's limit
+ * measured from it. The tendon goes back to slack and searches for its
+ * engagement again, slowly (a second phase event for the tendon), and the
+ * run completes with every home where it belongs. (A take-up this fast
+ * runs on past the engagement before the moderate speed takes over and
+ * breaks the bounded pull by itself: the default ties its speed to the
+ * travel, 2 units a tick, for that.) */
+static void test_an_early_engagement_is_searched_again(void **state)
+{
+    plant_run_cfg_t rc;
+    hom_config_t hc;
+    unsigned run, retakes = 0;
+    uint16_t e;
+    uint8_t i;
+    (void)state;
+    use_robot("paper_2seg.cfg");
+    for (run = 0; run < 6u; run++) {
+        unsigned phases = 0;
+        hom_config_default(&hc);
+        hc.v_fast = 265;
+        hc.takeup_per_tick = 255;
+        plant_run_defaults(&rc, &g_cfg, hom_fix_pack(&g_tab));
+        rc.hom = &hc;
+        rc.cmd.tension_mN = 800;
+        rc.seed = 60u + run;
+        rc.sample_lag_ms = (uint8_t)(2u * run);
+        assert_int_equal(plant_run(&rc, &g_res), 0);
+        assert_int_equal(g_res.rc, 0);
+        for (e = 0; e < g_res.n_events; e++) {
+            phases += g_res.events[e].type == HOM_EV_PHASE && g_res.events[e].code == HOM_PH_TENDON;
+        }
+        retakes += phases - g_res.n_tendons;
+        for (i = 0; i < g_res.n_tendons; i++) {
+            assert_true(fabs(g_res.err_ticks[i]) <= 1.0);
+        }
+    }
+    print_message("6 runs at the top take-up speed: %u tendons searched again\n", retakes);
+    assert_true(retakes > 0u);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_steps_that_pulled_past_the_bound),
+        cmocka_unit_test(test_random_steps_hold_the_bound),
+        cmocka_unit_test(test_undisturbed_runs_are_not_limited),
+        cmocka_unit_test(test_an_early_engagement_is_searched_again),
+    };
+    return cmocka_run_group_tests(tests, group_setup, NULL);
+}
