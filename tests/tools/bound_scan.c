@@ -1,0 +1,99 @@
+/* hh_bound_scan CFG RUNS PERTURB TENSION_MN [STEP]: the bounded pull in the
+ * native closed loop. RUNS calibrations of the plant CFG (perturbed by the
+ * fraction PERTURB from the table computed from it), each with its own bus
+ * timing (positions every 6-18 ms, goals 2-12 ms late, samples 0-12 ms
+ * late) and, with STEP 1 (the default), an ambient step of up to 30 uT per
+ * axis on a random sensor at a random moment. Prints each run over 1.25 x
+ * the tension + 0.1 N (max_pull_N) and each fault of an undisturbed run,
+ * then one summary line: runs, faults, the worst pull, the mean time.
+ * S0 in the environment picks another series (default 1000). */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+
+#include "plant/closedloop.h"
+#include "table/table.h"
+#include "table/table_pack.h"
+
+static plant_cfg_t g_nom;
+static plant_cfg_t g_cfg;
+static tbl_wide_t g_w;
+static tbl_buf_t g_buf;
+static plant_run_result_t g_res;
+
+static double draw(uint32_t *s)
+{
+    *s = *s * 1664525u + 1013904223u;
+    return (double)(*s >> 8) / 16777216.0;
+}
+
+int main(int argc, char **argv)
+{
+    unsigned n, run, t_mN, n_over = 0, n_fault = 0;
+    unsigned s0 = getenv("S0") != NULL ? (unsigned)atoi(getenv("S0")) : 1000u;
+    double pert, bound, worst = 0.0, t_sum = 0.0;
+    int line = 0, step;
+    if (argc < 5) {
+        fprintf(stderr, "usage: hh_bound_scan CFG RUNS PERTURB TENSION_MN [STEP]\n");
+        return 2;
+    }
+    n = (unsigned)atoi(argv[2]);
+    pert = atof(argv[3]);
+    t_mN = (unsigned)atoi(argv[4]);
+    step = argc > 5 ? atoi(argv[5]) : 1;
+    bound = 1.25 * t_mN / 1000.0 + 0.1;
+    if (plant_cfg_load(&g_nom, argv[1], &line) != 0) {
+        fprintf(stderr, "%s: line %d\n", argv[1], line);
+        return 1;
+    }
+    if (plant_make_table(&g_nom, &g_w) != 0 || tbl_pack(&g_w, &g_buf) != 0) {
+        fprintf(stderr, "%s: no table\n", argv[1]);
+        return 1;
+    }
+    for (run = 0; run < n; run++) {
+        plant_run_cfg_t rc;
+        uint32_t rs = s0 * 7919u + run * 104729u + 1u;
+        double r = 0.0;
+        uint8_t i, a;
+        g_cfg = g_nom;
+        plant_cfg_perturb(&g_cfg, s0 + run, pert);
+        plant_run_defaults(&rc, &g_cfg, tbl_buf_table(&g_buf));
+        rc.seed = s0 + 500u + run;
+        rc.pos_period_ms = (uint8_t)(6u + run % 13u);
+        rc.goal_lag_ms = (uint8_t)(2u + run % 11u);
+        rc.sample_lag_ms = (uint8_t)(run % 13u);
+        rc.cmd.tension_mN = (uint16_t)t_mN;
+        if (step) {
+            rc.fault = PLANT_FI_FIELD_JUMP;
+            rc.fault_index = (uint8_t)(draw(&rs) * g_nom.n_sensors);
+            rc.fault_ms = (uint32_t)(300.0 + draw(&rs) * 1300.0 * g_nom.n_tendons);
+            for (a = 0; a < 3u; a++) {
+                rc.jump_uT[a] = round((draw(&rs) * 60.0 - 30.0) * 10.0) / 10.0;
+            }
+            if (rc.jump_uT[0] == 0.0) {
+                rc.jump_uT[0] = 0.1;
+            }
+        }
+        if (plant_run(&rc, &g_res) != 0) {
+            printf("run %u: the plant did not solve\n", run);
+            continue;
+        }
+        for (i = 0; i < g_res.n_tendons; i++) {
+            r = g_res.max_pull_N[i] > r ? g_res.max_pull_N[i] : r;
+        }
+        worst = r > worst ? r : worst;
+        t_sum += g_res.end_ms;
+        n_fault += g_res.rc != 0;
+        if (g_res.rc != 0 && !step) {
+            printf("run %u: undisturbed, fault %u on %u\n", run, g_res.fault, g_res.fault_index);
+        }
+        if (r > bound) {
+            n_over++;
+            printf("run %u: %.3f N (%.2f x), fault %u\n", run, r, r * 1000.0 / t_mN, g_res.fault);
+        }
+    }
+    printf("runs %u over the bound %u faults %u worst pull %.3f N (%.2f x, bound %.3f N) mean "
+           "%.0f ms\n",
+           n, n_over, n_fault, worst, worst * 1000.0 / t_mN, bound, n != 0u ? t_sum / n : 0.0);
+    return 0;
+}
