@@ -59,9 +59,12 @@ APP_NOINLINE void app_sense_poll(app_t *a, hom_in_t *in, uint32_t now_us)
         if (rc == 1) {
             uint8_t ax;
             o->status = (s.flags & ICM_SAMPLE_OVERFLOW) ? HOM_SENS_OVERFLOW : HOM_SENS_NEW;
+            /* quarter milliseconds: x 131 / 32768 is / 250.1 */
+            uint32_t age = ((uint32_t)(now_us - s.t_us) * 131u) >> 15;
             for (ax = 0; ax < 3u; ax++) {
                 o->b_cuT[ax] = (int32_t)s.raw[ax] * 15;
             }
+            o->age_q = (uint8_t)(age > 0xFFu ? 0xFFu : age);
         } else if (d.state == ICM_SET_S_FAIL && !d.present) {
             o->status = HOM_SENS_ABSENT;
         } else if ((uint8_t)d.error_count != a->sense.err[k]) {

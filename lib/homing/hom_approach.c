@@ -313,6 +313,45 @@ HOM_NOINLINE static void stop_short(hom_t *h, int32_t p)
     }
 }
 
+/* Where the current servo was when a sample age_q quarter milliseconds old
+ * was measured: back from the last position read along its profile
+ * velocity (1/256 tick per quarter millisecond per 0.229 rpm unit), by the
+ * time between the two, never behind where the take-up began. Still
+ * accelerating it was further back: the engagement comes out early, the
+ * side a bound is safe on. The sample's age is the sensor clock's estimate
+ * (icm_clock.h); a sample read up to 16 ms after it was measured put a
+ * take-up's engagement 20 ticks late (chaos seed 19346). */
+HOM_NOINLINE static int32_t pos_measured(const hom_t *h, uint8_t age_q)
+{
+    const hom_tendon_t *t = hom_cur(h);
+    int32_t q = (int32_t)age_q -
+                4 * (int32_t)(uint16_t)((uint16_t)h->now_ms - (uint16_t)h->servo_ok_ms[h->cur]);
+    int32_t p = h->present[h->cur];
+    if (q > 0) {
+        p -= hom_pull(t, (int32_t)(((uint32_t)q * h->out.vel[h->cur]) >> 8));
+    }
+    return hom_pull(t, p - h->takeup_from) < 0 ? h->takeup_from : p;
+}
+
+/* The engagement a take-up's first sample over the threshold (b, measured
+ * at pm) shows: where the field crossed the threshold, by the table's curve
+ * between the threshold and b, and between where the last sample below it
+ * and this one were measured. */
+HOM_NOINLINE static int32_t engagement_at(const hom_t *h, int32_t pm, uint32_t b)
+{
+    const hom_tendon_t *t = hom_cur(h);
+    int32_t d = hom_curve_um256(h, b, 0u);
+    int32_t d0 = hom_curve_um256(h, h->engage_cuT, 0u);
+    int32_t e = h->pos_at_sample; /* past the table's grid */
+    if (d >= 0 && d0 >= 0) {
+        e = pm - hom_pull(t, d > d0 ? hom_muldiv(d - d0, 1000, 256 * (int32_t)t->nm_per_tick) : 0);
+    }
+    if (hom_pull(t, e - h->pos_at_sample) < 0) {
+        e = h->pos_at_sample;
+    }
+    return e;
+}
+
 HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
 {
     hom_tendon_t *t = hom_cur(h);
@@ -322,6 +361,7 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
     /* delta mode: the approach quantity is |B - B0| itself, one norm */
     uint32_t m = fresh && h->amb != NULL ? hom_meas_of(h, sel, in->sensor[sel].b_cuT) : b;
     int32_t p = h->present[h->cur];
+    int32_t pm = p;
 
     if (hom_since(h, h->t_tendon) > h->cfg.tendon_timeout_ms) {
         hom_fail_tendon(h, HOM_F_TENDON_TIMEOUT, (int32_t)hom_since(h, h->t_tendon));
@@ -377,9 +417,12 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
             hom_fail(h, HOM_F_FIELD_STEP, HOM_DEV_SENSOR, sel, (int32_t)b);
             return;
         }
+        if (fresh && !t->engaged) {
+            pm = pos_measured(h, in->sensor[sel].age_q);
+        }
         if (fresh && !t->engaged && b >= h->engage_cuT) {
             t->engaged = 1;
-            t->engage = h->pos_at_sample; /* the last position seen slack */
+            t->engage = engagement_at(h, pm, b);
             /* the window narrows here for this run's releases; the app
              * keeps it (win_changed) once the home is recorded */
             t->eng_lo = t->engage;
@@ -392,7 +435,7 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
             }
         }
         if (fresh && !t->engaged) {
-            h->pos_at_sample = p;
+            h->pos_at_sample = pm; /* the last position seen slack */
         }
         if (!h->quick_leg && !t->engaged && h->out.goal[h->cur] != h->search_end &&
             hom_pull(t, h->out.goal[h->cur] - p) <= lease_ticks(h->out.vel[h->cur]) / 2) {

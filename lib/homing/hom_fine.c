@@ -192,34 +192,44 @@ HOM_NOINLINE static void finish_tendon(hom_t *h, int32_t p, int32_t fallback)
     h->settled = 0;
 }
 
-/* Remaining travel from a field b to the target along the table's own
- * field-travel curve (inverse interpolation over the grid, engagement as the
- * origin), 1/256 tick; 0 when the table cannot say. The field is not linear
- * in travel (it flattens as the tip moves away), so from a point well short of
- * the target this beats any one slope. */
-HOM_NOINLINE static int32_t table_remaining_q8(const hom_t *h, uint32_t b)
+/* The current tendon's travel past its engagement where the table's
+ * field-travel curve reaches b (the grid inverted, the engagement at the
+ * origin), um x 256; -1 past the grid. The curve is of the working targets
+ * (work 1: absolute mode's, hom_work_target()) or of the delta targets. */
+HOM_NOINLINE int32_t hom_curve_um256(const hom_t *h, uint32_t b, uint8_t work)
 {
     tbl_tendon_t row;
     tbl_info_t info;
     const hom_tendon_t *t = hom_cur(h);
     uint32_t x0 = 0;
     uint32_t y0 = 0;
-    int32_t travel_b = -1;
-    int32_t travel_t;
     uint8_t g;
     if (tbl_tendon(&h->table, h->cur, &row) != 0 || tbl_info(&h->table, &info) != 0) {
-        return 0;
+        return -1;
     }
-    for (g = 0; g < info.n_grid && travel_b < 0; g++) {
+    for (g = 0; g < info.n_grid; g++) {
         uint32_t x1 = row.travel_um[g];
-        uint32_t y1 = hom_work_target(h, t->sensor, row.target_cuT[g], row.abs_target_cuT[g]);
+        uint32_t y1 = work ? hom_work_target(h, t->sensor, row.target_cuT[g], row.abs_target_cuT[g])
+                           : row.target_cuT[g];
         if (b < y1 && y1 > y0) {
-            travel_b = (int32_t)x0 * 256 +
-                       hom_muldiv((int32_t)(b - y0), (int32_t)(x1 - x0) * 256, (int32_t)(y1 - y0));
+            return (int32_t)x0 * 256 +
+                   hom_muldiv((int32_t)(b - y0), (int32_t)(x1 - x0) * 256, (int32_t)(y1 - y0));
         }
         x0 = x1;
         y0 = y1;
     }
+    return -1;
+}
+
+/* Distance from field b to the target along the table's curve, 1/256
+ * tick; 0 when the table cannot say. The field is not linear in travel (it
+ * flattens as the tip moves away), so from a point well short of the
+ * target this beats any one slope. */
+HOM_NOINLINE static int32_t table_remaining_q8(const hom_t *h, uint32_t b)
+{
+    const hom_tendon_t *t = hom_cur(h);
+    int32_t travel_b = hom_curve_um256(h, b, 1u);
+    int32_t travel_t;
     if (travel_b < 0) {
         return 0;
     }

@@ -202,6 +202,7 @@ enum {
 typedef struct {
     uint8_t status;   /* HOM_SENS_* */
     int32_t b_cuT[3]; /* raw field, cuT, sensor frame */
+    uint8_t age_q;    /* how long before this step it was measured, quarter ms (icm_clock.h) */
 } hom_sensor_in_t;
 
 typedef struct {
@@ -366,7 +367,8 @@ typedef struct {
     uint32_t now_ms;       /* time of the current step */
     uint32_t t_phase;      /* start of the current wait */
     uint32_t t_tendon;     /* start of the current tendon */
-    int32_t pos_at_sample; /* active tendon's position at the previous selected-sensor sample */
+    int32_t pos_at_sample; /* active tendon's position when its last sample below the
+                              engagement threshold was measured */
     int32_t takeup_from;   /* active tendon's position when its take-up began */
     int32_t home_res;      /* active tendon: sub-tick residue of its home (1/256 tick), reported
                               once the release check passed */

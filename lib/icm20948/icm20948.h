@@ -131,7 +131,7 @@ typedef struct {
     uint8_t flags;  /* ICM_SAMPLE_* */
     uint8_t st1;    /* ST1 as read (DRDY, DOR) */
     uint8_t st2;    /* ST2 as read (HOFL) */
-    uint32_t t_us;  /* caller time of the fetch */
+    uint32_t t_us;  /* caller time of the fetch (icm_set: when it was measured, icm_clock.h) */
 } icm_sample_t;
 
 struct tca;

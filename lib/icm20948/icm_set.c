@@ -92,6 +92,7 @@ ICM_NOINLINE static void icm_set_start_init(icm_set_slot_t *s, uint32_t now_us)
     s->consec_err = 0;
     s->fresh = 0;
     s->rate_dhz = 0;
+    icm_clock_reset(&s->clk); /* the AK09916 restarts on its own clock */
 }
 
 int8_t icm_set_begin(icm_set_t *set, uint32_t now_us)
@@ -158,6 +159,7 @@ static void icm_set_fetch(icm_set_slot_t *s, uint32_t now_us)
     }
     s->consec_err = 0;
     if (smp.flags & ICM_SAMPLE_NEW) {
+        smp.t_us = icm_clock_seen(&s->clk, now_us);
 #if ICM_STATS
         if (s->fresh) {
             s->missed++;

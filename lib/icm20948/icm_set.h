@@ -5,8 +5,10 @@
  *
  * icm_set_poll() does at most one step per call: one init step of one
  * sensor, or the start, or the fetch of one sensor's read. Running sensors
- * are read round-robin every `period_us` (5 ms by default: twice the
- * AK09916's 100 Hz, so every sample is caught once); each read is one
+ * are read round-robin every `period_us` (4.7 ms by default: a little more
+ * than twice the AK09916's 100 Hz, so every sample is caught once, and not
+ * a divisor of its 10 ms, so the reads' phase against its samples moves and
+ * some reads come right after one: icm_clock.h); each read is one
  * EXT_SLV_SENS_DATA transfer plus, behind a mux, one channel write (see
  * docs/sensors.md for the timing). Sensors that disappear, go stale or fail
  * ICM_SET_MAX_ERRORS reads in a row are re-initialised; a sensor whose init
@@ -21,10 +23,11 @@
 #include <stdint.h>
 
 #include "icm20948/icm20948.h"
+#include "icm20948/icm_clock.h"
 #include "icm20948/tca9548a.h"
 
 #define ICM_SET_MAX               16u
-#define ICM_SET_PERIOD_US_DEFAULT 5000u
+#define ICM_SET_PERIOD_US_DEFAULT 4700u
 #define ICM_SET_RETRY_US          1000000u
 #define ICM_SET_MAX_ERRORS        3u
 #define ICM_SET_RATE_WINDOW_US    1000000u
@@ -44,7 +47,8 @@ typedef struct {
     uint8_t fresh;      /* a new sample not yet taken */
     uint8_t consec_err; /* read errors in a row */
     int8_t last_err;    /* last error seen, 0 if none */
-    icm_sample_t last;  /* last new sample */
+    icm_sample_t last;  /* last new sample; t_us: when it was measured (clk) */
+    icm_clock_t clk;    /* the AK09916's sample clock */
     uint32_t due_us;    /* next read (RUN) or next init attempt (FAIL) */
     uint32_t win_from_us;
     uint16_t win_new;

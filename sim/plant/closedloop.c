@@ -2,6 +2,8 @@
  * closedloop: homing state machine + plant + simple servos (closedloop.h).
  */
 #include "plant/closedloop.h"
+
+#include "icm20948/icm_clock.h"
 #include "homing/hom_priv.h" /* the state, to measure where fine points are taken */
 #include "simrand.h"
 
@@ -56,6 +58,18 @@ int plant_run(const plant_run_cfg_t *rc, plant_run_result_t *res)
      * lag is below 20 ms, so two at most per sensor */
     hom_sensor_in_t held[HOM_MAX_SENSORS][2];
     uint32_t held_at[HOM_MAX_SENSORS][2] = {{0}};
+    /* the firmware's sensor path (rc->mst_us): the samples measured, the
+     * master's copy and the host's reads */
+    hom_sensor_in_t ring[HOM_MAX_SENSORS][4];
+    uint32_t ring_ms[HOM_MAX_SENSORS][4];
+    uint32_t n_meas[HOM_MAX_SENSORS] = {0};
+    uint32_t reg[HOM_MAX_SENSORS] = {0};  /* samples up to the one in the master's copy */
+    uint32_t seen[HOM_MAX_SENSORS] = {0}; /* samples up to the last one read */
+    uint64_t next_copy_us[HOM_MAX_SENSORS];
+    uint64_t read_due_us[HOM_MAX_SENSORS];
+    uint64_t read_at_us[HOM_MAX_SENSORS];
+    icm_clock_t clk[HOM_MAX_SENSORS];
+    uint32_t read_us = rc != NULL && rc->read_us != 0u ? rc->read_us : 5000u;
     const hom_out_t *o = &out;
     uint32_t lag = rc->goal_lag_ms < CL_MAX_LAG ? rc->goal_lag_ms : CL_MAX_LAG - 1u;
     tbl_src_t src;
@@ -146,6 +160,13 @@ int plant_run(const plant_run_cfg_t *rc, plant_run_result_t *res)
     }
     memset(&in, 0, sizeof in);
     max_ms = rc->max_ms != 0u ? rc->max_ms : 60000u;
+    for (k = 0; k < HOM_MAX_SENSORS; k++) {
+        /* the master's and the reads' phases: drawn per run */
+        next_copy_us[k] = 1000u + simrand_next(&rng) % (rc->mst_us != 0u ? rc->mst_us : 1u);
+        read_due_us[k] = 1000u + simrand_next(&rng) % read_us;
+        read_at_us[k] = read_due_us[k];
+        icm_clock_reset(&clk[k]);
+    }
 
     for (t = 1; t <= max_ms; t++) {
         int moved = 0;
@@ -219,7 +240,14 @@ int plant_run(const plant_run_cfg_t *rc, plant_run_result_t *res)
             }
             s->status =
                 plant_read_sensor(&plant, k, s->b_cuT) == 1 ? HOM_SENS_OVERFLOW : HOM_SENS_NEW;
-            if (rc->sample_lag_ms != 0u) {
+            s->age_q = (uint8_t)(rc->age_mode == 2u ? 0u : 4u * rc->sample_lag_ms);
+            if (rc->mst_us != 0u) {
+                /* measured now: the master copies it, a read finds it */
+                ring[k][n_meas[k] % 4u] = *s;
+                ring_ms[k][n_meas[k] % 4u] = t;
+                n_meas[k]++;
+                s->status = HOM_SENS_NONE;
+            } else if (rc->sample_lag_ms != 0u) {
                 /* read now, handed over sample_lag_ms later, in the slot
                  * whose sample has been handed over already */
                 unsigned q = held_at[k][0] >= t ? 1u : 0u;
@@ -228,7 +256,42 @@ int plant_run(const plant_run_cfg_t *rc, plant_run_result_t *res)
                 s->status = HOM_SENS_NONE;
             }
         }
-        for (k = 0; k < HOM_MAX_SENSORS && rc->sample_lag_ms != 0u; k++) {
+        for (k = 0; k < HOM_MAX_SENSORS && rc->mst_us != 0u; k++) {
+            uint64_t now_us = (uint64_t)t * 1000u;
+            while (next_copy_us[k] <= now_us) {
+                /* the latest sample measured by then (at most 3 ms back:
+                 * this step's measurement, if any, is at now_us) */
+                uint32_t m = n_meas[k];
+                while (m > reg[k] &&
+                       (uint64_t)ring_ms[k][(m - 1u) % 4u] * 1000u > next_copy_us[k]) {
+                    m--;
+                }
+                reg[k] = m;
+                next_copy_us[k] += rc->mst_us;
+            }
+            if (read_at_us[k] <= now_us) {
+                if (reg[k] > seen[k]) {
+                    uint32_t idx = (reg[k] - 1u) % 4u;
+                    uint32_t meas_us = ring_ms[k][idx] * 1000u;
+                    uint32_t est = icm_clock_seen(&clk[k], (uint32_t)now_us);
+                    uint32_t age = rc->age_mode == 1u   ? (uint32_t)now_us - meas_us
+                                   : rc->age_mode == 2u ? 0u
+                                                        : (uint32_t)now_us - est;
+                    in.sensor[k] = ring[k][idx];
+                    in.sensor[k].age_q = (uint8_t)(age / 250u > 255u ? 255u : age / 250u);
+                    seen[k] = reg[k];
+                }
+                read_due_us[k] += read_us;
+                if (read_due_us[k] <= now_us) {
+                    read_due_us[k] = now_us + read_us;
+                }
+                read_at_us[k] =
+                    read_due_us[k] + (rc->read_jitter_us != 0u
+                                          ? simrand_next(&rng) % (rc->read_jitter_us + 1u)
+                                          : 0u);
+            }
+        }
+        for (k = 0; k < HOM_MAX_SENSORS && rc->sample_lag_ms != 0u && rc->mst_us == 0u; k++) {
             unsigned q;
             for (q = 0; q < 2u; q++) {
                 if (held_at[k][q] == t) {
@@ -355,6 +418,19 @@ int plant_run(const plant_run_cfg_t *rc, plant_run_result_t *res)
             if (t - t_fault >= 300u) {
                 break;
             }
+        }
+    }
+    for (i = 0; i < res->n_tendons; i++) {
+        /* where the tension reached the threshold's share of the target */
+        double thr;
+        uint32_t mN =
+            h.tendon[i].target_cuT != 0u
+                ? (uint32_t)((uint64_t)h.tension_mN * h.engage_cuT / h.tendon[i].target_cuT)
+                : 0u;
+        res->engage_err_ticks[i] = NAN;
+        if (engaged[i] && mN >= 1u && plant_true_home(rc->plant, i, (uint16_t)mN, &thr) == 0) {
+            res->engage_err_ticks[i] =
+                (double)pull_dir[i] * ((double)engage[i] + (double)rc->frame_offset - thr);
         }
     }
     res->rc = step_rc;

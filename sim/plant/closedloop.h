@@ -58,16 +58,25 @@ typedef struct {
     plant_fault_t fault;
     uint8_t fault_index;
     uint32_t fault_ms;
-    uint32_t max_ms;            /* give up after this simulated time (0 = 60 s) */
-    double fall_at_uT;          /* PLANT_FI_FIELD_FALL, _STUCK: the change that sets it off */
-    double jump_uT[3];          /* PLANT_FI_FIELD_JUMP: the step (world frame); 0: 3 mT x */
-    uint8_t pos_period_ms;      /* positions read every this many ms (0, 1: every step; a
-                                   12-servo bus reads them every 5-7 ms), no reply between */
-    uint8_t goal_lag_ms;        /* goal writes reach the servos this much later (a slow main
-                                   loop and a busy bus: up to 20 ms on 12 servos), < 32 */
-    uint8_t sample_lag_ms;      /* sensor samples reach the homing this much later (the
-                                   AK09916's period, the ICM-20948 master's poll, a slow main
-                                   loop), < 20 */
+    uint32_t max_ms;       /* give up after this simulated time (0 = 60 s) */
+    double fall_at_uT;     /* PLANT_FI_FIELD_FALL, _STUCK: the change that sets it off */
+    double jump_uT[3];     /* PLANT_FI_FIELD_JUMP: the step (world frame); 0: 3 mT x */
+    uint8_t pos_period_ms; /* positions read every this many ms (0, 1: every step; a
+                              12-servo bus reads them every 5-7 ms), no reply between */
+    uint8_t goal_lag_ms;   /* goal writes reach the servos this much later (a slow main
+                              loop and a busy bus: up to 20 ms on 12 servos), < 32 */
+    uint8_t sample_lag_ms; /* sensor samples reach the homing this much later (the
+                              AK09916's period, the ICM-20948 master's poll, a slow main
+                              loop), < 20 */
+    uint16_t mst_us;       /* nonzero: the firmware's sensor path instead of sample_lag_ms:
+                              the ICM-20948 master copies the latest sample every mst_us
+                              (7300 on the board), the host reads every read_us (5000
+                              when 0) up to read_jitter_us late, and each sample's age
+                              comes from the sensor clock (icm_clock.h) */
+    uint16_t read_us;
+    uint16_t read_jitter_us;
+    uint8_t age_mode;           /* 0: ages as the firmware has them (the clock's, or sample_lag_ms);
+                                   1: the true ages; 2: every age 0 (a homing that ignores them) */
     double ambient_shift_uT[3]; /* added to every sensor's ambient field (world frame) for
                                    this run: the bench moved or iron came near since the
                                    absolute mode's ambient capture (cmd.ambient_cuT) */
@@ -101,6 +110,10 @@ typedef struct {
                                                       spool's backlash and the path's friction
                                                       hold the field of the further place */
     int32_t limit_ticks[TBL_MAX_TENDONS];          /* the homing's travel limit */
+    double engage_err_ticks[TBL_MAX_TENDONS];      /* the last engagement the homing recorded,
+                                                      against where the tendon's tension reached
+                                                      the threshold's share of the target (pull
+                                                      sense: > 0 late); NAN if none */
     double tip_mm[3];                              /* tip at the end */
     uint16_t win_kept; /* bit i: from the first tendon's pull on, the run gave tendon i's
                           window to keep (hom_win_take_changed()) */

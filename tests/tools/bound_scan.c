@@ -5,8 +5,13 @@
  * late) and, with STEP 1 (the default), an ambient step of up to 30 uT per
  * axis on a random sensor at a random moment. Prints each run over 1.25 x
  * the tension + 0.1 N (max_pull_N) and each fault of an undisturbed run,
- * then one summary line: runs, faults, the worst pull, the mean time.
- * S0 in the environment picks another series (default 1000). */
+ * then one summary line: runs, faults, the worst pull, the mean time, and
+ * how late the engagements were recorded (ticks past where the tension
+ * reached the threshold's share of the target; < 0 early).
+ * Environment: S0 picks another series (default 1000); MST_US (with READ_US,
+ * default 5000, and JIT_US, default 2000) takes the samples through the
+ * firmware's sensor path (ICM-20948 master copies, host reads) instead of a
+ * fixed lag; AGE 1 gives the homing the samples' true ages, 2 none. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -33,6 +38,12 @@ int main(int argc, char **argv)
     unsigned s0 = getenv("S0") != NULL ? (unsigned)atoi(getenv("S0")) : 1000u;
     double pert, bound, worst = 0.0, t_sum = 0.0;
     int line = 0, step;
+    unsigned mst = getenv("MST_US") != NULL ? (unsigned)atoi(getenv("MST_US")) : 0u;
+    unsigned rd = getenv("READ_US") != NULL ? (unsigned)atoi(getenv("READ_US")) : 5000u;
+    unsigned jit = getenv("JIT_US") != NULL ? (unsigned)atoi(getenv("JIT_US")) : 2000u;
+    unsigned age = getenv("AGE") != NULL ? (unsigned)atoi(getenv("AGE")) : 0u;
+    double e_late = -1e9, e_early = 1e9, e_sum = 0.0;
+    unsigned e_n = 0;
     if (argc < 5) {
         fprintf(stderr, "usage: hh_bound_scan CFG RUNS PERTURB TENSION_MN [STEP]\n");
         return 2;
@@ -62,6 +73,10 @@ int main(int argc, char **argv)
         rc.pos_period_ms = (uint8_t)(6u + run % 13u);
         rc.goal_lag_ms = (uint8_t)(2u + run % 11u);
         rc.sample_lag_ms = (uint8_t)(run % 13u);
+        rc.mst_us = (uint16_t)mst;
+        rc.read_us = (uint16_t)rd;
+        rc.read_jitter_us = (uint16_t)jit;
+        rc.age_mode = (uint8_t)age;
         rc.cmd.tension_mN = (uint16_t)t_mN;
         if (step) {
             rc.fault = PLANT_FI_FIELD_JUMP;
@@ -79,7 +94,14 @@ int main(int argc, char **argv)
             continue;
         }
         for (i = 0; i < g_res.n_tendons; i++) {
+            double e = g_res.engage_err_ticks[i];
             r = g_res.max_pull_N[i] > r ? g_res.max_pull_N[i] : r;
+            if (!isnan(e)) {
+                e_late = e > e_late ? e : e_late;
+                e_early = e < e_early ? e : e_early;
+                e_sum += e;
+                e_n++;
+            }
         }
         worst = r > worst ? r : worst;
         t_sum += g_res.end_ms;
@@ -95,5 +117,7 @@ int main(int argc, char **argv)
     printf("runs %u over the bound %u faults %u worst pull %.3f N (%.2f x, bound %.3f N) mean "
            "%.0f ms\n",
            n, n_over, n_fault, worst, worst * 1000.0 / t_mN, bound, n != 0u ? t_sum / n : 0.0);
+    printf("engagements %u recorded late by %.1f to %.1f ticks, mean %.1f\n", e_n, e_early, e_late,
+           e_n != 0u ? e_sum / e_n : 0.0);
     return 0;
 }

@@ -62,7 +62,7 @@ static int32_t field_at(const fall_bench_t *b, int32_t p)
 
 /* One millisecond: every sensor hands over a sample when now is a multiple
  * of 10, tendon 0's sensor the field_at() where tendon 0 was lag ms
- * before, and every position is read when read is set. */
+ * before (the sample's age), and every position is read when read is set. */
 static int fall_step(fall_bench_t *b, int read)
 {
     uint8_t k;
@@ -78,6 +78,7 @@ static int fall_step(fall_bench_t *b, int read)
                 s->b_cuT[2] -= field_at(b, b->hist[(b->in.now_ms - b->lag) % 16u]);
             }
             s->status = HOM_SENS_NEW;
+            s->age_q = (uint8_t)(4u * b->lag); /* the sensor clock's estimate, exact */
         }
     }
     for (k = 0; k < TBL_MAX_TENDONS; k++) {
