@@ -98,7 +98,7 @@ all: firmware
 help:
 	@echo "make firmware   build $(FW_HEX) (ROBOT=$(ROBOT); robots: $(ROBOT_NAMES))"
 	@echo "make fw-path    print the firmware ELF path of ROBOT"
-	@echo "make size       flash / static RAM use, fails above 63232 B / 3968 B"
+	@echo "make size       flash / static RAM use, fails above the budget in scripts/size.sh"
 	@echo "make flash PORT=/dev/ttyACM0   upload with avrdude (Arduino bootloader; needs ROBOT's table)"
 	@echo "make test       every test suite (installs what it needs first)"
 	@echo "make unit | host-test | fuzz-smoke | lint   one suite"

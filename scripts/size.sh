@@ -7,7 +7,7 @@
 # lower these as savings land.
 set -euo pipefail
 elf=$1
-flash_cap=263232 ram_cap=8192
+flash_cap=262144 ram_cap=8192
 flash_max=63232 ram_max=3968
 read -r text data bss noinit < <(avr-size -A "$elf" | awk '
     $1==".text"{t=$2} $1==".data"{d=$2} $1==".bss"{b=$2} $1==".noinit"{n=$2}
