@@ -14,49 +14,43 @@
 #define ICM_CLOCK_PERIOD_MIN (ICM_CLOCK_PERIOD_US - ICM_CLOCK_PERIOD_US / 20u)
 #define ICM_CLOCK_PERIOD_MAX (ICM_CLOCK_PERIOD_US + ICM_CLOCK_PERIOD_US / 20u)
 
+#define HAVE_LINE   1u
+#define HAVE_PERIOD 2u
+
 void icm_clock_reset(icm_clock_t *c)
 {
     c->have = 0;
 }
 
-static void window_start(icm_clock_t *c)
-{
-    c->k = 0;
-    c->low_us = 0xFFFFu;
-    c->lowered_us = 0;
-}
-
 uint32_t icm_clock_seen(icm_clock_t *c, uint32_t seen_us)
 {
-    uint32_t at;
-    int32_t lag;
-    if (!c->have) {
-        c->have = 1;
-        c->base_us = seen_us; /* an upper bound: the next reads lower it */
+    uint32_t at = c->at_us + c->period_us;
+    int32_t lag = (int32_t)(seen_us - at);
+    if (!(c->have & HAVE_LINE) || lag >= ICM_CLOCK_GAP_US || lag <= -ICM_CLOCK_GAP_US) {
+        c->have = HAVE_LINE;
         c->period_us = ICM_CLOCK_PERIOD_US;
-        c->settled = 0;
-        window_start(c);
-        return seen_us;
+        c->k = ICM_CLOCK_WINDOW; /* the next sample starts a window */
+        c->low_us = 0;
+        c->lowered_us = 0;
+        at = seen_us; /* an upper bound: the next reads lower it */
+        lag = 0;
+    }
+    if (c->k >= ICM_CLOCK_WINDOW) {
+        c->k = 0;
+        c->low_us = 0xFFFFu;
+        c->lowered_us = 0;
     }
     c->k++;
-    at = c->base_us + (uint32_t)c->k * c->period_us;
-    lag = (int32_t)(seen_us - at);
-    if (lag >= ICM_CLOCK_GAP_US) {
-        c->have = 0;
-        return icm_clock_seen(c, seen_us);
-    }
     while (lag >= (int32_t)ICM_CLOCK_LAG_MAX_US) {
-        /* a sample the reads missed (at most a second's worth) */
+        /* a sample the reads missed */
         c->k++;
         at += c->period_us;
         lag -= (int32_t)c->period_us;
     }
     if (lag < 0) {
         /* read before the line says it was measured: the line comes down */
-        c->base_us -= (uint32_t)-lag;
-        c->lowered_us =
-            (uint16_t)(c->lowered_us + (uint32_t)-lag > 0xFFFFu ? 0xFFFFu
-                                                                : c->lowered_us + (uint32_t)-lag);
+        uint32_t d = (uint32_t)c->lowered_us + (uint32_t)-lag;
+        c->lowered_us = (uint16_t)(d > 0xFFFFu ? 0xFFFFu : d);
         at = seen_us;
         lag = 0;
     }
@@ -64,20 +58,20 @@ uint32_t icm_clock_seen(icm_clock_t *c, uint32_t seen_us)
         c->low_us = (uint16_t)lag;
     }
     if (c->k >= ICM_CLOCK_WINDOW) {
-        /* up to the window's lowest read; the period takes what the line
-         * moved over the window */
-        int32_t p = (int32_t)c->period_us;
-        if (c->settled) {
-            /* a quarter of the drift: one window's lowest read is noisy */
-            p += ((int32_t)c->low_us - (int32_t)c->lowered_us) / (int32_t)(4u * ICM_CLOCK_WINDOW);
+        /* up to the window's lowest read; the period takes a quarter of
+         * what the line moved over the window (one window's lowest read is
+         * noisy) */
+        int16_t p = (int16_t)c->period_us;
+        if (c->have & HAVE_PERIOD) {
+            p = (int16_t)(p + ((int16_t)(c->low_us >> 1) - (int16_t)(c->lowered_us >> 1)) /
+                                  (int16_t)(2u * ICM_CLOCK_WINDOW));
         }
-        c->settled = 1; /* the first window finds the phase, not the period */
+        c->have |= HAVE_PERIOD;
         at += c->low_us;
-        c->base_us = at;
-        p = p < (int32_t)ICM_CLOCK_PERIOD_MIN ? (int32_t)ICM_CLOCK_PERIOD_MIN : p;
-        c->period_us =
-            (uint16_t)(p > (int32_t)ICM_CLOCK_PERIOD_MAX ? (int32_t)ICM_CLOCK_PERIOD_MAX : p);
-        window_start(c);
+        c->period_us = (uint16_t)(p < (int16_t)ICM_CLOCK_PERIOD_MIN   ? ICM_CLOCK_PERIOD_MIN
+                                  : p > (int16_t)ICM_CLOCK_PERIOD_MAX ? ICM_CLOCK_PERIOD_MAX
+                                                                      : (uint16_t)p);
     }
+    c->at_us = at;
     return at;
 }

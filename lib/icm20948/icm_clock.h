@@ -36,13 +36,13 @@
 #define ICM_CLOCK_WINDOW 16u
 
 typedef struct {
-    uint32_t base_us;    /* the line at the window's start: sample 0 measured then */
+    uint32_t at_us;      /* the line at the last sample: when it was measured */
     uint16_t period_us;  /* the line's slope: the AK09916's period as estimated */
     uint16_t low_us;     /* lowest lag of a read behind the line in this window */
     uint16_t lowered_us; /* how far reads before the line lowered it in this window */
     uint8_t k;           /* samples since the window's start */
-    uint8_t have;        /* the line is set */
-    uint8_t settled;     /* a window has ended: the period is corrected from then */
+    uint8_t have;        /* bit 0: the line is set; bit 1: a window has ended, the
+                            period is corrected from then (the first finds the phase) */
 } icm_clock_t;
 
 /* Forgets the phase (a sensor re-initialised: its AK09916 restarted). */
