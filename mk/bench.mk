@@ -20,13 +20,14 @@ BENCH_ARGS    ?=
 BENCH_PLANT    = $(or $(SIM_PLANT),sim/plant/configs/$(ROBOT).cfg)
 # The native runners built with optimisation (the CMake build carries the
 # sanitizers, 7x slower): the homing core and the plant, no AVR.
-BENCH_NATIVE_SRCS = $(wildcard sim/plant/*.c) $(wildcard lib/homing/*.c) lib/table/table.c lib/table/table_pack.c
+BENCH_NATIVE_SRCS = $(wildcard sim/plant/*.c) $(wildcard lib/homing/*.c) lib/table/table.c lib/table/table_pack.c \
+	lib/icm20948/icm_clock.c
 BENCH_NATIVE_CFLAGS := -std=c99 -O2 -Wall -Wextra -pedantic -Ilib -Isim
 
 .PHONY: bench bench-check bench-tools
 
 # hh_closedloop links every generated table, as the CMake build does (its -g).
-$(BENCH_CL): tests/tools/closedloop.c $(BENCH_NATIVE_SRCS) $(wildcard $(TABLES_DIR)/*.c) $(wildcard sim/plant/*.h lib/homing/*.h lib/table/*.h) | $(STAMP)
+$(BENCH_CL): tests/tools/closedloop.c $(BENCH_NATIVE_SRCS) $(wildcard $(TABLES_DIR)/*.c) $(wildcard sim/plant/*.h lib/homing/*.h lib/table/*.h lib/icm20948/icm_clock.h) | $(STAMP)
 	@mkdir -p $(@D)
 	$(CC) $(BENCH_NATIVE_CFLAGS) -o $@ tests/tools/closedloop.c $(BENCH_NATIVE_SRCS) \
 		$(wildcard $(TABLES_DIR)/*.c) -lm
@@ -34,7 +35,7 @@ $(BENCH_CL): tests/tools/closedloop.c $(BENCH_NATIVE_SRCS) $(wildcard $(TABLES_D
 # hh_mc links the generated table of $(ROBOT) too (-g: the model-based workflow).
 BENCH_GEN_TABLE := $(wildcard $(TABLES_DIR)/$(ROBOT).c)
 
-$(BENCH_MC): bench/hh_mc.c $(BENCH_NATIVE_SRCS) $(BENCH_GEN_TABLE) $(wildcard sim/plant/*.h lib/homing/*.h lib/table/*.h) | $(STAMP)
+$(BENCH_MC): bench/hh_mc.c $(BENCH_NATIVE_SRCS) $(BENCH_GEN_TABLE) $(wildcard sim/plant/*.h lib/homing/*.h lib/table/*.h lib/icm20948/icm_clock.h) | $(STAMP)
 	@mkdir -p $(@D)
 	$(CC) $(BENCH_NATIVE_CFLAGS) -Werror $(if $(BENCH_GEN_TABLE),-DHH_ROBOT=$(ROBOT)) -o $@ \
 		bench/hh_mc.c $(BENCH_GEN_TABLE) $(BENCH_NATIVE_SRCS) -lm
