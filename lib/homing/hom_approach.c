@@ -85,6 +85,7 @@ HOM_NOINLINE void hom_begin_tendon(hom_t *h, uint8_t i)
          * than its table is taut where a search again starts */
         h->takeup_from = h->present[i];
     }
+    h->takeup_at = h->present[i];
     t->engaged = 0;
     t->retries = 0;
     hom_phase_event(h, HOM_PH_TENDON, i);
@@ -107,14 +108,17 @@ HOM_NOINLINE void hom_begin_tendon(hom_t *h, uint8_t i)
 }
 
 /* The target of the current tendon lies d ticks past its engagement,
- * beyond its limit. That limit is often the bounded pull's (bound_limit(),
- * homing.c), and the engagement it is measured from may be the cause:
- * found at the take-up's speed, it is the last position seen slack, up to
- * a sample's run (a third of the travel) short of the real one, and the
- * bound leaves less room than that at 1 N and more. So, once a tendon, it
- * goes back to slack and searches for its engagement again, at half a unit
- * of speed per tick of travel (a sample's run is a thirteenth of it); the
- * next time the run ends in HOM_F_TRAVEL_LIMIT. */
+ * beyond its limit. That limit is the bounded pull's at first (load_tendon(),
+ * homing.c), and three things put a target beyond it: a field that lies
+ * (an ambient step against the tendon's own field), an engagement recorded
+ * early (up to a sample's run short of the real one), or a robot softer
+ * than its table (the host's model put the travel of some chaos robots'
+ * tendons 25 % short). So, once a tendon, it goes back to slack, where a
+ * lie that is still there shows before the engagement (HOM_F_FIELD_STEP),
+ * and searches for its engagement again, at half a unit of speed per tick
+ * of travel (a sample's run is a thirteenth of it); that second pull goes
+ * to the table's own limit (ST_BACKOFF in hom_do_tendon()), and beyond it
+ * the run ends in HOM_F_TRAVEL_LIMIT. */
 HOM_NOINLINE void hom_over_limit(hom_t *h, int32_t d)
 {
     if (h->retake == 0u) {
@@ -330,7 +334,7 @@ HOM_NOINLINE static int32_t pos_measured(const hom_t *h, uint8_t age_q)
     if (q > 0) {
         p -= hom_pull(t, (int32_t)(((uint32_t)q * h->out.vel[h->cur]) >> 8));
     }
-    return hom_pull(t, p - h->takeup_from) < 0 ? h->takeup_from : p;
+    return hom_pull(t, p - h->takeup_at) < 0 ? h->takeup_at : p;
 }
 
 /* The engagement a take-up's first sample over the threshold (b, measured
@@ -407,7 +411,7 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
     switch (h->state) {
     case ST_TAKEUP:
         if (fresh && !t->engaged && b >= h->engage_cuT &&
-            hom_pull(t, p - h->takeup_from) < t->margin_ticks / 2) {
+            hom_pull(t, p - h->takeup_at) < t->margin_ticks / 2) {
             /* the field changed before the tendon could have engaged: it
              * was released a whole margin short of its engagement, and has
              * taken up less than half of it. Something no tendon moves
@@ -486,7 +490,14 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
         break;
     case ST_BACKOFF:
         if (hom_reached(h, h->cur) && h->retake == 1u) {
+            /* back at slack: a field that lied (an ambient step, still
+             * there) shows now, before the engagement (HOM_F_FIELD_STEP);
+             * a field that did not says the robot is softer than its
+             * table (chaos seeds 20462, 20598: segment-3 tendons 1.25 x
+             * the table's travel), and the second pull goes to the table's
+             * own limit */
             h->retake = 2;
+            t->limit_ticks = hom_limit_ticks(h, h->cur, INT32_MAX);
             hom_begin_tendon(h, h->cur);
         } else if (hom_reached(h, h->cur)) {
             begin_moderate(h);

@@ -404,18 +404,13 @@ HOM_NOINLINE static void load_tendon(hom_t *h, uint8_t i)
      * the threshold's share of the target (its field's): that much less.
      * The field decides where a tendon stops; this bounds what a field that
      * lies can ask (an ambient step against the tendon's own field, chaos
-     * seeds 13456, 19346 and 19952: 1.39-2.10 x the target). */
+     * seeds 13456, 19346 and 19952: 1.39-2.10 x the target) on a first
+     * pull. A target beyond it is looked at again (hom_over_limit()). */
     q8 = hom_muldiv((int32_t)(pt.travel_um - pt.travel_um / HOM_BOUND_SHORT),
                     h->tension_mN + h->tension_mN / 4u + HOM_BOUND_MN -
                         hom_muldiv(h->tension_mN, (int32_t)h->engage_cuT, (int32_t)pt.target_cuT),
                     h->tension_mN);
-    if (q8 > (int32_t)row.travel_limit_um) {
-        q8 = (int32_t)row.travel_limit_um;
-    }
-    t->limit_ticks = hom_muldiv(q8, 1000, (int32_t)row.nm_per_tick);
-    if (t->limit_ticks > HOM_RELEASE_REACH_TICKS) {
-        t->limit_ticks = HOM_RELEASE_REACH_TICKS;
-    }
+    t->limit_ticks = hom_limit_ticks(h, i, q8);
     /* absolute mode: the engagement threshold stays the delta mode's; the
      * target becomes the distance of |B_magnet(p_T)| from |b_straight| */
     t->target_cuT = hom_work_target(h, t->sensor, pt.target_cuT, pt.abs_target_cuT);
@@ -428,6 +423,21 @@ HOM_NOINLINE static void load_tendon(hom_t *h, uint8_t i)
      * robot-wide, paid out 6.6 mm on a 3-segment robot's short tendons). */
     t->release_ticks = (uint16_t)hom_um_to_ticks(
         release_um(&h->cfg, row.travel_um[info.n_grid - 1u]), row.nm_per_tick);
+}
+
+/* Tendon i's travel limit past its engagement for a pull of at most um:
+ * never beyond the table's travel_limit_um nor HOM_RELEASE_REACH_TICKS
+ * (docs/homing.md, the safety table). */
+HOM_NOINLINE int32_t hom_limit_ticks(const hom_t *h, uint8_t i, int32_t um)
+{
+    tbl_tendon_t row;
+    int32_t ticks;
+    (void)tbl_tendon(&h->table, i, &row);
+    if (um > (int32_t)row.travel_limit_um) {
+        um = (int32_t)row.travel_limit_um;
+    }
+    ticks = hom_muldiv(um, 1000, (int32_t)row.nm_per_tick);
+    return ticks > HOM_RELEASE_REACH_TICKS ? HOM_RELEASE_REACH_TICKS : ticks;
 }
 
 int hom_fresh_window(const hom_config_t *cfg, const tbl_src_t *table, uint8_t i,

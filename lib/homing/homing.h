@@ -370,6 +370,7 @@ typedef struct {
     int32_t pos_at_sample; /* active tendon's position when its last sample below the
                               engagement threshold was measured */
     int32_t takeup_from;   /* active tendon's position when its take-up began */
+    int32_t takeup_at;     /* ... and when this take-up began (a search again's own) */
     int32_t home_res;      /* active tendon: sub-tick residue of its home (1/256 tick), reported
                               once the release check passed */
     uint32_t home_dB;      /* active tendon: |B - B0| of its selected sensor (cuT) when its home
