@@ -356,6 +356,14 @@ HOM_NOINLINE static int32_t engagement_at(const hom_t *h, int32_t pm, uint32_t b
     return e;
 }
 
+/* The current tendon's travel limit without the bounded pull's. */
+HOM_NOINLINE static int32_t table_limit(const hom_t *h)
+{
+    tbl_tendon_t row;
+    (void)tbl_tendon(&h->table, h->cur, &row);
+    return hom_limit_ticks(&row, INT32_MAX);
+}
+
 HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
 {
     hom_tendon_t *t = hom_cur(h);
@@ -497,7 +505,7 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
              * the table's travel), and the second pull goes to the table's
              * own limit */
             h->retake = 2;
-            t->limit_ticks = hom_limit_ticks(h, h->cur, INT32_MAX);
+            t->limit_ticks = table_limit(h);
             hom_begin_tendon(h, h->cur);
         } else if (hom_reached(h, h->cur)) {
             begin_moderate(h);

@@ -410,7 +410,7 @@ HOM_NOINLINE static void load_tendon(hom_t *h, uint8_t i)
                     h->tension_mN + h->tension_mN / 4u + HOM_BOUND_MN -
                         hom_muldiv(h->tension_mN, (int32_t)h->engage_cuT, (int32_t)pt.target_cuT),
                     h->tension_mN);
-    t->limit_ticks = hom_limit_ticks(h, i, q8);
+    t->limit_ticks = hom_limit_ticks(&row, q8);
     /* absolute mode: the engagement threshold stays the delta mode's; the
      * target becomes the distance of |B_magnet(p_T)| from |b_straight| */
     t->target_cuT = hom_work_target(h, t->sensor, pt.target_cuT, pt.abs_target_cuT);
@@ -425,18 +425,16 @@ HOM_NOINLINE static void load_tendon(hom_t *h, uint8_t i)
         release_um(&h->cfg, row.travel_um[info.n_grid - 1u]), row.nm_per_tick);
 }
 
-/* Tendon i's travel limit past its engagement for a pull of at most um:
- * never beyond the table's travel_limit_um nor HOM_RELEASE_REACH_TICKS
- * (docs/homing.md, the safety table). */
-HOM_NOINLINE int32_t hom_limit_ticks(const hom_t *h, uint8_t i, int32_t um)
+/* A travel limit past the engagement for a pull of at most um on the
+ * tendon of table row `row`: never beyond the table's travel_limit_um nor
+ * HOM_RELEASE_REACH_TICKS (docs/homing.md, the safety table). */
+HOM_NOINLINE int32_t hom_limit_ticks(const tbl_tendon_t *row, int32_t um)
 {
-    tbl_tendon_t row;
     int32_t ticks;
-    (void)tbl_tendon(&h->table, i, &row);
-    if (um > (int32_t)row.travel_limit_um) {
-        um = (int32_t)row.travel_limit_um;
+    if (um > (int32_t)row->travel_limit_um) {
+        um = (int32_t)row->travel_limit_um;
     }
-    ticks = hom_muldiv(um, 1000, (int32_t)row.nm_per_tick);
+    ticks = hom_muldiv(um, 1000, (int32_t)row->nm_per_tick);
     return ticks > HOM_RELEASE_REACH_TICKS ? HOM_RELEASE_REACH_TICKS : ticks;
 }
 
