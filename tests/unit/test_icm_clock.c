@@ -79,20 +79,29 @@ static errs_t run(const timeline_t *tl, uint32_t n)
     return e;
 }
 
+/* Runs seeds 1..seeds of the timeline with this AK09916 period, read
+ * lateness and stall, n samples each, and checks every estimate after the
+ * warm-up within late_max late and early_max early. */
+static void expect_within(uint32_t ak_us, uint32_t jitter_us, uint32_t stall_at, uint32_t warmup,
+                          uint32_t seeds, int32_t late_max, int32_t early_max)
+{
+    uint32_t seed;
+    for (seed = 1; seed <= seeds; seed++) {
+        timeline_t tl = {ak_us, 7300u, READ_US, jitter_us, stall_at, 35000u, warmup, seed};
+        errs_t e = run(&tl, warmup + 260u);
+        assert_true(e.n >= 200u);
+        assert_in_range(e.late_us, 0, late_max);
+        assert_in_range(-e.early_us, 0, early_max);
+    }
+}
+
 /* The firmware's clocks, reads up to 1 ms late: within 4 ms late and 1 ms
  * early after 40 samples. 4 ms is 8 ticks of a take-up at its top speed;
  * a sample's age read at the read itself is up to 16 ms. */
 static void test_nominal(void **state)
 {
-    uint32_t seed;
     (void)state;
-    for (seed = 1; seed <= 40u; seed++) {
-        timeline_t tl = {ICM_CLOCK_PERIOD_US, 7300u, READ_US, 1000u, 0u, 0u, 40u, seed};
-        errs_t e = run(&tl, 400u);
-        assert_true(e.n >= 300u);
-        assert_in_range(e.late_us, 0, 4000);
-        assert_in_range(-e.early_us, 0, 1000);
-    }
+    expect_within(ICM_CLOCK_PERIOD_US, 1000u, 0u, 40u, 40u, 4000, 1000);
 }
 
 /* Reads up to 3 ms late miss a sample now and then: that sample and the
@@ -100,14 +109,8 @@ static void test_nominal(void **state)
  * than 4.5 ms. */
 static void test_late_reads(void **state)
 {
-    uint32_t seed;
     (void)state;
-    for (seed = 1; seed <= 40u; seed++) {
-        timeline_t tl = {ICM_CLOCK_PERIOD_US, 7300u, READ_US, 3000u, 0u, 0u, 40u, seed};
-        errs_t e = run(&tl, 400u);
-        assert_in_range(e.late_us, 0, 4500);
-        assert_in_range(-e.early_us, 0, ICM_CLOCK_PERIOD_US + 500u);
-    }
+    expect_within(ICM_CLOCK_PERIOD_US, 3000u, 0u, 40u, 40u, 4500, ICM_CLOCK_PERIOD_US + 500);
 }
 
 /* The first samples are taken as measured when seen: late, never early. */
@@ -126,37 +129,21 @@ static void test_first_samples_late_not_early(void **state)
 static void test_oscillator_off(void **state)
 {
     static const uint32_t period[] = {9800u, 9900u, 10100u, 10200u};
-    uint32_t seed;
     uint8_t k;
     (void)state;
     for (k = 0; k < 4u; k++) {
-        for (seed = 1; seed <= 20u; seed++) {
-            timeline_t tl = {period[k], 7300u, READ_US, 1000u, 0u, 0u, 150u, seed};
-            errs_t e = run(&tl, 800u);
-            assert_in_range(e.late_us, 0, 5500);
-            assert_in_range(-e.early_us, 0, 1000);
-        }
+        expect_within(period[k], 1000u, 0u, 150u, 20u, 5500, 1000);
     }
 }
 
-/* A read stalled for 35 ms skips samples: the estimate may fall a period
- * early (a sample looks older), never late by more than 5 ms, and 40
- * samples on it is back within 5 ms late and 1 ms early. */
+/* A read stalled for 35 ms at sample 100 skips samples: the estimate may
+ * fall a period early (a sample looks older), never late by more than
+ * 5 ms, and 40 samples on it is back within 5 ms late and 1 ms early. */
 static void test_stall_skips_samples(void **state)
 {
-    uint32_t seed;
     (void)state;
-    for (seed = 1; seed <= 20u; seed++) {
-        timeline_t tl = {ICM_CLOCK_PERIOD_US, 7300u, READ_US, 1000u, 100u, 35000u, 40u, seed};
-        timeline_t after = tl;
-        errs_t e = run(&tl, 300u);
-        assert_in_range(e.late_us, 0, 5000);
-        assert_in_range(-e.early_us, 0, ICM_CLOCK_PERIOD_US + 1000u);
-        after.warmup = 140u;
-        e = run(&after, 300u);
-        assert_in_range(e.late_us, 0, 5000);
-        assert_in_range(-e.early_us, 0, 1000);
-    }
+    expect_within(ICM_CLOCK_PERIOD_US, 1000u, 100u, 40u, 20u, 5000, ICM_CLOCK_PERIOD_US + 1000);
+    expect_within(ICM_CLOCK_PERIOD_US, 1000u, 100u, 140u, 20u, 5000, 1000);
 }
 
 /* A second without samples starts afresh. */
