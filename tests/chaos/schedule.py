@@ -217,9 +217,9 @@ def generate(seed: int, robots: list) -> tuple[Schedule, object]:
     # after a bare line end, which ends any such line first
     _step(sch, "+0.5s power-cycle")
     _wait_boot(sch, robot, "+0.2s send history")
-    _step(sch, "+2s raw \\r\\n")
+    _step(sch, "+1s raw \\r\\n")
     _step(sch, "+0.1s send history")
-    _step(sch, "+4s quit")
+    _step(sch, "+2s quit")
     sch.injected_resets += 1
     # a generous bound: every step waits at most run_within()
     n_wait = sum(1 for ln in sch.lines if " within " in ln)

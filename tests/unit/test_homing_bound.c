@@ -141,7 +141,7 @@ static void test_random_steps_hold_the_bound(void **state)
     (void)state;
     for (r = 0; r < 3u; r++) {
         for (t = 0; t < 2u; t++) {
-            for (run = 0; run < 6u; run++) {
+            for (run = 0; run < 4u; run++) {
                 double w = run_one(robots[r], 3000u, run, tensions[t], 1);
                 worst = w > worst ? w : worst;
                 faults += g_res.rc != 0;
@@ -266,8 +266,8 @@ static void test_engagement_from_the_sample_time(void **state)
 {
     double with_age, without;
     (void)state;
-    with_age = worst_late_engagement(0u, 6u);
-    without = worst_late_engagement(2u, 6u);
+    with_age = worst_late_engagement(0u, 4u);
+    without = worst_late_engagement(2u, 4u);
     print_message("engagement at most %.1f ticks late with the samples' ages, %.1f without\n",
                   with_age, without);
     assert_true(with_age <= 12.0);
