@@ -399,9 +399,10 @@ HOM_NOINLINE static void load_tendon(hom_t *h, uint8_t i)
     /* The bounded pull (docs/homing.md): no further past the engagement
      * than where the tension could pass 1.25 x the run's + HOM_BOUND_MN on
      * the robot the table describes, the travel taken in proportion to the
-     * tension and a HOM_BOUND_SHORT-th short. The engagement is the last
-     * position seen below the threshold, where the tendon may already carry
-     * the threshold's share of the target (its field's): that much less.
+     * tension and a HOM_BOUND_SHORT-th short. The engagement is where the
+     * field crossed the threshold (engagement_at(), hom_approach.c), where
+     * the tendon may already carry the threshold's share of the target (its
+     * field's): that much less.
      * The field decides where a tendon stops; this bounds what a field that
      * lies can ask (an ambient step against the tendon's own field, chaos
      * seeds 13456, 19346 and 19952: 1.39-2.10 x the target) on a first
