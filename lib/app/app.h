@@ -70,6 +70,13 @@
  * bring-up's torque cycle stopped it taut until the full release after the
  * bring-up: 171-380 ms (chaos seeds 8153, 7421). */
 #define APP_EARLY_RELEASE_MS 120u
+/* The early release's velocity and goal writes, each sent this many times
+ * in turn: a sync write has no reply, and at 1e-3 bus noise one copy of 8
+ * servos' goals is lost about once in 20 (chaos seeds 3037: one lost, a
+ * tendon taut 308 ms; 21316: two lost, 384 ms). */
+#define APP_EARLY_COPIES 3u
+#define APP_EARLY_SENT   (2u * APP_EARLY_COPIES + 1u) /* reset_release: all sent, waiting */
+#define APP_EARLY_DONE   (APP_EARLY_SENT + 1u)
 #define APP_BUS_WATCHDOG                                                                           \
     10u                           /* XL430 Bus Watchdog, 20 ms units: servos stop 200 ms           \
                                        after the last instruction (board hung or reset) */
@@ -273,8 +280,9 @@ typedef struct {
     uint8_t abort_owed;    /* a stop came after the run's end, before its report: release then */
     uint8_t done_out;      /* the end of a run or move is noted in the kept windows once its
                               <done> has left the board (a reset before that releases) */
-    uint8_t reset_release; /* a reset cut a run or move: 1 owed, 2-5 early release under way, 6
-                              released early or nothing to (app_boot_poll) */
+    uint8_t reset_release; /* a reset cut a run or move: 1 owed, up to APP_EARLY_SENT early
+                              release under way, APP_EARLY_DONE released early or nothing to
+                              (app_boot_poll) */
     uint8_t recover_left;  /* device bring-ups left before the pending request is refused
                               (APP_RECOVER_NEW: a new request, not counted yet) */
     uint8_t bring_up;      /* the last run ended in a servo timeout or stall: the next run

@@ -197,20 +197,20 @@ APP_NOINLINE void app_boot_poll(app_t *a)
             (void)dxl_poll(&a->bus.dxl); /* the early release still on the wire */
             return;
         }
-        /* reset_release 1: owed; 2-4: velocity, goals, velocity sent (each
-         * pair twice: a sync write has no reply, and one lost to bus noise
-         * left a tendon taut 308 ms, chaos seed 3037); 5: goals sent again,
-         * the bring-up waits APP_EARLY_RELEASE_MS for the tendons to
-         * slacken (its torque cycle would stop them where they stand) */
-        if (a->run.reset_release >= 1u && a->run.reset_release <= 4u) {
+        /* reset_release 1: owed; then velocity and goals in turn, each
+         * APP_EARLY_COPIES times (a sync write has no reply); once
+         * APP_EARLY_SENT, the bring-up waits APP_EARLY_RELEASE_MS for the
+         * tendons to slacken (its torque cycle would stop them where they
+         * stand) */
+        if (a->run.reset_release >= 1u && a->run.reset_release < APP_EARLY_SENT) {
             if (app_run_early_release(a, a->run.reset_release)) {
                 a->run.reset_release++;
                 a->boot.t_start = t;
                 return;
             }
-            a->run.reset_release = 6; /* nothing known to release early */
+            a->run.reset_release = APP_EARLY_DONE; /* nothing known to release early */
         }
-        if (a->run.reset_release == 5u && el < APP_EARLY_RELEASE_MS) {
+        if (a->run.reset_release == APP_EARLY_SENT && el < APP_EARLY_RELEASE_MS) {
             return;
         }
         boot_start(a);

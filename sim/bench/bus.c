@@ -344,7 +344,12 @@ static void deliver_mcu_byte(bench_t *b)
         s->collisions++;
         byte = bus_corrupt(s, byte);
     }
+    uint8_t sent = byte;
     byte = bus_noise(s, byte);
+    if (s->trace && byte != sent) {
+        fprintf(stderr, "bus %10llu us noise mcu %02X->%02X\n", (unsigned long long)end, sent,
+                byte);
+    }
     hist_add(s, start, end, -1);
     for (uint8_t i = 0; i < s->n_servos; i++) {
         if (s->silent[i]) {

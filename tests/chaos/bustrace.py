@@ -14,7 +14,9 @@ decision shows in:
   or whatever else was read.
 
 CRCs are not checked: a block the bus noise corrupted shows as a wild
-value, as it reached the firmware (which drops it on its CRC)."""
+value, as it reached the firmware (which drops it on its CRC). The
+firmware's bytes are traced as sent; `bus T us noise mcu XX->YY` lines
+name those the noise flipped on the way to the servos (`noise()`)."""
 
 from __future__ import annotations
 
@@ -95,6 +97,20 @@ def decode(lines, servo_index: int, servo_id: int) -> list[Event]:
             request = None
         pkt = []
     close_reply()
+    return out
+
+
+NOISE = re.compile(r"^bus\s+(\d+) us noise mcu ([0-9A-Fa-f]{2})->([0-9A-Fa-f]{2})\b")
+
+
+def noise(lines) -> list[tuple[float, str]]:
+    """The firmware's bytes the bus noise flipped: (time in s, description)."""
+    out = []
+    for line in lines:
+        m = NOISE.match(line)
+        if m:
+            out.append((int(m.group(1)) / 1e6,
+                        f"bus noise: a firmware byte {m.group(2)} reached the servos as {m.group(3)}"))
     return out
 
 

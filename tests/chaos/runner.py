@@ -282,6 +282,7 @@ def trace(seed: int, tendon: int, t0: float, t1: float) -> int:
     rows = [(e.t_s, (e.kind, e.addr), bt.describe(e))
             for e in bt.decode(p.stderr.splitlines(), tendon, ids[tendon])]
     rows += [(t, None, "console " + text) for t, text in chk.parse_console(p.stdout)]
+    rows += [(t, None, text) for t, text in bt.noise(p.stderr.splitlines())]
     last: dict = {}
     for t, key, text in sorted(rows, key=lambda r: r[0]):
         # a goal sent again each cycle, a position read unchanged: shown once

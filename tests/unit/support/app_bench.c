@@ -94,6 +94,11 @@ static uint16_t noisy_write(void *ctx, const uint8_t *data, uint16_t n)
         b->lose_goal_writes--;
         buf[n - 1u] ^= 0x01u;
     }
+    if (b->lose_position_writes != 0u && n > 9u && buf[7] == DXL_INST_SYNC_WRITE &&
+        buf[8] == DXL_XL430_GOAL_POSITION_ADDR && buf[9] == 0u) {
+        b->lose_position_writes--;
+        buf[n - 1u] ^= 0x01u;
+    }
     return b->bus_port.write(ctx, buf, n);
 }
 

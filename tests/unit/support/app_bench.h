@@ -68,6 +68,9 @@ typedef struct {
      * position from Profile Acceleration on) reach the servos with a bit of
      * their CRC flipped: every servo drops them */
     uint8_t lose_goal_writes;
+    /* the same for the next lose_position_writes sync writes of Goal Position
+     * alone (the early release after a reset) */
+    uint8_t lose_position_writes;
     /* the app */
     app_board_t board;
     con_io_t con_io;
