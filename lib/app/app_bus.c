@@ -24,13 +24,18 @@ uint32_t app_bus_baud(const app_t *app)
  * went stale at once and the servo timeout named one of the others (chaos
  * seed 2004: servo 1 silent at 818 mN, servo 8 named, so servo 1's tendon
  * was not reported as not released). Last, the others answer and only its
- * own position goes stale. */
+ * own position goes stale. The missed go in index order one cycle and in
+ * reverse the next: always in index order, a silent servo ahead of one
+ * missed to bus noise kept it silent and stale, and it was named in the
+ * silent one's place (chaos seed 1029). */
 static uint8_t present_ids(const app_t *a, uint8_t *ids, uint16_t *mask)
 {
-    uint8_t i, pass, n = 0;
+    uint8_t i, j, pass, n = 0;
     *mask = 0;
     for (pass = 0; pass < 2u; pass++) {
-        for (i = 0; i < a->info.n_tendons; i++) {
+        for (j = 0; j < a->info.n_tendons; j++) {
+            /* the missed in index order one cycle, in reverse the next */
+            i = (pass != 0u && (a->bus.cycle & 1u)) ? (uint8_t)(a->info.n_tendons - 1u - j) : j;
             if (app_has(a->bus.absent, i) == 0u && app_has(a->bus.missed, i) == pass) {
                 ids[n++] = a->bus.ids[i];
                 *mask |= app_bit16(i);

@@ -261,6 +261,32 @@ static void test_silent_servo_is_the_one_named(void **state)
     }
 }
 
+/* The same with a servo after it in the list already among the servos a
+ * read missed (one of its replies lost to bus noise just before): both go
+ * last, the silent one first, and it silenced the other for good. Chaos
+ * seed 1029: servo 4 stale behind silent servo 2, named in its place; the
+ * silent servo's tendon stayed at 815 mN unnamed. The servos a read missed
+ * go in index order one cycle, in reverse the next. */
+static void test_silent_servo_ahead_of_a_missed_one(void **state)
+{
+    static const uint8_t which[][2] = {{1, 3}, {0, 5}, {2, 4}};
+    (void)state;
+    for (uint8_t w = 0; w < sizeof which / sizeof which[0]; w++) {
+        uint8_t k = which[w][0];
+        silent_in_its_pull(k, 40);
+        g_b.app.bus.missed |= (uint16_t)(1u << which[w][1]);
+        app_bench_run_ms(&g_b, 60);
+        for (uint8_t i = 0; i < g_b.cfg.n_tendons; i++) {
+            uint32_t age = g_b.app.u.hom.now_ms - g_b.app.u.hom.servo_ok_ms[i];
+            assert_true(i == k ? age >= 50u : age < 20u);
+        }
+        assert_true(app_bench_wait_line(&g_b, "<fault ", g_line, sizeof g_line, 1000));
+        assert_int_equal(app_bench_field(g_line, "index", -1), k);
+        assert_true(app_bench_wait_line(&g_b, "<released ", g_line, sizeof g_line, 100));
+        assert_int_equal(app_bench_field(g_line, "index", -1), k);
+    }
+}
+
 /* A servo falls silent (a loose cable: it still runs to its last goal and
  * hears nothing, a release neither) and the run stops for another reason
  * before the homing's servo timeout: the release report names it, since
@@ -673,6 +699,7 @@ int main(void)
         cmocka_unit_test(test_long_press_aborts),
         cmocka_unit_test(test_servo_fault_mid_run),
         cmocka_unit_test(test_silent_servo_is_the_one_named),
+        cmocka_unit_test(test_silent_servo_ahead_of_a_missed_one),
         cmocka_unit_test(test_stop_names_a_servo_silent_since_before_it),
         cmocka_unit_test(test_bus_watchdog_stops_servos_when_the_board_hangs),
     };
