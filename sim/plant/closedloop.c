@@ -20,6 +20,37 @@ void plant_run_defaults(plant_run_cfg_t *rc, const plant_cfg_t *plant, const tbl
     rc->start_max_um = 300.0;
 }
 
+/* A uniform draw in [0, 1) from a linear congruence (the scan that found
+ * the bounded pull's cases drew its steps so). */
+static double scan_draw(uint32_t *s)
+{
+    *s = *s * 1664525u + 1013904223u;
+    return (double)(*s >> 8) / 16777216.0;
+}
+
+void plant_run_scan(plant_run_cfg_t *rc, uint32_t s0, unsigned run, uint8_t n_sensors,
+                    uint8_t n_tendons, int step)
+{
+    uint32_t rs = s0 * 7919u + run * 104729u + 1u;
+    uint8_t a;
+    rc->seed = s0 + 500u + run;
+    rc->pos_period_ms = (uint8_t)(6u + run % 13u);
+    rc->goal_lag_ms = (uint8_t)(2u + run % 11u);
+    rc->sample_lag_ms = (uint8_t)(run % 13u);
+    if (!step) {
+        return;
+    }
+    rc->fault = PLANT_FI_FIELD_JUMP;
+    rc->fault_index = (uint8_t)(scan_draw(&rs) * n_sensors);
+    rc->fault_ms = (uint32_t)(300.0 + scan_draw(&rs) * 1300.0 * n_tendons);
+    for (a = 0; a < 3u; a++) {
+        rc->jump_uT[a] = round((scan_draw(&rs) * 60.0 - 30.0) * 10.0) / 10.0;
+    }
+    if (rc->jump_uT[0] == 0.0) {
+        rc->jump_uT[0] = 0.1; /* all zero would be the plant's 3 mT default */
+    }
+}
+
 static void fill_ground_truth(const plant_run_cfg_t *rc, const plant_t *p, const hom_t *h,
                               plant_run_result_t *res)
 {

@@ -125,6 +125,13 @@ typedef struct {
  * tension, random start between 2 mm slack and 0.3 mm taut, frame offset 0. */
 void plant_run_defaults(plant_run_cfg_t *rc, const plant_cfg_t *plant, const tbl_table_t *table);
 
+/* Run `run` of the bounded-pull scan series s0 (tests/tools/bound_scan.c,
+ * test_homing_bound.c): the plant's seed and the bus timing from the run
+ * number, and with `step` an ambient field step (up to 30 uT per axis) on a
+ * random one of n_sensors at a random moment of a run of n_tendons. */
+void plant_run_scan(plant_run_cfg_t *rc, uint32_t s0, unsigned run, uint8_t n_sensors,
+                    uint8_t n_tendons, int step);
+
 /* Runs one calibration in closed loop. Returns 0 when the run finished (done
  * or fault: see res->rc), PLANT_E_ARG for a NULL or inconsistent argument
  * (table and plant tendon counts differ), PLANT_E_RANGE when hom_start()

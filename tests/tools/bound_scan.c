@@ -26,12 +26,6 @@ static tbl_wide_t g_w;
 static tbl_buf_t g_buf;
 static plant_run_result_t g_res;
 
-static double draw(uint32_t *s)
-{
-    *s = *s * 1664525u + 1013904223u;
-    return (double)(*s >> 8) / 16777216.0;
-}
-
 int main(int argc, char **argv)
 {
     unsigned n, run, t_mN, n_over = 0, n_fault = 0;
@@ -63,32 +57,17 @@ int main(int argc, char **argv)
     }
     for (run = 0; run < n; run++) {
         plant_run_cfg_t rc;
-        uint32_t rs = s0 * 7919u + run * 104729u + 1u;
         double r = 0.0;
-        uint8_t i, a;
+        uint8_t i;
         g_cfg = g_nom;
         plant_cfg_perturb(&g_cfg, s0 + run, pert);
         plant_run_defaults(&rc, &g_cfg, tbl_buf_table(&g_buf));
-        rc.seed = s0 + 500u + run;
-        rc.pos_period_ms = (uint8_t)(6u + run % 13u);
-        rc.goal_lag_ms = (uint8_t)(2u + run % 11u);
-        rc.sample_lag_ms = (uint8_t)(run % 13u);
+        plant_run_scan(&rc, s0, run, g_nom.n_sensors, g_nom.n_tendons, step);
         rc.mst_us = (uint16_t)mst;
         rc.read_us = (uint16_t)rd;
         rc.read_jitter_us = (uint16_t)jit;
         rc.age_mode = (uint8_t)age;
         rc.cmd.tension_mN = (uint16_t)t_mN;
-        if (step) {
-            rc.fault = PLANT_FI_FIELD_JUMP;
-            rc.fault_index = (uint8_t)(draw(&rs) * g_nom.n_sensors);
-            rc.fault_ms = (uint32_t)(300.0 + draw(&rs) * 1300.0 * g_nom.n_tendons);
-            for (a = 0; a < 3u; a++) {
-                rc.jump_uT[a] = round((draw(&rs) * 60.0 - 30.0) * 10.0) / 10.0;
-            }
-            if (rc.jump_uT[0] == 0.0) {
-                rc.jump_uT[0] = 0.1;
-            }
-        }
         if (plant_run(&rc, &g_res) != 0) {
             printf("run %u: the plant did not solve\n", run);
             continue;

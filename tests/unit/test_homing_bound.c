@@ -58,42 +58,19 @@ static void use_robot(const char *cfg)
     fail_msg("robot %s not loaded", cfg);
 }
 
-/* A uniform draw in [0, 1) from a linear congruence (the scan that found
- * the cases below drew its steps so). */
-static double draw(uint32_t *s)
-{
-    *s = *s * 1664525u + 1013904223u;
-    return (double)(*s >> 8) / 16777216.0;
-}
-
 /* Run `run` of the series s0 on robot `cfg` at tension_mN: bus timing from
  * the run number, and with `step`, an ambient step on a random sensor at a
  * random moment. Returns the worst pull over the bound's share (<= 1: held). */
 static double run_one(const char *cfg, uint32_t s0, unsigned run, uint16_t tension_mN, int step)
 {
     plant_run_cfg_t rc;
-    uint32_t rs = s0 * 7919u + run * 104729u + 1u;
     double bound = 1.25 * tension_mN * 1e-3 + 0.1;
     double worst = 0.0;
-    uint8_t i, a;
+    uint8_t i;
     use_robot(cfg);
     plant_run_defaults(&rc, &g_cfg, hom_fix_pack(&g_tab));
-    rc.seed = s0 + 500u + run;
-    rc.pos_period_ms = (uint8_t)(6u + run % 13u);
-    rc.goal_lag_ms = (uint8_t)(2u + run % 11u);
-    rc.sample_lag_ms = (uint8_t)(run % 13u);
+    plant_run_scan(&rc, s0, run, g_cfg.n_sensors, g_cfg.n_tendons, step);
     rc.cmd.tension_mN = tension_mN;
-    if (step) {
-        rc.fault = PLANT_FI_FIELD_JUMP;
-        rc.fault_index = (uint8_t)(draw(&rs) * g_cfg.n_sensors);
-        rc.fault_ms = (uint32_t)(300.0 + draw(&rs) * 1300.0 * g_cfg.n_tendons);
-        for (a = 0; a < 3u; a++) {
-            rc.jump_uT[a] = round((draw(&rs) * 60.0 - 30.0) * 10.0) / 10.0;
-        }
-        if (rc.jump_uT[0] == 0.0) {
-            rc.jump_uT[0] = 0.1; /* all zero would be the plant's 3 mT default */
-        }
-    }
     assert_int_equal(plant_run(&rc, &g_res), 0);
     for (i = 0; i < g_res.n_tendons; i++) {
         if (g_res.max_pull_N[i] / bound > worst) {
