@@ -279,10 +279,11 @@ def trace(seed: int, tendon: int, t0: float, t1: float) -> int:
             i = cmd.index(opt)
             cmd[i + 1] = f"{t1:.3f}s" if name is None else str(Path(tmp) / name)
         p = subprocess.run(cmd + ["--trace-bus"], capture_output=True, text=True, cwd=ROOT)
+    trace_lines = p.stderr.splitlines()
     rows = [(e.t_s, (e.kind, e.addr), bt.describe(e))
-            for e in bt.decode(p.stderr.splitlines(), tendon, ids[tendon])]
+            for e in bt.decode(trace_lines, tendon, ids[tendon])]
     rows += [(t, None, "console " + text) for t, text in chk.parse_console(p.stdout)]
-    rows += [(t, None, text) for t, text in bt.noise(p.stderr.splitlines())]
+    rows += [(t, None, text) for t, text in bt.noise(trace_lines)]
     last: dict = {}
     for t, key, text in sorted(rows, key=lambda r: r[0]):
         # a goal sent again each cycle, a position read unchanged: shown once

@@ -324,6 +324,24 @@ static void test_stop_names_a_servo_silent_since_before_it(void **state)
     }
 }
 
+/* Steps the bench until every tendon of `mask` carries more than 0.3 N
+ * (at most 2000 passes). */
+static void step_until_taut(uint16_t mask)
+{
+    uint16_t taut = 0;
+    uint32_t k;
+    for (k = 0; k < 2000u && taut != mask; k++) {
+        app_bench_step(&g_b);
+        taut = 0;
+        for (uint8_t i = 0; i < 6; i++) {
+            if ((mask & (1u << i)) != 0u && app_bench_tension(&g_b, i) > 0.3) {
+                taut |= (uint16_t)(1u << i);
+            }
+        }
+    }
+    assert_int_equal(taut, mask);
+}
+
 /* A servo overload in the final move, with `lost` copies of the fault's
  * release goals lost to bus noise: the servo's reboot, and the bring-up that
  * follows it and forgets queued goals, wait for a copy to arrive. Every
@@ -334,18 +352,12 @@ static void test_stop_names_a_servo_silent_since_before_it(void **state)
  * asks for; five tendons stayed at 909 mN for 990 ms. */
 static void release_goals_lost(uint8_t lost)
 {
-    uint8_t i, taut = 0;
+    uint8_t i;
     uint32_t k;
     boot(&g_b, 1);
     cmd(&g_b, "cal", "ok");
     assert_true(app_bench_wait_line(&g_b, "<progress state=final", g_line, sizeof g_line, 30000));
-    for (k = 0; k < 2000u && taut < 5u; k++) {
-        app_bench_step(&g_b);
-        for (i = 0, taut = 0; i < 6; i++) {
-            taut += (uint8_t)(i != 2u && app_bench_tension(&g_b, i) > 0.3);
-        }
-    }
-    assert_int_equal(taut, 5);
+    step_until_taut(0x3Bu); /* every tendon but 2 */
     xl430_inject_hw_error(&g_b.servo[2], DXL_XL430_HW_ERR_OVERLOAD);
     for (k = 0; k < 1000u && g_b.app.state != APP_ST_FAULT; k++) {
         app_bench_step(&g_b);
@@ -504,21 +516,14 @@ static void test_watchdog_as_a_run_ends_keeps_the_windows(void **state)
  * the tendons stayed at 795 mN until the bring-up's end, 384 ms. */
 static void test_reset_whose_early_release_goals_are_lost(void **state)
 {
-    uint8_t i, lost, taut;
-    uint32_t k;
+    uint8_t i, lost;
     (void)state;
     for (lost = 0; lost <= 2u; lost++) { /* 2: chaos seed 21316 */
         boot(&g_b, 1);
         cmd(&g_b, "cal", "ok");
         assert_true(
             app_bench_wait_line(&g_b, "<progress state=final", g_line, sizeof g_line, 30000));
-        for (k = 0, taut = 0; k < 2000u && taut < 6u; k++) {
-            app_bench_step(&g_b);
-            for (i = 0, taut = 0; i < 6; i++) {
-                taut += (uint8_t)(app_bench_tension(&g_b, i) > 0.3);
-            }
-        }
-        assert_int_equal(taut, 6);
+        step_until_taut(0x3Fu);
         g_b.wdt_reset = 1;
         g_b.lose_position_writes = lost;
         app_bench_restart(&g_b, 0);

@@ -78,6 +78,16 @@ static uint8_t noisy(app_bench_t *b, uint8_t byte)
     return byte;
 }
 
+/* A sync write from address addr (below 256) reaches the servos with a bit
+ * of its CRC flipped while *left copies are still to be lost. */
+static void lose_sync_write(uint8_t *left, uint8_t addr, uint8_t *buf, uint16_t n)
+{
+    if (*left != 0u && n > 9u && buf[7] == DXL_INST_SYNC_WRITE && buf[8] == addr && buf[9] == 0u) {
+        (*left)--;
+        buf[n - 1u] ^= 0x01u;
+    }
+}
+
 static uint16_t noisy_write(void *ctx, const uint8_t *data, uint16_t n)
 {
     app_bench_t *b = of_bus(ctx);
@@ -89,16 +99,8 @@ static uint16_t noisy_write(void *ctx, const uint8_t *data, uint16_t n)
     for (i = 0; i < n; i++) {
         buf[i] = noisy(b, data[i]);
     }
-    if (b->lose_goal_writes != 0u && n > 9u && buf[7] == DXL_INST_SYNC_WRITE &&
-        buf[8] == DXL_XL430_PROFILE_ACCELERATION_ADDR && buf[9] == 0u) {
-        b->lose_goal_writes--;
-        buf[n - 1u] ^= 0x01u;
-    }
-    if (b->lose_position_writes != 0u && n > 9u && buf[7] == DXL_INST_SYNC_WRITE &&
-        buf[8] == DXL_XL430_GOAL_POSITION_ADDR && buf[9] == 0u) {
-        b->lose_position_writes--;
-        buf[n - 1u] ^= 0x01u;
-    }
+    lose_sync_write(&b->lose_goal_writes, DXL_XL430_PROFILE_ACCELERATION_ADDR, buf, n);
+    lose_sync_write(&b->lose_position_writes, DXL_XL430_GOAL_POSITION_ADDR, buf, n);
     return b->bus_port.write(ctx, buf, n);
 }
 
