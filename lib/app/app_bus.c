@@ -230,21 +230,19 @@ APP_NOINLINE static void servo_next(app_t *a)
         if ((a->bus.cycle % APP_GOAL_REFRESH_EVERY) == APP_GOAL_REFRESH_EVERY / 2u) {
             a->bus.goal_due = off_goal(a); /* this cycle refreshes goals instead */
         }
-        force = a->bus.pos_force;
-        addr = DXL_XL430_HW_ERROR_ADDR;
-        v = 1;
-        txn = APP_TX_HWERR;
-        if (a->bus.goal_due != 0u) {
-            /* the reads wait for the next cycle */
-        } else if (a->bus.hwerr_due || (!force && (a->bus.cycle % APP_HWERR_EVERY) == 0u)) {
-            a->bus.hwerr_due = 0;
-        } else {
-            a->bus.pos_force = 0;
-            addr = DXL_XL430_PRESENT_POSITION_ADDR;
-            v = 4;
-            txn = APP_TX_POS;
-        }
-        if (a->bus.goal_due == 0u) {
+        if (a->bus.goal_due == 0u) { /* otherwise the reads wait for the next cycle */
+            force = a->bus.pos_force;
+            addr = DXL_XL430_HW_ERROR_ADDR;
+            v = 1;
+            txn = APP_TX_HWERR;
+            if (a->bus.hwerr_due || (!force && (a->bus.cycle % APP_HWERR_EVERY) == 0u)) {
+                a->bus.hwerr_due = 0;
+            } else {
+                a->bus.pos_force = 0;
+                addr = DXL_XL430_PRESENT_POSITION_ADDR;
+                v = 4;
+                txn = APP_TX_POS;
+            }
             if (dxl_fast_sync_read(&a->bus.dxl, addr, v, ids, n) > 0) {
                 a->bus.txn = txn;
             }
