@@ -342,25 +342,35 @@ void hom_fine_point(hom_t *h)
             finish_tendon(h, p, h->p_prev * 256 + f);
             return;
         }
-        if (++t->retries > HOM_MAX_RETRIES) {
-            hom_fail_tendon(h, HOM_F_NO_PROGRESS, (int32_t)b);
+        if ((b - t->target_cuT) * 512u < (uint32_t)h->slope_min_q8) {
+            /* over by less than half a tick at the floor slope (half the
+             * table's, which a field rising ever faster past a wide step
+             * beats): the home is extrapolated back to the target below,
+             * with the points' own slope. A back-off from a step that landed
+             * on the target cost a segment-2 tendon at 1.5 N 2.1 s, and the
+             * tendon its timeout (seed 7 of the bench robot). */
+            h->near = 1;
+        } else {
+            if (++t->retries > HOM_MAX_RETRIES) {
+                hom_fail_tendon(h, HOM_F_NO_PROGRESS, (int32_t)b);
+                return;
+            }
+            if (h->have_prev) {
+                /* the secant across the crossing is the slope to come back with */
+                if (dp > 0 && b > h->b_prev) {
+                    h->slope_q8 = hom_muldiv((int32_t)(b - h->b_prev), 256, dp);
+                }
+                h->mod_goal = h->p_prev;
+            } else {
+                /* scale the travel by how far the field overshot (the take-up can
+                 * cross a low target within one sample), then keep a margin */
+                h->mod_goal = t->engage + hom_muldiv(hom_muldiv(p - t->engage,
+                                                                (int32_t)t->target_cuT, (int32_t)b),
+                                                     h->cfg.near_permille, 1000);
+            }
+            hom_back_off(h);
             return;
         }
-        if (h->have_prev) {
-            /* the secant across the crossing is the slope to come back with */
-            if (dp > 0 && b > h->b_prev) {
-                h->slope_q8 = hom_muldiv((int32_t)(b - h->b_prev), 256, dp);
-            }
-            h->mod_goal = h->p_prev;
-        } else {
-            /* scale the travel by how far the field overshot (the take-up can
-             * cross a low target within one sample), then keep a margin */
-            h->mod_goal = t->engage +
-                          hom_muldiv(hom_muldiv(p - t->engage, (int32_t)t->target_cuT, (int32_t)b),
-                                     h->cfg.near_permille, 1000);
-        }
-        hom_back_off(h);
-        return;
     }
     flat = (uint8_t)not_following(h, t, p, b);
     if (flat == 1u) {

@@ -699,10 +699,12 @@ HOM_NOINLINE uint32_t hom_meas_of(const hom_t *h, uint8_t k, const int32_t b[3])
     return m < 0 ? 0u : (uint32_t)m;
 }
 
-/* q8 / 256 rounded to nearest, halves up (the remainder is -128..127). */
+/* q8 / 256 rounded to nearest, halves up (the remainder is -128..127): the
+ * floor of (q8 + 128) / 256, an arithmetic shift in avr-gcc, GCC and Clang
+ * (each documents >> of a negative value as one). */
 HOM_NOINLINE int32_t hom_floor_div256(int32_t q8)
 {
-    return q8 >= 0 ? (q8 + 128) / 256 : -((-q8 + 127) / 256);
+    return (q8 + 128) >> 8;
 }
 
 /* Of two goals, the one further in the release direction. */

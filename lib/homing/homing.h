@@ -277,7 +277,8 @@ typedef struct {
     uint16_t sensor_timeout_ms;  /* no sample for this long: HOM_F_SENSOR_TIMEOUT */
     uint16_t servo_timeout_ms;   /* no answer for this long: HOM_F_SERVO_TIMEOUT */
     uint16_t move_timeout_ms;    /* a release / final move longer than this: HOM_F_SERVO_STALL */
-    uint16_t tendon_timeout_ms;  /* one tendon longer than this: HOM_F_TENDON_TIMEOUT */
+    uint16_t tendon_timeout_ms;  /* one tendon longer than this (twice, once it backed off to
+                                    slack): HOM_F_TENDON_TIMEOUT */
     uint32_t engage_min_cuT;     /* engagement threshold floor (raised to 8x table noise, at most
                                     a quarter of the smallest target) */
     uint32_t rate_limit_cuT;     /* largest plausible change of one axis between two samples */
