@@ -195,6 +195,22 @@ def record_weights(c: Client, tendons: Sequence[int], masses_g: Sequence[float],
     return recs
 
 
+# A pull whose field reached less than this share of the top grid target
+# ended at its bound (its travel limit, a field that stopped rising, its
+# time): the board ends that tendon's pull there and goes on with the next.
+BOUND_SHARE = 0.97
+
+
+def reached(view: SurveyView, tendon: int) -> Optional[float]:
+    """The share of its top target a pull's field reached (its <result>), or
+    None without one."""
+    row = view.rows.get(tendon, {})
+    db, target = row.get("dB"), row.get("target")
+    if not isinstance(db, (int, float)) or not isinstance(target, (int, float)) or target <= 0:
+        return None
+    return round(float(db) / float(target), 3)
+
+
 @click.command("survey")
 @click.option("--out", "out_path", type=click.Path(dir_okay=False), default=None,
               help="Survey file to write (default: <robot>_survey.json here).")
@@ -224,7 +240,10 @@ def survey_cmd(out_path, tendon, weight_g, weight2_g, which, samples, hang_wait,
     Every tendon (or --tendon), the others released, is pulled alone from
     slack to the table's top grid tension, as a calibration pulls, while the
     board streams its servo position and every sensor's field; every tendon
-    ends released and nothing is stored on the board. With --weight-g, the
+    ends released and nothing is stored on the board. A pull that reaches
+    its bound first (its travel limit, a field that stops rising, its time:
+    a robot that differs from its table) ends there, is marked, and the
+    survey goes on with the next tendon. With --weight-g, the
     tool then guides the weights: with every servo slack, hang the mass on
     the first tendon of each segment (--weights all: on every tendon) when
     asked; the field is read before and with it. With --weight2-g too, the
@@ -289,14 +308,18 @@ def survey_cmd(out_path, tendon, weight_g, weight2_g, which, samples, hang_wait,
     path.write_text(json.dumps(doc, indent=1) + "\n")
     summary = {"written": str(path), "robot": robot, "table_id": table_id,
                "pulls": [{"tendon": p["tendon"], "steps": len(p["steps"]),
-                          "samples": p["samples"]} for p in doc["pulls"]],
+                          "samples": p["samples"], "reached": reached(view, p["tendon"])}
+                         for p in doc["pulls"]],
                "weights": len(weights), "dropped_reports": view.dropped,
                "time_s": int(view.done.get("time_ms", 0)) / 1000.0}
     if as_json:
         print_json(summary)
         return
     for p in summary["pulls"]:
-        out().print(f"tendon {p['tendon']}: {p['steps']} positions from {p['samples']} samples")
+        bound = p["reached"] is not None and p["reached"] < BOUND_SHARE
+        out().print(f"tendon {p['tendon']}: {p['steps']} positions from {p['samples']} samples"
+                    + (f" [yellow](ended at its bound, {100 * p['reached']:.0f} % of the top "
+                       "target's field)[/]" if bound else ""))
     out().print(f"[green]survey written[/]: {escape(str(path))} ({len(doc['pulls'])} pulls, "
                 f"{len(weights)} weight records, {summary['time_s']:.1f} s on the board); next: "
                 f"hallhome identify fit ROBOT.toml {escape(str(path))}")

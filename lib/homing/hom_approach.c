@@ -93,7 +93,10 @@ HOM_NOINLINE void hom_begin_tendon(hom_t *h, uint8_t i)
     if (h->mode == HOM_MODE_QUICK) {
         /* straight to just short of the stored home: a tenth of the expected
          * travel (at least 3 ticks) leaves room for the fine steps */
-        int32_t guard = t->travel_ticks / 10 < 3 ? 3 : t->travel_ticks / 10;
+        int32_t guard = t->travel_ticks / 10;
+        if (guard < 3) {
+            guard = 3;
+        }
         g = t->est_home - hom_pull(t, guard);
         if (hom_pull(t, g - h->present[i]) > 0) {
             h->quick_leg = 1;

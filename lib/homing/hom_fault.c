@@ -51,9 +51,20 @@ HOM_NOINLINE void hom_fail(hom_t *h, hom_fault_t f, uint8_t dev, uint8_t index, 
     h->state = ST_FAULT;
 }
 
-/* hom_fail() naming the tendon being calibrated. */
+/* hom_fail() naming the tendon being calibrated. A survey's pull that
+ * reached its bound (its travel limit, a field that no longer rises with
+ * it, its time) ends there instead: the tendon is released and checked as
+ * after a home, and the survey goes on with the next tendon. What it
+ * streamed up to there is its pull (docs/identify.md); on a robot that
+ * differs from its table the bound comes before the top of the grid. A
+ * tendon that never engaged still ends the survey. */
 HOM_NOINLINE void hom_fail_tendon(hom_t *h, hom_fault_t f, int32_t detail)
 {
+    if (h->survey && f != HOM_F_NO_ENGAGEMENT) {
+        int32_t p = h->present[h->cur];
+        hom_finish_tendon(h, p, p * 256);
+        return;
+    }
     hom_fail(h, f, HOM_DEV_TENDON, h->cur, detail);
 }
 

@@ -178,7 +178,7 @@ static int32_t fit_or(const hom_t *h, int32_t p, int32_t fallback)
  * (1/256 tick); the tendon goes back to slack, and the home is recorded and
  * reported once the field has come back to the baseline there
  * (hom_release_check()). */
-HOM_NOINLINE static void finish_tendon(hom_t *h, int32_t p, int32_t fallback)
+HOM_NOINLINE void hom_finish_tendon(hom_t *h, int32_t p, int32_t fallback)
 {
     hom_tendon_t *t = hom_cur(h);
     int32_t home_q8 = fit_or(h, p, fallback);
@@ -270,7 +270,7 @@ HOM_NOINLINE static int not_following(hom_t *h, const hom_tendon_t *t, int32_t p
 {
     int32_t d = hom_pull(t, p - h->ref_p);
     int32_t rise = (int32_t)b + 4 * (int32_t)h->noise_cuT - (int32_t)h->ref_b;
-    int32_t span = t->travel_ticks / 6;
+    int32_t span = (int32_t)((uint32_t)t->travel_ticks / 6u); /* travel > 0 */
     if (span < HOM_FLAT_TICKS) {
         span = HOM_FLAT_TICKS;
     }
@@ -333,13 +333,13 @@ void hom_fine_point(hom_t *h)
         if (h->have_prev && dp == 0) {
             /* the same position averaged again h->now_ms reads at or past the
              * target: the target is here, within the noise */
-            finish_tendon(h, p, p * 256);
+            hom_finish_tendon(h, p, p * 256);
             return;
         }
         if (h->have_prev && b > h->b_prev && dp >= 1 && dp <= 3) {
             int32_t f = hom_muldiv((int32_t)(t->target_cuT - h->b_prev), (p - h->p_prev) * 256,
                                    (int32_t)(b - h->b_prev));
-            finish_tendon(h, p, h->p_prev * 256 + f);
+            hom_finish_tendon(h, p, h->p_prev * 256 + f);
             return;
         }
         if ((b - t->target_cuT) * 512u < (uint32_t)h->slope_min_q8) {
@@ -391,7 +391,7 @@ void hom_fine_point(hom_t *h)
         }
     }
     if (r_q8 < 128 && h->near) {
-        finish_tendon(h, p, p * 256 + hom_pull(t, (int32_t)r_q8));
+        hom_finish_tendon(h, p, p * 256 + hom_pull(t, (int32_t)r_q8));
         return;
     }
     room = (t->limit_ticks - hom_pull(t, p - t->engage)) * 256;
@@ -428,7 +428,7 @@ void hom_fine_point(hom_t *h)
                  * of 0 sent the servo where it stood, point after point,
                  * until the tendon's timeout (chaos seed 13376: a slope
                  * measured across the spool's backlash, 3 cuT per tick) */
-                finish_tendon(h, p, p * 256 + hom_pull(t, (int32_t)r_q8));
+                hom_finish_tendon(h, p, p * 256 + hom_pull(t, (int32_t)r_q8));
                 return;
             }
         }

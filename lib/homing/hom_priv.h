@@ -113,6 +113,7 @@ void hom_enter(hom_t *h, uint8_t state);
 /* ---- hom_fault.c: faults and health checks ---- */
 void hom_fail(hom_t *h, hom_fault_t f, uint8_t dev, uint8_t index, int32_t detail);
 void hom_fail_tendon(hom_t *h, hom_fault_t f, int32_t detail);
+void hom_finish_tendon(hom_t *h, int32_t p, int32_t fallback);
 int hom_check_sensors(hom_t *h, const hom_in_t *in);
 int hom_check_servos(hom_t *h, const hom_in_t *in);
 

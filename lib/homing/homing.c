@@ -662,7 +662,7 @@ HOM_NOINLINE void hom_avg_of(const hom_t *h, uint8_t k, int32_t out[3])
     int32_t n = h->sensor[k].n_acc ? h->sensor[k].n_acc : 1;
     for (a = 0; a < 3; a++) {
         int32_t s = h->sensor[k].acc[a];
-        out[a] = (s >= 0 ? s + n / 2 : s - n / 2) / n;
+        out[a] = (s >= 0 ? s + (n >> 1) : s - (n >> 1)) / n; /* n > 0 */
     }
 }
 

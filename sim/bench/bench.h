@@ -295,6 +295,7 @@ typedef struct {
     /* console accounting */
     uint64_t pending_us[TRUTH_MAX_PENDING];
     uint32_t pend_head, pend_n;
+    uint64_t last_reply_us; /* the newest final reply: the line after it is served from then */
     uint8_t last_in;
     uint64_t lines_sent, replies, extra_replies, lost_at_reset, unanswered, excused_overrun;
     uint64_t first_unanswered_us; /* when the first line never answered was sent */

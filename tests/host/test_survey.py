@@ -6,8 +6,8 @@ import json
 import pytest
 
 from hallhome.client import Report
-from hallhome.op_survey import (Sample, SurveyError, SurveyView, parse_sample, pull_of,
-                                record_weights, survey_doc, weight_tendons)
+from hallhome.op_survey import (BOUND_SHARE, Sample, SurveyError, SurveyView, parse_sample,
+                                pull_of, reached, record_weights, survey_doc, weight_tendons)
 
 
 def sv(t, p, *vals):
@@ -76,6 +76,16 @@ def test_view_collects_samples_engagement_and_counts_bad_lines():
     assert not v.ok  # a calibration's done is not a survey's
     v.done = Report("done", {"mode": "survey"}, "")
     assert v.ok
+
+
+def test_a_pull_that_ended_at_its_bound_is_told_by_its_result():
+    v = SurveyView(3, None, 1)
+    for t, db in ((0, 1068.4), (1, 812.0)):
+        v.feed(Report("result", {"tendon": t, "home": 4400, "dB_uT": db, "target_uT": 1068.75},
+                      ""))
+    assert reached(v, 0) == pytest.approx(1.0, abs=1e-3) and reached(v, 0) >= BOUND_SHARE
+    assert reached(v, 1) == pytest.approx(0.760, abs=1e-3) and reached(v, 1) < BOUND_SHARE
+    assert reached(v, 2) is None  # no result (yet)
 
 
 def test_survey_doc_has_the_fit_format_and_every_tendon():

@@ -126,6 +126,8 @@ def test_hallhome_identify_survey_end_to_end(tmp_path):
         # half as far as the segment-2 ones (28-33 steps against 57-62)
         assert all(p["steps"] >= 20 for p in summary["pulls"]), summary["pulls"]
         assert all(p["steps"] >= 45 for p in summary["pulls"][3:]), summary["pulls"]
+        # every pull of the robot its table describes reaches the top target
+        assert all(p["reached"] >= 0.97 for p in summary["pulls"]), summary["pulls"]
     finally:
         bench.terminate()
         bench.wait(10)
