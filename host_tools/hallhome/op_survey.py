@@ -205,10 +205,11 @@ def reached(view: SurveyView, tendon: int) -> Optional[float]:
     """The share of its top target a pull's field reached (its <result>), or
     None without one."""
     row = view.rows.get(tendon, {})
-    db, target = row.get("dB"), row.get("target")
-    if not isinstance(db, (int, float)) or not isinstance(target, (int, float)) or target <= 0:
+    try:  # the board's decimals arrive as text (protocol.parse_line)
+        db, target = float(row.get("dB")), float(row.get("target"))
+    except (TypeError, ValueError):
         return None
-    return round(float(db) / float(target), 3)
+    return round(db / target, 3) if target > 0 else None
 
 
 @click.command("survey")

@@ -5,6 +5,7 @@ import json
 
 import pytest
 
+from hallhome import protocol
 from hallhome.client import Report
 from hallhome.op_survey import (BOUND_SHARE, Sample, SurveyError, SurveyView, parse_sample,
                                 pull_of, reached, record_weights, survey_doc, weight_tendons)
@@ -79,13 +80,16 @@ def test_view_collects_samples_engagement_and_counts_bad_lines():
 
 
 def test_a_pull_that_ended_at_its_bound_is_told_by_its_result():
-    v = SurveyView(3, None, 1)
-    for t, db in ((0, 1068.4), (1, 812.0)):
-        v.feed(Report("result", {"tendon": t, "home": 4400, "dB_uT": db, "target_uT": 1068.75},
-                      ""))
+    v = SurveyView(4, None, 1)
+    for line in ("<result tendon=0 id=1 home=4400 dB_uT=1068.40 target_uT=1068.75>",
+                 "<result tendon=1 id=2 home=4380 dB_uT=812.00 target_uT=1068.75>",
+                 "<result tendon=3 id=4 home=4380 dB_uT=812.00 target_uT=0.00>"):
+        msg = protocol.parse_line(line)  # as the client reads the board: decimals as text
+        v.feed(Report(msg["kind"], msg["fields"], line))
     assert reached(v, 0) == pytest.approx(1.0, abs=1e-3) and reached(v, 0) >= BOUND_SHARE
     assert reached(v, 1) == pytest.approx(0.760, abs=1e-3) and reached(v, 1) < BOUND_SHARE
     assert reached(v, 2) is None  # no result (yet)
+    assert reached(v, 3) is None  # no target to compare with
 
 
 def test_survey_doc_has_the_fit_format_and_every_tendon():
