@@ -683,6 +683,48 @@ static void test_survey_pulls_end_at_their_bound(void **state)
     }
 }
 
+/* A survey's pull of a tendon far softer than its table: it carries tension
+ * long before its field shows the engagement, and a fault's release takes
+ * it back to where its take-up began (test_soft_tendon_released). Its pull
+ * ending at its bound releases it as after a home: it is slack when the
+ * next tendon's pull starts (the run cut there), and the survey completes,
+ * or ends in field_step when the field never follows it. */
+static void test_a_soft_tendons_survey_pull_leaves_it_slack(void **state)
+{
+    static plant_cfg_t cfg;
+    plant_run_cfg_t rc;
+    unsigned soft, completed = 0;
+    uint16_t e;
+    (void)state;
+    for (soft = 10; soft <= 810u; soft *= 3u) {
+        uint32_t t1 = 0;
+        cfg = g_cfg;
+        cfg.tendon[0].ea_N /= (double)soft;
+        plant_run_defaults(&rc, &cfg, hom_fix_pack(&g_tab));
+        rc.seed = 7;
+        rc.cmd.survey = 1;
+        assert_int_equal(plant_run(&rc, &g_res), 0);
+        print_message("%u x softer: %s, tendon 0 pulled to %.0f mN\n", soft,
+                      hom_fault_name(g_res.fault), g_res.max_pull_N[0] * 1000.0);
+        if (g_res.fault != HOM_F_NONE) {
+            assert_int_equal(g_res.fault, HOM_F_FIELD_STEP);
+            assert_true(g_res.released && g_res.release_ms <= 100u);
+            continue;
+        }
+        completed++;
+        for (e = 0; e < g_res.n_events && t1 == 0u; e++) {
+            const hom_event_t *ev = &g_res.events[e];
+            t1 = ev->type == HOM_EV_PHASE && ev->code == HOM_PH_TENDON && ev->index == 1u ? ev->t_ms
+                                                                                          : 0u;
+        }
+        assert_true(t1 != 0u);
+        rc.max_ms = t1 + 20u; /* cut as tendon 1's pull starts: the plant then */
+        assert_int_equal(plant_run(&rc, &g_res), PLANT_E_SOLVE);
+        assert_true(g_res.final_tension_N[0] < 0.001);
+    }
+    assert_true(completed >= 3u);
+}
+
 static void test_travel_limit(void **state)
 {
     /* a limit shorter than the travel to the target */
@@ -846,6 +888,7 @@ int main(void)
         cmocka_unit_test(test_magnet_removed_while_pulling),
         cmocka_unit_test(test_window_kept_only_with_a_home),
         cmocka_unit_test(test_target_unreachable),
+        cmocka_unit_test(test_a_soft_tendons_survey_pull_leaves_it_slack),
         cmocka_unit_test(test_travel_limit),
         cmocka_unit_test(test_survey_pulls_end_at_their_bound),
         cmocka_unit_test(test_travel_limit_within_the_release_reach),
