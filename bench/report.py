@@ -385,9 +385,12 @@ def loop_phase_table(r: Dict) -> List[str]:
 ID_MODES = (("nominal", "nominal TOML (today)"), ("survey", "survey only (no weights)"),
             ("weights", "survey + one weight per segment"),
             ("tendons", "survey + one weight per tendon"),
-            ("friction", "survey + two masses per segment (friction fitted)"))
+            ("friction", "survey + two masses per segment (friction fitted)"),
+            ("held", "survey + one weight per segment + held pulls (the bench's: the board "
+                     "cannot run them yet)"))
 ID_SHORT = {"survey": "survey only", "weights": "one weight per segment",
-            "tendons": "one weight per tendon", "friction": "two masses per segment"}
+            "tendons": "one weight per tendon", "friction": "two masses per segment",
+            "held": "one weight per segment and held pulls"}
 
 
 def id_set_label(st: Dict) -> str:
@@ -416,7 +419,10 @@ def section_identify(res: Dict) -> List[str]:
         "weights; with one per segment, the records of each segment's first tendon, which "
         "are those of a survey with one weight per segment; with one per tendon; with a "
         "second mass, twice the first, on each segment's first tendon, which lets the fit "
-        "find the tendon friction) and the "
+        "find the tendon friction; with one per segment and the held pulls, `--survey-held`: "
+        "every tendon pulled again while another tendon of its segment holds a bend, whose "
+        "engagement's move gives its routing radius; the board cannot run held pulls yet) "
+        "and the "
         "table generator makes the targets of each description (hallhome.identify_eval, "
         "docs/identify.md). Error = the tension at which the true robot (the plant's "
         "noise-free single-tendon pull, the calibration's definition) shows the target, "
@@ -472,7 +478,7 @@ def identify_notes(idf: Dict) -> List[str]:
     notes = []
     for st in idf.get("sets", []):
         nom = st["nominal"]["all"]
-        for mode in ("weights", "tendons", "friction"):
+        for mode in ("weights", "tendons", "friction", "held"):
             lab = ID_SHORT[mode]
             if mode not in st:
                 continue

@@ -458,7 +458,7 @@ def _bench_rates(res: Dict, run: Dict, note: str = "") -> None:
 
 # (label key, perturbation, stiffness spread or None, seeds in a full run, fits,
 #  the description's friction in mN or None for the TOML's)
-ID_FITS = ("survey", "weights", "tendons", "friction")
+ID_FITS = ("survey", "weights", "tendons", "friction", "held")
 ID_SETS = (
     ("5", 0.05, None, 20, ID_FITS, None),
     ("10s25", 0.10, 0.25, 20, ID_FITS, None),

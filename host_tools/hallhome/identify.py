@@ -96,6 +96,8 @@ class FitResult:
     stiffness: bool
     # per tendon (take-up (n,), measured and modelled field changes (n, n_s, 3), engagement)
     curves: dict = dataclasses.field(default_factory=dict)
+    # per held pull: (tendon, held tendon, measured and modelled engagement shift, um)
+    held_shifts_um: list = dataclasses.field(default_factory=list)
 
     def value(self, name: str) -> float:
         return float(self.values[[p.name for p in self.params].index(name)])
@@ -111,10 +113,18 @@ class FitResult:
 
 
 def weighs_every_tendon(survey: Survey) -> bool:
-    """True when every pulled tendon has a weight record of its own: the fit
-    then gives each tendon its own routing radius and axial stiffness."""
-    return bool(survey.weights) and ({w.tendon for w in survey.weights}
-                                     >= {p.tendon for p in survey.pulls})
+    """True when every pulled tendon has a weight record of its own, or a
+    held pull: the fit then gives each tendon its own routing radius and
+    axial stiffness."""
+    pulled = {p.tendon for p in survey.pulls}
+    return ((bool(survey.weights) and {w.tendon for w in survey.weights} >= pulled)
+            or (bool(survey.held) and {h.tendon for h in survey.held} >= pulled))
+
+
+# A held pull's engagement shift: the 1-sigma of the kink's difference (two
+# kinks of about a fifth of a tick, 1.2 um, each on the bench) and of the
+# model's path, um.
+SHIFT_SIGMA_UM = 2.0
 
 
 # A tendon's routing angle: prior 1-sigma and plausible range about the
@@ -449,7 +459,32 @@ class _Model:
                 pred[on] = CubicSpline(tg, Bg, axis=0)(x[on])
             out.append(pred)
         wpred = B[npull + 2:] - B[npull + 1][None] if self.survey.weights else B[:0]
-        return out, wpred
+        return out, wpred, self._held(r, engage, B, take)
+
+    def _held(self, r: Robot, engage: dict[int, float], B, take):
+        """Each held pull's engagement shift (m) and the field of its bend
+        (n_s, 3) T: the held tendon's pull at its take-up, and the pulled
+        tendon's path shortened by that pose's curvature (segments it runs
+        through, along its direction) times its radius."""
+        ng = len(TENSION_GRID)
+        index = {p.tendon: n for n, p in enumerate(self.survey.pulls)}
+        b0 = B[len(self.survey.pulls) * ng]
+        shifts, fields = [], []
+        for h in self.survey.held:
+            n = index[h.hold]
+            tg = take[n * ng:(n + 1) * ng]
+            x = h.hold_take_up - engage[h.hold]
+            fields.append(CubicSpline(tg, B[n * ng:(n + 1) * ng] - b0[None], axis=0)(x))
+            T = float(np.interp(x, tg, TENSION_GRID))
+            ta, tb = r.tendons[h.hold], r.tendons[h.tendon]
+            kap_t = np.array([[T * ta.routing_radius / sg.bending_stiffness if k < ta.segment
+                               else 0.0 for k, sg in enumerate(r.segments)],
+                              [0.0] * len(r.segments)])
+            kap = _plane_gravity(r, h.hold, kap_t)
+            along = np.cos(ta.routing_angle - tb.routing_angle)
+            shifts.append(sum(sg.length * tb.routing_radius * along * (kap[0, k] - kap[1, k])
+                              for k, sg in enumerate(r.segments) if k < tb.segment))
+        return np.array(shifts), fields
 
 
 def fit(robot: Robot, survey: Survey, *, sigma_uT: float = 1.0,
@@ -494,9 +529,13 @@ def fit(robot: Robot, survey: Survey, *, sigma_uT: float = 1.0,
 
     def resid(z):
         r, engage = unpack(z)
-        preds, wpred = model.predict(r, engage)
+        preds, wpred, (hshift, hfield) = model.predict(r, engage)
         parts = [((pr - p.delta) / sigma).ravel() for pr, p in zip(preds, survey.pulls)]
         parts += [((wp - w.delta) / sigma).ravel() for wp, w in zip(wpred, survey.weights)]
+        parts += [((hf - h.hold_delta) / sigma).ravel() for hf, h in zip(hfield, survey.held)]
+        if survey.held:
+            parts.append((hshift - np.array([h.shift for h in survey.held]))
+                         / (SHIFT_SIGMA_UM * 1e-6))
         if progress is not None:
             nfev[0] += 1
             data = np.concatenate(parts)
@@ -522,19 +561,22 @@ def fit(robot: Robot, survey: Survey, *, sigma_uT: float = 1.0,
         sig = np.sqrt(np.clip(np.diag(cov_z), 0, None)) * np.array([p.scale for p in params])
     except np.linalg.LinAlgError:
         sig = np.full(len(params), np.inf)
-    preds, wpred = model.predict(r_fit, engage)
+    preds, wpred, (hshift, _) = model.predict(r_fit, engage)
     per_tendon, curves = {}, {}
     for pr, p in zip(preds, survey.pulls):
         per_tendon[p.tendon] = float(np.sqrt(np.mean((pr - p.delta) ** 2)) * 1e6)
         curves[p.tendon] = (p.take_up, p.delta, pr, engage[p.tendon])
     wrms = [float(np.sqrt(np.mean((wp - w.delta) ** 2)) * 1e6)
             for wp, w in zip(wpred, survey.weights)]
-    rms = float(np.sqrt(np.mean(res ** 2)) * sigma_uT)
+    # the field's residuals (the engagement shifts, in their own unit, last)
+    rms = float(np.sqrt(np.mean(res[:n_data - len(survey.held)] ** 2)) * sigma_uT)
     data = np.concatenate([p.delta.ravel() for p in survey.pulls] +
                           [w.delta.ravel() for w in survey.weights])
     signal = float(np.sqrt(np.mean(data ** 2)) * 1e6)
     out = FitResult(params, v, sig, r_fit, rms, signal, per_tendon, wrms, chi2, n_data,
-                    bool(sol.success), sol.message, None, stiffness, curves)
+                    bool(sol.success), sol.message, None, stiffness, curves,
+                    [(h.tendon, h.hold, h.shift * 1e6, float(m) * 1e6)
+                     for h, m in zip(survey.held, hshift)])
     out.refused = _refusal(out, sol, lo, hi)
     return out
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import sys
 import time
@@ -29,6 +30,11 @@ def identify_group():
        description's tendon friction). Hang a second mass, at least 1.5
        times the first, on the same tendon and the fit finds the friction
        too.
+       Held pulls (the bench's for now: the board cannot run them yet):
+       every tendon pulled again from slack while another tendon of its
+       segment holds a bend. The bend moves its engagement by its routing
+       radius times the bend, so the fit gives each tendon its own radius,
+       which one weight per segment cannot tell (hh_bench --survey-held).
     3. Fit: `hallhome identify fit ROBOT.toml SURVEY.json` fits the magnet,
        segment lengths, routing radius, each tendon's routing angle and
        engagement (and, with weights, its stretch), sensor positions and the
@@ -123,13 +129,17 @@ def fit_cmd(robot, survey, out, no_write, plot_dir, no_weights, no_friction, any
       description does not fit this robot);
     - with two masses on a tendon, the friction came out below zero
       (--no-friction keeps the description's);
-    - the model cannot explain the data (residual above 10 % of the signal).
+    - the model cannot explain the data (residual above 10 % of the signal);
+    - a held pull started engaged (its engagement is not seen).
+
+    With held pulls it prints, per held pull, how far the bend moved the
+    engagement, measured and fitted (um).
     """
     import numpy as np
 
     from hallhome.cli import _load
-    from hallhome.identify import fit, measures_friction
-    from hallhome.identify_data import IdentifyError, Survey, load_survey
+    from hallhome.identify import fit, fit_params, measures_friction
+    from hallhome.identify_data import IdentifyError, load_survey
     from hallhome.identify_eval import fit_vs_truth, tension_errors, truth_values
     from hallhome.identify_out import (identified_path, plot_parameters, plot_residuals,
                                        write_identified)
@@ -140,15 +150,13 @@ def fit_cmd(robot, survey, out, no_write, plot_dir, no_weights, no_friction, any
     except IdentifyError as exc:
         raise click.ClickException(str(exc)) from None
     if no_weights:
-        sv = Survey(sv.pulls, (), sv.truth, sv.source, sv.meta)
-    n_par = 1 + len(nominal.segments) + 1 + 3 * len(nominal.sensors) + len(sv.pulls)
-    if sv.weights:
-        n_par += len(nominal.segments)
+        sv = dataclasses.replace(sv, weights=())
     friction = measures_friction(sv) and not no_friction
-    n_par += friction
+    n_par = len(fit_params(nominal, sv, friction=friction))
     say = (lambda m: click.echo(m, err=True)) if as_json else click.echo
-    say(f"survey {survey}: {len(sv.pulls)} pulls, {len(sv.weights)} weight records "
-        f"(source {sv.source}); fitting {n_par} parameters (5-60 s) ...")
+    say(f"survey {survey}: {len(sv.pulls)} pulls, {len(sv.weights)} weight records"
+        + (f", {len(sv.held)} held pulls" if sv.held else "")
+        + f" (source {sv.source}); fitting {n_par} parameters (5-60 s) ...")
     if not sv.weights:
         say("no weight records: the stiffness stays nominal, so the geometry is identified "
             "but not the tension a take-up means; hang one known weight per segment for "
@@ -176,6 +184,8 @@ def fit_cmd(robot, survey, out, no_write, plot_dir, no_weights, no_friction, any
     result = {"robot": nominal.name, "survey": str(survey), "refused": res.refused,
               "rms_uT": res.rms_uT, "signal_uT": res.signal_uT, "chi2_red": res.chi2_red,
               "tendon_rms_uT": res.tendon_rms_uT, "weight_rms_uT": res.weight_rms_uT,
+              "held_shifts_um": [{"tendon": i, "hold": a, "measured": m, "model": f}
+                                 for i, a, m, f in res.held_shifts_um],
               "parameters": rows}
     if plot_dir:
         d = Path(plot_dir)
@@ -205,6 +215,10 @@ def fit_cmd(robot, survey, out, no_write, plot_dir, no_weights, no_friction, any
         if res.weight_rms_uT:
             click.echo("residual per weight (uT rms): "
                        + ", ".join(f"{v:.2f}" for v in res.weight_rms_uT))
+        if res.held_shifts_um:
+            click.echo("held pulls, engagement moved by the bend (um, measured / fitted): "
+                       + ", ".join(f"{i} (held {a}): {m:.1f} / {f:.1f}"
+                                   for i, a, m, f in res.held_shifts_um))
         if "tension_error_N" in result:
             te = result["tension_error_N"]
             for k in ("nominal", "identified"):

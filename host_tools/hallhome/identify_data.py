@@ -66,12 +66,68 @@ class WeightRecord:
 
 
 @dataclass(frozen=True)
+class HeldPull:
+    """``tendon`` pulled from slack again while tendon ``hold`` stands
+    ``hold_take_up`` (m) past the first step of its own pull: ``shift`` (m of
+    the tendon's take-up), how far the bend moved its engagement from its
+    pull alone (both found by ``engagement_ticks``); ``hold_delta``
+    (n_sensors, 3) T, the field of the bend against the baseline of the hold
+    tendon's pull."""
+
+    tendon: int
+    hold: int
+    hold_take_up: float
+    shift: float
+    hold_delta: np.ndarray
+
+
+@dataclass(frozen=True)
 class Survey:
     pulls: tuple[Pull, ...]
     weights: tuple[WeightRecord, ...]
     truth: dict | None
     source: str
     meta: dict
+    held: tuple[HeldPull, ...] = ()
+
+
+# The engagement's kink: the field change is fitted as zero before it and a
+# quadratic in the take-up past it, over the steps up to KINK_SPAN_TICKS past
+# the first step beyond 10 sigma of the noise; the kink is searched within
+# KINK_SEARCH_TICKS of that step, to KINK_RES_TICKS.
+KINK_SPAN_TICKS = 40.0
+KINK_SEARCH_TICKS = 12.0
+KINK_RES_TICKS = 0.05
+KINK_SLACK_STEPS = 4  # steps before the field leaves the noise: the pull began slack
+
+
+def engagement_ticks(ticks: np.ndarray, delta: np.ndarray, noise: float) -> float | None:
+    """Where a pull's field starts to change, in its encoder ticks (signed as
+    the ticks go): the least-squares kink of a hinge, zero before it and a
+    quadratic after, fitted to every sensor axis at once. None when the field
+    never leaves 10 sigma of ``noise`` (T); IdentifyError when it leaves it
+    within KINK_SLACK_STEPS steps (no slack seen before the kink)."""
+    t = np.abs(ticks - ticks[0])
+    y = delta.reshape(len(t), -1)
+    above = np.nonzero(np.max(np.linalg.norm(delta, axis=-1), axis=-1) > 10 * noise)[0]
+    if not len(above):
+        return None
+    if above[0] < KINK_SLACK_STEPS:
+        raise IdentifyError("the field changes from its first steps: the pull started "
+                            "engaged (start it further back)")
+    guess = t[above[0] - 1]
+    sel = t <= guess + KINK_SPAN_TICKS
+    ts, ys = t[sel], y[sel]
+
+    def sse(e):
+        x = np.clip(ts - e, 0.0, None)
+        a = np.stack([x, x * x], 1)
+        coef = np.linalg.lstsq(a, ys, rcond=None)[0]
+        return float(np.sum((ys - a @ coef) ** 2))
+
+    grid = np.arange(guess - KINK_SEARCH_TICKS, guess + KINK_SEARCH_TICKS, KINK_RES_TICKS)
+    e = float(grid[int(np.argmin([sse(g) for g in grid]))])
+    return float(ticks[0] + np.sign(ticks[-1] - ticks[0]) * e)
 
 
 def _fields(value, n_sensors: int, where: str) -> np.ndarray:
@@ -145,7 +201,52 @@ def survey_from_dict(d: dict, robot: Robot, any_robot: bool = False) -> Survey:
         weights.append(WeightRecord(i, m * 1e-3, delta))
     meta = {k: d[k] for k in ("robot", "seed", "perturb", "source") if k in d}
     meta["first_ticks"] = first
-    return Survey(tuple(pulls), tuple(weights), d.get("truth"), d.get("source", "?"), meta)
+    raw = {p["tendon"]: p for p in d.get("pulls") or []}
+    held = tuple(_held(h, n, raw, robot) for n, h in enumerate(d.get("held") or []))
+    return Survey(tuple(pulls), tuple(weights), d.get("truth"), d.get("source", "?"), meta,
+                  held)
+
+
+def _pull_arrays(p: dict, ns: int, where: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Ticks (n,), field change from the baseline (n, ns, 3) T and the
+    baseline (ns, 3) T of a pull record."""
+    base = _fields(p.get("baseline_cuT"), ns, f"{where}.baseline_cuT") * CUT
+    steps = p.get("steps") or []
+    if len(steps) < 8:
+        raise IdentifyError(f"{where}: {len(steps)} steps, at least 8 needed")
+    ticks = np.array([s[0] for s in steps], dtype=float)
+    field = np.array([_fields(s[1], ns, f"{where}.steps[{k}]") for k, s in enumerate(steps)])
+    return ticks, field * CUT - base[None], base
+
+
+def _held(h: dict, n: int, raw: dict, robot: Robot) -> HeldPull:
+    """A held pull record (see HeldPull), checked against the pulls alone of
+    its tendon and of the held one."""
+    where = f"held[{n}]"
+    ns, nt = len(robot.sensors), len(robot.tendons)
+    i, a = (h.get("tendon"), h.get("hold_tendon")) if isinstance(h, dict) else (None, None)
+    if not isinstance(i, int) or not isinstance(a, int) or not (0 <= i < nt and 0 <= a < nt) \
+            or i == a:
+        raise IdentifyError(f"{where}: tendon and hold_tendon must be two indices 0..{nt - 1}")
+    if i not in raw or a not in raw:
+        raise IdentifyError(f"{where}: tendons {i} and {a} need their pulls alone too")
+    if not isinstance(h.get("hold_ticks"), (int, float)):
+        raise IdentifyError(f"{where}: hold_ticks must be a number")
+    ticks, delta, base = _pull_arrays(h, ns, where)
+    fticks, fdelta, _ = _pull_arrays(raw[i], ns, f"pulls of tendon {i}")
+    _, _, abase = _pull_arrays(raw[a], ns, f"pulls of tendon {a}")
+    try:
+        e_held = engagement_ticks(ticks, delta, robot.noise)
+        e_free = engagement_ticks(fticks, fdelta, robot.noise)
+    except IdentifyError as exc:
+        raise IdentifyError(f"{where}: tendon {i}: {exc}") from None
+    if e_held is None or e_free is None:
+        raise IdentifyError(f"{where}: tendon {i} never changed the field beyond the noise")
+    t, ta = robot.tendons[i], robot.tendons[a]
+    hold_take = (float(h["hold_ticks"]) - float(raw[a]["steps"][0][0])) * ta.pull_dir \
+        * ta.metres_per_tick
+    shift = (e_held - e_free) * t.pull_dir * t.metres_per_tick
+    return HeldPull(i, a, hold_take, shift, base - abase)
 
 
 def load_survey(path: str | Path, robot: Robot, any_robot: bool = False) -> Survey:

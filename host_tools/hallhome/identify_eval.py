@@ -101,11 +101,12 @@ def _invert(curve, grid, y) -> float:
 
 def bench_survey(bench: Path, elf: Path, plant: Path, out: Path, seed: int, perturb: float,
                  weight_g: float, perturb_stiffness: float | None = None,
-                 weight_all: bool = False, second_g: float = 0.0) -> None:
+                 weight_all: bool = False, second_g: float = 0.0, held: bool = False) -> None:
     """Runs ``hh_bench --survey`` for one seeded robot (``perturb_stiffness``:
     the backbone's stiffness spread, default ``perturb``; ``weight_all``: the
     weight on every tendon, not only on each segment's first; ``second_g``: a
-    second mass hung in turn on the same tendons)."""
+    second mass hung in turn on the same tendons; ``held``: the held pulls
+    too)."""
     cmd = [str(bench), str(elf), "--plant", str(plant), "--seed", str(seed), "--perturb",
            str(perturb), "--survey", str(out)]
     if perturb_stiffness is not None:
@@ -114,6 +115,8 @@ def bench_survey(bench: Path, elf: Path, plant: Path, out: Path, seed: int, pert
         cmd += ["--survey-weight", f"{weight_g:g}" + (f",{second_g:g}" if second_g > 0 else "")]
         if weight_all:
             cmd += ["--survey-weight-all"]
+    if held:
+        cmd += ["--survey-held"]
     subprocess.run(cmd, check=True, capture_output=True, text=True)
 
 
@@ -130,8 +133,7 @@ def per_segment(robot: Robot, sv: Survey) -> Survey:
     """``sv`` with the weight records of each segment's first tendon only
     (hh_bench records those alike with or without --survey-weight-all)."""
     first = set(weighted_tendon(robot))
-    return Survey(sv.pulls, tuple(w for w in sv.weights if w.tendon in first), sv.truth,
-                  sv.source, sv.meta)
+    return dataclasses.replace(sv, weights=tuple(w for w in sv.weights if w.tendon in first))
 
 
 def _stats(v: np.ndarray) -> dict:
@@ -147,9 +149,10 @@ def _summary(errs: list[np.ndarray]) -> dict:
     return out
 
 
-MODES = ("nominal", "survey", "weights", "tendons", "friction")
+MODES = ("nominal", "survey", "weights", "tendons", "friction", "held")
 FITS = {"survey": "survey only", "weights": "one weight per segment",
-        "tendons": "one weight per tendon", "friction": "two masses per segment"}
+        "tendons": "one weight per tendon", "friction": "two masses per segment",
+        "held": "one weight per segment and held pulls"}
 # "friction": each segment's first tendon carries the weight and a second
 # mass this many times heavier, so the fit finds the tendon friction too
 SECOND_MASS_FACTOR = 2.0
@@ -168,8 +171,8 @@ def _masses(sv: Survey, grams: float | None) -> Survey:
     """``sv`` with the weight records of mass ``grams`` only (None: all)."""
     if grams is None:
         return sv
-    return Survey(sv.pulls, tuple(w for w in sv.weights if abs(w.mass * 1e3 - grams) < 1e-6),
-                  sv.truth, sv.source, sv.meta)
+    return dataclasses.replace(sv, weights=tuple(w for w in sv.weights
+                                                 if abs(w.mass * 1e3 - grams) < 1e-6))
 
 
 def one_seed(robot_path: Path, seed: int, perturb: float, weight_g: float, bench: Path,
@@ -193,7 +196,7 @@ def one_seed(robot_path: Path, seed: int, perturb: float, weight_g: float, bench
     with tempfile.TemporaryDirectory(dir=workdir) as tmp:
         path = Path(tmp) / f"s{seed}.json"
         bench_survey(bench, elf, plant, path, seed, perturb, weight_g, perturb_stiffness,
-                     weight_all="tendons" in modes, second_g=second)
+                     weight_all="tendons" in modes, second_g=second, held="held" in modes)
         sv = load_survey(path, robot)
     truth = sv.truth
     nominal = tension_errors(nominal_targets or robot, truth)
@@ -201,10 +204,12 @@ def one_seed(robot_path: Path, seed: int, perturb: float, weight_g: float, bench
            "recovery": {}, "fit_s": {},
            "radius_mm": [t["radius_mm"] for t in truth["tendons"]]}
     tv = truth_values(robot, sv)
-    one = _masses(sv, weight_g)
-    surveys = {"survey": Survey(sv.pulls, (), truth, sv.source, sv.meta),
+    alone = dataclasses.replace(sv, held=())  # the held pulls count in "held" only
+    one = _masses(alone, weight_g)
+    surveys = {"survey": dataclasses.replace(alone, weights=()),
                "weights": per_segment(robot, one), "tendons": one,
-               "friction": per_segment(robot, sv)}
+               "friction": per_segment(robot, alone),
+               "held": per_segment(robot, _masses(sv, weight_g))}
     for mode in modes:
         t0 = time.monotonic()
         try:
@@ -337,7 +342,8 @@ def main(argv=None) -> int:
     ap.add_argument("--modes", default=",".join(MODES[1:4]),
                     help="fits to score: survey (no weights), weights (one per segment), "
                          "tendons (one per tendon), friction (two masses per segment: the "
-                         "friction fitted too)")
+                         "friction fitted too), held (one per segment and the held pulls: "
+                         "each tendon's radius; the board cannot run them yet)")
     ap.add_argument("--description-friction-mN", type=float, default=None,
                     help="study a description whose tendon friction is this (default: the "
                          "TOML's), e.g. 0 for one that leaves it out")

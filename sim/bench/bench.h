@@ -400,7 +400,8 @@ struct bench_t {
                                                   * segment (0 = none) */
     uint8_t survey_n_weights;                    /* how many of them are given */
     uint8_t survey_weight_all;                   /* --survey-weight-all: on every tendon instead */
-    uint64_t limit_us;                           /* 0 = none */
+    uint8_t survey_held; /* --survey-held: each tendon pulled again, another one held */
+    uint64_t limit_us;   /* 0 = none */
     uint32_t seed;
     double perturb;
     double perturb_stiffness; /* backbone EI and EA spread; < 0: perturb's */

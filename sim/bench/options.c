@@ -39,6 +39,8 @@ static void usage(FILE *f)
         "  --survey-weight G[,G2]  survey: hang G grams on one tendon per segment (0: none);\n"
         "                        G,G2: each mass in turn (the fit then finds the friction)\n"
         "  --survey-weight-all   survey: the weight on every tendon in turn\n"
+        "  --survey-held         survey: every tendon pulled again while a tendon of its\n"
+        "                        segment holds a bend (its radius, docs/identify.md)\n"
         "  --tension N           calibration tension for the truth table (plant default)\n"
         "  --table               print the per-tendon table at exit\n"
         "  --straight-um U0,U1.. per tendon, um to pay out from its home to its straight-pose\n"
@@ -205,6 +207,8 @@ int bench_options(bench_t *b, bench_cli_t *cli, int argc, char **argv)
             }
         } else if (strcmp(a, "--survey-weight-all") == 0) {
             b->survey_weight_all = 1;
+        } else if (strcmp(a, "--survey-held") == 0) {
+            b->survey_held = 1;
         } else if (strcmp(a, "--survey-weight") == 0) {
             const char *q;
             char *end;

@@ -2,8 +2,9 @@
  * survey: the identification survey of the bench's robot, written as JSON
  * for `hallhome identify fit` (docs/identify.md).
  *
- * The firmware cannot run a survey yet, so the bench plays its part on the
- * plant directly: every tendon in turn, the others left at their start
+ * The bench plays the board's part on the plant directly (the board's own
+ * `survey` is run through the firmware instead, hallhome.op_survey; the held
+ * pulls the board cannot run yet): every tendon in turn, the others left at their start
  * positions (slack), is pulled from its start in small encoder steps until
  * it has gone a set travel past the point where the field starts to change;
  * at every step the record holds what the firmware would see: the servo's
@@ -12,7 +13,10 @@
  * included). Optional weights: with every servo slack, a known mass hangs on
  * one tendon per segment (--survey-weight) or on every tendon in turn
  * (--survey-weight-all) and the field before and after is recorded; with two
- * masses (--survey-weight G,G2) each is hung in turn.
+ * masses (--survey-weight G,G2) each is hung in turn. Optional held pulls
+ * (--survey-held): every tendon pulled again while another of its segment
+ * holds a bend, which moves its engagement by its routing radius times the
+ * bend.
  * The plant's truth (perturbed parameters, true engagements, the true |dB|
  * per grid tension) goes into a separate "truth" object, for evaluating a
  * fit, never for making one.
@@ -29,6 +33,7 @@
 #define SURVEY_ENGAGE_UT    3.0   /* field change that marks the engagement: ~10 sigma of a step */
 #define SURVEY_MAX_STEPS    4000u /* 100 mm: a pull that never engages is given up */
 #define SURVEY_RELEASE_MM   3.0   /* the other tendons' release before a pull */
+#define SURVEY_HELD_BACK_MM 1.5   /* a held pull's start before the pull's alone */
 
 /* Averaged reading of every sensor, cuT in the sensor frame. */
 static void read_avg(plant_t *p, unsigned n, double out[][3])
@@ -97,7 +102,13 @@ static double survey_bound(const bench_t *b, uint8_t i)
     return fabs(top - eng) * plant_nm_per_tick(&nominal, i) / plant_nm_per_tick(c, i);
 }
 
-static int survey_pull(const bench_t *b, FILE *f, uint8_t i)
+/* Tendon i pulled from its start in steps, the others released, up to the
+ * bound past its engagement; with hold < n_tendons (a held pull), tendon
+ * `hold` stands at motor position hold_ticks first, bending the robot, and
+ * the pull goes a quarter of the bound (the engagement is what counts, and
+ * the held tendon's tension rises with it). `sep` goes before the record. */
+static int survey_pull(const bench_t *b, FILE *f, uint8_t i, const char *sep, uint8_t hold,
+                       double hold_ticks)
 {
     static plant_t p;
     double base[PLANT_MAX_SENSORS][3];
@@ -106,12 +117,26 @@ static int survey_pull(const bench_t *b, FILE *f, uint8_t i)
     double dir = (double)c->tendon[i].pull_dir;
     double start = floor(b->moved_from[i] + 0.5);
     double travel_ticks = survey_bound(b, i);
+    uint8_t held = hold < c->n_tendons;
     long engaged_at = -1;
-    if (start_plant(b, &p, b->seed * 31u + i, i) != 0) {
+    if (start_plant(b, &p, b->seed * 31u + i + (held ? 7919u * (hold + 1u) : 0u), i) != 0) {
         return -1;
     }
+    if (held) {
+        /* the bend lengthens the pulled tendon's path, so it would engage
+         * short of its start: it starts SURVEY_HELD_BACK_MM further back */
+        start -= dir * floor(SURVEY_HELD_BACK_MM * 1e6 / plant_nm_per_tick(c, i));
+        (void)plant_set_motor(&p, i, start);
+        (void)plant_set_motor(&p, hold, hold_ticks);
+        (void)plant_solve(&p);
+        travel_ticks *= 0.25;
+    }
     read_avg(&p, SURVEY_BASE_SAMPLES, base);
-    fprintf(f, "%s\n  {\"tendon\": %u, \"baseline_cuT\": ", i ? "," : "", i);
+    fprintf(f, "%s\n  {\"tendon\": %u, ", sep, i);
+    if (held) {
+        fprintf(f, "\"hold_tendon\": %u, \"hold_ticks\": %.0f, ", hold, hold_ticks);
+    }
+    fprintf(f, "\"baseline_cuT\": ");
     put_fields(f, c->n_sensors, base);
     fprintf(f, ", \"steps\": [");
     for (unsigned s = 0; s < SURVEY_MAX_STEPS; s++) {
@@ -138,7 +163,11 @@ static int survey_pull(const bench_t *b, FILE *f, uint8_t i)
             break;
         }
     }
-    fprintf(f, "],\n   \"max_tension_mN\": %.1f}", p.tension_N[i] * 1e3);
+    fprintf(f, "],\n   \"max_tension_mN\": %.1f", p.tension_N[i] * 1e3);
+    if (held) {
+        fprintf(f, ", \"hold_tension_mN\": %.1f", p.tension_N[hold] * 1e3);
+    }
+    fputc('}', f);
     return engaged_at >= 0 ? 0 : -1;
 }
 
@@ -181,6 +210,41 @@ static void survey_weights(const bench_t *b, FILE *f)
             first = 0;
         }
     }
+}
+
+/* Held pulls (--survey-held): every tendon pulled from slack while the
+ * tendon of its segment whose bend lengthens its path most stands where it
+ * reaches the top grid tension alone. The bend moves the pulled tendon's
+ * engagement by its path's change, which its routing radius sets and its
+ * stretch does not (docs/identify.md). */
+static int survey_held(const bench_t *b, FILE *f)
+{
+    const plant_cfg_t *c = &b->plant.cfg;
+    const char *sep = "";
+    int rc = 0;
+    for (uint8_t i = 0; i < c->n_tendons; i++) {
+        uint8_t hold = 0xFFu;
+        double best = 2.0;
+        double home;
+        for (uint8_t m = 0; m < c->n_tendons; m++) {
+            double d = cos((c->tendon[m].angle_deg - c->tendon[i].angle_deg) *
+                           (3.14159265358979323846 / 180.0));
+            if (m != i && c->tendon[m].segment == c->tendon[i].segment && d < best - 1e-9) {
+                best = d;
+                hold = m;
+            }
+        }
+        if (hold == 0xFFu || plant_true_home(c, hold, c->grid_mN[c->n_grid - 1u], &home) != 0) {
+            continue;
+        }
+        if (survey_pull(b, f, i, sep, hold, floor(home + 0.5)) != 0) {
+            fprintf(stderr, "hh_bench: survey: tendon %u never moved the field, %u held\n", i,
+                    hold);
+            rc = -1;
+        }
+        sep = ",";
+    }
+    return rc;
 }
 
 /* The plant's truth: parameters and, per tendon, the true engagement and the
@@ -269,13 +333,19 @@ int survey_write(bench_t *b, const char *path)
             b->plant.cfg.name, b->seed, b->perturb,
             b->perturb_stiffness < 0.0 ? b->perturb : b->perturb_stiffness, SURVEY_STEP_TICKS);
     for (uint8_t i = 0; i < b->plant.cfg.n_tendons; i++) {
-        if (survey_pull(b, f, i) != 0) {
+        if (survey_pull(b, f, i, i ? "," : "", 0xFFu, 0.0) != 0) {
             fprintf(stderr, "hh_bench: survey: tendon %u never moved the field\n", i);
             rc = -1;
         }
     }
     fprintf(f, "],\n \"weights\": [");
     survey_weights(b, f);
+    if (b->survey_held) {
+        fprintf(f, "],\n \"held\": [");
+        if (survey_held(b, f) != 0) {
+            rc = -1;
+        }
+    }
     fprintf(f, "],\n \"truth\": ");
     survey_truth(b, f);
     fprintf(f, "}\n");

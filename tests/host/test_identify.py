@@ -315,7 +315,7 @@ def test_command_guides_the_next_step_and_warns_without_weights(tmp_path, survey
     res = CliRunner().invoke(main, ["identify", "fit", str(robot), str(sv)])
     assert res.exit_code == 0, res.output
     assert "no weight records: the stiffness stays nominal" in res.output
-    assert "fitting 19 parameters" in res.output
+    assert "fitting 25 parameters" in res.output  # fit_params(): angles included
     out = tmp_path / "paper_2seg_id.toml"
     assert out.exists()
     assert (f"next: hallhome tables {out} --out-dir {tmp_path}, then make flash "
@@ -521,3 +521,76 @@ def test_survey_cannot_tell_a_tendons_radius_from_its_stretch(nominal):
     # the same radius with the description's EA: the survey sees it
     wrong = at(*curve(tendon1(**wider))) - ref
     assert np.sqrt(np.mean(wrong ** 2)) > 0.3
+
+
+def test_a_pulls_engagement_is_found_at_its_kink():
+    """engagement_ticks() on seeded hinges: flat (noise) up to the kink,
+    then a field that rises and bends, as a pull's does; every kink within
+    a third of a tick, whichever way the ticks run. A pull that never leaves
+    the noise has none."""
+    from hallhome.identify_data import engagement_ticks
+
+    rng = np.random.default_rng(17)
+    noise = 0.6e-6
+    for _ in range(40):
+        kink = rng.uniform(100, 200)
+        sign = rng.choice([-1, 1])
+        start = rng.integers(-5000, 5000)
+        ticks = start + sign * np.arange(0, 400, 4.0)
+        x = np.clip(np.abs(ticks - start) - kink, 0, None)
+        slope = rng.uniform(1.0, 3.0, (2, 3)) * 1e-6 * rng.choice([-1, 1], (2, 3))
+        delta = x[:, None, None] * slope[None] * (1 - x[:, None, None] / 2000.0)
+        delta = delta + rng.normal(0, noise / 2, delta.shape)  # averaged readings
+        got = engagement_ticks(ticks, delta, noise)
+        assert abs(sign * (got - start) - kink) < 0.33, (kink, got, start, sign)
+    flat = rng.normal(0, noise, (50, 2, 3))
+    assert engagement_ticks(np.arange(50) * 4.0, flat, noise) is None
+
+
+def held_record(d, tendon, hold, shift_ticks):
+    """A held pull made from a synthetic survey's pull of ``tendon``: its
+    steps moved ``shift_ticks`` earlier, the hold's field standing in its
+    baseline (that of ``hold``'s last step)."""
+    p = next(q for q in d["pulls"] if q["tendon"] == tendon)
+    a = next(q for q in d["pulls"] if q["tendon"] == hold)
+    return {"tendon": tendon, "hold_tendon": hold, "hold_ticks": a["steps"][-1][0],
+            "baseline_cuT": p["baseline_cuT"],
+            "steps": [[s[0] - shift_ticks, s[1]] for s in p["steps"]]}
+
+
+def test_held_pull_records_are_checked(nominal, survey_dict):
+    from hallhome.identify_data import survey_from_dict
+
+    d = copy.deepcopy(survey_dict)
+    d["held"] = [held_record(d, 1, 2, 30)]
+    sv = survey_from_dict(d, nominal)
+    (h,) = sv.held
+    assert (h.tendon, h.hold) == (1, 2)
+    per_tick = nominal.tendons[1].metres_per_tick * nominal.tendons[1].pull_dir
+    assert h.shift == pytest.approx(-30 * per_tick, abs=0.4 * abs(per_tick))
+
+    def bad(change, match):
+        e = copy.deepcopy(d)
+        change(e)
+        with pytest.raises(IdentifyError, match=match):
+            survey_from_dict(e, nominal)
+
+    bad(lambda e: e["held"][0].update(hold_tendon=1), "two indices")
+    bad(lambda e: e["held"][0].update(hold_tendon=9), "two indices")
+    bad(lambda e: e.update(pulls=[p for p in e["pulls"] if p["tendon"] != 2]),
+        "need their pulls alone")
+    bad(lambda e: e["held"][0].pop("hold_ticks"), "hold_ticks")
+    bad(lambda e: e["held"][0].update(steps=e["held"][0]["steps"][:4]), "at least 8")
+
+    def flat(e):
+        for s in e["held"][0]["steps"]:
+            s[1] = e["held"][0]["baseline_cuT"]
+    bad(flat, "never changed the field")
+
+    def engaged(e):  # the bend took up the slack before the pull's first step
+        steps = e["held"][0]["steps"]
+        first = next(k for k, s in enumerate(steps)
+                     if max(abs(a - b) for a, b in zip(s[1][0], e["held"][0]["baseline_cuT"][0]))
+                     > 1000)
+        e["held"][0]["steps"] = steps[first - 1:]
+    bad(engaged, "started engaged")

@@ -227,3 +227,47 @@ def test_two_masses_per_segment_and_the_friction_they_give(tmp_path):
     for bad in ("80,", "80,160,240", "x", "-5", "80,,160"):
         proc, _ = survey(tmp_path, "--survey-weight", bad, name="bad.json")
         assert proc.returncode == 2 and "--survey-weight takes" in proc.stderr, bad
+
+
+def test_held_pulls_give_each_tendons_radius(tmp_path):
+    """--survey-held: every tendon pulled again from further back while the
+    tendon of its segment most opposed to it holds the bend of the top grid
+    tension. On a robot built to 10 %, its stiffness to 25 % (seed 1: a
+    tendon's radius 2.6 % off its weighted neighbour's), one weight per
+    segment leaves a tendon 0.04 N off at 1.5 N: the survey cannot tell its
+    radius from its stretch. With the held pulls, whose engagements the bend
+    moved by their radius times the bend, every target is within 0.015 N."""
+    import dataclasses
+
+    import numpy as np
+
+    from hallhome.identify import fit
+    from hallhome.identify_data import load_survey
+    from hallhome.identify_eval import per_segment, tension_errors
+    from hallhome.robot import load_robot
+
+    proc, out = survey(tmp_path, "--seed", 1, "--perturb", 0.1, "--perturb-stiffness", 0.25,
+                       "--survey-weight", 80, "--survey-held")
+    assert proc.returncode == 0, proc.stderr
+    d = json.loads(out.read_text())
+    seg = [0, 0, 0, 1, 1, 1]
+    assert sorted(h["tendon"] for h in d["held"]) == list(range(6))
+    for h in d["held"]:
+        a, i = h["hold_tendon"], h["tendon"]
+        assert a != i and seg[a] == seg[i]
+        # the hold's tension stays within the bounded pull's 1.25 x 1.5 N + 0.1 N
+        assert 1400 < h["hold_tension_mN"] < 1975
+        free = next(p for p in d["pulls"] if p["tendon"] == i)
+        assert h["steps"][0][0] < free["steps"][0][0]  # started further back
+    robot = load_robot(ROOT / "lookup_tables" / "robots" / "paper_2seg.toml")
+    sv = per_segment(robot, load_survey(out, robot))
+    without = fit(robot, dataclasses.replace(sv, held=()))
+    held = fit(robot, sv)
+    assert without.refused is None and held.refused is None, (without.refused, held.refused)
+    assert "radius" in [p.name for p in without.params]
+    assert {f"radius{i}" for i in range(6)} <= {p.name for p in held.params}
+    e_without = np.abs(tension_errors(without.robot, sv.truth)).max()
+    e_held = np.abs(tension_errors(held.robot, sv.truth)).max()
+    assert e_without > 0.03 and e_held < 0.015, (e_without, e_held)
+    for i, t in enumerate(sv.truth["tendons"]):
+        assert held.value(f"radius{i}") == pytest.approx(t["radius_mm"], rel=0.015)
