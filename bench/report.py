@@ -346,6 +346,16 @@ def section_resources(res: Dict) -> List[str]:
                    f"{fmt(bb['max_ms'], 2, 'ms')} ({bb['reads']} (fast) sync reads of Present Position "
                    f"in {fmt(bb['window_s'], 1, 's')}) | simavr bench, `--trace-bus` during a "
                    "calibration |")
+        fine = (bb.get("by_phase") or {}).get("engaged")
+        if fine:
+            miss = fine["median_ms"] - FEEDBACK_GOAL_MS
+            goal = ("met" if miss <= 0 else f"missed by {fmt(miss, 2, 'ms')}")
+            out.append(f"| position feedback in the fine approach (`engaged`) | median "
+                       f"{fmt(fine['median_ms'], 2, 'ms')}, 95th pct {fmt(fine['p95_ms'], 2, 'ms')}, "
+                       f"max {fmt(fine['max_ms'], 2, 'ms')} ({fine['reads']} reads; goal at most "
+                       f"{FEEDBACK_GOAL_MS:g} ms: {goal}); the take-up (`tendon`): median "
+                       f"{fmt((bb['by_phase'].get('tendon') or {}).get('median_ms'), 2, 'ms')} | "
+                       "the same run, each read filed under the phase the last report named |")
     else:
         out.append(f"| servo position-read period on the bench | "
                    f"not measured: {cell(bb.get('error', 'no simavr bench run'))} | simavr bench |")
@@ -381,6 +391,9 @@ def loop_phase_table(r: Dict) -> List[str]:
                    f"{'met' if p['max_us'] <= limit else 'missed'} |")
     return out + [""]
 
+
+# Issue 14: a position read at least every 2 ms during the fine approach.
+FEEDBACK_GOAL_MS = 2.0
 
 ID_MODES = (("nominal", "nominal TOML (today)"), ("survey", "survey only (no weights)"),
             ("weights", "survey + one weight per segment"),

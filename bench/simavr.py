@@ -232,26 +232,61 @@ def parse_bus_packets(text: str) -> List[Dict]:
     return out
 
 
-def bus_cycle(hh_bench: str, elf: str, plant: str, workdir: str, limit_s: float = 3.0) -> Dict:
-    """Position-read period of the firmware during a calibration: a short
-    traced run (calibration from 0.6 s), intervals between successive
-    position reads (sync read or fast sync read of address 132) after 1 s."""
+def _read_stats(d: List[float]) -> Dict:
+    d = sorted(d)
+    return {"reads": len(d) + 1, "median_ms": d[len(d) // 2],
+            "p95_ms": d[int(0.95 * (len(d) - 1))], "max_ms": d[-1]}
+
+
+def bus_cycle(hh_bench: str, elf: str, plant: str, workdir: str, limit_s: float = 15.0) -> Dict:
+    """Position-read period of the firmware during a calibration: a traced
+    run (calibration from 0.6 s, to its end), intervals between successive
+    position reads (sync read or fast sync read of address 132) after 1 s;
+    and per phase of the calibration (the phase the last report line before
+    the read named: `engaged` is the fine approach), for the phases with 20
+    reads or more."""
     cmd = [hh_bench, elf, "--plant", plant, "--seed", "1", "--perturb", "0", "--limit",
-           f"{limit_s:g}s", "--at", "0.6s send cal", "--trace-bus", "--quiet"]
+           f"{limit_s:g}s", "--at", "0.6s send cal", "--until", "^<done mode=full",
+           "--trace-bus"]
     try:
-        p = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
+        # one stream: the report lines name the phase of the bus lines after them
+        p = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                           timeout=300)
     except (OSError, subprocess.TimeoutExpired) as e:
         return {"error": str(e)}
-    pk = parse_bus_packets(p.stdout + p.stderr)
+    text = p.stdout
+    pk = parse_bus_packets(text)
     reads = [x["t_us"] for x in pk if x["inst"] in (0x82, 0x8A) and x["addr"] == 132
              and x["t_us"] >= 1_000_000]
     writes = [x["t_us"] for x in pk if x["inst"] in (0x83, 0x03) and x["t_us"] >= 1_000_000]
     if len(reads) < 3:
         return {"error": f"{len(reads)} position reads in the trace"}
-    d = sorted((b - a) / 1000.0 for a, b in zip(reads, reads[1:]))
-    return {"reads": len(reads), "goal_writes": len(writes),
-            "median_ms": d[len(d) // 2], "p95_ms": d[int(0.95 * (len(d) - 1))], "max_ms": d[-1],
-            "window_s": (reads[-1] - reads[0]) / 1e6}
+    # the phase of each moment: report lines carry no time in a traced run,
+    # so each takes the time of the bus line before it
+    marks, last = [], 0
+    for line in text.splitlines():
+        m = BUS_T.match(line)
+        if m:
+            last = int(m.group(1))
+            continue
+        m = PHASE.search(line)
+        if m:
+            marks.append((last, m.group(1) or "idle"))
+    phases: Dict[str, List[float]] = {}
+    k, phase = 0, "idle"
+    for a, b in zip(reads, reads[1:]):
+        while k < len(marks) and marks[k][0] <= a:
+            phase = marks[k][1]
+            k += 1
+        phases.setdefault(phase, []).append((b - a) / 1000.0)
+    out = _read_stats([(b - a) / 1000.0 for a, b in zip(reads, reads[1:])])
+    out.update({"goal_writes": len(writes), "window_s": (reads[-1] - reads[0]) / 1e6,
+                "by_phase": {ph: _read_stats(d) for ph, d in phases.items() if len(d) >= 20}})
+    return out
+
+
+BUS_T = re.compile(r"^bus\s+(\d+) us")
+PHASE = re.compile(r"<(?:progress state=(\w+)|result |done )")
 
 
 def batch(jobs: List[Dict], parallel: int, progress=None) -> List[Dict]:

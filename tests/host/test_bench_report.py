@@ -357,3 +357,21 @@ def test_identification_not_measured_fails_the_check(tmp_path):
     path.write_text(report.build_report(r))
     problems = report.check_report(str(path))
     assert any(report.SECTIONS[7] in p and "no numeric" in p for p in problems)
+
+
+def test_position_feedback_of_the_fine_approach_against_its_goal():
+    """The fine approach's position-read period (issue 14: every 2 ms at
+    most) gets its own row with the goal, met or missed by how much."""
+    res = _results()
+    res["resources"]["bench_bus"] = {
+        "reads": 900, "median_ms": 4.5, "p95_ms": 11.0, "max_ms": 17.0, "window_s": 5.6,
+        "by_phase": {"engaged": {"reads": 480, "median_ms": 4.36, "p95_ms": 9.3, "max_ms": 14.4},
+                     "tendon": {"reads": 360, "median_ms": 6.45, "p95_ms": 11.4, "max_ms": 17.1}}}
+    text = "\n".join(report.section_resources(res))
+    row = next(line for line in text.splitlines() if "fine approach (`engaged`)" in line)
+    assert "median 4.36 ms" in row and "missed by 2.36 ms" in row and "median 6.45 ms" in row
+    res["resources"]["bench_bus"]["by_phase"]["engaged"]["median_ms"] = 1.8
+    text = "\n".join(report.section_resources(res))
+    assert "at most 2 ms: met" in text
+    del res["resources"]["bench_bus"]["by_phase"]
+    assert "fine approach (`engaged`)" not in "\n".join(report.section_resources(res))
