@@ -113,12 +113,10 @@ class FitResult:
 
 
 def weighs_every_tendon(survey: Survey) -> bool:
-    """True when every pulled tendon has a weight record of its own, or a
-    held pull: the fit then gives each tendon its own routing radius and
-    axial stiffness."""
-    pulled = {p.tendon for p in survey.pulls}
-    return ((bool(survey.weights) and {w.tendon for w in survey.weights} >= pulled)
-            or (bool(survey.held) and {h.tendon for h in survey.held} >= pulled))
+    """True when every pulled tendon has a weight record of its own: the fit
+    then gives each tendon its own routing radius and axial stiffness."""
+    return bool(survey.weights) and ({w.tendon for w in survey.weights}
+                                     >= {p.tendon for p in survey.pulls})
 
 
 # A held pull's engagement shift: the 1-sigma of the kink's difference (two
@@ -181,28 +179,26 @@ def _params(robot: Robot, survey: Survey, stiffness: bool, mechanics: bool,
         L = s.length * 1e3
         out.append(Param(f"length_{j + 1}", "mm", L, 0.05 * L, 0.8 * L, 1.2 * L, 0.01 * L))
     r = float(np.mean([t.routing_radius for t in robot.tendons])) * 1e3
-    if mechanics and per_tendon_radius:
-        for p in survey.pulls:
-            ri = robot.tendons[p.tendon].routing_radius * 1e3
-            out.append(Param(f"radius{p.tendon}", "mm", ri, 0.05 * ri, 0.7 * ri, 1.3 * ri,
-                             0.01 * ri))
-            ea = robot.tendons[p.tendon].stiffness_ea
-            out.append(Param(f"EA{p.tendon}", "N", ea, EA_PRIOR * ea, 0.5 * ea, 2.0 * ea,
-                             0.05 * ea))
-    elif mechanics:
+    # a tendon gets its own radius from its own weight or its held pull; the
+    # others share one. Each pulled tendon's stretch (EA) comes with its own
+    # radius, or with the weights: a tendon's take-up per bend is its radius
+    # plus its stretch, and without its own weight or held pull only the sum
+    # is seen (docs/identify.md, "What one weight per segment cannot tell").
+    # Left at the description's, a tendon whose free length or EA differs
+    # pulled the magnet, the lengths and the sensors to make up its take-up
+    # (bench robots at 10 %: magnet 6 % rms off, lengths 3 mm; with it 1.4 %
+    # and 1 mm)
+    pulled = [p.tendon for p in survey.pulls]
+    own = set(pulled) if per_tendon_radius else {h.tendon for h in survey.held}
+    if mechanics and not set(pulled) <= own:
         out.append(Param("radius", "mm", r, 0.05 * r, 0.7 * r, 1.3 * r, 0.01 * r))
-        if stiffness:
-            # each tendon's stretch, radius shared: a tendon's take-up per
-            # bend is its radius plus its stretch, and without its own weight
-            # only the sum is seen (docs/identify.md, "What one weight per
-            # segment cannot tell"). Left at the description's, a tendon
-            # whose free length or EA differs pulled the magnet, the lengths
-            # and the sensors to make up its take-up (bench robots at 10 %:
-            # magnet 6 % rms off, lengths 3 mm; with it 1.4 % and 1 mm)
-            for p in survey.pulls:
-                ea = robot.tendons[p.tendon].stiffness_ea
-                out.append(Param(f"EA{p.tendon}", "N", ea, EA_PRIOR * ea, 0.5 * ea, 2.0 * ea,
-                                 0.05 * ea))
+    for i in pulled if mechanics else ():
+        if i in own:
+            ri = robot.tendons[i].routing_radius * 1e3
+            out.append(Param(f"radius{i}", "mm", ri, 0.05 * ri, 0.7 * ri, 1.3 * ri, 0.01 * ri))
+        if stiffness or i in own:
+            ea = robot.tendons[i].stiffness_ea
+            out.append(Param(f"EA{i}", "N", ea, EA_PRIOR * ea, 0.5 * ea, 2.0 * ea, 0.05 * ea))
     if mechanics:
         # the plane a tendon bends the robot in: the field's direction at
         # every sensor tells it, and at an off-plane sensor a tenth of a

@@ -100,6 +100,15 @@ KINK_SEARCH_TICKS = 12.0
 KINK_RES_TICKS = 0.05
 KINK_SLACK_STEPS = 4  # steps before the field leaves the noise: the pull began slack
 
+# A held pull needs a hold that bends the robot across the pulled tendon
+# (|sin| of the angle between their routing angles at least HELD_MIN_SIN):
+# a hold in its own plane leaves the robot no freedom as it engages, the
+# field barely changes and the kink is lost (bench robots with four tendons
+# at 90 degrees: targets 4 times worse). And along it (|cos| at least
+# HELD_MIN_COS): the shift is the radius times the bend along the tendon.
+HELD_MIN_SIN = 0.5
+HELD_MIN_COS = 0.25
+
 
 def engagement_ticks(ticks: np.ndarray, delta: np.ndarray, noise: float) -> float | None:
     """Where a pull's field starts to change, in its encoder ticks (signed as
@@ -243,6 +252,13 @@ def _held(h: dict, n: int, raw: dict, robot: Robot) -> HeldPull:
     if e_held is None or e_free is None:
         raise IdentifyError(f"{where}: tendon {i} never changed the field beyond the noise")
     t, ta = robot.tendons[i], robot.tendons[a]
+    da = ta.routing_angle - t.routing_angle
+    if ta.segment != t.segment or abs(math.sin(da)) < HELD_MIN_SIN \
+            or abs(math.cos(da)) < HELD_MIN_COS:
+        raise IdentifyError(f"{where}: tendon {a} cannot hold tendon {i}'s pull: it must be of "
+                            f"its segment, {math.degrees(math.asin(HELD_MIN_SIN)):.0f}-"
+                            f"{math.degrees(math.acos(HELD_MIN_COS)):.0f} degrees from it or "
+                            "as far from its opposite (docs/identify.md)")
     hold_take = (float(h["hold_ticks"]) - float(raw[a]["steps"][0][0])) * ta.pull_dir \
         * ta.metres_per_tick
     shift = (e_held - e_free) * t.pull_dir * t.metres_per_tick

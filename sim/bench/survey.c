@@ -212,11 +212,19 @@ static void survey_weights(const bench_t *b, FILE *f)
     }
 }
 
-/* Held pulls (--survey-held): every tendon pulled from slack while the
- * tendon of its segment whose bend lengthens its path most stands where it
- * reaches the top grid tension alone. The bend moves the pulled tendon's
- * engagement by its path's change, which its routing radius sets and its
- * stretch does not (docs/identify.md). */
+/* Held pulls (--survey-held): every tendon pulled from slack while a
+ * tendon of its segment stands where it reaches the top grid tension alone.
+ * The bend moves the pulled tendon's engagement by its path's change, which
+ * its routing radius sets and its stretch does not (docs/identify.md). The
+ * hold moves it most along the pulled tendon (the largest |cos| of the angle
+ * between them), among the tendons that also bend the robot across it (|sin|
+ * at least the fit's HELD_MIN_SIN, host_tools/hallhome/identify_data.py): a
+ * hold in the pulled tendon's own plane leaves the robot no freedom as the
+ * tendon engages, its field barely changes, and the kink is lost (4 tendons
+ * at 90 degrees, antagonist pairs: no held pull). */
+#define HELD_MIN_SIN 0.5
+#define HELD_MIN_COS 0.25
+
 static int survey_held(const bench_t *b, FILE *f)
 {
     const plant_cfg_t *c = &b->plant.cfg;
@@ -224,13 +232,14 @@ static int survey_held(const bench_t *b, FILE *f)
     int rc = 0;
     for (uint8_t i = 0; i < c->n_tendons; i++) {
         uint8_t hold = 0xFFu;
-        double best = 2.0;
+        double best = HELD_MIN_COS;
         double home;
         for (uint8_t m = 0; m < c->n_tendons; m++) {
-            double d = cos((c->tendon[m].angle_deg - c->tendon[i].angle_deg) *
-                           (3.14159265358979323846 / 180.0));
-            if (m != i && c->tendon[m].segment == c->tendon[i].segment && d < best - 1e-9) {
-                best = d;
+            double a = (c->tendon[m].angle_deg - c->tendon[i].angle_deg) *
+                       (3.14159265358979323846 / 180.0);
+            if (m != i && c->tendon[m].segment == c->tendon[i].segment &&
+                fabs(sin(a)) >= HELD_MIN_SIN && fabs(cos(a)) > best + 1e-9) {
+                best = fabs(cos(a));
                 hold = m;
             }
         }

@@ -577,6 +577,13 @@ def test_held_pull_records_are_checked(nominal, survey_dict):
 
     bad(lambda e: e["held"][0].update(hold_tendon=1), "two indices")
     bad(lambda e: e["held"][0].update(hold_tendon=9), "two indices")
+    bad(lambda e: e["held"][0].update(hold_tendon=3), "cannot hold")  # another segment
+    sideways = copy.deepcopy(d)  # a hold 90 degrees off: no shift along the tendon
+    sideways["held"] = [held_record(sideways, 1, 2, 30)]
+    with pytest.raises(IdentifyError, match="cannot hold"):
+        survey_from_dict(sideways, dataclasses.replace(nominal, tendons=tuple(
+            dataclasses.replace(t, routing_angle=np.radians(270.0)) if t.index == 2 else t
+            for t in nominal.tendons)))
     bad(lambda e: e.update(pulls=[p for p in e["pulls"] if p["tendon"] != 2]),
         "need their pulls alone")
     bad(lambda e: e["held"][0].pop("hold_ticks"), "hold_ticks")
