@@ -231,7 +231,7 @@ def test_two_masses_per_segment_and_the_friction_they_give(tmp_path):
 
 def test_held_pulls_give_each_tendons_radius(tmp_path):
     """--survey-held: every tendon pulled again from further back while the
-    tendon of its segment most opposed to it holds the bend of the top grid
+    tendon of its segment 120 degrees off holds the bend of the top grid
     tension. On a robot built to 10 %, its stiffness to 25 % (seed 1: a
     tendon's radius 2.6 % off its weighted neighbour's), one weight per
     segment leaves a tendon 0.04 N off at 1.5 N: the survey cannot tell its
@@ -271,3 +271,33 @@ def test_held_pulls_give_each_tendons_radius(tmp_path):
     assert e_without > 0.03 and e_held < 0.015, (e_without, e_held)
     for i, t in enumerate(sv.truth["tendons"]):
         assert held.value(f"radius{i}") == pytest.approx(t["radius_mm"], rel=0.015)
+
+
+def test_held_pulls_only_where_a_hold_bends_the_robot_across_the_tendon(tmp_path):
+    """A 12-tendon robot of the chaos pool: segment 1 has three tendons at
+    120 degrees (each held by one of the others), segment 2 four at 90
+    degrees (a neighbour bends nothing along the tendon, the antagonist
+    nothing across it: no held pull), segment 3 five at 72 degrees (each held
+    by one 144 degrees off, the larger |cos| of the two allowed)."""
+    out = tmp_path / "pool.json"
+    proc = subprocess.run([str(BENCH), str(FW), "--plant",
+                           str(ROOT / "sim" / "plant" / "configs" / "c3s12t3k9ccfb.cfg"),
+                           "--seed", "2", "--survey", str(out), "--survey-weight", "80",
+                           "--survey-held"], capture_output=True, text=True, timeout=300,
+                          cwd=ROOT)
+    assert proc.returncode == 0, proc.stderr
+    d = json.loads(out.read_text())
+    angle = {i: t["angle_deg"] for i, t in enumerate(d["truth"]["tendons"])}
+    held = {h["tendon"]: h["hold_tendon"] for h in d["held"]}
+    assert sorted(held) == [0, 1, 2, 7, 8, 9, 10, 11]
+    for i, a in held.items():
+        off = abs((angle[a] - angle[i] + 180.0) % 360.0 - 180.0)
+        assert off == pytest.approx(120.0 if i < 3 else 144.0, abs=6.0), (i, a, off)
+        assert began_slack(d, i)
+
+
+def began_slack(d, i):
+    """The held pull of tendon i began slack: its first steps read its
+    baseline."""
+    h = next(x for x in d["held"] if x["tendon"] == i)
+    return all(math.dist(a, b) < 300 for a, b in zip(h["steps"][0][1], h["baseline_cuT"]))
