@@ -30,8 +30,8 @@
  *      the target; always moving in the pull direction so backlash and
  *      friction sit on the same side every time; the home is the crossing of
  *      a least-squares line through the points near the target (sub-tick,
- *      then rounded); release the tendon. A wide overshoot backs off to slack
- *      and comes again.
+ *      then rounded); release the tendon. A wide overshoot backs off behind
+ *      the engagement and comes again.
  *   5. move every tendon to its home together, profile velocities scaled by
  *      distance so they arrive together; HOM_EV_DONE.
  * Modes: HOM_MODE_FULL; HOM_MODE_QUICK after a power cycle, from stored homes
