@@ -4,6 +4,9 @@
  */
 #include "homing/hom_priv.h"
 
+#include <stddef.h>
+#include <string.h>
+
 /* The table's local slope of |dB| over travel around the tension (a 100 mN
  * window clipped to the grid), cuT per tick with 8 fractional bits: the
  * first fine step's estimate before two points of its own exist. */
@@ -75,7 +78,8 @@ HOM_NOINLINE void hom_begin_final(hom_t *h)
 
 /* Samples to average at a point near the target: enough that the noise of
  * the average (table noise per axis / sqrt n) is at most a seventh of the
- * field change of one tick; at least twice avg_samples, at most HOM_MAX_AVG.
+ * field change of one tick; at least 4 and twice avg_samples, at most
+ * HOM_MAX_AVG.
  * A weak field (sensors far from the magnet, a high tension where |dB|
  * flattens) needs many; a strong one needs the minimum. */
 static uint8_t near_samples(const hom_t *h, int32_t s_q8)
@@ -83,6 +87,9 @@ static uint8_t near_samples(const hom_t *h, int32_t s_q8)
     int32_t q = ((int32_t)h->noise_cuT * 7 * 256 + s_q8 - 1) / s_q8; /* ceil(7 noise / slope) */
     int32_t n = q > 6 ? (int32_t)HOM_MAX_AVG : q * q;
     int32_t lo = 2 * (int32_t)h->cfg.avg_samples;
+    if (lo < 4) {
+        lo = 4; /* at least 4 near the target, whatever a far point takes */
+    }
     if (n < lo) {
         n = lo;
     }
@@ -245,12 +252,10 @@ HOM_NOINLINE static int32_t table_remaining_q8(const hom_t *h, uint32_t b)
  * hom_back_off()). */
 HOM_NOINLINE void hom_pull_afresh(hom_t *h)
 {
-    h->n_way = 0; /* the field falls with the release; the next pull starts afresh */
-    h->b_pend = 0;
-    h->ref_b = 0;
-    h->have_prev = 0;
-    h->n_pts = 0;
-    h->far = 0;
+    /* have_prev, n_pts, far, n_way (the field falls with the release: no
+     * floors of the way out), b_pend and ref_b, together in hom_t: one
+     * clear instead of a store each */
+    memset(&h->have_prev, 0, offsetof(hom_t, ref_b) + sizeof h->ref_b - offsetof(hom_t, have_prev));
 }
 
 /* A quarter of the margin is 24 ticks or more (the margin is at least
