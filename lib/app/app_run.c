@@ -124,8 +124,8 @@ static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon
     }
     hom_config_default(&cfg);
     /* filter_k is the homing's own filter: samples averaged at each fine
-     * point while the servo stands still (near the target at least twice as
-     * many). A moving average of the stream ahead of the homing would lag
+     * point while the servo stands still (near the target at least 4 and
+     * twice as many). A moving average of the stream ahead of the homing would lag
      * during the take-up and delay the engagement it detects. */
     cfg.v_fast = (uint16_t)a->rec.set.v[STORE_SET_APPROACH_FAST];
     cfg.v_fine = (uint16_t)a->rec.set.v[STORE_SET_APPROACH_SLOW];

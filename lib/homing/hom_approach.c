@@ -69,14 +69,9 @@ HOM_NOINLINE void hom_begin_tendon(hom_t *h, uint8_t i)
     }
     h->cur = i;
     h->t_tendon = h->now_ms;
-    h->have_prev = 0;
+    hom_pull_afresh(h);
     h->near = 0;
-    h->n_pts = 0;
     h->steps = 0;
-    h->far = 0;
-    h->n_way = 0;
-    h->b_pend = 0;
-    h->ref_b = 0;
     h->slope_q8 = hom_table_slope(h, i);
     h->slope_min_q8 = (h->slope_q8 >> 1) + 1; /* at least 1: a divisor */
     h->pos_at_sample = h->present[i];
@@ -207,7 +202,8 @@ HOM_NOINLINE static void begin_moderate(hom_t *h)
          * tick per 0.229 rpm unit, beyond the last position read): stopping
          * it there would bring the servo back through the spool's backlash
          * and the path's friction, and every point after would read the
-         * field of a position further on. Back to slack, and up to g again */
+         * field of a position further on. Back behind the engagement
+         * (hom_back_off()), and up to g again */
         t->retries = 1u;
         h->mod_goal = g;
         hom_back_off(h);
@@ -503,7 +499,15 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
         }
         break;
     case ST_BACKOFF:
-        if (hom_reached(h, h->cur) && h->retake == 1u) {
+        /* back where the back-off went, and standing there for longer than
+         * a sample takes to reach the homing (up to 16 ms): a sample
+         * measured on the way back, judged at a read on the way forward
+         * again, would set a floor for the field that the pull ahead falls
+         * below (a false HOM_F_FIELD_STEP; test_short_back_off_is_no_fall) */
+        if (!hom_reached(h, h->cur) || hom_still_ms(h, h->cur) < HOM_SAMPLE_AGE_MS) {
+            break;
+        }
+        if (h->retake == 1u) {
             /* back at slack: a field that lied (an ambient step, still
              * there) shows now, before the engagement (HOM_F_FIELD_STEP);
              * a field that did not says the robot is softer than its
@@ -513,7 +517,7 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
             h->retake = 2;
             t->limit_ticks = table_limit(h);
             hom_begin_tendon(h, h->cur);
-        } else if (hom_reached(h, h->cur)) {
+        } else {
             begin_moderate(h);
         }
         break;

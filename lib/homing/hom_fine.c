@@ -4,6 +4,9 @@
  */
 #include "homing/hom_priv.h"
 
+#include <stddef.h>
+#include <string.h>
+
 /* The table's local slope of |dB| over travel around the tension (a 100 mN
  * window clipped to the grid), cuT per tick with 8 fractional bits: the
  * first fine step's estimate before two points of its own exist. */
@@ -75,7 +78,8 @@ HOM_NOINLINE void hom_begin_final(hom_t *h)
 
 /* Samples to average at a point near the target: enough that the noise of
  * the average (table noise per axis / sqrt n) is at most a seventh of the
- * field change of one tick; at least twice avg_samples, at most HOM_MAX_AVG.
+ * field change of one tick; at least 4 and twice avg_samples, at most
+ * HOM_MAX_AVG.
  * A weak field (sensors far from the magnet, a high tension where |dB|
  * flattens) needs many; a strong one needs the minimum. */
 static uint8_t near_samples(const hom_t *h, int32_t s_q8)
@@ -83,6 +87,9 @@ static uint8_t near_samples(const hom_t *h, int32_t s_q8)
     int32_t q = ((int32_t)h->noise_cuT * 7 * 256 + s_q8 - 1) / s_q8; /* ceil(7 noise / slope) */
     int32_t n = q > 6 ? (int32_t)HOM_MAX_AVG : q * q;
     int32_t lo = 2 * (int32_t)h->cfg.avg_samples;
+    if (lo < 4) {
+        lo = 4; /* at least 4 near the target, whatever a far point takes */
+    }
     if (n < lo) {
         n = lo;
     }
@@ -187,7 +194,7 @@ HOM_NOINLINE void hom_finish_tendon(hom_t *h, int32_t p, int32_t fallback)
     t->home_frac = (int8_t)h->home_res;
     h->retake = 0; /* the next tendon's take-up at its own speed */
     h->home_dB = hom_delta_of(h, t->sensor, h->sensor[t->sensor].last);
-    hom_set_goal(h, h->cur, hom_slack_goal(t), h->cfg.v_release);
+    hom_set_goal(h, h->cur, hom_slack_goal(t, 0), h->cfg.v_release);
     hom_enter(h, ST_TENDON_RELEASE);
     h->settled = 0;
 }
@@ -240,15 +247,32 @@ HOM_NOINLINE static int32_t table_remaining_q8(const hom_t *h, uint32_t b)
     return hom_muldiv(travel_t - travel_b, 1000, (int32_t)t->nm_per_tick);
 }
 
+/* A pull starts afresh: no fine points, no floors of the field on its way
+ * out, no reference for its rise (one routine for hom_begin_tendon() and
+ * hom_back_off()). */
+HOM_NOINLINE void hom_pull_afresh(hom_t *h)
+{
+    /* have_prev, n_pts, far, n_way (the field falls with the release: no
+     * floors of the way out), b_pend and ref_b, together in hom_t: one
+     * clear instead of a store each */
+    memset(&h->have_prev, 0, offsetof(hom_t, ref_b) + sizeof h->ref_b - offsetof(hom_t, have_prev));
+}
+
+/* A quarter of the margin is 24 ticks or more (the margin is at least
+ * 600 um): behind an engagement recorded up to 16 ticks late, the spool's
+ * backlash (5 ticks) and the friction band included, so the pull that comes
+ * again is on its pulling branch well before the approach's start (0.8 of
+ * the travel past the engagement). The whole margin, as before, cost a
+ * re-approach of some 100 ticks more at the moderate speed: about 0.1 s per
+ * back-off, which half the proximal tendons of paper_2seg make at 0.8 N
+ * (every take-up that ran on to the approach's start). The retake after the
+ * bounded pull's limit searches for its engagement again and must start
+ * slack, a whole margin short of it (its field-step check counts half the
+ * margin from its start). */
 void hom_back_off(hom_t *h)
 {
-    h->n_way = 0; /* the field falls with the release; the next pull starts afresh */
-    h->b_pend = 0;
-    h->ref_b = 0;
-    h->have_prev = 0;
-    h->n_pts = 0;
-    h->far = 0;
-    hom_set_goal(h, h->cur, hom_slack_goal(hom_cur(h)), h->cfg.v_release);
+    hom_pull_afresh(h);
+    hom_set_goal(h, h->cur, hom_slack_goal(hom_cur(h), h->retake == 1u ? 0 : 2), h->cfg.v_release);
     h->state = ST_BACKOFF;
 }
 
@@ -308,8 +332,8 @@ HOM_NOINLINE static int not_following(hom_t *h, const hom_tendon_t *t, int32_t p
  * replaced by a one-tick step and a bracket). Otherwise it steps towards the
  * target: the whole predicted distance when it is 3 ticks or less (rounded
  * down, at least one), three quarters of it beyond, so the approach stays on
- * the slack side of the target. A wide overshoot backs off to slack and comes
- * again to the last point known to be short of it. */
+ * the slack side of the target. A wide overshoot backs off behind the
+ * engagement and comes again to the last point known to be short of it. */
 void hom_fine_point(hom_t *h)
 {
     hom_tendon_t *t = hom_cur(h);

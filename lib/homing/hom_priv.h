@@ -55,6 +55,9 @@ enum {
 #define HOM_RUN_ON_TICKS 1    /* a servo standing further past its goal ran on */
 #define HOM_DROOP_TICKS  8    /* a servo stopped this close counts as arrived ... */
 #define HOM_STILL_MS     100u /* ... after this long without motion */
+#define HOM_SAMPLE_AGE_MS                                                                          \
+    20u /* a sample reaches the homing up to 16 ms after it was measured (docs/homing.md,          \
+           "Engagement"): a servo standing this long stood when every later one was taken */
 #define HOM_FIT_POINTS   4u   /* near points kept for the final fit (hom_t.pts) */
 #define HOM_FLAT_TICKS                                                                                 \
     12                  /* fine: the least pull the field may stay flat over before it no longer       \
@@ -81,7 +84,7 @@ int32_t hom_pull(const hom_tendon_t *t, int32_t d);
  * direction dir, behind ticks behind it. */
 void hom_window_around(int8_t dir, int32_t ahead, int32_t behind, int32_t p, int32_t *lo,
                        int32_t *hi);
-int32_t hom_slack_goal(const hom_tendon_t *t);
+int32_t hom_slack_goal(const hom_tendon_t *t, uint8_t shift);
 uint32_t hom_since(const hom_t *h, uint32_t t);
 void hom_set_goal(hom_t *h, uint8_t i, int32_t goal, uint16_t vel);
 int hom_reached(const hom_t *h, uint8_t i);
@@ -133,8 +136,11 @@ void hom_do_tendon(hom_t *h, const hom_in_t *in);
 int32_t hom_table_slope(const hom_t *h, uint8_t i);
 void hom_begin_final(hom_t *h);
 void hom_fine_point(hom_t *h);
-/* Back to slack; the approach comes again to h->mod_goal from there, on the
- * pulling side of the path's friction and the spool's backlash. */
+/* Back behind the engagement, a quarter of the slack margin (the bounded
+ * pull's retake: the whole margin, to slack); the approach comes again to
+ * h->mod_goal from there, on the pulling side of the path's friction and the
+ * spool's backlash. */
 void hom_back_off(hom_t *h);
+void hom_pull_afresh(hom_t *h);
 
 #endif /* HALLHOME_HOM_PRIV_H */

@@ -52,7 +52,7 @@ static const hom_config_t TBL_FLASH hom_defaults = {
     .slack_step_um = 300,
     .slack_max_steps = 6,
     .baseline_samples = 16,
-    .avg_samples = 2,
+    .avg_samples = 1,
     .fine_max_steps = 16,
     .takeup_per_tick = 2,
     .near_permille = 800,
@@ -566,9 +566,11 @@ HOM_NOINLINE int32_t hom_pull(const hom_tendon_t *t, int32_t d)
     return t->dir < 0 ? -d : d;
 }
 
-HOM_NOINLINE int32_t hom_slack_goal(const hom_tendon_t *t)
+/* The slack margin shifted right by `shift` behind tendon t's engagement:
+ * 0 the release after a home (slack), 2 a back-off (hom_back_off()). */
+HOM_NOINLINE int32_t hom_slack_goal(const hom_tendon_t *t, uint8_t shift)
 {
-    return t->engage - hom_pull(t, t->margin_ticks);
+    return t->engage - hom_pull(t, t->margin_ticks >> shift);
 }
 
 /* Milliseconds from t to the current step. */

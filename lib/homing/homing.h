@@ -30,8 +30,8 @@
  *      the target; always moving in the pull direction so backlash and
  *      friction sit on the same side every time; the home is the crossing of
  *      a least-squares line through the points near the target (sub-tick,
- *      then rounded); release the tendon. A wide overshoot backs off to slack
- *      and comes again.
+ *      then rounded); release the tendon. A wide overshoot backs off behind
+ *      the engagement and comes again.
  *   5. move every tendon to its home together, profile velocities scaled by
  *      distance so they arrive together; HOM_EV_DONE.
  * Modes: HOM_MODE_FULL; HOM_MODE_QUICK after a power cycle, from stored homes
@@ -343,7 +343,6 @@ typedef struct {
     uint8_t fault_index;
     uint8_t fault_dev;
     uint8_t steps;       /* slack-check steps or fine points so far */
-    uint8_t have_prev;   /* fine: a previous point below the target exists */
     uint8_t settled;     /* slack average: settle time over, averaging; after a home: the
                             steps until the next tendon begins (3, 4) */
     uint8_t pf_started;  /* preflight: first step seen, t_phase valid; then 1 + the
@@ -351,18 +350,23 @@ typedef struct {
     uint8_t quick_leg;   /* quick mode: fast leg to just before the expected engagement */
     uint8_t near;        /* fine: the next point is within a few ticks of the target */
     uint8_t n_near;      /* fine: samples to average at a near point */
-    uint8_t n_pts;       /* fine: near points kept */
-    uint8_t far;         /* fine: the last point put the target beyond the travel limit */
     uint8_t retake;      /* the current tendon reached its bounded pull's limit: 1 backing off
                             to search its engagement again, 2 searching slowly (hom_over_limit()) */
     uint8_t b_low;       /* pull: samples in a row below the field's floor by more than the
                             tolerance */
     uint8_t read_gap_ms; /* the current servo's last gap between two position reads */
-    uint8_t n_way;       /* pull: floors kept in way_q/way_b since the engagement or the last
-                            back-off */
     uint8_t ev_head;
     uint8_t ev_count;
     uint8_t ev_dropped;
+    /* a pull's state that starts afresh with it (hom_pull_afresh() clears it
+     * at once: keep it together, have_prev first, ref_b last) */
+    uint8_t have_prev;   /* fine: a previous point below the target exists */
+    uint8_t n_pts;       /* fine: near points kept */
+    uint8_t far;         /* fine: the last point put the target beyond the travel limit */
+    uint8_t n_way;       /* pull: floors kept in way_q/way_b since the engagement or the last
+                            back-off */
+    uint32_t b_pend; /* pull: the last sample since the last position read, judged there */
+    uint32_t ref_b;  /* fine: the |dB| of the point ref_p: the last one the field rose enough to */
     uint16_t win_changed;  /* bit i: tendon i's engagement window changed (hom_window()) */
     uint16_t win_known;    /* bit i: tendon i's window is set */
     uint32_t now_ms;       /* time of the current step */
@@ -379,13 +383,11 @@ typedef struct {
     uint32_t tendon_ms;    /* the last tendon's time from its start to its recorded home */
     int32_t p_prev;        /* fine: previous point (position, |dB|) */
     uint32_t b_prev;
-    uint32_t b_pend; /* pull: the last sample since the last position read, judged there */
     int16_t way_q[HOM_WAY_PTS];  /* pull: the way out, furthest last: ticks past the engagement
                                     of a position read further than any before, */
     uint16_t way_b[HOM_WAY_PTS]; /*   and the |dB| (cuT >> HOM_WAY_SHIFT) of the sample judged
                                     there, a floor for the field from there on */
-    int32_t ref_p;               /* fine: the point the field's rise is measured from (position, */
-    uint32_t ref_b;              /*   |dB|): the last one the field rose enough to */
+    int32_t ref_p;               /* fine: the point the field's rise is measured from (its |dB|: ref_b) */
     int32_t mod_goal;            /* re-approach: moderate goal after an overshoot */
     int32_t p_far;               /* the furthest position read in this pull */
     int32_t search_end;          /* take-up: where the search for engagement ends */

@@ -216,7 +216,11 @@ static void test_quick_rehome_same_homes(void **state)
         /* homes are reported in the new encoder frame */
         assert_int_equal(g_res2.home[i], (int32_t)g_res2.home_plant[i] - 2 * 4096);
     }
-    assert_true(g_res2.end_ms * 3u < g_res.end_ms * 2u); /* well under 2/3 of a full run */
+    /* well under 3/4 of a full run (2/3 before issue 14's last round: the
+     * full run's back-offs and far fine points got shorter, the quick run's
+     * release and slack check, half a second, did not; 2523 / 4003 ms near,
+     * 2980 / 4310 ms with the described geometry) */
+    assert_true(g_res2.end_ms * 4u < g_res.end_ms * 3u);
 }
 
 static void test_overshoot_recovers(void **state)
@@ -487,10 +491,12 @@ static void fault_in_pull(plant_run_cfg_t *rc, uint8_t k, plant_fault_t f, doubl
  * against the tendon's cancels half of its change. The run ends at once in
  * HOM_F_FIELD_STEP on that sensor. Before, steps that chase a target the
  * field no longer shows went on to the travel limit (chaos seed 8390: the
- * magnet removed, 4.9 x the target). Again on the slow bus of 12 servos
- * (positions every 12 ms, samples 5 ms late): there a fall the fine points
- * see first ends in HOM_F_NO_PROGRESS on the tendon, which is as safe, as
- * is HOM_F_TRAVEL_LIMIT, the bounded pull's limit reached first. */
+ * magnet removed, 4.9 x the target). A fall the fine points see first ends
+ * in HOM_F_NO_PROGRESS on the tendon, which is as safe, as is
+ * HOM_F_TRAVEL_LIMIT, the bounded pull's limit reached first: on the slow
+ * bus of 12 servos (positions every 12 ms, samples 5 ms late), and with one
+ * sample per point short of the target (filter_k 1, whose points come
+ * sooner) on tendon 3 of the fast one too (0.756 N, released in 26 ms). */
 static void test_field_falls_while_pulling(void **state)
 {
     plant_run_cfg_t rc;
@@ -500,7 +506,7 @@ static void test_field_falls_while_pulling(void **state)
     for (k = 0; k < 2u * n; k++) {
         uint8_t i = k % n;
         fault_in_pull_on(&rc, i, PLANT_FI_FIELD_FALL, 0.3 + 0.1 * i, k >= n);
-        if ((k >= n && g_res.fault == HOM_F_NO_PROGRESS) || g_res.fault == HOM_F_TRAVEL_LIMIT) {
+        if (g_res.fault == HOM_F_NO_PROGRESS || g_res.fault == HOM_F_TRAVEL_LIMIT) {
             assert_int_equal(g_res.fault_index, i);
         } else {
             assert_int_equal(g_res.fault, HOM_F_FIELD_STEP);
