@@ -58,7 +58,7 @@ enum {
 #define HOM_SAMPLE_AGE_MS                                                                          \
     20u /* a sample reaches the homing up to 16 ms after it was measured (docs/homing.md,          \
            "Engagement"): a servo standing this long stood when every later one was taken */
-#define HOM_FIT_POINTS   4u   /* near points kept for the final fit (hom_t.pts) */
+#define HOM_FIT_POINTS 4u /* near points kept for the final fit (hom_t.pts) */
 #define HOM_FLAT_TICKS                                                                                 \
     12                  /* fine: the least pull the field may stay flat over before it no longer       \
                            follows the tendon: a point after the servo ran past its goal and came back \

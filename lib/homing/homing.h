@@ -360,13 +360,13 @@ typedef struct {
     uint8_t ev_dropped;
     /* a pull's state that starts afresh with it (hom_pull_afresh() clears it
      * at once: keep it together, have_prev first, ref_b last) */
-    uint8_t have_prev;   /* fine: a previous point below the target exists */
-    uint8_t n_pts;       /* fine: near points kept */
-    uint8_t far;         /* fine: the last point put the target beyond the travel limit */
-    uint8_t n_way;       /* pull: floors kept in way_q/way_b since the engagement or the last
-                            back-off */
-    uint32_t b_pend; /* pull: the last sample since the last position read, judged there */
-    uint32_t ref_b;  /* fine: the |dB| of the point ref_p: the last one the field rose enough to */
+    uint8_t have_prev; /* fine: a previous point below the target exists */
+    uint8_t n_pts;     /* fine: near points kept */
+    uint8_t far;       /* fine: the last point put the target beyond the travel limit */
+    uint8_t n_way;     /* pull: floors kept in way_q/way_b since the engagement or the last
+                          back-off */
+    uint32_t b_pend;   /* pull: the last sample since the last position read, judged there */
+    uint32_t ref_b; /* fine: the |dB| of the point ref_p: the last one the field rose enough to */
     uint16_t win_changed;  /* bit i: tendon i's engagement window changed (hom_window()) */
     uint16_t win_known;    /* bit i: tendon i's window is set */
     uint32_t now_ms;       /* time of the current step */
@@ -387,13 +387,13 @@ typedef struct {
                                     of a position read further than any before, */
     uint16_t way_b[HOM_WAY_PTS]; /*   and the |dB| (cuT >> HOM_WAY_SHIFT) of the sample judged
                                     there, a floor for the field from there on */
-    int32_t ref_p;               /* fine: the point the field's rise is measured from (its |dB|: ref_b) */
-    int32_t mod_goal;            /* re-approach: moderate goal after an overshoot */
-    int32_t p_far;               /* the furthest position read in this pull */
-    int32_t search_end;          /* take-up: where the search for engagement ends */
-    int32_t slope_q8;            /* fine: current slope estimate, cuT per tick * 256 */
-    int32_t slope_min_q8;        /* fine: half the table's slope, the floor of every estimate */
-    uint32_t engage_cuT;         /* engagement threshold */
+    int32_t ref_p;        /* fine: the point the field's rise is measured from (its |dB|: ref_b) */
+    int32_t mod_goal;     /* re-approach: moderate goal after an overshoot */
+    int32_t p_far;        /* the furthest position read in this pull */
+    int32_t search_end;   /* take-up: where the search for engagement ends */
+    int32_t slope_q8;     /* fine: current slope estimate, cuT per tick * 256 */
+    int32_t slope_min_q8; /* fine: half the table's slope, the floor of every estimate */
+    uint32_t engage_cuT;  /* engagement threshold */
     uint16_t tension_mN;
     uint16_t noise_cuT;
     uint32_t t_start; /* run start */
