@@ -272,14 +272,15 @@ def bus_cycle(hh_bench: str, elf: str, plant: str, workdir: str, limit_s: float 
         m = PHASE.search(line)
         if m:
             marks.append((last, m.group(1) or "idle"))
+    gaps = [(b - a) / 1000.0 for a, b in zip(reads, reads[1:])]
     phases: Dict[str, List[float]] = {}
     k, phase = 0, "idle"
-    for a, b in zip(reads, reads[1:]):
+    for a, gap in zip(reads, gaps):
         while k < len(marks) and marks[k][0] <= a:
             phase = marks[k][1]
             k += 1
-        phases.setdefault(phase, []).append((b - a) / 1000.0)
-    out = _read_stats([(b - a) / 1000.0 for a, b in zip(reads, reads[1:])])
+        phases.setdefault(phase, []).append(gap)
+    out = _read_stats(gaps)
     out.update({"goal_writes": len(writes), "window_s": (reads[-1] - reads[0]) / 1e6,
                 "by_phase": {ph: _read_stats(d) for ph, d in phases.items() if len(d) >= 20}})
     return out

@@ -438,39 +438,38 @@ class _Model:
 
     def predict(self, r: Robot, engage: dict[int, float]):
         """Predicted field changes: a list per pull (n, n_s, 3) and an array
-        of the weight records (n_w, n_s, 3), tesla."""
+        of the weight records (n_w, n_s, 3), tesla; and the held pulls'
+        (``_held()``)."""
         pos, rot, take = self.poses(r)
         B = field_at_sensors(r, pos, rot)
         ng = len(TENSION_GRID)
         npull = len(self.survey.pulls) * ng
         b0 = B[npull]
-        out = []
+        out, curves = [], {}
         for n, p in enumerate(self.survey.pulls):
-            Bg = B[n * ng:(n + 1) * ng] - b0[None]
             tg = take[n * ng:(n + 1) * ng]
+            spline = CubicSpline(tg, B[n * ng:(n + 1) * ng] - b0[None], axis=0)
+            curves[p.tendon] = (tg, spline)
             x = p.take_up - engage[p.tendon]
             pred = np.zeros_like(p.delta)
             on = x > 0
             if np.any(on):
-                pred[on] = CubicSpline(tg, Bg, axis=0)(x[on])
+                pred[on] = spline(x[on])
             out.append(pred)
         wpred = B[npull + 2:] - B[npull + 1][None] if self.survey.weights else B[:0]
-        return out, wpred, self._held(r, engage, B, take)
+        return out, wpred, self._held(r, engage, curves)
 
-    def _held(self, r: Robot, engage: dict[int, float], B, take):
+    def _held(self, r: Robot, engage: dict[int, float], curves: dict):
         """Each held pull's engagement shift (m) and the field of its bend
-        (n_s, 3) T: the held tendon's pull at its take-up, and the pulled
+        (n_s, 3) T: the held tendon's pull at its take-up (``curves``: each
+        pull's take-up over TENSION_GRID and its field curve), and the pulled
         tendon's path shortened by that pose's curvature (segments it runs
         through, along its direction) times its radius."""
-        ng = len(TENSION_GRID)
-        index = {p.tendon: n for n, p in enumerate(self.survey.pulls)}
-        b0 = B[len(self.survey.pulls) * ng]
         shifts, fields = [], []
         for h in self.survey.held:
-            n = index[h.hold]
-            tg = take[n * ng:(n + 1) * ng]
+            tg, field = curves[h.hold]
             x = h.hold_take_up - engage[h.hold]
-            fields.append(CubicSpline(tg, B[n * ng:(n + 1) * ng] - b0[None], axis=0)(x))
+            fields.append(field(x))
             T = float(np.interp(x, tg, TENSION_GRID))
             ta, tb = r.tendons[h.hold], r.tendons[h.tendon]
             kap_t = np.array([[T * ta.routing_radius / sg.bending_stiffness if k < ta.segment

@@ -167,29 +167,20 @@ def survey_from_dict(d: dict, robot: Robot, any_robot: bool = False) -> Survey:
                             f"{robot.name!r}: a survey from another robot? (fit it anyway "
                             "with --any-robot)")
     ns, nt = len(robot.sensors), len(robot.tendons)
-    pulls, seen, first = [], set(), {}
+    pulls, seen, first, parsed = [], set(), {}, {}
     for n, p in enumerate(d.get("pulls") or []):
         where = f"pulls[{n}]"
         i = p.get("tendon") if isinstance(p, dict) else None
         if not isinstance(i, int) or not 0 <= i < nt or i in seen:
             raise IdentifyError(f"{where}: tendon must be a new index 0..{nt - 1}")
         seen.add(i)
-        b = p.get("baseline_cuT")
-        if isinstance(b, list) and len(b) != ns:
-            raise IdentifyError(f"{where}: {len(b)} sensors, the description has {ns}: a "
-                                "survey from another robot?")
-        base = _fields(b, ns, f"{where}.baseline_cuT")
-        steps = p.get("steps") or []
-        if len(steps) < 8:
-            raise IdentifyError(f"{where}: {len(steps)} steps, at least 8 needed")
-        ticks = np.array([s[0] for s in steps], dtype=float)
-        field = np.array([_fields(s[1], ns, f"{where}.steps[{k}]") for k, s in enumerate(steps)])
+        ticks, delta, base = _pull_arrays(p, ns, where)
+        parsed[i] = (ticks, delta, base)  # for the held pulls
         t = robot.tendons[i]
         take_up = (ticks - ticks[0]) * t.pull_dir * t.metres_per_tick
         if np.any(np.diff(take_up) <= 0):
             raise IdentifyError(f"{where}: the steps do not pull (take-up must grow; pull_dir "
                                 f"{t.pull_dir:+d} in the robot description)")
-        delta = (field - base[None]) * CUT
         if np.max(np.linalg.norm(delta[-1], axis=-1)) < 20 * robot.noise:
             raise IdentifyError(f"{where}: tendon {i} never changed the field beyond the noise "
                                 "(magnet missing, tendon not engaged, wrong robot?)")
@@ -210,47 +201,41 @@ def survey_from_dict(d: dict, robot: Robot, any_robot: bool = False) -> Survey:
         weights.append(WeightRecord(i, m * 1e-3, delta))
     meta = {k: d[k] for k in ("robot", "seed", "perturb", "source") if k in d}
     meta["first_ticks"] = first
-    raw = {p["tendon"]: p for p in d.get("pulls") or []}
-    held = tuple(_held(h, n, raw, robot) for n, h in enumerate(d.get("held") or []))
+    held = tuple(_held(h, n, parsed, robot) for n, h in enumerate(d.get("held") or []))
     return Survey(tuple(pulls), tuple(weights), d.get("truth"), d.get("source", "?"), meta,
                   held)
 
 
 def _pull_arrays(p: dict, ns: int, where: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Ticks (n,), field change from the baseline (n, ns, 3) T and the
-    baseline (ns, 3) T of a pull record."""
-    base = _fields(p.get("baseline_cuT"), ns, f"{where}.baseline_cuT") * CUT
+    baseline (ns, 3) cuT of a pull record (a pull alone or a held pull)."""
+    b = p.get("baseline_cuT")
+    if isinstance(b, list) and len(b) != ns:
+        raise IdentifyError(f"{where}: {len(b)} sensors, the description has {ns}: a "
+                            "survey from another robot?")
+    base = _fields(b, ns, f"{where}.baseline_cuT")
     steps = p.get("steps") or []
     if len(steps) < 8:
         raise IdentifyError(f"{where}: {len(steps)} steps, at least 8 needed")
     ticks = np.array([s[0] for s in steps], dtype=float)
     field = np.array([_fields(s[1], ns, f"{where}.steps[{k}]") for k, s in enumerate(steps)])
-    return ticks, field * CUT - base[None], base
+    return ticks, (field - base[None]) * CUT, base
 
 
-def _held(h: dict, n: int, raw: dict, robot: Robot) -> HeldPull:
+def _held(h: dict, n: int, parsed: dict, robot: Robot) -> HeldPull:
     """A held pull record (see HeldPull), checked against the pulls alone of
-    its tendon and of the held one."""
+    its tendon and of the held one (``parsed``: _pull_arrays() of each pull
+    alone, by tendon)."""
     where = f"held[{n}]"
     ns, nt = len(robot.sensors), len(robot.tendons)
     i, a = (h.get("tendon"), h.get("hold_tendon")) if isinstance(h, dict) else (None, None)
     if not isinstance(i, int) or not isinstance(a, int) or not (0 <= i < nt and 0 <= a < nt) \
             or i == a:
         raise IdentifyError(f"{where}: tendon and hold_tendon must be two indices 0..{nt - 1}")
-    if i not in raw or a not in raw:
+    if i not in parsed or a not in parsed:
         raise IdentifyError(f"{where}: tendons {i} and {a} need their pulls alone too")
     if not isinstance(h.get("hold_ticks"), (int, float)):
         raise IdentifyError(f"{where}: hold_ticks must be a number")
-    ticks, delta, base = _pull_arrays(h, ns, where)
-    fticks, fdelta, _ = _pull_arrays(raw[i], ns, f"pulls of tendon {i}")
-    _, _, abase = _pull_arrays(raw[a], ns, f"pulls of tendon {a}")
-    try:
-        e_held = engagement_ticks(ticks, delta, robot.noise)
-        e_free = engagement_ticks(fticks, fdelta, robot.noise)
-    except IdentifyError as exc:
-        raise IdentifyError(f"{where}: tendon {i}: {exc}") from None
-    if e_held is None or e_free is None:
-        raise IdentifyError(f"{where}: tendon {i} never changed the field beyond the noise")
     t, ta = robot.tendons[i], robot.tendons[a]
     da = ta.routing_angle - t.routing_angle
     if ta.segment != t.segment or abs(math.sin(da)) < HELD_MIN_SIN \
@@ -259,10 +244,19 @@ def _held(h: dict, n: int, raw: dict, robot: Robot) -> HeldPull:
                             f"its segment, {math.degrees(math.asin(HELD_MIN_SIN)):.0f}-"
                             f"{math.degrees(math.acos(HELD_MIN_COS)):.0f} degrees from it or "
                             "as far from its opposite (docs/identify.md)")
-    hold_take = (float(h["hold_ticks"]) - float(raw[a]["steps"][0][0])) * ta.pull_dir \
-        * ta.metres_per_tick
+    ticks, delta, base = _pull_arrays(h, ns, where)
+    fticks, fdelta, _ = parsed[i]
+    aticks, _, abase = parsed[a]
+    try:
+        e_held = engagement_ticks(ticks, delta, robot.noise)
+        e_free = engagement_ticks(fticks, fdelta, robot.noise)
+    except IdentifyError as exc:
+        raise IdentifyError(f"{where}: tendon {i}: {exc}") from None
+    if e_held is None or e_free is None:
+        raise IdentifyError(f"{where}: tendon {i} never changed the field beyond the noise")
+    hold_take = (float(h["hold_ticks"]) - aticks[0]) * ta.pull_dir * ta.metres_per_tick
     shift = (e_held - e_free) * t.pull_dir * t.metres_per_tick
-    return HeldPull(i, a, hold_take, shift, base - abase)
+    return HeldPull(i, a, hold_take, shift, (base - abase) * CUT)
 
 
 def load_survey(path: str | Path, robot: Robot, any_robot: bool = False) -> Survey:

@@ -123,8 +123,9 @@ static int survey_pull(const bench_t *b, FILE *f, uint8_t i, const char *sep, ui
         return -1;
     }
     if (held) {
-        /* the bend lengthens the pulled tendon's path, so it would engage
-         * short of its start: it starts SURVEY_HELD_BACK_MM further back */
+        /* a hold on the far side lengthens the pulled tendon's path, and
+         * it would engage short of its start: it starts SURVEY_HELD_BACK_MM
+         * further back */
         start -= dir * floor(SURVEY_HELD_BACK_MM * 1e6 / plant_nm_per_tick(c, i));
         (void)plant_set_motor(&p, i, start);
         (void)plant_set_motor(&p, hold, hold_ticks);
