@@ -115,7 +115,7 @@ sim: $(if $(SIM_ROBOT_KNOWN),$(SIM_PLANT) $(BENCH) firmware,sim-no-robot)
 	@test -z "$(FAULT)" || test -f $(SIM_SCN) || { echo "make sim: no scenario $(SIM_SCN); known:"; \
 		ls sim/bench/scenarios | sed 's/\.scn$$//; s/^/  /'; exit 2; }
 	@mkdir -p $(SIM_DIR)/eeprom
-	@echo "make sim: ROBOT=$(ROBOT) SEED=$(SEED) TENSION=$(or $(TENSION),default) FAULT=$(or $(FAULT),none) IDENTIFY=$(if $(SIM_ID_ON),1,0)$(if $(SIM_PERTURB_TAG), PERTURB=$(or $(PERTURB),0.05) PERTURB_STIFFNESS=$(or $(PERTURB_STIFFNESS),$(PERTURB),0.05))"
+	@echo "make sim: ROBOT=$(ROBOT) SEED=$(SEED) TENSION=$(or $(TENSION),cal_tension) FAULT=$(or $(FAULT),none) IDENTIFY=$(if $(SIM_ID_ON),1,0)$(if $(SIM_PERTURB_TAG), PERTURB=$(or $(PERTURB),0.05) PERTURB_STIFFNESS=$(or $(PERTURB_STIFFNESS),$(PERTURB),0.05))"
 	@# identification first (sim/identify.sh): its firmware, description and
 	@# EEPROM image replace the nominal ones unless the fit was refused (exit 3).
 	@# The script runs make itself: a $$(MAKE) on this line would make

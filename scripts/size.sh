@@ -8,7 +8,7 @@
 set -euo pipefail
 elf=$1
 flash_cap=262144 ram_cap=8192
-flash_max=63120 ram_max=3968
+flash_max=63170 ram_max=3969
 read -r text data bss noinit < <(avr-size -A "$elf" | awk '
     $1==".text"{t=$2} $1==".data"{d=$2} $1==".bss"{b=$2} $1==".noinit"{n=$2}
     END{print t+0, d+0, b+0, n+0}')

@@ -229,7 +229,8 @@ typedef struct {
     uint8_t con_wait;    /* a pending command is answered when the bring-up is done */
     uint8_t n_servos;    /* servos found by the last bring-up */
     uint8_t n_sensors;   /* sensors sampling after the last bring-up */
-    uint8_t offer_quick; /* every stored home is usable: a press re-homes quickly */
+    uint8_t recovered;   /* every stored home was recovered at boot, none stored since */
+    uint8_t offer_quick; /* recovered, at cal_tension: a press re-homes quickly (app_boot_offer) */
     int8_t recover_rc;   /* worst store_recover_position() result at boot */
     uint32_t t_start;    /* start of the bring-up (or of the wait after a servo reboot) */
 } app_boot_t;

@@ -140,8 +140,9 @@ APP_NOINLINE static void boot_ready(app_t *a)
     int8_t rc;
     a->boot.recover_rc = app_rec_recover(a);
     app_win_recover(a); /* after the homes, which come first */
-    a->boot.offer_quick = (uint8_t)(a->table_ok && a->rec.home_now != 0u &&
-                                    a->rec.home_now == app_all_mask(a) && a->bus.absent == 0u);
+    a->boot.recovered = (uint8_t)(a->table_ok && a->rec.home_now != 0u &&
+                                  a->rec.home_now == app_all_mask(a) && a->bus.absent == 0u);
+    app_boot_offer(a);
     app_rep_begin(a, app_w_ready);
     app_rep_table(a, 1); /* table_id */
     APP_REP_FIELDS(a, a, ready_fields);
@@ -174,7 +175,14 @@ APP_NOINLINE static void boot_ready(app_t *a)
 void app_boot_homes_new(app_t *a)
 {
     a->boot.recover_rc = 0;
+    a->boot.recovered = 0;
     a->boot.offer_quick = 0;
+}
+
+void app_boot_offer(app_t *a)
+{
+    a->boot.offer_quick = (uint8_t)(a->boot.recovered && a->rec.homes.tension_mN ==
+                                                             a->rec.set.v[STORE_SET_CAL_TENSION]);
 }
 
 void app_boot_again(app_t *a)

@@ -428,6 +428,7 @@ static int8_t h_set(app_t *a, const con_args_t *args)
     if (f == STORE_SET_TARGET_MODE) {
         app_run_ambient_reset(a);
     }
+    app_boot_offer(a); /* cal_tension decides the press's run */
     return 0;
 }
 

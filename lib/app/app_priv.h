@@ -315,6 +315,11 @@ const dxl_servo_info *app_boot_servo_info(const app_t *a, uint8_t id);
 void app_boot_again(app_t *a);
 /* A run stored new homes: nothing was recovered, no quick re-home offered. */
 void app_boot_homes_new(app_t *a);
+/* The button's quick re-home is offered while the recovered homes were
+ * calibrated at cal_tension: a press always works at cal_tension, and a
+ * press after `set cal_tension` to another tension calibrates in full at it
+ * (`rehome` still re-homes at the homes' tension). */
+void app_boot_offer(app_t *a);
 
 /* ---- app_bus.c: the servo bus ------------------------------------------------ */
 

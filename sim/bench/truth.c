@@ -223,6 +223,19 @@ void truth_line(bench_t *b, const char *line)
     if (strncmp(line, "<progress", 9) == 0) {
         t->in_baseline = 0;
         if (strstr(line, "state=start") != NULL) {
+            int mN;
+            /* the run is judged at the tension it calibrates at: without
+             * --tension that is the board's own (its cal_tension, or the
+             * stored homes' in a quick re-home), which an earlier run may
+             * have changed in the EEPROM image */
+            if (field_int(line, "tension_mN=", &mN) == 0 && mN > 0) {
+                if (b->tension_N <= 0.0) {
+                    b->target_mN = mN;
+                } else if (mN != b->target_mN) {
+                    fprintf(stderr, "hh_bench: the run calibrates at %d mN, not at --tension's %d\n",
+                            mN, (int)b->target_mN);
+                }
+            }
             t->run_active = 1;
             t->homed_mask = 0;
             t->open_mask = 0;

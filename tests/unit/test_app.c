@@ -283,6 +283,67 @@ static void test_settings(void **state)
     assert_non_null(strstr(g_line, "reason=aborted"));
 }
 
+/* The rehome= of `status` (1: a press re-homes quickly). */
+static int status_rehome(void)
+{
+    int v;
+    app_bench_send(&g_b, "status");
+    assert_true(app_bench_wait_line(&g_b, "<status ", g_line, sizeof g_line, 200));
+    v = app_bench_field(g_line, "rehome", -1);
+    reply(&g_b, "ok", 200);
+    return v;
+}
+
+/* Waits for a run's start and checks its mode and tension, then its <done>. */
+static void run_at(const char *mode, int tension_mN)
+{
+    char want[32];
+    assert_true(
+        app_bench_wait_line(&g_b, "<progress state=start", g_line, sizeof g_line, 4000));
+    snprintf(want, sizeof want, "mode=%s", mode);
+    assert_non_null(strstr(g_line, want));
+    assert_int_equal(app_bench_field(g_line, "tension_mN", -1), tension_mN);
+    assert_true(app_bench_wait_line(&g_b, "<done mode=", g_line, sizeof g_line, 30000));
+    app_bench_run_ms(&g_b, 3000); /* homes and rest positions written */
+}
+
+/* The button works at cal_tension: its quick re-home is offered only while
+ * the recovered homes were calibrated at that tension. A press after `set
+ * cal_tension 800` once re-homed at the stored homes' 1.5 N, and the robot
+ * stood at almost twice the tension asked. `rehome` still re-homes at the
+ * homes' own tension. */
+static void test_press_works_at_cal_tension(void **state)
+{
+    (void)state;
+    boot(&g_b, 1);
+    cmd(&g_b, "cal 1.2", "ok");
+    run_at("full", 1200);
+    app_bench_restart(&g_b, 1);
+    assert_true(app_bench_wait_line(&g_b, "<ready ", g_line, sizeof g_line, 4000));
+    assert_non_null(strstr(g_line, "homes=stored"));
+    assert_int_equal(app_bench_field(g_line, "rehome", -1), 0); /* cal_tension 800 */
+    cmd(&g_b, "set cal_tension 1200", "ok");
+    assert_int_equal(status_rehome(), 1);
+    cmd(&g_b, "set cal_tension 900", "ok");
+    assert_int_equal(status_rehome(), 0);
+    press(&g_b, 100);
+    run_at("full", 900);
+    /* a run's new homes are no recovered ones: no offer until the next boot */
+    assert_int_equal(status_rehome(), 0);
+    app_bench_restart(&g_b, 1); /* cal_tension was not saved: 800 again */
+    assert_true(app_bench_wait_line(&g_b, "<ready ", g_line, sizeof g_line, 4000));
+    assert_int_equal(app_bench_field(g_line, "rehome", -1), 0);
+    cmd(&g_b, "rehome", "ok");
+    run_at("quick", 900);
+    cmd(&g_b, "set cal_tension 900", "ok");
+    cmd(&g_b, "save", "ok");
+    app_bench_restart(&g_b, 1);
+    assert_true(app_bench_wait_line(&g_b, "<ready ", g_line, sizeof g_line, 4000));
+    assert_int_equal(app_bench_field(g_line, "rehome", -1), 1);
+    press(&g_b, 100);
+    run_at("quick", 900);
+}
+
 /* Runs `cal 0.8 0` (tendon 0 alone) to its <done>; returns tendon 0's home
  * error against the plant's truth in ticks and checks the target word of
  * <result> and <done>. */
@@ -621,6 +682,7 @@ int main(void)
         cmocka_unit_test(test_missing_sensor_and_servo),
         cmocka_unit_test(test_listings_one_line_a_pass),
         cmocka_unit_test(test_settings),
+        cmocka_unit_test(test_press_works_at_cal_tension),
         cmocka_unit_test(test_absolute_target_mode),
         cmocka_unit_test(test_learn_with_weight),
         cmocka_unit_test(test_learn_installs_a_given_target),
