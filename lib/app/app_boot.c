@@ -181,8 +181,8 @@ void app_boot_homes_new(app_t *a)
 
 void app_boot_offer(app_t *a)
 {
-    a->boot.offer_quick = (uint8_t)(a->boot.recovered && a->rec.homes.tension_mN ==
-                                                             a->rec.set.v[STORE_SET_CAL_TENSION]);
+    a->boot.offer_quick = (uint8_t)(a->boot.recovered &&
+                                    a->rec.homes.tension_mN == a->rec.set.v[STORE_SET_CAL_TENSION]);
 }
 
 void app_boot_again(app_t *a)

@@ -232,8 +232,9 @@ void truth_line(bench_t *b, const char *line)
                 if (b->tension_N <= 0.0) {
                     b->target_mN = mN;
                 } else if (mN != b->target_mN) {
-                    fprintf(stderr, "hh_bench: the run calibrates at %d mN, not at --tension's %d\n",
-                            mN, (int)b->target_mN);
+                    fprintf(stderr,
+                            "hh_bench: the run calibrates at %d mN, not at --tension's %d\n", mN,
+                            (int)b->target_mN);
                 }
             }
             t->run_active = 1;

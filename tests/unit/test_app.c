@@ -298,8 +298,7 @@ static int status_rehome(void)
 static void run_at(const char *mode, int tension_mN)
 {
     char want[32];
-    assert_true(
-        app_bench_wait_line(&g_b, "<progress state=start", g_line, sizeof g_line, 4000));
+    assert_true(app_bench_wait_line(&g_b, "<progress state=start", g_line, sizeof g_line, 4000));
     snprintf(want, sizeof want, "mode=%s", mode);
     assert_non_null(strstr(g_line, want));
     assert_int_equal(app_bench_field(g_line, "tension_mN", -1), tension_mN);
