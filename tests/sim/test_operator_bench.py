@@ -52,7 +52,7 @@ def built():
 class Bench:
     """One hh_bench process with the firmware; console on a pty link."""
 
-    def __init__(self, tmp: Path, *events: str, ready: bool = True):
+    def __init__(self, tmp: Path, *events: str, ready: bool = True, control: bool = False):
         tmp.mkdir(parents=True, exist_ok=True)
         self.pty = tmp / "console"
         self.logpath = tmp / "bench.log"
@@ -62,7 +62,10 @@ class Bench:
                 "--pty-link", str(self.pty)]
         for e in events:
             args += ["--at", e]
-        self.proc = subprocess.Popen(args, stdout=self.log, stderr=subprocess.STDOUT, cwd=ROOT)
+        if control:
+            args += ["--control", "-"]  # event() lines, run when read
+        self.proc = subprocess.Popen(args, stdout=self.log, stderr=subprocess.STDOUT, cwd=ROOT,
+                                     stdin=subprocess.PIPE if control else subprocess.DEVNULL)
         if ready:
             self.wait_line(r"<ready ", 15)
         else:
@@ -84,6 +87,11 @@ class Bench:
                 break
             time.sleep(0.1)
         raise AssertionError(f"no bench line matches {pattern!r} within {timeout} s:\n{self.text()[-3000:]}")
+
+    def event(self, line: str):
+        """A bench event (`wdt-reset`, `press`, ...) now; needs control=True."""
+        self.proc.stdin.write((line + "\n").encode())
+        self.proc.stdin.flush()
 
     def mark(self) -> int:
         return len(self.text())
@@ -108,8 +116,8 @@ class Bench:
 def bench(built, tmp_path):
     made = []
 
-    def start(*events, ready=True):
-        b = Bench(tmp_path / f"b{len(made)}", *events, ready=ready)
+    def start(*events, ready=True, control=False):
+        b = Bench(tmp_path / f"b{len(made)}", *events, ready=ready, control=control)
         made.append(b)
         return b
 
@@ -465,10 +473,15 @@ def test_unplugged_cable_during_console(bench):
 
 
 def test_board_reset_during_calibration(bench):
-    # calibrate computes the expected table (about 2 s) before it connects;
-    # a full run takes about 8 s: the reset falls inside it
-    b = bench("7s wdt-reset")
-    r = hh("calibrate", "--port", b.pty, timeout=120)
+    # the reset comes while tendon 1 is under way, whatever time the host
+    # took to start the run (a fixed time missed the run on a loaded machine)
+    b = bench(control=True)
+    m = b.mark()
+    p = hh_start("calibrate", "--port", b.pty)
+    b.wait_line(r"<progress state=tendon tendon=1 ", 60, after=m)
+    b.event("wdt-reset")
+    out, err = p.communicate(timeout=120)
+    r = subprocess.CompletedProcess(p.args, p.returncode, out, err)
     assert r.returncode == 4, r.stdout + r.stderr
     assert "the board reset (reset=watchdog) during the calibration" in r.stderr
     assert "run `hallhome calibrate` again" in r.stderr
