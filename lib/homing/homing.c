@@ -283,7 +283,7 @@ HOM_NOINLINE int32_t hom_um_to_ticks(uint32_t um, uint32_t nm_per_tick)
 
 int32_t hom_straight_q8(const hom_tendon_t *t, int16_t straight_um)
 {
-    return -(int32_t)t->dir * hom_muldiv(straight_um, 256000, (int32_t)t->nm_per_tick);
+    return -hom_pull(t, hom_muldiv(straight_um, 256000, (int32_t)t->nm_per_tick));
 }
 
 /* A measured home and its shift are rounded once, together, from both
@@ -357,8 +357,13 @@ HOM_NOINLINE static uint32_t release_um(const hom_config_t *cfg, uint32_t top_um
 void hom_window_around(int8_t dir, int32_t ahead, int32_t behind, int32_t p, int32_t *lo,
                        int32_t *hi)
 {
-    *hi = p + dir * ahead;
-    *lo = p - dir * behind;
+    /* dir is -1 or 1: a negation, not a 32-bit multiply */
+    if (dir < 0) {
+        ahead = -ahead;
+        behind = -behind;
+    }
+    *hi = p + ahead;
+    *lo = p - behind;
 }
 
 /* Tendon i's row for the run at its tension: what hom_start() left for the
