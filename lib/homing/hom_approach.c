@@ -13,9 +13,8 @@ HOM_NOINLINE static int32_t search_goal(const hom_t *h, uint8_t i)
 {
     const hom_tendon_t *t = &h->tendon[i];
     int32_t g = t->eng_hi + hom_pull(t, hom_um_ticks_cur(h, i, h->cfg.max_takeup_um));
-    return hom_further_back(t, g, h->present[i] + hom_pull(t, 2)) == g
-               ? h->present[i] + hom_pull(t, 2)
-               : g;
+    return hom_further_back(t, g, t->present + hom_pull(t, 2)) == g ? t->present + hom_pull(t, 2)
+                                                                    : g;
 }
 
 /* The take-up's goal: at most a lease of 30 ms of motion at its speed
@@ -34,7 +33,7 @@ static int32_t lease_ticks(uint16_t v)
 HOM_NOINLINE static void lease(hom_t *h, uint16_t v)
 {
     const hom_tendon_t *t = hom_cur(h);
-    int32_t g = h->present[h->cur] + hom_pull(t, lease_ticks(v));
+    int32_t g = t->present + hom_pull(t, lease_ticks(v));
     if (hom_pull(t, g - h->search_end) > 0) {
         g = h->search_end;
     }
@@ -74,13 +73,13 @@ HOM_NOINLINE void hom_begin_tendon(hom_t *h, uint8_t i)
     h->steps = 0;
     h->slope_q8 = hom_table_slope(h, i);
     h->slope_min_q8 = (h->slope_q8 >> 1) + 1; /* at least 1: a divisor */
-    h->pos_at_sample = h->present[i];
+    h->pos_at_sample = t->present;
     if (h->retake == 0u) {
         /* a fault's release goes back at least here: a tendon far softer
          * than its table is taut where a search again starts */
-        h->takeup_from = h->present[i];
+        h->takeup_from = t->present;
     }
-    h->takeup_at = h->present[i];
+    h->takeup_at = t->present;
     t->engaged = 0;
     t->retries = 0;
     hom_phase_event(h, HOM_PH_TENDON, i);
@@ -93,7 +92,7 @@ HOM_NOINLINE void hom_begin_tendon(hom_t *h, uint8_t i)
             guard = 3;
         }
         g = t->est_home - hom_pull(t, guard);
-        if (hom_pull(t, g - h->present[i]) > 0) {
+        if (hom_pull(t, g - t->present) > 0) {
             h->quick_leg = 1;
             hom_set_goal(h, i, g, v);
             h->state = ST_TAKEUP;
@@ -163,7 +162,7 @@ HOM_NOINLINE int hom_pull_to(hom_t *h, int32_t g, uint16_t v)
  * servo moving in the pull direction. */
 HOM_NOINLINE static int16_t run_on(const hom_t *h)
 {
-    uint16_t since = (uint16_t)((uint16_t)h->now_ms - (uint16_t)h->servo_ok_ms[h->cur]);
+    uint16_t since = (uint16_t)((uint16_t)h->now_ms - (uint16_t)hom_cur(h)->servo_ok_ms);
     since += h->read_gap_ms;
     if (since > 60u) {
         since = 60u;
@@ -188,7 +187,7 @@ HOM_NOINLINE static void begin_moderate(hom_t *h)
      * take-up 5 ticks past the goal set here read short of it; the return
      * through the spool's backlash left the field flat, and the fine points
      * predicted the target beyond the travel limit) */
-    d = hom_pull(t, g - h->present[h->cur]);
+    d = hom_pull(t, g - t->present);
     if (t->retries == 0u) {
         /* from the take-up, still running; a re-approach starts from slack,
          * where the servo stands (taken as run on at the back-off's speed
@@ -210,11 +209,11 @@ HOM_NOINLINE static void begin_moderate(hom_t *h)
         return;
     }
     if (d < 2) {
-        g = h->present[h->cur] + hom_pull(t, 2);
+        g = t->present + hom_pull(t, 2);
     }
     if (hom_pull_to(h, g, h->cfg.v_moderate) == 0) {
         h->state = ST_MODERATE;
-        h->p_far = h->present[h->cur];
+        h->p_far = t->present;
     }
 }
 
@@ -327,9 +326,9 @@ HOM_NOINLINE static void stop_short(hom_t *h, int32_t p)
 HOM_NOINLINE static int32_t pos_measured(const hom_t *h, uint8_t age_q)
 {
     const hom_tendon_t *t = hom_cur(h);
-    int32_t q = (int32_t)age_q -
-                4 * (int32_t)(uint16_t)((uint16_t)h->now_ms - (uint16_t)h->servo_ok_ms[h->cur]);
-    int32_t p = h->present[h->cur];
+    int32_t q =
+        (int32_t)age_q - 4 * (int32_t)(uint16_t)((uint16_t)h->now_ms - (uint16_t)t->servo_ok_ms);
+    int32_t p = t->present;
     if (q > 0) {
         p -= hom_pull(t, (int32_t)(((uint32_t)q * h->out.vel[h->cur]) >> 8));
     }
@@ -371,7 +370,7 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
     uint32_t b = fresh ? hom_delta_of(h, sel, in->sensor[sel].b_cuT) : 0u;
     /* delta mode: the approach quantity is |B - B0| itself, one norm */
     uint32_t m = fresh && h->amb != NULL ? hom_meas_of(h, sel, in->sensor[sel].b_cuT) : b;
-    int32_t p = h->present[h->cur];
+    int32_t p = t->present;
     int32_t pm = p;
 
     /* a back-off to slack starts the approach again (at 1.5 N on the bench
@@ -412,7 +411,7 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
                 hom_enter(h, ST_FINE_MOVE);
             }
         }
-        p = h->present[h->cur];
+        p = t->present;
     }
     if (t->engaged && h->state != ST_BACKOFF &&
         field_fell(h, t, b, p, (uint8_t)(in->servo[h->cur].status == HOM_SERVO_OK))) {

@@ -605,7 +605,7 @@ HOM_NOINLINE hom_tendon_t *hom_cur(const hom_t *h)
 
 HOM_NOINLINE uint32_t hom_still_ms(const hom_t *h, uint8_t i)
 {
-    return hom_since(h, h->moved_ms[i]);
+    return hom_since(h, h->tendon[i].moved_ms);
 }
 
 HOM_NOINLINE uint32_t hom_phase_ms(const hom_t *h)
@@ -621,7 +621,7 @@ HOM_NOINLINE void hom_enter(hom_t *h, uint8_t state)
 
 HOM_NOINLINE void hom_set_goal(hom_t *h, uint8_t i, int32_t goal, uint16_t vel)
 {
-    h->moved_ms[i] = h->now_ms;
+    h->tendon[i].moved_ms = h->now_ms;
     h->out.goal[i] = goal;
     h->out.vel[i] = vel;
     h->out.acc[i] = h->cfg.acc;
@@ -635,7 +635,7 @@ HOM_NOINLINE void hom_set_goal(hom_t *h, uint8_t i, int32_t goal, uint16_t vel)
  * controller without integral action droops under the tendon's load). */
 HOM_NOINLINE int hom_reached(const hom_t *h, uint8_t i)
 {
-    int32_t d = h->present[i] - h->out.goal[i];
+    int32_t d = h->tendon[i].present - h->out.goal[i];
     if (d >= -1 && d <= 1) {
         return 1;
     }
@@ -766,7 +766,7 @@ HOM_NOINLINE int hom_step(hom_t *h, const hom_in_t *in, hom_out_t *out)
         h->abort_req = 0;
         for (i = 0; i < h->n_tendons; i++) {
             if (in->servo[i].status == HOM_SERVO_OK) {
-                h->present[i] = in->servo[i].pos;
+                h->tendon[i].present = in->servo[i].pos;
             }
         }
         hom_fail(h, HOM_F_ABORTED, HOM_DEV_NONE, 0, 0);

@@ -313,6 +313,12 @@ typedef struct {
                                position change, ticks rounded to nearest ... */
     int8_t straight_frac;   /* ... and what the rounding left (1/256 tick, -128..127) */
     int8_t home_frac;       /* what rounding a measured home left (1/256 tick) */
+    /* the servo's state, here rather than in arrays of hom_t: reached
+     * through the tendon's pointer, each field takes one instruction a byte
+     * on the AVR (the first 64 bytes of a struct) */
+    int32_t present;      /* Present Position, ticks */
+    uint32_t servo_ok_ms; /* its last answer (preflight: 0xFFFFFFFF none yet, 0xFFFFFFFE faulty) */
+    uint32_t moved_ms;    /* last goal written or change of the present position */
 } hom_tendon_t;
 
 typedef struct {
@@ -402,9 +408,6 @@ typedef struct {
     int32_t (*amb)[3];   /* absolute mode: the caller's ambient offsets (NULL: delta mode) */
     uint8_t amb_capture; /* absolute mode: this run captures them at its baseline */
     uint8_t survey;      /* hom_cmd_t.survey: no final move */
-    uint32_t servo_ok_ms[TBL_MAX_TENDONS];
-    int32_t present[TBL_MAX_TENDONS];
-    uint32_t moved_ms[TBL_MAX_TENDONS]; /* last goal written or change of the present position */
     struct {
         int32_t p;                 /* position, ticks */
         uint32_t b;                /* averaged |B - B0|, cuT */
