@@ -364,12 +364,14 @@ HOM_NOINLINE static int32_t table_limit(const hom_t *h)
 
 HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
 {
+    const uint8_t cur = h->cur; /* the tendon stays the same through the step */
     hom_tendon_t *t = hom_cur(h);
     uint8_t sel = t->sensor;
-    int fresh = in->sensor[sel].status == HOM_SENS_NEW;
-    uint32_t b = fresh ? hom_delta_of(h, sel, in->sensor[sel].b_cuT) : 0u;
+    const hom_sensor_in_t *si = &in->sensor[sel];
+    int fresh = si->status == HOM_SENS_NEW;
+    uint32_t b = fresh ? hom_delta_of(h, sel, si->b_cuT) : 0u;
     /* delta mode: the approach quantity is |B - B0| itself, one norm */
-    uint32_t m = fresh && h->amb != NULL ? hom_meas_of(h, sel, in->sensor[sel].b_cuT) : b;
+    uint32_t m = fresh && h->amb != NULL ? hom_meas_of(h, sel, si->b_cuT) : b;
     int32_t p = t->present;
     int32_t pm = p;
 
@@ -394,7 +396,7 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
          * further on: the goal goes up to the furthest read instead, and a
          * point being averaged is taken again there. An engaged tendon is
          * only pulled further (a back-off starts afresh) */
-        int32_t g = h->out.goal[h->cur];
+        int32_t g = h->out.goal[cur];
         int32_t past = HOM_DROOP_TICKS;
         uint8_t back = 0;
         if (h->state != ST_BACKOFF) {
@@ -405,8 +407,8 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
             p = h->p_far;
             past = HOM_RUN_ON_TICKS;
         }
-        if (hom_pull(t, p - g) > past && (back || hom_still_ms(h, h->cur) >= 10u)) {
-            hom_set_goal(h, h->cur, h->state != ST_BACKOFF ? p : g, h->out.vel[h->cur]);
+        if (hom_pull(t, p - g) > past && (back || hom_still_ms(h, cur) >= 10u)) {
+            hom_set_goal(h, cur, h->state != ST_BACKOFF ? p : g, h->out.vel[cur]);
             if (h->state == ST_FINE_AVG) {
                 hom_enter(h, ST_FINE_MOVE);
             }
@@ -414,7 +416,7 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
         p = t->present;
     }
     if (t->engaged && h->state != ST_BACKOFF &&
-        field_fell(h, t, b, p, (uint8_t)(in->servo[h->cur].status == HOM_SERVO_OK))) {
+        field_fell(h, t, b, p, (uint8_t)(in->servo[cur].status == HOM_SERVO_OK))) {
         return;
     }
     switch (h->state) {
@@ -431,7 +433,7 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
             return;
         }
         if (fresh && !t->engaged) {
-            pm = pos_measured(h, in->sensor[sel].age_q);
+            pm = pos_measured(h, si->age_q);
         }
         if (fresh && !t->engaged && b >= h->engage_cuT) {
             t->engaged = 1;
@@ -440,7 +442,7 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
              * keeps it (win_changed) once the home is recorded */
             t->eng_lo = t->engage;
             t->eng_hi = t->engage;
-            hom_push_event(h, HOM_EV_ENGAGED, 0, h->cur, t->engage, (int32_t)b);
+            hom_push_event(h, HOM_EV_ENGAGED, 0, cur, t->engage, (int32_t)b);
             h->p_far = p;
             if (!h->quick_leg) {
                 begin_moderate(h);
@@ -450,20 +452,20 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
         if (fresh && !t->engaged) {
             h->pos_at_sample = pm; /* the last position seen slack */
         }
-        if (!h->quick_leg && !t->engaged && h->out.goal[h->cur] != h->search_end &&
-            hom_pull(t, h->out.goal[h->cur] - p) <= lease_ticks(h->out.vel[h->cur]) >> 1) {
-            lease(h, h->out.vel[h->cur]); /* half of the lease left: renew it */
+        if (!h->quick_leg && !t->engaged && h->out.goal[cur] != h->search_end &&
+            hom_pull(t, h->out.goal[cur] - p) <= lease_ticks(h->out.vel[cur]) >> 1) {
+            lease(h, h->out.vel[cur]); /* half of the lease left: renew it */
             break;
         }
         if (h->quick_leg && t->engaged && fresh && near_target(t, m, HOM_QUICK_STOP_PERMILLE)) {
             stop_short(h, p); /* the stored home is further than the field says */
-        } else if (hom_reached(h, h->cur)) {
+        } else if (hom_reached(h, cur)) {
             if (h->quick_leg && t->engaged) {
                 hom_enter(h, ST_FINE_MOVE);
             } else if (h->quick_leg) {
                 /* no engagement where the stored home put it: search as usual */
                 h->quick_leg = 0;
-                h->search_end = search_goal(h, h->cur);
+                h->search_end = search_goal(h, cur);
                 lease(h, h->cfg.v_moderate);
             } else {
                 hom_fail_tendon(h, HOM_F_NO_ENGAGEMENT, hom_pull(t, p - h->pos_at_sample));
@@ -475,19 +477,18 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
          * the target itself stops it early */
         if (fresh && near_target(t, m, t->retries != 0u ? 1000u : h->cfg.near_permille)) {
             stop_short(h, p);
-        } else if (hom_reached(h, h->cur)) {
+        } else if (hom_reached(h, cur)) {
             hom_enter(h, ST_FINE_MOVE);
         }
         break;
     case ST_FINE_MOVE: {
-        int32_t err = p - h->out.goal[h->cur];
-        if (hom_phase_ms(h) >= h->cfg.settle_ms &&
-            hom_still_ms(h, h->cur) >= h->cfg.settle_ms / 2u &&
-            ((err >= -1 && err <= 1) || hom_reached(h, h->cur))) {
+        int32_t err = p - h->out.goal[cur];
+        if (hom_phase_ms(h) >= h->cfg.settle_ms && hom_still_ms(h, cur) >= h->cfg.settle_ms / 2u &&
+            ((err >= -1 && err <= 1) || hom_reached(h, cur))) {
             hom_start_avg(h);
             h->state = ST_FINE_AVG;
         } else if (hom_phase_ms(h) > h->cfg.move_timeout_ms) {
-            hom_fail(h, HOM_F_SERVO_STALL, HOM_DEV_SERVO, h->cur, err);
+            hom_fail(h, HOM_F_SERVO_STALL, HOM_DEV_SERVO, cur, err);
         }
         break;
     }
@@ -503,7 +504,7 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
          * measured on the way back, judged at a read on the way forward
          * again, would set a floor for the field that the pull ahead falls
          * below (a false HOM_F_FIELD_STEP; test_short_back_off_is_no_fall) */
-        if (!hom_reached(h, h->cur) || hom_still_ms(h, h->cur) < HOM_SAMPLE_AGE_MS) {
+        if (!hom_reached(h, cur) || hom_still_ms(h, cur) < HOM_SAMPLE_AGE_MS) {
             break;
         }
         if (h->retake == 1u) {
@@ -515,7 +516,7 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
              * own limit */
             h->retake = 2;
             t->limit_ticks = table_limit(h);
-            hom_begin_tendon(h, h->cur);
+            hom_begin_tendon(h, cur);
         } else {
             begin_moderate(h);
         }
