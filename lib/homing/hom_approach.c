@@ -162,12 +162,13 @@ HOM_NOINLINE int hom_pull_to(hom_t *h, int32_t g, uint16_t v)
  * servo moving in the pull direction. */
 HOM_NOINLINE static int16_t run_on(const hom_t *h)
 {
-    uint16_t since = (uint16_t)((uint16_t)h->now_ms - (uint16_t)hom_cur(h)->servo_ok_ms);
+    const hom_tendon_t *t = hom_cur(h);
+    uint16_t since = (uint16_t)((uint16_t)h->now_ms - (uint16_t)t->servo_ok_ms);
     since += h->read_gap_ms;
     if (since > 60u) {
         since = 60u;
     }
-    return (int16_t)((uint16_t)(since * h->out.vel[h->cur]) >> 6);
+    return (int16_t)((uint16_t)(since * t->vel) >> 6);
 }
 
 HOM_NOINLINE static void begin_moderate(hom_t *h)
@@ -195,7 +196,7 @@ HOM_NOINLINE static void begin_moderate(hom_t *h)
          * field up to the travel limit: chaos seed 17633 on another build) */
         d -= run_on(h);
     }
-    if (t->retries == 0u && d < 2 + (int32_t)(h->out.vel[h->cur] >> 2)) {
+    if (t->retries == 0u && d < 2 + (int32_t)(t->vel >> 2)) {
         /* the take-up has run on to where the approach starts (a short
          * travel, a low tension; it may be its speed over 16 ms, a quarter
          * tick per 0.229 rpm unit, beyond the last position read): stopping
@@ -307,7 +308,7 @@ HOM_NOINLINE static void stop_short(hom_t *h, int32_t p)
     const hom_tendon_t *t = hom_cur(h);
     uint8_t state = h->state;
     int32_t g = p + hom_pull(t, 2 + run_on(h));
-    if (hom_pull(t, h->out.goal[h->cur] - g) > 0) {
+    if (hom_pull(t, t->goal - g) > 0) {
         (void)hom_pull_to(h, g, h->cfg.v_moderate);
     }
     if (h->state == state) {
@@ -330,7 +331,7 @@ HOM_NOINLINE static int32_t pos_measured(const hom_t *h, uint8_t age_q)
         (int32_t)age_q - 4 * (int32_t)(uint16_t)((uint16_t)h->now_ms - (uint16_t)t->servo_ok_ms);
     int32_t p = t->present;
     if (q > 0) {
-        p -= hom_pull(t, (int32_t)(((uint32_t)q * h->out.vel[h->cur]) >> 8));
+        p -= hom_pull(t, (int32_t)(((uint32_t)q * t->vel) >> 8));
     }
     return hom_pull(t, p - h->takeup_at) < 0 ? h->takeup_at : p;
 }
@@ -396,7 +397,7 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
          * further on: the goal goes up to the furthest read instead, and a
          * point being averaged is taken again there. An engaged tendon is
          * only pulled further (a back-off starts afresh) */
-        int32_t g = h->out.goal[cur];
+        int32_t g = t->goal;
         int32_t past = HOM_DROOP_TICKS;
         uint8_t back = 0;
         if (h->state != ST_BACKOFF) {
@@ -408,7 +409,7 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
             past = HOM_RUN_ON_TICKS;
         }
         if (hom_pull(t, p - g) > past && (back || hom_still_ms(h, cur) >= 10u)) {
-            hom_set_goal(h, cur, h->state != ST_BACKOFF ? p : g, h->out.vel[cur]);
+            hom_set_goal(h, cur, h->state != ST_BACKOFF ? p : g, t->vel);
             if (h->state == ST_FINE_AVG) {
                 hom_enter(h, ST_FINE_MOVE);
             }
@@ -452,9 +453,9 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
         if (fresh && !t->engaged) {
             h->pos_at_sample = pm; /* the last position seen slack */
         }
-        if (!h->quick_leg && !t->engaged && h->out.goal[cur] != h->search_end &&
-            hom_pull(t, h->out.goal[cur] - p) <= lease_ticks(h->out.vel[cur]) >> 1) {
-            lease(h, h->out.vel[cur]); /* half of the lease left: renew it */
+        if (!h->quick_leg && !t->engaged && t->goal != h->search_end &&
+            hom_pull(t, t->goal - p) <= lease_ticks(t->vel) >> 1) {
+            lease(h, t->vel); /* half of the lease left: renew it */
             break;
         }
         if (h->quick_leg && t->engaged && fresh && near_target(t, m, HOM_QUICK_STOP_PERMILLE)) {
@@ -482,7 +483,7 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
         }
         break;
     case ST_FINE_MOVE: {
-        int32_t err = p - h->out.goal[cur];
+        int32_t err = p - t->goal;
         if (hom_phase_ms(h) >= h->cfg.settle_ms && hom_still_ms(h, cur) >= h->cfg.settle_ms / 2u &&
             ((err >= -1 && err <= 1) || hom_reached(h, cur))) {
             hom_start_avg(h);

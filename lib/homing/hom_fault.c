@@ -40,7 +40,7 @@ HOM_NOINLINE void hom_fail(hom_t *h, hom_fault_t f, uint8_t dev, uint8_t index, 
              * engagement when it engaged: the window is narrowed to it), a
              * release already going further, and never a pull */
             int32_t g = t->eng_lo - hom_pull(t, t->margin_ticks);
-            g = hom_further_back(t, g, h->out.goal[i]);
+            g = hom_further_back(t, g, t->goal);
             if (i == h->cur && h->state >= ST_TAKEUP && h->state <= ST_BACKOFF) {
                 g = hom_further_back(t, g, h->takeup_from);
             }

@@ -44,7 +44,7 @@ HOM_NOINLINE static int32_t final_dist(const hom_t *h, uint8_t i, int32_t *goal)
 {
     const hom_tendon_t *t = &h->tendon[i];
     int32_t d;
-    *goal = t->have_home == 1u ? t->home : (t->have_home == 2u ? t->est_home : h->out.goal[i]);
+    *goal = t->have_home == 1u ? t->home : (t->have_home == 2u ? t->est_home : t->goal);
     if (t->have_home != 0u && h->cfg.straight != 0u) {
         *goal += hom_straight_ticks(t);
     }

@@ -622,11 +622,12 @@ HOM_NOINLINE void hom_enter(hom_t *h, uint8_t state)
 HOM_NOINLINE void hom_set_goal(hom_t *h, uint8_t i, int32_t goal, uint16_t vel)
 {
     h->tendon[i].moved_ms = h->now_ms;
-    h->out.goal[i] = goal;
-    h->out.vel[i] = vel;
-    h->out.acc[i] = h->cfg.acc;
-    h->out.torque[i] = 1;
-    h->out.changed |= hom_bit(i);
+    hom_tendon_t *t = &h->tendon[i];
+    t->goal = goal;
+    t->vel = vel;
+    t->acc = h->cfg.acc;
+    t->torque = 1;
+    h->changed |= hom_bit(i);
     h->moved = 1;
 }
 
@@ -635,7 +636,8 @@ HOM_NOINLINE void hom_set_goal(hom_t *h, uint8_t i, int32_t goal, uint16_t vel)
  * controller without integral action droops under the tendon's load). */
 HOM_NOINLINE int hom_reached(const hom_t *h, uint8_t i)
 {
-    int32_t d = h->tendon[i].present - h->out.goal[i];
+    const hom_tendon_t *t = &h->tendon[i];
+    int32_t d = t->present - t->goal;
     if (d >= -1 && d <= 1) {
         return 1;
     }
@@ -750,6 +752,20 @@ HOM_NOINLINE int hom_move_done(hom_t *h, int arrived, uint8_t dev, uint8_t index
     return arrived;
 }
 
+/* The commanded state of every tendon's servo into *out. */
+HOM_NOINLINE static void put_out(const hom_t *h, hom_out_t *out)
+{
+    uint8_t i;
+    for (i = 0; i < TBL_MAX_TENDONS; i++) {
+        const hom_tendon_t *t = &h->tendon[i];
+        out->goal[i] = t->goal;
+        out->vel[i] = t->vel;
+        out->acc[i] = t->acc;
+        out->torque[i] = t->torque;
+    }
+    out->changed = h->changed;
+}
+
 HOM_NOINLINE int hom_step(hom_t *h, const hom_in_t *in, hom_out_t *out)
 {
     uint8_t i;
@@ -757,9 +773,9 @@ HOM_NOINLINE int hom_step(hom_t *h, const hom_in_t *in, hom_out_t *out)
         return HOM_E_ARG;
     }
     h->now_ms = in->now_ms;
-    h->out.changed = 0;
+    h->changed = 0;
     if (h->state == ST_IDLE || h->state == ST_DONE || h->state == ST_FAULT) {
-        *out = h->out;
+        put_out(h, out);
         return h->state == ST_FAULT ? -(int)h->fault : 0;
     }
     if (h->abort_req) {
@@ -798,7 +814,7 @@ HOM_NOINLINE int hom_step(hom_t *h, const hom_in_t *in, hom_out_t *out)
             }
         }
     }
-    *out = h->out;
+    put_out(h, out);
     if (h->state == ST_FAULT) {
         return -(int)h->fault;
     }
