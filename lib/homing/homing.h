@@ -213,9 +213,10 @@ typedef struct {
 
 /* Inputs of one step, indexed like the table's tendons and sensors. */
 typedef struct {
-    uint32_t now_ms;
     hom_sensor_in_t sensor[HOM_MAX_SENSORS];
     hom_servo_in_t servo[TBL_MAX_TENDONS];
+    uint32_t now_ms; /* last: each servo's fields stay within the first 64 bytes, which the
+                        AVR reaches through the struct's pointer with one instruction a byte */
 } hom_in_t;
 
 /* Outputs: the commanded state of every tendon's servo. The application
