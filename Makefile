@@ -83,7 +83,12 @@ AVR_CFLAGS := $(AVR_LIB_CFG) -mmcu=$(MCU) -DF_CPU=$(F_CPU) -std=c99 -Os -g -Wall
 	-Wshadow -Wstrict-prototypes -Wmissing-prototypes -ffunction-sections -fdata-sections \
 	-mcall-prologues -mstrict-X -fno-inline-small-functions $(AVR_SIZE_OPT) -flto -mrelax -Ilib -Ifirmware -I$(FW_GEN_DIR) -DTBL_FLASH=__attribute__\(\(__progmem__\)\) \
 	-DHH_ROBOT=$(ROBOT) -DAPP_ROOM_MARK_ADDR=0x4A -MMD -MP
-AVR_LDFLAGS := -mmcu=$(MCU) -Os -mcall-prologues -mstrict-X -fno-inline-small-functions $(AVR_SIZE_OPT) -flto -mrelax -Wl,--gc-sections -Wl,-Map,$(FW_MAP)
+# The link's LTO output puts each function in a section of its own, and the
+# linker places them sorted by name: the functions of a module (hom_, app_,
+# dxl_, con_, tbl_) then lie together, within reach of the 2-byte relative
+# calls and jumps that -mrelax turns the 4-byte ones into (measured: -162 B;
+# in the one section the LTO output had, they lay in the compiler's order).
+AVR_LDFLAGS := -mmcu=$(MCU) -Os -mcall-prologues -mstrict-X -fno-inline-small-functions $(AVR_SIZE_OPT) -flto -mrelax -ffunction-sections -Wl,--sort-section=name -Wl,--gc-sections -Wl,-Map,$(FW_MAP)
 
 # Shell lines that stop a target for an unknown robot or a missing table.
 NO_ROBOT = { echo "make $(or $(MAKECMDGOALS),firmware): no robot '$(ROBOT)': neither $(ROBOTS_DIR)/$(ROBOT).toml nor $(TABLES_DIR)/$(ROBOT).c exists"; \

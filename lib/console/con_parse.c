@@ -225,25 +225,30 @@ static int8_t check_word(const char *tok, const char *choices, int32_t *v)
  * failure decides the error. */
 CON_NOINLINE int8_t con_check_args(con_t *c, uint8_t cmd, char **tok, uint8_t ntok)
 {
-    char syn[CON_SYN_MAX];
-    char *q = syn;
-    con_spec_t sp;
+    /* one local, the spec first: the AVR reaches the first 64 bytes of a
+     * frame with one instruction a byte, and the compiler put the spec
+     * behind the synopsis */
+    struct {
+        con_spec_t sp;
+        char syn[CON_SYN_MAX];
+    } l;
+    char *q = l.syn;
     uint8_t a;
     int8_t rc;
-    get_synopsis(c, cmd, syn);
+    get_synopsis(c, cmd, l.syn);
     memset(&c->args, 0, sizeof(c->args));
-    for (a = 0; a < CON_MAX_ARGS && next_spec(&q, &sp) == 0; a++) {
+    for (a = 0; a < CON_MAX_ARGS && next_spec(&q, &l.sp) == 0; a++) {
         if (a >= ntok) {
-            if (sp.open == '<') {
+            if (l.sp.open == '<') {
                 return CON_E_MISSING_ARG;
             }
             continue;
         }
         rc = 0;
-        if (sp.type == 'i' || sp.type == 'd') {
-            rc = check_number(tok[a], &sp, &c->args.v[a]);
-        } else if (sp.type == 'w') {
-            rc = check_word(tok[a], sp.params, &c->args.v[a]);
+        if (l.sp.type == 'i' || l.sp.type == 'd') {
+            rc = check_number(tok[a], &l.sp, &c->args.v[a]);
+        } else if (l.sp.type == 'w') {
+            rc = check_word(tok[a], l.sp.params, &c->args.v[a]);
         }
         if (rc < 0) {
             return rc;

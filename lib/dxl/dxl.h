@@ -114,13 +114,9 @@ struct dxl_master {
     dxl_port port;
 #endif
     dxl_config cfg;
-    uint8_t tx[DXL_TX_CAP];
-    uint8_t rx[DXL_RX_CAP];
-    dxl_parser parser;
-#if DXL_STATS
-    dxl_master_stats stats;
-#endif
-    dxl_reply reply[DXL_MAX_IDS];
+    /* the transaction's state before the buffers: within the first 64
+     * bytes, which the AVR reaches through the master's pointer with one
+     * instruction a byte */
     uint8_t n_reply; /* entries in reply[] for this transaction */
     uint8_t expect;  /* replies the transaction waits for (0: none) */
     uint8_t got;     /* replies settled in this attempt */
@@ -135,6 +131,13 @@ struct dxl_master {
     uint16_t tx_sent;
     uint32_t deadline;
     uint32_t heard_by; /* the next reply byte is due by then (see timeout_us) */
+    dxl_parser parser;
+    dxl_reply reply[DXL_MAX_IDS];
+    uint8_t tx[DXL_TX_CAP];
+    uint8_t rx[DXL_RX_CAP];
+#if DXL_STATS
+    dxl_master_stats stats;
+#endif
 };
 
 /* Defaults for `baud` with `bits_per_byte` (10 on real hardware): 2 retries,

@@ -13,9 +13,8 @@ HOM_NOINLINE static int32_t search_goal(const hom_t *h, uint8_t i)
 {
     const hom_tendon_t *t = &h->tendon[i];
     int32_t g = t->eng_hi + hom_pull(t, hom_um_ticks_cur(h, i, h->cfg.max_takeup_um));
-    return hom_further_back(t, g, h->present[i] + hom_pull(t, 2)) == g
-               ? h->present[i] + hom_pull(t, 2)
-               : g;
+    return hom_further_back(t, g, t->present + hom_pull(t, 2)) == g ? t->present + hom_pull(t, 2)
+                                                                    : g;
 }
 
 /* The take-up's goal: at most a lease of 30 ms of motion at its speed
@@ -34,7 +33,7 @@ static int32_t lease_ticks(uint16_t v)
 HOM_NOINLINE static void lease(hom_t *h, uint16_t v)
 {
     const hom_tendon_t *t = hom_cur(h);
-    int32_t g = h->present[h->cur] + hom_pull(t, lease_ticks(v));
+    int32_t g = t->present + hom_pull(t, lease_ticks(v));
     if (hom_pull(t, g - h->search_end) > 0) {
         g = h->search_end;
     }
@@ -74,13 +73,13 @@ HOM_NOINLINE void hom_begin_tendon(hom_t *h, uint8_t i)
     h->steps = 0;
     h->slope_q8 = hom_table_slope(h, i);
     h->slope_min_q8 = (h->slope_q8 >> 1) + 1; /* at least 1: a divisor */
-    h->pos_at_sample = h->present[i];
+    h->pos_at_sample = t->present;
     if (h->retake == 0u) {
         /* a fault's release goes back at least here: a tendon far softer
          * than its table is taut where a search again starts */
-        h->takeup_from = h->present[i];
+        h->takeup_from = t->present;
     }
-    h->takeup_at = h->present[i];
+    h->takeup_at = t->present;
     t->engaged = 0;
     t->retries = 0;
     hom_phase_event(h, HOM_PH_TENDON, i);
@@ -93,7 +92,7 @@ HOM_NOINLINE void hom_begin_tendon(hom_t *h, uint8_t i)
             guard = 3;
         }
         g = t->est_home - hom_pull(t, guard);
-        if (hom_pull(t, g - h->present[i]) > 0) {
+        if (hom_pull(t, g - t->present) > 0) {
             h->quick_leg = 1;
             hom_set_goal(h, i, g, v);
             h->state = ST_TAKEUP;
@@ -163,12 +162,13 @@ HOM_NOINLINE int hom_pull_to(hom_t *h, int32_t g, uint16_t v)
  * servo moving in the pull direction. */
 HOM_NOINLINE static int16_t run_on(const hom_t *h)
 {
-    uint16_t since = (uint16_t)((uint16_t)h->now_ms - (uint16_t)h->servo_ok_ms[h->cur]);
+    const hom_tendon_t *t = hom_cur(h);
+    uint16_t since = (uint16_t)((uint16_t)h->now_ms - (uint16_t)t->servo_ok_ms);
     since += h->read_gap_ms;
     if (since > 60u) {
         since = 60u;
     }
-    return (int16_t)((uint16_t)(since * h->out.vel[h->cur]) >> 6);
+    return (int16_t)((uint16_t)(since * t->vel) >> 6);
 }
 
 HOM_NOINLINE static void begin_moderate(hom_t *h)
@@ -188,7 +188,7 @@ HOM_NOINLINE static void begin_moderate(hom_t *h)
      * take-up 5 ticks past the goal set here read short of it; the return
      * through the spool's backlash left the field flat, and the fine points
      * predicted the target beyond the travel limit) */
-    d = hom_pull(t, g - h->present[h->cur]);
+    d = hom_pull(t, g - t->present);
     if (t->retries == 0u) {
         /* from the take-up, still running; a re-approach starts from slack,
          * where the servo stands (taken as run on at the back-off's speed
@@ -196,7 +196,7 @@ HOM_NOINLINE static void begin_moderate(hom_t *h)
          * field up to the travel limit: chaos seed 17633 on another build) */
         d -= run_on(h);
     }
-    if (t->retries == 0u && d < 2 + (int32_t)(h->out.vel[h->cur] >> 2)) {
+    if (t->retries == 0u && d < 2 + (int32_t)(t->vel >> 2)) {
         /* the take-up has run on to where the approach starts (a short
          * travel, a low tension; it may be its speed over 16 ms, a quarter
          * tick per 0.229 rpm unit, beyond the last position read): stopping
@@ -210,11 +210,11 @@ HOM_NOINLINE static void begin_moderate(hom_t *h)
         return;
     }
     if (d < 2) {
-        g = h->present[h->cur] + hom_pull(t, 2);
+        g = t->present + hom_pull(t, 2);
     }
     if (hom_pull_to(h, g, h->cfg.v_moderate) == 0) {
         h->state = ST_MODERATE;
-        h->p_far = h->present[h->cur];
+        h->p_far = t->present;
     }
 }
 
@@ -308,7 +308,7 @@ HOM_NOINLINE static void stop_short(hom_t *h, int32_t p)
     const hom_tendon_t *t = hom_cur(h);
     uint8_t state = h->state;
     int32_t g = p + hom_pull(t, 2 + run_on(h));
-    if (hom_pull(t, h->out.goal[h->cur] - g) > 0) {
+    if (hom_pull(t, t->goal - g) > 0) {
         (void)hom_pull_to(h, g, h->cfg.v_moderate);
     }
     if (h->state == state) {
@@ -327,11 +327,11 @@ HOM_NOINLINE static void stop_short(hom_t *h, int32_t p)
 HOM_NOINLINE static int32_t pos_measured(const hom_t *h, uint8_t age_q)
 {
     const hom_tendon_t *t = hom_cur(h);
-    int32_t q = (int32_t)age_q -
-                4 * (int32_t)(uint16_t)((uint16_t)h->now_ms - (uint16_t)h->servo_ok_ms[h->cur]);
-    int32_t p = h->present[h->cur];
+    int32_t q =
+        (int32_t)age_q - 4 * (int32_t)(uint16_t)((uint16_t)h->now_ms - (uint16_t)t->servo_ok_ms);
+    int32_t p = t->present;
     if (q > 0) {
-        p -= hom_pull(t, (int32_t)(((uint32_t)q * h->out.vel[h->cur]) >> 8));
+        p -= hom_pull(t, (int32_t)(((uint32_t)q * t->vel) >> 8));
     }
     return hom_pull(t, p - h->takeup_at) < 0 ? h->takeup_at : p;
 }
@@ -365,13 +365,15 @@ HOM_NOINLINE static int32_t table_limit(const hom_t *h)
 
 HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
 {
+    const uint8_t cur = h->cur; /* the tendon stays the same through the step */
     hom_tendon_t *t = hom_cur(h);
     uint8_t sel = t->sensor;
-    int fresh = in->sensor[sel].status == HOM_SENS_NEW;
-    uint32_t b = fresh ? hom_delta_of(h, sel, in->sensor[sel].b_cuT) : 0u;
+    const hom_sensor_in_t *si = &in->sensor[sel];
+    int fresh = si->status == HOM_SENS_NEW;
+    uint32_t b = fresh ? hom_delta_of(h, sel, si->b_cuT) : 0u;
     /* delta mode: the approach quantity is |B - B0| itself, one norm */
-    uint32_t m = fresh && h->amb != NULL ? hom_meas_of(h, sel, in->sensor[sel].b_cuT) : b;
-    int32_t p = h->present[h->cur];
+    uint32_t m = fresh && h->amb != NULL ? hom_meas_of(h, sel, si->b_cuT) : b;
+    int32_t p = t->present;
     int32_t pm = p;
 
     /* a back-off to slack starts the approach again (at 1.5 N on the bench
@@ -395,7 +397,7 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
          * further on: the goal goes up to the furthest read instead, and a
          * point being averaged is taken again there. An engaged tendon is
          * only pulled further (a back-off starts afresh) */
-        int32_t g = h->out.goal[h->cur];
+        int32_t g = t->goal;
         int32_t past = HOM_DROOP_TICKS;
         uint8_t back = 0;
         if (h->state != ST_BACKOFF) {
@@ -406,16 +408,16 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
             p = h->p_far;
             past = HOM_RUN_ON_TICKS;
         }
-        if (hom_pull(t, p - g) > past && (back || hom_still_ms(h, h->cur) >= 10u)) {
-            hom_set_goal(h, h->cur, h->state != ST_BACKOFF ? p : g, h->out.vel[h->cur]);
+        if (hom_pull(t, p - g) > past && (back || hom_still_ms(h, cur) >= 10u)) {
+            hom_set_goal(h, cur, h->state != ST_BACKOFF ? p : g, t->vel);
             if (h->state == ST_FINE_AVG) {
                 hom_enter(h, ST_FINE_MOVE);
             }
         }
-        p = h->present[h->cur];
+        p = t->present;
     }
     if (t->engaged && h->state != ST_BACKOFF &&
-        field_fell(h, t, b, p, (uint8_t)(in->servo[h->cur].status == HOM_SERVO_OK))) {
+        field_fell(h, t, b, p, (uint8_t)(in->servo[cur].status == HOM_SERVO_OK))) {
         return;
     }
     switch (h->state) {
@@ -432,7 +434,7 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
             return;
         }
         if (fresh && !t->engaged) {
-            pm = pos_measured(h, in->sensor[sel].age_q);
+            pm = pos_measured(h, si->age_q);
         }
         if (fresh && !t->engaged && b >= h->engage_cuT) {
             t->engaged = 1;
@@ -441,7 +443,7 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
              * keeps it (win_changed) once the home is recorded */
             t->eng_lo = t->engage;
             t->eng_hi = t->engage;
-            hom_push_event(h, HOM_EV_ENGAGED, 0, h->cur, t->engage, (int32_t)b);
+            hom_push_event(h, HOM_EV_ENGAGED, 0, cur, t->engage, (int32_t)b);
             h->p_far = p;
             if (!h->quick_leg) {
                 begin_moderate(h);
@@ -451,20 +453,20 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
         if (fresh && !t->engaged) {
             h->pos_at_sample = pm; /* the last position seen slack */
         }
-        if (!h->quick_leg && !t->engaged && h->out.goal[h->cur] != h->search_end &&
-            hom_pull(t, h->out.goal[h->cur] - p) <= lease_ticks(h->out.vel[h->cur]) >> 1) {
-            lease(h, h->out.vel[h->cur]); /* half of the lease left: renew it */
+        if (!h->quick_leg && !t->engaged && t->goal != h->search_end &&
+            hom_pull(t, t->goal - p) <= lease_ticks(t->vel) >> 1) {
+            lease(h, t->vel); /* half of the lease left: renew it */
             break;
         }
         if (h->quick_leg && t->engaged && fresh && near_target(t, m, HOM_QUICK_STOP_PERMILLE)) {
             stop_short(h, p); /* the stored home is further than the field says */
-        } else if (hom_reached(h, h->cur)) {
+        } else if (hom_reached(h, cur)) {
             if (h->quick_leg && t->engaged) {
                 hom_enter(h, ST_FINE_MOVE);
             } else if (h->quick_leg) {
                 /* no engagement where the stored home put it: search as usual */
                 h->quick_leg = 0;
-                h->search_end = search_goal(h, h->cur);
+                h->search_end = search_goal(h, cur);
                 lease(h, h->cfg.v_moderate);
             } else {
                 hom_fail_tendon(h, HOM_F_NO_ENGAGEMENT, hom_pull(t, p - h->pos_at_sample));
@@ -476,19 +478,18 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
          * the target itself stops it early */
         if (fresh && near_target(t, m, t->retries != 0u ? 1000u : h->cfg.near_permille)) {
             stop_short(h, p);
-        } else if (hom_reached(h, h->cur)) {
+        } else if (hom_reached(h, cur)) {
             hom_enter(h, ST_FINE_MOVE);
         }
         break;
     case ST_FINE_MOVE: {
-        int32_t err = p - h->out.goal[h->cur];
-        if (hom_phase_ms(h) >= h->cfg.settle_ms &&
-            hom_still_ms(h, h->cur) >= h->cfg.settle_ms / 2u &&
-            ((err >= -1 && err <= 1) || hom_reached(h, h->cur))) {
+        int32_t err = p - t->goal;
+        if (hom_phase_ms(h) >= h->cfg.settle_ms && hom_still_ms(h, cur) >= h->cfg.settle_ms / 2u &&
+            ((err >= -1 && err <= 1) || hom_reached(h, cur))) {
             hom_start_avg(h);
             h->state = ST_FINE_AVG;
         } else if (hom_phase_ms(h) > h->cfg.move_timeout_ms) {
-            hom_fail(h, HOM_F_SERVO_STALL, HOM_DEV_SERVO, h->cur, err);
+            hom_fail(h, HOM_F_SERVO_STALL, HOM_DEV_SERVO, cur, err);
         }
         break;
     }
@@ -504,7 +505,7 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
          * measured on the way back, judged at a read on the way forward
          * again, would set a floor for the field that the pull ahead falls
          * below (a false HOM_F_FIELD_STEP; test_short_back_off_is_no_fall) */
-        if (!hom_reached(h, h->cur) || hom_still_ms(h, h->cur) < HOM_SAMPLE_AGE_MS) {
+        if (!hom_reached(h, cur) || hom_still_ms(h, cur) < HOM_SAMPLE_AGE_MS) {
             break;
         }
         if (h->retake == 1u) {
@@ -516,7 +517,7 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
              * own limit */
             h->retake = 2;
             t->limit_ticks = table_limit(h);
-            hom_begin_tendon(h, h->cur);
+            hom_begin_tendon(h, cur);
         } else {
             begin_moderate(h);
         }

@@ -40,11 +40,11 @@ HOM_NOINLINE void hom_fail(hom_t *h, hom_fault_t f, uint8_t dev, uint8_t index, 
              * engagement when it engaged: the window is narrowed to it), a
              * release already going further, and never a pull */
             int32_t g = t->eng_lo - hom_pull(t, t->margin_ticks);
-            g = hom_further_back(t, g, h->out.goal[i]);
+            g = hom_further_back(t, g, t->goal);
             if (i == h->cur && h->state >= ST_TAKEUP && h->state <= ST_BACKOFF) {
                 g = hom_further_back(t, g, h->takeup_from);
             }
-            hom_set_goal(h, i, hom_further_back(t, h->present[i], g), h->cfg.v_release);
+            hom_set_goal(h, i, hom_further_back(t, t->present, g), h->cfg.v_release);
         }
         hom_push_event(h, HOM_EV_RELEASED, 0, 0, (int32_t)f, 0);
     }
@@ -61,7 +61,7 @@ HOM_NOINLINE void hom_fail(hom_t *h, hom_fault_t f, uint8_t dev, uint8_t index, 
 HOM_NOINLINE void hom_fail_tendon(hom_t *h, hom_fault_t f, int32_t detail)
 {
     if (h->survey && f != HOM_F_NO_ENGAGEMENT) {
-        int32_t p = h->present[h->cur];
+        int32_t p = hom_cur(h)->present;
         hom_finish_tendon(h, p, p * 256);
         return;
     }
@@ -138,18 +138,18 @@ int hom_check_servos(hom_t *h, const hom_in_t *in)
                 hom_fail(h, HOM_F_SERVO_ERROR, HOM_DEV_SERVO, i, s->hw_error);
                 return 1;
             }
-            if (s->pos != h->present[i]) {
-                h->moved_ms[i] = h->now_ms;
+            if (s->pos != h->tendon[i].present) {
+                h->tendon[i].moved_ms = h->now_ms;
             }
-            h->present[i] = s->pos;
+            h->tendon[i].present = s->pos;
             if (i == h->cur) {
-                uint32_t gap = hom_since(h, h->servo_ok_ms[i]);
+                uint32_t gap = hom_since(h, h->tendon[i].servo_ok_ms);
                 h->read_gap_ms = (uint8_t)(gap > 40u ? 40u : gap);
             }
-            h->servo_ok_ms[i] = h->now_ms;
-        } else if (hom_since(h, h->servo_ok_ms[i]) > h->cfg.servo_timeout_ms) {
+            h->tendon[i].servo_ok_ms = h->now_ms;
+        } else if (hom_since(h, h->tendon[i].servo_ok_ms) > h->cfg.servo_timeout_ms) {
             hom_fail(h, HOM_F_SERVO_TIMEOUT, HOM_DEV_SERVO, i,
-                     (int32_t)hom_since(h, h->servo_ok_ms[i]));
+                     (int32_t)hom_since(h, h->tendon[i].servo_ok_ms));
             return 1;
         }
     }

@@ -44,11 +44,11 @@ HOM_NOINLINE static int32_t final_dist(const hom_t *h, uint8_t i, int32_t *goal)
 {
     const hom_tendon_t *t = &h->tendon[i];
     int32_t d;
-    *goal = t->have_home == 1u ? t->home : (t->have_home == 2u ? t->est_home : h->out.goal[i]);
+    *goal = t->have_home == 1u ? t->home : (t->have_home == 2u ? t->est_home : t->goal);
     if (t->have_home != 0u && h->cfg.straight != 0u) {
         *goal += hom_straight_ticks(t);
     }
-    d = *goal - h->present[i];
+    d = *goal - t->present;
     return d < 0 ? -d : d;
 }
 
@@ -338,7 +338,7 @@ void hom_fine_point(hom_t *h)
 {
     hom_tendon_t *t = hom_cur(h);
     int32_t avg[3];
-    int32_t p = h->present[h->cur];
+    int32_t p = t->present;
     uint32_t b;
     int32_t s_q8;
     int32_t r_q8;

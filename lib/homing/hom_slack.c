@@ -34,7 +34,7 @@ void hom_do_preflight(hom_t *h, const hom_in_t *in)
         hom_phase_event(h, HOM_PH_PREFLIGHT, 0);
         memset(h->seen, 0, sizeof h->seen);
         for (i = 0; i < h->n_tendons; i++) {
-            h->servo_ok_ms[i] = 0xFFFFFFFFu; /* not yet answered */
+            h->tendon[i].servo_ok_ms = 0xFFFFFFFFu; /* not yet answered */
         }
     }
     if (!hom_load_step(h)) {
@@ -56,12 +56,12 @@ void hom_do_preflight(hom_t *h, const hom_in_t *in)
     for (i = 0; i < h->n_tendons; i++) {
         const hom_servo_in_t *s = &in->servo[i];
         if (s->status == HOM_SERVO_OK && s->hw_error == 0u) {
-            h->servo_ok_ms[i] = h->now_ms;
-            h->present[i] = s->pos;
+            h->tendon[i].servo_ok_ms = h->now_ms;
+            h->tendon[i].present = s->pos;
         } else if (s->status == HOM_SERVO_OK || s->status == HOM_SERVO_ABSENT) {
-            h->servo_ok_ms[i] = 0xFFFFFFFEu; /* faulty: hardware error or absent */
+            h->tendon[i].servo_ok_ms = 0xFFFFFFFEu; /* faulty: hardware error or absent */
         }
-        if (h->servo_ok_ms[i] >= 0xFFFFFFFEu) {
+        if (h->tendon[i].servo_ok_ms >= 0xFFFFFFFEu) {
             all = 0;
         }
     }
@@ -73,7 +73,7 @@ void hom_do_preflight(hom_t *h, const hom_in_t *in)
         for (i = 0; i < h->n_tendons; i++) {
             hom_tendon_t *t = &h->tendon[i];
             int32_t g;
-            t->est_home = hom_unwrap_home(t->est_home, h->present[i]);
+            t->est_home = hom_unwrap_home(t->est_home, t->present);
             if (h->mode == HOM_MODE_DRY) {
                 continue;
             }
@@ -87,7 +87,7 @@ void hom_do_preflight(hom_t *h, const hom_in_t *in)
                  * lies near it less the travel, and no release goes beyond
                  * the release before that (every power-up's first run paid
                  * out a release more: chaos seed 1034). */
-                int32_t p = h->present[i];
+                int32_t p = t->present;
                 int32_t r = t->release_ticks;
                 if (t->have_home) {
                     int32_t e = t->est_home - hom_pull(t, t->travel_ticks);
@@ -106,7 +106,7 @@ void hom_do_preflight(hom_t *h, const hom_in_t *in)
                 h->win_changed |= hom_bit(i);
             }
             g = release_base(h, i);
-            hom_set_goal(h, i, hom_further_back(t, h->present[i], g), h->cfg.v_release);
+            hom_set_goal(h, i, hom_further_back(t, t->present, g), h->cfg.v_release);
         }
         /* a dry run moves nothing: straight to the baseline average */
         hom_enter(h, h->mode == HOM_MODE_DRY ? ST_SLACK_AVG : ST_RELEASE_ALL);
@@ -124,7 +124,7 @@ void hom_do_preflight(hom_t *h, const hom_in_t *in)
         }
     }
     for (i = 0; i < h->n_tendons; i++) {
-        if (h->servo_ok_ms[i] >= 0xFFFFFFFEu) {
+        if (h->tendon[i].servo_ok_ms >= 0xFFFFFFFEu) {
             const hom_servo_in_t *s = &in->servo[i];
             int32_t why = s->status == HOM_SERVO_ABSENT ? 1 : (s->hw_error != 0u ? 4 : 2);
             hom_push_event(h, HOM_EV_MISSING, HOM_DEV_SERVO, i, why, s->hw_error);
@@ -201,7 +201,7 @@ static void slack_done(hom_t *h)
          * slack (later releases go no further than here) */
         for (i = 0; i < h->n_tendons; i++) {
             hom_tendon_t *t = &h->tendon[i];
-            int32_t lo = h->present[i] + hom_pull(t, t->margin_ticks);
+            int32_t lo = t->present + hom_pull(t, t->margin_ticks);
             if (hom_further_back(t, lo, t->eng_lo) == lo) {
                 t->eng_lo = lo;
                 h->win_changed |= hom_bit(i);
@@ -306,7 +306,7 @@ HOM_NOINLINE void hom_do_slack_avg(hom_t *h)
         hom_tendon_t *t = &h->tendon[i];
         int32_t g = release_base(h, i) -
                     hom_pull(t, h->steps * hom_um_ticks_cur(h, i, h->cfg.slack_step_um));
-        hom_set_goal(h, i, hom_further_back(t, h->present[i], g), h->cfg.v_release);
+        hom_set_goal(h, i, hom_further_back(t, t->present, g), h->cfg.v_release);
     }
     hom_enter(h, ST_RELEASE_ALL);
 }

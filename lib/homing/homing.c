@@ -283,7 +283,7 @@ HOM_NOINLINE int32_t hom_um_to_ticks(uint32_t um, uint32_t nm_per_tick)
 
 int32_t hom_straight_q8(const hom_tendon_t *t, int16_t straight_um)
 {
-    return -(int32_t)t->dir * hom_muldiv(straight_um, 256000, (int32_t)t->nm_per_tick);
+    return -hom_pull(t, hom_muldiv(straight_um, 256000, (int32_t)t->nm_per_tick));
 }
 
 /* A measured home and its shift are rounded once, together, from both
@@ -357,8 +357,13 @@ HOM_NOINLINE static uint32_t release_um(const hom_config_t *cfg, uint32_t top_um
 void hom_window_around(int8_t dir, int32_t ahead, int32_t behind, int32_t p, int32_t *lo,
                        int32_t *hi)
 {
-    *hi = p + dir * ahead;
-    *lo = p - dir * behind;
+    /* dir is -1 or 1: a negation, not a 32-bit multiply */
+    if (dir < 0) {
+        ahead = -ahead;
+        behind = -behind;
+    }
+    *hi = p + ahead;
+    *lo = p - behind;
 }
 
 /* Tendon i's row for the run at its tension: what hom_start() left for the
@@ -366,18 +371,23 @@ void hom_window_around(int8_t dir, int32_t ahead, int32_t behind, int32_t p, int
  * hom_start() checked the tendon count and the tension's range. */
 HOM_NOINLINE static void load_tendon(hom_t *h, uint8_t i)
 {
-    tbl_tendon_t row;
-    tbl_point_t pt;
-    tbl_info_t info;
+    /* one local, the point first: the AVR reaches the first 64 bytes of a
+     * frame with one instruction a byte, and the compiler put the point
+     * behind the 180-byte row */
+    struct {
+        tbl_point_t pt;
+        tbl_tendon_t row;
+        tbl_info_t info;
+    } r;
     hom_tendon_t *t = &h->tendon[i];
     int32_t q8;
-    (void)tbl_info(&h->table, &info);
-    (void)tbl_tendon(&h->table, i, &row);
-    (void)tbl_target(&h->table, i, h->tension_mN, &pt);
-    t->dir = row.pull_dir < 0 ? -1 : 1;
-    t->nm_per_tick = row.nm_per_tick;
-    t->sensor = row.sensor;
-    t->travel_ticks = hom_um_to_ticks(pt.travel_um, row.nm_per_tick);
+    (void)tbl_info(&h->table, &r.info);
+    (void)tbl_tendon(&h->table, i, &r.row);
+    (void)tbl_target(&h->table, i, h->tension_mN, &r.pt);
+    t->dir = r.row.pull_dir < 0 ? -1 : 1;
+    t->nm_per_tick = r.row.nm_per_tick;
+    t->sensor = r.row.sensor;
+    t->travel_ticks = hom_um_to_ticks(r.pt.travel_um, r.row.nm_per_tick);
     /* The slack kept beyond engagement must exceed the path lengthening the
      * other tendons' pulls cause on this one: slack_margin_um covers it at
      * 1 N on the reference robot and grows with the tension above that
@@ -388,13 +398,13 @@ HOM_NOINLINE static void load_tendon(hom_t *h, uint8_t i)
      * segments): its travel at the tension, plus a quarter of the margin
      * for a late engagement. */
     t->margin_ticks =
-        hom_um_to_ticks(margin_um(&h->cfg, h->tension_mN, pt.travel_um), row.nm_per_tick);
-    q8 = hom_straight_q8(t, pt.straight_um);
+        hom_um_to_ticks(margin_um(&h->cfg, h->tension_mN, r.pt.travel_um), r.row.nm_per_tick);
+    q8 = hom_straight_q8(t, r.pt.straight_um);
     t->to_straight = (int16_t)hom_floor_div256(q8);
     t->straight_frac = (int8_t)(q8 - (int32_t)t->to_straight * 256);
     /* the engagement threshold is at most a quarter of every delta target */
-    if (pt.target_cuT / 4u < h->engage_cuT) {
-        h->engage_cuT = pt.target_cuT / 4u;
+    if (r.pt.target_cuT / 4u < h->engage_cuT) {
+        h->engage_cuT = r.pt.target_cuT / 4u;
     }
     /* The bounded pull (docs/homing.md): no further past the engagement
      * than where the tension could pass 1.25 x the run's + HOM_BOUND_MN on
@@ -407,23 +417,23 @@ HOM_NOINLINE static void load_tendon(hom_t *h, uint8_t i)
      * lies can ask (an ambient step against the tendon's own field, chaos
      * seeds 13456, 19346 and 19952: 1.39-2.10 x the target) on a first
      * pull. A target beyond it is looked at again (hom_over_limit()). */
-    q8 = hom_muldiv((int32_t)(pt.travel_um - pt.travel_um / HOM_BOUND_SHORT),
+    q8 = hom_muldiv((int32_t)(r.pt.travel_um - r.pt.travel_um / HOM_BOUND_SHORT),
                     h->tension_mN + h->tension_mN / 4u + HOM_BOUND_MN -
-                        hom_muldiv(h->tension_mN, (int32_t)h->engage_cuT, (int32_t)pt.target_cuT),
+                        hom_muldiv(h->tension_mN, (int32_t)h->engage_cuT, (int32_t)r.pt.target_cuT),
                     h->tension_mN);
-    t->limit_ticks = hom_limit_ticks(&row, q8);
+    t->limit_ticks = hom_limit_ticks(&r.row, q8);
     /* absolute mode: the engagement threshold stays the delta mode's; the
      * target becomes the distance of |B_magnet(p_T)| from |b_straight| */
-    t->target_cuT = hom_work_target(h, t->sensor, pt.target_cuT, pt.abs_target_cuT);
+    t->target_cuT = hom_work_target(h, t->sensor, r.pt.target_cuT, r.pt.abs_target_cuT);
     if (h->amb != NULL) {
-        t->abs_sign = pt.abs_target_cuT < h->sensor[t->sensor].p0 ? -1 : 1;
+        t->abs_sign = r.pt.abs_target_cuT < h->sensor[t->sensor].p0 ? -1 : 1;
     }
     /* The initial release must free the tendon left anywhere up to the top
      * of its grid: one and a half times its travel there plus the margin
      * (each tendon its own, as the app's releases: the largest of them,
      * robot-wide, paid out 6.6 mm on a 3-segment robot's short tendons). */
     t->release_ticks = (uint16_t)hom_um_to_ticks(
-        release_um(&h->cfg, row.travel_um[info.n_grid - 1u]), row.nm_per_tick);
+        release_um(&h->cfg, r.row.travel_um[r.info.n_grid - 1u]), r.row.nm_per_tick);
 }
 
 /* A travel limit past the engagement for a pull of at most um on the
@@ -600,7 +610,7 @@ HOM_NOINLINE hom_tendon_t *hom_cur(const hom_t *h)
 
 HOM_NOINLINE uint32_t hom_still_ms(const hom_t *h, uint8_t i)
 {
-    return hom_since(h, h->moved_ms[i]);
+    return hom_since(h, h->tendon[i].moved_ms);
 }
 
 HOM_NOINLINE uint32_t hom_phase_ms(const hom_t *h)
@@ -616,12 +626,13 @@ HOM_NOINLINE void hom_enter(hom_t *h, uint8_t state)
 
 HOM_NOINLINE void hom_set_goal(hom_t *h, uint8_t i, int32_t goal, uint16_t vel)
 {
-    h->moved_ms[i] = h->now_ms;
-    h->out.goal[i] = goal;
-    h->out.vel[i] = vel;
-    h->out.acc[i] = h->cfg.acc;
-    h->out.torque[i] = 1;
-    h->out.changed |= hom_bit(i);
+    h->tendon[i].moved_ms = h->now_ms;
+    hom_tendon_t *t = &h->tendon[i];
+    t->goal = goal;
+    t->vel = vel;
+    t->acc = h->cfg.acc;
+    t->torque = 1;
+    h->changed |= hom_bit(i);
     h->moved = 1;
 }
 
@@ -630,7 +641,8 @@ HOM_NOINLINE void hom_set_goal(hom_t *h, uint8_t i, int32_t goal, uint16_t vel)
  * controller without integral action droops under the tendon's load). */
 HOM_NOINLINE int hom_reached(const hom_t *h, uint8_t i)
 {
-    int32_t d = h->present[i] - h->out.goal[i];
+    const hom_tendon_t *t = &h->tendon[i];
+    int32_t d = t->present - t->goal;
     if (d >= -1 && d <= 1) {
         return 1;
     }
@@ -745,6 +757,20 @@ HOM_NOINLINE int hom_move_done(hom_t *h, int arrived, uint8_t dev, uint8_t index
     return arrived;
 }
 
+/* The commanded state of every tendon's servo into *out. */
+HOM_NOINLINE static void put_out(const hom_t *h, hom_out_t *out)
+{
+    uint8_t i;
+    for (i = 0; i < TBL_MAX_TENDONS; i++) {
+        const hom_tendon_t *t = &h->tendon[i];
+        out->goal[i] = t->goal;
+        out->vel[i] = t->vel;
+        out->acc[i] = t->acc;
+        out->torque[i] = t->torque;
+    }
+    out->changed = h->changed;
+}
+
 HOM_NOINLINE int hom_step(hom_t *h, const hom_in_t *in, hom_out_t *out)
 {
     uint8_t i;
@@ -752,16 +778,16 @@ HOM_NOINLINE int hom_step(hom_t *h, const hom_in_t *in, hom_out_t *out)
         return HOM_E_ARG;
     }
     h->now_ms = in->now_ms;
-    h->out.changed = 0;
+    h->changed = 0;
     if (h->state == ST_IDLE || h->state == ST_DONE || h->state == ST_FAULT) {
-        *out = h->out;
+        put_out(h, out);
         return h->state == ST_FAULT ? -(int)h->fault : 0;
     }
     if (h->abort_req) {
         h->abort_req = 0;
         for (i = 0; i < h->n_tendons; i++) {
             if (in->servo[i].status == HOM_SERVO_OK) {
-                h->present[i] = in->servo[i].pos;
+                h->tendon[i].present = in->servo[i].pos;
             }
         }
         hom_fail(h, HOM_F_ABORTED, HOM_DEV_NONE, 0, 0);
@@ -793,7 +819,7 @@ HOM_NOINLINE int hom_step(hom_t *h, const hom_in_t *in, hom_out_t *out)
             }
         }
     }
-    *out = h->out;
+    put_out(h, out);
     if (h->state == ST_FAULT) {
         return -(int)h->fault;
     }

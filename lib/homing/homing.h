@@ -213,9 +213,10 @@ typedef struct {
 
 /* Inputs of one step, indexed like the table's tendons and sensors. */
 typedef struct {
-    uint32_t now_ms;
     hom_sensor_in_t sensor[HOM_MAX_SENSORS];
     hom_servo_in_t servo[TBL_MAX_TENDONS];
+    uint32_t now_ms; /* last: each servo's fields stay within the first 64 bytes, which the
+                        AVR reaches through the struct's pointer with one instruction a byte */
 } hom_in_t;
 
 /* Outputs: the commanded state of every tendon's servo. The application
@@ -291,23 +292,35 @@ typedef struct {
 } hom_config_t;
 
 typedef struct {
-    int8_t dir;             /* table pull_dir */
-    uint8_t sensor;         /* selected sensor */
-    uint8_t engaged;        /* engage is valid */
-    uint8_t have_home;      /* home is valid (this run or stored, for the final move) */
-    uint8_t retries;        /* re-approaches after overshooting the target */
-    int8_t abs_sign;        /* absolute mode: +1 when |B| rises towards the target, -1 falls */
-    uint32_t target_cuT;    /* |B - B0| target at the requested tension; absolute mode:
-                               ||B_magnet(p_T)| - |b_straight|| (see hom_cmd_t) */
-    int32_t travel_ticks;   /* expected take-up from engagement */
-    int32_t limit_ticks;    /* travel limit from engagement */
-    int32_t margin_ticks;   /* slack margin */
-    uint32_t nm_per_tick;   /* table spool factor */
-    int32_t engage;         /* engagement position, ticks */
-    int32_t home;           /* home, ticks */
-    int32_t est_home;       /* quick mode: stored home in this power cycle's frame */
-    int32_t eng_lo;         /* engagement window (see hom_cmd_t.win_*): lowest and highest */
-    int32_t eng_hi;         /* position, in the pull direction, the engagement may lie at */
+    int8_t dir;           /* table pull_dir */
+    uint8_t sensor;       /* selected sensor */
+    uint8_t engaged;      /* engage is valid */
+    uint8_t have_home;    /* home is valid (this run or stored, for the final move) */
+    uint8_t retries;      /* re-approaches after overshooting the target */
+    int8_t abs_sign;      /* absolute mode: +1 when |B| rises towards the target, -1 falls */
+    uint32_t target_cuT;  /* |B - B0| target at the requested tension; absolute mode:
+                             ||B_magnet(p_T)| - |b_straight|| (see hom_cmd_t) */
+    int32_t travel_ticks; /* expected take-up from engagement */
+    int32_t limit_ticks;  /* travel limit from engagement */
+    int32_t margin_ticks; /* slack margin */
+    uint32_t nm_per_tick; /* table spool factor */
+    int32_t engage;       /* engagement position, ticks */
+    int32_t home;         /* home, ticks */
+    int32_t est_home;     /* quick mode: stored home in this power cycle's frame */
+    int32_t eng_lo;       /* engagement window (see hom_cmd_t.win_*): lowest and highest */
+    int32_t eng_hi;       /* position, in the pull direction, the engagement may lie at */
+    /* the servo's state and commands, here rather than in arrays of hom_t
+     * (hom_step() copies the commands into its hom_out_t): reached through
+     * the tendon's pointer, each field takes one instruction a byte on the
+     * AVR (the first 64 bytes of a struct; the fields after moved_ms are
+     * seldom used) */
+    int32_t present;      /* Present Position, ticks */
+    int32_t goal;         /* Goal Position last commanded, ticks */
+    uint16_t vel;         /* its Profile Velocity, 0.229 rpm units */
+    uint32_t servo_ok_ms; /* its last answer (preflight: 0xFFFFFFFF none yet, 0xFFFFFFFE faulty) */
+    uint32_t moved_ms;    /* last goal written or change of the present position */
+    uint16_t acc;         /* Profile Acceleration of the goal */
+    uint8_t torque;       /* Torque Enable */
     uint16_t release_ticks; /* the release that frees this tendon of unknown state */
     int16_t to_straight;    /* the table's straight-pose shift at the run's tension as a
                                position change, ticks rounded to nearest ... */
@@ -402,9 +415,6 @@ typedef struct {
     int32_t (*amb)[3];   /* absolute mode: the caller's ambient offsets (NULL: delta mode) */
     uint8_t amb_capture; /* absolute mode: this run captures them at its baseline */
     uint8_t survey;      /* hom_cmd_t.survey: no final move */
-    uint32_t servo_ok_ms[TBL_MAX_TENDONS];
-    int32_t present[TBL_MAX_TENDONS];
-    uint32_t moved_ms[TBL_MAX_TENDONS]; /* last goal written or change of the present position */
     struct {
         int32_t p;                 /* position, ticks */
         uint32_t b;                /* averaged |B - B0|, cuT */
@@ -413,7 +423,7 @@ typedef struct {
     uint8_t seen[HOM_MAX_SENSORS]; /* preflight: sample received */
     hom_tendon_t tendon[TBL_MAX_TENDONS];
     hom_sensor_t sensor[HOM_MAX_SENSORS];
-    hom_out_t out;
+    uint16_t changed; /* hom_out_t.changed of this step */
     hom_event_t ev[HOM_EV_CAP];
 } hom_t;
 
@@ -532,12 +542,12 @@ uint32_t hom_norm3(const int32_t v[3]);
 /* Goal Position and Profile Velocity last commanded for tendon i. */
 static inline int32_t hom_goal(const hom_t *h, uint8_t i)
 {
-    return h->out.goal[i];
+    return h->tendon[i].goal;
 }
 
 static inline uint16_t hom_goal_vel(const hom_t *h, uint8_t i)
 {
-    return h->out.vel[i];
+    return h->tendon[i].vel;
 }
 
 /* Sets tendon i's commanded goal and velocity. Only while no run is active:
@@ -545,8 +555,8 @@ static inline uint16_t hom_goal_vel(const hom_t *h, uint8_t i)
  * machine's output, which the next hom_init() clears. */
 static inline void hom_idle_goal(hom_t *h, uint8_t i, int32_t goal, uint16_t vel)
 {
-    h->out.goal[i] = goal;
-    h->out.vel[i] = vel;
+    h->tendon[i].goal = goal;
+    h->tendon[i].vel = vel;
 }
 
 /* Tendons whose engagement window changed since the last call (hom_window()),

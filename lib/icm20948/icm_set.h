@@ -42,13 +42,12 @@ enum icm_set_state {
 };
 
 typedef struct {
-    icm_dev_t dev;
+    /* the slot's own state first: within the first 64 bytes, which the AVR
+     * reaches through the slot's pointer with one instruction a byte */
     uint8_t state;      /* ICM_SET_S_* */
     uint8_t fresh;      /* a new sample not yet taken */
     uint8_t consec_err; /* read errors in a row */
     int8_t last_err;    /* last error seen, 0 if none */
-    icm_sample_t last;  /* last new sample; t_us: when it was measured (clk) */
-    icm_clock_t clk;    /* the AK09916's sample clock */
     uint32_t due_us;    /* next read (RUN) or next init attempt (FAIL) */
     uint32_t win_from_us;
     uint16_t win_new;
@@ -58,6 +57,9 @@ typedef struct {
 #if ICM_STATS
     uint16_t missed; /* new samples overwritten before icm_set_take() */
 #endif
+    icm_dev_t dev;
+    icm_sample_t last; /* last new sample; t_us: when it was measured (clk) */
+    icm_clock_t clk;   /* the AK09916's sample clock */
 } icm_set_slot_t;
 
 typedef struct {

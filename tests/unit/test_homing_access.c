@@ -257,7 +257,7 @@ static int32_t fine_point_at(int32_t back_ticks, uint32_t b_prev, uint32_t b)
     hom_sensor_t *st;
     int32_t p;
     st = &g_h.sensor[t->sensor];
-    p = g_h.present[0];
+    p = g_h.tendon[0].present;
     t->engaged = 1;
     t->engage = p - hom_pull(t, 20);
     /* the measured slope's remainder is what the floor overrules: not the
