@@ -206,7 +206,7 @@ fuzz: fuzz-build
 
 # --- host tests (pytest in the project venv) ---------------------------------
 host-test: $(STAMP) native-build
-	$(VENV)/bin/pytest -q tests/host
+	$(VENV)/bin/pytest -q -n $(JOBS) tests/host
 
 # --- lint -----------------------------------------------------------------------
 C_FILES = $(shell git ls-files -co --exclude-standard -- '*.c' '*.h' | grep -v '^lookup_tables/generated/')

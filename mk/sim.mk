@@ -111,6 +111,9 @@ sim-no-robot:
 
 # The plant config first: a robot the bench cannot model stops here.
 sim: $(if $(SIM_ROBOT_KNOWN),$(SIM_PLANT) $(BENCH) firmware,sim-no-robot)
+	@echo "$(SEED)" | grep -Eq '^[0-9]{1,10}$$' || { echo "make sim: SEED takes a whole number, not '$(SEED)'"; exit 2; }
+	@test -z "$(TENSION)" || echo "$(TENSION)" | grep -Eq '^[0-9]*\.?[0-9]+$$' || \
+		{ echo "make sim: TENSION takes newtons (for example TENSION=1.2), not '$(TENSION)'"; exit 2; }
 	@test -f $(SIM_PLANT) || { echo "make sim: no plant config $(SIM_PLANT)"; exit 2; }
 	@test -z "$(FAULT)" || test -f $(SIM_SCN) || { echo "make sim: no scenario $(SIM_SCN); known:"; \
 		ls sim/bench/scenarios | sed 's/\.scn$$//; s/^/  /'; exit 2; }
@@ -143,7 +146,7 @@ sim: $(if $(SIM_ROBOT_KNOWN),$(SIM_PLANT) $(BENCH) firmware,sim-no-robot)
 SIM_TEST_ROBOT := paper_2seg
 sim-test: $(BENCH) $(TESTFW_ELFS)
 	@$(MAKE) --no-print-directory firmware ROBOT=$(SIM_TEST_ROBOT)
-	$(VENV)/bin/pytest -q tests/sim
+	$(VENV)/bin/pytest -q -n $(JOBS) --dist loadgroup tests/sim
 
 TEST_TARGETS += sim-test
 

@@ -3,6 +3,7 @@
  * (docs/bench.md is the reference).
  */
 #define _POSIX_C_SOURCE 200809L
+#include <errno.h>
 #include <fcntl.h>
 #include <stdlib.h>
 #include <string.h>
@@ -10,6 +11,34 @@
 #include "bench.h"
 
 /* ---- command line ------------------------------------------------------------------ */
+
+/* A whole number in [0, max] written in full (decimal, or 0x hex); 0 when
+ * it is one, else a message naming the option and -1. */
+static int whole(const char *opt, const char *v, unsigned long long max, unsigned long long *out)
+{
+    char *end = NULL;
+    errno = 0;
+    unsigned long long n = strtoull(v, &end, 0);
+    if (end == v || *end != '\0' || v[0] == '-' || errno != 0 || n > max) {
+        fprintf(stderr, "hh_bench: %s takes a whole number 0-%llu, not '%s'\n", opt, max, v);
+        return -1;
+    }
+    *out = n;
+    return 0;
+}
+
+/* A fraction in [0, 1) written in full; 0 when it is one, else -1. */
+static int fraction(const char *opt, const char *v, double *out)
+{
+    char *end = NULL;
+    double x = strtod(v, &end);
+    if (end == v || *end != '\0' || !(x >= 0.0 && x < 1.0)) {
+        fprintf(stderr, "hh_bench: %s takes a fraction in [0, 1), not '%s'\n", opt, v);
+        return -1;
+    }
+    *out = x;
+    return 0;
+}
 
 static void usage(FILE *f)
 {
@@ -160,7 +189,11 @@ int bench_options(bench_t *b, bench_cli_t *cli, int argc, char **argv)
             b->eeprom_path = v;
         } else if (strcmp(a, "--power-loss-after-eewrites") == 0) {
             NEEDV();
-            b->eewrite_stop = strtoull(v, NULL, 10);
+            unsigned long long n;
+            if (whole(a, v, UINT64_MAX, &n) != 0) {
+                return BENCH_EXIT_USAGE;
+            }
+            b->eewrite_stop = n;
         } else if (strcmp(a, "--summary") == 0) {
             NEEDV();
             b->summary_path = v;
@@ -169,26 +202,28 @@ int bench_options(bench_t *b, bench_cli_t *cli, int argc, char **argv)
             b->plant_path = v;
         } else if (strcmp(a, "--seed") == 0) {
             NEEDV();
-            b->seed = (uint32_t)strtoul(v, NULL, 0);
+            unsigned long long n;
+            if (whole(a, v, UINT32_MAX, &n) != 0) {
+                return BENCH_EXIT_USAGE;
+            }
+            b->seed = (uint32_t)n;
         } else if (strcmp(a, "--perturb") == 0) {
             NEEDV();
-            b->perturb = strtod(v, NULL);
+            if (fraction(a, v, &b->perturb) != 0) {
+                return BENCH_EXIT_USAGE;
+            }
         } else if (strcmp(a, "--perturb-stiffness") == 0) {
-            char *end = NULL;
             NEEDV();
-            b->perturb_stiffness = strtod(v, &end);
-            if (end == v || *end != '\0' ||
-                !(b->perturb_stiffness >= 0.0 && b->perturb_stiffness < 1.0)) {
-                fprintf(stderr, "hh_bench: --perturb-stiffness takes a fraction in [0, 1)\n");
+            if (fraction(a, v, &b->perturb_stiffness) != 0) {
                 return BENCH_EXIT_USAGE;
             }
         } else if (strcmp(a, "--servo-baud") == 0) {
             NEEDV();
-            b->servo_baud_index = (uint8_t)strtoul(v, NULL, 10);
-            if (b->servo_baud_index > 7) {
-                fprintf(stderr, "hh_bench: --servo-baud takes the control table value 0-7\n");
+            unsigned long long n;
+            if (whole(a, v, 7, &n) != 0) { /* the control table's Baud Rate values */
                 return BENCH_EXIT_USAGE;
             }
+            b->servo_baud_index = (uint8_t)n;
         } else if (strcmp(a, "--slack") == 0) {
             NEEDV();
             if (sscanf(v, "%lf:%lf", &b->start_slack_min_mm, &b->start_slack_max_mm) != 2 ||

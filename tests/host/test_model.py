@@ -272,20 +272,18 @@ def test_bad_tensions_are_rejected():
         ConstantCurvatureModel(load_robot(PAPER)).solve([1.0])
 
 
-def test_solve_time_regression_guard():
-    """Budget is 50 ms per solve (docs/model.md, `hallhome bench`); this guard
-    allows 3x for a loaded shared machine."""
-    import time
-    r = load_robot(PAPER)
-    m = CosseratModel(r)
-    tau = np.zeros(6)
-    tau[5] = 0.8
-    m.solve(tau)
-    best = min(_timed(m.solve, tau, time) for _ in range(3))
-    assert best < 0.150
-
-
-def _timed(fn, arg, time):
-    t0 = time.perf_counter()
-    fn(arg)
-    return time.perf_counter() - t0
+def test_solve_cost_regression_guard():
+    """What a solve costs, counted rather than timed (a wall-clock bound
+    flakes on a shared machine; `hallhome bench` measures and reports the
+    time against the 50 ms budget, docs/model.md): on paper_2seg at every
+    grid tension one batched shot with its Jacobian and at most two chord
+    steps, no fall-back to the hybrid solver, and the 25 integration steps
+    of the 2-degree rule."""
+    m = CosseratModel(load_robot(PAPER))
+    for i in range(6):
+        for t in (0.0, 0.3, 0.8, 1.5):
+            tau = np.zeros(6)
+            tau[i] = t
+            sol = m.solve(tau)
+            assert sol.iterations <= 3, (i, t, sol.iterations)
+            assert len(sol.s) <= 25, (i, t, len(sol.s))

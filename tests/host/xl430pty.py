@@ -9,6 +9,13 @@ from pathlib import Path
 import pytest
 
 from dynamixel_sdk import PortHandler
+from dynamixel_sdk import port_handler
+
+# The SDK waits 2 x LATENCY_TIMER (16 ms, a USB adapter's latency) plus the
+# packet's bytes for a reply. The models here are a process on a machine that
+# runs other tests beside them (make host-test uses pytest -n): a reply late
+# by a scheduling delay is not a servo that did not answer. 50 ms each way.
+port_handler.LATENCY_TIMER = 50
 
 ROOT = Path(__file__).resolve().parents[2]
 TOOL = ROOT / "build" / "native" / "hh_xl430_pty"

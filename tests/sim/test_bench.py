@@ -164,6 +164,11 @@ def test_firmware_stop_ends_the_run(tmp_path):
 
 def test_usage_errors(tmp_path):
     assert bench(tmp_path, FW, "--bogus").rc == 2
+    for opt, bad in (("--seed", "N"), ("--seed", "-1"), ("--seed", "4294967296"),
+                     ("--perturb", "0.1x"), ("--perturb", "1"), ("--servo-baud", "8"),
+                     ("--power-loss-after-eewrites", "3x")):
+        r = bench(tmp_path, FW, opt, bad)
+        assert r.rc == 2 and f"{opt} takes" in r.err and repr(bad) in r.err, (opt, bad, r.err)
     assert bench(tmp_path, FW, "--at", "1s explode").rc == 2
     assert bench(tmp_path, FW, "--at", "soon press").rc == 2
     assert bench(tmp_path, FW, "--limit", "1s", "--until", "(").rc == 2

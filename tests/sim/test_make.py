@@ -19,6 +19,11 @@ ROOT = Path(__file__).resolve().parents[2]
 HALLHOME = ROOT / ".venv" / "bin" / "hallhome"
 PAPER = ROOT / "lookup_tables" / "robots" / "paper_2seg.toml"
 
+# `make sim` and the files it keeps under build/sim (identification, EEPROM
+# images, the console link) are shared: these tests run in one worker of
+# `pytest -n` (make sim-test runs them with --dist loadgroup).
+pytestmark = pytest.mark.xdist_group("make-sim")
+
 
 def make(*args, check=None):
     r = subprocess.run(["make", "--no-print-directory", *map(str, args)], cwd=ROOT,
@@ -139,6 +144,15 @@ def test_switching_robots_builds_each_with_its_own_table(robots):
     r = make("firmware", "ROBOT=mkbot_a", *dirs, check=0)
     assert "NO TABLE" in r.out and not name_in_flash(hex_a, "mkbot_a")
     assert re.search(r"avr-gcc .* -o \S*hallhome-mkbot_a\.elf", r.out)
+
+def test_sim_refuses_a_seed_or_tension_that_is_not_a_number():
+    for var, bad, says in (("SEED", "N", "SEED takes a whole number, not 'N'"),
+                           ("SEED", "-3", "SEED takes a whole number"),
+                           ("TENSION", "1,2", "TENSION takes newtons")):
+        r = make("sim", f"{var}={bad}", *(["SEED=3"] if var != "SEED" else []))
+        assert r.returncode == 2 and says in r.out, r.out[-2000:]
+        assert "+ build/sim/hh_bench" not in r.out and "[1/5]" not in r.out  # nothing ran
+
 
 
 # --- make sim: identification before the calibration ------------------------------------
