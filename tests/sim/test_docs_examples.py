@@ -36,10 +36,9 @@ COMMAND = re.compile(r"^(make|\.venv/bin/hallhome|hallhome|build/sim/hh_bench|hh
                      r"arduino-cli|avrdude|pytest|\.venv/bin/pytest)(\s|$)")
 SHELL_FENCES = ("", "sh", "bash", "console", "shell")
 
-# `make sim` and the files it keeps under build/sim (identification, EEPROM
-# images, the console link) are shared: these tests run in one worker of
-# `pytest -n` (make sim-test runs them with --dist loadgroup).
-pytestmark = pytest.mark.xdist_group("make-sim")
+# `make sim` and the files it keeps under build/ are shared: one of these
+# tests at a time (conftest.py), in whichever worker of `pytest -n`.
+pytestmark = pytest.mark.usefixtures("make_sim_lock")
 
 
 def _strip_comment(line: str) -> str:
@@ -84,7 +83,8 @@ def run(args, timeout=300, **kw):
 
 def fill(cmd: str, tmp: Path) -> list[str]:
     """The command with its placeholders filled in, as argv."""
-    subs = [("<robot>", "paper_2seg"), ("SEED=N", "SEED=3"), ("<name>", "sensor_unplug"), ("FAULT=...", "FAULT=sensor_unplug"),
+    subs = [("<robot>", "paper_2seg"), ("SEED=N", "SEED=3"), ("TENSION=T", "TENSION=0.8"),
+            ("[IDENTIFY=0]", "IDENTIFY=0"), ("<name>", "sensor_unplug"), ("FAULT=...", "FAULT=sensor_unplug"),
             ("PORT=...", "PORT=/dev/null"), ("DIR/", f"{tmp}/"), ("=DIR", f"={tmp}"), ("[--check]", ""),
             ("ROBOT.toml ...", PAPER), ("ROBOT.toml N ...", f"{PAPER} 0 0 0 1.5 0 0"),
             ("[ROBOT.toml]", PAPER), ("ROBOT.toml OUT", f"{PAPER} {tmp}/plant.cfg"),
@@ -134,7 +134,6 @@ def do_make_run(cmd, tmp):
     assert "No rule to make target" not in r.out
 
 
-@once
 _SIMS_PASSED: set = set()
 
 

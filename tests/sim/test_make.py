@@ -19,10 +19,9 @@ ROOT = Path(__file__).resolve().parents[2]
 HALLHOME = ROOT / ".venv" / "bin" / "hallhome"
 PAPER = ROOT / "lookup_tables" / "robots" / "paper_2seg.toml"
 
-# `make sim` and the files it keeps under build/sim (identification, EEPROM
-# images, the console link) are shared: these tests run in one worker of
-# `pytest -n` (make sim-test runs them with --dist loadgroup).
-pytestmark = pytest.mark.xdist_group("make-sim")
+# `make sim` and the files it keeps under build/ are shared: one of these
+# tests at a time (conftest.py), in whichever worker of `pytest -n`.
+pytestmark = pytest.mark.usefixtures("make_sim_lock")
 
 
 def make(*args, check=None):
@@ -164,7 +163,7 @@ def _sim_files(tag):
 
 
 @pytest.fixture
-def fresh_seed():
+def fresh_seed(make_sim_lock):
     """SEED=3 under its own perturbation tag (PERTURB=0.05, hh_bench's
     default: the same robot), so the identification and the EEPROM images
     are this test's own; removed after."""

@@ -453,8 +453,12 @@ def test_board_reset_during_monitor_is_reported_and_monitoring_goes_on(bench):
 
 def test_unplugged_cable_during_monitor(bench):
     b = bench()
+    m = b.mark()
     p = hh_start("monitor", "--port", b.pty, "--interval", 0.1)
-    time.sleep(2.0)
+    # pulled once the monitor reads samples (its start-up takes longer on a
+    # busy machine than any fixed wait)
+    b.wait_line(r"<sensor ", 60, after=m)
+    time.sleep(0.3)
     b.kill()
     out, err = p.communicate(timeout=30)
     assert p.returncode == 5, out + err
