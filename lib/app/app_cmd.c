@@ -286,11 +286,11 @@ static const app_field_t table_fields[] CON_FLASH = {
     APP_FIELD(noise_cuT, tbl_info_t, noise_cuT, APP_F_U),
 };
 static const app_field_t tendon_fields[] CON_FLASH = {
-    APP_FIELD(id, tbl_tendon_t, servo_id, APP_F_U),
-    APP_FIELD(dir, tbl_tendon_t, pull_dir, APP_F_S),
-    APP_FIELD(segment, tbl_tendon_t, segment, APP_F_U),
-    APP_FIELD(sensor, tbl_tendon_t, sensor, APP_F_U),
-    APP_FIELD(limit_um, tbl_tendon_t, travel_limit_um, APP_F_S),
+    APP_FIELD(id, tbl_tendon_head_t, servo_id, APP_F_U),
+    APP_FIELD(dir, tbl_tendon_head_t, pull_dir, APP_F_S),
+    APP_FIELD(segment, tbl_tendon_head_t, segment, APP_F_U),
+    APP_FIELD(sensor, tbl_tendon_head_t, sensor, APP_F_U),
+    APP_FIELD(limit_um, tbl_tendon_head_t, travel_limit_um, APP_F_S),
 };
 
 static int8_t h_table(app_t *a, const con_args_t *args)
@@ -316,19 +316,19 @@ static void tendon_line(app_t *a, uint8_t i)
 {
     char buf[TBL_MAX_GRID * 12u + 1u];
     uint8_t g, pos = 0;
-    tbl_tendon_t row, eff;
-    (void)tbl_tendon(&a->tab, i, &row);
-    eff = row;
-    if (app_has(a->learn.mask, i)) {
-        (void)tbl_tendon(&a->htab, i, &eff); /* its learned targets (0.4 ms) */
-    }
+    uint32_t eff[TBL_MAX_GRID];
+    tbl_tendon_head_t row;
+    (void)tbl_tendon_head(&a->tab, i, &row);
+    /* its learned targets (one look at the record) */
+    (void)tbl_row(app_has(a->learn.mask, i) ? &a->htab : &a->tab, i, TBL_ROW_TARGET, eff);
     app_rep_begin(a, app_w_tendon);
     app_rep_u8(a, app_w_tendon, i);
     APP_REP_FIELDS(a, &row, tendon_fields);
     buf[0] = '\0';
     for (g = 0; g < a->info.n_grid; g++) {
-        app_list_add(buf, sizeof buf, &pos, (int32_t)eff.target_cuT[g],
-                     eff.target_cuT[g] != row.target_cuT[g] ? '*' : '\0');
+        uint32_t v = 0;
+        (void)tbl_entry(&a->tab, i, TBL_ROW_TARGET, g, &v);
+        app_list_add(buf, sizeof buf, &pos, (int32_t)eff[g], eff[g] != v ? '*' : '\0');
     }
     con_report_str(&a->cmd.con, app_w_target_cuT, buf);
     app_rep_end(a);

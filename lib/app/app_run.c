@@ -296,9 +296,9 @@ static uint8_t release_goals(app_t *a, uint8_t blind)
             lo = APP_WIN(a)->lo[i];
         } else if (app_has(a->rec.home_now, i)) {
             tbl_point_t pt;
-            tbl_tendon_t row;
+            tbl_tendon_head_t row;
             uint32_t trav = 0;
-            (void)tbl_tendon(&a->tab, i, &row);
+            (void)tbl_tendon_head(&a->tab, i, &row);
             if (tbl_target(&a->tab, i, a->rec.homes.tension_mN, &pt) == 0) {
                 trav = pt.travel_um;
             }

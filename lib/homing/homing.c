@@ -371,18 +371,15 @@ void hom_window_around(int8_t dir, int32_t ahead, int32_t behind, int32_t p, int
  * hom_start() checked the tendon count and the tension's range. */
 HOM_NOINLINE static void load_tendon(hom_t *h, uint8_t i)
 {
-    /* one local, the point first: the AVR reaches the first 64 bytes of a
-     * frame with one instruction a byte, and the compiler put the point
-     * behind the 180-byte row */
     struct {
         tbl_point_t pt;
-        tbl_tendon_t row;
-        tbl_info_t info;
+        tbl_tendon_head_t row;
+        uint32_t top;
     } r;
     hom_tendon_t *t = &h->tendon[i];
     int32_t q8;
-    (void)tbl_info(&h->table, &r.info);
-    (void)tbl_tendon(&h->table, i, &r.row);
+    (void)tbl_tendon_head(&h->table, i, &r.row);
+    (void)tbl_entry(&h->table, i, TBL_ROW_TRAVEL, TBL_GRID_TOP, &r.top);
     (void)tbl_target(&h->table, i, h->tension_mN, &r.pt);
     t->dir = r.row.pull_dir < 0 ? -1 : 1;
     t->nm_per_tick = r.row.nm_per_tick;
@@ -432,14 +429,13 @@ HOM_NOINLINE static void load_tendon(hom_t *h, uint8_t i)
      * of its grid: one and a half times its travel there plus the margin
      * (each tendon its own, as the app's releases: the largest of them,
      * robot-wide, paid out 6.6 mm on a 3-segment robot's short tendons). */
-    t->release_ticks = (uint16_t)hom_um_to_ticks(
-        release_um(&h->cfg, r.row.travel_um[r.info.n_grid - 1u]), r.row.nm_per_tick);
+    t->release_ticks = (uint16_t)hom_um_to_ticks(release_um(&h->cfg, r.top), r.row.nm_per_tick);
 }
 
 /* A travel limit past the engagement for a pull of at most um on the
  * tendon of table row `row`: never beyond the table's travel_limit_um nor
  * HOM_RELEASE_REACH_TICKS (docs/homing.md, the safety table). */
-HOM_NOINLINE int32_t hom_limit_ticks(const tbl_tendon_t *row, int32_t um)
+HOM_NOINLINE int32_t hom_limit_ticks(const tbl_tendon_head_t *row, int32_t um)
 {
     int32_t ticks;
     if (um > (int32_t)row->travel_limit_um) {
@@ -452,15 +448,16 @@ HOM_NOINLINE int32_t hom_limit_ticks(const tbl_tendon_t *row, int32_t um)
 int hom_fresh_window(const hom_config_t *cfg, const tbl_src_t *table, uint8_t i,
                      uint16_t tension_mN, int32_t p, int32_t *lo, int32_t *hi)
 {
-    tbl_tendon_t row;
+    tbl_tendon_head_t row;
     tbl_point_t pt;
-    tbl_info_t info;
+    uint32_t top;
     int32_t r, m;
-    if (tbl_info(table, &info) != 0 || tbl_tendon(table, i, &row) != 0 ||
+    if (tbl_tendon_head(table, i, &row) != 0 ||
+        tbl_entry(table, i, TBL_ROW_TRAVEL, TBL_GRID_TOP, &top) != 0 ||
         tbl_target(table, i, tension_mN, &pt) != 0) {
         return HOM_E_ARG;
     }
-    r = hom_um_to_ticks(release_um(cfg, row.travel_um[info.n_grid - 1u]), row.nm_per_tick);
+    r = hom_um_to_ticks(release_um(cfg, top), row.nm_per_tick);
     m = hom_um_to_ticks(margin_um(cfg, tension_mN, pt.travel_um), row.nm_per_tick);
     hom_window_around(row.pull_dir < 0 ? -1 : 1, r, r - m, p, lo, hi);
     return 0;

@@ -122,20 +122,24 @@ static uint16_t tbl_row_off(const uint8_t c[3], uint8_t row, uint8_t i, uint8_t 
     return (uint16_t)(TBL_OFF_ROW(c[0], c[1], c[2], row) + 2u * ((uint16_t)i * c[2] + g));
 }
 
-int tbl_tendon(const tbl_src_t *src, uint8_t i, tbl_tendon_t *out)
+/* The counts into c[] and 0 when tendon i is in the table, else TBL_E_ARG. */
+static int tbl_tendon_counts(const tbl_src_t *src, uint8_t i, uint8_t c[3])
 {
-    uint8_t c[3], g, row;
-    tbl_tendon_rec_t r;
-    uint16_t v[TBL_MAX_GRID];
-
-    if (!tbl_src_ok(src) || out == NULL) {
+    if (!tbl_src_ok(src)) {
         return TBL_E_ARG;
     }
     tbl_counts(src, c);
-    if (i >= c[0] || i >= TBL_MAX_TENDONS || c[2] > TBL_MAX_GRID) {
+    return i >= c[0] || i >= TBL_MAX_TENDONS || c[2] > TBL_MAX_GRID ? TBL_E_ARG : 0;
+}
+
+int tbl_tendon_head(const tbl_src_t *src, uint8_t i, tbl_tendon_head_t *out)
+{
+    uint8_t c[3];
+    tbl_tendon_rec_t r;
+
+    if (out == NULL || tbl_tendon_counts(src, i, c) != 0) {
         return TBL_E_ARG;
     }
-    memset(out, 0, sizeof *out);
     tbl_read(src, &r, (uint16_t)(TBL_OFF_TENDONS(c[1], c[2]) + i * sizeof r), sizeof r);
     out->servo_id = r.servo_id;
     out->pull_dir = r.pull_dir;
@@ -143,17 +147,63 @@ int tbl_tendon(const tbl_src_t *src, uint8_t i, tbl_tendon_t *out)
     out->sensor = r.sensor;
     out->nm_per_tick = r.nm_per_tick;
     out->travel_limit_um = r.travel_limit_um;
-    for (row = 0; row < TBL_ROW_STRAIGHT; row++) {
-        uint32_t *d = row == TBL_ROW_TARGET ? out->target_cuT
-                      : row == TBL_ROW_ABS  ? out->abs_target_cuT
-                                            : out->travel_um;
-        uint8_t k = row == TBL_ROW_TRAVEL ? 1u : TBL_CUT_PER_LSB;
-        tbl_read(src, v, (uint16_t)(tbl_row_off(c, row, i, 0)), 2u * c[2]);
-        for (g = 0; g < c[2]; g++) {
-            d[g] = (uint32_t)v[g] * k;
-        }
+    return 0;
+}
+
+int tbl_entry(const tbl_src_t *src, uint8_t i, uint8_t row, uint8_t g, uint32_t *out)
+{
+    uint8_t c[3];
+    uint16_t v;
+
+    if (out == NULL || row >= TBL_ROW_STRAIGHT || tbl_tendon_counts(src, i, c) != 0) {
+        return TBL_E_ARG;
     }
-    tbl_read(src, out->straight_um, (uint16_t)(tbl_row_off(c, TBL_ROW_STRAIGHT, i, 0)), 2u * c[2]);
+    if (g == TBL_GRID_TOP) {
+        g = (uint8_t)(c[2] - 1u);
+    }
+    if (g >= c[2]) {
+        return TBL_E_ARG;
+    }
+    tbl_read(src, &v, tbl_row_off(c, row, i, g), sizeof v);
+    *out = row == TBL_ROW_TRAVEL ? v : (uint32_t)v * TBL_CUT_PER_LSB;
+    return 0;
+}
+
+int tbl_row(const tbl_src_t *src, uint8_t i, uint8_t row, uint32_t out[TBL_MAX_GRID])
+{
+    uint8_t c[3], g;
+    uint16_t v[TBL_MAX_GRID];
+
+    if (out == NULL || row >= TBL_ROW_STRAIGHT || tbl_tendon_counts(src, i, c) != 0) {
+        return TBL_E_ARG;
+    }
+    tbl_read(src, v, tbl_row_off(c, row, i, 0), 2u * c[2]);
+    for (g = 0; g < c[2]; g++) {
+        out[g] = row == TBL_ROW_TRAVEL ? v[g] : (uint32_t)v[g] * TBL_CUT_PER_LSB;
+    }
+    return c[2];
+}
+
+int tbl_tendon(const tbl_src_t *src, uint8_t i, tbl_tendon_t *out)
+{
+    uint8_t c[3];
+    tbl_tendon_head_t h;
+
+    if (out == NULL || tbl_tendon_head(src, i, &h) != 0) {
+        return TBL_E_ARG;
+    }
+    tbl_counts(src, c);
+    memset(out, 0, sizeof *out);
+    out->servo_id = h.servo_id;
+    out->pull_dir = h.pull_dir;
+    out->segment = h.segment;
+    out->sensor = h.sensor;
+    out->nm_per_tick = h.nm_per_tick;
+    out->travel_limit_um = h.travel_limit_um;
+    (void)tbl_row(src, i, TBL_ROW_TARGET, out->target_cuT);
+    (void)tbl_row(src, i, TBL_ROW_ABS, out->abs_target_cuT);
+    (void)tbl_row(src, i, TBL_ROW_TRAVEL, out->travel_um);
+    tbl_read(src, out->straight_um, tbl_row_off(c, TBL_ROW_STRAIGHT, i, 0), 2u * c[2]);
     return 0;
 }
 
