@@ -56,49 +56,15 @@ void app_run_ambient_reset(app_t *a)
     a->run.amb_ok = 0;
 }
 
-/* Starts a homing run. Returns 0 or a CON_E_* code (nothing moves then), or
- * CON_PENDING when tendons got fresh windows that go to the EEPROM first. */
-static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon)
+/* The homing's command and configuration for a run, and its start: the
+ * 150-byte command in a frame of its own, so that run_start()'s locals stay
+ * within the frame's first 64 bytes. Returns hom_start()'s code. */
+APP_NOINLINE static int run_hom_start(app_t *a, uint8_t mode, uint8_t survey, uint16_t tension,
+                                      uint8_t tendon)
 {
     hom_config_t cfg;
     hom_cmd_t cmd;
-    int rc;
     uint8_t i;
-    int8_t e;
-    uint8_t survey = (uint8_t)(mode & APP_RUN_SURVEY);
-    mode = (uint8_t)(mode & ~APP_RUN_SURVEY);
-    if (!app_idle_state(a)) {
-        return CON_E_BUSY;
-    }
-    e = app_run_check(a);
-    if (e != 0) {
-        return e;
-    }
-    if (mode == HOM_MODE_SINGLE && tendon >= a->info.n_tendons) {
-        return CON_E_BAD_TENDON;
-    }
-    if (survey) {
-        tension = a->info.grid_mN[a->info.n_grid - 1u];
-    }
-    if (tension == 0u) {
-        tension = (uint16_t)a->rec.set.v[STORE_SET_CAL_TENSION];
-    }
-    if (tension < a->info.grid_mN[0] || tension > a->info.grid_mN[a->info.n_grid - 1u]) {
-        return CON_E_TENSION_RANGE;
-    }
-    if (mode == HOM_MODE_QUICK) {
-        e = app_rec_usable(a);
-        if (e != 0) {
-            return e;
-        }
-        tension = a->rec.homes.tension_mN;
-    }
-    if (store_busy(&a->rec.store) || app_rec_busy(a)) {
-        return CON_E_BUSY; /* finishes within a few hundred ms */
-    }
-    if (mode != HOM_MODE_DRY && app_win_before_run(a, tension)) {
-        return CON_PENDING; /* started once they are saved (run_or_defer()) */
-    }
     memset(&cmd, 0, sizeof cmd);
     a->run.abs = a->rec.set.v[STORE_SET_TARGET_MODE] != 0;
     if (a->run.abs) {
@@ -140,7 +106,50 @@ static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon
     app_bus_goals_cleared(a);
     /* a refused start leaves the state idle: every goal read later is one
      * an app move or release set first (app_bus_goal()) */
-    rc = hom_start(&a->u.hom, &a->htab, &cmd);
+    return hom_start(&a->u.hom, &a->htab, &cmd);
+}
+
+/* Starts a homing run. Returns 0 or a CON_E_* code (nothing moves then), or
+ * CON_PENDING when tendons got fresh windows that go to the EEPROM first. */
+static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon)
+{
+    int rc;
+    int8_t e;
+    uint8_t survey = (uint8_t)(mode & APP_RUN_SURVEY);
+    mode = (uint8_t)(mode & ~APP_RUN_SURVEY);
+    if (!app_idle_state(a)) {
+        return CON_E_BUSY;
+    }
+    e = app_run_check(a);
+    if (e != 0) {
+        return e;
+    }
+    if (mode == HOM_MODE_SINGLE && tendon >= a->info.n_tendons) {
+        return CON_E_BAD_TENDON;
+    }
+    if (survey) {
+        tension = a->info.grid_mN[a->info.n_grid - 1u];
+    }
+    if (tension == 0u) {
+        tension = (uint16_t)a->rec.set.v[STORE_SET_CAL_TENSION];
+    }
+    if (tension < a->info.grid_mN[0] || tension > a->info.grid_mN[a->info.n_grid - 1u]) {
+        return CON_E_TENSION_RANGE;
+    }
+    if (mode == HOM_MODE_QUICK) {
+        e = app_rec_usable(a);
+        if (e != 0) {
+            return e;
+        }
+        tension = a->rec.homes.tension_mN;
+    }
+    if (store_busy(&a->rec.store) || app_rec_busy(a)) {
+        return CON_E_BUSY; /* finishes within a few hundred ms */
+    }
+    if (mode != HOM_MODE_DRY && app_win_before_run(a, tension)) {
+        return CON_PENDING; /* started once they are saved (run_or_defer()) */
+    }
+    rc = run_hom_start(a, mode, survey, tension, tendon);
     if (rc == HOM_E_TENSION) {
         return CON_E_TENSION_RANGE;
     }

@@ -430,10 +430,15 @@ typedef struct {
 /* Start request. */
 typedef struct {
     hom_mode_t mode;
-    uint16_t tension_mN;                  /* 0 = the table's default */
-    uint8_t tendon;                       /* HOM_MODE_SINGLE: the tendon to calibrate */
-    uint16_t stored_mask;                 /* bit i: stored_home[i] is valid */
-    int32_t stored_home[TBL_MAX_TENDONS]; /* homes from the last run (EEPROM), previous frame */
+    uint16_t tension_mN;  /* 0 = the table's default */
+    uint8_t tendon;       /* HOM_MODE_SINGLE: the tendon to calibrate */
+    uint16_t stored_mask; /* bit i: stored_home[i] is valid */
+    uint16_t win_mask;    /* bit i: win_lo[i] and win_hi[i] are valid (below) */
+    uint8_t ambient_capture;
+    /* Identification survey (docs/identify.md): the run pulls every tendon
+     * as a calibration does, but ends with each released (its release check)
+     * instead of a final move to the homes. */
+    uint8_t survey;
     /* Target mode. NULL: delta mode (|B - B0| against target_cuT). Otherwise the
      * paper's absolute mode: ambient_cuT[k] is sensor k's ambient offset A (cuT,
      * sensor frame, one row per table sensor, caller-owned and valid until the run
@@ -441,7 +446,9 @@ typedef struct {
      * With ambient_capture set, the run first writes A = B0 - b_straight_cuT for
      * every sensor from its own baseline; otherwise it uses the stored A. */
     int32_t (*ambient_cuT)[3];
-    uint8_t ambient_capture;
+    /* the small fields above, the arrays behind them: the AVR reaches the
+     * first 64 bytes of a struct with one instruction a byte */
+    int32_t stored_home[TBL_MAX_TENDONS]; /* homes from the last run (EEPROM), previous frame */
     /* Engagement windows from earlier runs of this power cycle (hom_window()):
      * bit i of win_mask says tendon i's engagement lies between win_lo[i]
      * and win_hi[i] (ticks, this power cycle's frame, low and high in the
@@ -451,13 +458,8 @@ typedef struct {
      * a window gets one at the start of the run: win_lo the release that
      * frees a tendon left anywhere up to the top of the grid, win_hi where it
      * stands (quick mode: the stored home minus the expected travel). */
-    uint16_t win_mask;
     int32_t win_lo[TBL_MAX_TENDONS];
     int32_t win_hi[TBL_MAX_TENDONS];
-    /* Identification survey (docs/identify.md): the run pulls every tendon
-     * as a calibration does, but ends with each released (its release check)
-     * instead of a final move to the homes. */
-    uint8_t survey;
 } hom_cmd_t;
 
 /* Fills *cfg with the defaults: speeds designed for a 6.1 um tick, a sensor
