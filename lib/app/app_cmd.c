@@ -180,7 +180,6 @@ static int8_t h_rehome(app_t *a, const con_args_t *args)
 
 static int8_t h_home(app_t *a, const con_args_t *args)
 {
-    hom_config_t cfg;
     uint8_t i;
     int8_t e;
     (void)args;
@@ -192,9 +191,8 @@ static int8_t h_home(app_t *a, const con_args_t *args)
     if (e != 0) {
         return e;
     }
-    hom_config_default(&cfg);
     for (i = 0; i < a->info.n_tendons; i++) {
-        app_bus_goal(a, i, app_rec_goal(a, i), cfg.v_final, cfg.acc);
+        app_bus_goal(a, i, app_rec_goal(a, i), HOM_V_TOP, HOM_ACC_DEFAULT);
     }
     app_run_move(a, APP_MOVE_HOME);
     return 0;

@@ -290,9 +290,7 @@ void app_run_move(app_t *a, uint8_t kind)
  * board does not change). */
 static uint8_t release_goals(app_t *a, uint8_t blind)
 {
-    hom_config_t cfg;
     uint8_t i, moved = 0, fresh = 0;
-    hom_config_default(&cfg);
     for (i = 0; i < a->info.n_tendons; i++) {
         int32_t g, lo, s, m, dir;
         if (app_has(a->bus.absent, i) ||
@@ -321,7 +319,7 @@ static uint8_t release_goals(app_t *a, uint8_t blind)
         if (!blind && dir * (g - a->bus.present[i]) > 0) {
             g = a->bus.present[i]; /* already slacker than the release point */
         }
-        app_bus_goal(a, i, g, cfg.v_release, cfg.acc);
+        app_bus_goal(a, i, g, HOM_V_TOP, HOM_ACC_DEFAULT);
         moved = 1;
     }
     if (fresh) {

@@ -45,7 +45,7 @@ static const hom_config_t TBL_FLASH hom_defaults = {
     .v_fine = 60,
     .v_release = HOM_V_TOP,
     .v_final = HOM_V_TOP,
-    .acc = 0,
+    .acc = HOM_ACC_DEFAULT,
     .slack_margin_um = HOM_SLACK_MARGIN_UM, /* > the path shortening another tendon causes at
                                              * 1 N; load_tendon() raises it with the tension
                                              * and the tendon's own travel */

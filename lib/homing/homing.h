@@ -234,6 +234,9 @@ typedef struct {
 #define HOM_SLACK_MARGIN_UM 600u /* hom_config_t.slack_margin_um by default */
 /* hom_config_t.v_release and v_final by default: the servo's top speed */
 #define HOM_V_TOP DXL_XL430_VELOCITY_LIMIT_DEFAULT
+/* hom_config_t.acc by default: the servo's maximum (the app's own moves use
+ * it and HOM_V_TOP without a hom_config_t) */
+#define HOM_ACC_DEFAULT 0u
 /* Every stop releases every tendon within 100 ms (docs/app.md), and a tendon
  * is slack only once its spool is back at its engagement: so no tendon is
  * pulled further past its (detected) engagement than HOM_V_TOP unwinds in
