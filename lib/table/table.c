@@ -298,51 +298,49 @@ int tbl_interp(const uint16_t *grid, const uint32_t *y, uint8_t n, uint16_t x, u
  * exact rounding of the stored values in the returned unit. */
 int tbl_target(const tbl_src_t *src, uint8_t tendon, uint16_t tension_mN, tbl_point_t *out)
 {
-    /* one local, the small arrays first: the AVR reaches the first 64
-     * bytes of a frame with one instruction a byte, and the compiler put
-     * them behind the 52-byte info */
-    struct {
-        uint16_t y[2];
-        uint8_t c[3];
-        uint32_t v[TBL_ROWS];
-        tbl_info_t info;
-    } l;
+    /* the counts and the grid only (not tbl_info()'s 52 bytes): the AVR
+     * reaches the first 64 bytes of a frame with one instruction a byte */
+    uint16_t y[2];
+    uint8_t c[3];
+    uint32_t v[TBL_ROWS];
+    uint16_t grid[TBL_MAX_GRID];
     uint8_t row;
     int k;
 
-    if (out == NULL || tbl_info(src, &l.info) != 0 || tendon >= l.info.n_tendons ||
-        tendon >= TBL_MAX_TENDONS) {
+    if (out == NULL || !tbl_src_ok(src)) {
         return TBL_E_ARG;
     }
-    if (l.info.n_grid > TBL_MAX_GRID) {
+    tbl_counts(src, c);
+    if (tendon >= c[0] || tendon >= TBL_MAX_TENDONS) {
+        return TBL_E_ARG;
+    }
+    if (c[2] > TBL_MAX_GRID) {
         return TBL_E_RANGE;
     }
-    k = tbl_bracket(l.info.grid_mN, l.info.n_grid, tension_mN);
+    tbl_read(src, grid, TBL_OFF_GRID, 2u * c[2]);
+    k = tbl_bracket(grid, c[2], tension_mN);
     if (k < 0) {
         return TBL_E_RANGE;
     }
-    l.c[0] = l.info.n_tendons;
-    l.c[1] = l.info.n_sensors;
-    l.c[2] = l.info.n_grid;
     for (row = 0; row < TBL_ROWS; row++) {
         uint32_t y0, y1;
-        tbl_read(src, l.y, (uint16_t)(tbl_row_off(l.c, row, tendon, (uint8_t)k)), sizeof l.y);
+        tbl_read(src, y, (uint16_t)(tbl_row_off(c, row, tendon, (uint8_t)k)), sizeof y);
         if (row == TBL_ROW_STRAIGHT) {
-            y0 = (uint32_t)((int32_t)(int16_t)l.y[0] + 32768);
-            y1 = (uint32_t)((int32_t)(int16_t)l.y[1] + 32768);
+            y0 = (uint32_t)((int32_t)(int16_t)y[0] + 32768);
+            y1 = (uint32_t)((int32_t)(int16_t)y[1] + 32768);
         } else if (row == TBL_ROW_TRAVEL) {
-            y0 = l.y[0];
-            y1 = l.y[1];
+            y0 = y[0];
+            y1 = y[1];
         } else {
-            y0 = (uint32_t)l.y[0] * TBL_CUT_PER_LSB;
-            y1 = (uint32_t)l.y[1] * TBL_CUT_PER_LSB;
+            y0 = (uint32_t)y[0] * TBL_CUT_PER_LSB;
+            y1 = (uint32_t)y[1] * TBL_CUT_PER_LSB;
         }
-        l.v[row] = tbl_lerp(l.info.grid_mN[k], l.info.grid_mN[k + 1], y0, y1, tension_mN);
+        v[row] = tbl_lerp(grid[k], grid[k + 1], y0, y1, tension_mN);
     }
     out->tension_mN = tension_mN;
-    out->target_cuT = l.v[TBL_ROW_TARGET];
-    out->abs_target_cuT = l.v[TBL_ROW_ABS];
-    out->travel_um = l.v[TBL_ROW_TRAVEL];
-    out->straight_um = (int16_t)((int32_t)l.v[TBL_ROW_STRAIGHT] - 32768);
+    out->target_cuT = v[TBL_ROW_TARGET];
+    out->abs_target_cuT = v[TBL_ROW_ABS];
+    out->travel_um = v[TBL_ROW_TRAVEL];
+    out->straight_um = (int16_t)((int32_t)v[TBL_ROW_STRAIGHT] - 32768);
     return 0;
 }
