@@ -110,10 +110,8 @@ int32_t app_win_fresh(app_t *a, uint8_t i, uint16_t tension_mN)
      * had not engaged since, so the search covers one release ahead (chaos
      * seed 2017: a servo rebooted in the run's slack check, its tendon
      * released again and searched short of it) */
-    hom_config_t cfg;
     int32_t lo, hi;
-    hom_config_default(&cfg);
-    if (hom_fresh_window(&cfg, &a->htab, i, tension_mN, a->bus.present[i], &lo, &hi) != 0) {
+    if (hom_fresh_window(&a->htab, i, tension_mN, a->bus.present[i], &lo, &hi) != 0) {
         lo = a->bus.present[i];
         hi = lo;
     }

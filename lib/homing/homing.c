@@ -66,7 +66,7 @@ static const hom_config_t TBL_FLASH hom_defaults = {
     .rate_limit_cuT = 250000, /* 2.5 mT per sample: 3x the fastest take-up seen */
     .sat_cuT = 490000,        /* 4900 uT of the AK09916's 4912 uT */
     .max_takeup_um = 4000,
-    .initial_release_um = 0,
+    .initial_release_um = HOM_INITIAL_RELEASE_UM,
     .straight = 1,
 };
 
@@ -331,27 +331,29 @@ HOM_NOINLINE void hom_work_point(const hom_t *h, uint8_t i, uint16_t mN, tbl_poi
 
 /* The slack kept beyond engagement at tension_mN for a tendon whose travel
  * there is travel_um (load_tendon() says why). */
-HOM_NOINLINE static uint32_t margin_um(const hom_config_t *cfg, uint16_t tension_mN,
+HOM_NOINLINE static uint32_t margin_um(uint16_t slack_margin_um, uint16_t tension_mN,
                                        uint32_t travel_um)
 {
-    uint32_t r = cfg->slack_margin_um;
+    uint32_t r = slack_margin_um;
     if (tension_mN > 1000u) {
         r = r * tension_mN / 1000u;
     }
-    if (travel_um + cfg->slack_margin_um / 4u > r) {
-        r = travel_um + cfg->slack_margin_um / 4u;
+    if (travel_um + slack_margin_um / 4u > r) {
+        r = travel_um + slack_margin_um / 4u;
     }
     return r;
 }
 
 /* The first release when positions are unknown, for a tendon whose travel at
- * the top of its grid is top_um (load_tendon() says why). */
-HOM_NOINLINE static uint32_t release_um(const hom_config_t *cfg, uint32_t top_um)
+ * the top of its grid is top_um (load_tendon() says why); the
+ * configuration's initial_release_um and slack_margin_um. */
+HOM_NOINLINE static uint32_t release_um(uint32_t initial_um, uint16_t slack_margin_um,
+                                        uint32_t top_um)
 {
-    if (cfg->initial_release_um != 0u) {
-        return cfg->initial_release_um;
+    if (initial_um != 0u) {
+        return initial_um;
     }
-    return top_um + top_um / 2u + cfg->slack_margin_um;
+    return top_um + top_um / 2u + slack_margin_um;
 }
 
 void hom_window_around(int8_t dir, int32_t ahead, int32_t behind, int32_t p, int32_t *lo,
@@ -394,8 +396,8 @@ HOM_NOINLINE static void load_tendon(hom_t *h, uint8_t i)
      * the geometric take-up of that tendon's own pull (same moment, same
      * segments): its travel at the tension, plus a quarter of the margin
      * for a late engagement. */
-    t->margin_ticks =
-        hom_um_to_ticks(margin_um(&h->cfg, h->tension_mN, r.pt.travel_um), r.row.nm_per_tick);
+    t->margin_ticks = hom_um_to_ticks(
+        margin_um(h->cfg.slack_margin_um, h->tension_mN, r.pt.travel_um), r.row.nm_per_tick);
     q8 = hom_straight_q8(t, r.pt.straight_um);
     t->to_straight = (int16_t)hom_floor_div256(q8);
     t->straight_frac = (int8_t)(q8 - (int32_t)t->to_straight * 256);
@@ -429,7 +431,8 @@ HOM_NOINLINE static void load_tendon(hom_t *h, uint8_t i)
      * of its grid: one and a half times its travel there plus the margin
      * (each tendon its own, as the app's releases: the largest of them,
      * robot-wide, paid out 6.6 mm on a 3-segment robot's short tendons). */
-    t->release_ticks = (uint16_t)hom_um_to_ticks(release_um(&h->cfg, r.top), r.row.nm_per_tick);
+    t->release_ticks = (uint16_t)hom_um_to_ticks(
+        release_um(h->cfg.initial_release_um, h->cfg.slack_margin_um, r.top), r.row.nm_per_tick);
 }
 
 /* A travel limit past the engagement for a pull of at most um on the
@@ -445,8 +448,8 @@ HOM_NOINLINE int32_t hom_limit_ticks(const tbl_tendon_head_t *row, int32_t um)
     return ticks > HOM_RELEASE_REACH_TICKS ? HOM_RELEASE_REACH_TICKS : ticks;
 }
 
-int hom_fresh_window(const hom_config_t *cfg, const tbl_src_t *table, uint8_t i,
-                     uint16_t tension_mN, int32_t p, int32_t *lo, int32_t *hi)
+int hom_fresh_window(const tbl_src_t *table, uint8_t i, uint16_t tension_mN, int32_t p, int32_t *lo,
+                     int32_t *hi)
 {
     tbl_tendon_head_t row;
     tbl_point_t pt;
@@ -457,8 +460,9 @@ int hom_fresh_window(const hom_config_t *cfg, const tbl_src_t *table, uint8_t i,
         tbl_target(table, i, tension_mN, &pt) != 0) {
         return HOM_E_ARG;
     }
-    r = hom_um_to_ticks(release_um(cfg, top), row.nm_per_tick);
-    m = hom_um_to_ticks(margin_um(cfg, tension_mN, pt.travel_um), row.nm_per_tick);
+    r = hom_um_to_ticks(release_um(HOM_INITIAL_RELEASE_UM, HOM_SLACK_MARGIN_UM, top),
+                        row.nm_per_tick);
+    m = hom_um_to_ticks(margin_um(HOM_SLACK_MARGIN_UM, tension_mN, pt.travel_um), row.nm_per_tick);
     hom_window_around(row.pull_dir < 0 ? -1 : 1, r, r - m, p, lo, hi);
     return 0;
 }

@@ -232,6 +232,8 @@ typedef struct {
 
 /* Tunables. hom_config_default() explains the defaults (docs/homing.md). */
 #define HOM_SLACK_MARGIN_UM 600u /* hom_config_t.slack_margin_um by default */
+/* hom_config_t.initial_release_um by default: from the table */
+#define HOM_INITIAL_RELEASE_UM 0u
 /* hom_config_t.v_release and v_final by default: the servo's top speed */
 #define HOM_V_TOP DXL_XL430_VELOCITY_LIMIT_DEFAULT
 /* hom_config_t.acc by default: the servo's maximum (the app's own moves use
@@ -523,10 +525,12 @@ int16_t hom_to_straight(const hom_t *h, uint8_t i);
  * nothing is known of it this power cycle (no window, no stored home),
  * standing at p: from one initial release behind p, less the slack margin,
  * to one initial release ahead (docs/homing.md, "Release decision"). The app
- * takes it before the run starts, to save it for a power cycle. 0, or
- * HOM_E_ARG when the table has no such tendon or tension. */
-int hom_fresh_window(const hom_config_t *cfg, const tbl_src_t *table, uint8_t i,
-                     uint16_t tension_mN, int32_t p, int32_t *lo, int32_t *hi);
+ * takes it before the run starts, to save it for a power cycle, with the
+ * default configuration's margin and release (HOM_SLACK_MARGIN_UM,
+ * HOM_INITIAL_RELEASE_UM). 0, or HOM_E_ARG when the table has no such tendon
+ * or tension. */
+int hom_fresh_window(const tbl_src_t *table, uint8_t i, uint16_t tension_mN, int32_t p, int32_t *lo,
+                     int32_t *hi);
 
 /* Tendon i's engagement window as the last run left it: the run's own
  * engagement when it engaged (low = high), otherwise the window it started
