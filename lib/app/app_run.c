@@ -57,12 +57,12 @@ void app_run_ambient_reset(app_t *a)
 }
 
 /* The homing's command and configuration for a run, and its start: the
- * 150-byte command in a frame of its own, so that run_start()'s locals stay
+ * 160-byte command in a frame of its own, so that run_start()'s locals stay
  * within the frame's first 64 bytes. Returns hom_start()'s code. */
 APP_NOINLINE static int run_hom_start(app_t *a, uint8_t mode, uint8_t survey, uint16_t tension,
                                       uint8_t tendon)
 {
-    hom_config_t cfg;
+    hom_config_t *cfg;
     hom_cmd_t cmd;
     uint8_t i;
     memset(&cmd, 0, sizeof cmd);
@@ -88,21 +88,20 @@ APP_NOINLINE static int run_hom_start(app_t *a, uint8_t mode, uint8_t survey, ui
         memcpy(cmd.win_lo, APP_WIN(a)->lo, sizeof cmd.win_lo);
         memcpy(cmd.win_hi, APP_WIN(a)->hi, sizeof cmd.win_hi);
     }
-    hom_config_default(&cfg);
+    app_learn_drop_baseline(a); /* its storage goes to the homing */
+    cfg = hom_config_reset(&a->u.hom);
     /* filter_k is the homing's own filter: samples averaged at each fine
      * point while the servo stands still (near the target at least 4 and
      * twice as many). A moving average of the stream ahead of the homing would lag
      * during the take-up and delay the engagement it detects. */
-    cfg.v_fast = (uint16_t)a->rec.set.v[STORE_SET_APPROACH_FAST];
-    cfg.v_fine = (uint16_t)a->rec.set.v[STORE_SET_APPROACH_SLOW];
-    cfg.avg_samples = (uint8_t)a->rec.set.v[STORE_SET_FILTER_K];
-    cfg.straight = (uint8_t)a->rec.set.v[STORE_SET_HOME_POSE];
+    cfg->v_fast = (uint16_t)a->rec.set.v[STORE_SET_APPROACH_FAST];
+    cfg->v_fine = (uint16_t)a->rec.set.v[STORE_SET_APPROACH_SLOW];
+    cfg->avg_samples = (uint8_t)a->rec.set.v[STORE_SET_FILTER_K];
+    cfg->straight = (uint8_t)a->rec.set.v[STORE_SET_HOME_POSE];
     if (survey) {
-        cfg.v_moderate = APP_SURVEY_V;
+        cfg->v_moderate = APP_SURVEY_V;
     }
-    cfg.servo_timeout_ms = APP_SERVO_TIMEOUT_MS;
-    app_learn_drop_baseline(a); /* its storage goes to the homing */
-    hom_config_set(&a->u.hom, &cfg);
+    cfg->servo_timeout_ms = APP_SERVO_TIMEOUT_MS;
     app_bus_goals_cleared(a);
     /* a refused start leaves the state idle: every goal read later is one
      * an app move or release set first (app_bus_goal()) */

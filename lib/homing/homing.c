@@ -92,6 +92,13 @@ void hom_config_set(hom_t *h, const hom_config_t *cfg)
     h->state = ST_IDLE;
 }
 
+hom_config_t *hom_config_reset(hom_t *h)
+{
+    hom_config_default(&h->cfg);
+    h->state = ST_IDLE;
+    return &h->cfg;
+}
+
 /* 32-bit arithmetic only (64-bit code is large and slow on the AVR): each
  * axis is scaled down by the smallest power of two that keeps the sum of
  * three squares within 32 bits (|axis| <= 37837, exact below 378 uT per

@@ -477,6 +477,9 @@ void hom_init(hom_t *h, const hom_config_t *cfg);
  * without clearing the rest, which hom_start() clears itself (hom_init()
  * clears it twice: about 1.4 KB of stores on the AVR). */
 void hom_config_set(hom_t *h, const hom_config_t *cfg);
+/* hom_config_set() of the defaults, in place: returns h's configuration
+ * for the caller's changes before hom_start() (no copy on the stack). */
+hom_config_t *hom_config_reset(hom_t *h);
 
 /* Starts a run: validates the table, interpolates every tendon's target at
  * the tension (the table stays in use during the run: keep it and its
