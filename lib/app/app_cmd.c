@@ -293,18 +293,22 @@ static const app_field_t tendon_fields[] CON_FLASH = {
 
 static int8_t h_table(app_t *a, const con_args_t *args)
 {
-    char buf[TBL_MAX_GRID * 12u + 1u];
-    uint8_t g, pos;
+    /* one local, the position first (tendon_line() says why) */
+    struct {
+        uint8_t pos;
+        char buf[TBL_MAX_GRID * 12u + 1u];
+    } l;
+    uint8_t g;
     (void)args;
     app_rep_begin(a, app_w_table);
     con_report_str(&a->cmd.con, app_w_name, a->info.name);
     APP_REP_FIELDS(a, &a->info, app_info_fields);
-    pos = 0;
-    buf[0] = '\0';
+    l.pos = 0;
+    l.buf[0] = '\0';
     for (g = 0; g < a->info.n_grid; g++) {
-        app_list_add(buf, sizeof buf, &pos, a->info.grid_mN[g], '\0');
+        app_list_add(l.buf, sizeof l.buf, &l.pos, a->info.grid_mN[g], '\0');
     }
-    con_report_str(&a->cmd.con, app_w_grid_mN, buf);
+    con_report_str(&a->cmd.con, app_w_grid_mN, l.buf);
     APP_REP_FIELDS(a, &a->info, table_fields);
     app_rep_end(a);
     return app_cmd_list(a, APP_LIST_TENDONS, 0);
