@@ -289,9 +289,13 @@ void con_help_start(con_t *c)
 
 uint8_t con_help_line(con_t *c)
 {
-    char syn[CON_SYN_MAX];
-    char *q = syn;
-    con_spec_t sp;
+    /* one local, the synopsis last: the AVR reaches the first 64 bytes of
+     * a frame with one instruction a byte */
+    struct {
+        char *q;
+        con_spec_t sp;
+        char syn[CON_SYN_MAX];
+    } l;
     uint8_t first = 1;
     const char *p = help_pos(c);
     const char *syn_f = con_fl_skip(c, p, 1);
@@ -299,15 +303,16 @@ uint8_t con_help_line(con_t *c)
     con_out_flash(c, s_help_cmd);
     con_out_flash(c, p);
     con_out_flash(c, s_help_args);
-    get_synopsis_at(c, syn_f, syn);
-    while (next_spec(&q, &sp) == 0) {
+    get_synopsis_at(c, syn_f, l.syn);
+    l.q = l.syn;
+    while (next_spec(&l.q, &l.sp) == 0) {
         if (!first) {
             con_out_ch(c, ' ');
         }
         first = 0;
-        con_out(c, &sp.open, 1);
-        con_out_ram(c, sp.type == 'w' ? sp.params : sp.name);
-        con_out_ch(c, sp.open == '<' ? '>' : ']');
+        con_out(c, &l.sp.open, 1);
+        con_out_ram(c, l.sp.type == 'w' ? l.sp.params : l.sp.name);
+        con_out_ch(c, l.sp.open == '<' ? '>' : ']');
     }
     p = con_fl_skip(c, syn_f, 1);
     con_out_flash(c, s_help_text);
