@@ -229,15 +229,16 @@ CON_NOINLINE int8_t con_check_args(con_t *c, uint8_t cmd, char **tok, uint8_t nt
      * frame with one instruction a byte, and the compiler put the spec
      * behind the synopsis */
     struct {
+        char *q;
         con_spec_t sp;
         char syn[CON_SYN_MAX];
     } l;
-    char *q = l.syn;
     uint8_t a;
     int8_t rc;
     get_synopsis(c, cmd, l.syn);
+    l.q = l.syn;
     memset(&c->args, 0, sizeof(c->args));
-    for (a = 0; a < CON_MAX_ARGS && next_spec(&q, &l.sp) == 0; a++) {
+    for (a = 0; a < CON_MAX_ARGS && next_spec(&l.q, &l.sp) == 0; a++) {
         if (a >= ntok) {
             if (l.sp.open == '<') {
                 return CON_E_MISSING_ARG;
