@@ -221,22 +221,18 @@ static int8_t check_word(const char *tok, const char *choices, int32_t *v)
     }
 }
 
-/* Checks every argument against the synopsis and fills c->args; the first
- * failure decides the error. */
-CON_NOINLINE int8_t con_check_args(con_t *c, uint8_t cmd, char **tok, uint8_t ntok)
+/* con_check_args() on the synopsis syn (its caller's frame holds it: the
+ * AVR reaches the first 64 bytes of a frame with one instruction a byte,
+ * and the compiler put the spec and the spills behind it). */
+CON_NOINLINE static int8_t check_args(con_t *c, char *syn, char **tok, uint8_t ntok)
 {
-    /* one local, the spec first: the AVR reaches the first 64 bytes of a
-     * frame with one instruction a byte, and the compiler put the spec
-     * behind the synopsis */
     struct {
         char *q;
         con_spec_t sp;
-        char syn[CON_SYN_MAX];
     } l;
     uint8_t a;
     int8_t rc;
-    get_synopsis(c, cmd, l.syn);
-    l.q = l.syn;
+    l.q = syn;
     memset(&c->args, 0, sizeof(c->args));
     for (a = 0; a < CON_MAX_ARGS && next_spec(&l.q, &l.sp) == 0; a++) {
         if (a >= ntok) {
@@ -258,6 +254,15 @@ CON_NOINLINE int8_t con_check_args(con_t *c, uint8_t cmd, char **tok, uint8_t nt
         c->args.given = (uint8_t)(c->args.given | (1u << a));
     }
     return (ntok > a) ? CON_E_TOO_MANY_ARGS : 0;
+}
+
+/* Checks every argument against the synopsis and fills c->args; the first
+ * failure decides the error. */
+CON_NOINLINE int8_t con_check_args(con_t *c, uint8_t cmd, char **tok, uint8_t ntok)
+{
+    char syn[CON_SYN_MAX];
+    get_synopsis(c, cmd, syn);
+    return check_args(c, syn, tok, ntok);
 }
 
 /* ---- help -------------------------------------------------------- */
