@@ -26,8 +26,8 @@ static void load_table(app_t *a)
         return;
     }
     for (i = 0; i < a->info.n_tendons; i++) {
-        tbl_tendon_t row;
-        (void)tbl_tendon(&a->tab, i, &row);
+        tbl_tendon_head_t row;
+        (void)tbl_tendon_head(&a->tab, i, &row);
         a->bus.ids[i] = row.servo_id;
     }
     a->table_ok = 1;

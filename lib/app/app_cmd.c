@@ -180,7 +180,6 @@ static int8_t h_rehome(app_t *a, const con_args_t *args)
 
 static int8_t h_home(app_t *a, const con_args_t *args)
 {
-    hom_config_t cfg;
     uint8_t i;
     int8_t e;
     (void)args;
@@ -192,9 +191,8 @@ static int8_t h_home(app_t *a, const con_args_t *args)
     if (e != 0) {
         return e;
     }
-    hom_config_default(&cfg);
     for (i = 0; i < a->info.n_tendons; i++) {
-        app_bus_goal(a, i, app_rec_goal(a, i), cfg.v_final, cfg.acc);
+        app_bus_goal(a, i, app_rec_goal(a, i), HOM_V_TOP, HOM_ACC_DEFAULT);
     }
     app_run_move(a, APP_MOVE_HOME);
     return 0;
@@ -286,27 +284,31 @@ static const app_field_t table_fields[] CON_FLASH = {
     APP_FIELD(noise_cuT, tbl_info_t, noise_cuT, APP_F_U),
 };
 static const app_field_t tendon_fields[] CON_FLASH = {
-    APP_FIELD(id, tbl_tendon_t, servo_id, APP_F_U),
-    APP_FIELD(dir, tbl_tendon_t, pull_dir, APP_F_S),
-    APP_FIELD(segment, tbl_tendon_t, segment, APP_F_U),
-    APP_FIELD(sensor, tbl_tendon_t, sensor, APP_F_U),
-    APP_FIELD(limit_um, tbl_tendon_t, travel_limit_um, APP_F_S),
+    APP_FIELD(id, tbl_tendon_head_t, servo_id, APP_F_U),
+    APP_FIELD(dir, tbl_tendon_head_t, pull_dir, APP_F_S),
+    APP_FIELD(segment, tbl_tendon_head_t, segment, APP_F_U),
+    APP_FIELD(sensor, tbl_tendon_head_t, sensor, APP_F_U),
+    APP_FIELD(limit_um, tbl_tendon_head_t, travel_limit_um, APP_F_S),
 };
 
 static int8_t h_table(app_t *a, const con_args_t *args)
 {
-    char buf[TBL_MAX_GRID * 12u + 1u];
-    uint8_t g, pos;
+    /* one local, the position first (tendon_line() says why) */
+    struct {
+        uint8_t pos;
+        char buf[TBL_MAX_GRID * 12u + 1u];
+    } l;
+    uint8_t g;
     (void)args;
     app_rep_begin(a, app_w_table);
     con_report_str(&a->cmd.con, app_w_name, a->info.name);
     APP_REP_FIELDS(a, &a->info, app_info_fields);
-    pos = 0;
-    buf[0] = '\0';
+    l.pos = 0;
+    l.buf[0] = '\0';
     for (g = 0; g < a->info.n_grid; g++) {
-        app_list_add(buf, sizeof buf, &pos, a->info.grid_mN[g], '\0');
+        app_list_add(l.buf, sizeof l.buf, &l.pos, a->info.grid_mN[g], '\0');
     }
-    con_report_str(&a->cmd.con, app_w_grid_mN, buf);
+    con_report_str(&a->cmd.con, app_w_grid_mN, l.buf);
     APP_REP_FIELDS(a, &a->info, table_fields);
     app_rep_end(a);
     return app_cmd_list(a, APP_LIST_TENDONS, 0);
@@ -314,23 +316,30 @@ static int8_t h_table(app_t *a, const con_args_t *args)
 
 static void tendon_line(app_t *a, uint8_t i)
 {
-    char buf[TBL_MAX_GRID * 12u + 1u];
-    uint8_t g, pos = 0;
-    tbl_tendon_t row, eff;
-    (void)tbl_tendon(&a->tab, i, &row);
-    eff = row;
-    if (app_has(a->learn.mask, i)) {
-        (void)tbl_tendon(&a->htab, i, &eff); /* its learned targets (0.4 ms) */
-    }
+    /* one local, the small fields first: the AVR reaches the first 64
+     * bytes of a frame with one instruction a byte */
+    struct {
+        uint8_t pos;
+        uint32_t v;
+        tbl_tendon_head_t row;
+        uint32_t eff[TBL_MAX_GRID];
+        char buf[TBL_MAX_GRID * 12u + 1u];
+    } l;
+    uint8_t g;
+    l.pos = 0;
+    (void)tbl_tendon_head(&a->tab, i, &l.row);
+    /* its learned targets (one look at the record) */
+    (void)tbl_row(app_has(a->learn.mask, i) ? &a->htab : &a->tab, i, TBL_ROW_TARGET, l.eff);
     app_rep_begin(a, app_w_tendon);
     app_rep_u8(a, app_w_tendon, i);
-    APP_REP_FIELDS(a, &row, tendon_fields);
-    buf[0] = '\0';
+    APP_REP_FIELDS(a, &l.row, tendon_fields);
+    l.buf[0] = '\0';
     for (g = 0; g < a->info.n_grid; g++) {
-        app_list_add(buf, sizeof buf, &pos, (int32_t)eff.target_cuT[g],
-                     eff.target_cuT[g] != row.target_cuT[g] ? '*' : '\0');
+        l.v = 0;
+        (void)tbl_entry(&a->tab, i, TBL_ROW_TARGET, g, &l.v);
+        app_list_add(l.buf, sizeof l.buf, &l.pos, (int32_t)l.eff[g], l.eff[g] != l.v ? '*' : '\0');
     }
-    con_report_str(&a->cmd.con, app_w_target_cuT, buf);
+    con_report_str(&a->cmd.con, app_w_target_cuT, l.buf);
     app_rep_end(a);
 }
 
@@ -349,20 +358,26 @@ static int8_t h_history(app_t *a, const con_args_t *args)
 /* The history entry `age` calibrations back: 0 when written, else it is lost. */
 static int8_t hist_line(app_t *a, uint8_t age)
 {
-    uint8_t i, pos = 0;
-    char buf[TBL_MAX_TENDONS * 12u + 1u];
-    store_hist_t e;
-    if (store_hist_get(&a->rec.store, age, &e) != 0) {
+    /* one local, the small fields first (tendon_line() says why) */
+    struct {
+        uint8_t pos;
+        store_hist_t e;
+        char buf[TBL_MAX_TENDONS * 12u + 1u];
+    } l;
+    uint8_t i;
+    l.pos = 0;
+    if (store_hist_get(&a->rec.store, age, &l.e) != 0) {
         return -1;
     }
     app_rep_begin(a, app_w_hist);
     app_rep_u8(a, app_w_age, age);
-    APP_REP_FIELDS(a, &e, hist_fields);
-    buf[0] = '\0';
-    for (i = 0; i < e.n_tendons && i < TBL_MAX_TENDONS; i++) {
-        app_list_add(buf, sizeof buf, &pos, e.home_ticks[i], app_has(e.valid_mask, i) ? 0 : '?');
+    APP_REP_FIELDS(a, &l.e, hist_fields);
+    l.buf[0] = '\0';
+    for (i = 0; i < l.e.n_tendons && i < TBL_MAX_TENDONS; i++) {
+        app_list_add(l.buf, sizeof l.buf, &l.pos, l.e.home_ticks[i],
+                     app_has(l.e.valid_mask, i) ? 0 : '?');
     }
-    con_report_str(&a->cmd.con, app_w_homes, buf);
+    con_report_str(&a->cmd.con, app_w_homes, l.buf);
     app_rep_end(a);
     return 0;
 }

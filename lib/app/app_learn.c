@@ -109,9 +109,9 @@ static void learned_store(app_t *a, uint8_t t, uint32_t v)
 
 int8_t app_learn_install(app_t *a, uint8_t tendon, uint8_t grid, uint32_t v)
 {
-    tbl_tendon_t row;
+    tbl_tendon_head_t row;
     int8_t rc;
-    (void)tbl_tendon(&a->tab, tendon, &row);
+    (void)tbl_tendon_head(&a->tab, tendon, &row);
     a->learn.sensor = row.sensor;
     a->learn.grid = grid;
     rc = learn_plausible(a, learned_of(a, tendon), v);
@@ -133,8 +133,8 @@ uint8_t app_learn_installed(app_t *a)
 int8_t app_learn_start(app_t *a, uint8_t tendon, uint8_t grid)
 {
     icm_diag_t d;
-    tbl_tendon_t row;
-    (void)tbl_tendon(&a->tab, tendon, &row);
+    tbl_tendon_head_t row;
+    (void)tbl_tendon_head(&a->tab, tendon, &row);
     a->learn.sensor = row.sensor;
     (void)icm_set_diag(&a->sense.set, row.sensor, &d);
     if (d.state != ICM_SET_S_RUN) {

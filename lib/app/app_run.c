@@ -56,14 +56,63 @@ void app_run_ambient_reset(app_t *a)
     a->run.amb_ok = 0;
 }
 
+/* The homing's command and configuration for a run, and its start: the
+ * 160-byte command in a frame of its own, so that run_start()'s locals stay
+ * within the frame's first 64 bytes. Returns hom_start()'s code. */
+APP_NOINLINE static int run_hom_start(app_t *a, uint8_t mode, uint8_t survey, uint16_t tension,
+                                      uint8_t tendon)
+{
+    hom_config_t *cfg;
+    hom_cmd_t cmd;
+    uint8_t i;
+    memset(&cmd, 0, sizeof cmd);
+    a->run.abs = a->rec.set.v[STORE_SET_TARGET_MODE] != 0;
+    if (a->run.abs) {
+        /* the first absolute run takes A from its own straight-pose
+         * baseline (a dry run stands wherever the robot is: never) */
+        cmd.ambient_cuT = a->run.amb;
+        cmd.ambient_capture = (uint8_t)(!a->run.amb_ok && mode != HOM_MODE_DRY);
+    }
+    cmd.mode = (hom_mode_t)mode;
+    cmd.survey = survey != 0u;
+    cmd.tension_mN = tension;
+    cmd.tendon = tendon;
+    for (i = 0; i < a->info.n_tendons; i++) {
+        if (app_has(a->rec.home_now, i)) {
+            cmd.stored_home[i] = app_rec_home(a, i);
+            cmd.stored_mask |= app_bit16(i);
+        }
+    }
+    if (APP_WIN(a) != NULL) {
+        cmd.win_mask = APP_WIN(a)->mask;
+        memcpy(cmd.win_lo, APP_WIN(a)->lo, sizeof cmd.win_lo);
+        memcpy(cmd.win_hi, APP_WIN(a)->hi, sizeof cmd.win_hi);
+    }
+    app_learn_drop_baseline(a); /* its storage goes to the homing */
+    cfg = hom_config_reset(&a->u.hom);
+    /* filter_k is the homing's own filter: samples averaged at each fine
+     * point while the servo stands still (near the target at least 4 and
+     * twice as many). A moving average of the stream ahead of the homing would lag
+     * during the take-up and delay the engagement it detects. */
+    cfg->v_fast = (uint16_t)a->rec.set.v[STORE_SET_APPROACH_FAST];
+    cfg->v_fine = (uint16_t)a->rec.set.v[STORE_SET_APPROACH_SLOW];
+    cfg->avg_samples = (uint8_t)a->rec.set.v[STORE_SET_FILTER_K];
+    cfg->straight = (uint8_t)a->rec.set.v[STORE_SET_HOME_POSE];
+    if (survey) {
+        cfg->v_moderate = APP_SURVEY_V;
+    }
+    cfg->servo_timeout_ms = APP_SERVO_TIMEOUT_MS;
+    app_bus_goals_cleared(a);
+    /* a refused start leaves the state idle: every goal read later is one
+     * an app move or release set first (app_bus_goal()) */
+    return hom_start(&a->u.hom, &a->htab, &cmd);
+}
+
 /* Starts a homing run. Returns 0 or a CON_E_* code (nothing moves then), or
  * CON_PENDING when tendons got fresh windows that go to the EEPROM first. */
 static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon)
 {
-    hom_config_t cfg;
-    hom_cmd_t cmd;
     int rc;
-    uint8_t i;
     int8_t e;
     uint8_t survey = (uint8_t)(mode & APP_RUN_SURVEY);
     mode = (uint8_t)(mode & ~APP_RUN_SURVEY);
@@ -99,48 +148,7 @@ static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon
     if (mode != HOM_MODE_DRY && app_win_before_run(a, tension)) {
         return CON_PENDING; /* started once they are saved (run_or_defer()) */
     }
-    memset(&cmd, 0, sizeof cmd);
-    a->run.abs = a->rec.set.v[STORE_SET_TARGET_MODE] != 0;
-    if (a->run.abs) {
-        /* the first absolute run takes A from its own straight-pose
-         * baseline (a dry run stands wherever the robot is: never) */
-        cmd.ambient_cuT = a->run.amb;
-        cmd.ambient_capture = (uint8_t)(!a->run.amb_ok && mode != HOM_MODE_DRY);
-    }
-    cmd.mode = (hom_mode_t)mode;
-    cmd.survey = survey != 0u;
-    cmd.tension_mN = tension;
-    cmd.tendon = tendon;
-    for (i = 0; i < a->info.n_tendons; i++) {
-        if (app_has(a->rec.home_now, i)) {
-            cmd.stored_home[i] = app_rec_home(a, i);
-            cmd.stored_mask |= app_bit16(i);
-        }
-    }
-    if (APP_WIN(a) != NULL) {
-        cmd.win_mask = APP_WIN(a)->mask;
-        memcpy(cmd.win_lo, APP_WIN(a)->lo, sizeof cmd.win_lo);
-        memcpy(cmd.win_hi, APP_WIN(a)->hi, sizeof cmd.win_hi);
-    }
-    hom_config_default(&cfg);
-    /* filter_k is the homing's own filter: samples averaged at each fine
-     * point while the servo stands still (near the target at least 4 and
-     * twice as many). A moving average of the stream ahead of the homing would lag
-     * during the take-up and delay the engagement it detects. */
-    cfg.v_fast = (uint16_t)a->rec.set.v[STORE_SET_APPROACH_FAST];
-    cfg.v_fine = (uint16_t)a->rec.set.v[STORE_SET_APPROACH_SLOW];
-    cfg.avg_samples = (uint8_t)a->rec.set.v[STORE_SET_FILTER_K];
-    cfg.straight = (uint8_t)a->rec.set.v[STORE_SET_HOME_POSE];
-    if (survey) {
-        cfg.v_moderate = APP_SURVEY_V;
-    }
-    cfg.servo_timeout_ms = APP_SERVO_TIMEOUT_MS;
-    app_learn_drop_baseline(a); /* its storage goes to the homing */
-    hom_config_set(&a->u.hom, &cfg);
-    app_bus_goals_cleared(a);
-    /* a refused start leaves the state idle: every goal read later is one
-     * an app move or release set first (app_bus_goal()) */
-    rc = hom_start(&a->u.hom, &a->htab, &cmd);
+    rc = run_hom_start(a, mode, survey, tension, tendon);
     if (rc == HOM_E_TENSION) {
         return CON_E_TENSION_RANGE;
     }
@@ -281,9 +289,7 @@ void app_run_move(app_t *a, uint8_t kind)
  * board does not change). */
 static uint8_t release_goals(app_t *a, uint8_t blind)
 {
-    hom_config_t cfg;
     uint8_t i, moved = 0, fresh = 0;
-    hom_config_default(&cfg);
     for (i = 0; i < a->info.n_tendons; i++) {
         int32_t g, lo, s, m, dir;
         if (app_has(a->bus.absent, i) ||
@@ -296,9 +302,9 @@ static uint8_t release_goals(app_t *a, uint8_t blind)
             lo = APP_WIN(a)->lo[i];
         } else if (app_has(a->rec.home_now, i)) {
             tbl_point_t pt;
-            tbl_tendon_t row;
+            tbl_tendon_head_t row;
             uint32_t trav = 0;
-            (void)tbl_tendon(&a->tab, i, &row);
+            (void)tbl_tendon_head(&a->tab, i, &row);
             if (tbl_target(&a->tab, i, a->rec.homes.tension_mN, &pt) == 0) {
                 trav = pt.travel_um;
             }
@@ -312,7 +318,7 @@ static uint8_t release_goals(app_t *a, uint8_t blind)
         if (!blind && dir * (g - a->bus.present[i]) > 0) {
             g = a->bus.present[i]; /* already slacker than the release point */
         }
-        app_bus_goal(a, i, g, cfg.v_release, cfg.acc);
+        app_bus_goal(a, i, g, HOM_V_TOP, HOM_ACC_DEFAULT);
         moved = 1;
     }
     if (fresh) {

@@ -93,11 +93,13 @@ void app_win_take(app_t *a)
 
 APP_NOINLINE int32_t app_win_margin(const app_t *a, uint8_t i, int32_t *span)
 {
-    tbl_tendon_t row;
+    tbl_tendon_head_t row;
+    uint32_t top = 0;
     int32_t dir;
-    (void)tbl_tendon(&a->tab, i, &row);
+    (void)tbl_tendon_head(&a->tab, i, &row);
+    (void)tbl_entry(&a->tab, i, TBL_ROW_TRAVEL, TBL_GRID_TOP, &top);
     dir = row.pull_dir < 0 ? -1 : 1;
-    *span = dir * app_um_ticks(row.nm_per_tick, row.travel_um[a->info.n_grid - 1u] * 3u / 2u);
+    *span = dir * app_um_ticks(row.nm_per_tick, top * 3u / 2u);
     return dir * app_um_ticks(row.nm_per_tick, HOM_SLACK_MARGIN_UM);
 }
 
@@ -108,10 +110,8 @@ int32_t app_win_fresh(app_t *a, uint8_t i, uint16_t tension_mN)
      * had not engaged since, so the search covers one release ahead (chaos
      * seed 2017: a servo rebooted in the run's slack check, its tendon
      * released again and searched short of it) */
-    hom_config_t cfg;
     int32_t lo, hi;
-    hom_config_default(&cfg);
-    if (hom_fresh_window(&cfg, &a->htab, i, tension_mN, a->bus.present[i], &lo, &hi) != 0) {
+    if (hom_fresh_window(&a->htab, i, tension_mN, a->bus.present[i], &lo, &hi) != 0) {
         lo = a->bus.present[i];
         hi = lo;
     }

@@ -221,23 +221,20 @@ static int8_t check_word(const char *tok, const char *choices, int32_t *v)
     }
 }
 
-/* Checks every argument against the synopsis and fills c->args; the first
- * failure decides the error. */
-CON_NOINLINE int8_t con_check_args(con_t *c, uint8_t cmd, char **tok, uint8_t ntok)
+/* con_check_args() on the synopsis syn (its caller's frame holds it: the
+ * AVR reaches the first 64 bytes of a frame with one instruction a byte,
+ * and the compiler put the spec and the spills behind it). */
+CON_NOINLINE static int8_t check_args(con_t *c, char *syn, char **tok, uint8_t ntok)
 {
-    /* one local, the spec first: the AVR reaches the first 64 bytes of a
-     * frame with one instruction a byte, and the compiler put the spec
-     * behind the synopsis */
     struct {
+        char *q;
         con_spec_t sp;
-        char syn[CON_SYN_MAX];
     } l;
-    char *q = l.syn;
     uint8_t a;
     int8_t rc;
-    get_synopsis(c, cmd, l.syn);
+    l.q = syn;
     memset(&c->args, 0, sizeof(c->args));
-    for (a = 0; a < CON_MAX_ARGS && next_spec(&q, &l.sp) == 0; a++) {
+    for (a = 0; a < CON_MAX_ARGS && next_spec(&l.q, &l.sp) == 0; a++) {
         if (a >= ntok) {
             if (l.sp.open == '<') {
                 return CON_E_MISSING_ARG;
@@ -257,6 +254,15 @@ CON_NOINLINE int8_t con_check_args(con_t *c, uint8_t cmd, char **tok, uint8_t nt
         c->args.given = (uint8_t)(c->args.given | (1u << a));
     }
     return (ntok > a) ? CON_E_TOO_MANY_ARGS : 0;
+}
+
+/* Checks every argument against the synopsis and fills c->args; the first
+ * failure decides the error. */
+CON_NOINLINE int8_t con_check_args(con_t *c, uint8_t cmd, char **tok, uint8_t ntok)
+{
+    char syn[CON_SYN_MAX];
+    get_synopsis(c, cmd, syn);
+    return check_args(c, syn, tok, ntok);
 }
 
 /* ---- help -------------------------------------------------------- */
@@ -289,9 +295,13 @@ void con_help_start(con_t *c)
 
 uint8_t con_help_line(con_t *c)
 {
-    char syn[CON_SYN_MAX];
-    char *q = syn;
-    con_spec_t sp;
+    /* one local, the synopsis last: the AVR reaches the first 64 bytes of
+     * a frame with one instruction a byte */
+    struct {
+        char *q;
+        con_spec_t sp;
+        char syn[CON_SYN_MAX];
+    } l;
     uint8_t first = 1;
     const char *p = help_pos(c);
     const char *syn_f = con_fl_skip(c, p, 1);
@@ -299,15 +309,16 @@ uint8_t con_help_line(con_t *c)
     con_out_flash(c, s_help_cmd);
     con_out_flash(c, p);
     con_out_flash(c, s_help_args);
-    get_synopsis_at(c, syn_f, syn);
-    while (next_spec(&q, &sp) == 0) {
+    get_synopsis_at(c, syn_f, l.syn);
+    l.q = l.syn;
+    while (next_spec(&l.q, &l.sp) == 0) {
         if (!first) {
             con_out_ch(c, ' ');
         }
         first = 0;
-        con_out(c, &sp.open, 1);
-        con_out_ram(c, sp.type == 'w' ? sp.params : sp.name);
-        con_out_ch(c, sp.open == '<' ? '>' : ']');
+        con_out(c, &l.sp.open, 1);
+        con_out_ram(c, l.sp.type == 'w' ? l.sp.params : l.sp.name);
+        con_out_ch(c, l.sp.open == '<' ? '>' : ']');
     }
     p = con_fl_skip(c, syn_f, 1);
     con_out_flash(c, s_help_text);

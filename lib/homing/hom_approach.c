@@ -358,8 +358,8 @@ HOM_NOINLINE static int32_t engagement_at(const hom_t *h, int32_t pm, uint32_t b
 /* The current tendon's travel limit without the bounded pull's. */
 HOM_NOINLINE static int32_t table_limit(const hom_t *h)
 {
-    tbl_tendon_t row;
-    (void)tbl_tendon(&h->table, h->cur, &row);
+    tbl_tendon_head_t row;
+    (void)tbl_tendon_head(&h->table, h->cur, &row);
     return hom_limit_ticks(&row, INT32_MAX);
 }
 

@@ -205,24 +205,30 @@ HOM_NOINLINE void hom_finish_tendon(hom_t *h, int32_t p, int32_t fallback)
  * (work 1: absolute mode's, hom_work_target()) or of the delta targets. */
 HOM_NOINLINE int32_t hom_curve_um256(const hom_t *h, uint32_t b, uint8_t work)
 {
-    tbl_tendon_t row;
-    tbl_info_t info;
+    /* the delta targets in one read (the learned ones among them: one
+     * look at the record), the rest entry by entry where needed */
+    uint32_t tgt[TBL_MAX_GRID];
     const hom_tendon_t *t = hom_cur(h);
     uint32_t x0 = 0;
     uint32_t y0 = 0;
+    int n = tbl_row(&h->table, h->cur, TBL_ROW_TARGET, tgt);
     uint8_t g;
-    if (tbl_tendon(&h->table, h->cur, &row) != 0 || tbl_info(&h->table, &info) != 0) {
-        return -1;
-    }
-    for (g = 0; g < info.n_grid; g++) {
-        uint32_t x1 = row.travel_um[g];
-        uint32_t y1 = work ? hom_work_target(h, t->sensor, row.target_cuT[g], row.abs_target_cuT[g])
-                           : row.target_cuT[g];
+    for (g = 0; (int)g < n; g++) {
+        uint32_t x1 = 0;
+        uint32_t y1 = tgt[g];
+        if (work) {
+            uint32_t abs_t = 0;
+            (void)tbl_entry(&h->table, h->cur, TBL_ROW_ABS, g, &abs_t);
+            y1 = hom_work_target(h, t->sensor, y1, abs_t);
+        }
         if (b < y1 && y1 > y0) {
+            (void)tbl_entry(&h->table, h->cur, TBL_ROW_TRAVEL, g, &x1);
+            if (g != 0u) {
+                (void)tbl_entry(&h->table, h->cur, TBL_ROW_TRAVEL, (uint8_t)(g - 1u), &x0);
+            }
             return (int32_t)x0 * 256 +
                    hom_muldiv((int32_t)(b - y0), (int32_t)(x1 - x0) * 256, (int32_t)(y1 - y0));
         }
-        x0 = x1;
         y0 = y1;
     }
     return -1;

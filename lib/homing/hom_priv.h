@@ -75,7 +75,7 @@ int32_t hom_muldiv(int32_t a, int32_t b, int32_t c);
 int32_t hom_um_to_ticks(uint32_t um, uint32_t nm_per_tick);
 void hom_over_limit(hom_t *h, int32_t d);
 int32_t hom_curve_um256(const hom_t *h, uint32_t b, uint8_t work);
-int32_t hom_limit_ticks(const tbl_tendon_t *row, int32_t um);
+int32_t hom_limit_ticks(const tbl_tendon_head_t *row, int32_t um);
 int32_t hom_unwrap_home(int32_t stored, int32_t present);
 uint32_t hom_work_target(const hom_t *h, uint8_t k, uint32_t d, uint32_t abs_t);
 void hom_work_point(const hom_t *h, uint8_t i, uint16_t mN, tbl_point_t *pt);

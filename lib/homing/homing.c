@@ -45,7 +45,7 @@ static const hom_config_t TBL_FLASH hom_defaults = {
     .v_fine = 60,
     .v_release = HOM_V_TOP,
     .v_final = HOM_V_TOP,
-    .acc = 0,
+    .acc = HOM_ACC_DEFAULT,
     .slack_margin_um = HOM_SLACK_MARGIN_UM, /* > the path shortening another tendon causes at
                                              * 1 N; load_tendon() raises it with the tension
                                              * and the tendon's own travel */
@@ -66,7 +66,7 @@ static const hom_config_t TBL_FLASH hom_defaults = {
     .rate_limit_cuT = 250000, /* 2.5 mT per sample: 3x the fastest take-up seen */
     .sat_cuT = 490000,        /* 4900 uT of the AK09916's 4912 uT */
     .max_takeup_um = 4000,
-    .initial_release_um = 0,
+    .initial_release_um = HOM_INITIAL_RELEASE_UM,
     .straight = 1,
 };
 
@@ -90,6 +90,13 @@ void hom_config_set(hom_t *h, const hom_config_t *cfg)
 {
     h->cfg = *cfg;
     h->state = ST_IDLE;
+}
+
+hom_config_t *hom_config_reset(hom_t *h)
+{
+    hom_config_default(&h->cfg);
+    h->state = ST_IDLE;
+    return &h->cfg;
 }
 
 /* 32-bit arithmetic only (64-bit code is large and slow on the AVR): each
@@ -331,27 +338,29 @@ HOM_NOINLINE void hom_work_point(const hom_t *h, uint8_t i, uint16_t mN, tbl_poi
 
 /* The slack kept beyond engagement at tension_mN for a tendon whose travel
  * there is travel_um (load_tendon() says why). */
-HOM_NOINLINE static uint32_t margin_um(const hom_config_t *cfg, uint16_t tension_mN,
+HOM_NOINLINE static uint32_t margin_um(uint16_t slack_margin_um, uint16_t tension_mN,
                                        uint32_t travel_um)
 {
-    uint32_t r = cfg->slack_margin_um;
+    uint32_t r = slack_margin_um;
     if (tension_mN > 1000u) {
         r = r * tension_mN / 1000u;
     }
-    if (travel_um + cfg->slack_margin_um / 4u > r) {
-        r = travel_um + cfg->slack_margin_um / 4u;
+    if (travel_um + slack_margin_um / 4u > r) {
+        r = travel_um + slack_margin_um / 4u;
     }
     return r;
 }
 
 /* The first release when positions are unknown, for a tendon whose travel at
- * the top of its grid is top_um (load_tendon() says why). */
-HOM_NOINLINE static uint32_t release_um(const hom_config_t *cfg, uint32_t top_um)
+ * the top of its grid is top_um (load_tendon() says why); the
+ * configuration's initial_release_um and slack_margin_um. */
+HOM_NOINLINE static uint32_t release_um(uint32_t initial_um, uint16_t slack_margin_um,
+                                        uint32_t top_um)
 {
-    if (cfg->initial_release_um != 0u) {
-        return cfg->initial_release_um;
+    if (initial_um != 0u) {
+        return initial_um;
     }
-    return top_um + top_um / 2u + cfg->slack_margin_um;
+    return top_um + top_um / 2u + slack_margin_um;
 }
 
 void hom_window_around(int8_t dir, int32_t ahead, int32_t behind, int32_t p, int32_t *lo,
@@ -371,18 +380,15 @@ void hom_window_around(int8_t dir, int32_t ahead, int32_t behind, int32_t p, int
  * hom_start() checked the tendon count and the tension's range. */
 HOM_NOINLINE static void load_tendon(hom_t *h, uint8_t i)
 {
-    /* one local, the point first: the AVR reaches the first 64 bytes of a
-     * frame with one instruction a byte, and the compiler put the point
-     * behind the 180-byte row */
     struct {
         tbl_point_t pt;
-        tbl_tendon_t row;
-        tbl_info_t info;
+        tbl_tendon_head_t row;
+        uint32_t top;
     } r;
     hom_tendon_t *t = &h->tendon[i];
     int32_t q8;
-    (void)tbl_info(&h->table, &r.info);
-    (void)tbl_tendon(&h->table, i, &r.row);
+    (void)tbl_tendon_head(&h->table, i, &r.row);
+    (void)tbl_entry(&h->table, i, TBL_ROW_TRAVEL, TBL_GRID_TOP, &r.top);
     (void)tbl_target(&h->table, i, h->tension_mN, &r.pt);
     t->dir = r.row.pull_dir < 0 ? -1 : 1;
     t->nm_per_tick = r.row.nm_per_tick;
@@ -397,8 +403,8 @@ HOM_NOINLINE static void load_tendon(hom_t *h, uint8_t i)
      * the geometric take-up of that tendon's own pull (same moment, same
      * segments): its travel at the tension, plus a quarter of the margin
      * for a late engagement. */
-    t->margin_ticks =
-        hom_um_to_ticks(margin_um(&h->cfg, h->tension_mN, r.pt.travel_um), r.row.nm_per_tick);
+    t->margin_ticks = hom_um_to_ticks(
+        margin_um(h->cfg.slack_margin_um, h->tension_mN, r.pt.travel_um), r.row.nm_per_tick);
     q8 = hom_straight_q8(t, r.pt.straight_um);
     t->to_straight = (int16_t)hom_floor_div256(q8);
     t->straight_frac = (int8_t)(q8 - (int32_t)t->to_straight * 256);
@@ -433,13 +439,13 @@ HOM_NOINLINE static void load_tendon(hom_t *h, uint8_t i)
      * (each tendon its own, as the app's releases: the largest of them,
      * robot-wide, paid out 6.6 mm on a 3-segment robot's short tendons). */
     t->release_ticks = (uint16_t)hom_um_to_ticks(
-        release_um(&h->cfg, r.row.travel_um[r.info.n_grid - 1u]), r.row.nm_per_tick);
+        release_um(h->cfg.initial_release_um, h->cfg.slack_margin_um, r.top), r.row.nm_per_tick);
 }
 
 /* A travel limit past the engagement for a pull of at most um on the
  * tendon of table row `row`: never beyond the table's travel_limit_um nor
  * HOM_RELEASE_REACH_TICKS (docs/homing.md, the safety table). */
-HOM_NOINLINE int32_t hom_limit_ticks(const tbl_tendon_t *row, int32_t um)
+HOM_NOINLINE int32_t hom_limit_ticks(const tbl_tendon_head_t *row, int32_t um)
 {
     int32_t ticks;
     if (um > (int32_t)row->travel_limit_um) {
@@ -449,19 +455,21 @@ HOM_NOINLINE int32_t hom_limit_ticks(const tbl_tendon_t *row, int32_t um)
     return ticks > HOM_RELEASE_REACH_TICKS ? HOM_RELEASE_REACH_TICKS : ticks;
 }
 
-int hom_fresh_window(const hom_config_t *cfg, const tbl_src_t *table, uint8_t i,
-                     uint16_t tension_mN, int32_t p, int32_t *lo, int32_t *hi)
+int hom_fresh_window(const tbl_src_t *table, uint8_t i, uint16_t tension_mN, int32_t p, int32_t *lo,
+                     int32_t *hi)
 {
-    tbl_tendon_t row;
+    tbl_tendon_head_t row;
     tbl_point_t pt;
-    tbl_info_t info;
+    uint32_t top;
     int32_t r, m;
-    if (tbl_info(table, &info) != 0 || tbl_tendon(table, i, &row) != 0 ||
+    if (tbl_tendon_head(table, i, &row) != 0 ||
+        tbl_entry(table, i, TBL_ROW_TRAVEL, TBL_GRID_TOP, &top) != 0 ||
         tbl_target(table, i, tension_mN, &pt) != 0) {
         return HOM_E_ARG;
     }
-    r = hom_um_to_ticks(release_um(cfg, row.travel_um[info.n_grid - 1u]), row.nm_per_tick);
-    m = hom_um_to_ticks(margin_um(cfg, tension_mN, pt.travel_um), row.nm_per_tick);
+    r = hom_um_to_ticks(release_um(HOM_INITIAL_RELEASE_UM, HOM_SLACK_MARGIN_UM, top),
+                        row.nm_per_tick);
+    m = hom_um_to_ticks(margin_um(HOM_SLACK_MARGIN_UM, tension_mN, pt.travel_um), row.nm_per_tick);
     hom_window_around(row.pull_dir < 0 ? -1 : 1, r, r - m, p, lo, hi);
     return 0;
 }

@@ -232,8 +232,13 @@ typedef struct {
 
 /* Tunables. hom_config_default() explains the defaults (docs/homing.md). */
 #define HOM_SLACK_MARGIN_UM 600u /* hom_config_t.slack_margin_um by default */
+/* hom_config_t.initial_release_um by default: from the table */
+#define HOM_INITIAL_RELEASE_UM 0u
 /* hom_config_t.v_release and v_final by default: the servo's top speed */
 #define HOM_V_TOP DXL_XL430_VELOCITY_LIMIT_DEFAULT
+/* hom_config_t.acc by default: the servo's maximum (the app's own moves use
+ * it and HOM_V_TOP without a hom_config_t) */
+#define HOM_ACC_DEFAULT 0u
 /* Every stop releases every tendon within 100 ms (docs/app.md), and a tendon
  * is slack only once its spool is back at its engagement: so no tendon is
  * pulled further past its (detected) engagement than HOM_V_TOP unwinds in
@@ -430,10 +435,15 @@ typedef struct {
 /* Start request. */
 typedef struct {
     hom_mode_t mode;
-    uint16_t tension_mN;                  /* 0 = the table's default */
-    uint8_t tendon;                       /* HOM_MODE_SINGLE: the tendon to calibrate */
-    uint16_t stored_mask;                 /* bit i: stored_home[i] is valid */
-    int32_t stored_home[TBL_MAX_TENDONS]; /* homes from the last run (EEPROM), previous frame */
+    uint16_t tension_mN;  /* 0 = the table's default */
+    uint8_t tendon;       /* HOM_MODE_SINGLE: the tendon to calibrate */
+    uint16_t stored_mask; /* bit i: stored_home[i] is valid */
+    uint16_t win_mask;    /* bit i: win_lo[i] and win_hi[i] are valid (below) */
+    uint8_t ambient_capture;
+    /* Identification survey (docs/identify.md): the run pulls every tendon
+     * as a calibration does, but ends with each released (its release check)
+     * instead of a final move to the homes. */
+    uint8_t survey;
     /* Target mode. NULL: delta mode (|B - B0| against target_cuT). Otherwise the
      * paper's absolute mode: ambient_cuT[k] is sensor k's ambient offset A (cuT,
      * sensor frame, one row per table sensor, caller-owned and valid until the run
@@ -441,7 +451,9 @@ typedef struct {
      * With ambient_capture set, the run first writes A = B0 - b_straight_cuT for
      * every sensor from its own baseline; otherwise it uses the stored A. */
     int32_t (*ambient_cuT)[3];
-    uint8_t ambient_capture;
+    /* the small fields above, the arrays behind them: the AVR reaches the
+     * first 64 bytes of a struct with one instruction a byte */
+    int32_t stored_home[TBL_MAX_TENDONS]; /* homes from the last run (EEPROM), previous frame */
     /* Engagement windows from earlier runs of this power cycle (hom_window()):
      * bit i of win_mask says tendon i's engagement lies between win_lo[i]
      * and win_hi[i] (ticks, this power cycle's frame, low and high in the
@@ -451,13 +463,8 @@ typedef struct {
      * a window gets one at the start of the run: win_lo the release that
      * frees a tendon left anywhere up to the top of the grid, win_hi where it
      * stands (quick mode: the stored home minus the expected travel). */
-    uint16_t win_mask;
     int32_t win_lo[TBL_MAX_TENDONS];
     int32_t win_hi[TBL_MAX_TENDONS];
-    /* Identification survey (docs/identify.md): the run pulls every tendon
-     * as a calibration does, but ends with each released (its release check)
-     * instead of a final move to the homes. */
-    uint8_t survey;
 } hom_cmd_t;
 
 /* Fills *cfg with the defaults: speeds designed for a 6.1 um tick, a sensor
@@ -470,6 +477,9 @@ void hom_init(hom_t *h, const hom_config_t *cfg);
  * without clearing the rest, which hom_start() clears itself (hom_init()
  * clears it twice: about 1.4 KB of stores on the AVR). */
 void hom_config_set(hom_t *h, const hom_config_t *cfg);
+/* hom_config_set() of the defaults, in place: returns h's configuration
+ * for the caller's changes before hom_start() (no copy on the stack). */
+hom_config_t *hom_config_reset(hom_t *h);
 
 /* Starts a run: validates the table, interpolates every tendon's target at
  * the tension (the table stays in use during the run: keep it and its
@@ -518,10 +528,12 @@ int16_t hom_to_straight(const hom_t *h, uint8_t i);
  * nothing is known of it this power cycle (no window, no stored home),
  * standing at p: from one initial release behind p, less the slack margin,
  * to one initial release ahead (docs/homing.md, "Release decision"). The app
- * takes it before the run starts, to save it for a power cycle. 0, or
- * HOM_E_ARG when the table has no such tendon or tension. */
-int hom_fresh_window(const hom_config_t *cfg, const tbl_src_t *table, uint8_t i,
-                     uint16_t tension_mN, int32_t p, int32_t *lo, int32_t *hi);
+ * takes it before the run starts, to save it for a power cycle, with the
+ * default configuration's margin and release (HOM_SLACK_MARGIN_UM,
+ * HOM_INITIAL_RELEASE_UM). 0, or HOM_E_ARG when the table has no such tendon
+ * or tension. */
+int hom_fresh_window(const tbl_src_t *table, uint8_t i, uint16_t tension_mN, int32_t p, int32_t *lo,
+                     int32_t *hi);
 
 /* Tendon i's engagement window as the last run left it: the run's own
  * engagement when it engaged (low = high), otherwise the window it started

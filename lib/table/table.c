@@ -122,20 +122,24 @@ static uint16_t tbl_row_off(const uint8_t c[3], uint8_t row, uint8_t i, uint8_t 
     return (uint16_t)(TBL_OFF_ROW(c[0], c[1], c[2], row) + 2u * ((uint16_t)i * c[2] + g));
 }
 
-int tbl_tendon(const tbl_src_t *src, uint8_t i, tbl_tendon_t *out)
+/* The counts into c[] and 0 when tendon i is in the table, else TBL_E_ARG. */
+static int tbl_tendon_counts(const tbl_src_t *src, uint8_t i, uint8_t c[3])
 {
-    uint8_t c[3], g, row;
-    tbl_tendon_rec_t r;
-    uint16_t v[TBL_MAX_GRID];
-
-    if (!tbl_src_ok(src) || out == NULL) {
+    if (!tbl_src_ok(src)) {
         return TBL_E_ARG;
     }
     tbl_counts(src, c);
-    if (i >= c[0] || i >= TBL_MAX_TENDONS || c[2] > TBL_MAX_GRID) {
+    return i >= c[0] || i >= TBL_MAX_TENDONS || c[2] > TBL_MAX_GRID ? TBL_E_ARG : 0;
+}
+
+int tbl_tendon_head(const tbl_src_t *src, uint8_t i, tbl_tendon_head_t *out)
+{
+    uint8_t c[3];
+    tbl_tendon_rec_t r;
+
+    if (out == NULL || tbl_tendon_counts(src, i, c) != 0) {
         return TBL_E_ARG;
     }
-    memset(out, 0, sizeof *out);
     tbl_read(src, &r, (uint16_t)(TBL_OFF_TENDONS(c[1], c[2]) + i * sizeof r), sizeof r);
     out->servo_id = r.servo_id;
     out->pull_dir = r.pull_dir;
@@ -143,17 +147,63 @@ int tbl_tendon(const tbl_src_t *src, uint8_t i, tbl_tendon_t *out)
     out->sensor = r.sensor;
     out->nm_per_tick = r.nm_per_tick;
     out->travel_limit_um = r.travel_limit_um;
-    for (row = 0; row < TBL_ROW_STRAIGHT; row++) {
-        uint32_t *d = row == TBL_ROW_TARGET ? out->target_cuT
-                      : row == TBL_ROW_ABS  ? out->abs_target_cuT
-                                            : out->travel_um;
-        uint8_t k = row == TBL_ROW_TRAVEL ? 1u : TBL_CUT_PER_LSB;
-        tbl_read(src, v, (uint16_t)(tbl_row_off(c, row, i, 0)), 2u * c[2]);
-        for (g = 0; g < c[2]; g++) {
-            d[g] = (uint32_t)v[g] * k;
-        }
+    return 0;
+}
+
+int tbl_entry(const tbl_src_t *src, uint8_t i, uint8_t row, uint8_t g, uint32_t *out)
+{
+    uint8_t c[3];
+    uint16_t v;
+
+    if (out == NULL || row >= TBL_ROW_STRAIGHT || tbl_tendon_counts(src, i, c) != 0) {
+        return TBL_E_ARG;
     }
-    tbl_read(src, out->straight_um, (uint16_t)(tbl_row_off(c, TBL_ROW_STRAIGHT, i, 0)), 2u * c[2]);
+    if (g == TBL_GRID_TOP) {
+        g = (uint8_t)(c[2] - 1u);
+    }
+    if (g >= c[2]) {
+        return TBL_E_ARG;
+    }
+    tbl_read(src, &v, tbl_row_off(c, row, i, g), sizeof v);
+    *out = row == TBL_ROW_TRAVEL ? v : (uint32_t)v * TBL_CUT_PER_LSB;
+    return 0;
+}
+
+int tbl_row(const tbl_src_t *src, uint8_t i, uint8_t row, uint32_t out[TBL_MAX_GRID])
+{
+    uint8_t c[3], g;
+    uint16_t v[TBL_MAX_GRID];
+
+    if (out == NULL || row >= TBL_ROW_STRAIGHT || tbl_tendon_counts(src, i, c) != 0) {
+        return TBL_E_ARG;
+    }
+    tbl_read(src, v, tbl_row_off(c, row, i, 0), 2u * c[2]);
+    for (g = 0; g < c[2]; g++) {
+        out[g] = row == TBL_ROW_TRAVEL ? v[g] : (uint32_t)v[g] * TBL_CUT_PER_LSB;
+    }
+    return c[2];
+}
+
+int tbl_tendon(const tbl_src_t *src, uint8_t i, tbl_tendon_t *out)
+{
+    uint8_t c[3];
+    tbl_tendon_head_t h;
+
+    if (out == NULL || tbl_tendon_head(src, i, &h) != 0) {
+        return TBL_E_ARG;
+    }
+    tbl_counts(src, c);
+    memset(out, 0, sizeof *out);
+    out->servo_id = h.servo_id;
+    out->pull_dir = h.pull_dir;
+    out->segment = h.segment;
+    out->sensor = h.sensor;
+    out->nm_per_tick = h.nm_per_tick;
+    out->travel_limit_um = h.travel_limit_um;
+    (void)tbl_row(src, i, TBL_ROW_TARGET, out->target_cuT);
+    (void)tbl_row(src, i, TBL_ROW_ABS, out->abs_target_cuT);
+    (void)tbl_row(src, i, TBL_ROW_TRAVEL, out->travel_um);
+    tbl_read(src, out->straight_um, tbl_row_off(c, TBL_ROW_STRAIGHT, i, 0), 2u * c[2]);
     return 0;
 }
 
@@ -248,51 +298,49 @@ int tbl_interp(const uint16_t *grid, const uint32_t *y, uint8_t n, uint16_t x, u
  * exact rounding of the stored values in the returned unit. */
 int tbl_target(const tbl_src_t *src, uint8_t tendon, uint16_t tension_mN, tbl_point_t *out)
 {
-    /* one local, the small arrays first: the AVR reaches the first 64
-     * bytes of a frame with one instruction a byte, and the compiler put
-     * them behind the 52-byte info */
-    struct {
-        uint16_t y[2];
-        uint8_t c[3];
-        uint32_t v[TBL_ROWS];
-        tbl_info_t info;
-    } l;
+    /* the counts and the grid only (not tbl_info()'s 52 bytes): the AVR
+     * reaches the first 64 bytes of a frame with one instruction a byte */
+    uint16_t y[2];
+    uint8_t c[3];
+    uint32_t v[TBL_ROWS];
+    uint16_t grid[TBL_MAX_GRID];
     uint8_t row;
     int k;
 
-    if (out == NULL || tbl_info(src, &l.info) != 0 || tendon >= l.info.n_tendons ||
-        tendon >= TBL_MAX_TENDONS) {
+    if (out == NULL || !tbl_src_ok(src)) {
         return TBL_E_ARG;
     }
-    if (l.info.n_grid > TBL_MAX_GRID) {
+    tbl_counts(src, c);
+    if (tendon >= c[0] || tendon >= TBL_MAX_TENDONS) {
+        return TBL_E_ARG;
+    }
+    if (c[2] > TBL_MAX_GRID) {
         return TBL_E_RANGE;
     }
-    k = tbl_bracket(l.info.grid_mN, l.info.n_grid, tension_mN);
+    tbl_read(src, grid, TBL_OFF_GRID, 2u * c[2]);
+    k = tbl_bracket(grid, c[2], tension_mN);
     if (k < 0) {
         return TBL_E_RANGE;
     }
-    l.c[0] = l.info.n_tendons;
-    l.c[1] = l.info.n_sensors;
-    l.c[2] = l.info.n_grid;
     for (row = 0; row < TBL_ROWS; row++) {
         uint32_t y0, y1;
-        tbl_read(src, l.y, (uint16_t)(tbl_row_off(l.c, row, tendon, (uint8_t)k)), sizeof l.y);
+        tbl_read(src, y, (uint16_t)(tbl_row_off(c, row, tendon, (uint8_t)k)), sizeof y);
         if (row == TBL_ROW_STRAIGHT) {
-            y0 = (uint32_t)((int32_t)(int16_t)l.y[0] + 32768);
-            y1 = (uint32_t)((int32_t)(int16_t)l.y[1] + 32768);
+            y0 = (uint32_t)((int32_t)(int16_t)y[0] + 32768);
+            y1 = (uint32_t)((int32_t)(int16_t)y[1] + 32768);
         } else if (row == TBL_ROW_TRAVEL) {
-            y0 = l.y[0];
-            y1 = l.y[1];
+            y0 = y[0];
+            y1 = y[1];
         } else {
-            y0 = (uint32_t)l.y[0] * TBL_CUT_PER_LSB;
-            y1 = (uint32_t)l.y[1] * TBL_CUT_PER_LSB;
+            y0 = (uint32_t)y[0] * TBL_CUT_PER_LSB;
+            y1 = (uint32_t)y[1] * TBL_CUT_PER_LSB;
         }
-        l.v[row] = tbl_lerp(l.info.grid_mN[k], l.info.grid_mN[k + 1], y0, y1, tension_mN);
+        v[row] = tbl_lerp(grid[k], grid[k + 1], y0, y1, tension_mN);
     }
     out->tension_mN = tension_mN;
-    out->target_cuT = l.v[TBL_ROW_TARGET];
-    out->abs_target_cuT = l.v[TBL_ROW_ABS];
-    out->travel_um = l.v[TBL_ROW_TRAVEL];
-    out->straight_um = (int16_t)((int32_t)l.v[TBL_ROW_STRAIGHT] - 32768);
+    out->target_cuT = v[TBL_ROW_TARGET];
+    out->abs_target_cuT = v[TBL_ROW_ABS];
+    out->travel_um = v[TBL_ROW_TRAVEL];
+    out->straight_um = (int16_t)((int32_t)v[TBL_ROW_STRAIGHT] - 32768);
     return 0;
 }

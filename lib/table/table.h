@@ -187,6 +187,20 @@ typedef struct {
     int16_t straight_um[TBL_MAX_GRID];     /* single-tendon home to straight-pose home */
 } tbl_tendon_t;
 
+/* The fixed part of a tendon row (tbl_tendon()'s first fields), decoded by
+ * tbl_tendon_head(): 12 bytes where the firmware needs no grid values. */
+typedef struct {
+    uint8_t servo_id;
+    int8_t pull_dir;
+    uint8_t segment;
+    uint8_t sensor;
+    uint32_t nm_per_tick;
+    uint32_t travel_limit_um;
+} tbl_tendon_head_t;
+
+/* tbl_entry()'s grid index of a tendon's last grid point. */
+#define TBL_GRID_TOP 0xFFu
+
 /* Copies n bytes from table memory at src into RAM at dst. */
 typedef void (*tbl_copy_fn)(void *dst, const void *src, size_t n);
 
@@ -248,6 +262,22 @@ int tbl_info(const tbl_src_t *src, tbl_info_t *info);
 /* Copies tendon row i (0-based) into *out. Returns 0, TBL_E_ARG (NULL argument
  * or i >= n_tendons). */
 int tbl_tendon(const tbl_src_t *src, uint8_t i, tbl_tendon_t *out);
+
+/* Copies the fixed part of tendon row i into *out, as tbl_tendon() would.
+ * Returns 0, TBL_E_ARG (NULL argument or i >= n_tendons). */
+int tbl_tendon_head(const tbl_src_t *src, uint8_t i, tbl_tendon_head_t *out);
+
+/* Entry g (or TBL_GRID_TOP: the last) of grid row `row` of tendon i, as
+ * tbl_tendon() widens it: TBL_ROW_TARGET and TBL_ROW_ABS in cuT,
+ * TBL_ROW_TRAVEL in um. Returns 0, TBL_E_ARG (NULL argument, i >= n_tendons,
+ * another row or g beyond the grid). */
+int tbl_entry(const tbl_src_t *src, uint8_t i, uint8_t row, uint8_t g, uint32_t *out);
+
+/* Grid row `row` of tendon i into out[0..n_grid-1], widened as by
+ * tbl_entry() (one read through the copy function; later entries are left
+ * as they were). Returns n_grid, or TBL_E_ARG (NULL argument, i >=
+ * n_tendons or another row). */
+int tbl_row(const tbl_src_t *src, uint8_t i, uint8_t row, uint32_t out[TBL_MAX_GRID]);
 
 /* Copies sensor i (0-based) into *out. Returns 0, TBL_E_ARG (NULL argument or
  * i >= n_sensors). */

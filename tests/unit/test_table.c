@@ -227,6 +227,52 @@ static void test_info_and_rows(void **state)
     assert_int_equal(tbl_info(&s, NULL), TBL_E_ARG);
 }
 
+/* The parts of a row: the same values as tbl_tendon()'s. */
+static void test_row_parts(void **state)
+{
+    tbl_src_t s = src_of(&g_tab);
+    tbl_tendon_t t;
+    tbl_tendon_head_t h;
+    uint32_t r[TBL_MAX_GRID], v;
+    uint8_t i, g, row;
+    (void)state;
+    for (i = 0; i < 2u; i++) {
+        assert_int_equal(tbl_tendon(&s, i, &t), 0);
+        assert_int_equal(tbl_tendon_head(&s, i, &h), 0);
+        assert_int_equal(h.servo_id, t.servo_id);
+        assert_int_equal(h.pull_dir, t.pull_dir);
+        assert_int_equal(h.segment, t.segment);
+        assert_int_equal(h.sensor, t.sensor);
+        assert_int_equal(h.nm_per_tick, t.nm_per_tick);
+        assert_int_equal(h.travel_limit_um, t.travel_limit_um);
+        for (row = 0; row < TBL_ROW_STRAIGHT; row++) {
+            const uint32_t *want = row == TBL_ROW_TARGET ? t.target_cuT
+                                   : row == TBL_ROW_ABS  ? t.abs_target_cuT
+                                                         : t.travel_um;
+            memset(r, 0x5A, sizeof r);
+            assert_int_equal(tbl_row(&s, i, row, r), 3);
+            assert_memory_equal(r, want, 3u * sizeof r[0]);
+            assert_int_equal(r[3], 0x5A5A5A5Au); /* beyond n_grid: untouched */
+            for (g = 0; g < 3u; g++) {
+                assert_int_equal(tbl_entry(&s, i, row, g, &v), 0);
+                assert_int_equal(v, want[g]);
+            }
+            assert_int_equal(tbl_entry(&s, i, row, TBL_GRID_TOP, &v), 0);
+            assert_int_equal(v, want[2]);
+            assert_int_equal(tbl_entry(&s, i, row, 3, &v), TBL_E_ARG);
+        }
+    }
+    assert_int_equal(tbl_tendon_head(&s, 2, &h), TBL_E_ARG);
+    assert_int_equal(tbl_tendon_head(&s, 0, NULL), TBL_E_ARG);
+    assert_int_equal(tbl_tendon_head(NULL, 0, &h), TBL_E_ARG);
+    assert_int_equal(tbl_row(&s, 2, TBL_ROW_TARGET, r), TBL_E_ARG);
+    assert_int_equal(tbl_row(&s, 0, TBL_ROW_STRAIGHT, r), TBL_E_ARG);
+    assert_int_equal(tbl_row(&s, 0, TBL_ROW_TARGET, NULL), TBL_E_ARG);
+    assert_int_equal(tbl_entry(&s, 2, TBL_ROW_TARGET, 0, &v), TBL_E_ARG);
+    assert_int_equal(tbl_entry(&s, 0, TBL_ROW_STRAIGHT, 0, &v), TBL_E_ARG);
+    assert_int_equal(tbl_entry(&s, 0, TBL_ROW_TARGET, 0, NULL), TBL_E_ARG);
+}
+
 static void test_target_interpolates(void **state)
 {
     tbl_src_t s = src_of(&g_tab);
@@ -433,6 +479,7 @@ int main(void)
         cmocka_unit_test_setup(test_check_magic_and_version, setup),
         cmocka_unit_test_setup(test_check_format_errors, setup),
         cmocka_unit_test_setup(test_info_and_rows, setup),
+        cmocka_unit_test_setup(test_row_parts, setup),
         cmocka_unit_test_setup(test_target_interpolates, setup),
         cmocka_unit_test_setup(test_target_errors, setup),
         cmocka_unit_test_setup(test_layout_is_robot_sized, setup),
