@@ -47,9 +47,11 @@ static void usage(FILE *f)
         "usage: hh_bench [options] FIRMWARE.elf\n"
         "  --limit TIME          stop after this simulated time (e.g. 30s, 500ms)\n"
         "  --until REGEX         end with exit 0 when a console line matches (repeatable)\n"
+        "  --linger TIME         after --until matched, run on this long (--fail-on stays)\n"
         "  --fail-on REGEX       end with exit 1 when a console line matches (repeatable)\n"
         "  --at 'TIME EVENT ...' a timed event (repeatable); --scenario FILE: a script of them\n"
         "  --input FILE          console input queued at power-up; --stdin: forward stdin\n"
+        "  --control FILE|-      untimed event lines, each run when read (a FIFO, stdin)\n"
         "  --interactive         console on a pty (path printed; --pty-link PATH adds a symlink)\n"
         "  --realtime            pace simulated time to the wall clock\n"
         "  --timestamps          prefix console lines with the simulated time; --quiet: no "
@@ -61,6 +63,7 @@ static void usage(FILE *f)
         "  --seed N              seed of the perturbation, the start state and all noise\n"
         "  --perturb FRAC        relative perturbation of the robot's parameters (0.05)\n"
         "  --perturb-stiffness FRAC  the backbone's stiffness (EI, EA) by FRAC instead\n"
+        "  --servo-baud N        servos' Baud Rate field at power-up (0-7; 3 = 1 Mbps)\n"
         "  --slack MIN:MAX       start slack before engagement in mm (0.3:2)\n"
         "  --survey FILE         write the identification survey of the plant (JSON) and exit\n"
         "  --survey-travel MM    survey pull past the detected engagement (default: the travel\n"
@@ -78,6 +81,8 @@ static void usage(FILE *f)
         "  --loop-table          print main-loop pass times by phase at exit (mean, p99, worst)\n"
         "  --check-tension PCT   exit 1 unless every tendon's true tension at home is within "
         "PCT%%\n"
+        "  --trace-bus           every servo-bus byte and direction change on stderr\n"
+        "the reference, with the events and the summary: docs/bench.md\n"
         "exit: 0 ok, 1 fail-on/check, 2 usage, 3 time limit before --until, 4 firmware stopped, "
         "5 signal\n");
 }

@@ -636,3 +636,17 @@ def test_realtime_stop_mid_pull_releases_within_100_ms(tmp_path):
     assert t0["max_tension_mN"] > 100  # it was pulling when the stop came
     assert t0["max_take_up_mm"] > 0
     assert all(t["tension_now_mN"] == 0.0 for t in r.summary["tendons"])
+
+
+def test_every_option_is_in_help_and_in_the_reference():
+    """The options the parser takes (sim/bench/options.c) are the ones
+    `--help` and docs/bench.md name: none learnt only from the source."""
+    src = (ROOT / "sim" / "bench" / "options.c").read_text()
+    parsed = set(re.findall(r'strcmp\(a, "(--[a-z-]+)"\)', src)) - {"--help"}
+    assert len(parsed) > 30, parsed
+    r = subprocess.run([str(BENCH), "--help"], capture_output=True, text=True, timeout=30)
+    assert r.returncode == 0
+    ref = (ROOT / "docs" / "bench.md").read_text()
+    for opt in sorted(parsed):
+        assert re.search(rf"{re.escape(opt)}\b", r.stdout), f"{opt} missing from --help"
+        assert f"`{opt}" in ref, f"{opt} missing from docs/bench.md"
