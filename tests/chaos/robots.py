@@ -13,6 +13,8 @@ sensors on a ring above the tip.
 
 from __future__ import annotations
 
+import contextlib
+import fcntl
 import hashlib
 import math
 import os
@@ -123,7 +125,10 @@ def make_robot(seed: int, friction: bool = False, **counts) -> Robot:
     r = Robot(name, ROBOTS / name, n_seg, n_ten, n_sen)
     r.dir.mkdir(parents=True, exist_ok=True)
     if not r.toml.exists() or r.toml.read_text() != text:
-        r.toml.write_text(text)
+        # whole or not at all: another worker of `pytest -n` may read it
+        tmp = r.toml.with_suffix(f".tmp{os.getpid()}")
+        tmp.write_text(text)
+        os.replace(tmp, r.toml)
     return r
 
 
@@ -139,10 +144,24 @@ def _run(cmd: list[str], log: Path) -> None:
 _make_lock = threading.Lock()  # builds share build/fw/include: one make at a time
 
 
+@contextlib.contextmanager
+def _across_processes(name: str):
+    """Held by one process at a time (the workers of `pytest -n` and a
+    chaos round beside them): a lock file under build/chaos/locks."""
+    d = ROBOTS.parent / "locks"
+    d.mkdir(parents=True, exist_ok=True)
+    with open(d / f"{name}.lock", "w") as f:
+        fcntl.flock(f, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(f, fcntl.LOCK_UN)
+
+
 def build_firmware(r: Robot, log: Path) -> None:
     """The firmware of robot r with its table built in: the one place that
     knows how the Makefile builds a firmware for another robot."""
-    with _make_lock:
+    with _make_lock, _across_processes("make"):
         _run(["make", "--no-print-directory", f"-j{os.cpu_count() or 2}", "firmware",
               f"ROBOT={r.name}", f"ROBOTS_DIR={r.dir}", f"TABLES_DIR={r.table_c.parent}"],
              log)
@@ -161,7 +180,7 @@ def build(r: Robot) -> Robot:
     one build per robot at a time."""
     with _locks_lock:
         lock = _locks.setdefault(r.name, threading.Lock())
-    with lock:
+    with lock, _across_processes(r.name):
         if r.name not in _made:
             log = r.dir / "build.log"
             log.write_text("")

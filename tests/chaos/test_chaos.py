@@ -139,20 +139,11 @@ def pool():
     return rb.pool()
 
 
-@pytest.fixture(scope="module")
-def fixed_results(request, pool):
-    """The selected seeds of the fixed set, run side by side (one bench per
-    core, as `python -m tests.chaos run` does): each test reads its own."""
-    seeds = sorted({item.callspec.params["seed"] for item in request.session.items
-                    if getattr(item, "originalname", "") == "test_schedule"
-                    and hasattr(item, "callspec")})
-    jobs = max(1, min(4, os.cpu_count() or 2))
-    return {r["seed"]: r for r in runner.run_many(seeds, jobs, quiet=True)}
-
-
 @pytest.mark.parametrize("seed", FIXED)
-def test_schedule(seed, fixed_results):
-    r = fixed_results[seed]
+def test_schedule(seed, pool):
+    """One seed of the fixed set on the bench (make chaos-test runs the
+    suite in one worker per core, pytest -n)."""
+    r = runner.run_one(seed, pool)
     msgs = [f"{k}: {m}" for k, v in r["violations"].items() for m in v]
     if msgs and seed in KNOWN_FAILING:
         # runs in full and reports what it measured; passes once fixed
