@@ -87,6 +87,9 @@
  * servo timeout because of two unlucky bytes; a servo that stays silent still
  * times out, and the other transactions resume. */
 #define APP_POS_RETRIES 3u
+/* Position reads of the pulled tendon's servo alone between two reads of
+ * every servo during a run's take-up and approach (app_bus.c: focus()). */
+#define APP_FOCUS_READS 2u
 /* A servo whose position has not been read for this long is a fault. The
  * firmware reads positions every 5-13 ms (a pass of the loop took up to about
  * 13 ms when this was chosen, 4 ms now), so 50 ms left room for only four reads,
@@ -244,6 +247,7 @@ typedef struct {
     uint8_t pos_streak; /* position reads in a row that missed a servo */
     uint8_t wdog_step;  /* Bus Watchdog writes left after a bring-up (two per servo) */
     uint8_t wdog_gap;   /* 1: a position read comes before the next Bus Watchdog write */
+    uint8_t focus;      /* reads of the pulled tendon alone since the last read of all */
     uint8_t wdog_bcast; /* broadcast Bus Watchdog writes left: 2 clear, 1 arm */
     uint8_t reboot_id;
     uint8_t reboot_req;   /* a reboot of reboot_id waits: bus transactions left at most (0: none) */

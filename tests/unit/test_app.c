@@ -529,6 +529,42 @@ static void test_slow_loop_single_tendon(void **state)
     assert_non_null(strstr(g_line, "mode=single"));
 }
 
+/* While a run pulls a tendon, the position reads ask its servo alone but
+ * every APP_FOCUS_READS + 1-th asks every servo (app_bus.c, focus()): the
+ * pulled servo is read most, the others often enough that no position
+ * goes stale, and a read of every servo still ends each silence check. */
+static void test_pulled_servo_read_alone(void **state)
+{
+    uint16_t n_pulled, n_other;
+    uint32_t oldest = 0, t;
+    uint8_t i, k;
+    (void)state;
+    boot(&g_b, 1);
+    cmd(&g_b, "cal", "ok");
+    assert_true(app_bench_wait_line(&g_b, "<progress state=engaged tendon=0", g_line, sizeof g_line,
+                                    20000));
+    n_pulled = g_b.servo[0].replies;
+    n_other = g_b.servo[3].replies;
+    for (t = 0; t < 40u; t++) {
+        app_bench_run_ms(&g_b, 1);
+        assert_int_equal(hom_pulling(&g_b.app.u.hom, &k), 1);
+        assert_int_equal(k, 0);
+        for (i = 0; i < g_b.cfg.n_tendons; i++) {
+            uint32_t age = g_b.app.u.hom.now_ms - g_b.app.u.hom.tendon[i].servo_ok_ms;
+            oldest = age > oldest ? age : oldest;
+        }
+        assert_true((uint16_t)(g_b.app.u.hom.now_ms - g_b.app.bus.t_all_ok) < 10u);
+    }
+    n_pulled = (uint16_t)(g_b.servo[0].replies - n_pulled);
+    n_other = (uint16_t)(g_b.servo[3].replies - n_other);
+    print_message("40 ms of a fine approach: %u replies of the pulled servo, %u of another, "
+                  "oldest position %u ms\n",
+                  n_pulled, n_other, (unsigned)oldest);
+    assert_true(n_other >= 5u);
+    assert_true(n_pulled >= 2u * n_other);
+    assert_true(oldest < 10u);
+}
+
 /* EEPROM writes only while nothing moves: a run asked for while the records
  * of the previous one are being written starts after them, and no byte is
  * written during it. After a power cycle with a spool turned by hand, the
@@ -688,6 +724,7 @@ int main(void)
         cmocka_unit_test(test_board_counted_press),
         cmocka_unit_test(test_debounce_led_and_eeprom_failure),
         cmocka_unit_test(test_slow_loop_single_tendon),
+        cmocka_unit_test(test_pulled_servo_read_alone),
         cmocka_unit_test(test_store_idle_only_and_moved_spool),
         cmocka_unit_test(test_button_calibrates_and_stores),
         cmocka_unit_test(test_bus_noise_calibrates),

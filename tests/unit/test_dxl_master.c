@@ -124,6 +124,36 @@ static void test_crc_error_retried(void **state)
     assert_int_equal(dxl_reply_for(&R.m, 1)->len, 0);
 }
 
+/* The call that starts a transaction queues its request at once: a main
+ * loop that polls once a pass got a read's reply a pass later, not three.
+ * A retry waits for the next poll, since the spoilt reply before it may
+ * still be arriving. */
+static void test_request_queued_by_the_call_that_starts_it(void **state)
+{
+    (void)state;
+    rig_init(&R, 1, 0);
+    R.bus.corrupt_at = 9; /* a data byte of the first reply */
+    assert_int_equal(dxl_read(&R.m, 1, 132, 4), 1);
+    assert_int_equal(R.m.tx_sent, R.m.tx_len);
+    assert_int_equal(R.bus.out_head != R.bus.out_tail, 1);
+    while (R.m.stats.retries == 0u && R.bus.now < RUN_US) {
+        dxl_fakebus_advance(&R.bus, 1);
+        assert_int_equal(dxl_poll(&R.m), 1);
+    }
+    assert_int_equal(R.m.stats.retries, 1);
+    assert_int_equal(R.m.tx_sent, 0);
+    assert_int_equal(dxl_poll(&R.m), 1);
+    assert_int_equal(R.m.tx_sent, R.m.tx_len);
+    assert_int_equal(run(), 0);
+    assert_int_equal(dxl_reply_value(dxl_reply_for(&R.m, 1), 4), 100);
+    /* a sync write has no reply: over once its last byte has left */
+    uint8_t ids[1] = {1}, data[4] = {1, 0, 0, 0};
+    assert_int_equal(dxl_sync_write(&R.m, 116, 4, ids, data, 1), 1);
+    assert_int_equal(R.m.tx_sent, R.m.tx_len);
+    assert_int_equal(run(), 0);
+    assert_int_equal(R.bus.collisions, 0);
+}
+
 static void test_error_byte_and_alert(void **state)
 {
     (void)state;
@@ -697,6 +727,7 @@ int main(void)
         cmocka_unit_test(test_busy_refuses_second_transaction),
         cmocka_unit_test(test_timeout_retries_then_fails),
         cmocka_unit_test(test_crc_error_retried),
+        cmocka_unit_test(test_request_queued_by_the_call_that_starts_it),
         cmocka_unit_test(test_error_byte_and_alert),
         cmocka_unit_test(test_wrong_id_reported),
         cmocka_unit_test(test_late_reply_not_taken_for_next),
