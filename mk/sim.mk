@@ -146,7 +146,7 @@ sim: $(if $(SIM_ROBOT_KNOWN),$(SIM_PLANT) $(BENCH) firmware,sim-no-robot)
 SIM_TEST_ROBOT := paper_2seg
 sim-test: $(BENCH) $(TESTFW_ELFS)
 	@$(MAKE) --no-print-directory firmware ROBOT=$(SIM_TEST_ROBOT)
-	$(VENV)/bin/pytest -q -n $(JOBS) tests/sim
+	$(VENV)/bin/pytest -q -n $(JOBS) --dist worksteal tests/sim
 
 TEST_TARGETS += sim-test
 
