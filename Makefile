@@ -96,7 +96,7 @@ NO_ROBOT = { echo "make $(or $(MAKECMDGOALS),firmware): no robot '$(ROBOT)': nei
 NO_TABLE = { echo "make $(or $(MAKECMDGOALS),flash): robot '$(ROBOT)' has no table $(TABLES_DIR)/$(ROBOT).c: its firmware would boot with table=none and refuse to calibrate"; \
 	echo "generate it first: $(VENV)/bin/hallhome tables $(ROBOTS_DIR)/$(ROBOT).toml --out-dir $(TABLES_DIR)"; exit 2; }
 
-.PHONY: all firmware size flash fw-path help bootstrap test native-build unit avr-lib fuzz fuzz-smoke host-test lint \
+.PHONY: all firmware size flash fw-path help bootstrap test native-build unit avr-lib fuzz fuzz-smoke host-test pytest-suites lint \
 	format clean robot-unknown table-missing
 all: firmware
 
@@ -205,8 +205,17 @@ fuzz: fuzz-build
 	@bash scripts/fuzz.sh $(FUZZ_DIR) -max_total_time=$(FUZZ_SECONDS)
 
 # --- host tests (pytest in the project venv) ---------------------------------
+# A worker per core; idle workers steal queued tests (tests/conftest.py orders
+# the long ones first).
+PYTEST_ARGS := -q -n $(JOBS) --dist worksteal -rxX
 host-test: $(STAMP) native-build
-	$(VENV)/bin/pytest -q -n $(JOBS) tests/host
+	$(VENV)/bin/pytest $(PYTEST_ARGS) tests/host
+
+# make test runs the pytest suites in one session (no worker waits at the end
+# of one suite while the other finishes it); mk/*.mk add theirs and what they
+# need built.
+PYTEST_SUITES := tests/host
+PYTEST_DEPS   := native-build
 
 # --- lint -----------------------------------------------------------------------
 C_FILES = $(shell git ls-files -co --exclude-standard -- '*.c' '*.h' | grep -v '^lookup_tables/generated/')
@@ -219,9 +228,14 @@ lint: $(STAMP)
 format:
 	clang-format -i $(C_FILES)
 
-# Later parts of the project append their suites to TEST_TARGETS in mk/*.mk.
-TEST_TARGETS := unit avr-lib firmware size fuzz-smoke host-test lint
+# Later parts of the project append their suites to TEST_TARGETS in mk/*.mk,
+# their pytest suites to PYTEST_SUITES.
+TEST_TARGETS := unit avr-lib firmware size fuzz-smoke lint
 -include $(sort $(wildcard mk/*.mk))
+TEST_TARGETS += pytest-suites
+
+pytest-suites: $(STAMP) $(PYTEST_DEPS)
+	$(VENV)/bin/pytest $(PYTEST_ARGS) $(PYTEST_SUITES)
 
 test: $(STAMP)
 	@set -e; for t in $(TEST_TARGETS); do echo "=== make $$t"; $(MAKE) --no-print-directory $$t; done

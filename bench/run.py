@@ -491,6 +491,11 @@ def identify_item(a, res: Dict) -> None:
     sets = [{"key": k, "perturb": p, "perturb_stiffness": ps, "modes": list(modes),
              "description_friction_mN": fr, "seeds": list(range(1, (n or full) + 1))}
             for k, p, ps, full, modes, fr in ID_SETS]
+    if a.reduced:
+        # the pipeline once (a survey, the fit with one weight per segment, its
+        # targets and their errors): the other fits are the host and sim
+        # suites' (tests/host/test_identify.py, tests/sim/test_identify_bench.py)
+        sets = [dict(sets[0], modes=["weights"])]
     total = sum(len(st["seeds"]) for st in sets)
     log(f"identification: {total} seeded robots (a survey, two to four fits and tables each), "
         f"{a.jobs} at a time; a fit takes 5-60 s")

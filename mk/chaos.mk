@@ -28,6 +28,7 @@ chaos-regress: $(CHAOS_BENCH) | $(STAMP)
 	$(PY) -m tests.chaos seeds tests/chaos/regression_seeds.txt --jobs $(JOBS)
 
 chaos-test: $(CHAOS_BENCH) | $(STAMP)
-	$(VENV)/bin/pytest -q -n $(JOBS) --dist worksteal -rxX $(CHAOS_FIXED)
+	$(VENV)/bin/pytest $(PYTEST_ARGS) $(CHAOS_FIXED)
 
-TEST_TARGETS += chaos-test
+PYTEST_SUITES += $(CHAOS_FIXED)
+PYTEST_DEPS   += $(CHAOS_BENCH)

@@ -144,10 +144,14 @@ sim: $(if $(SIM_ROBOT_KNOWN),$(SIM_PLANT) $(BENCH) firmware,sim-no-robot)
 
 # The suites run the default robot's firmware (paper_2seg), whatever ROBOT is.
 SIM_TEST_ROBOT := paper_2seg
-sim-test: $(BENCH) $(TESTFW_ELFS)
+.PHONY: sim-test-firmware
+sim-test-firmware:
 	@$(MAKE) --no-print-directory firmware ROBOT=$(SIM_TEST_ROBOT)
-	$(VENV)/bin/pytest -q -n $(JOBS) --dist worksteal tests/sim
 
-TEST_TARGETS += sim-test
+sim-test: $(BENCH) $(TESTFW_ELFS) sim-test-firmware
+	$(VENV)/bin/pytest $(PYTEST_ARGS) tests/sim
+
+PYTEST_SUITES += tests/sim
+PYTEST_DEPS   += $(BENCH) $(TESTFW_ELFS) sim-test-firmware
 
 -include $(BENCH_OBJS:.o=.d)

@@ -38,7 +38,6 @@ SHELL_FENCES = ("", "sh", "bash", "console", "shell")
 
 # `make sim` and the files it keeps under build/ are shared: one of these
 # tests at a time (conftest.py), in whichever worker of `pytest -n`.
-pytestmark = pytest.mark.usefixtures("make_sim_lock")
 
 
 def _strip_comment(line: str) -> str:
@@ -348,6 +347,11 @@ RULES = [
 COMMANDS = collect()
 
 
+# The rules that run `make` for real (not `-n`): they share what `make sim`
+# keeps under build/ (conftest.py, make_sim_lock); the others run beside them.
+SHARES_MAKE_SIM = (do_make_sim, do_interactive, do_make_run)
+
+
 def rule_for(cmd):
     for pattern, rule in RULES:
         if re.search(pattern, cmd):
@@ -361,9 +365,18 @@ def test_the_docs_show_commands_and_every_one_has_a_rule():
     assert not missing, "documented commands without a rule here:\n" + "\n".join(missing)
 
 
-@pytest.mark.parametrize("cmd", sorted(COMMANDS), ids=lambda c: c[:60])
-def test_documented_command(cmd, tmp_path):
+def _shares_make_sim(cmd):
+    rule = rule_for(cmd)
+    return rule is not None and rule[1] in SHARES_MAKE_SIM
+
+
+@pytest.mark.parametrize("cmd", [
+    pytest.param(c, id=c[:60], marks=[pytest.mark.make_sim] if _shares_make_sim(c) else [])
+    for c in sorted(COMMANDS)])
+def test_documented_command(cmd, tmp_path, request):
     rule = rule_for(cmd)
     if rule is None:
         pytest.fail(f"{COMMANDS[cmd]}: no rule for {cmd!r}")
+    if request.node.get_closest_marker("make_sim"):
+        request.getfixturevalue("make_sim_lock")
     rule[1](cmd, tmp_path)

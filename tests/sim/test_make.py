@@ -19,9 +19,9 @@ ROOT = Path(__file__).resolve().parents[2]
 HALLHOME = ROOT / ".venv" / "bin" / "hallhome"
 PAPER = ROOT / "lookup_tables" / "robots" / "paper_2seg.toml"
 
-# `make sim` and the files it keeps under build/ are shared: one of these
-# tests at a time (conftest.py), in whichever worker of `pytest -n`.
-pytestmark = pytest.mark.usefixtures("make_sim_lock")
+# `make sim` and the files it keeps under build/ are shared: the tests that
+# run it for real take turns (fresh_seed holds conftest.py's make_sim_lock);
+# the others run `make -n`, fail before building, or build robots of their own.
 
 
 def make(*args, check=None):
@@ -108,6 +108,7 @@ def robots(tmp_path):
         shutil.rmtree(ROOT / "build" / "fw" / n, ignore_errors=True)
 
 
+@pytest.mark.slow(15)
 def test_switching_robots_builds_each_with_its_own_table(robots):
     rd, td, dirs = robots
     elf_a = ROOT / fw_path("mkbot_a", *dirs).strip()
@@ -178,6 +179,7 @@ def fresh_seed(make_sim_lock):
     clean()
 
 
+@pytest.mark.slow(40)
 def test_sim_identifies_the_robot_then_calibrates_with_its_table(fresh_seed):
     r = make("sim", "SEED=3", "PERTURB=0.05")
     assert r.returncode == 0, r.out[-3000:]
@@ -221,6 +223,7 @@ def test_sim_without_identification_and_fault_scenarios_use_the_nominal_table(fr
     assert not fresh_seed.exists()  # a dry run runs nothing
 
 
+@pytest.mark.slow(12)
 def test_sim_calibrates_with_the_nominal_table_when_the_fit_is_refused(fresh_seed, tmp_path):
     """A fit refused (here by a stand-in for the venv's python that refuses
     every fit) is reported and the nominal table calibrates."""

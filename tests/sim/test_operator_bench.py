@@ -600,6 +600,7 @@ def test_second_command_on_a_busy_port_fails_and_leaves_the_run_alone(bench):
     assert "<released reason=aborted>" not in b.text()[m:]
 
 
+@pytest.mark.slow(21)
 def test_calibrate_refuses_a_board_with_another_robots_table(bench):
     b = bench()
     m = b.mark()
@@ -624,6 +625,7 @@ def test_status_names_a_saturated_sensor(bench):
     assert "why=3" not in r.stdout + r.stderr
 
 
+@pytest.mark.slow(15)
 def test_home_release_and_rehome_wait_until_done(bench):
     b = bench()
     r = hh("rehome", "--port", b.pty, timeout=120)  # no homes yet
@@ -700,6 +702,7 @@ def _identified(tmp_path, name, **edits):
     return p
 
 
+@pytest.mark.slow(32)
 def test_identify_install_puts_the_identified_targets_on_the_board(bench, tmp_path):
     # as if identified: a magnet 4 % weaker than the drawing says
     ident = _identified(tmp_path, "paper_2seg_id",
@@ -734,6 +737,7 @@ def test_identify_install_puts_the_identified_targets_on_the_board(bench, tmp_pa
     assert json.loads(r.stdout)["learned"] == []
 
 
+@pytest.mark.slow(22)
 def test_identify_install_refuses_a_description_that_does_not_fit_the_board(bench, tmp_path):
     b = bench()
     other_grid = _identified(

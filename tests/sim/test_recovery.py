@@ -192,6 +192,7 @@ def test_a_start_during_the_release_after_a_stop_waits_for_it(tmp_path, start):
     completes(r)
 
 
+@pytest.mark.slow(12)
 def test_repeated_stops_pay_out_a_bounded_amount(tmp_path):
     """Five stops in a row at different phases, then a press: every tendon is
     found, and after the last stop no tendon stands more than the first
