@@ -106,14 +106,24 @@ def fill(cmd: str, tmp: Path) -> list[str]:
 _PASSED: set = set()
 
 
-def once(check):
-    """Examples that are the same command once filled in run once."""
+def filled(cmd):
+    """The command as it runs (argv, a fixed stand-in for the temporary
+    directory): examples that differ only in how they are written match."""
+    return tuple(fill(cmd, Path("/TMP")))
+
+
+def once(check=None, *, key=filled):
+    """Examples whose ``key`` is the same run once (per worker): ``@once``, or
+    ``@once(key=...)``."""
+    if check is None:
+        return lambda c: once(c, key=key)
+
     def wrapper(cmd, tmp):
-        key = (check.__name__, tuple(fill(cmd, Path("/TMP"))))
-        if key in _PASSED:
+        k = (check.__name__, key(cmd))
+        if k in _PASSED:
             return
         check(cmd, tmp)
-        _PASSED.add(key)
+        _PASSED.add(k)
     wrapper.__name__ = check.__name__
     return wrapper
 
@@ -133,23 +143,28 @@ def do_make_run(cmd, tmp):
     assert "No rule to make target" not in r.out
 
 
-_SIMS_PASSED: set = set()
-
-
-def do_make_sim(cmd, tmp):
+def sim_argv(cmd, tmp):
     # A fixed SEED: with a random one the outcome depends on the draw (some
-    # seeds land outside the 10 % tolerance, sim/README.md). Examples that
-    # come to the same command (`make sim`, `make sim SEED=N`) run once.
+    # seeds land outside the 10 % tolerance, sim/README.md).
     argv = fill(cmd, tmp)
     if not any(a.startswith("SEED=") for a in argv):
         argv.append("SEED=3")
-    key = (argv[0], argv[1], *sorted(argv[2:]))
-    if key in _SIMS_PASSED:
-        return
+    return argv
+
+
+def sim_key(cmd):
+    """`make sim` and `make sim SEED=N` are one command; so are the same
+    variables in any order."""
+    argv = sim_argv(cmd, Path("/TMP"))
+    return (argv[0], argv[1], *sorted(argv[2:]))
+
+
+@once(key=sim_key)
+def do_make_sim(cmd, tmp):
+    argv = sim_argv(cmd, tmp)
     r = run(argv)
     assert r.returncode == 0, f"{' '.join(argv)}:\n{r.out[-3000:]}"
     assert re.search(r"^\s+0\s+1\s+\d+ .*\s(pass|-)$", r.stdout, re.M), r.stdout[-2000:]
-    _SIMS_PASSED.add(key)
 
 
 def do_dry(cmd, tmp):
