@@ -16,6 +16,8 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 from typing import Dict, List
 
+import hallhome  # noqa: F401  (before numpy: it sets one BLAS thread)
+
 from . import native, plots, report, simavr, stats, straight_fw
 
 

@@ -16,6 +16,8 @@ tests start first:
 `pytest -m "not slow"` leaves the long ones out while working on something.
 """
 
+import hallhome  # noqa: F401  (first: it sets one BLAS thread before numpy loads)
+
 
 def pytest_configure(config):
     config.addinivalue_line(
