@@ -308,7 +308,7 @@ typedef struct {
     int32_t travel_ticks; /* expected take-up from engagement */
     int32_t limit_ticks;  /* travel limit from engagement */
     int32_t margin_ticks; /* slack margin */
-    uint32_t nm_per_tick; /* table spool factor */
+    uint16_t nm_per_tick; /* table spool factor (the table's own width) */
     int32_t engage;       /* engagement position, ticks */
     int32_t home;         /* home, ticks */
     int32_t est_home;     /* quick mode: stored home in this power cycle's frame */
