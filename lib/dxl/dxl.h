@@ -35,9 +35,11 @@
 #ifndef DXL_TX_CAP
 #define DXL_TX_CAP 96u
 #endif
-/* Reply body buffer: a fast sync read of 4 bytes from 12 servos needs 96. */
+/* Reply body buffer: a fast sync read of 4 bytes takes 8 per servo (96 for
+ * 12 servos), a single status its data and two bytes; 112 for 12 servos,
+ * less in a firmware whose DXL_MAX_IDS is its robot's servos. */
 #ifndef DXL_RX_CAP
-#define DXL_RX_CAP 112u
+#define DXL_RX_CAP (DXL_MAX_IDS * 8u + 16u)
 #endif
 
 #define DXL_DIR_RX 0u
