@@ -82,8 +82,12 @@ AVR_SIZE_OPT := -fno-tree-loop-ivcanon -fno-ipa-sra -fno-ipa-cp-clone -flto-part
 # app's servo bus, windows and frames, the servo master's replies) for its
 # table's tendons only, the count in the table's TBL_LAYOUT, not for the
 # format's 12; a table with more is refused as one with too many sensors is.
+# The same for sensors, when the table has fewer than the 4 a firmware keeps
+# state for (HOM_MAX_SENSORS; a table with more is refused).
 TABLE_TENDONS := $(if $(TABLE_SRC),$(shell sed -n 's/^TBL_LAYOUT.\([0-9]*\).*/\1/p' $(TABLE_SRC)))
-AVR_ROBOT_CFG := $(if $(TABLE_TENDONS),-DHOM_MAX_TENDONS=$(TABLE_TENDONS)u -DDXL_MAX_IDS=$(TABLE_TENDONS)u)
+TABLE_SENSORS := $(if $(TABLE_SRC),$(shell sed -n 's/^TBL_LAYOUT.[0-9]*, *\([0-9]*\).*/\1/p' $(TABLE_SRC)))
+AVR_ROBOT_CFG := $(if $(TABLE_TENDONS),-DHOM_MAX_TENDONS=$(TABLE_TENDONS)u -DDXL_MAX_IDS=$(TABLE_TENDONS)u) \
+	$(if $(filter 1 2 3,$(TABLE_SENSORS)),-DHOM_MAX_SENSORS=$(TABLE_SENSORS)u)
 AVR_LIB_CFG := $(AVR_ROBOT_CFG) -DDXL_PORT_FIXED=1 -DCON_IO_FIXED=1 -DSTORE_EE_FIXED=1 -DICM_BUS_FIXED=1 -DAPP_BOARD_FIXED=1 -DCON_HANDLERS=0 -DDXL_REPLY_DATA=4u -DHOM_EV_TIME=0 -DDXL_STATS=0 -DICM_STATS=0 -DSTORE_SETTING_HELP=0
 AVR_CFLAGS := $(AVR_LIB_CFG) -mmcu=$(MCU) -DF_CPU=$(F_CPU) -std=c99 -Os -g -Wall -Wextra -Werror -pedantic \
 	-Wshadow -Wstrict-prototypes -Wmissing-prototypes -ffunction-sections -fdata-sections \

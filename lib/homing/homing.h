@@ -86,9 +86,12 @@
 #define HOM_EV_TIME 1
 #endif
 /* Sensors a run can use (the table format allows TBL_MAX_SENSORS): state is
- * kept per sensor, and the firmware's RAM is sized for this many. A table
+ * kept per sensor, and the firmware's RAM is sized for this many (4, or a
+ * robot's table's fewer: the Makefile passes -DHOM_MAX_SENSORS=n). A table
  * with more is refused by hom_start() (HOM_E_TABLE). */
+#ifndef HOM_MAX_SENSORS
 #define HOM_MAX_SENSORS 4u
+#endif
 /* Tendons a run can use: the table format allows TBL_MAX_TENDONS, and state
  * is kept per tendon. A firmware built for one robot sizes it to that robot's
  * table (-DHOM_MAX_TENDONS=n; the Makefile reads n from the table). A table
