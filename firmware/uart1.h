@@ -21,8 +21,14 @@
 
 /* Power of two, at most 256 (uint8_t indices): the replies to one sync read
  * of every servo (12 x 15 bytes for Present Position) arrive back to back in
- * about 2 ms and must fit while a main-loop pass runs; 128 lost the tenth. */
+ * about 2 ms and must fit while a main-loop pass runs; 128 lost the tenth.
+ * A firmware for at most 6 servos (DXL_MAX_IDS, its robot's) gets 128: the
+ * 90 bytes of six replies fit whole. */
+#if DXL_MAX_IDS <= 6
+#define UART1_RX_SIZE 128u
+#else
 #define UART1_RX_SIZE 256u
+#endif
 #define UART1_TX_MAX  255u /* longest request uart1_write() sends (uint8_t count) */
 
 /* Configures UART1 at `baud` (8N1, U2X: 1 Mbps and 2 Mbps are exact at
