@@ -100,7 +100,14 @@ AVR_CFLAGS := $(AVR_LIB_CFG) -mmcu=$(MCU) -DF_CPU=$(F_CPU) -std=c99 -Os -g -Wall
 # dxl_, con_, tbl_) then lie together, within reach of the 2-byte relative
 # calls and jumps that -mrelax turns the 4-byte ones into (measured: -162 B;
 # in the one section the LTO output had, they lay in the compiler's order).
-AVR_LDFLAGS := -mmcu=$(MCU) -Os -mcall-prologues -mstrict-X -fno-inline-small-functions $(AVR_SIZE_OPT) -flto -mrelax -ffunction-sections -Wl,--sort-section=name -Wl,--gc-sections -Wl,-Map,$(FW_MAP)
+# Most calls and jumps between functions still spanned more than the 4 KB
+# that rcall and rjmp reach: firmware/link_order.txt (scripts/link_order.py
+# writes it from a linked firmware) places the functions first, in an order
+# that brings the most call and jump sites within reach, in the toolchain's
+# own linker script for the MCU; what it does not name (a function added
+# since) follows, sorted by name (measured: -906 B on either robot).
+FW_LDSCRIPT := $(FW_DIR)/link.x
+AVR_LDFLAGS := -mmcu=$(MCU) -Os -mcall-prologues -mstrict-X -fno-inline-small-functions $(AVR_SIZE_OPT) -flto -mrelax -ffunction-sections -Wl,--sort-section=name -Wl,--gc-sections -Wl,-Map,$(FW_MAP) -Wl,-T,$(FW_LDSCRIPT)
 
 # Shell lines that stop a target for an unknown robot or a missing table.
 NO_ROBOT = { echo "make $(or $(MAKECMDGOALS),firmware): no robot '$(ROBOT)': neither $(ROBOTS_DIR)/$(ROBOT).toml nor $(TABLES_DIR)/$(ROBOT).c exists"; \
@@ -170,8 +177,18 @@ $(TABLE_OBJ): $(TABLE_SRC) $(VERSION_H) $(FW_DIR)/flags.txt | $(STAMP)
 	$(AVR_CC) $(AVR_CFLAGS) -c $< -o $@
 endif
 
-$(FW_ELF): $(FW_OBJS) $(FW_DIR)/objects.txt $(FW_DIR)/flags.txt
+$(FW_ELF): $(FW_OBJS) $(FW_DIR)/objects.txt $(FW_DIR)/flags.txt $(FW_LDSCRIPT)
 	$(AVR_CC) $(AVR_LDFLAGS) $(FW_OBJS) -o $@
+
+# The default script of the MCU's emulation with the sections of
+# firmware/link_order.txt placed before the rest of .text.* (a script without
+# that line fails the build rather than losing the order).
+$(FW_LDSCRIPT): firmware/link_order.txt | $(STAMP)
+	@mkdir -p $(@D)
+	avr-ld --verbose -m$$($(AVR_CC) -mmcu=$(MCU) -print-multi-directory) | awk -v order=$< \
+		'/^=====/ { inside = !inside; next } !inside { next } \
+		/^ *\*\(\.text\.\*\)$$/ { while ((getline p < order) > 0) if (p !~ /^#/ && p != "") print "    *(" p ")"; done = 1 } \
+		{ print } END { if (!done) exit 1 }' > $@.tmp && mv $@.tmp $@
 
 $(FW_HEX): $(FW_ELF)
 	$(AVR_OBJCOPY) -O ihex -R .eeprom $< $@

@@ -29,7 +29,7 @@
 #else
 #define UART1_RX_SIZE 256u
 #endif
-#define UART1_TX_MAX  255u /* longest request uart1_write() sends (uint8_t count) */
+#define UART1_TX_MAX 255u /* longest request uart1_write() sends (uint8_t count) */
 
 /* Configures UART1 at `baud` (8N1, U2X: 1 Mbps and 2 Mbps are exact at
  * 16 MHz, 57600 is -0.8 %), the direction pin as an output in receive, and
