@@ -57,11 +57,13 @@ FW_OBJS  := $(patsubst %.c,$(AVR_DIR)/%.o,$(FW_SRCS)) $(TABLE_OBJ)
 # Branches kept as branches rather than turned into selects of 32-bit values
 # (measured: -76 B). Whole-program points-to analysis and the priority
 # register allocator (measured together: -0.2 KB). Loops not rewritten around
-# a computed trip count (measured: -50 B).
+# a computed trip count (measured: -50 B). Enumerations in one byte where
+# their values fit (no enum is stored in EEPROM or shared with the host;
+# measured: -60 B).
 AVR_SIZE_OPT := -fno-tree-loop-ivcanon -fno-ipa-sra -fno-ipa-cp-clone -flto-partition=none \
 	-fno-move-loop-invariants -fno-tree-pre -fno-split-wide-types -maccumulate-args \
 	-fno-tree-forwprop -fno-tree-dominator-opts -fno-tree-reassoc -fno-ssa-phiopt \
-	-fipa-pta -fira-algorithm=priority
+	-fipa-pta -fira-algorithm=priority -fshort-enums
 # The libraries sized to what the firmware uses (each knob is described where
 # it is defined): 4 data bytes per servo reply, the most the firmware reads (a
 # Present Position; a ping returns 3), not the default 8 (48 bytes of RAM for
@@ -78,7 +80,17 @@ AVR_SIZE_OPT := -fno-tree-loop-ivcanon -fno-ipa-sra -fno-ipa-cp-clone -flto-part
 # keeps its engagement windows at a fixed address (app_board_win; 210 bytes).
 # The app runs every command itself: the console has no handler table (130
 # bytes of flash, 6 of RAM).
-AVR_LIB_CFG := -DDXL_PORT_FIXED=1 -DCON_IO_FIXED=1 -DSTORE_EE_FIXED=1 -DICM_BUS_FIXED=1 -DAPP_BOARD_FIXED=1 -DCON_HANDLERS=0 -DDXL_REPLY_DATA=4u -DHOM_EV_TIME=0 -DDXL_STATS=0 -DICM_STATS=0 -DSTORE_SETTING_HELP=0
+# A firmware built for one robot keeps per-tendon state (the homing's, the
+# app's servo bus, windows and frames, the servo master's replies) for its
+# table's tendons only, the count in the table's TBL_LAYOUT, not for the
+# format's 12; a table with more is refused as one with too many sensors is.
+# The same for sensors, when the table has fewer than the 4 a firmware keeps
+# state for (HOM_MAX_SENSORS; a table with more is refused).
+TABLE_TENDONS := $(if $(TABLE_SRC),$(shell sed -n 's/^TBL_LAYOUT.\([0-9]*\).*/\1/p' $(TABLE_SRC)))
+TABLE_SENSORS := $(if $(TABLE_SRC),$(shell sed -n 's/^TBL_LAYOUT.[0-9]*, *\([0-9]*\).*/\1/p' $(TABLE_SRC)))
+AVR_ROBOT_CFG := $(if $(TABLE_TENDONS),-DHOM_MAX_TENDONS=$(TABLE_TENDONS)u -DDXL_MAX_IDS=$(TABLE_TENDONS)u) \
+	$(if $(filter 1 2 3,$(TABLE_SENSORS)),-DHOM_MAX_SENSORS=$(TABLE_SENSORS)u)
+AVR_LIB_CFG := $(AVR_ROBOT_CFG) -DDXL_PORT_FIXED=1 -DCON_IO_FIXED=1 -DSTORE_EE_FIXED=1 -DICM_BUS_FIXED=1 -DAPP_BOARD_FIXED=1 -DCON_HANDLERS=0 -DDXL_REPLY_DATA=4u -DHOM_EV_TIME=0 -DDXL_STATS=0 -DICM_STATS=0 -DSTORE_SETTING_HELP=0
 AVR_CFLAGS := $(AVR_LIB_CFG) -mmcu=$(MCU) -DF_CPU=$(F_CPU) -std=c99 -Os -g -Wall -Wextra -Werror -pedantic \
 	-Wshadow -Wstrict-prototypes -Wmissing-prototypes -ffunction-sections -fdata-sections \
 	-mcall-prologues -mstrict-X -fno-inline-small-functions $(AVR_SIZE_OPT) -flto -mrelax -Ilib -Ifirmware -I$(FW_GEN_DIR) -DTBL_FLASH=__attribute__\(\(__progmem__\)\) \
@@ -88,7 +100,14 @@ AVR_CFLAGS := $(AVR_LIB_CFG) -mmcu=$(MCU) -DF_CPU=$(F_CPU) -std=c99 -Os -g -Wall
 # dxl_, con_, tbl_) then lie together, within reach of the 2-byte relative
 # calls and jumps that -mrelax turns the 4-byte ones into (measured: -162 B;
 # in the one section the LTO output had, they lay in the compiler's order).
-AVR_LDFLAGS := -mmcu=$(MCU) -Os -mcall-prologues -mstrict-X -fno-inline-small-functions $(AVR_SIZE_OPT) -flto -mrelax -ffunction-sections -Wl,--sort-section=name -Wl,--gc-sections -Wl,-Map,$(FW_MAP)
+# Most calls and jumps between functions still spanned more than the 4 KB
+# that rcall and rjmp reach: firmware/link_order.txt (scripts/link_order.py
+# writes it from a linked firmware) places the functions first, in an order
+# that brings the most call and jump sites within reach, in the toolchain's
+# own linker script for the MCU; what it does not name (a function added
+# since) follows, sorted by name (measured: -906 B on either robot).
+FW_LDSCRIPT := $(FW_DIR)/link.x
+AVR_LDFLAGS := -mmcu=$(MCU) -Os -mcall-prologues -mstrict-X -fno-inline-small-functions $(AVR_SIZE_OPT) -flto -mrelax -ffunction-sections -Wl,--sort-section=name -Wl,--gc-sections -Wl,-Map,$(FW_MAP) -Wl,-T,$(FW_LDSCRIPT)
 
 # Shell lines that stop a target for an unknown robot or a missing table.
 NO_ROBOT = { echo "make $(or $(MAKECMDGOALS),firmware): no robot '$(ROBOT)': neither $(ROBOTS_DIR)/$(ROBOT).toml nor $(TABLES_DIR)/$(ROBOT).c exists"; \
@@ -158,8 +177,18 @@ $(TABLE_OBJ): $(TABLE_SRC) $(VERSION_H) $(FW_DIR)/flags.txt | $(STAMP)
 	$(AVR_CC) $(AVR_CFLAGS) -c $< -o $@
 endif
 
-$(FW_ELF): $(FW_OBJS) $(FW_DIR)/objects.txt $(FW_DIR)/flags.txt
+$(FW_ELF): $(FW_OBJS) $(FW_DIR)/objects.txt $(FW_DIR)/flags.txt $(FW_LDSCRIPT)
 	$(AVR_CC) $(AVR_LDFLAGS) $(FW_OBJS) -o $@
+
+# The default script of the MCU's emulation with the sections of
+# firmware/link_order.txt placed before the rest of .text.* (a script without
+# that line fails the build rather than losing the order).
+$(FW_LDSCRIPT): firmware/link_order.txt | $(STAMP)
+	@mkdir -p $(@D)
+	avr-ld --verbose -m$$($(AVR_CC) -mmcu=$(MCU) -print-multi-directory) | awk -v order=$< \
+		'/^=====/ { inside = !inside; next } !inside { next } \
+		/^ *\*\(\.text\.\*\)$$/ { while ((getline p < order) > 0) if (p !~ /^#/ && p != "") print "    *(" p ")"; done = 1 } \
+		{ print } END { if (!done) exit 1 }' > $@.tmp && mv $@.tmp $@
 
 $(FW_HEX): $(FW_ELF)
 	$(AVR_OBJCOPY) -O ihex -R .eeprom $< $@

@@ -10,8 +10,10 @@
 static volatile uint8_t rx_buf[UART1_RX_SIZE];
 static volatile uint8_t rx_head, rx_tail;
 static volatile uint16_t rx_overruns, rx_errors;
-static volatile uint8_t tx_buf[UART1_TX_SIZE];
-static volatile uint8_t tx_head, tx_tail;
+/* The request being sent, in the caller's buffer (the servo master's own:
+ * no ring of copies, 128 bytes of RAM less) */
+static const uint8_t *volatile tx_ptr;
+static volatile uint8_t tx_left;
 static volatile uint8_t tx_active; /* direction is transmit until TXC after the last byte */
 
 static void uart1_dir_tx(void)
@@ -50,13 +52,15 @@ ISR(USART1_RX_vect)
  * the whole transmission, then turns the bus round. */
 ISR(USART1_UDRE_vect)
 {
-    if (tx_head == tx_tail) {
+    const uint8_t *p = tx_ptr;
+    if (tx_left == 0u) {
         UCSR1B &= (uint8_t)~_BV(UDRIE1);
         return;
     }
     UCSR1A = (uint8_t)(_BV(U2X1) | _BV(TXC1)); /* clear TXC: it must mean this byte */
-    UDR1 = tx_buf[tx_tail];
-    tx_tail = (uint8_t)((tx_tail + 1u) & (UART1_TX_SIZE - 1u));
+    UDR1 = *p;
+    tx_ptr = p + 1;
+    tx_left--;
 }
 
 /* TXC sets when the shift register is empty and UDR holds nothing: after the
@@ -64,7 +68,7 @@ ISR(USART1_UDRE_vect)
  * enabled and the bus must stay in transmit). */
 ISR(USART1_TX_vect)
 {
-    if (tx_head != tx_tail || (UCSR1B & _BV(UDRIE1))) {
+    if (tx_left != 0u || (UCSR1B & _BV(UDRIE1))) {
         return;
     }
     UCSR1B &= (uint8_t)~_BV(TXCIE1);
@@ -83,32 +87,26 @@ void uart1_init(uint32_t baud)
     UCSR1C = _BV(UCSZ11) | _BV(UCSZ10);
     UCSR1B = _BV(RXEN1) | _BV(TXEN1) | _BV(RXCIE1);
     rx_head = rx_tail = 0;
-    tx_head = tx_tail = 0;
+    tx_left = 0;
     tx_active = 0;
 }
 
 uint16_t uart1_write(const uint8_t *data, uint16_t n)
 {
-    uint16_t taken = 0;
-    while (taken < n) {
-        uint8_t next = (uint8_t)((tx_head + 1u) & (UART1_TX_SIZE - 1u));
-        if (next == tx_tail) {
-            break;
-        }
-        tx_buf[tx_head] = data[taken++];
-        tx_head = next;
+    if (n == 0u || n > UART1_TX_MAX || tx_left != 0u) {
+        return 0;
     }
-    if (taken > 0) {
-        uint8_t sreg = SREG;
-        cli();
-        if (!tx_active) {
-            tx_active = 1;
-            uart1_dir_tx();
-        }
-        UCSR1B |= _BV(UDRIE1) | _BV(TXCIE1);
-        SREG = sreg;
+    uint8_t sreg = SREG;
+    cli();
+    tx_ptr = data;
+    tx_left = (uint8_t)n;
+    if (!tx_active) {
+        tx_active = 1;
+        uart1_dir_tx();
     }
-    return taken;
+    UCSR1B |= _BV(UDRIE1) | _BV(TXCIE1);
+    SREG = sreg;
+    return n;
 }
 
 uint16_t uart1_read(uint8_t *out, uint16_t cap)
@@ -128,7 +126,7 @@ void uart1_set_dir(uint8_t dir)
     if (dir == DXL_DIR_TX) {
         tx_active = 1;
         uart1_dir_tx();
-    } else if (tx_head == tx_tail && !(UCSR1B & (_BV(UDRIE1) | _BV(TXCIE1)))) {
+    } else if (tx_left == 0u && !(UCSR1B & (_BV(UDRIE1) | _BV(TXCIE1)))) {
         tx_active = 0;
         uart1_dir_rx();
     }
@@ -137,7 +135,7 @@ void uart1_set_dir(uint8_t dir)
 
 uint8_t uart1_tx_done(void)
 {
-    return (uint8_t)(!tx_active && tx_head == tx_tail);
+    return (uint8_t)(!tx_active && tx_left == 0u);
 }
 
 uint16_t uart1_rx_overruns(void)

@@ -21,16 +21,26 @@
 
 /* Power of two, at most 256 (uint8_t indices): the replies to one sync read
  * of every servo (12 x 15 bytes for Present Position) arrive back to back in
- * about 2 ms and must fit while a main-loop pass runs; 128 lost the tenth. */
+ * about 2 ms and must fit while a main-loop pass runs; 128 lost the tenth.
+ * A firmware for at most 6 servos (DXL_MAX_IDS, its robot's) gets 128: the
+ * 90 bytes of six replies fit whole. */
+#if DXL_MAX_IDS <= 6
+#define UART1_RX_SIZE 128u
+#else
 #define UART1_RX_SIZE 256u
-#define UART1_TX_SIZE 128u /* power of two; a whole request fits */
+#endif
+#define UART1_TX_MAX 255u /* longest request uart1_write() sends (uint8_t count) */
 
 /* Configures UART1 at `baud` (8N1, U2X: 1 Mbps and 2 Mbps are exact at
  * 16 MHz, 57600 is -0.8 %), the direction pin as an output in receive, and
  * enables the receive interrupt. Interrupts must be enabled by the caller. */
 void uart1_init(uint32_t baud);
 
-/* Queues up to n bytes and starts sending; returns how many fit in the ring. */
+/* Starts sending data[0..n) straight from the caller's buffer, which must
+ * stay unchanged until uart1_tx_done() (the servo master's request buffer
+ * does: it is rebuilt only for the next transaction). Returns n, or 0 while
+ * an earlier request is still being sent (or n is 0 or over UART1_TX_MAX):
+ * the caller tries again later. */
 uint16_t uart1_write(const uint8_t *data, uint16_t n);
 
 /* Copies up to cap received bytes into out; returns how many. */

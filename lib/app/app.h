@@ -52,6 +52,10 @@
  * run can use; a table with more sensors is refused at boot with "no valid
  * lookup table". */
 #define APP_MAX_SENSORS HOM_MAX_SENSORS
+/* Tendons the app keeps state for (sized to the robot's table in a firmware
+ * built for one, HOM_MAX_TENDONS); a table with more is refused at boot the
+ * same way. */
+#define APP_MAX_TENDONS HOM_MAX_TENDONS
 
 #define APP_DEBOUNCE_MS     30u    /* the button level must hold this long */
 #define APP_LONG_PRESS_MS   2000u  /* held this long: abort and release */
@@ -137,8 +141,8 @@ typedef struct {
     uint16_t magic; /* APP_WIN_MAGIC */
     uint16_t mask;  /* bit i: lo[i], hi[i] valid */
     uint32_t table_id;
-    int32_t lo[TBL_MAX_TENDONS];
-    int32_t hi[TBL_MAX_TENDONS];
+    int32_t lo[APP_MAX_TENDONS];
+    int32_t hi[APP_MAX_TENDONS];
     uint16_t crc;   /* store_crc16() of everything before it */
     uint8_t moving; /* a run or move was under way: a reset then releases at boot. Outside
                        the CRC: one byte, written in one store, and a reset between it and
@@ -263,9 +267,9 @@ typedef struct {
     uint16_t txn_mask;  /* tendons of the transaction in flight */
     uint16_t acc;       /* profile acceleration of every goal */
     uint16_t t_all_ok;  /* ms (low 16 bits): the last position read every servo answered */
-    uint8_t ids[TBL_MAX_TENDONS];
-    uint8_t hw_err[TBL_MAX_TENDONS];
-    int32_t present[TBL_MAX_TENDONS];
+    uint8_t ids[APP_MAX_TENDONS];
+    uint8_t hw_err[APP_MAX_TENDONS];
+    int32_t present[APP_MAX_TENDONS];
     dxl_master dxl;
 } app_bus_t;
 
@@ -328,7 +332,7 @@ typedef struct {
     int8_t homes_rc;                 /* store_homes_load() result */
     uint16_t home_now;               /* bit i: homes.t[i] usable in this power cycle */
     uint16_t t_rest;                 /* 16-bit ms, compared as a 16-bit difference */
-    int32_t offset[TBL_MAX_TENDONS]; /* calibration frame = present frame + offset */
+    int32_t offset[APP_MAX_TENDONS]; /* calibration frame = present frame + offset */
     store_t store;
     store_settings_t set;
     store_homes_t homes;

@@ -21,7 +21,7 @@ static void load_table(app_t *a)
     a->table_ok = 0;
     memset(&a->info, 0, sizeof a->info);
     if (a->io->table == NULL || tbl_check(&a->tab) != 0 || tbl_info(&a->tab, &a->info) != 0 ||
-        a->info.n_sensors > APP_MAX_SENSORS) {
+        a->info.n_sensors > APP_MAX_SENSORS || a->info.n_tendons > APP_MAX_TENDONS) {
         memset(&a->info, 0, sizeof a->info);
         return;
     }
@@ -231,7 +231,7 @@ APP_NOINLINE void app_boot_poll(app_t *a)
         int8_t rc = dxl_bringup_poll(&a->u.bring);
         if (rc == -DXL_E_MISSING && a->bus.absent == 0u) {
             /* set up the servos that answered; the missing ones stay named */
-            uint8_t ids[TBL_MAX_TENDONS], i, n = 0;
+            uint8_t ids[APP_MAX_TENDONS], i, n = 0;
             for (i = 0; i < a->info.n_tendons; i++) {
                 if (i < a->u.bring.n && a->u.bring.servo[i].present) {
                     ids[n++] = a->bus.ids[i];

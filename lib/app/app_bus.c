@@ -174,7 +174,7 @@ static uint16_t off_goal(const app_t *a)
 
 APP_NOINLINE static void servo_next(app_t *a)
 {
-    uint8_t ids[TBL_MAX_TENDONS];
+    uint8_t ids[APP_MAX_TENDONS];
     uint8_t data[GOALS_PER_TXN * 12u];
     uint8_t i, n = 0, txn, v, force;
     uint16_t mask, addr;
@@ -306,8 +306,8 @@ APP_NOINLINE static void servo_next(app_t *a)
 
 uint8_t app_bus_goals_now(app_t *a, uint8_t what)
 {
-    uint8_t ids[TBL_MAX_TENDONS];
-    uint8_t data[TBL_MAX_TENDONS * 4u];
+    uint8_t ids[APP_MAX_TENDONS];
+    uint8_t data[APP_MAX_TENDONS * 4u];
     uint8_t i, n = 0;
     for (i = 0; i < a->info.n_tendons; i++) {
         if (app_has(a->bus.goal_due, i)) {

@@ -226,7 +226,7 @@ void app_rep_event(app_t *a, const hom_event_t *ev)
     case HOM_EV_PHASE: {
         app_rep_begin(a, app_w_progress);
         app_rep_word(a, app_w_state, app_w_phase_words, ev->code);
-        if (ev->code == HOM_PH_TENDON && i < TBL_MAX_TENDONS) {
+        if (ev->code == HOM_PH_TENDON && i < APP_MAX_TENDONS) {
             app_rep_tendon(a, i);
         }
         app_rep_end(a);
@@ -236,7 +236,7 @@ void app_rep_event(app_t *a, const hom_event_t *ev)
         app_rep_begin(a, app_w_missing);
         app_rep_word(a, app_w_dev, app_w_dev_words, ev->code);
         app_rep_u8(a, app_w_index, i);
-        if (ev->code == HOM_DEV_SERVO && i < TBL_MAX_TENDONS) {
+        if (ev->code == HOM_DEV_SERVO && i < APP_MAX_TENDONS) {
             app_rep_u8(a, app_w_id, a->bus.ids[i]);
         }
         app_rep_int(a, app_w_why, ev->a);
@@ -274,7 +274,7 @@ void app_rep_event(app_t *a, const hom_event_t *ev)
         app_rep_u8(a, app_w_code, ev->code);
         app_rep_word(a, app_w_dev, app_w_dev_words, (uint8_t)ev->a);
         app_rep_u8(a, app_w_index, i);
-        if ((ev->a == HOM_DEV_SERVO || ev->a == HOM_DEV_TENDON) && i < TBL_MAX_TENDONS) {
+        if ((ev->a == HOM_DEV_SERVO || ev->a == HOM_DEV_TENDON) && i < APP_MAX_TENDONS) {
             app_rep_u8(a, app_w_id, a->bus.ids[i]);
         }
         app_rep_int(a, app_w_detail, ev->b);

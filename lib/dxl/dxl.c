@@ -328,6 +328,14 @@ int8_t dxl_poll(dxl_master *m)
 void dxl_abort(dxl_master *m)
 {
     if (m->phase != DXL_PH_IDLE) {
+#if DXL_PORT_FIXED
+        /* The board's port sends straight from m->tx: the next request is
+         * built there only once the bytes under way have left (at most
+         * DXL_TX_CAP of them, 1 ms at 1 Mbps; the deadline bounds it). */
+        while (m->phase == DXL_PH_WAIT_TX && !DXL_PORT_TX_DONE(m) &&
+               !dxl_time_reached(dxl_now(m), m->deadline)) {
+        }
+#endif
         dxl_finish(m, -DXL_E_TIMEOUT);
     }
 }

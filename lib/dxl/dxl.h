@@ -35,9 +35,11 @@
 #ifndef DXL_TX_CAP
 #define DXL_TX_CAP 96u
 #endif
-/* Reply body buffer: a fast sync read of 4 bytes from 12 servos needs 96. */
+/* Reply body buffer: a fast sync read of 4 bytes takes 8 per servo (96 for
+ * 12 servos), a single status its data and two bytes; 112 for 12 servos,
+ * less in a firmware whose DXL_MAX_IDS is its robot's servos. */
 #ifndef DXL_RX_CAP
-#define DXL_RX_CAP 112u
+#define DXL_RX_CAP (DXL_MAX_IDS * 8u + 16u)
 #endif
 
 #define DXL_DIR_RX 0u
@@ -49,7 +51,10 @@
  * tx_done. All functions must return at once. */
 typedef struct {
     void *ctx;
-    /* Queues up to n bytes for sending; returns how many were taken (0..n). */
+    /* Queues up to n bytes for sending; returns how many were taken (0..n).
+     * The board's port (DXL_PORT_FIXED) may send straight from data: the
+     * master leaves its request unchanged until tx_done (dxl_abort() waits
+     * for it). */
     uint16_t (*write)(void *ctx, const uint8_t *data, uint16_t n);
     /* Copies up to cap received bytes into out; returns how many (0 when none). */
     uint16_t (*read)(void *ctx, uint8_t *out, uint16_t cap);
@@ -202,7 +207,9 @@ int8_t dxl_poll(dxl_master *m);
 uint8_t dxl_busy(const dxl_master *m);
 
 /* Abandons the running transaction (the bus goes back to receive); its
- * pending replies get -DXL_E_TIMEOUT. Never fails. */
+ * pending replies get -DXL_E_TIMEOUT. With DXL_PORT_FIXED it first waits
+ * until a request being sent has left, within its send deadline. Never
+ * fails. */
 void dxl_abort(dxl_master *m);
 
 /* The reply entry for `id` in the last transaction, or NULL. */

@@ -512,7 +512,7 @@ HOM_NOINLINE int hom_start(hom_t *h, const tbl_src_t *table, const hom_cmd_t *cm
         return HOM_E_TABLE;
     }
     (void)tbl_info(table, &info);
-    if (info.n_sensors > HOM_MAX_SENSORS) {
+    if (info.n_sensors > HOM_MAX_SENSORS || info.n_tendons > HOM_MAX_TENDONS) {
         return HOM_E_TABLE;
     }
     if (cmd->mode == HOM_MODE_SINGLE && cmd->tendon >= info.n_tendons) {
@@ -769,7 +769,7 @@ HOM_NOINLINE int hom_move_done(hom_t *h, int arrived, uint8_t dev, uint8_t index
 HOM_NOINLINE static void put_out(const hom_t *h, hom_out_t *out)
 {
     uint8_t i;
-    for (i = 0; i < TBL_MAX_TENDONS; i++) {
+    for (i = 0; i < HOM_MAX_TENDONS; i++) {
         const hom_tendon_t *t = &h->tendon[i];
         out->goal[i] = t->goal;
         out->vel[i] = t->vel;

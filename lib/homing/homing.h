@@ -86,17 +86,28 @@
 #define HOM_EV_TIME 1
 #endif
 /* Sensors a run can use (the table format allows TBL_MAX_SENSORS): state is
- * kept per sensor, and the firmware's RAM is sized for this many. A table
+ * kept per sensor, and the firmware's RAM is sized for this many (4, or a
+ * robot's table's fewer: the Makefile passes -DHOM_MAX_SENSORS=n). A table
  * with more is refused by hom_start() (HOM_E_TABLE). */
+#ifndef HOM_MAX_SENSORS
 #define HOM_MAX_SENSORS 4u
-#define HOM_WAY_PTS     4u /* floors of the field kept on a pull's way out (hom_approach.c) */
-#define HOM_WAY_SHIFT   4u /* kept in units of 16 cuT: up to 10.4 mT */
+#endif
+/* Tendons a run can use: the table format allows TBL_MAX_TENDONS, and state
+ * is kept per tendon. A firmware built for one robot sizes it to that robot's
+ * table (-DHOM_MAX_TENDONS=n; the Makefile reads n from the table). A table
+ * with more is refused by hom_start() (HOM_E_TABLE). */
+#ifndef HOM_MAX_TENDONS
+#define HOM_MAX_TENDONS TBL_MAX_TENDONS
+#endif
+#define HOM_WAY_PTS   4u /* floors of the field kept on a pull's way out (hom_approach.c) */
+#define HOM_WAY_SHIFT 4u /* kept in units of 16 cuT: up to 10.4 mT */
 
 /* hom_start() errors (numbered apart from the -(hom_fault_t) that hom_step()
  * returns, so the two never collide) */
 enum {
     HOM_E_ARG = -101,     /* NULL pointer, unknown mode, tendon index beyond the table */
-    HOM_E_TABLE = -102,   /* the table fails tbl_check(), or has more than HOM_MAX_SENSORS */
+    HOM_E_TABLE = -102,   /* the table fails tbl_check(), or has more than HOM_MAX_SENSORS or
+                             HOM_MAX_TENDONS */
     HOM_E_TENSION = -103, /* tension outside the table's grid */
     HOM_E_BUSY = -104,    /* a calibration is running: abort it first */
     HOM_E_HOMES = -105    /* quick re-home without a stored home for every tendon */
@@ -214,7 +225,7 @@ typedef struct {
 /* Inputs of one step, indexed like the table's tendons and sensors. */
 typedef struct {
     hom_sensor_in_t sensor[HOM_MAX_SENSORS];
-    hom_servo_in_t servo[TBL_MAX_TENDONS];
+    hom_servo_in_t servo[HOM_MAX_TENDONS];
     uint32_t now_ms; /* last: each servo's fields stay within the first 64 bytes, which the
                         AVR reaches through the struct's pointer with one instruction a byte */
 } hom_in_t;
@@ -223,10 +234,10 @@ typedef struct {
  * writes goal, profile velocity/acceleration and torque of tendon i when bit i
  * of `changed` is set (it may write all of them every step). */
 typedef struct {
-    int32_t goal[TBL_MAX_TENDONS];   /* Goal Position, ticks */
-    uint16_t vel[TBL_MAX_TENDONS];   /* Profile Velocity, 0.229 rpm units */
-    uint16_t acc[TBL_MAX_TENDONS];   /* Profile Acceleration, 214.577 rev/min^2 units */
-    uint8_t torque[TBL_MAX_TENDONS]; /* Torque Enable */
+    int32_t goal[HOM_MAX_TENDONS];   /* Goal Position, ticks */
+    uint16_t vel[HOM_MAX_TENDONS];   /* Profile Velocity, 0.229 rpm units */
+    uint16_t acc[HOM_MAX_TENDONS];   /* Profile Acceleration, 214.577 rev/min^2 units */
+    uint8_t torque[HOM_MAX_TENDONS]; /* Torque Enable */
     uint16_t changed;                /* bit i: tendon i changed in this step */
 } hom_out_t;
 
@@ -308,7 +319,7 @@ typedef struct {
     int32_t travel_ticks; /* expected take-up from engagement */
     int32_t limit_ticks;  /* travel limit from engagement */
     int32_t margin_ticks; /* slack margin */
-    uint32_t nm_per_tick; /* table spool factor */
+    uint16_t nm_per_tick; /* table spool factor (the table's own width) */
     int32_t engage;       /* engagement position, ticks */
     int32_t home;         /* home, ticks */
     int32_t est_home;     /* quick mode: stored home in this power cycle's frame */
@@ -426,7 +437,7 @@ typedef struct {
         uint8_t n;                 /* samples averaged */
     } pts[4];                      /* fine: near points for the final fit */
     uint8_t seen[HOM_MAX_SENSORS]; /* preflight: sample received */
-    hom_tendon_t tendon[TBL_MAX_TENDONS];
+    hom_tendon_t tendon[HOM_MAX_TENDONS];
     hom_sensor_t sensor[HOM_MAX_SENSORS];
     uint16_t changed; /* hom_out_t.changed of this step */
     hom_event_t ev[HOM_EV_CAP];
@@ -453,7 +464,7 @@ typedef struct {
     int32_t (*ambient_cuT)[3];
     /* the small fields above, the arrays behind them: the AVR reaches the
      * first 64 bytes of a struct with one instruction a byte */
-    int32_t stored_home[TBL_MAX_TENDONS]; /* homes from the last run (EEPROM), previous frame */
+    int32_t stored_home[HOM_MAX_TENDONS]; /* homes from the last run (EEPROM), previous frame */
     /* Engagement windows from earlier runs of this power cycle (hom_window()):
      * bit i of win_mask says tendon i's engagement lies between win_lo[i]
      * and win_hi[i] (ticks, this power cycle's frame, low and high in the
@@ -463,8 +474,8 @@ typedef struct {
      * a window gets one at the start of the run: win_lo the release that
      * frees a tendon left anywhere up to the top of the grid, win_hi where it
      * stands (quick mode: the stored home minus the expected travel). */
-    int32_t win_lo[TBL_MAX_TENDONS];
-    int32_t win_hi[TBL_MAX_TENDONS];
+    int32_t win_lo[HOM_MAX_TENDONS];
+    int32_t win_hi[HOM_MAX_TENDONS];
 } hom_cmd_t;
 
 /* Fills *cfg with the defaults: speeds designed for a 6.1 um tick, a sensor
@@ -548,7 +559,7 @@ uint32_t hom_norm3(const int32_t v[3]);
 /* ---- accessors for the application -------------------------------------------
  * What the application reads of a run (and the goal slots it borrows between
  * runs), so that it never depends on the layout of hom_t. Static inline: each
- * is one load or store on the AVR. i must be below TBL_MAX_TENDONS, k below
+ * is one load or store on the AVR. i must be below HOM_MAX_TENDONS, k below
  * HOM_MAX_SENSORS; none checks it. */
 
 /* Goal Position and Profile Velocity last commanded for tendon i. */
