@@ -110,6 +110,24 @@ HELD_MIN_SIN = 0.5
 HELD_MIN_COS = 0.25
 
 
+def held_pairs(robot: Robot) -> list[tuple[int, int]]:
+    """The held pulls a survey runs, ``(tendon, hold)``: every tendon with a
+    tendon of its segment that may hold it (HELD_MIN_SIN), the one along it
+    most (the largest |cos|, above HELD_MIN_COS; the first of equals), as
+    ``hh_bench --survey-held`` chooses."""
+    pairs = []
+    for i, t in enumerate(robot.tendons):
+        best, hold = HELD_MIN_COS, None
+        for m, a in enumerate(robot.tendons):
+            d = a.routing_angle - t.routing_angle
+            if m != i and a.segment == t.segment and abs(math.sin(d)) >= HELD_MIN_SIN \
+                    and abs(math.cos(d)) > best + 1e-9:
+                best, hold = abs(math.cos(d)), m
+        if hold is not None:
+            pairs.append((i, hold))
+    return pairs
+
+
 def engagement_ticks(ticks: np.ndarray, delta: np.ndarray, noise: float) -> float | None:
     """Where a pull's field starts to change, in its encoder ticks (signed as
     the ticks go): the least-squares kink of a hinge, zero before it and a

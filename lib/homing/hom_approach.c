@@ -363,6 +363,42 @@ HOM_NOINLINE static int32_t table_limit(const hom_t *h)
     return hom_limit_ticks(&row, INT32_MAX);
 }
 
+/* A held pull's scan of the pulled tendon's engagement (HOM_SCAN_*,
+ * hom_cmd_t.hold): 1 while it runs. */
+static int scanning(const hom_t *h)
+{
+    return h->hold != 0u && h->cur == h->single;
+}
+
+/* The take-up has found the engagement: back behind it (ST_BACKOFF, where
+ * the servo comes to a stand), from where the scan's points go forward. */
+HOM_NOINLINE static void scan_begin(hom_t *h)
+{
+    const hom_tendon_t *t = hom_cur(h);
+    hom_pull_afresh(h);
+    hom_set_goal(h, h->cur, t->engage - hom_pull(t, HOM_SCAN_BACK), h->cfg.v_moderate);
+    h->state = ST_BACKOFF;
+}
+
+/* A scan point is averaged: the next one, or the scan's end (past
+ * HOM_SCAN_AHEAD, or the field at half the target). Each point has the
+ * tendon's time bound of its own: the scan is bounded by its points. */
+HOM_NOINLINE static void scan_next(hom_t *h)
+{
+    const hom_tendon_t *t = hom_cur(h);
+    int32_t avg[3];
+    hom_avg_of(h, t->sensor, avg);
+    h->t_tendon = h->now_ms;
+    if (hom_pull(t, t->goal - t->engage) >= HOM_SCAN_AHEAD ||
+        hom_delta_of(h, t->sensor, avg) >= t->target_cuT / 2u) {
+        hom_held_next(h);
+        return;
+    }
+    if (hom_pull_to(h, t->goal + hom_pull(t, HOM_SCAN_STEP), h->cfg.v_moderate) == 0) {
+        hom_enter(h, ST_FINE_MOVE);
+    }
+}
+
 HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
 {
     const uint8_t cur = h->cur; /* the tendon stays the same through the step */
@@ -445,6 +481,10 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
             t->eng_hi = t->engage;
             hom_push_event(h, HOM_EV_ENGAGED, 0, cur, t->engage, (int32_t)b);
             h->p_far = p;
+            if (scanning(h)) {
+                scan_begin(h);
+                break;
+            }
             if (!h->quick_leg) {
                 begin_moderate(h);
                 break;
@@ -484,7 +524,10 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
         break;
     case ST_FINE_MOVE: {
         int32_t err = p - t->goal;
-        if (hom_phase_ms(h) >= h->cfg.settle_ms && hom_still_ms(h, cur) >= h->cfg.settle_ms / 2u &&
+        /* a scan's point averages samples measured there only: standing
+         * longer than a sample takes to reach the homing */
+        if (hom_phase_ms(h) >= h->cfg.settle_ms &&
+            hom_still_ms(h, cur) >= (scanning(h) ? HOM_SAMPLE_AGE_MS : h->cfg.settle_ms / 2u) &&
             ((err >= -1 && err <= 1) || hom_reached(h, cur))) {
             hom_start_avg(h);
             h->state = ST_FINE_AVG;
@@ -494,6 +537,12 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
         break;
     }
     case ST_FINE_AVG:
+        if (scanning(h)) {
+            if (h->sensor[sel].n_acc >= HOM_SCAN_SAMPLES) {
+                scan_next(h);
+            }
+            break;
+        }
         /* points within a few ticks of the target decide the home: more samples */
         if (h->sensor[sel].n_acc >= (h->near ? h->n_near : h->cfg.avg_samples)) {
             hom_fine_point(h);
@@ -518,6 +567,9 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
             h->retake = 2;
             t->limit_ticks = table_limit(h);
             hom_begin_tendon(h, cur);
+        } else if (scanning(h)) {
+            h->p_far = t->present; /* the scan's points go forward from here */
+            hom_enter(h, ST_FINE_MOVE);
         } else {
             begin_moderate(h);
         }

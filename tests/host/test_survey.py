@@ -218,3 +218,142 @@ def test_a_second_mass_too_light_or_alone_is_refused_before_the_board():
     for args in (["--weight-g", "80", "--weight2-g", "100"], ["--weight2-g", "120"]):
         r = CliRunner().invoke(main, ["identify", "survey", "--port", "/dev/null-none", *args])
         assert r.exit_code == 2 and "--weight2-g" in r.output and "1.5 times" in r.output, r.output
+
+
+# --- held pulls (`survey T H`) -------------------------------------------------------
+
+def pull_lines(t, engaged=1040, start=1000, stop=1100, hold=None):
+    """A run's console lines for one pulled tendon: flat then rising (one
+    sensor); with hold=(H, pos) a held pull after the hold tendon's own."""
+    lines = ["<progress state=start mode=single tension_mN=1500>"]
+    if hold is not None:
+        lines += [f"<progress state=engaged tendon={hold[0]} pos=1030>",
+                  f"<progress state=hold tendon={hold[0]} id={hold[0] + 1} pos={hold[1]}>"]
+    lines.append(f"<progress state=engaged tendon={t} pos={engaged + 4}>")
+    lines += [f"<sv t={t} p={p} b={100 + 10 * max(0, p - engaged)},0,0>"
+              for p in range(start, stop, 4)]
+    return lines + ["<done mode=survey target=delta time_ms=4000 tension_mN=1500 count=0>"]
+
+
+def test_held_records_from_a_log_of_several_runs(capsys):
+    from hallhome.op_survey import from_log
+
+    lines = pull_lines(0)[:-1] + pull_lines(1)[1:]  # the survey of both
+    # its hold's own pull streams too (before the hold): not the held pull
+    held = pull_lines(1, engaged=1020, hold=(0, 1300))
+    held.insert(1, "<sv t=0 p=1200 b=900,0,0>")
+    lines += held
+    lines += pull_lines(0, engaged=1024, hold=(1, 1290))[:-1] + [
+        "<fault reason=aborted code=1 dev=none index=0>"]  # not completed: left out
+    doc = from_log(lines, "r", 2, 1)
+    assert [p["tendon"] for p in doc["pulls"]] == [0, 1]
+    assert len(doc["held"]) == 1
+    h = doc["held"][0]
+    assert (h["tendon"], h["hold_tendon"], h["hold_ticks"]) == (1, 0, 1300)
+    assert h["baseline_cuT"] == [[100.0, 0.0, 0.0]]
+    assert [s[0] for s in h["steps"]][-1] == 1096  # the whole range: no KEEP_RANGE cut
+    assert "held pull left out (tendon 1 held)" in capsys.readouterr().err
+
+
+def test_held_of_refuses_a_run_without_a_hold():
+    from hallhome.op_survey import held_of
+
+    v = SurveyView(2, 1, 1)
+    for line in pull_lines(1):
+        v.feed(protocol_report(line))
+    with pytest.raises(SurveyError, match="not a held pull"):
+        held_of(v, {1: 1})
+
+
+def protocol_report(line):
+    from hallhome.op_survey import parse_report
+    return parse_report(line)
+
+
+def test_held_pairs_follow_the_bench_rule():
+    from hallhome.identify_data import held_pairs
+    from hallhome.paths import ROBOTS_DIR
+    from hallhome.robot import load_robot
+
+    # three tendons 120 degrees apart per segment: the first of each pair
+    assert held_pairs(load_robot(ROBOTS_DIR / "paper_2seg.toml")) == [
+        (0, 1), (1, 0), (2, 0), (3, 4), (4, 3), (5, 3)]
+
+
+def scripted_survey_board(n=6, refuse_held=None):
+    """A board whose `survey` and `survey T H` stream ramps (one sensor)."""
+    from fakeboard import FakeBoard
+
+    b = FakeBoard()
+    rows = [f"<tendon tendon={t} id={t + 1} dir=1 segment={1 + t // 3} sensor=0>"
+            for t in range(n)]
+    b.answers["table"] = [f"<table name=paper_2seg table_id=0x1 tendons={n} sensors=1>"] + rows
+
+    def survey(line):
+        args = [int(x) for x in line.split()[1:]]
+        if len(args) == 2 and refuse_held:
+            return refuse_held
+        if len(args) == 2:
+            t, h = args
+            lines = pull_lines(t, engaged=1020, hold=(h, 1300 + h))
+        else:
+            lines = ["<progress state=start mode=full tension_mN=1500>"]
+            for t in range(n):
+                lines += pull_lines(t)[1:-1]
+            lines.append("<done mode=survey target=delta time_ms=28000 tension_mN=1500 "
+                         "count=0>")
+        b.events.extend(lines)
+        return []
+    b.answers["survey"] = survey
+    return b
+
+
+def run_survey(monkeypatch, tmp_path, board, *args):
+    from click.testing import CliRunner
+
+    from fakeboard import use
+    from hallhome import op_survey
+    from hallhome.cli import main
+
+    use(monkeypatch, board, op_survey)
+    out = tmp_path / "s.json"
+    r = CliRunner().invoke(main, ["identify", "survey", "--port", "fake", "--out", str(out),
+                                  *args])
+    return r, out
+
+
+def test_identify_survey_runs_the_held_pulls_after_the_pulls_alone(monkeypatch, tmp_path):
+    b = scripted_survey_board()
+    r, out = run_survey(monkeypatch, tmp_path, b)
+    assert r.exit_code == 0, r.output
+    assert b.sent == ["table", "survey", "survey 0 1", "survey 1 0", "survey 2 0", "survey 3 4",
+                      "survey 4 3", "survey 5 3"]
+    doc = json.loads(out.read_text())
+    assert len(doc["pulls"]) == 6
+    assert [(h["tendon"], h["hold_tendon"], h["hold_ticks"]) for h in doc["held"]] == [
+        (0, 1, 1301), (1, 0, 1300), (2, 0, 1300), (3, 4, 1304), (4, 3, 1303), (5, 3, 1303)]
+    assert "held pull 6 of 6" in r.output and "6 held pulls" in r.output
+    # --no-held: the pulls alone only
+    b = scripted_survey_board()
+    r, out = run_survey(monkeypatch, tmp_path, b, "--no-held")
+    assert r.exit_code == 0 and b.sent == ["table", "survey"]
+    assert "held" not in json.loads(out.read_text())
+
+
+def test_identify_survey_without_held_pulls_on_an_older_firmware(monkeypatch, tmp_path):
+    b = scripted_survey_board(refuse_held="error:5 too many arguments")
+    b.check = False  # the host's declaration has the argument; this board's has not
+    r, out = run_survey(monkeypatch, tmp_path, b)
+    assert r.exit_code == 0, r.output
+    assert b.sent == ["table", "survey", "survey 0 1"]
+    assert "runs no held pulls" in r.output and "held" not in json.loads(out.read_text())
+
+
+def test_identify_survey_help_documents_the_held_pulls():
+    from click.testing import CliRunner
+
+    from hallhome.cli import main
+
+    r = CliRunner().invoke(main, ["identify", "survey", "--help"])
+    assert r.exit_code == 0
+    assert "--no-held" in r.output and "Held pulls" in r.output and "--robot" in r.output
