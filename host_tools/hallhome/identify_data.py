@@ -264,6 +264,11 @@ def _held(h: dict, n: int, parsed: dict, robot: Robot) -> HeldPull:
                             "as far from its opposite (docs/identify.md)")
     ticks, delta, base = _pull_arrays(h, ns, where)
     fticks, fdelta, _ = parsed[i]
+    if "free_steps" in h:
+        # the board's held run scans the engagement alone too, in the same
+        # steps as the held one: the shift between two crossings made alike
+        fticks, fdelta, _ = _pull_arrays({"baseline_cuT": h.get("free_baseline_cuT"),
+                                          "steps": h["free_steps"]}, ns, f"{where}.free")
     aticks, _, abase = parsed[a]
     try:
         e_held = engagement_ticks(ticks, delta, robot.noise)

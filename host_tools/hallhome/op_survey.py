@@ -160,16 +160,24 @@ def pull_of(tendon: int, samples: Sequence[Sample], engaged: Optional[int],
 
 
 def held_of(view: SurveyView, dirs: Dict[int, int]) -> dict:
-    """The held record of a `survey T H` run (docs/identify.md, "Survey
-    files"): the pulled tendon's samples after the hold as a pull (its whole
-    range: it ends an eighth of its table travel past the engagement), the
-    held tendon and where it stood."""
-    if view.hold is None or len(view.held_samples) != 1:
-        raise SurveyError("not a held pull: no <progress state=hold>, or not one pulled tendon")
-    (t, samples), = view.held_samples.items()
-    p = pull_of(t, samples, view.held_engaged.get(t), dirs.get(t, 1), keep=1.0)
+    """The held record of a `survey T H` run (docs/identify.md, "Held pulls
+    on the board"): the board streams the pulled tendon's two scans of its
+    engagement, alone before the hold and held after it, each point a few
+    samples at one position (averaged into one step here); the held tendon
+    and where it stood. The scan alone goes in as `free_steps`: the shift is
+    measured between two crossings made alike."""
+    if view.hold is None:
+        raise SurveyError("not a held pull: no <progress state=hold>")
+    t = next((k for k in view.held_samples if k != view.hold[0]), None)
+    if t is None or t not in view.samples:
+        raise SurveyError("not a held pull: no scan of the pulled tendon before and after the hold")
+    d = dirs.get(t, 1)
+    p = pull_of(t, view.held_samples[t], view.held_engaged.get(t), d, keep=1.0)
+    free = pull_of(t, view.samples[t], view.engaged.get(t), d, keep=1.0)
     return {"tendon": t, "hold_tendon": view.hold[0], "hold_ticks": view.hold[1],
-            "baseline_cuT": p["baseline_cuT"], "steps": p["steps"], "samples": p["samples"]}
+            "baseline_cuT": p["baseline_cuT"], "steps": p["steps"],
+            "free_baseline_cuT": free["baseline_cuT"], "free_steps": free["steps"],
+            "samples": p["samples"] + free["samples"]}
 
 
 def survey_doc(robot: str, table_id: str, view: SurveyView, dirs: Dict[int, int],
@@ -253,9 +261,9 @@ def run_held(c: Client, desc, dirs: Dict[int, int], n: int, ns: int, run_timeout
              as_json: bool) -> List[dict]:
     """The held pulls of the survey (`survey T H`, one run each; docs/identify.md):
     every tendon with a hold of its segment (identify_data.held_pairs() on
-    the description `desc`), pulled again from slack while the hold, pulled
-    alone to the top grid tension first, keeps the robot bent. Their records;
-    none when there is no description or the firmware runs none."""
+    the description `desc`), its engagement scanned alone, then again while
+    the hold, pulled alone to its target, keeps the robot bent. Their
+    records; none when there is no description or the firmware runs none."""
     from hallhome.identify_data import held_pairs
 
     if desc is None:
@@ -339,12 +347,13 @@ def survey_cmd(out_path, tendon, weight_g, weight2_g, which, samples, hang_wait,
     Held pulls (unless --no-held; a survey of every tendon): after the pulls
     alone, each tendon that has a hold (a tendon of its segment 30-75
     degrees from it or from its opposite; the first of equals) is pulled
-    again, one run per tendon: the hold is pulled alone to the top grid
-    tension and kept there, the field with the robot bent is the reference,
-    and the tendon goes from slack an eighth of its table travel past its
-    engagement. How far the bend moved its engagement gives its routing
-    radius. Each held pull is shown as it runs (paper_2seg: six, 6-12 s
-    each on the bench, after 45-52 s of pulls alone). The survey file goes to
+    again, one run per tendon at five eighths of the top grid tension: the
+    tendon's engagement is crossed in 2-tick steps, each point averaged;
+    the hold is pulled alone to its target and kept there, the field with
+    the robot bent is the reference, and the tendon's engagement is crossed
+    again in the same steps. How far the bend moved its engagement gives
+    its routing radius. Each held pull is shown as it runs (paper_2seg: six,
+    about 10 s each). The survey file goes to
     --out; fit it with `hallhome identify fit ROBOT.toml SURVEY.json`.
     Ctrl-C aborts on the board and releases every tendon; nothing is
     written then."""

@@ -19,9 +19,9 @@ import sys
 from pathlib import Path
 from typing import List, Optional, Sequence
 
-# simulated seconds the whole survey may take (paper_2seg: 28 s of pulls
-# alone, 6 held pulls of 9-11 s)
-LIMIT_S = 400
+# simulated seconds the whole survey may take (paper_2seg: 12 s of pulls
+# alone, 6 held pulls of about 10 s)
+LIMIT_S = 200
 
 
 def commands(robot_toml: str, held: bool) -> List[str]:
