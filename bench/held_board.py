@@ -31,7 +31,7 @@ PLANT = ROOT / "sim" / "plant" / "configs" / "paper_2seg.cfg"
 TOML = ROOT / "lookup_tables" / "robots" / "paper_2seg.toml"
 
 
-def one(seed: int, perturb: float, stiff: float, tmp: Path) -> dict:
+def one(seed: int, perturb: float, stiff: float, tmp: Path, keep: Path | None = None) -> dict:
     from hallhome import op_survey, survey_bench
     from hallhome.identify import fit
     from hallhome.identify_data import load_survey
@@ -59,14 +59,21 @@ def one(seed: int, perturb: float, stiff: float, tmp: Path) -> dict:
            "survey_s": sum(times) / 1e3, "survey_alone_s": times[0] / 1e3 if times else None,
            "held_s": [t / 1e3 for t in times[1:]], "fit_s": fit_s, "refused": res.refused}
     try:
-        tr = json.loads(summary.read_text())["truth"]["tendons"]
-        holds = {h for _, h in
-                 [tuple(map(int, c.split()[1:])) for c in cmds[1:]]}
-        rec["hold_peak_mN"] = max(t["peak_before_home_mN"] for t in tr if t["tendon"] in holds)
-        rec["peak_mN"] = [t["peak_before_home_mN"] for t in tr]
-    except (OSError, KeyError, ValueError) as e:
+        truth = json.loads(summary.read_text())["truth"]
+        runs = truth["run_peaks_mN"]
+        pairs = [tuple(map(int, c.split()[1:])) for c in cmds[1:]]
+        # each held run's highest true tension of its held and its pulled tendon
+        rec["hold_peaks_mN"] = [runs[k][h] for k, (_, h) in enumerate(pairs, 1)]
+        rec["pulled_peaks_mN"] = [runs[k][t] for k, (t, _) in enumerate(pairs, 1)]
+        rec["hold_peak_mN"] = max(rec["hold_peaks_mN"])
+        rec["survey_peak_mN"] = max(runs[0])
+    except (OSError, KeyError, ValueError, IndexError) as e:
         rec["hold_peak_mN"] = None
         rec["summary_error"] = str(e)
+    if keep is not None:
+        keep.mkdir(parents=True, exist_ok=True)
+        for f in (out, log, summary):
+            (keep / f"seed{seed}_{f.name}").write_bytes(f.read_bytes())
     if not res.refused:
         rec["errors"] = tension_errors(res.robot, truth).tolist()
         rec["held_shifts_um"] = [list(map(float, x[2:])) for x in res.held_shifts_um]
@@ -82,11 +89,14 @@ def main() -> int:
     ap.add_argument("--perturb", type=float, default=0.1)
     ap.add_argument("--perturb-stiffness", type=float, default=0.25)
     ap.add_argument("--out", default=None)
+    ap.add_argument("--keep", default=None, help="directory for each seed's survey, log and "
+                    "bench summary")
     a = ap.parse_args()
     recs = []
     for s in a.seeds:
         with tempfile.TemporaryDirectory() as tmp:
-            r = one(s, a.perturb, a.perturb_stiffness, Path(tmp))
+            r = one(s, a.perturb, a.perturb_stiffness, Path(tmp),
+                    Path(a.keep) if a.keep else None)
         recs.append(r)
         e = np.array(r.get("errors", [[np.nan]]))
         print(f"seed {s}: runs {r['runs_done']}/{r['runs']} held {r['held']} "
@@ -94,7 +104,9 @@ def main() -> int:
               f"error mean {np.nanmean(e):+.4f} sd {np.nanstd(e, ddof=1):.4f} "
               f"worst {np.nanmax(np.abs(e)):.4f} N; radius % "
               f"{np.round(r.get('radius_err_pct') or [], 2).tolist()}; "
-              f"hold peak {r.get('hold_peak_mN')} mN", flush=True)
+              f"held tendons' peak {r.get('hold_peak_mN')} mN (per run "
+              f"{r.get('hold_peaks_mN')}), pulled {r.get('pulled_peaks_mN')}, "
+              f"survey alone {r.get('survey_peak_mN')} mN", flush=True)
         if a.out:
             Path(a.out).write_text(json.dumps(recs, indent=1))
     e = np.array([r["errors"] for r in recs if "errors" in r])

@@ -159,21 +159,44 @@ def pull_of(tendon: int, samples: Sequence[Sample], engaged: Optional[int],
             "samples": len(samples)}
 
 
+def scan_of(tendon: int, samples: Sequence[Sample], pull_dir: int) -> dict:
+    """A scan of a held run (`survey T H`) as a pull record: its points from
+    the last time it went back (a scan whose first point found the tendon
+    engaged starts again further back), the samples at each averaged into
+    one step, the first point (slack: the board checks it) the baseline."""
+    if not samples:
+        raise SurveyError(f"tendon {tendon}: no scan samples arrived")
+    k = max((n for n in range(1, len(samples))
+             if pull_dir * (samples[n].ticks - samples[n - 1].ticks) < 0), default=0)
+    steps: List[Tuple[int, List[List[float]], int]] = []
+    for s in samples[k:]:
+        if steps and steps[-1][0] == s.ticks:
+            t0, acc, n = steps[-1]
+            steps[-1] = (t0, [[a + b for a, b in zip(ra, rb)] for ra, rb in zip(acc, s.b)], n + 1)
+        else:
+            steps.append((s.ticks, [list(map(float, v)) for v in s.b], 1))
+    kept = [(t, [[round(x / n, 1) for x in v] for v in acc]) for t, acc, n in steps]
+    if len(kept) < MIN_STEPS:
+        raise SurveyError(f"tendon {tendon}: {len(kept)} scan points, {MIN_STEPS} needed "
+                          "(samples lost on the console?)")
+    return {"tendon": tendon, "baseline_cuT": kept[0][1], "steps": [[t, b] for t, b in kept],
+            "samples": len(samples) - k}
+
+
 def held_of(view: SurveyView, dirs: Dict[int, int]) -> dict:
     """The held record of a `survey T H` run (docs/identify.md, "Held pulls
     on the board"): the board streams the pulled tendon's two scans of its
-    engagement, alone before the hold and held after it, each point a few
-    samples at one position (averaged into one step here); the held tendon
-    and where it stood. The scan alone goes in as `free_steps`: the shift is
-    measured between two crossings made alike."""
+    engagement, alone before the hold and held after it (scan_of()); the
+    held tendon and where it stood. The scan alone goes in as `free_steps`:
+    the shift is measured between two crossings made alike."""
     if view.hold is None:
         raise SurveyError("not a held pull: no <progress state=hold>")
     t = next((k for k in view.held_samples if k != view.hold[0]), None)
     if t is None or t not in view.samples:
         raise SurveyError("not a held pull: no scan of the pulled tendon before and after the hold")
     d = dirs.get(t, 1)
-    p = pull_of(t, view.held_samples[t], view.held_engaged.get(t), d, keep=1.0)
-    free = pull_of(t, view.samples[t], view.engaged.get(t), d, keep=1.0)
+    p = scan_of(t, view.held_samples[t], d)
+    free = scan_of(t, view.samples[t], d)
     return {"tendon": t, "hold_tendon": view.hold[0], "hold_ticks": view.hold[1],
             "baseline_cuT": p["baseline_cuT"], "steps": p["steps"],
             "free_baseline_cuT": free["baseline_cuT"], "free_steps": free["steps"],

@@ -370,31 +370,55 @@ static int scanning(const hom_t *h)
     return h->hold != 0u && h->cur == h->single;
 }
 
-/* The take-up has found the engagement: back behind it (ST_BACKOFF, where
- * the servo comes to a stand), from where the scan's points go forward. */
-HOM_NOINLINE static void scan_begin(hom_t *h)
+/* Back to g (ST_BACKOFF, where the servo comes to a stand; never behind
+ * where the take-up began), from where the scan's points go forward
+ * (h->steps counts them). */
+HOM_NOINLINE static void scan_from(hom_t *h, int32_t g)
 {
     const hom_tendon_t *t = hom_cur(h);
+    if (hom_pull(t, g - h->takeup_at) < 0) {
+        g = h->takeup_at;
+    }
     hom_pull_afresh(h);
-    hom_set_goal(h, h->cur, t->engage - hom_pull(t, HOM_SCAN_BACK), h->cfg.v_moderate);
+    h->steps = 0;
+    h->near = 0;
+    hom_set_goal(h, h->cur, g, h->cfg.v_moderate);
     h->state = ST_BACKOFF;
 }
 
-/* A scan point is averaged: the next one, or the scan's end (past
- * HOM_SCAN_AHEAD, or the field at half the target). Each point has the
- * tendon's time bound of its own: the scan is bounded by its points. */
+/* A scan point is averaged: the next one, or the scan's end (HOM_SCAN_AHEAD
+ * past the first point whose field reached the engagement threshold, the
+ * field at half the target, or HOM_SCAN_POINTS points). The first point's
+ * field is the scan's reference (its sensor's b0): the held tendon's path
+ * friction keeps the pose that the take-up past the engagement left. Points
+ * go HOM_SCAN_STEP ticks a step, twice that while the field stays within a
+ * quarter of the engagement threshold of the first point's (the steps that
+ * find where the slack ends). Each point has the tendon's time bound of its
+ * own: the scan is bounded by its points. */
 HOM_NOINLINE static void scan_next(hom_t *h)
 {
-    const hom_tendon_t *t = hom_cur(h);
+    hom_tendon_t *t = hom_cur(h);
+    int32_t *ref = h->sensor[t->sensor].b0;
     int32_t avg[3];
-    hom_avg_of(h, t->sensor, avg);
+    uint32_t d;
+    int32_t step = HOM_SCAN_STEP;
+    hom_avg_of(h, t->sensor, h->steps == 0u ? ref : avg);
+    d = h->steps == 0u ? 0u : hom_delta_of(h, t->sensor, avg);
     h->t_tendon = h->now_ms;
-    if (hom_pull(t, t->goal - t->engage) >= HOM_SCAN_AHEAD ||
-        hom_delta_of(h, t->sensor, avg) >= t->target_cuT / 2u) {
+    h->steps++;
+    if (d < h->engage_cuT / 4u) {
+        step = 2 * HOM_SCAN_STEP;
+    }
+    if (!h->near && d >= h->engage_cuT) {
+        h->near = 1; /* the engagement as this scan's points find it */
+        t->engage = t->goal;
+    }
+    if ((h->near && hom_pull(t, t->goal - t->engage) >= HOM_SCAN_AHEAD) ||
+        d >= t->target_cuT / 2u || h->steps >= HOM_SCAN_POINTS) {
         hom_held_next(h);
         return;
     }
-    if (hom_pull_to(h, t->goal + hom_pull(t, HOM_SCAN_STEP), h->cfg.v_moderate) == 0) {
+    if (hom_pull_to(h, t->goal + hom_pull(t, step), h->cfg.v_moderate) == 0) {
         hom_enter(h, ST_FINE_MOVE);
     }
 }
@@ -482,7 +506,13 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
             hom_push_event(h, HOM_EV_ENGAGED, 0, cur, t->engage, (int32_t)b);
             h->p_far = p;
             if (scanning(h)) {
-                scan_begin(h);
+                /* a held pull's scan, from behind the engagement: a held
+                 * take-up's field, weak at its sensor (the hold bends the
+                 * robot off that sensor's best direction), put it up to 30
+                 * ticks late, and a scan that starts past it reads the
+                 * field its spool's backlash and path friction hold */
+                scan_from(h, t->engage - hom_pull(t, h->held != 0u ? HOM_SCAN_BACK_HELD
+                                                                    : HOM_SCAN_BACK));
                 break;
             }
             if (!h->quick_leg) {

@@ -269,19 +269,23 @@ typedef struct {
 #define HOM_HELD_BACK_UM 1500u
 /* Held pull: the pulled tendon's engagement is crossed twice, alone and
  * held, each in the same steps (a scan): from HOM_SCAN_BACK ticks behind the
- * engagement its take-up detected to HOM_SCAN_AHEAD past it, HOM_SCAN_STEP
- * ticks a step, each point standing for HOM_SCAN_SAMPLES samples of its
- * sensor (streamed: the host averages them), the engagement thus found
- * within a fraction of a tick as the bench's stepped pulls find it (single
+ * engagement its take-up detected (HOM_SCAN_BACK_HELD held), HOM_SCAN_STEP
+ * ticks a step (twice that while the field is flat), each point standing for
+ * HOM_SCAN_SAMPLES samples of its sensor (streamed: the host averages them),
+ * to HOM_SCAN_AHEAD past the first point whose field reached the engagement
+ * threshold (HOM_SCAN_POINTS points at most): the engagement is then found
+ * within a fraction of a tick, as the bench's stepped pulls find it (single
  * samples at the survey's speed moved it by a tick run to run). Both
- * crossings come from behind, on the pulling side of the spool's backlash
- * and the path's friction, so what they leave in the kink cancels in the
- * shift. The scan ends early once its field reaches half the target: the
- * held tendon carries the pulled one's pull. */
-#define HOM_SCAN_BACK    16
-#define HOM_SCAN_AHEAD   32
-#define HOM_SCAN_STEP    2
-#define HOM_SCAN_SAMPLES 8u
+ * crossings come from slack, on the pulling side of the spool's backlash and
+ * the path's friction, so what they leave in the kink cancels in the shift.
+ * The scan ends early once its field reaches half the target: the held
+ * tendon carries the pulled one's pull. */
+#define HOM_SCAN_BACK      32
+#define HOM_SCAN_BACK_HELD 56
+#define HOM_SCAN_AHEAD     24
+#define HOM_SCAN_STEP      2
+#define HOM_SCAN_SAMPLES   8u
+#define HOM_SCAN_POINTS    56u
 
 typedef struct {
     uint16_t v_fast;             /* take-up before engagement, 0.229 rpm units */
