@@ -402,8 +402,12 @@ HOM_NOINLINE static void scan_next(hom_t *h)
     int32_t avg[3];
     uint32_t d;
     int32_t step = HOM_SCAN_STEP;
-    hom_avg_of(h, t->sensor, h->steps == 0u ? ref : avg);
-    d = h->steps == 0u ? 0u : hom_delta_of(h, t->sensor, avg);
+    if (h->steps == 0u) {
+        hom_avg_of(h, t->sensor, ref);
+        hom_pull_afresh(h); /* no floor of the field (field_fell()) from another reference */
+    }
+    hom_avg_of(h, t->sensor, avg);
+    d = hom_delta_of(h, t->sensor, avg);
     h->t_tendon = h->now_ms;
     h->steps++;
     if (d < h->engage_cuT / 4u) {
