@@ -370,15 +370,12 @@ static int scanning(const hom_t *h)
     return h->hold != 0u && h->cur == h->single;
 }
 
-/* Back to g (ST_BACKOFF, where the servo comes to a stand; never behind
- * where the take-up began), from where the scan's points go forward
- * (h->steps counts them). */
+/* Back to g (ST_BACKOFF, where the servo comes to a stand), from where the
+ * scan's points go forward (h->steps counts them). g lies within
+ * HOM_SCAN_BACK_HELD of the engagement, and the take-up began at least half
+ * a margin (HOM_HELD_BACK_UM of it) short of that: never behind it. */
 HOM_NOINLINE static void scan_from(hom_t *h, int32_t g)
 {
-    const hom_tendon_t *t = hom_cur(h);
-    if (hom_pull(t, g - h->takeup_at) < 0) {
-        g = h->takeup_at;
-    }
     hom_pull_afresh(h);
     h->steps = 0;
     h->near = 0;
@@ -515,8 +512,8 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
                  * robot off that sensor's best direction), put it up to 30
                  * ticks late, and a scan that starts past it reads the
                  * field its spool's backlash and path friction hold */
-                scan_from(h, t->engage - hom_pull(t, h->held != 0u ? HOM_SCAN_BACK_HELD
-                                                                    : HOM_SCAN_BACK));
+                scan_from(h, t->engage -
+                                 hom_pull(t, h->held != 0u ? HOM_SCAN_BACK_HELD : HOM_SCAN_BACK));
                 break;
             }
             if (!h->quick_leg) {

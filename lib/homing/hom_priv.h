@@ -31,7 +31,6 @@ enum {
     ST_FINE_AVG,
     ST_BACKOFF, /* overshot on the first fine point: back to slack, re-approach */
     ST_TENDON_RELEASE,
-    ST_HOLD, /* held pull: between its pulls (hom_hold_check()) */
     ST_FINAL,
     ST_DONE,
     ST_FAULT
@@ -130,10 +129,6 @@ void hom_do_slack_avg(hom_t *h);
 /* Held pull (hom_cmd_t.hold): a scan or the held tendon's pull has ended;
  * on to the next phase (hom_t.held). */
 void hom_held_next(hom_t *h);
-/* ST_HOLD: the pulled tendon back at slack, the held tendon's pull begins;
- * the held tendon standing still, every sensor is averaged into the
- * reference and the pulled tendon's held scan begins. */
-void hom_hold_check(hom_t *h);
 
 /* ---- hom_approach.c: take-up and approach ---- */
 void hom_begin_tendon(hom_t *h, uint8_t i);

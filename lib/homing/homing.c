@@ -403,10 +403,10 @@ HOM_NOINLINE static void load_tendon(hom_t *h, uint8_t i)
      * the geometric take-up of that tendon's own pull (same moment, same
      * segments): its travel at the tension, plus a quarter of the margin
      * for a late engagement. */
-    t->margin_ticks = hom_um_to_ticks(
-        margin_um(h->cfg.slack_margin_um, h->tension_mN, r.pt.travel_um) +
-            (h->hold != 0u && i != h->hold - 1u ? HOM_HELD_BACK_UM : 0u),
-        r.row.nm_per_tick);
+    t->margin_ticks =
+        hom_um_to_ticks(margin_um(h->cfg.slack_margin_um, h->tension_mN, r.pt.travel_um) +
+                            (h->hold != 0u ? HOM_HELD_BACK_UM : 0u),
+                        r.row.nm_per_tick);
     q8 = hom_straight_q8(t, r.pt.straight_um);
     t->to_straight = (int16_t)hom_floor_div256(q8);
     t->straight_frac = (int8_t)(q8 - (int32_t)t->to_straight * 256);
@@ -826,9 +826,6 @@ HOM_NOINLINE int hom_step(hom_t *h, const hom_in_t *in, hom_out_t *out)
                 break;
             case ST_TENDON_RELEASE:
                 hom_release_check(h);
-                break;
-            case ST_HOLD:
-                hom_hold_check(h);
                 break;
             case ST_FINAL:
                 if (hom_move_done(h, all_reached(h), HOM_DEV_NONE, 0)) {

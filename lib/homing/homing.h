@@ -473,7 +473,9 @@ typedef struct {
      * instead of a final move to the homes. */
     uint8_t survey;
     /* Held pull (survey, HOM_MODE_SINGLE; docs/identify.md): tendon hold - 1
-     * (0: none), of the pulled tendon's segment. The pulled tendon's
+     * (0: none; another tendon, of the pulled one's segment for the fit to
+     * use it: hom_start() refuses only the pulled tendon itself or one
+     * beyond the table, HOM_E_ARG). The pulled tendon's
      * engagement is scanned (HOM_SCAN_*) and it goes back to slack; tendon
      * hold - 1 is pulled alone to its target at the run's tension and held
      * there; the field averaged then is the reference of the pulled

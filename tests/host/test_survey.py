@@ -222,14 +222,34 @@ def test_a_second_mass_too_light_or_alone_is_refused_before_the_board():
 
 # --- held pulls (`survey T H`) -------------------------------------------------------
 
-def pull_lines(t, engaged=1040, start=1000, stop=1100, hold=None):
-    """A run's console lines for one pulled tendon: flat then rising (one
-    sensor); with hold=(H, pos) a held pull after the hold tendon's own."""
-    lines = ["<progress state=start mode=single tension_mN=1500>"]
-    if hold is not None:
-        lines += [f"<progress state=engaged tendon={hold[0]} pos=1030>",
-                  f"<progress state=hold tendon={hold[0]} id={hold[0] + 1} pos={hold[1]}>"]
-    lines.append(f"<progress state=engaged tendon={t} pos={engaged + 4}>")
+def scan_lines(t, kink, start, stop, step=2, per=4, restart_from=None):
+    """A scan's <sv> lines (one sensor): `per` samples at each point from
+    start to stop, flat (100, 0, 0) before the kink and rising after; with
+    restart_from, a first point there (engaged, its field held up) before
+    the scan starts again at start."""
+    pts = ([restart_from] if restart_from is not None else []) + list(range(start, stop, step))
+    return [f"<sv t={t} p={p} b={100 + 100 * max(0, p - kink) + k % 2},0,0>"
+            for p in pts for k in range(per)]
+
+
+def held_lines(t, h, free_kink=1040, held_kink=1020, hold_pos=1300, restart=False):
+    """A `survey T H` run's console lines: tendon t's scan alone, h's pull
+    (not streamed), the hold, t's scan held."""
+    return (["<progress state=start mode=single tension_mN=937>",
+             f"<progress state=engaged tendon={t} pos={free_kink + 6}>"]
+            + scan_lines(t, free_kink, free_kink - 30, free_kink + 30)
+            + [f"<progress state=engaged tendon={h} pos=1030>",
+               f"<progress state=hold tendon={h} id={h + 1} pos={hold_pos}>",
+               f"<progress state=engaged tendon={t} pos={held_kink + 20}>"]
+            + scan_lines(t, held_kink, held_kink - 30, held_kink + 30,
+                         restart_from=held_kink + 4 if restart else None)
+            + ["<done mode=survey target=delta time_ms=9000 tension_mN=937 count=0>"])
+
+
+def pull_lines(t, engaged=1040, start=1000, stop=1100):
+    """A survey run's console lines for one pulled tendon: flat then rising."""
+    lines = ["<progress state=start mode=full tension_mN=1500>",
+             f"<progress state=engaged tendon={t} pos={engaged + 4}>"]
     lines += [f"<sv t={t} p={p} b={100 + 10 * max(0, p - engaged)},0,0>"
               for p in range(start, stop, 4)]
     return lines + ["<done mode=survey target=delta time_ms=4000 tension_mN=1500 count=0>"]
@@ -239,20 +259,53 @@ def test_held_records_from_a_log_of_several_runs(capsys):
     from hallhome.op_survey import from_log
 
     lines = pull_lines(0)[:-1] + pull_lines(1)[1:]  # the survey of both
-    # its hold's own pull streams too (before the hold): not the held pull
-    held = pull_lines(1, engaged=1020, hold=(0, 1300))
-    held.insert(1, "<sv t=0 p=1200 b=900,0,0>")
-    lines += held
-    lines += pull_lines(0, engaged=1024, hold=(1, 1290))[:-1] + [
-        "<fault reason=aborted code=1 dev=none index=0>"]  # not completed: left out
+    lines += held_lines(1, 0, restart=True)
+    lines += held_lines(0, 1)[:-1] + ["<fault reason=aborted code=1 dev=none index=0>"]
     doc = from_log(lines, "r", 2, 1)
     assert [p["tendon"] for p in doc["pulls"]] == [0, 1]
-    assert len(doc["held"]) == 1
+    assert len(doc["held"]) == 1  # the aborted one left out, named
     h = doc["held"][0]
     assert (h["tendon"], h["hold_tendon"], h["hold_ticks"]) == (1, 0, 1300)
-    assert h["baseline_cuT"] == [[100.0, 0.0, 0.0]]
-    assert [s[0] for s in h["steps"]][-1] == 1096  # the whole range: no KEEP_RANGE cut
+    # each scan: its points averaged, the first point its baseline; the held
+    # scan from where it started again (the engaged first point dropped)
+    assert [s[0] for s in h["free_steps"]][:2] == [1010, 1012]
+    assert [s[0] for s in h["steps"]][:2] == [990, 992]
+    assert h["baseline_cuT"] == [[100.5, 0.0, 0.0]]
+    assert h["free_baseline_cuT"] == [[100.5, 0.0, 0.0]]
+    assert h["steps"][-1][1] == [[100.5 + 100 * 28, 0.0, 0.0]]
     assert "held pull left out (tendon 1 held)" in capsys.readouterr().err
+
+
+def test_held_record_kinks_give_the_shift_and_the_holds_engagement():
+    """The fit's loader: the shift between the two scans' kinks (not the
+    pull alone's), and the hold's stand past its own scanned engagement."""
+    from hallhome.identify_data import _held, _scan_kinks
+    from hallhome.op_survey import SurveyView, held_of, parse_report
+    from hallhome.paths import ROBOTS_DIR
+    from hallhome.robot import load_robot
+
+    robot = load_robot(ROBOTS_DIR / "paper_2seg.toml")
+    ns = len(robot.sensors)
+    recs = []
+    for t, h, fk, hk in ((1, 0, 1040, 1020), (0, 1, 1050, 1035)):
+        v = SurveyView(6, None, ns)
+        for line in held_lines(t, h, fk, hk):
+            line = line.replace(",0,0>", ",0,0" + ",0,0,0" * (ns - 1) + ">")
+            r = parse_report(line)
+            if r is not None:
+                v.feed(r)
+        recs.append(held_of(v, {t: 1}))
+    kinks = _scan_kinks(recs, robot)
+    assert kinks[1] == pytest.approx(1040, abs=0.3) and kinks[0] == pytest.approx(1050, abs=0.3)
+    pull = {"baseline_cuT": [[0, 0, 0]] * ns,
+            "steps": [[900 + 10 * k, [[0, 0, 0]] * ns] for k in range(10)]}
+    from hallhome.identify_data import _pull_arrays
+    parsed = {i: _pull_arrays(pull, ns, "p") for i in (0, 1)}
+    rec = _held(recs[0], 0, parsed, robot, kinks)
+    m = robot.tendons[1].metres_per_tick
+    assert rec.shift == pytest.approx(-20 * m, abs=0.3 * m)
+    assert rec.hold_past == pytest.approx((1300 - 1050) * m, abs=0.3 * m)
+    assert rec.hold_take_up == pytest.approx((1300 - 900) * robot.tendons[0].metres_per_tick)
 
 
 def test_held_of_refuses_a_run_without_a_hold():
@@ -262,6 +315,12 @@ def test_held_of_refuses_a_run_without_a_hold():
     for line in pull_lines(1):
         v.feed(protocol_report(line))
     with pytest.raises(SurveyError, match="not a held pull"):
+        held_of(v, {1: 1})
+    v = SurveyView(2, 1, 1)  # a hold, but no scan before it
+    for line in held_lines(1, 0):
+        if "state=hold" in line or "<sv" not in line:
+            v.feed(protocol_report(line))
+    with pytest.raises(SurveyError, match="no scan of the pulled tendon"):
         held_of(v, {1: 1})
 
 
@@ -295,7 +354,7 @@ def scripted_survey_board(n=6, refuse_held=None):
             return refuse_held
         if len(args) == 2:
             t, h = args
-            lines = pull_lines(t, engaged=1020, hold=(h, 1300 + h))
+            lines = held_lines(t, h, hold_pos=1300 + h)
         else:
             lines = ["<progress state=start mode=full tension_mN=1500>"]
             for t in range(n):
