@@ -468,7 +468,7 @@ class _Model:
         shifts, fields = [], []
         for h in self.survey.held:
             tg, field = curves[h.hold]
-            x = h.hold_take_up - engage[h.hold] if h.hold_past is None else h.hold_past
+            x = h.hold_take_up - engage[h.hold]
             fields.append(field(x))
             T = float(np.interp(x, tg, TENSION_GRID))
             ta, tb = r.tendons[h.hold], r.tendons[h.tendon]

@@ -79,10 +79,6 @@ class HeldPull:
     hold_take_up: float
     shift: float
     hold_delta: np.ndarray
-    # the board's held runs: how far (m) the held tendon stands past its
-    # engagement as its own run's scan alone found it (None: the fit takes
-    # its engagement from its pull alone)
-    hold_past: float | None = None
 
 
 @dataclass(frozen=True)
@@ -227,9 +223,7 @@ def survey_from_dict(d: dict, robot: Robot, any_robot: bool = False) -> Survey:
         weights.append(WeightRecord(i, m * 1e-3, delta))
     meta = {k: d[k] for k in ("robot", "seed", "perturb", "source") if k in d}
     meta["first_ticks"] = first
-    recs = d.get("held") or []
-    kinks = _scan_kinks(recs, robot)
-    held = tuple(_held(h, n, parsed, robot, kinks) for n, h in enumerate(recs))
+    held = tuple(_held(h, n, parsed, robot) for n, h in enumerate(d.get("held") or []))
     return Survey(tuple(pulls), tuple(weights), d.get("truth"), d.get("source", "?"), meta,
                   held)
 
@@ -250,26 +244,7 @@ def _pull_arrays(p: dict, ns: int, where: str) -> tuple[np.ndarray, np.ndarray, 
     return ticks, (field - base[None]) * CUT, base
 
 
-def _scan_kinks(recs: list, robot: Robot) -> dict[int, float]:
-    """Each tendon's engagement (ticks) from the scan alone of its own board
-    held run (``free_steps``), where one is well formed."""
-    ns, out = len(robot.sensors), {}
-    for h in recs:
-        i = h.get("tendon") if isinstance(h, dict) else None
-        if not isinstance(i, int) or i in out or "free_steps" not in h:
-            continue
-        try:
-            t, dl, _ = _pull_arrays({"baseline_cuT": h.get("free_baseline_cuT"),
-                                     "steps": h["free_steps"]}, ns, "free")
-            e = engagement_ticks(t, dl, robot.noise, offset=True, slack_steps=SCAN_SLACK_STEPS)
-        except IdentifyError:
-            continue
-        if e is not None:
-            out[i] = e
-    return out
-
-
-def _held(h: dict, n: int, parsed: dict, robot: Robot, kinks: dict | None = None) -> HeldPull:
+def _held(h: dict, n: int, parsed: dict, robot: Robot) -> HeldPull:
     """A held pull record (see HeldPull), checked against the pulls alone of
     its tendon and of the held one (``parsed``: _pull_arrays() of each pull
     alone, by tendon)."""
@@ -311,12 +286,7 @@ def _held(h: dict, n: int, parsed: dict, robot: Robot, kinks: dict | None = None
         raise IdentifyError(f"{where}: tendon {i} never changed the field beyond the noise")
     hold_take = (float(h["hold_ticks"]) - aticks[0]) * ta.pull_dir * ta.metres_per_tick
     shift = (e_held - e_free) * t.pull_dir * t.metres_per_tick
-    past = None
-    if kinks and a in kinks:
-        # the hold's pose from its engagement as a scan found it, not as its
-        # pull alone's single samples put it
-        past = (float(h["hold_ticks"]) - kinks[a]) * ta.pull_dir * ta.metres_per_tick
-    return HeldPull(i, a, hold_take, shift, (base - abase) * CUT, past)
+    return HeldPull(i, a, hold_take, shift, (base - abase) * CUT)
 
 
 def load_survey(path: str | Path, robot: Robot, any_robot: bool = False) -> Survey:
