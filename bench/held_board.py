@@ -59,8 +59,7 @@ def one(seed: int, perturb: float, stiff: float, tmp: Path, keep: Path | None = 
            "survey_s": sum(times) / 1e3, "survey_alone_s": times[0] / 1e3 if times else None,
            "held_s": [t / 1e3 for t in times[1:]], "fit_s": fit_s, "refused": res.refused}
     try:
-        truth = json.loads(summary.read_text())["truth"]
-        runs = truth["run_peaks_mN"]
+        runs = json.loads(summary.read_text())["truth"]["run_peaks_mN"]
         pairs = [tuple(map(int, c.split()[1:])) for c in cmds[1:]]
         # each held run's highest true tension of its held and its pulled tendon
         rec["hold_peaks_mN"] = [runs[k][h] for k, (_, h) in enumerate(pairs, 1)]

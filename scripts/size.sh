@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
 # Flash and static RAM of a firmware ELF against the ATmega2560, failing above
 # the project's budget, set a little above what the firmware takes so that the
-# savings of issue 14 stay made (61920 B of flash and 3960 B of RAM for
-# paper_2seg, 62016 B for trio_3seg, the largest robot, which the flash budget
-# covers; 196 B of it and 1 B of RAM for the pulled servo's position read
+# savings of issue 14 stay made (63180 B of flash and 3963 B of RAM for
+# paper_2seg, 63276 B for trio_3seg, the largest robot, which the flash budget
+# covers; 1260 B of it and 3 B of RAM for the board's held pulls, `survey T
+# H`, issue 17: 61920 B / 3960 B and 62016 B before them; 196 B of it and 1 B of RAM for the pulled servo's position read
 # alone and the request sent as its transaction starts, issue 14's feedback
 # every 2 ms; 61724 B / 3959 B before them, after the round that kept the
 # frames' often used bytes within their first 64; 62124 B / 3959 B before it;
@@ -12,7 +13,7 @@
 set -euo pipefail
 elf=$1
 flash_cap=262144 ram_cap=8192
-flash_max=62036 ram_max=3969
+flash_max=63296 ram_max=3969
 read -r text data bss noinit < <(avr-size -A "$elf" | awk '
     $1==".text"{t=$2} $1==".data"{d=$2} $1==".bss"{b=$2} $1==".noinit"{n=$2}
     END{print t+0, d+0, b+0, n+0}')
