@@ -4,11 +4,13 @@ segment hung by the bench, scored against the plant's truth
 (docs/identify.md, "Held pulls on the board").
 
     .venv/bin/python bench/held_board.py SEED [SEED ...] [--perturb 0.1]
-        [--perturb-stiffness 0.25] [--out FILE.json]
+        [--perturb-stiffness 0.25] [--out FILE.json] [--keep DIR]
 
 Per seed: the tension error of every tendon's targets at 0.3, 0.8 and
-1.5 N, each tendon's fitted routing radius against the plant's, the held
-tendons' peak tension (the bench's truth) and the survey's time.
+1.5 N, each tendon's fitted routing radius against the plant's, the highest
+true tension of the held and of the pulled tendon in each held run (the
+bench's run_peaks_mN) and of any tendon in the survey alone, and the runs'
+times on the board.
 """
 
 from __future__ import annotations
