@@ -99,6 +99,7 @@ KINK_SPAN_TICKS = 40.0
 KINK_SEARCH_TICKS = 12.0
 KINK_RES_TICKS = 0.05
 KINK_SLACK_STEPS = 4  # steps before the field leaves the noise: the pull began slack
+SCAN_SLACK_STEPS = 2  # the same of a board's scan (2-tick steps, its first point slack)
 
 # A held pull needs a hold that bends the robot across the pulled tendon
 # (|sin| of the angle between their routing angles at least HELD_MIN_SIN):
@@ -110,18 +111,39 @@ HELD_MIN_SIN = 0.5
 HELD_MIN_COS = 0.25
 
 
-def engagement_ticks(ticks: np.ndarray, delta: np.ndarray, noise: float) -> float | None:
+def held_pairs(robot: Robot) -> list[tuple[int, int]]:
+    """The held pulls a survey runs, ``(tendon, hold)``: every tendon with a
+    tendon of its segment that may hold it (HELD_MIN_SIN), the one along it
+    most (the largest |cos|, above HELD_MIN_COS; the first of equals), as
+    ``hh_bench --survey-held`` chooses."""
+    pairs = []
+    for i, t in enumerate(robot.tendons):
+        best, hold = HELD_MIN_COS, None
+        for m, a in enumerate(robot.tendons):
+            d = a.routing_angle - t.routing_angle
+            if m != i and a.segment == t.segment and abs(math.sin(d)) >= HELD_MIN_SIN \
+                    and abs(math.cos(d)) > best + 1e-9:
+                best, hold = abs(math.cos(d)), m
+        if hold is not None:
+            pairs.append((i, hold))
+    return pairs
+
+
+def engagement_ticks(ticks: np.ndarray, delta: np.ndarray, noise: float, *,
+                     offset: bool = False, slack_steps: int = KINK_SLACK_STEPS) -> float | None:
     """Where a pull's field starts to change, in its encoder ticks (signed as
     the ticks go): the least-squares kink of a hinge, zero before it and a
     quadratic after, fitted to every sensor axis at once. None when the field
     never leaves 10 sigma of ``noise`` (T); IdentifyError when it leaves it
-    within KINK_SLACK_STEPS steps (no slack seen before the kink)."""
+    within ``slack_steps`` steps (no slack seen before the kink). With
+    ``offset`` the hinge has a constant of its own (a baseline taken from a
+    few steps, the board's scans: ``op_survey.scan_of``)."""
     t = np.abs(ticks - ticks[0])
     y = delta.reshape(len(t), -1)
     above = np.nonzero(np.max(np.linalg.norm(delta, axis=-1), axis=-1) > 10 * noise)[0]
     if not len(above):
         return None
-    if above[0] < KINK_SLACK_STEPS:
+    if above[0] < slack_steps:
         raise IdentifyError("the field changes from its first steps: the pull started "
                             "engaged (start it further back)")
     guess = t[above[0] - 1]
@@ -130,7 +152,7 @@ def engagement_ticks(ticks: np.ndarray, delta: np.ndarray, noise: float) -> floa
 
     def sse(e):
         x = np.clip(ts - e, 0.0, None)
-        a = np.stack([x, x * x], 1)
+        a = np.stack([np.ones_like(x), x, x * x] if offset else [x, x * x], 1)
         coef = np.linalg.lstsq(a, ys, rcond=None)[0]
         return float(np.sum((ys - a @ coef) ** 2))
 
@@ -246,10 +268,18 @@ def _held(h: dict, n: int, parsed: dict, robot: Robot) -> HeldPull:
                             "as far from its opposite (docs/identify.md)")
     ticks, delta, base = _pull_arrays(h, ns, where)
     fticks, fdelta, _ = parsed[i]
+    kink = {}
+    if "free_steps" in h:
+        # the board's held run scans the engagement alone too, in the same
+        # steps as the held one: the shift between two crossings made alike,
+        # each scan's baseline its first point (docs/identify.md)
+        fticks, fdelta, _ = _pull_arrays({"baseline_cuT": h.get("free_baseline_cuT"),
+                                          "steps": h["free_steps"]}, ns, f"{where}.free")
+        kink = {"offset": True, "slack_steps": SCAN_SLACK_STEPS}
     aticks, _, abase = parsed[a]
     try:
-        e_held = engagement_ticks(ticks, delta, robot.noise)
-        e_free = engagement_ticks(fticks, fdelta, robot.noise)
+        e_held = engagement_ticks(ticks, delta, robot.noise, **kink)
+        e_free = engagement_ticks(fticks, fdelta, robot.noise, **kink)
     except IdentifyError as exc:
         raise IdentifyError(f"{where}: tendon {i}: {exc}") from None
     if e_held is None or e_free is None:

@@ -39,8 +39,9 @@ MIN_STEPS = 8  # what `identify fit` needs of a pull (identify_data.load_survey)
 # Past the slack, a sample more than this many ticks from the one before was
 # taken while the servo still ran at the take-up's speed (the engagement is
 # detected a few samples late, at up to 19 ticks per sample): its field lags
-# its position and it is left out. The survey's approach moves about 3 ticks
-# between two lines (APP_SURVEY_V, lib/app/app_priv.h).
+# its position and it is left out. The survey's take-up near the engagement
+# and its approach move about 1.6 ticks between two lines (APP_SURVEY_V,
+# lib/app/app_priv.h).
 MAX_JUMP_TICKS = 6
 # How far short of the reported engagement the field may already rise: the
 # detection comes a few samples past the true engagement.
@@ -83,6 +84,12 @@ class SurveyView(CalView):
         self.engaged: Dict[int, int] = {}
         self.bad = 0
         self.dropped = 0
+        # a held pull (`survey T H`): the held tendon and where it stands
+        # (<progress state=hold>); the samples and engagement after it are
+        # the held pull's
+        self.hold: Optional[Tuple[int, int]] = None
+        self.held_samples: Dict[int, List[Sample]] = {}
+        self.held_engaged: Dict[int, int] = {}
 
     def feed(self, r: Report) -> None:
         if r.kind == SV:
@@ -91,10 +98,13 @@ class SurveyView(CalView):
             except ValueError:
                 self.bad += 1
                 return
-            self.samples.setdefault(t, []).append(s)
+            (self.held_samples if self.hold else self.samples).setdefault(t, []).append(s)
             return
+        if r.kind == R.PROGRESS and r.get("state") == "hold" and isinstance(r.get("pos"), int):
+            self.hold = (int(r.get("tendon")), int(r.get("pos")))
         if r.kind == R.PROGRESS and r.get("state") == "engaged" and isinstance(r.get("pos"), int):
-            self.engaged[int(r.get("tendon"))] = int(r.get("pos"))
+            (self.held_engaged if self.hold else self.engaged)[int(r.get("tendon"))] = \
+                int(r.get("pos"))
         if r.kind == "dropped":
             self.dropped += int(r.get("reports", 0) or 0)
         super().feed(r)
@@ -149,15 +159,73 @@ def pull_of(tendon: int, samples: Sequence[Sample], engaged: Optional[int],
             "samples": len(samples)}
 
 
+def scan_of(tendon: int, samples: Sequence[Sample], pull_dir: int) -> dict:
+    """A scan of a held run (`survey T H`) as a pull record: its points from
+    the last time it went back (a scan whose first point found the tendon
+    engaged starts again further back), the samples at each averaged into
+    one step, the first point (slack: the board checks it) the baseline."""
+    if not samples:
+        raise SurveyError(f"tendon {tendon}: no scan samples arrived")
+    k = max((n for n in range(1, len(samples))
+             if pull_dir * (samples[n].ticks - samples[n - 1].ticks) < 0), default=0)
+    steps: List[Tuple[int, List[List[float]], int]] = []
+    for s in samples[k:]:
+        if steps and steps[-1][0] == s.ticks:
+            t0, acc, n = steps[-1]
+            steps[-1] = (t0, [[a + b for a, b in zip(ra, rb)] for ra, rb in zip(acc, s.b)], n + 1)
+        else:
+            steps.append((s.ticks, [list(map(float, v)) for v in s.b], 1))
+    kept = [(t, [[round(x / n, 1) for x in v] for v in acc]) for t, acc, n in steps]
+    if len(kept) < MIN_STEPS:
+        raise SurveyError(f"tendon {tendon}: {len(kept)} scan points, {MIN_STEPS} needed "
+                          "(samples lost on the console?)")
+    return {"tendon": tendon, "baseline_cuT": kept[0][1], "steps": [[t, b] for t, b in kept],
+            "samples": len(samples) - k}
+
+
+def held_of(view: SurveyView, dirs: Dict[int, int]) -> dict:
+    """The held record of a `survey T H` run (docs/identify.md, "Held pulls
+    on the board"): the board streams the pulled tendon's two scans of its
+    engagement, alone before the hold and held after it (scan_of()); the
+    held tendon and where it stood. The scan alone goes in as `free_steps`:
+    the shift is measured between two crossings made alike."""
+    if view.hold is None:
+        raise SurveyError("not a held pull: no <progress state=hold>")
+    t = next((k for k in view.held_samples if k != view.hold[0]), None)
+    if t is None or t not in view.samples:
+        raise SurveyError("not a held pull: no scan of the pulled tendon before and after the hold")
+    d = dirs.get(t, 1)
+    p = scan_of(t, view.held_samples[t], d)
+    free = scan_of(t, view.samples[t], d)
+    return {"tendon": t, "hold_tendon": view.hold[0], "hold_ticks": view.hold[1],
+            "baseline_cuT": p["baseline_cuT"], "steps": p["steps"],
+            "free_baseline_cuT": free["baseline_cuT"], "free_steps": free["steps"],
+            "samples": p["samples"] + free["samples"]}
+
+
 def survey_doc(robot: str, table_id: str, view: SurveyView, dirs: Dict[int, int],
-               weights: List[dict]) -> dict:
+               weights: List[dict], held: Sequence[dict] = ()) -> dict:
     pulls = [pull_of(t, view.samples.get(t, []), view.engaged.get(t), dirs.get(t, 1))
              for t in sorted(set(view.rows) | set(view.samples))]
     doc = {"format": "hallhome-survey", "version": 1, "field_unit": "cuT", "robot": robot,
            "source": "board", "table_id": table_id, "pulls": pulls}
     if weights:
         doc["weights"] = weights
+    if held:
+        doc["held"] = list(held)
     return doc
+
+
+def robot_for_holds(path: Optional[str], name: str):
+    """The robot description that chooses the held pulls: `path`, or the
+    project's description of the board's table (`NAME` or `NAME_id`); None
+    when there is none."""
+    from hallhome.paths import ROBOTS_DIR
+    from hallhome.robot import load_robot
+
+    base = name[:-3] if name.endswith("_id") else name
+    p = Path(path) if path else ROBOTS_DIR / f"{base}.toml"
+    return load_robot(p) if p.is_file() else None
 
 
 def weight_tendons(rows: Sequence[Report], which: str) -> List[int]:
@@ -212,6 +280,46 @@ def reached(view: SurveyView, tendon: int) -> Optional[float]:
     return round(db / target, 3) if target > 0 else None
 
 
+def run_held(c: Client, desc, dirs: Dict[int, int], n: int, ns: int, run_timeout: float,
+             as_json: bool) -> List[dict]:
+    """The held pulls of the survey (`survey T H`, one run each; docs/identify.md):
+    every tendon with a hold of its segment (identify_data.held_pairs() on
+    the description `desc`), its engagement scanned alone, then again while
+    the hold, pulled alone to its target, keeps the robot bent. Their
+    records; none when there is no description or the firmware runs none."""
+    from hallhome.identify_data import held_pairs
+
+    if desc is None:
+        err().print("[yellow]no robot description of the board's table here: no held pulls "
+                    "(give it with --robot ROBOT.toml)[/]")
+        return []
+    pairs = held_pairs(desc)
+    recs: List[dict] = []
+    for k, (t, h) in enumerate(pairs, 1):
+        view = SurveyView(n, t, ns)
+        title = f"held pull {k} of {len(pairs)}: tendon {t}, tendon {h} holding the bend"
+        if not as_json:
+            out().print(title)
+        try:
+            for r in c.command(cmd("survey", t, h)).reports:
+                view.feed(r)
+        except BoardError as e:
+            if e.name == "TOO_MANY_ARGS":
+                err().print("[yellow]this board's firmware runs no held pulls (`survey T H`): "
+                            "flash the current firmware; the survey goes on without them[/]")
+                return recs
+            raise
+        follow(c, view, title, run_timeout, quiet=as_json, what="held pull",
+               again="identify survey", log=lambda r: r.kind != SV)
+        if not view.ok:
+            for f in view.faults:
+                err().print(f"[red]fault: {f.get('reason')} on {f.get('dev')} {f.get('index')}[/]")
+            raise HallhomeError(f"the held pull of tendon {t} (tendon {h} holding) did not "
+                                "complete; nothing written")
+        recs.append(held_of(view, dirs))
+    return recs
+
+
 @click.command("survey")
 @click.option("--out", "out_path", type=click.Path(dir_okay=False), default=None,
               help="Survey file to write (default: <robot>_survey.json here).")
@@ -230,12 +338,20 @@ def reached(view: SurveyView, tendon: int) -> Optional[float]:
 @click.option("--no-prompt", "hang_wait", type=click.FloatRange(0.5, 600.0), default=None,
               metavar="SECONDS", help="Do not wait for Enter: wait this long for each weight "
               "to be hung or taken off (scripts).")
+@click.option("--held/--no-held", default=True, show_default=True,
+              help="After the pulls alone, pull every tendon again from slack while a tendon "
+              "of its segment holds the robot bent (`survey T H`): with one weight per "
+              "segment the fit then finds each tendon's routing radius. Every tendon of a "
+              "survey of all.")
+@click.option("--robot", "robot_path", type=click.Path(exists=True, dir_okay=False),
+              default=None, help="Robot description that chooses the holds (default: "
+              "lookup_tables/robots/<the board's table name>.toml).")
 @run_timeout_option
 @json_option
 @port_options
 @operator_command
-def survey_cmd(out_path, tendon, weight_g, weight2_g, which, samples, hang_wait, run_timeout,
-               as_json, port, timeout) -> None:
+def survey_cmd(out_path, tendon, weight_g, weight2_g, which, samples, hang_wait, held,
+               robot_path, run_timeout, as_json, port, timeout) -> None:
     """Survey the robot on the board for `hallhome identify fit`.
 
     Every tendon (or --tendon), the others released, is pulled alone from
@@ -249,7 +365,18 @@ def survey_cmd(out_path, tendon, weight_g, weight2_g, which, samples, hang_wait,
     the first tendon of each segment (--weights all: on every tendon) when
     asked; the field is read before and with it. With --weight2-g too, the
     second mass is hung after the first on each of those tendons, and the
-    fit finds the tendon friction from the two. The survey file goes to
+    fit finds the tendon friction from the two.
+
+    Held pulls (unless --no-held; a survey of every tendon): after the pulls
+    alone, each tendon that has a hold (a tendon of its segment 30-75
+    degrees from it or from its opposite; the first of equals) is pulled
+    again, one run per tendon at five eighths of the top grid tension: the
+    tendon's engagement is crossed in 2-tick steps, each point averaged;
+    the hold is pulled alone to its target and kept there, the field with
+    the robot bent is the reference, and the tendon's engagement is crossed
+    again in the same steps. How far the bend moved its engagement gives
+    its routing radius. Each held pull is shown as it runs (paper_2seg: six,
+    about 10 s each). The survey file goes to
     --out; fit it with `hallhome identify fit ROBOT.toml SURVEY.json`.
     Ctrl-C aborts on the board and releases every tendon; nothing is
     written then."""
@@ -286,6 +413,10 @@ def survey_cmd(out_path, tendon, weight_g, weight2_g, which, samples, hang_wait,
         if view.bad or view.dropped:
             err().print(f"[yellow]{view.bad} malformed and {view.dropped} dropped report(s) "
                         "during the survey (the fit uses what arrived)[/]")
+        held_recs: List[dict] = []
+        if held and tendon is None:
+            held_recs = run_held(c, robot_for_holds(robot_path, robot), dirs, n, ns,
+                                 run_timeout, as_json)
         weights: List[dict] = []
         if weight_g > 0.0:
             start(c, cmd("release"), as_json)
@@ -304,13 +435,15 @@ def survey_cmd(out_path, tendon, weight_g, weight2_g, which, samples, hang_wait,
 
             masses = [weight_g] + ([weight2_g] if weight2_g > 0.0 else [])
             weights = record_weights(c, picks, masses, samples, ns, wait)
-    doc = survey_doc(robot, table_id, view, dirs, weights)
+    doc = survey_doc(robot, table_id, view, dirs, weights, held_recs)
     path = Path(out_path or f"{robot}_survey.json")
     path.write_text(json.dumps(doc, indent=1) + "\n")
     summary = {"written": str(path), "robot": robot, "table_id": table_id,
                "pulls": [{"tendon": p["tendon"], "steps": len(p["steps"]),
                           "samples": p["samples"], "reached": reached(view, p["tendon"])}
                          for p in doc["pulls"]],
+               "held": [{"tendon": h["tendon"], "hold_tendon": h["hold_tendon"],
+                         "steps": len(h["steps"])} for h in held_recs],
                "weights": len(weights), "dropped_reports": view.dropped,
                "time_s": int(view.done.get("time_ms", 0)) / 1000.0}
     if as_json:
@@ -321,7 +454,11 @@ def survey_cmd(out_path, tendon, weight_g, weight2_g, which, samples, hang_wait,
         out().print(f"tendon {p['tendon']}: {p['steps']} positions from {p['samples']} samples"
                     + (f" [yellow](ended at its bound, {100 * p['reached']:.0f} % of the top "
                        "target's field)[/]" if bound else ""))
+    for h in summary["held"]:
+        out().print(f"tendon {h['tendon']} held by tendon {h['hold_tendon']}: {h['steps']} "
+                    "positions")
     out().print(f"[green]survey written[/]: {escape(str(path))} ({len(doc['pulls'])} pulls, "
+                f"{len(held_recs)} held pulls, "
                 f"{len(weights)} weight records, {summary['time_s']:.1f} s on the board); next: "
                 f"hallhome identify fit ROBOT.toml {escape(str(path))}")
     sys.stdout.flush()
@@ -343,18 +480,35 @@ def parse_report(line: str) -> Optional[Report]:
 
 
 def from_log(lines: Sequence[str], robot: str, n_tendons: int, n_sensors: int) -> dict:
-    """The survey file of a console log holding one `survey` run; the pull
-    direction of each tendon read from its samples (the board pulls)."""
-    view = SurveyView(n_tendons, None, n_sensors)
+    """The survey file of a console log holding a `survey` run and any held
+    pulls after it (`survey T H`, each a run of its own); the pull direction
+    of each tendon read from its samples (the board pulls). A held pull that
+    did not complete is left out, named on stderr."""
+    views: List[SurveyView] = []
     for line in lines:
         r = parse_report(line)
-        if r is not None:
-            view.feed(r)
-    if not view.ok:
-        why = "; ".join(f.raw for f in view.faults) or "no <done mode=survey>"
-        raise SurveyError(f"the board's survey did not complete: {why}")
+        if r is None:
+            continue
+        if r.kind == R.PROGRESS and r.get("state") == "start" or not views:
+            views.append(SurveyView(n_tendons, None, n_sensors))
+        views[-1].feed(r)
+    plain = [v for v in views if v.hold is None and (v.samples or v.done or v.faults)]
+    if not plain or not plain[0].ok:
+        why = "; ".join(f.raw for f in plain[0].faults) if plain else ""
+        raise SurveyError(f"the board's survey did not complete: {why or 'no <done mode=survey>'}")
+    view = plain[0]
     dirs = {t: (1 if s[-1].ticks >= s[0].ticks else -1) for t, s in view.samples.items() if s}
-    return survey_doc(robot, "", view, dirs, [])
+    held = []
+    for v in views:
+        if v.hold is None:
+            continue
+        try:
+            if not v.ok:
+                raise SurveyError("; ".join(f.raw for f in v.faults) or "it did not complete")
+            held.append(held_of(v, dirs))
+        except SurveyError as e:
+            print(f"survey: a held pull left out (tendon {v.hold[0]} held): {e}", file=sys.stderr)
+    return survey_doc(robot, "", view, dirs, [], held)
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
@@ -384,7 +538,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     Path(a.out).write_text(json.dumps(doc, indent=1) + "\n")
     print(f"survey: {len(doc['pulls'])} pulls of the board ("
           + ", ".join(f"tendon {p['tendon']}: {len(p['steps'])}" for p in doc["pulls"])
-          + f" positions), {len(doc.get('weights', []))} weight records of the bench")
+          + f" positions), {len(doc.get('held', []))} held pulls of the board, "
+          f"{len(doc.get('weights', []))} weight records of the bench")
     return 0
 
 

@@ -297,6 +297,7 @@ typedef struct {
     uint8_t bring_up;      /* the last run ended in a servo timeout or stall: the next run
                               brings the devices up again first (their Bus Watchdogs) */
     uint8_t survey_n;      /* survey: selected-sensor samples since the last <sv> line */
+    uint8_t hold;          /* survey: the held tendon + 1 of a held pull (hom_cmd_t.hold), 0 */
     uint16_t mask;         /* tendons calibrated by this run */
     uint16_t tension;
     uint16_t req_tension;

@@ -164,9 +164,13 @@ static int8_t h_cal(app_t *a, const con_args_t *args)
     return app_run_request(a, HOM_MODE_FULL, tension, 0);
 }
 
-/* A tendon the table lacks is refused when the run starts (run_start). */
+/* A tendon the table lacks is refused when the run starts (run_start), and
+ * so is a hold (`survey T H`) that is T itself or not in the table
+ * (hom_start(): CON_E_BAD_HOLD), before anything moves. The host picks a
+ * hold of T's segment that bends the robot across T (docs/identify.md). */
 static int8_t h_survey(app_t *a, const con_args_t *args)
 {
+    a->run.hold = (uint8_t)((args->given & 2u) ? args->v[1] + 1 : 0);
     return app_run_request(
         a, (uint8_t)(APP_RUN_SURVEY | ((args->given & 1u) ? HOM_MODE_SINGLE : HOM_MODE_FULL)), 0,
         (uint8_t)args->v[0]);

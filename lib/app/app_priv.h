@@ -99,7 +99,7 @@
     W(target)                                                                                      \
     WS(state_words, "boot idle cal move learn fault")                                              \
     WS(dev_words, "none sensor servo tendon")                                                      \
-    WS(phase_words, "- preflight release baseline tendon final")                                   \
+    WS(phase_words, "- preflight release baseline tendon final hold")                              \
     W(reason)                                                                                      \
     W(dev)                                                                                         \
     W(index)                                                                                       \
@@ -400,6 +400,13 @@ enum { APP_MOVE_HOME = 1, APP_MOVE_RELEASE = 2 };
  * units, 156 ticks/s: 1.6 ticks between two samples of a sensor, so the
  * position a line pairs with a sample lags it by well under a tick. */
 #define APP_SURVEY_V 10u
+/* Held pull (`survey T H`, docs/identify.md): the run's tension, the held
+ * tendon's target, is this many eighths of the table's top grid tension.
+ * The pulled tendon's pull raises the held tendon's tension: held at the
+ * top target, paper_2seg at +-10 %, stiffness +-25 % (seed 8) stood at
+ * 1.97 N before that rise and reached 2.35 N against the bounded pull's
+ * 1.25 x 1.5 N + 0.1 N = 1.975 N. */
+#define APP_HOLD_EIGHTHS 5u
 
 /* Starts a homing run. Returns 0 or a CON_E_* code (nothing moves then), or
  * CON_PENDING when an EEPROM write must finish first

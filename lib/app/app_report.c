@@ -226,8 +226,11 @@ void app_rep_event(app_t *a, const hom_event_t *ev)
     case HOM_EV_PHASE: {
         app_rep_begin(a, app_w_progress);
         app_rep_word(a, app_w_state, app_w_phase_words, ev->code);
-        if (ev->code == HOM_PH_TENDON && i < APP_MAX_TENDONS) {
+        if ((ev->code == HOM_PH_TENDON || ev->code == HOM_PH_HOLD) && i < APP_MAX_TENDONS) {
             app_rep_tendon(a, i);
+        }
+        if (ev->code == HOM_PH_HOLD) {
+            app_rep_int(a, app_w_pos, ev->a); /* where the held tendon stands */
         }
         app_rep_end(a);
         break;

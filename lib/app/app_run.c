@@ -23,8 +23,11 @@ static void run_done(app_t *a)
     }
     /* The run's baseline is the learn baseline until the next release. From
      * here on the homing's storage is reused (u.idle overlaps its first
-     * bytes only: the homes above were read first). */
-    app_learn_keep_baseline(a);
+     * bytes only: the homes above were read first). A held pull's b0 is its
+     * reference, taken with the robot bent: never kept. */
+    if (a->run.mode != APP_MODE_SURVEY || a->run.hold == 0u) {
+        app_learn_keep_baseline(a);
+    }
     if (a->run.mode != APP_MODE_SURVEY) {
         app_rec_save_run(a);
         app_boot_homes_new(a);
@@ -75,6 +78,7 @@ APP_NOINLINE static int run_hom_start(app_t *a, uint8_t mode, uint8_t survey, ui
     }
     cmd.mode = (hom_mode_t)mode;
     cmd.survey = survey != 0u;
+    cmd.hold = survey ? a->run.hold : 0u;
     cmd.tension_mN = tension;
     cmd.tendon = tendon;
     for (i = 0; i < a->info.n_tendons; i++) {
@@ -128,6 +132,9 @@ static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon
     }
     if (survey) {
         tension = a->info.grid_mN[a->info.n_grid - 1u];
+        if (a->run.hold != 0u) {
+            tension = (uint16_t)((uint16_t)(tension * APP_HOLD_EIGHTHS) >> 3);
+        }
     }
     if (tension == 0u) {
         tension = (uint16_t)a->rec.set.v[STORE_SET_CAL_TENSION];
@@ -154,6 +161,9 @@ static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon
     }
     if (rc == HOM_E_HOMES) {
         return CON_E_NOT_HOMED;
+    }
+    if (rc == HOM_E_ARG) {
+        return survey && a->run.hold != 0u ? CON_E_BAD_HOLD : CON_E_BAD_TENDON;
     }
     if (rc != 0) {
         return CON_E_INTERNAL;
@@ -191,7 +201,7 @@ static void survey_sample(app_t *a, const hom_in_t *in)
 {
     char buf[3u * APP_MAX_SENSORS * 9u + 4u]; /* 7 digits and sign, comma */
     uint8_t i, k, pos = 0;
-    if (!hom_pulling(&a->u.hom, &i) ||
+    if (hom_pulling(&a->u.hom, &i) != 1u ||
         in->sensor[hom_tendon(&a->u.hom, i)->sensor].status != HOM_SENS_NEW ||
         ++a->run.survey_n < APP_SURVEY_EVERY) {
         return;

@@ -363,6 +363,67 @@ HOM_NOINLINE static int32_t table_limit(const hom_t *h)
     return hom_limit_ticks(&row, INT32_MAX);
 }
 
+/* A held pull's scan of the pulled tendon's engagement (HOM_SCAN_*,
+ * hom_cmd_t.hold): 1 while it runs. */
+static int scanning(const hom_t *h)
+{
+    return h->hold != 0u && h->cur == h->single;
+}
+
+/* Back to g (ST_BACKOFF, where the servo comes to a stand), from where the
+ * scan's points go forward (h->steps counts them). g lies within
+ * HOM_SCAN_BACK_HELD of the engagement, and the take-up began at least half
+ * a margin (HOM_HELD_BACK_UM of it) short of that: never behind it. */
+HOM_NOINLINE static void scan_from(hom_t *h, int32_t g)
+{
+    hom_pull_afresh(h);
+    h->steps = 0;
+    h->near = 0;
+    hom_set_goal(h, h->cur, g, h->cfg.v_moderate);
+    h->state = ST_BACKOFF;
+}
+
+/* A scan point is averaged: the next one, or the scan's end (HOM_SCAN_AHEAD
+ * past the first point whose field reached the engagement threshold, the
+ * field at half the target, or HOM_SCAN_POINTS points). The first point's
+ * field is the scan's reference (its sensor's b0): the held tendon's path
+ * friction keeps the pose that the take-up past the engagement left. Points
+ * go HOM_SCAN_STEP ticks a step, twice that while the field stays within a
+ * quarter of the engagement threshold of the first point's (the steps that
+ * find where the slack ends). Each point has the tendon's time bound of its
+ * own: the scan is bounded by its points. */
+HOM_NOINLINE static void scan_next(hom_t *h)
+{
+    hom_tendon_t *t = hom_cur(h);
+    int32_t *ref = h->sensor[t->sensor].b0;
+    int32_t avg[3];
+    uint32_t d;
+    int32_t step = HOM_SCAN_STEP;
+    if (h->steps == 0u) {
+        hom_avg_of(h, t->sensor, ref);
+        hom_pull_afresh(h); /* no floor of the field (field_fell()) from another reference */
+    }
+    hom_avg_of(h, t->sensor, avg);
+    d = hom_delta_of(h, t->sensor, avg);
+    h->t_tendon = h->now_ms;
+    h->steps++;
+    if (d < h->engage_cuT / 4u) {
+        step = 2 * HOM_SCAN_STEP;
+    }
+    if (!h->near && d >= h->engage_cuT) {
+        h->near = 1; /* the engagement as this scan's points find it */
+        t->engage = t->goal;
+    }
+    if ((h->near && hom_pull(t, t->goal - t->engage) >= HOM_SCAN_AHEAD) ||
+        d >= t->target_cuT / 2u || h->steps >= HOM_SCAN_POINTS) {
+        hom_held_next(h);
+        return;
+    }
+    if (hom_pull_to(h, t->goal + hom_pull(t, step), h->cfg.v_moderate) == 0) {
+        hom_enter(h, ST_FINE_MOVE);
+    }
+}
+
 HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
 {
     const uint8_t cur = h->cur; /* the tendon stays the same through the step */
@@ -445,6 +506,16 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
             t->eng_hi = t->engage;
             hom_push_event(h, HOM_EV_ENGAGED, 0, cur, t->engage, (int32_t)b);
             h->p_far = p;
+            if (scanning(h)) {
+                /* a held pull's scan, from behind the engagement: a held
+                 * take-up's field, weak at its sensor (the hold bends the
+                 * robot off that sensor's best direction), put it up to 30
+                 * ticks late, and a scan that starts past it reads the
+                 * field its spool's backlash and path friction hold */
+                scan_from(h, t->engage -
+                                 hom_pull(t, h->held != 0u ? HOM_SCAN_BACK_HELD : HOM_SCAN_BACK));
+                break;
+            }
             if (!h->quick_leg) {
                 begin_moderate(h);
                 break;
@@ -484,7 +555,10 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
         break;
     case ST_FINE_MOVE: {
         int32_t err = p - t->goal;
-        if (hom_phase_ms(h) >= h->cfg.settle_ms && hom_still_ms(h, cur) >= h->cfg.settle_ms / 2u &&
+        /* a scan's point averages samples measured there only: standing
+         * longer than a sample takes to reach the homing */
+        if (hom_phase_ms(h) >= h->cfg.settle_ms &&
+            hom_still_ms(h, cur) >= (scanning(h) ? HOM_SAMPLE_AGE_MS : h->cfg.settle_ms / 2u) &&
             ((err >= -1 && err <= 1) || hom_reached(h, cur))) {
             hom_start_avg(h);
             h->state = ST_FINE_AVG;
@@ -494,6 +568,12 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
         break;
     }
     case ST_FINE_AVG:
+        if (scanning(h)) {
+            if (h->sensor[sel].n_acc >= HOM_SCAN_SAMPLES) {
+                scan_next(h);
+            }
+            break;
+        }
         /* points within a few ticks of the target decide the home: more samples */
         if (h->sensor[sel].n_acc >= (h->near ? h->n_near : h->cfg.avg_samples)) {
             hom_fine_point(h);
@@ -518,6 +598,9 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
             h->retake = 2;
             t->limit_ticks = table_limit(h);
             hom_begin_tendon(h, cur);
+        } else if (scanning(h)) {
+            h->p_far = t->present; /* the scan's points go forward from here */
+            hom_enter(h, ST_FINE_MOVE);
         } else {
             begin_moderate(h);
         }

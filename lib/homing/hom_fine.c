@@ -188,7 +188,12 @@ static int32_t fit_or(const hom_t *h, int32_t p, int32_t fallback)
 HOM_NOINLINE void hom_finish_tendon(hom_t *h, int32_t p, int32_t fallback)
 {
     hom_tendon_t *t = hom_cur(h);
-    int32_t home_q8 = fit_or(h, p, fallback);
+    int32_t home_q8;
+    if (h->hold != 0u) {
+        hom_held_next(h);
+        return;
+    }
+    home_q8 = fit_or(h, p, fallback);
     t->home = hom_floor_div256(home_q8);
     h->home_res = home_q8 - t->home * 256;
     t->home_frac = (int8_t)h->home_res;

@@ -126,6 +126,9 @@ void hom_do_preflight(hom_t *h, const hom_in_t *in);
 int hom_load_step(hom_t *h);
 void hom_release_check(hom_t *h);
 void hom_do_slack_avg(hom_t *h);
+/* Held pull (hom_cmd_t.hold): a scan or the held tendon's pull has ended;
+ * on to the next phase (hom_t.held). */
+void hom_held_next(hom_t *h);
 
 /* ---- hom_approach.c: take-up and approach ---- */
 void hom_begin_tendon(hom_t *h, uint8_t i);

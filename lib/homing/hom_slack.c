@@ -139,10 +139,18 @@ void hom_do_preflight(hom_t *h, const hom_in_t *in)
  * (within the engagement threshold, averaged). A field that stays changed
  * means something moved that no tendon moves (a magnet, a sensor, iron
  * nearby) and the home measured against it is wrong: HOM_F_FIELD_STEP, the
- * home is not recorded. Otherwise the home is recorded and reported. */
+ * home is not recorded. Otherwise the home is recorded and reported.
+ * A held pull (hom_held_next()) waits here with the pulled tendon's sensor:
+ * in phase 1 the pulled tendon is back at slack, checked the same way, and
+ * the held tendon's pull begins; in phase 2 the held tendon stands, and its
+ * bend's field (baseline_samples averaged) becomes the reference the
+ * pulled tendon's engagement is found against: not a baseline (no tendon
+ * is slack-checked under it, and the app keeps no baseline of a held run).
+ * HOM_PH_HOLD names the held tendon and where it stands. */
 void hom_release_check(hom_t *h)
 {
     hom_tendon_t *t = hom_cur(h);
+    uint8_t k = h->tendon[h->hold != 0u ? h->single : h->cur].sensor;
     int32_t avg[3];
     uint32_t d;
     if (h->settled >= 3u) {
@@ -170,13 +178,26 @@ void hom_release_check(hom_t *h)
         }
         return;
     }
-    if (h->sensor[t->sensor].n_acc < h->cfg.avg_samples) {
+    if (h->sensor[k].n_acc < (h->held == 2u ? h->cfg.baseline_samples : h->cfg.avg_samples)) {
         return;
     }
-    hom_avg_of(h, t->sensor, avg);
-    d = hom_delta_of(h, t->sensor, avg);
+    hom_avg_of(h, k, avg);
+    if (h->held == 2u) {
+        hom_avg_of(h, k, h->sensor[k].b0);
+        hom_push_event(h, HOM_EV_PHASE, HOM_PH_HOLD, h->cur, t->present, 0);
+        h->held = 3;
+        h->settled = 0;
+        hom_begin_tendon(h, h->single);
+        return;
+    }
+    d = hom_delta_of(h, k, avg);
     if (d > h->engage_cuT) {
-        hom_fail(h, HOM_F_FIELD_STEP, HOM_DEV_SENSOR, t->sensor, (int32_t)d);
+        hom_fail(h, HOM_F_FIELD_STEP, HOM_DEV_SENSOR, k, (int32_t)d);
+        return;
+    }
+    if (h->held == 1u) {
+        h->settled = 0;
+        hom_begin_tendon(h, (uint8_t)(h->hold - 1u));
         return;
     }
     t->have_home = 1;
@@ -309,4 +330,29 @@ HOM_NOINLINE void hom_do_slack_avg(hom_t *h)
         hom_set_goal(h, i, hom_further_back(t, t->present, g), h->cfg.v_release);
     }
     hom_enter(h, ST_RELEASE_ALL);
+}
+
+/* Held pull (hom_cmd_t.hold): one of its pulls has ended (a scan, the held
+ * tendon's pull at its target or, as any survey pull, at its bound). After
+ * the pulled tendon's scan alone it goes back to slack and the held
+ * tendon's pull follows (phase 1); after the held tendon's, that tendon
+ * stays where it is and bends the robot (phase 2); both wait in
+ * ST_TENDON_RELEASE (hom_release_check()). After the held scan both go back
+ * to slack, behind their engagements, and the run ends as a survey does.
+ * None records a home. */
+void hom_held_next(hom_t *h)
+{
+    uint8_t held = ++h->held;
+    h->retake = 0; /* the next take-up at its own speed, its limit checked */
+    h->settled = 0;
+    if (held != 2u) {
+        hom_set_goal(h, h->cur, hom_slack_goal(hom_cur(h), 0), h->cfg.v_release);
+    }
+    if (held <= 2u) {
+        hom_enter(h, ST_TENDON_RELEASE);
+        return;
+    }
+    hom_set_goal(h, (uint8_t)(h->hold - 1u), hom_slack_goal(&h->tendon[h->hold - 1u], 0),
+                 h->cfg.v_release);
+    hom_begin_final(h);
 }

@@ -403,8 +403,10 @@ HOM_NOINLINE static void load_tendon(hom_t *h, uint8_t i)
      * the geometric take-up of that tendon's own pull (same moment, same
      * segments): its travel at the tension, plus a quarter of the margin
      * for a late engagement. */
-    t->margin_ticks = hom_um_to_ticks(
-        margin_um(h->cfg.slack_margin_um, h->tension_mN, r.pt.travel_um), r.row.nm_per_tick);
+    t->margin_ticks =
+        hom_um_to_ticks(margin_um(h->cfg.slack_margin_um, h->tension_mN, r.pt.travel_um) +
+                            (h->hold != 0u ? HOM_HELD_BACK_UM : 0u),
+                        r.row.nm_per_tick);
     q8 = hom_straight_q8(t, r.pt.straight_um);
     t->to_straight = (int16_t)hom_floor_div256(q8);
     t->straight_frac = (int8_t)(q8 - (int32_t)t->to_straight * 256);
@@ -518,6 +520,10 @@ HOM_NOINLINE int hom_start(hom_t *h, const tbl_src_t *table, const hom_cmd_t *cm
     if (cmd->mode == HOM_MODE_SINGLE && cmd->tendon >= info.n_tendons) {
         return HOM_E_ARG;
     }
+    if (cmd->hold != 0u && (!cmd->survey || cmd->mode != HOM_MODE_SINGLE ||
+                            cmd->hold > info.n_tendons || cmd->hold - 1u == cmd->tendon)) {
+        return HOM_E_ARG;
+    }
     if (cmd->mode == HOM_MODE_QUICK &&
         (cmd->stored_mask & (hom_bit(info.n_tendons) - 1u)) != (hom_bit(info.n_tendons) - 1u)) {
         return HOM_E_HOMES;
@@ -563,6 +569,8 @@ HOM_NOINLINE int hom_start(hom_t *h, const tbl_src_t *table, const hom_cmd_t *cm
     h->amb = cmd->ambient_cuT;
     h->amb_capture = cmd->ambient_capture;
     h->survey = cmd->survey;
+    h->hold = cmd->hold;
+    h->held = 0;
     h->state = ST_PREFLIGHT;
     h->t_phase = 0;
     h->fault = HOM_F_NONE;
@@ -738,7 +746,10 @@ HOM_NOINLINE int32_t hom_further_back(const hom_tendon_t *t, int32_t g, int32_t 
 uint8_t hom_pulling(const hom_t *h, uint8_t *tendon)
 {
     *tendon = h->cur;
-    return (uint8_t)(h->state >= ST_TAKEUP && h->state <= ST_BACKOFF);
+    if (h->state < ST_TAKEUP || h->state > ST_BACKOFF) {
+        return 0;
+    }
+    return (uint8_t)(h->hold == 0u || (h->state == ST_FINE_AVG && h->cur == h->single) ? 1u : 2u);
 }
 
 int32_t hom_um_ticks_cur(const hom_t *h, uint8_t i, uint32_t um)

@@ -164,7 +164,8 @@ enum {
     HOM_PH_RELEASE,
     HOM_PH_BASELINE,
     HOM_PH_TENDON, /* index = tendon */
-    HOM_PH_FINAL
+    HOM_PH_FINAL,
+    HOM_PH_HOLD /* held pull: index = the held tendon, a = where it stands (ticks) */
 };
 
 /* Event types. Fields: index = tendon, sensor or servo (tendon index) as the
@@ -273,6 +274,29 @@ typedef struct {
  * friction adds about 2 % while pulling; at the full travel an ambient step
  * took chaos seeds 13456, 19952 and 19346 to 1.39-1.45 x at 0.8 N. */
 #define HOM_BOUND_SHORT 16u
+/* Held pull (hom_cmd_t.hold): the bend of the held tendon moves the pulled
+ * tendon's engagement earlier (by its routing radius times the bend), so
+ * every tendon but the held one starts this much further back. */
+#define HOM_HELD_BACK_UM 1500u
+/* Held pull: the pulled tendon's engagement is crossed twice, alone and
+ * held, each in the same steps (a scan): from HOM_SCAN_BACK ticks behind the
+ * engagement its take-up detected (HOM_SCAN_BACK_HELD held), HOM_SCAN_STEP
+ * ticks a step (twice that while the field is flat), each point standing for
+ * HOM_SCAN_SAMPLES samples of its sensor (streamed: the host averages them),
+ * to HOM_SCAN_AHEAD past the first point whose field reached the engagement
+ * threshold (HOM_SCAN_POINTS points at most): the engagement is then found
+ * within a fraction of a tick, as the bench's stepped pulls find it (single
+ * samples at the survey's speed moved it by a tick run to run). Both
+ * crossings come from slack, on the pulling side of the spool's backlash and
+ * the path's friction, so what they leave in the kink cancels in the shift.
+ * The scan ends early once its field reaches half the target: the held
+ * tendon carries the pulled one's pull. */
+#define HOM_SCAN_BACK      32
+#define HOM_SCAN_BACK_HELD 56
+#define HOM_SCAN_AHEAD     24
+#define HOM_SCAN_STEP      2
+#define HOM_SCAN_SAMPLES   8u
+#define HOM_SCAN_POINTS    56u
 
 typedef struct {
     uint16_t v_fast;             /* take-up before engagement, 0.229 rpm units */
@@ -431,6 +455,10 @@ typedef struct {
     int32_t (*amb)[3];   /* absolute mode: the caller's ambient offsets (NULL: delta mode) */
     uint8_t amb_capture; /* absolute mode: this run captures them at its baseline */
     uint8_t survey;      /* hom_cmd_t.survey: no final move */
+    uint8_t hold;        /* hom_cmd_t.hold: the held tendon + 1, 0 without a held pull */
+    uint8_t held;        /* held pull's phase: 0 the pulled tendon's scan alone, 1 its return
+                            to slack and the held tendon's pull, 2 the hold, 3 the held scan,
+                            4 the release */
     struct {
         int32_t p;                 /* position, ticks */
         uint32_t b;                /* averaged |B - B0|, cuT */
@@ -455,6 +483,19 @@ typedef struct {
      * as a calibration does, but ends with each released (its release check)
      * instead of a final move to the homes. */
     uint8_t survey;
+    /* Held pull (survey, HOM_MODE_SINGLE; docs/identify.md): tendon hold - 1
+     * (0: none; another tendon, of the pulled one's segment for the fit to
+     * use it: hom_start() refuses only the pulled tendon itself or one
+     * beyond the table, HOM_E_ARG). The pulled tendon's
+     * engagement is scanned (HOM_SCAN_*) and it goes back to slack; tendon
+     * hold - 1 is pulled alone to its target at the run's tension and held
+     * there; the field averaged then is the reference of the pulled
+     * tendon's engagement (in b0 for the rest of the run: never a baseline
+     * to keep); the pulled tendon, started HOM_HELD_BACK_UM further back
+     * than in a calibration (as every tendon but the held one), is scanned
+     * again; then both are released. No home is recorded and no window
+     * learns an engagement. */
+    uint8_t hold;
     /* Target mode. NULL: delta mode (|B - B0| against target_cuT). Otherwise the
      * paper's absolute mode: ambient_cuT[k] is sensor k's ambient offset A (cuT,
      * sensor frame, one row per table sensor, caller-owned and valid until the run
@@ -523,7 +564,9 @@ uint8_t hom_event_count(const hom_t *h);
 const char *hom_fault_name(int fault);
 
 /* 1 and *tendon while a tendon is taken up or approaches its target (the
- * stretch an identification survey records), 0 otherwise. */
+ * stretch an identification survey records), 0 otherwise; 2 and *tendon
+ * in a held pull's run (hom_cmd_t.hold) but where the pulled tendon stands
+ * at a point of a scan, whose samples alone the survey keeps. */
 uint8_t hom_pulling(const hom_t *h, uint8_t *tendon);
 
 /* Tendon i's home from the last run. Returns 0 and writes *ticks, or

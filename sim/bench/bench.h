@@ -263,6 +263,8 @@ typedef struct {
     uint64_t slack_us[BENCH_MAX_SERVOS]; /* per tendon, first tick below 1 mN */
 } truth_stop_t;
 
+#define TRUTH_MAX_RUNS 16u
+
 typedef struct {
     /* calibration runs: a window per tendon from its first slack reading
      * after the run's start report to its `<result tendon=i` (or the run's
@@ -280,6 +282,10 @@ typedef struct {
     double home_shaft[BENCH_MAX_SERVOS];
     double peak_N[BENCH_MAX_SERVOS]; /* highest tension inside the windows */
     uint64_t peak_us[BENCH_MAX_SERVOS];
+    /* the highest tension of every tendon in each of the first runs, from
+     * its start report to its end, whatever its windows (a held pull's hold,
+     * docs/identify.md) */
+    double run_peak_N[TRUTH_MAX_RUNS][BENCH_MAX_SERVOS];
     double slack_ticks[BENCH_MAX_SERVOS];       /* deepest slack before the true engagement */
     double start_slack_ticks[BENCH_MAX_SERVOS]; /* deepest slack at a run's start */
     double paid_out_ticks[BENCH_MAX_SERVOS];    /* total motion in the release direction */

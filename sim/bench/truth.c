@@ -149,6 +149,10 @@ void truth_tick(bench_t *b, uint64_t now)
             t->peak_N[i] = tension;
             t->peak_us[i] = now;
         }
+        if (t->run_active && t->runs <= TRUTH_MAX_RUNS &&
+            tension > t->run_peak_N[t->runs - 1u][i]) {
+            t->run_peak_N[t->runs - 1u][i] = tension;
+        }
         if (t->in_baseline && tension > t->baseline_max_N) {
             t->baseline_max_N = tension;
         }
@@ -361,7 +365,15 @@ void truth_report(bench_t *b, FILE *f)
                 i ? "," : "", i, t->peak_N[i] * 1000.0, (double)t->peak_us[i] * 1e-6,
                 t->slack_ticks[i] * mm, t->start_slack_ticks[i] * mm, t->paid_out_ticks[i] * mm);
     }
-    fprintf(f, "\n    ],\n    \"stops_dropped\": %u,\n    \"stops\": [", t->stops_dropped);
+    fprintf(f, "\n    ],\n    \"run_peaks_mN\": [");
+    for (uint32_t r = 0; r < t->runs && r < TRUTH_MAX_RUNS && b->have_plant; r++) {
+        fprintf(f, "%s[", r ? ", " : "");
+        for (uint8_t i = 0; i < b->bus.n_servos; i++) {
+            fprintf(f, "%s%.1f", i ? ", " : "", t->run_peak_N[r][i] * 1000.0);
+        }
+        fprintf(f, "]");
+    }
+    fprintf(f, "],\n    \"stops_dropped\": %u,\n    \"stops\": [", t->stops_dropped);
     for (uint32_t k = 0; k < t->n_stops; k++) {
         const truth_stop_t *s = &t->stop[k];
         fprintf(f, "%s\n      {\"kind\": \"%s\", \"t_s\": %.6f, \"tension_mN\": %.1f, ",

@@ -218,3 +218,195 @@ def test_a_second_mass_too_light_or_alone_is_refused_before_the_board():
     for args in (["--weight-g", "80", "--weight2-g", "100"], ["--weight2-g", "120"]):
         r = CliRunner().invoke(main, ["identify", "survey", "--port", "/dev/null-none", *args])
         assert r.exit_code == 2 and "--weight2-g" in r.output and "1.5 times" in r.output, r.output
+
+
+# --- held pulls (`survey T H`) -------------------------------------------------------
+
+def scan_lines(t, kink, start, stop, step=2, per=4, restart_from=None):
+    """A scan's <sv> lines (one sensor): `per` samples at each point from
+    start to stop, flat (100, 0, 0) before the kink and rising after; with
+    restart_from, a first point there (engaged, its field held up) before
+    the scan starts again at start."""
+    pts = ([restart_from] if restart_from is not None else []) + list(range(start, stop, step))
+    return [f"<sv t={t} p={p} b={100 + 100 * max(0, p - kink) + k % 2},0,0>"
+            for p in pts for k in range(per)]
+
+
+def held_lines(t, h, free_kink=1040, held_kink=1020, hold_pos=1300, restart=False):
+    """A `survey T H` run's console lines: tendon t's scan alone, h's pull
+    (not streamed), the hold, t's scan held."""
+    return (["<progress state=start mode=single tension_mN=937>",
+             f"<progress state=engaged tendon={t} pos={free_kink + 6}>"]
+            + scan_lines(t, free_kink, free_kink - 30, free_kink + 30)
+            + [f"<progress state=engaged tendon={h} pos=1030>",
+               f"<progress state=hold tendon={h} id={h + 1} pos={hold_pos}>",
+               f"<progress state=engaged tendon={t} pos={held_kink + 20}>"]
+            + scan_lines(t, held_kink, held_kink - 30, held_kink + 30,
+                         restart_from=held_kink + 4 if restart else None)
+            + ["<done mode=survey target=delta time_ms=9000 tension_mN=937 count=0>"])
+
+
+def pull_lines(t, engaged=1040, start=1000, stop=1100):
+    """A survey run's console lines for one pulled tendon: flat then rising."""
+    lines = ["<progress state=start mode=full tension_mN=1500>",
+             f"<progress state=engaged tendon={t} pos={engaged + 4}>"]
+    lines += [f"<sv t={t} p={p} b={100 + 10 * max(0, p - engaged)},0,0>"
+              for p in range(start, stop, 4)]
+    return lines + ["<done mode=survey target=delta time_ms=4000 tension_mN=1500 count=0>"]
+
+
+def test_held_records_from_a_log_of_several_runs(capsys):
+    from hallhome.op_survey import from_log
+
+    lines = pull_lines(0)[:-1] + pull_lines(1)[1:]  # the survey of both
+    lines += held_lines(1, 0, restart=True)
+    lines += held_lines(0, 1)[:-1] + ["<fault reason=aborted code=1 dev=none index=0>"]
+    doc = from_log(lines, "r", 2, 1)
+    assert [p["tendon"] for p in doc["pulls"]] == [0, 1]
+    assert len(doc["held"]) == 1  # the aborted one left out, named
+    h = doc["held"][0]
+    assert (h["tendon"], h["hold_tendon"], h["hold_ticks"]) == (1, 0, 1300)
+    # each scan: its points averaged, the first point its baseline; the held
+    # scan from where it started again (the engaged first point dropped)
+    assert [s[0] for s in h["free_steps"]][:2] == [1010, 1012]
+    assert [s[0] for s in h["steps"]][:2] == [990, 992]
+    assert h["baseline_cuT"] == [[100.5, 0.0, 0.0]]
+    assert h["free_baseline_cuT"] == [[100.5, 0.0, 0.0]]
+    assert h["steps"][-1][1] == [[100.5 + 100 * 28, 0.0, 0.0]]
+    assert "held pull left out (tendon 1 held)" in capsys.readouterr().err
+
+
+def test_held_record_kinks_give_the_shift_between_the_two_scans():
+    """The fit's loader: the shift between the two scans' kinks, not against
+    the pull alone's (whose kink lies elsewhere here)."""
+    from hallhome.identify_data import _held, _pull_arrays
+    from hallhome.op_survey import SurveyView, held_of, parse_report
+    from hallhome.paths import ROBOTS_DIR
+    from hallhome.robot import load_robot
+
+    robot = load_robot(ROBOTS_DIR / "paper_2seg.toml")
+    ns = len(robot.sensors)
+    v = SurveyView(6, None, ns)
+    for line in held_lines(1, 0, 1040, 1020):
+        r = parse_report(line.replace(",0,0>", ",0,0" + ",0,0,0" * (ns - 1) + ">"))
+        if r is not None:
+            v.feed(r)
+    rec = held_of(v, {1: 1})
+    pull = {"baseline_cuT": [[0, 0, 0]] * ns,
+            "steps": [[900 + 10 * k, [[0, 0, 0]] * ns] for k in range(8)]
+            + [[980 + 10 * k, [[2000 * (k + 1), 0, 0]] * ns] for k in range(4)]}
+    parsed = {i: _pull_arrays(pull, ns, "p") for i in (0, 1)}
+    held = _held(rec, 0, parsed, robot)
+    m = robot.tendons[1].metres_per_tick
+    assert held.shift == pytest.approx(-20 * m, abs=0.3 * m)
+    assert held.hold_take_up == pytest.approx((1300 - 900) * robot.tendons[0].metres_per_tick)
+
+
+def test_held_of_refuses_a_run_without_a_hold():
+    from hallhome.op_survey import held_of
+
+    v = SurveyView(2, 1, 1)
+    for line in pull_lines(1):
+        v.feed(protocol_report(line))
+    with pytest.raises(SurveyError, match="not a held pull"):
+        held_of(v, {1: 1})
+    v = SurveyView(2, 1, 1)  # a hold, but no scan before it
+    for line in held_lines(1, 0):
+        if "state=hold" in line or "<sv" not in line:
+            v.feed(protocol_report(line))
+    with pytest.raises(SurveyError, match="no scan of the pulled tendon"):
+        held_of(v, {1: 1})
+
+
+def protocol_report(line):
+    from hallhome.op_survey import parse_report
+    return parse_report(line)
+
+
+def test_held_pairs_follow_the_bench_rule():
+    from hallhome.identify_data import held_pairs
+    from hallhome.paths import ROBOTS_DIR
+    from hallhome.robot import load_robot
+
+    # three tendons 120 degrees apart per segment: the first of each pair
+    assert held_pairs(load_robot(ROBOTS_DIR / "paper_2seg.toml")) == [
+        (0, 1), (1, 0), (2, 0), (3, 4), (4, 3), (5, 3)]
+
+
+def scripted_survey_board(n=6, refuse_held=None):
+    """A board whose `survey` and `survey T H` stream ramps (one sensor)."""
+    from fakeboard import FakeBoard
+
+    b = FakeBoard()
+    rows = [f"<tendon tendon={t} id={t + 1} dir=1 segment={1 + t // 3} sensor=0>"
+            for t in range(n)]
+    b.answers["table"] = [f"<table name=paper_2seg table_id=0x1 tendons={n} sensors=1>"] + rows
+
+    def survey(line):
+        args = [int(x) for x in line.split()[1:]]
+        if len(args) == 2 and refuse_held:
+            return refuse_held
+        if len(args) == 2:
+            t, h = args
+            lines = held_lines(t, h, hold_pos=1300 + h)
+        else:
+            lines = ["<progress state=start mode=full tension_mN=1500>"]
+            for t in range(n):
+                lines += pull_lines(t)[1:-1]
+            lines.append("<done mode=survey target=delta time_ms=28000 tension_mN=1500 "
+                         "count=0>")
+        b.events.extend(lines)
+        return []
+    b.answers["survey"] = survey
+    return b
+
+
+def run_survey(monkeypatch, tmp_path, board, *args):
+    from click.testing import CliRunner
+
+    from fakeboard import use
+    from hallhome import op_survey
+    from hallhome.cli import main
+
+    use(monkeypatch, board, op_survey)
+    out = tmp_path / "s.json"
+    r = CliRunner().invoke(main, ["identify", "survey", "--port", "fake", "--out", str(out),
+                                  *args])
+    return r, out
+
+
+def test_identify_survey_runs_the_held_pulls_after_the_pulls_alone(monkeypatch, tmp_path):
+    b = scripted_survey_board()
+    r, out = run_survey(monkeypatch, tmp_path, b)
+    assert r.exit_code == 0, r.output
+    assert b.sent == ["table", "survey", "survey 0 1", "survey 1 0", "survey 2 0", "survey 3 4",
+                      "survey 4 3", "survey 5 3"]
+    doc = json.loads(out.read_text())
+    assert len(doc["pulls"]) == 6
+    assert [(h["tendon"], h["hold_tendon"], h["hold_ticks"]) for h in doc["held"]] == [
+        (0, 1, 1301), (1, 0, 1300), (2, 0, 1300), (3, 4, 1304), (4, 3, 1303), (5, 3, 1303)]
+    assert "held pull 6 of 6" in r.output and "6 held pulls" in r.output
+    # --no-held: the pulls alone only
+    b = scripted_survey_board()
+    r, out = run_survey(monkeypatch, tmp_path, b, "--no-held")
+    assert r.exit_code == 0 and b.sent == ["table", "survey"]
+    assert "held" not in json.loads(out.read_text())
+
+
+def test_identify_survey_without_held_pulls_on_an_older_firmware(monkeypatch, tmp_path):
+    b = scripted_survey_board(refuse_held="error:5 too many arguments")
+    b.check = False  # the host's declaration has the argument; this board's has not
+    r, out = run_survey(monkeypatch, tmp_path, b)
+    assert r.exit_code == 0, r.output
+    assert b.sent == ["table", "survey", "survey 0 1"]
+    assert "runs no held pulls" in r.output and "held" not in json.loads(out.read_text())
+
+
+def test_identify_survey_help_documents_the_held_pulls():
+    from click.testing import CliRunner
+
+    from hallhome.cli import main
+
+    r = CliRunner().invoke(main, ["identify", "survey", "--help"])
+    assert r.exit_code == 0
+    assert "--no-held" in r.output and "Held pulls" in r.output and "--robot" in r.output

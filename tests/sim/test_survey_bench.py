@@ -120,8 +120,10 @@ def test_hallhome_identify_survey_end_to_end(tmp_path):
             assert time.monotonic() < deadline, "the bench did not come up"
             time.sleep(0.1)
         out = tmp_path / "survey.json"
+        # the pulls alone (the held pulls: test_survey_held_bench.py)
         r = subprocess.run([str(HALLHOME), "identify", "survey", "--port", str(pty), "--out",
-                            str(out), "--json"], capture_output=True, text=True, timeout=120,
+                            str(out), "--json", "--no-held"], capture_output=True, text=True,
+                           timeout=120,
                            cwd=ROOT, env=dict(os.environ, COLUMNS="200"))
         assert r.returncode == 0, r.stdout + r.stderr
         summary = json.loads(r.stdout)
