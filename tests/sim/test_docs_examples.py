@@ -19,6 +19,7 @@ A command that matches no rule fails the test: a new example needs a rule.
 
 import os
 import re
+import shlex
 import shutil
 import signal
 import subprocess
@@ -165,6 +166,16 @@ def do_make_sim(cmd, tmp):
     r = run(argv)
     assert r.returncode == 0, f"{' '.join(argv)}:\n{r.out[-3000:]}"
     assert re.search(r"^\s+0\s+1\s+\d+ .*\s(pass|-)$", r.stdout, re.M), r.stdout[-2000:]
+
+
+def do_pytest_options(cmd, tmp):
+    """The options select among the suites' tests: a collection of one file
+    with them leaves some out (`-m "not slow"`: the long fits)."""
+    argv = shlex.split(cmd)
+    r = run([str(ROOT / ".venv" / "bin" / "pytest"), *argv[1:], "--collect-only", "-q",
+             "tests/host/test_identify.py"])
+    assert r.returncode == 0 and re.search(r"\d+/\d+ tests collected \(\d+ deselected\)", r.out), \
+        r.out[-2000:]
 
 
 def do_dry(cmd, tmp):
@@ -328,7 +339,7 @@ RULES = [
     (r"^make sim INTERACTIVE=1$", ("pty, real time, stopped with `quit`", do_interactive)),
     (r"^make sim(\s|$)", ("run (3-30 s with the identification), SEED=3 when none is shown",
                           do_make_sim)),
-    (r"^make (sim-test|test|bench|bench-check|unit|host-test|lint|fuzz|tables-check)(\s|$)",
+    (r"^make (sim-test|test|bench|bench-check|unit|host-test|pytest-suites|lint|fuzz|tables-check)(\s|$)",
      DRY_WHY),
     (r"^make chaos(-\w+)?(\s|$)", ("runs for minutes to hours on the bench: dry run",
                                    do_dry_chaos)),
@@ -354,6 +365,8 @@ RULES = [
     (r"^(\.venv/bin/)?hallhome identify(\s|$)", ("needs a survey: its options exist",
                                                  do_identify)),
     (r"^hallhome$", ("--help", do_help)),
+    (r"^(\.venv/bin/)?pytest ", ("runs the suites' tests: its options on a collection",
+                                 do_pytest_options)),
     (r"^(build/sim/)?hh_bench(\s|$)", ("its options exist (the bench runs in test_bench.py)",
                                        do_bench_option)),
     (r"^arduino-cli upload ", ("not installed, needs a board: the HEX path", do_upload)),
