@@ -111,7 +111,7 @@ def assert_all_released(r):
 
 # scenario, injection time (s; None: a step of the scenario injects it, at
 # a moment of the run; "take-up": the start of tendon 0's take-up, for a
-# fault the pull itself finds), fault fields, tendon 0 taut when it came
+# fault the pull itself finds), fault fields, a tendon taut when it came
 MID_RUN = [
     ("sensor_unplug", None, {"reason": "sensor_(error|timeout)", "dev": "sensor", "index": "0"}, True),
     ("servo_silent", None, {"reason": "servo_timeout", "dev": "servo", "index": "2", "id": "3"},
