@@ -399,8 +399,8 @@ ID_MODES = (("nominal", "nominal TOML (today)"), ("survey", "survey only (no wei
             ("weights", "survey + one weight per segment"),
             ("tendons", "survey + one weight per tendon"),
             ("friction", "survey + two masses per segment (friction fitted)"),
-            ("held", "survey + one weight per segment + held pulls (the bench's: the board "
-                     "cannot run them yet)"))
+            ("held", "survey + one weight per segment + held pulls (the bench's stepped "
+                     "pulls; the board's: docs/identify.md)"))
 ID_SHORT = {"survey": "survey only", "weights": "one weight per segment",
             "tendons": "one weight per tendon", "friction": "two masses per segment",
             "held": "one weight per segment and held pulls"}
@@ -434,7 +434,8 @@ def section_identify(res: Dict) -> List[str]:
         "second mass, twice the first, on each segment's first tendon, which lets the fit "
         "find the tendon friction; with one per segment and the held pulls, `--survey-held`: "
         "every tendon pulled again while another tendon of its segment holds a bend, whose "
-        "engagement's move gives its routing radius; the board cannot run held pulls yet) "
+        "engagement's move gives its routing radius; here the bench's stepped pulls, the "
+        "board's own `survey T H` are measured in docs/identify.md) "
         "and the "
         "table generator makes the targets of each description (hallhome.identify_eval, "
         "docs/identify.md). Error = the tension at which the true robot (the plant's "

@@ -30,11 +30,12 @@ def identify_group():
        description's tendon friction). Hang a second mass, at least 1.5
        times the first, on the same tendon and the fit finds the friction
        too.
-       Held pulls (the bench's for now: the board cannot run them yet):
-       every tendon pulled again from slack while another tendon of its
-       segment holds a bend. The bend moves its engagement by its routing
+       Held pulls (`identify survey` runs them: `survey T H` on the
+       board): every tendon pulled again from slack while another tendon of
+       its segment holds a bend. The bend moves its engagement by its routing
        radius times the bend, so the fit gives each tendon its own radius,
-       which one weight per segment cannot tell (hh_bench --survey-held).
+       which one weight per segment cannot tell (on the bench also
+       hh_bench --survey-held).
     3. Fit: `hallhome identify fit ROBOT.toml SURVEY.json` fits the magnet,
        segment lengths, routing radius, each tendon's routing angle and
        engagement (and, with weights, its stretch), sensor positions and the

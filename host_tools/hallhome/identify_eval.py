@@ -343,7 +343,7 @@ def main(argv=None) -> int:
                     help="fits to score: survey (no weights), weights (one per segment), "
                          "tendons (one per tendon), friction (two masses per segment: the "
                          "friction fitted too), held (one per segment and the held pulls: "
-                         "each tendon's radius; the board cannot run them yet)")
+                         "each tendon's radius; the bench's stepped held pulls)")
     ap.add_argument("--description-friction-mN", type=float, default=None,
                     help="study a description whose tendon friction is this (default: the "
                          "TOML's), e.g. 0 for one that leaves it out")
