@@ -18,6 +18,8 @@ from pathlib import Path
 
 import pytest
 
+import needs
+
 ROOT = Path(__file__).resolve().parents[2]
 BENCH = ROOT / "build" / "sim" / "hh_bench"
 FW = ROOT / "build" / "fw" / "paper_2seg" / "hallhome-paper_2seg.elf"
@@ -30,9 +32,7 @@ RELEASE_MS = 100.0  # design.md: abort or fault releases every tendon within 100
 
 @pytest.fixture(scope="module", autouse=True)
 def built():
-    missing = [p for p in (BENCH, FW) if not p.exists()]
-    if missing:
-        pytest.fail("not built (run `make sim-test`): " + ", ".join(map(str, missing)))
+    needs.built(BENCH, FW)
 
 
 @pytest.fixture(scope="module")

@@ -9,6 +9,8 @@ from pathlib import Path
 
 import pytest
 
+import needs
+
 ROOT = Path(__file__).resolve().parents[2]
 BENCH = ROOT / "build" / "sim" / "hh_bench"
 FW = ROOT / "build" / "fw" / "paper_2seg" / "hallhome-paper_2seg.elf"
@@ -18,9 +20,7 @@ G = 9.80665
 
 @pytest.fixture(scope="module", autouse=True)
 def built():
-    missing = [p for p in (BENCH, FW) if not p.exists()]
-    if missing:
-        pytest.fail("not built (run `make sim-test`): " + ", ".join(map(str, missing)))
+    needs.built(BENCH, FW)
 
 
 def run(tmp_path, *args):

@@ -18,6 +18,8 @@ from pathlib import Path
 
 import pytest
 
+import needs
+
 ROOT = Path(__file__).resolve().parents[2]
 BENCH = ROOT / "build" / "sim" / "hh_bench"
 FW = ROOT / "build" / "fw" / "paper_2seg" / "hallhome-paper_2seg.elf"
@@ -29,9 +31,7 @@ PHASES = {"boot", "idle", "preflight", "release", "baseline", "tendon", "engaged
 
 @pytest.fixture(scope="module")
 def loop(tmp_path_factory):
-    missing = [p for p in (BENCH, FW) if not p.exists()]
-    if missing:
-        pytest.fail("not built (run `make sim-test`): " + ", ".join(map(str, missing)))
+    needs.built(BENCH, FW)
     tmp = tmp_path_factory.mktemp("loop")
     summary = tmp / "summary.json"
     proc = subprocess.run(

@@ -16,6 +16,8 @@ from pathlib import Path
 
 import pytest
 
+import needs
+
 ROOT = Path(__file__).resolve().parents[2]
 BENCH = ROOT / "build" / "sim" / "hh_bench"
 FW = ROOT / "build" / "fw" / "paper_2seg" / "hallhome-paper_2seg.elf"
@@ -29,9 +31,7 @@ REPORT = re.compile(r"^\[\s*([0-9.]+)\] <(\w+)(.*)>$")
 
 @pytest.fixture(scope="module", autouse=True)
 def built():
-    missing = [p for p in (BENCH, FW, PLANT) if not p.exists()]
-    if missing:
-        pytest.fail("not built (run `make sim-test`): " + ", ".join(map(str, missing)))
+    needs.built(BENCH, FW, PLANT)
 
 
 class Run:

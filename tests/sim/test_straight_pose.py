@@ -10,6 +10,8 @@ from pathlib import Path
 
 import pytest
 
+import needs
+
 ROOT = Path(__file__).resolve().parents[2]
 BENCH = ROOT / "build" / "sim" / "hh_bench"
 FW = ROOT / "build" / "fw" / "paper_2seg" / "hallhome-paper_2seg.elf"
@@ -33,8 +35,7 @@ def goals(summary):
 
 @pytest.fixture(scope="module", autouse=True)
 def built():
-    if not (BENCH.exists() and FW.exists()):
-        pytest.fail("not built (run `make sim-test`)")
+    needs.built(BENCH, FW)
 
 
 def test_final_move_and_home_go_to_the_chosen_homes(tmp_path):

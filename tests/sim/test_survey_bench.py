@@ -13,6 +13,8 @@ from pathlib import Path
 
 import pytest
 
+import needs
+
 from hallhome.identify_data import load_survey
 from hallhome.op_survey import from_log, parse_report, parse_sample
 from hallhome.robot import load_robot
@@ -28,9 +30,7 @@ TOP_MN = 1500  # paper_2seg's top grid tension
 
 @pytest.fixture(scope="module", autouse=True)
 def built():
-    missing = [p for p in (BENCH, FW) if not p.exists()]
-    if missing:
-        pytest.fail("not built (run `make sim-test`): " + ", ".join(map(str, missing)))
+    needs.built(BENCH, FW)
 
 
 def run(tmp_path, *args):

@@ -15,6 +15,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import needs
+
 from hallhome import survey_bench
 from hallhome.identify_data import SCAN_SLACK_STEPS, engagement_ticks
 from hallhome.op_survey import SurveyView, held_of, parse_report
@@ -36,9 +38,7 @@ pytestmark = pytest.mark.slow(15)
 
 @pytest.fixture(scope="module")
 def held(tmp_path_factory):
-    missing = [p for p in (BENCH, FW) if not p.exists()]
-    if missing:
-        pytest.fail("not built (run `make sim-test`): " + ", ".join(map(str, missing)))
+    needs.built(BENCH, FW)
     d = tmp_path_factory.mktemp("held")
     log, summary = d / "board.txt", d / "summary.json"
     done = survey_bench.run([str(BENCH), str(FW), *OPTS, "--summary", str(summary)],
