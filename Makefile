@@ -257,18 +257,23 @@ lint: $(STAMP)
 format:
 	clang-format -i $(C_FILES)
 
-# Later parts of the project append their suites to TEST_TARGETS in mk/*.mk,
-# their pytest suites to PYTEST_SUITES.
-TEST_TARGETS := unit avr-lib firmware size fuzz-smoke lint
+# make test runs the short suites side by side first (make -j$(JOBS) -O:
+# each target's output in one piece; they share no build directory), then
+# TEST_TARGETS one after the other. Later parts of the project append to
+# both in mk/*.mk, and their pytest suites to PYTEST_SUITES.
+TEST_SIDE_BY_SIDE := unit avr-lib firmware size fuzz-smoke lint
+TEST_TARGETS :=
 -include $(sort $(wildcard mk/*.mk))
 TEST_TARGETS += pytest-suites
 
 pytest-suites: $(STAMP) $(PYTEST_DEPS)
-	$(VENV)/bin/pytest $(PYTEST_ARGS) $(PYTEST_SUITES)
+	$(VENV)/bin/pytest $(PYTEST_ARGS) --durations=20 $(PYTEST_SUITES)
 
 test: $(STAMP)
+	@echo "=== make -j$(JOBS) $(TEST_SIDE_BY_SIDE)"
+	@$(MAKE) --no-print-directory -j$(JOBS) -O $(TEST_SIDE_BY_SIDE)
 	@set -e; for t in $(TEST_TARGETS); do echo "=== make $$t"; $(MAKE) --no-print-directory $$t; done
-	@echo "=== make test: all suites passed ($(TEST_TARGETS))"
+	@echo "=== make test: all suites passed ($(TEST_SIDE_BY_SIDE) $(TEST_TARGETS))"
 
 clean:
 	rm -rf $(BUILD)

@@ -36,6 +36,6 @@ tables-check: $(STAMP)
 	if [ $$status -ne 0 ]; then exit 1; fi
 	@echo "tables-check: $(words $(ROBOT_TOMLS)) generated table(s) up to date"
 
-TEST_TARGETS += tables-check
+TEST_SIDE_BY_SIDE += tables-check
 EXTRA_HELP += "make tables     regenerate lookup_tables/generated from the robot TOMLs"
 EXTRA_HELP += "make tables-check   fail when the committed tables are out of date"
