@@ -400,7 +400,7 @@ ID_MODES = (("nominal", "nominal TOML (today)"), ("survey", "survey only (no wei
             ("tendons", "survey + one weight per tendon"),
             ("friction", "survey + two masses per segment (friction fitted)"),
             ("held", "survey + one weight per segment + held pulls (the bench's stepped "
-                     "pulls; the board's: docs/identify.md)"))
+                     "pulls)"))
 ID_SHORT = {"survey": "survey only", "weights": "one weight per segment",
             "tendons": "one weight per tendon", "friction": "two masses per segment",
             "held": "one weight per segment and held pulls"}
@@ -435,7 +435,7 @@ def section_identify(res: Dict) -> List[str]:
         "find the tendon friction; with one per segment and the held pulls, `--survey-held`: "
         "every tendon pulled again while another tendon of its segment holds a bend, whose "
         "engagement's move gives its routing radius; here the bench's stepped pulls, the "
-        "board's own `survey T H` are measured in docs/identify.md) "
+        "board's own `survey T H` in the last rows) "
         "and the "
         "table generator makes the targets of each description (hallhome.identify_eval, "
         "docs/identify.md). Error = the tension at which the true robot (the plant's "
@@ -470,6 +470,7 @@ def section_identify(res: Dict) -> List[str]:
                 goals = " / ".join(stats.id_goal_cells(r))
                 out.append(f"| {lab} | {mlab} | {t if t != 'all' else 'all three'} | "
                            f"{r['mean']:+.4f} | {r['sd']:.4f} | {r['worst']:.4f} | {goals} |")
+    out += board_rows(res.get("identify_board") or {})
     out.append("")
     for st in idf.get("sets", []):
         ref = st.get("refused", {})
@@ -481,9 +482,59 @@ def section_identify(res: Dict) -> List[str]:
         for r in st.get("refusals", [])[:5]:
             out.append(f"  - refused, {cell(r)}")
     out.append(f"- Measured in {fmt(idf.get('wall_s'), 0)} s (wall).")
+    out += board_notes(res.get("identify_board") or {})
     out += [""] + [f"- {n}" for n in identify_notes(idf)]
     out += ["", "![identification](identify.png)", ""]
     return out
+
+
+BOARD_LABEL = ("the board's `survey` and `survey T H` + one weight per segment "
+               "(bench/held_board.py)")
+
+
+def board_rows(b: Dict) -> List[str]:
+    """Section 7's rows of the board's own survey and held pulls."""
+    if not b or b.get("not_measured") or not b.get("errors"):
+        why = b.get("not_measured") or ("every fit refused" if b else "not measured")
+        return [f"| - | {BOARD_LABEL} | - | n/a | n/a | n/a | {cell(why)} |"]
+    lab = (f"{len(b['seeds'])} x {id_set_label(b)}, firmware")
+    out = []
+    for t in ("0.3", "0.8", "1.5", "all"):
+        r = b["errors"][t]
+        out.append(f"| {lab} | {BOARD_LABEL} | {t if t != 'all' else 'all three'} | "
+                   f"{r['mean']:+.4f} | {r['sd']:.4f} | {r['worst']:.4f} | "
+                   f"{' / '.join(stats.id_goal_cells(r))} |")
+    return out
+
+
+def board_notes(b: Dict) -> List[str]:
+    """What the board's runs of section 7 took: the highest true tensions
+    against the bounded pull, the runs' times, the fits refused."""
+    if not b or b.get("not_measured"):
+        return []
+
+    def rng(k, unit="s", d=1):
+        v = b.get(k) or {}
+        return f"{fmt(v.get('min'), d)}-{fmt(v.get('max'), d)} {unit}"
+
+    bound = b.get("bound_mN")
+    peaks = [b.get("survey_peak_mN"), b.get("hold_peak_mN"), b.get("pulled_peak_mN")]
+    over = bound is not None and any(p is not None and p > bound for p in peaks)
+    ref = b.get("refused") or []
+    return [
+        f"- The board's survey and held pulls, {len(b['seeds'])} robots at {id_set_label(b)} "
+        f"(seeds {b['seeds'][0]}-{b['seeds'][-1]}, the firmware on the bench): the highest true "
+        f"tension of any tendon in the survey alone {fmt(peaks[0], 0)} mN, of a held tendon "
+        f"{fmt(peaks[1], 0)} mN, of a pulled tendon in a held run {fmt(peaks[2], 0)} mN, "
+        f"against the bounded pull's {fmt(bound, 0)} mN"
+        + (" (**over it**)" if over else " (within it)")
+        + f"; the survey alone took {rng('survey_alone_s')}, each held run {rng('held_s')}, "
+        f"a fit {rng('fit_s', d=0)}; fits refused: {len(ref)}"
+        + (" (" + "; ".join(f"seed {r['seed']}: {cell(r['why'])}" for r in ref[:5]) + ")"
+           if ref else "")
+        + (f"; runs that did not end in `<done>`: seeds {b['runs_short']}"
+           if b.get("runs_short") else "")
+        + f"; measured in {fmt(b.get('wall_s'), 0)} s (wall)."]
 
 
 def identify_notes(idf: Dict) -> List[str]:

@@ -14,9 +14,11 @@ import subprocess
 import sys
 import time
 from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
 from typing import Dict, List
 
 import hallhome  # noqa: F401  (before numpy: it sets one BLAS thread)
+import numpy as np
 
 from . import native, plots, report, simavr, stats, straight_fw
 
@@ -508,13 +510,67 @@ def identify_item(a, res: Dict) -> None:
         count[0] += 1
         log(f"identification {count[0]}/{total}: {msg} [{time.time() - t0:.0f} s]")
 
-    from pathlib import Path
     out = studies(Path(a.robot), sets, a.id_weight_g, Path(a.hh_bench), Path(a.elf),
                   Path(a.config), log=progress, jobs=max(1, a.jobs))
     for st, o in zip(sets, out):
         o["key"] = st["key"]
     res["identify"] = {"sets": out, "weight_g": a.id_weight_g, "goals": stats.ID_GOALS,
                        "wall_s": time.time() - t0, "robot": a.robot}
+
+
+# The board's own survey and held pulls (bench/held_board.py): (perturbation,
+# stiffness spread, seeds in a full run)
+BOARD_SET = (0.10, 0.25, 20)
+
+
+def board_item(a, res: Dict) -> None:
+    """Section 7, the board's part: the firmware's `survey` and `survey T H`
+    runs on seeded robots of the set above, one weight per segment hung by the
+    bench, the fit and its targets' errors, and the highest true tensions of
+    those runs (bench/held_board.py)."""
+    from . import held_board
+
+    perturb, stiff, full = BOARD_SET
+    n = a.board_seeds if a.board_seeds is not None else (0 if a.reduced else full)
+    why = None
+    if n <= 0:
+        why = "skipped (--reduced or --board-seeds 0)"
+    elif not (a.hh_bench and os.path.exists(a.hh_bench)):
+        why = f"no bench binary at {a.hh_bench}"
+    elif not (a.elf and os.path.exists(a.elf)):
+        why = f"no firmware ELF at {a.elf}"
+    elif not (a.robot and os.path.exists(a.robot)):
+        why = f"no robot description at {a.robot}"
+    if why:
+        log(f"the board's survey and held pulls: {why}")
+        res["identify_board"] = {"not_measured": why}
+        return
+    seeds = list(range(1, n + 1))
+    log(f"the board's survey and held pulls: {n} seeded robots at ±{100 * perturb:g} %, "
+        f"stiffness ±{100 * stiff:g} % ({a.jobs} at a time; 2-4 min each)")
+    t0 = time.time()
+    done = [0]
+
+    def progress(r):
+        done[0] += 1
+        e = np.array(r.get("errors", [[np.nan]]))
+        log(f"board identification {done[0]}/{n}: seed {r['seed']}, runs {r.get('runs_done')}/"
+            f"{r.get('runs')}, worst |error| {np.nanmax(np.abs(e)):.4f} N"
+            + (f", refused: {r['refused']}" if r.get("refused") else "")
+            + f" [{time.time() - t0:.0f} s]")
+
+    rig = held_board.Rig(bench=Path(a.hh_bench), fw=Path(a.elf), plant=Path(a.config),
+                         toml=Path(a.robot))
+    recs = held_board.study(seeds, perturb, stiff, jobs=max(1, a.jobs), rig=rig, log=progress)
+    from hallhome.paths import LIB_DIR
+    from hallhome.protocol import c_define
+    from hallhome.robot import load_robot
+
+    top_mN = 1000 * load_robot(a.robot).tension_grid[-1]
+    # the bounded pull at the survey's top tension (design.md, docs/homing.md)
+    bound_mN = 1.25 * top_mN + c_define(LIB_DIR / "homing" / "homing.h", "HOM_BOUND_MN")
+    res["identify_board"] = dict(held_board.summary(recs, perturb, stiff),
+                                 bound_mN=bound_mN, wall_s=time.time() - t0, records=recs)
 
 
 # ---- main ----------------------------------------------------------------------------
@@ -541,6 +597,9 @@ def main(argv=None) -> int:
     p.add_argument("--id-weight-g", type=float, default=80.0,
                    help="the survey's weight per segment (g)")
     p.add_argument("--no-identify", action="store_true", help="skip section 7")
+    p.add_argument("--board-seeds", type=int, default=None,
+                   help="robots of section 7's board survey and held pulls, which run the "
+                   "firmware (default 20, reduced 0; --identify-from does not reuse them)")
     p.add_argument("--identify-from", default=None, metavar="RESULTS_JSON",
                    help="section 7 from an earlier run's results.json instead of measuring it "
                    "again (it depends on the host tools and the plant, not the firmware); "
@@ -575,6 +634,10 @@ def main(argv=None) -> int:
         res["identify"]["reused_from"] = {k: earlier.get("meta", {}).get(k) for k in ("git", "date")}
     else:
         identify_item(a, res)
+    if a.no_identify:
+        res["identify_board"] = {"not_measured": "skipped (--no-identify)"}
+    else:
+        board_item(a, res)
     res["resources"]["bus"] = native.dxl_bench(a.dxl_bench if os.path.exists(a.dxl_bench) else None)
     work = simavr.scratch_dir(os.path.join("build", "bench", "simavr"))
     try:

@@ -142,7 +142,9 @@ def _stats(v: np.ndarray) -> dict:
             "worst": float(np.abs(v).max()), "n": int(v.size)}
 
 
-def _summary(errs: list[np.ndarray]) -> dict:
+def error_summary(errs: list[np.ndarray]) -> dict:
+    """Mean, SD and worst |error| per test tension and over all of them, of
+    one (tendons, tensions) error array per robot."""
     e = np.array(errs)  # (runs, tendons, tensions)
     out = {f"{T:g}": _stats(e[:, :, n]) for n, T in enumerate(TENSIONS)}
     out["all"] = _stats(e)
@@ -311,7 +313,7 @@ def _set_summary(robot: Robot, st: dict, per: list[dict], weight_g: float) -> di
             "errors": {m: [e.tolist() for e in rows[m]] for m in modes},
             "radius_mm": [p["radius_mm"] for p in per],
             "weighted_tendon": weighted_tendon(robot),
-            **{m: _summary(rows[m]) for m in modes},
+            **{m: error_summary(rows[m]) for m in modes},
             "parameter_rms_error": rms}
 
 

@@ -400,6 +400,14 @@ enum { APP_MOVE_HOME = 1, APP_MOVE_RELEASE = 2 };
  * units, 156 ticks/s: 1.6 ticks between two samples of a sensor, so the
  * position a line pairs with a sample lags it by well under a tick. */
 #define APP_SURVEY_V 10u
+/* Survey (`survey`): the run's tension, every tendon's target, is this many
+ * eighths of the table's top grid tension (at least the lowest grid
+ * tension). The survey runs on a robot not yet identified, and the field
+ * says where its bend is, not its tension: pulled to the top target,
+ * paper_2seg at +-10 %, stiffness +-25 % (seeds 8 and 18) took a tendon to
+ * 2.10 and 2.15 N, 1.43 x the top, against the bounded pull's
+ * 1.25 x 1.5 N + 0.1 N = 1.975 N. */
+#define APP_SURVEY_EIGHTHS 6u
 /* Held pull (`survey T H`, docs/identify.md): the run's tension, the held
  * tendon's target, is this many eighths of the table's top grid tension.
  * The pulled tendon's pull raises the held tendon's tension: held at the

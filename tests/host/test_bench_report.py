@@ -375,3 +375,52 @@ def test_position_feedback_of_the_fine_approach_against_its_goal():
     assert "at most 2 ms: met" in text
     del res["resources"]["bench_bus"]["by_phase"]
     assert "fine approach (`engaged`)" not in "\n".join(report.section_resources(res))
+
+
+def _board_records():
+    # two robots whose fits were accepted (errors: 6 tendons x 3 tensions) and
+    # one refused; seed 2's held run went over the bound
+    def rec(seed, err, hold, pulled, survey):
+        return {"seed": seed, "runs_done": 7, "runs": 7, "held": 6, "refused": None,
+                "errors": [[err, 2 * err, 3 * err]] * 6, "hold_peak_mN": hold,
+                "hold_peaks_mN": [hold, hold - 10], "pulled_peaks_mN": [pulled, pulled - 5],
+                "survey_peak_mN": survey, "survey_alone_s": 9.0 + seed, "held_s": [8.0, 11.5],
+                "survey_s": 60.0 + seed, "fit_s": 30.0 * seed}
+    return [rec(1, 0.001, 1200.0, 600.0, 1500.0), rec(2, -0.003, 2000.0, 700.0, 1600.0),
+            {"seed": 3, "runs_done": 6, "runs": 7, "held": 0, "refused": "no survey file"}]
+
+
+def test_board_study_summary_counts_refusals_and_peaks():
+    from bench import held_board
+
+    s = held_board.summary(_board_records(), 0.1, 0.25)
+    assert s["seeds"] == [1, 2, 3]
+    assert s["errors"]["all"]["n"] == 36  # the refused robot keeps no targets here
+    assert s["errors"]["1.5"]["mean"] == pytest.approx(3 * (0.001 - 0.003) / 2)
+    assert s["errors"]["0.3"]["worst"] == pytest.approx(0.003)
+    assert s["refused"] == [{"seed": 3, "why": "no survey file"}]
+    assert s["runs_short"] == [3]
+    assert (s["hold_peak_mN"], s["pulled_peak_mN"], s["survey_peak_mN"]) == (2000.0, 700.0, 1600.0)
+    assert s["held_s"] == {"min": 8.0, "max": 11.5} and s["fit_s"] == {"min": 30.0, "max": 60.0}
+
+
+def test_board_rows_and_notes_in_section_7():
+    from bench import held_board
+
+    r = _results()
+    r["identify_board"] = dict(held_board.summary(_board_records(), 0.1, 0.25), bound_mN=1975.0,
+                               wall_s=600.0)
+    sec = report.build_report(r)
+    sec = sec[sec.index(report.SECTIONS[7]):]
+    rows = [l for l in sec.splitlines() if "`survey T H` + one weight" in l]
+    assert len(rows) == 4
+    assert rows[-1].startswith("| 3 x ±10 %, stiffness ±25 %, firmware | ")
+    assert "| 1.5 | -0.0030 | " in rows[2]
+    assert "of a held tendon 2000 mN" in sec and "against the bounded pull's 1975 mN (**over it**)" in sec
+    assert "fits refused: 1 (seed 3: no survey file)" in sec
+    assert "did not end in `<done>`: seeds [3]" in sec
+    r["identify_board"]["hold_peak_mN"] = 1500.0
+    assert "(within it)" in report.build_report(r)
+    r["identify_board"] = {"not_measured": "skipped (--reduced or --board-seeds 0)"}
+    sec = report.build_report(r)
+    assert "| - | the board's `survey` and `survey T H`" in sec and "--board-seeds 0" in sec

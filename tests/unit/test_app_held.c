@@ -74,7 +74,7 @@ static void test_held_survey_from_the_console(void **state)
     }
     assert_non_null(strstr(g_line, "mode=survey"));
     assert_int_equal(app_bench_field(g_line, "count", -1), 0);
-    assert_int_equal(app_bench_field(g_line, "tension_mN", -1), 1500 * 5 / 8);
+    assert_int_equal(app_bench_field(g_line, "tension_mN", -1), 1500 * APP_HOLD_EIGHTHS / 8);
     assert_true(hold_pos != 0 && sv >= 20u && sv_alone >= 20u);
     assert_true(same * 2u >= sv + sv_alone); /* standing points, not a moving pull */
     assert_true(all_slack());
