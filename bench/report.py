@@ -529,7 +529,7 @@ def board_notes(b: Dict) -> List[str]:
         f"against the bounded pull's {fmt(bound, 0)} mN"
         + (" (**over it**)" if over else " (within it)")
         + f"; the survey alone took {rng('survey_alone_s')}, each held run {rng('held_s')}, "
-        f"a fit {rng('fit_s', d=0)}; fits refused: {len(ref)}"
+        f"a fit {rng('fit_s', d=0)}; fits refused (scored with the nominal targets): {len(ref)}"
         + (" (" + "; ".join(f"seed {r['seed']}: {cell(r['why'])}" for r in ref[:5]) + ")"
            if ref else "")
         + (f"; runs that did not end in `<done>`: seeds {b['runs_short']}"

@@ -631,7 +631,9 @@ def main(argv=None) -> int:
         with open(a.identify_from) as fh:
             earlier = json.load(fh)
         res["identify"] = dict(earlier.get("identify") or {"not_measured": "none in the file"})
-        res["identify"]["reused_from"] = {k: earlier.get("meta", {}).get(k) for k in ("git", "date")}
+        # the run that measured it (a results.json that took it over names that one)
+        res["identify"].setdefault(
+            "reused_from", {k: earlier.get("meta", {}).get(k) for k in ("git", "date")})
     else:
         identify_item(a, res)
     if a.no_identify:

@@ -2,8 +2,9 @@
 (docs/identify.md, "Survey on the board").
 
 The board's `survey` command pulls every tendon (or one) alone, the others
-released, from slack to the table's top grid tension, as a calibration
-pulls, and streams `<sv t=I p=TICKS b=x0,y0,z0,x1,...>` lines: the pulled
+released, from slack to three quarters of the table's top grid tension
+(APP_SURVEY_EIGHTHS in lib/app/app_priv.h), as a calibration pulls, and
+streams `<sv t=I p=TICKS b=x0,y0,z0,x1,...>` lines: the pulled
 tendon, its servo position and every sensor's newest raw sample (cuT, sensor
 frame). Nothing is stored on the board; every tendon ends released. This
 module turns those lines into the survey file `hallhome identify fit` reads,
@@ -12,6 +13,7 @@ and optionally guides the hung weights, read through `sensors`.
 
 from __future__ import annotations
 
+import itertools
 import json
 import sys
 import time
@@ -47,7 +49,7 @@ MAX_JUMP_TICKS = 6
 # detection comes a few samples past the true engagement.
 FAST_GUARD_TICKS = 40
 # The share of a pull's range past the engagement that goes into the file:
-# the last stretch, where the fine approach closes on the top grid tension,
+# the last stretch, where the fine approach closes on the survey's target,
 # carries the tendon friction the fit's model has no term for (on the bench's
 # plant its residuals there pull the fit into a stronger magnet with a smaller
 # routing radius: 3 fits of 10 on seeds 1-10 with the whole range, none
@@ -121,7 +123,7 @@ def pull_of(tendon: int, samples: Sequence[Sample], engaged: Optional[int],
     samples at one position averaged into one step, steps kept only while the
     take-up grows (a re-approach after an overshoot goes back first) and up to
     `keep` of the range past the reported engagement, the baseline from the
-    slack samples before that engagement."""
+    slack samples taken before the pull first came near that engagement."""
     if not samples:
         raise SurveyError(f"tendon {tendon}: no survey samples arrived")
     if engaged is None:
@@ -144,7 +146,13 @@ def pull_of(tendon: int, samples: Sequence[Sample], engaged: Optional[int],
         if (kept and pull_dir * (ticks - kept[-1][0]) <= 0) or pull_dir * ticks > last:
             continue
         kept.append((ticks, [[round(x / n, 1) for x in v] for v in acc]))
-    slack = [s for s in samples if pull_dir * (engaged - s.ticks) >= BASE_GUARD_TICKS]
+    # the slack samples before the pull first came near its engagement: a
+    # back-off after a take-up that ran on passes those positions again, with
+    # the field still high from the pull (the path's friction; bench seed 5
+    # at ±10 %, stiffness ±25 %: a sample 8 ticks short at 120 uT moved the
+    # baseline by 6 uT and the fit into a wrong valley)
+    slack = list(itertools.takewhile(
+        lambda s: pull_dir * (engaged - s.ticks) >= BASE_GUARD_TICKS, samples))
     if len(slack) < MIN_BASE_SAMPLES:
         raise SurveyError(f"tendon {tendon}: {len(slack)} slack sample(s) before its engagement "
                           f"at {engaged}, {MIN_BASE_SAMPLES} needed for its baseline (the "
@@ -355,9 +363,10 @@ def survey_cmd(out_path, tendon, weight_g, weight2_g, which, samples, hang_wait,
     """Survey the robot on the board for `hallhome identify fit`.
 
     Every tendon (or --tendon), the others released, is pulled alone from
-    slack to the table's top grid tension, as a calibration pulls, while the
-    board streams its servo position and every sensor's field; every tendon
-    ends released and nothing is stored on the board. A pull that reaches
+    slack to three quarters of the table's top grid tension (a robot stiffer
+    than its table takes more tension for the same field), as a calibration
+    pulls, while the board streams its servo position and every sensor's
+    field; every tendon ends released and nothing is stored on the board. A pull that reaches
     its bound first (its travel limit, a field that stops rising, its time:
     a robot that differs from its table) ends there, is marked, and the
     survey goes on with the next tendon. With --weight-g, the

@@ -417,7 +417,7 @@ def test_board_rows_and_notes_in_section_7():
     assert rows[-1].startswith("| 3 x ±10 %, stiffness ±25 %, firmware | ")
     assert "| 1.5 | -0.0030 | " in rows[2]
     assert "of a held tendon 2000 mN" in sec and "against the bounded pull's 1975 mN (**over it**)" in sec
-    assert "fits refused: 1 (seed 3: no survey file)" in sec
+    assert "fits refused (scored with the nominal targets): 1 (seed 3: no survey file)" in sec
     assert "did not end in `<done>`: seeds [3]" in sec
     r["identify_board"]["hold_peak_mN"] = 1500.0
     assert "(within it)" in report.build_report(r)

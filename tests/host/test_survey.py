@@ -48,6 +48,27 @@ def test_pull_averages_repeats_keeps_growth_and_takes_the_baseline_from_slack():
     assert p["samples"] == len(s)
 
 
+def test_the_baseline_leaves_out_a_back_off_past_slack_positions():
+    """Bench seed 5 at ±10 %, stiffness ±25 % (tendon 1, sensor 0's x axis, cuT):
+    the take-up ran on past its engagement (163) to 247 and backed off to 136
+    with the field still high from the pull; the sample at 155 passed for
+    slack and moved the baseline by 6 uT, and the fit went to a magnet of half
+    the nominal strength (refused)."""
+    slack = [Sample(p, [[26150 + (p % 3) * 30, -200, 7530]]) for p in range(-213, 163, 25)]
+    run_on = [Sample(199, [[23490, -195, 8250]]), Sample(208, [[17310, -150, 9375]]),
+              Sample(231, [[13620, -60, 9600]]), Sample(247, [[11940, -165, 9615]]),
+              Sample(234, [[11415, -45, 9510]])]
+    back = [Sample(155, [[13965, -105, 9585]]), Sample(136, [[26115, -165, 7530]]),
+            Sample(139, [[26235, -240, 7500]])]
+    approach = [Sample(p, [[26100 - 300 * (p - 163), -200, 7600]]) for p in range(142, 260, 3)]
+    p = pull_of(1, slack + run_on + back + approach, 163, 1)
+    quiet = [s for s in slack if 163 - s.ticks >= 8]  # BASE_GUARD_TICKS
+    want = [round(sum(s.b[0][a] for s in quiet) / len(quiet), 1) for a in range(3)]
+    assert p["baseline_cuT"] == [want]
+    # each sample before the run-on counts, none after
+    assert abs(p["baseline_cuT"][0][0] - 26180) < 40
+
+
 def test_pull_in_the_negative_direction():
     s = ramp(5000, 4900, 4, dirn=-1, engaged_at=4960)
     p = pull_of(3, s, 4956, -1, keep=1.0)

@@ -71,8 +71,9 @@ def test_survey_streams_every_tendon_stores_nothing_and_ends_released(tmp_path):
         # a fit needs 8; how many lines a pull gets depends on where its
         # take-up handed over to the survey's approach: 39-96 for tendon 1
         # of this seed over builds of the same logic whose code layout
-        # differs (the passes' timing moves)
-        assert len(mine) >= 30, f"tendon {i}: {len(mine)} samples"
+        # differs (the passes' timing moves), at the top grid tension; 35-63
+        # per tendon at the survey's three quarters of it
+        assert len(mine) >= 24, f"tendon {i}: {len(mine)} samples"
         ticks = [g[1] for g in mine]
         assert ticks[-1] - ticks[0] > 100  # from slack through the engagement
         # the pulled tendon moves the field of its segment far beyond the noise
