@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 import os
-from typing import Dict, List
+from typing import Dict, List, Optional
 
 import matplotlib
 
@@ -166,20 +166,36 @@ def ambient(amb: Dict, outdir: str) -> str:
     return _save(fig, outdir, "ambient.png")
 
 
-def identify(idf: Dict, outdir: str) -> str:
+def _board_errors(board: Optional[Dict], st: Dict) -> Optional[np.ndarray]:
+    """The board's survey and held pulls' errors (robots, tendons, tensions)
+    when they were measured on robots of set st's spread."""
+    if not board or board.get("not_measured") or not board.get("records"):
+        return None
+    same = all(abs((board.get(k) or 0.0) - (st.get(k) if st.get(k) is not None
+                                            else st.get("perturb", 0.0))) < 1e-9
+               for k in ("perturb", "perturb_stiffness"))
+    rows = [r["errors"] for r in board["records"] if "errors" in r]
+    return np.array(rows) if same and rows else None
+
+
+def identify(idf: Dict, outdir: str, board: Optional[Dict] = None) -> str:
     """Tension error of every tendon of every identified robot, per set,
-    tension and description (nominal, survey only, with weights), against
-    the worst-error goal."""
+    tension and description (nominal, survey only, with weights; the board's
+    own survey and held pulls beside the set of their spread), against the
+    worst-error goal."""
     sets = idf.get("sets", []) if idf and not idf.get("not_measured") else []
     n = max(len(sets), 1)
     fig, axes = plt.subplots(1, n, figsize=(5.2 * n, 4.2), squeeze=False, sharey=True)
     modes = (("nominal", "nominal TOML"),) + tuple(ID_SHORT.items())
     tensions = (0.3, 0.8, 1.5)
     for ax, st in zip(axes[0], sets):
-        shown = [(key, lab) for key, lab in modes if key in st.get("errors", {})]
+        shown = [(lab, np.array(st["errors"][key]))  # (robots, tendons, tensions)
+                 for key, lab in modes if key in st.get("errors", {})]
+        eb = _board_errors(board, st)
+        if eb is not None:
+            shown.append(("the board's survey and held pulls", eb))
         width = 0.8 / max(len(shown), 1)
-        for m, (key, lab) in enumerate(shown):
-            e = np.array(st["errors"][key])  # (robots, tendons, tensions)
+        for m, (lab, e) in enumerate(shown):
             off = (m - (len(shown) - 1) / 2) * width
             for n_t, t in enumerate(tensions):
                 v = e[:, :, n_t].ravel()
@@ -194,6 +210,8 @@ def identify(idf: Dict, outdir: str) -> str:
         ax.set_xticklabels([f"{t} N" for t in tensions])
         ax.set_title(f"{len(st['seeds'])} robots at {id_set_label(st)}", fontsize=9)
         ax.set_xlabel("tension (bars: mean)")
+        if eb is not None:  # a description the first panel's legend lacks
+            ax.legend(fontsize=7, loc="lower left")
     if not sets:
         axes[0][0].text(0.5, 0.5, "not measured", ha="center", transform=axes[0][0].transAxes)
     axes[0][0].set_ylabel("true tension - target (N)")

@@ -377,6 +377,24 @@ def test_position_feedback_of_the_fine_approach_against_its_goal():
     assert "fine approach (`engaged`)" not in "\n".join(report.section_resources(res))
 
 
+def test_the_goal_note_on_position_reads_says_met_or_missed():
+    from bench import run
+
+    res = _results()
+    res["resources"]["bus"] = {"sync_simavr_ms": 1.69}
+    res["resources"]["bench_bus"] = {"median_ms": 4.5,
+                                     "by_phase": {"engaged": {"median_ms": 4.36}}}
+    note = next(n for n in run.goal_notes(res) if "reads the servo positions" in n)
+    assert "every 4.50 ms (median)" in note and "every 4.36 ms (median), against issue 14's " \
+        "2 ms: missed." in note
+    res["resources"]["bench_bus"]["by_phase"]["engaged"]["median_ms"] = 1.61
+    note = next(n for n in run.goal_notes(res) if "reads the servo positions" in n)
+    assert note.endswith("against issue 14's 2 ms: met.")
+    del res["resources"]["bench_bus"]["by_phase"]
+    note = next(n for n in run.goal_notes(res) if "reads the servo positions" in n)
+    assert "fine approach" not in note
+
+
 def _board_records():
     # two robots whose fits were accepted (errors: 6 tendons x 3 tensions) and
     # one refused; seed 2's held run went over the bound
@@ -424,3 +442,18 @@ def test_board_rows_and_notes_in_section_7():
     r["identify_board"] = {"not_measured": "skipped (--reduced or --board-seeds 0)"}
     sec = report.build_report(r)
     assert "| - | the board's `survey` and `survey T H`" in sec and "--board-seeds 0" in sec
+
+
+def test_the_identification_plot_puts_the_board_beside_the_set_of_its_spread(tmp_path):
+    from bench import held_board, plots
+
+    board = dict(held_board.summary(_board_records(), 0.1, 0.25), records=_board_records())
+    ten = {"perturb": 0.1, "perturb_stiffness": 0.25}
+    five = {"perturb": 0.05, "perturb_stiffness": None}
+    e = plots._board_errors(board, ten)
+    assert e.shape == (2, 6, 3)  # the robots whose errors are known
+    assert plots._board_errors(board, five) is None
+    assert plots._board_errors({"not_measured": "skipped"}, ten) is None
+    r = _results()
+    assert os.path.exists(os.path.join(tmp_path, plots.identify(r["identify"], str(tmp_path),
+                                                                board)))
