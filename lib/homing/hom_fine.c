@@ -221,7 +221,7 @@ HOM_NOINLINE int32_t hom_curve_um256(const hom_t *h, uint32_t b, uint8_t work)
     for (g = 0; (int)g < n; g++) {
         uint32_t x1 = 0;
         uint32_t y1 = tgt[g];
-        if (work) {
+        if (work && h->amb != NULL) { /* delta mode works with the delta targets */
             uint32_t abs_t = 0;
             (void)tbl_entry(&h->table, h->cur, TBL_ROW_ABS, g, &abs_t);
             y1 = hom_work_target(h, t->sensor, y1, abs_t);
