@@ -470,18 +470,36 @@ ID_SETS = (
 )
 
 
+def _counter(label: str, total: int):
+    """A progress logger: each call logs the next of `total` with the time
+    since it was made."""
+    t0, count = time.time(), [0]
+
+    def step(msg: str) -> None:
+        count[0] += 1
+        log(f"{label} {count[0]}/{total}: {msg} [{time.time() - t0:.0f} s]")
+    return step
+
+
+def _inputs_missing(a, bench_use: str = "", elf_use: str = "") -> "str | None":
+    """Why section 7 cannot be measured (a bench, firmware or description
+    missing), or None."""
+    if not (a.hh_bench and os.path.exists(a.hh_bench)):
+        return f"no bench binary at {a.hh_bench}{bench_use}"
+    if not (a.elf and os.path.exists(a.elf)):
+        return f"no firmware ELF at {a.elf}{elf_use}"
+    if not (a.robot and os.path.exists(a.robot)):
+        return f"no robot description at {a.robot}"
+    return None
+
+
 def identify_item(a, res: Dict) -> None:
     """Section 7: the robot as built identified from a bench survey
     (hallhome.identify_eval): seeded perturbed robots, targets from the
     nominal TOML, from the survey-only fit and from the fit with one weight
     per segment, scored by their tension errors on the true robot."""
-    why = None
-    if not (a.hh_bench and os.path.exists(a.hh_bench)):
-        why = f"no bench binary at {a.hh_bench} (it writes the surveys)"
-    elif not (a.elf and os.path.exists(a.elf)):
-        why = f"no firmware ELF at {a.elf} (hh_bench needs one, the survey does not run it)"
-    elif not (a.robot and os.path.exists(a.robot)):
-        why = f"no robot description at {a.robot}"
+    why = _inputs_missing(a, " (it writes the surveys)",
+                          " (hh_bench needs one, the survey does not run it)")
     if why:
         log(f"identification: {why}")
         res["identify"] = {"not_measured": why}
@@ -504,12 +522,7 @@ def identify_item(a, res: Dict) -> None:
     log(f"identification: {total} seeded robots (a survey, two to four fits and tables each), "
         f"{a.jobs} at a time; a fit takes 5-60 s")
     t0 = time.time()
-    count = [0]
-
-    def progress(msg):
-        count[0] += 1
-        log(f"identification {count[0]}/{total}: {msg} [{time.time() - t0:.0f} s]")
-
+    progress = _counter("identification", total)
     out = studies(Path(a.robot), sets, a.id_weight_g, Path(a.hh_bench), Path(a.elf),
                   Path(a.config), log=progress, jobs=max(1, a.jobs))
     for st, o in zip(sets, out):
@@ -532,32 +545,22 @@ def board_item(a, res: Dict) -> None:
 
     perturb, stiff, full = BOARD_SET
     n = a.board_seeds if a.board_seeds is not None else (0 if a.reduced else full)
-    why = None
-    if n <= 0:
-        why = "skipped (--reduced or --board-seeds 0)"
-    elif not (a.hh_bench and os.path.exists(a.hh_bench)):
-        why = f"no bench binary at {a.hh_bench}"
-    elif not (a.elf and os.path.exists(a.elf)):
-        why = f"no firmware ELF at {a.elf}"
-    elif not (a.robot and os.path.exists(a.robot)):
-        why = f"no robot description at {a.robot}"
+    why = "skipped (--reduced or --board-seeds 0)" if n <= 0 else _inputs_missing(a)
     if why:
         log(f"the board's survey and held pulls: {why}")
         res["identify_board"] = {"not_measured": why}
         return
     seeds = list(range(1, n + 1))
     log(f"the board's survey and held pulls: {n} seeded robots at ±{100 * perturb:g} %, "
-        f"stiffness ±{100 * stiff:g} % ({a.jobs} at a time; 2-4 min each)")
+        f"stiffness ±{100 * stiff:g} % ({a.jobs} at a time; 30-60 s each)")
     t0 = time.time()
-    done = [0]
+    step = _counter("board identification", n)
 
     def progress(r):
-        done[0] += 1
         e = np.array(r.get("errors", [[np.nan]]))
-        log(f"board identification {done[0]}/{n}: seed {r['seed']}, runs {r.get('runs_done')}/"
-            f"{r.get('runs')}, worst |error| {np.nanmax(np.abs(e)):.4f} N"
-            + (f", refused: {r['refused']}" if r.get("refused") else "")
-            + f" [{time.time() - t0:.0f} s]")
+        step(f"seed {r['seed']}, runs {r.get('runs_done')}/{r.get('runs')}, worst |error| "
+             f"{np.nanmax(np.abs(e)):.4f} N"
+             + (f", refused: {r['refused']}" if r.get("refused") else ""))
 
     rig = held_board.Rig(bench=Path(a.hh_bench), fw=Path(a.elf), plant=Path(a.config),
                          toml=Path(a.robot))

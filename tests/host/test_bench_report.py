@@ -457,3 +457,23 @@ def test_the_identification_plot_puts_the_board_beside_the_set_of_its_spread(tmp
     r = _results()
     assert os.path.exists(os.path.join(tmp_path, plots.identify(r["identify"], str(tmp_path),
                                                                 board)))
+
+
+def test_the_board_item_says_why_it_was_not_measured(tmp_path):
+    from types import SimpleNamespace
+
+    from bench import run
+
+    elf = tmp_path / "fw.elf"
+    elf.write_text("")
+    a = SimpleNamespace(board_seeds=None, reduced=True, hh_bench=str(tmp_path / "none"),
+                        elf=str(elf), robot=str(elf), jobs=1, config="x")
+    res = {}
+    run.board_item(a, res)
+    assert res["identify_board"] == {"not_measured": "skipped (--reduced or --board-seeds 0)"}
+    a.reduced, a.board_seeds = False, 3
+    run.board_item(a, res)
+    assert res["identify_board"]["not_measured"] == f"no bench binary at {tmp_path / 'none'}"
+    a.hh_bench, a.elf = str(elf), str(tmp_path / "gone.elf")
+    run.board_item(a, res)
+    assert res["identify_board"]["not_measured"].startswith("no firmware ELF at ")
