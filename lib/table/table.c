@@ -184,6 +184,13 @@ int tbl_row(const tbl_src_t *src, uint8_t i, uint8_t row, uint32_t out[TBL_MAX_G
     return c[2];
 }
 
+/* tbl_tendon() copies the head into the row as bytes: the same layout. */
+typedef char tbl_tendon_head_ok_t[(offsetof(tbl_tendon_t, travel_limit_um) ==
+                                       offsetof(tbl_tendon_head_t, travel_limit_um) &&
+                                   sizeof(tbl_tendon_head_t) <= offsetof(tbl_tendon_t, target_cuT))
+                                      ? 1
+                                      : -1];
+
 int tbl_tendon(const tbl_src_t *src, uint8_t i, tbl_tendon_t *out)
 {
     uint8_t c[3];
@@ -194,12 +201,7 @@ int tbl_tendon(const tbl_src_t *src, uint8_t i, tbl_tendon_t *out)
     }
     tbl_counts(src, c);
     memset(out, 0, sizeof *out);
-    out->servo_id = h.servo_id;
-    out->pull_dir = h.pull_dir;
-    out->segment = h.segment;
-    out->sensor = h.sensor;
-    out->nm_per_tick = h.nm_per_tick;
-    out->travel_limit_um = h.travel_limit_um;
+    memcpy(out, &h, sizeof h); /* the same initial fields (TBL_TENDON_HEAD_FIELDS) */
     (void)tbl_row(src, i, TBL_ROW_TARGET, out->target_cuT);
     (void)tbl_row(src, i, TBL_ROW_ABS, out->abs_target_cuT);
     (void)tbl_row(src, i, TBL_ROW_TRAVEL, out->travel_um);

@@ -173,14 +173,20 @@ typedef struct {
     int32_t b_straight_cuT[3]; /* predicted magnet field at the straight pose, sensor frame */
 } tbl_sensor_t;
 
+/* The fixed part of a tendon row, declared once: the first fields of
+ * tbl_tendon_t and the whole of tbl_tendon_head_t (the same initial
+ * sequence, so one is copied into the other as bytes). */
+#define TBL_TENDON_HEAD_FIELDS                                                                     \
+    uint8_t servo_id;                                                                              \
+    int8_t pull_dir;                                                                               \
+    uint8_t segment;                                                                               \
+    uint8_t sensor;                                                                                \
+    uint32_t nm_per_tick;                                                                          \
+    uint32_t travel_limit_um;
+
 /* One tendon row, decoded by tbl_tendon(); entries from n_grid on are 0. */
 typedef struct {
-    uint8_t servo_id;
-    int8_t pull_dir;
-    uint8_t segment;
-    uint8_t sensor;
-    uint32_t nm_per_tick;
-    uint32_t travel_limit_um;
+    TBL_TENDON_HEAD_FIELDS
     uint32_t target_cuT[TBL_MAX_GRID];     /* |B(p_T) - B(p_0)| per grid tension */
     uint32_t abs_target_cuT[TBL_MAX_GRID]; /* |B(p_T)| (magnet only) per grid tension */
     uint32_t travel_um[TBL_MAX_GRID];      /* expected take-up from engagement per grid tension */
@@ -190,12 +196,7 @@ typedef struct {
 /* The fixed part of a tendon row (tbl_tendon()'s first fields), decoded by
  * tbl_tendon_head(): 12 bytes where the firmware needs no grid values. */
 typedef struct {
-    uint8_t servo_id;
-    int8_t pull_dir;
-    uint8_t segment;
-    uint8_t sensor;
-    uint32_t nm_per_tick;
-    uint32_t travel_limit_um;
+    TBL_TENDON_HEAD_FIELDS
 } tbl_tendon_head_t;
 
 /* tbl_entry()'s grid index of a tendon's last grid point. */
