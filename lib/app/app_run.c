@@ -132,7 +132,9 @@ static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon
     }
     if (survey) {
         tension = a->info.grid_mN[a->info.n_grid - 1u];
-        tension = (uint16_t)((uint16_t)(tension * (a->run.hold != 0u ? APP_HOLD_EIGHTHS : APP_SURVEY_EIGHTHS)) >> 3);
+        tension = (uint16_t)((uint16_t)(tension * (a->run.hold != 0u ? APP_HOLD_EIGHTHS
+                                                                     : APP_SURVEY_EIGHTHS)) >>
+                             3);
         if (tension < a->info.grid_mN[0]) {
             tension = a->info.grid_mN[0];
         }
