@@ -348,6 +348,11 @@ typedef struct {
  * (APP_ROOM_MARK in lib/app/app_priv.h); the n-th write of a pass starts
  * room n, room 0 is the pass's start up to the first marker. */
 #define LOOP_ROOMS 12u
+/* --loop-profile: the program counter sampled every LOOP_PROF_EVERY cycles
+ * of a pass, kept for the worst pass of each phase (room << 24 | PC, the
+ * PC a byte address); a pass of up to 32 ms at 16 MHz */
+#define LOOP_PROF_EVERY 16u
+#define LOOP_PCS        32768u
 
 typedef struct {
     char name[16];
@@ -358,6 +363,8 @@ typedef struct {
     uint64_t room_max[LOOP_ROOMS];   /* each room's longest share of one pass, cycles */
     uint64_t worst_room[LOOP_ROOMS]; /* the rooms' shares of the worst pass, cycles */
     uint32_t hist[LOOP_BINS];
+    uint32_t *worst_pc; /* --loop-profile: the worst pass's samples (malloc'd) */
+    uint32_t n_worst_pc;
 } loop_phase_t;
 
 typedef struct {
@@ -369,6 +376,9 @@ typedef struct {
     uint8_t room;        /* room markers seen in this pass */
     uint8_t rooms_used;  /* the most room markers seen in any pass, + 1 */
     uint64_t pass_room[LOOP_ROOMS];
+    uint32_t *pc; /* --loop-profile: this pass's samples (NULL: off) */
+    uint32_t n_pc;
+    uint64_t prof_next; /* the cycle of the next sample */
 } bench_loop_t;
 
 /* ---- the bench ---------------------------------------------------------------- */
@@ -490,10 +500,11 @@ void bench_rearm(bench_t *b);
 /* options.c: the command line. What the end of the run reads of it and
  * bench_t does not hold. */
 typedef struct {
-    double check_pct;   /* --check-tension PCT; < 0: no check */
-    uint8_t table;      /* --table */
-    uint8_t use_stdin;  /* --stdin */
-    uint8_t loop_table; /* --loop-table */
+    double check_pct;         /* --check-tension PCT; < 0: no check */
+    uint8_t table;            /* --table */
+    uint8_t use_stdin;        /* --stdin */
+    uint8_t loop_table;       /* --loop-table */
+    const char *loop_profile; /* --loop-profile FILE */
 } bench_cli_t;
 /* Sets the defaults of b and cli, then the options of argv. Returns -1 to
  * run, else the exit code: BENCH_EXIT_OK after --help (usage on stdout),
@@ -587,6 +598,11 @@ void loop_init(bench_t *b);
 void loop_reset(bench_t *b);
 void loop_line(bench_t *b, const char *line);
 void loop_report(bench_t *b, FILE *json, FILE *table);
+/* --loop-profile: sampling on (before the run); a sample when due (after
+ * each instruction); the worst pass of each phase's samples, as JSON. */
+int loop_profile_on(bench_t *b);
+void loop_profile_sample(bench_t *b);
+int loop_profile_write(const bench_t *b, const char *path);
 
 /* steps.c: `step [on REGEX] [within TIME] [+DELAY] EVENT ARGS` script lines */
 int steps_add(bench_t *b, const char *spec);

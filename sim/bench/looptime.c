@@ -16,7 +16,14 @@
  * GPIOR1 write of a pass starts room n (room 0: from the pass marker to the
  * first room marker). Per phase the table gives each room's longest share of
  * a single pass and the rooms' shares of the phase's worst pass.
+ *
+ * Profile (--loop-profile FILE): the program counter every LOOP_PROF_EVERY
+ * cycles of every pass, with the room it fell in; the samples of each
+ * phase's worst pass are kept and written as JSON at exit, for
+ * `python -m bench.profile` to name the functions the pass spent its time in.
  */
+#include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "bench.h"
@@ -64,6 +71,11 @@ static void loop_write(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param)
             p->max = c;
             p->max_at_us = bench_now_us(b);
             memcpy(p->worst_room, l->pass_room, sizeof p->worst_room);
+            if (l->pc != NULL && (p->worst_pc != NULL ||
+                                  (p->worst_pc = malloc(LOOP_PCS * sizeof *p->worst_pc)) != NULL)) {
+                memcpy(p->worst_pc, l->pc, l->n_pc * sizeof *l->pc);
+                p->n_worst_pc = l->n_pc;
+            }
         }
         for (uint8_t r = 0; r < LOOP_ROOMS; r++) {
             if (l->pass_room[r] > p->room_max[r]) {
@@ -74,6 +86,7 @@ static void loop_write(avr_t *avr, avr_io_addr_t addr, uint8_t v, void *param)
     memset(l->pass_room, 0, sizeof l->pass_room);
     l->room = 0;
     l->last_cycle = now;
+    l->n_pc = 0;
 }
 
 static uint8_t loop_phase_index(bench_loop_t *l, const char *name, size_t len)
@@ -218,4 +231,65 @@ void loop_report(bench_t *b, FILE *json, FILE *table)
     if (table != NULL && l->rooms_used > 1u) {
         loop_room_table(l, table);
     }
+}
+
+int loop_profile_on(bench_t *b)
+{
+    b->loop.pc = malloc(LOOP_PCS * sizeof *b->loop.pc);
+    b->loop.n_pc = 0;
+    b->loop.prof_next = 0;
+    return b->loop.pc != NULL ? 0 : -1;
+}
+
+void loop_profile_sample(bench_t *b)
+{
+    bench_loop_t *l = &b->loop;
+    uint64_t now = b->avr->cycle;
+    if (now < l->prof_next) {
+        return;
+    }
+    if (l->prof_next == 0) {
+        l->prof_next = now;
+    }
+    /* one sample per period elapsed, on a fixed grid of cycles (an
+     * instruction takes 1-5 cycles, a sleep many periods): the samples
+     * then count the pass's cycles */
+    uint32_t room = l->room < LOOP_ROOMS ? l->room : LOOP_ROOMS - 1u;
+    while (l->prof_next <= now) {
+        l->prof_next += LOOP_PROF_EVERY;
+        if (l->last_cycle != 0 && l->n_pc < LOOP_PCS) {
+            l->pc[l->n_pc++] = room << 24 | (b->avr->pc & 0xFFFFFFu);
+        }
+    }
+}
+
+int loop_profile_write(const bench_t *b, const char *path)
+{
+    const bench_loop_t *l = &b->loop;
+    FILE *f = fopen(path, "w");
+    if (f == NULL) {
+        return -1;
+    }
+    fprintf(f, "{\"every_cycles\": %u, \"f_cpu\": %lu, \"rooms\": [", LOOP_PROF_EVERY,
+            (unsigned long)BENCH_F_CPU);
+    for (uint8_t r = 0; r < LOOP_ROOMS; r++) {
+        fprintf(f, "%s\"%s\"", r ? ", " : "", loop_room_names[r]);
+    }
+    fprintf(f, "],\n \"phases\": [");
+    uint8_t first = 1;
+    for (uint8_t i = 0; i < l->n_phases; i++) {
+        const loop_phase_t *p = &l->phase[i];
+        if (p->passes == 0) {
+            continue;
+        }
+        fprintf(f, "%s\n  {\"name\": \"%s\", \"max_us\": %.1f, \"max_at_s\": %.6f, \"samples\": [",
+                first ? "" : ",", p->name, loop_us(p->max), (double)p->max_at_us * 1e-6);
+        for (uint32_t k = 0; k < p->n_worst_pc; k++) {
+            fprintf(f, "%s%u", k ? "," : "", p->worst_pc[k]);
+        }
+        fprintf(f, "]}");
+        first = 0;
+    }
+    fprintf(f, "\n]}\n");
+    return fclose(f) == 0 ? 0 : -1;
 }

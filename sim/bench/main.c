@@ -251,6 +251,10 @@ int main(int argc, char **argv)
                             b);
     avr_register_io_write(b->avr, BENCH_EECR, bench_eecr_write, b);
     loop_init(b);
+    if (cli.loop_profile != NULL && loop_profile_on(b) != 0) {
+        fprintf(stderr, "hh_bench: no memory for --loop-profile\n");
+        return BENCH_EXIT_USAGE;
+    }
     if (bench_ee_load(b) != 0 || world_init(b) != 0) {
         return BENCH_EXIT_USAGE;
     }
@@ -296,6 +300,9 @@ int main(int argc, char **argv)
     uint32_t spin = 0;
     while (!b->stop) {
         int st = avr_run(b->avr);
+        if (b->loop.pc != NULL) {
+            loop_profile_sample(b);
+        }
         if (st == cpu_Done || st == cpu_Crashed) {
             snprintf(b->reason_buf, sizeof b->reason_buf, "firmware %s",
                      st == cpu_Done ? "stopped (sleep with interrupts off)" : "crashed");
@@ -368,6 +375,9 @@ int main(int argc, char **argv)
     }
     if (cli.loop_table) {
         loop_report(b, NULL, stdout);
+    }
+    if (cli.loop_profile != NULL && loop_profile_write(b, cli.loop_profile) != 0) {
+        fprintf(stderr, "hh_bench: cannot write %s\n", cli.loop_profile);
     }
     if (b->summary_path != NULL) {
         bench_write_summary(b, wall, cpu);

@@ -79,6 +79,8 @@ static void usage(FILE *f)
         "  --straight-um U0,U1.. per tendon, um to pay out from its home to its straight-pose\n"
         "                        home: the table adds the tensions of that pose (computed)\n"
         "  --loop-table          print main-loop pass times by phase at exit (mean, p99, worst)\n"
+        "  --loop-profile FILE   the program counter every 16 cycles of each phase's worst pass,\n"
+        "                        as JSON at exit (python -m bench.profile ELF FILE names them)\n"
         "  --check-tension PCT   exit 1 unless every tendon's true tension at home is within "
         "PCT%%\n"
         "  --trace-bus           every servo-bus byte and direction change on stderr\n"
@@ -108,6 +110,7 @@ int bench_options(bench_t *b, bench_cli_t *cli, int argc, char **argv)
     cli->table = 0;
     cli->use_stdin = 0;
     cli->loop_table = 0;
+    cli->loop_profile = NULL;
 
     b->seed = 1;
     b->perturb = 0.05;
@@ -282,6 +285,9 @@ int bench_options(bench_t *b, bench_cli_t *cli, int argc, char **argv)
             cli->table = 1;
         } else if (strcmp(a, "--loop-table") == 0) {
             cli->loop_table = 1;
+        } else if (strcmp(a, "--loop-profile") == 0) {
+            NEEDV();
+            cli->loop_profile = v;
         } else if (strcmp(a, "--check-tension") == 0) {
             NEEDV();
             cli->check_pct = strtod(v, NULL);

@@ -89,3 +89,39 @@ def test_idle_command_within_goal(tmp_path, line):
     assert len(replies) == 1, proc.stdout[-2000:]
     idle = {p["name"]: p for p in json.loads(summary.read_text())["loop"]["phases"]}["idle"]
     assert idle["max_us"] <= GOAL_US, f"`{line}`: worst idle pass {idle['max_us']:.0f} us"
+
+
+def test_the_profile_names_where_each_phases_worst_pass_went(tmp_path):
+    """`hh_bench --loop-profile` samples the program counter every 16 cycles
+    (1 us) of each pass and keeps the worst pass of each phase;
+    `python -m bench.profile` names the functions from the ELF's symbols.
+    The samples cover the pass, every one falls in a function, and the
+    homing's room holds the homing's and the table's code."""
+    needs.built(BENCH, FW)
+    prof = tmp_path / "profile.json"
+    proc = subprocess.run(
+        [str(BENCH), str(FW), "--plant", str(PLANT), "--seed", "3", "--limit", "60s",
+         "--loop-profile", str(prof), "--at", "1s press 100",
+         "--until", "^<result tendon=1", "--fail-on", "^<fault"],
+        capture_output=True, text=True, timeout=180, cwd=ROOT)
+    assert proc.returncode == 0, proc.stderr[-1500:]
+    raw = json.loads(prof.read_text())
+    assert raw["every_cycles"] == 16 and "step" in raw["rooms"]
+    r = subprocess.run([str(ROOT / ".venv" / "bin" / "python"), "-m", "bench.profile", str(FW),
+                        str(prof), "--json"], capture_output=True, text=True, timeout=60,
+                       cwd=ROOT)
+    assert r.returncode == 0, r.stderr
+    phases = {p["name"]: p for p in json.loads(r.stdout)}
+    assert {"boot", "release", "tendon", "engaged"} <= set(phases)
+    for p in phases.values():
+        # one sample a microsecond; the pass marker's own instruction aside
+        assert p["samples"] == pytest.approx(p["max_us"], abs=3), p["name"]
+        assert sum(p["rooms"].values()) == pytest.approx(p["max_us"], abs=3)
+        named = sum(us for _, f, us in p["functions"] if not f.startswith("?"))
+        assert named >= 0.99 * p["max_us"], p["functions"][:5]
+    step = [f for room, f, _ in phases["engaged"]["functions"] if room == "step"]
+    assert any(f.startswith("hom_") for f in step), step
+    bad = subprocess.run([str(ROOT / ".venv" / "bin" / "python"), "-m", "bench.profile",
+                          str(FW), str(prof), "--phase", "nosuch"], capture_output=True,
+                         text=True, timeout=60, cwd=ROOT)
+    assert bad.returncode == 2 and "no phase 'nosuch'" in bad.stderr
