@@ -35,10 +35,17 @@ def symbols(elf: str) -> Tuple[List[int], List[Tuple[int, int, str]]]:
     return [f[0] for f in funcs], funcs
 
 
+# The ATmega2560's interrupt vectors: a 4-byte jump each at the start of
+# flash, which avr-nm gives no size.
+VECTORS = 57
+
+
 def name_of(pc: int, starts: List[int], funcs: List[Tuple[int, int, str]]) -> str:
     k = bisect.bisect_right(starts, pc) - 1
     if k >= 0 and funcs[k][0] <= pc < funcs[k][1]:
         return funcs[k][2]
+    if pc < 4 * VECTORS:
+        return f"__vector_{pc // 4}"  # the vector's jump to its handler
     return f"?0x{pc:05x}"
 
 

@@ -117,8 +117,11 @@ def test_the_profile_names_where_each_phases_worst_pass_went(tmp_path):
         # one sample a microsecond; the pass marker's own instruction aside
         assert p["samples"] == pytest.approx(p["max_us"], abs=3), p["name"]
         assert sum(p["rooms"].values()) == pytest.approx(p["max_us"], abs=3)
-        named = sum(us for _, f, us in p["functions"] if not f.startswith("?"))
-        assert named >= 0.99 * p["max_us"], p["functions"][:5]
+        # every sample in a function or an interrupt vector's jump (the
+        # vectors have no symbol size: a build whose passes caught an
+        # interrupt's entry left 27 us unnamed)
+        unnamed = [(room, f) for room, f, _ in p["functions"] if f.startswith("?")]
+        assert not unnamed, unnamed
     step = [f for room, f, _ in phases["engaged"]["functions"] if room == "step"]
     assert any(f.startswith("hom_") for f in step), step
     bad = subprocess.run([str(ROOT / ".venv" / "bin" / "python"), "-m", "bench.profile",
