@@ -140,22 +140,20 @@ def summary(recs: List[dict], perturb: float, stiff: float) -> Dict:
 
     ok = [r for r in recs if "errors" in r]
 
-    def top(key):
-        v = [r[key] for r in recs if r.get(key) is not None]
-        return max(v) if v else None
-
     def span(key):
+        """min and max of a figure over the records, a list per record or one"""
         v = [x for r in recs for x in (r.get(key) if isinstance(r.get(key), list)
                                        else [r.get(key)]) if x is not None]
         return {"min": min(v), "max": max(v)} if v else None
+
+    def top(key):
+        return (span(key) or {}).get("max")
 
     return {"seeds": [r["seed"] for r in recs], "perturb": perturb, "perturb_stiffness": stiff,
             "errors": error_summary([np.array(r["errors"]) for r in ok]) if ok else None,
             "refused": [{"seed": r["seed"], "why": r["refused"]} for r in recs if r.get("refused")],
             "runs_short": [r["seed"] for r in recs if r.get("runs_done") != r.get("runs")],
-            "hold_peak_mN": top("hold_peak_mN"),
-            "pulled_peak_mN": max((max(r["pulled_peaks_mN"]) for r in recs
-                                   if r.get("pulled_peaks_mN")), default=None),
+            "hold_peak_mN": top("hold_peaks_mN"), "pulled_peak_mN": top("pulled_peaks_mN"),
             "survey_peak_mN": top("survey_peak_mN"),
             "survey_alone_s": span("survey_alone_s"), "held_s": span("held_s"),
             "survey_s": span("survey_s"), "fit_s": span("fit_s")}

@@ -465,11 +465,7 @@ def section_identify(res: Dict) -> List[str]:
         for mode, mlab in ID_MODES:
             if mode not in st:
                 continue
-            for t in ("0.3", "0.8", "1.5", "all"):
-                r = st[mode][t]
-                goals = " / ".join(stats.id_goal_cells(r))
-                out.append(f"| {lab} | {mlab} | {t if t != 'all' else 'all three'} | "
-                           f"{r['mean']:+.4f} | {r['sd']:.4f} | {r['worst']:.4f} | {goals} |")
+            out += error_rows(lab, mlab, st[mode])
     out += board_rows(res.get("identify_board") or {})
     out.append("")
     for st in idf.get("sets", []):
@@ -492,19 +488,26 @@ BOARD_LABEL = ("the board's `survey` and `survey T H` + one weight per segment "
                "(bench/held_board.py)")
 
 
-def board_rows(b: Dict) -> List[str]:
-    """Section 7's rows of the board's own survey and held pulls."""
-    if not b or b.get("not_measured") or not b.get("errors"):
-        why = b.get("not_measured") or ("every fit refused" if b else "not measured")
-        return [f"| - | {BOARD_LABEL} | - | n/a | n/a | n/a | {cell(why)} |"]
-    lab = (f"{len(b['seeds'])} x {id_set_label(b)}, firmware")
+def error_rows(robots: str, targets: str, errs: Dict) -> List[str]:
+    """Section 7's rows of one set and description: per test tension and all
+    three, the mean, SD and worst |error| against the goals."""
     out = []
     for t in ("0.3", "0.8", "1.5", "all"):
-        r = b["errors"][t]
-        out.append(f"| {lab} | {BOARD_LABEL} | {t if t != 'all' else 'all three'} | "
+        r = errs[t]
+        out.append(f"| {robots} | {targets} | {t if t != 'all' else 'all three'} | "
                    f"{r['mean']:+.4f} | {r['sd']:.4f} | {r['worst']:.4f} | "
                    f"{' / '.join(stats.id_goal_cells(r))} |")
     return out
+
+
+def board_rows(b: Dict) -> List[str]:
+    """Section 7's rows of the board's own survey and held pulls."""
+    if not b or b.get("not_measured") or not b.get("errors"):
+        why = b.get("not_measured") or ("no robot's runs gave a survey file" if b
+                                        else "not measured")
+        return [f"| - | {BOARD_LABEL} | - | n/a | n/a | n/a | {cell(why)} |"]
+    return error_rows(f"{len(b['seeds'])} x {id_set_label(b)}, firmware", BOARD_LABEL,
+                      b["errors"])
 
 
 def board_notes(b: Dict) -> List[str]:
