@@ -435,13 +435,16 @@ void hom_fine_point(hom_t *h)
          * once two points in a row say so. One point averaged from samples
          * that lagged its move (a main-loop pass stretched by console
          * output) can read almost no rise: its step goes by the table's
-         * slope instead, within the room left. */
+         * slope instead, within the room left: twice the floor, the table's
+         * slope within 2/256 cuT a tick (hom_begin_tendon()), read again
+         * it cost this pass two table interpolations (1.2 ms of a 4.0 ms
+         * pass on the bench). */
         if (h->far) {
             hom_over_limit(h, hom_pull(t, p - t->engage) + r_q8 / 256);
             return;
         }
         h->far = 1;
-        r_q8 = hom_muldiv((int32_t)(t->target_cuT - b), 65536, hom_table_slope(h, h->cur));
+        r_q8 = hom_muldiv((int32_t)(t->target_cuT - b), 65536, 2 * h->slope_min_q8);
         if (r_q8 > room) {
             r_q8 = room;
         }

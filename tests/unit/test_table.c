@@ -438,7 +438,9 @@ static void test_generated_table(void **state)
 }
 
 /* The 32-bit interpolation equals the exact rounded (half away from zero)
- * 64-bit result over seeded random spans, down and up, up to the extremes. */
+ * 64-bit result over seeded random spans, down and up, up to the extremes;
+ * every other draw a span of at most 0xFFFF (the one-division path), the
+ * largest of them among them. */
 static void test_interp_matches_64_bit(void **state)
 {
     uint32_t x = 99u;
@@ -460,6 +462,11 @@ static void test_interp_matches_64_bit(void **state)
         y[0] = n % 3 == 0 ? x : x >> 8;
         x = x * 1664525u + 1013904223u;
         y[1] = n % 5 == 0 ? x : x >> 8;
+        if (n % 2 == 1) {
+            uint32_t span = n % 6 == 1 ? 0xFFFFu : (x >> 7) & 0xFFFFu;
+            y[1] = (n & 2) ? (y[0] >= span ? y[0] - span : y[0] + span)
+                           : (y[0] <= 0xFFFFFFFFu - span ? y[0] + span : y[0] - span);
+        }
         x = x * 1664525u + 1013904223u;
         at = (uint16_t)(grid[0] + x % ((uint32_t)grid[1] - grid[0] + 1u));
         assert_int_equal(tbl_interp(grid, y, 2, at, &got), 0);
