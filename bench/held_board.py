@@ -113,22 +113,10 @@ def study(seeds: List[int], perturb: float, stiff: float, jobs: int = 1,
           log: Callable[[dict], None] = lambda r: None) -> List[dict]:
     """``one`` per seed, ``jobs`` at once; ``log`` gets each record as it
     comes, the list comes back in the order of ``seeds``."""
-    args = [(s, perturb, stiff, keep, rig) for s in seeds]
-    if jobs <= 1 or len(seeds) <= 1:
-        recs = []
-        for a in args:
-            recs.append(_one_in_tmp(*a))
-            log(recs[-1])
-        return recs
-    from concurrent.futures import ProcessPoolExecutor, as_completed
+    from hallhome.jobs import map_jobs
 
-    with ProcessPoolExecutor(max_workers=jobs) as ex:
-        futures = {ex.submit(_one_in_tmp, *a): a[0] for a in args}
-        got = {}
-        for f in as_completed(futures):
-            got[futures[f]] = f.result()
-            log(got[futures[f]])
-    return [got[s] for s in seeds]
+    return map_jobs(_one_in_tmp, [(s, perturb, stiff, keep, rig) for s in seeds], jobs,
+                    lambda i, rec: log(rec))
 
 
 def summary(recs: List[dict], perturb: float, stiff: float) -> Dict:

@@ -30,6 +30,7 @@ import numpy as np
 
 from hallhome.identify import FitResult, fit
 from hallhome.identify_data import IdentifyError, Survey, load_survey
+from hallhome.jobs import map_jobs
 from hallhome.robot import Robot, load_robot
 
 MU0 = 4e-7 * np.pi
@@ -251,8 +252,6 @@ def studies(robot_path: Path, sets: list[dict], weight_g: float, bench: Path, el
     survey with one weight per segment; the nominal description, the
     survey-only fit and the fit with weights scored by their tension errors
     (``one_seed``), ``jobs`` seeds at once. One summary per set."""
-    from concurrent.futures import ProcessPoolExecutor
-
     robot = load_robot(robot_path)
     nominal = {}  # the same for every seed of a description
     for st in sets:
@@ -264,17 +263,11 @@ def studies(robot_path: Path, sets: list[dict], weight_g: float, bench: Path, el
                   workdir, tuple(st.get("modes", MODES[1:])),
                   st.get("description_friction_mN")))
              for k, st in enumerate(sets) for seed in st["seeds"]]
+    done = map_jobs(one_seed, [a for _, a in tasks], jobs,
+                    lambda i, res: _log_seed(res, log, sets[tasks[i][0]]))
     per: list[list[dict]] = [[] for _ in sets]
-    if jobs > 1 and len(tasks) > 1:
-        with ProcessPoolExecutor(max_workers=jobs) as ex:
-            futures = [(k, ex.submit(one_seed, *a)) for k, a in tasks]
-            for k, f in futures:
-                per[k].append(f.result())
-                _log_seed(per[k][-1], log, sets[k])
-    else:
-        for k, a in tasks:
-            per[k].append(one_seed(*a))
-            _log_seed(per[k][-1], log, sets[k])
+    for (k, _), res in zip(tasks, done):
+        per[k].append(res)
     return [_set_summary(robot, st, p, weight_g) for st, p in zip(sets, per)]
 
 
