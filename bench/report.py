@@ -185,6 +185,9 @@ def section_time(res: Dict) -> List[str]:
         if _measured(t):
             out.append(f"| {lab} | {fmt(t.get('full_s'), 2)} | {fmt(t.get('full_max_s'), 2)} | "
                        f"{t.get('n_full', 0)} | {fmt(t.get('quick_s'), 2)} | {t.get('n_quick', 0)} |")
+            if t.get("quick_max_s") is not None and t.get("n_quick", 0) > 1:
+                notes.append(f"- quick re-home, {lab}: slowest {fmt(t['quick_max_s'], 2)} s of "
+                             f"{t['n_quick']}")
             if t.get("quick_note"):
                 notes.append(f"- quick re-home, {lab}: {t['quick_note']}")
             ph = t.get("phases")
