@@ -21,9 +21,13 @@ from . import robots as rb
 from . import runner
 from . import schedule as sc
 
-# Small robots (each schedule about 10-40 s wall); together they hit the
-# recovery, release and bounded-pull invariants.
-FIXED = [3, 5, 9, 10, 187,
+# One schedule per firmware fault the suite found (each schedule about 10-40 s
+# wall); `make chaos-regress` runs every seed of tests/chaos/regression_seeds.txt,
+# these and the ones left out of this set for `make test`'s time: 3 and 187
+# (the slack margin, as 5, 9 and 10 here), 4093 and 5038 (power cycles after a
+# release, as 3049). Small robots first; together they hit the recovery,
+# release and bounded-pull invariants.
+FIXED = [5, 9, 10,
          # a run after a servo timeout brings the servos up again first (a servo silent
          # past its Bus Watchdog refused every goal: the next run stalled)
          1029,
@@ -62,7 +66,7 @@ FIXED = [3, 5, 9, 10, 187,
          5015,
          # power cycles that cut runs after their release, before a tendon's take-up
          # (the windows of a power cycle's first run go to the EEPROM before it moves)
-         3049, 4093, 5038,
+         3049,
          # a tendon 50 x softer than its table: released back to where its take-up began
          4039,
          # a reset-pin reset while a run's <done> was still in the output ring
