@@ -176,7 +176,7 @@ APP_NOINLINE static void servo_next(app_t *a)
 {
     uint8_t ids[APP_MAX_TENDONS];
     uint8_t data[GOALS_PER_TXN * 12u];
-    uint8_t i, n = 0, txn, v, force;
+    uint8_t i, n = 0, txn, v, pos_only;
     uint16_t mask, addr;
     if (a->bus.reboot_req != 0u &&
         (a->bus.goal_due | a->bus.goal_again | a->bus.torque_due) == 0u &&
@@ -259,17 +259,19 @@ APP_NOINLINE static void servo_next(app_t *a)
          * release goals lost, and no refresh for 990 ms (chaos seed 21268).
          * A read of the pulled servo alone is no cycle: the refreshes and
          * error reads keep their pace in reads of every servo. */
-        force = a->bus.focus;
-        if (force == 0u &&
+        /* a read of the pulled servo alone (focus), or one forced after a
+         * read that missed a servo, reads positions, not hardware errors */
+        pos_only = a->bus.focus;
+        if (pos_only == 0u &&
             (uint8_t)(++a->bus.cycle % APP_GOAL_REFRESH_EVERY) == APP_GOAL_REFRESH_EVERY / 2u) {
             a->bus.goal_due = off_goal(a); /* this cycle refreshes goals instead */
         }
         if (a->bus.goal_due == 0u) { /* otherwise the reads wait for the next cycle */
-            force |= a->bus.pos_force;
+            pos_only |= a->bus.pos_force;
             addr = DXL_XL430_HW_ERROR_ADDR;
             v = 1;
             txn = APP_TX_HWERR;
-            if (a->bus.hwerr_due || (!force && (a->bus.cycle % APP_HWERR_EVERY) == 0u)) {
+            if (a->bus.hwerr_due || (!pos_only && (a->bus.cycle % APP_HWERR_EVERY) == 0u)) {
                 a->bus.hwerr_due = 0;
             } else {
                 a->bus.pos_force = 0;
