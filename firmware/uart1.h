@@ -19,15 +19,15 @@
 
 #include "dxl/dxl.h"
 
-/* Power of two, at most 256 (uint8_t indices): the replies to one sync read
- * of every servo (12 x 15 bytes for Present Position) arrive back to back in
- * about 2 ms and must fit while a main-loop pass runs; 128 lost the tenth.
- * A firmware for at most 6 servos (DXL_MAX_IDS, its robot's) gets 128: the
- * 90 bytes of six replies fit whole. */
-#if DXL_MAX_IDS <= 6
+/* Power of two, at most 256 (uint8_t indices): the longest reply burst must
+ * fit while a main-loop pass runs. Every group read is a fast sync read (the
+ * bring-up's too, dxl_bringup.c), one packet of 8 + 8 bytes a servo for
+ * Present Position: 104 bytes for 12 servos. (Plain sync reads' replies, 15
+ * bytes a servo back to back, needed 256 beyond 6 servos: 128 lost the
+ * tenth.) */
 #define UART1_RX_SIZE 128u
-#else
-#define UART1_RX_SIZE 256u
+#if DXL_MAX_IDS > 15
+#error "a fast sync read of Present Position from more than 15 servos overflows UART1_RX_SIZE"
 #endif
 #define UART1_TX_MAX 255u /* longest request uart1_write() sends (uint8_t count) */
 

@@ -158,8 +158,12 @@ static int8_t dxl_bu_issue(dxl_bringup *b)
         for (uint8_t i = 0; i < b->n; i++) {
             ids[i] = b->servo[i].id;
         }
-        return dxl_sync_read(b->m, DXL_XL430_PRESENT_POSITION_ADDR, DXL_XL430_PRESENT_POSITION_SIZE,
-                             ids, b->n);
+        /* one fast sync read, as every later position read: one packet of
+         * 8 + 8 bytes a servo (104 for 12) where a plain sync read's replies
+         * come back to back, 15 bytes a servo (180 for 12), and the servo
+         * port's receive ring (uart1.h) holds the reply whole */
+        return dxl_fast_sync_read(b->m, DXL_XL430_PRESENT_POSITION_ADDR,
+                                  DXL_XL430_PRESENT_POSITION_SIZE, ids, b->n);
     }
     default:
         return 0;
