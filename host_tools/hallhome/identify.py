@@ -57,7 +57,7 @@ from scipy.optimize import least_squares
 
 from hallhome.field import field_at_sensors
 from hallhome.identify_data import IdentifyError, Survey
-from hallhome.model import CosseratModel
+from hallhome.model import CosseratModel, ModelError, solve_many
 from hallhome.robot import Robot
 from hallhome.tablegen import MODEL_STEPS
 
@@ -288,33 +288,36 @@ def _plane_gravity(robot: Robot, i: int, kap_t: np.ndarray) -> np.ndarray:
     kap = kap_t.copy()
     n = kap.shape[0]
     ei = np.array([sg.bending_stiffness for sg in segs])
+    # per segment the arc lengths of its mass points and of its end (a column)
+    arcs = [np.append(sg.length * u, sg.length)[:, None] for sg in segs]
+    off = robot.magnet.offset[2]
+    beyond = np.triu(np.ones((len(masses), len(masses)), bool), 1)[:, :, None]
+    m_beyond = masses[None, :, None]
     for _ in range(GRAVITY_ROUNDS):
         xs, zs = [], []
         x0, z0, phi = np.zeros(n), np.zeros(n), np.zeros(n)
         for k, sg in enumerate(segs):
-            for arc in list(sg.length * u) + [sg.length]:
-                th = kap[:, k] * arc
-                with np.errstate(invalid="ignore", divide="ignore"):
-                    lx = np.where(kap[:, k] != 0, (1.0 - np.cos(th)) / np.where(
-                        kap[:, k] != 0, kap[:, k], 1.0), 0.0)
-                    lz = np.where(kap[:, k] != 0, np.sin(th) / np.where(
-                        kap[:, k] != 0, kap[:, k], 1.0), arc)
-                x = x0 + lx * np.cos(phi) + lz * np.sin(phi)
-                z = z0 - lx * np.sin(phi) + lz * np.cos(phi)
-                if arc != sg.length:
-                    xs.append(x)
-                    zs.append(z)
-            x0, z0, phi = x, z, phi + kap[:, k] * sg.length
-        off = robot.magnet.offset[2]
-        xs.append(x0 + off * np.sin(phi))
-        zs.append(z0 + off * np.cos(phi))
-        X, Z = np.array(xs), np.array(zs)  # (points, n)
+            # the points along segment k, all at once: (GRAVITY_POINTS + 1, n)
+            kk = kap[:, k]
+            bent = kk != 0
+            th = kk * arcs[k]
+            with np.errstate(invalid="ignore", divide="ignore"):
+                lx = np.where(bent, (1.0 - np.cos(th)) / np.where(bent, kk, 1.0), 0.0)
+                lz = np.where(bent, np.sin(th) / np.where(bent, kk, 1.0), arcs[k])
+            cp, sp = np.cos(phi), np.sin(phi)
+            x = x0 + lx * cp + lz * sp
+            z = z0 - lx * sp + lz * cp
+            xs.append(x[:-1])
+            zs.append(z[:-1])
+            x0, z0, phi = x[-1], z[-1], phi + kk * sg.length
+        xs.append((x0 + off * np.sin(phi))[None])
+        zs.append((z0 + off * np.cos(phi))[None])
+        X, Z = np.concatenate(xs), np.concatenate(zs)  # (points, n)
         # moment about each point of the weight beyond it: r x F, the
         # component that bends towards +lateral: (r_ax F_lat - r_lat F_ax)
         rx = X[None, :, :] - X[:, None, :]
         rz = Z[None, :, :] - Z[:, None, :]
-        beyond = np.triu(np.ones((len(X), len(X)), bool), 1)[:, :, None]
-        mom = np.sum(np.where(beyond, masses[None, :, None] * (rz * g_lat - rx * g_ax), 0.0),
+        mom = np.sum(np.where(beyond, m_beyond * (rz * g_lat - rx * g_ax), 0.0),
                      axis=1)  # (points, n)
         grav = mom[:-1].reshape(len(segs), GRAVITY_POINTS, n).mean(axis=1).T / ei[None, :]
         kap = kap_t + grav
@@ -368,28 +371,71 @@ class _Model:
         self.key = None
         self.wcache: dict = {}  # weight record poses, by what they depend on
         self.pcache: dict = {}  # each pull's poses, by what they depend on
+        self.fcache = None  # the last field: (poses, magnet and sensors, field)
+        self.scache: dict = {}  # each pull's field curve, by its exact values
+
+    def _weight_loads(self, r: Robot) -> list:
+        """(tendon, force) of each Cosserat pose the weight records need: the
+        unloaded robot (tendon None) and each record's. A weight hung from
+        slack reaches the tendon's end through its friction as a
+        calibration's pull does (Robot.tip_tension)."""
+        return [(None, 0.0)] + [(w.tendon, r.tip_tension(r.tendons[w.tendon], w.force))
+                                for w in self.survey.weights]
+
+    @staticmethod
+    def _weight_key(r: Robot, mech: tuple, tendon: int | None, force: float) -> tuple:
+        """What a weight pose depends on: the segments and that tendon's
+        radius and angle (a tendon's stiffness, or another tendon's geometry,
+        leaves it as it is)."""
+        return (mech, tendon, force,
+                None if tendon is None else (r.tendons[tendon].routing_radius,
+                                             r.tendons[tendon].routing_angle))
+
+    @staticmethod
+    def _weight_problem(r: Robot, tendon: int | None, force: float):
+        """The Cosserat model and tensions of a weight pose."""
+        tau = np.zeros(len(r.tendons))
+        if tendon is not None:
+            tau[tendon] = force
+        return CosseratModel(r, steps_per_segment=MODEL_STEPS), tau
 
     def _weight_pose(self, r: Robot, mech: tuple, tendon: int | None, force: float):
         """Tip pose of the Cosserat model with ``force`` on ``tendon`` (None:
-        no load), cached on the segments and that tendon's radius and angle:
-        a tendon's stiffness, or another tendon's geometry, leaves it as it
-        is."""
-        key = (mech, tendon, force,
-               None if tendon is None else (r.tendons[tendon].routing_radius,
-                                            r.tendons[tendon].routing_angle))
+        no load), cached (``_weight_key``)."""
+        key = self._weight_key(r, mech, tendon, force)
         hit = self.wcache.get(key)
         if hit is None:
             if len(self.wcache) > 4096:
                 self.wcache.clear()
-            tau = np.zeros(len(r.tendons))
-            if tendon is not None:
-                tau[tendon] = force
-            cos = CosseratModel(r, steps_per_segment=MODEL_STEPS)
+            cos, tau = self._weight_problem(r, tendon, force)
             # no warm start: the finite differences of the Jacobian need the
             # same solution for the same parameters, to the last digit
             sol = cos.solve(tau)
             hit = self.wcache[key] = (sol.tip_position[None], sol.tip_rotation[None])
         return hit
+
+    def prepare(self, robots: list[Robot]):
+        """Solve the weight poses ``poses`` will need for ``robots`` (the
+        columns of a finite-difference Jacobian) and has not cached, all at
+        once: ``solve_many`` gives the same solutions as one by one, and
+        shoots the columns that differ in one parameter in lockstep."""
+        jobs: dict = {}
+        for r in robots if self.survey.weights else ():
+            mech = self._mechanics(r)[:2]
+            for tendon, force in self._weight_loads(r):
+                key = self._weight_key(r, mech, tendon, force)
+                if key not in self.wcache and key not in jobs:
+                    jobs[key] = self._weight_problem(r, tendon, force)
+        if len(jobs) < 2:
+            return
+        try:
+            sols = solve_many([m for m, _ in jobs.values()], [tau for _, tau in jobs.values()])
+        except (ModelError, ValueError, np.linalg.LinAlgError):
+            return  # each column meets it on its own, as without this
+        if len(self.wcache) + len(jobs) > 4096:
+            self.wcache.clear()
+        for key, sol in zip(jobs, sols):
+            self.wcache[key] = (sol.tip_position[None], sol.tip_rotation[None])
 
     def _pull(self, r: Robot, mech: tuple, tendon: int, tensions):
         """cc_single of one tendon, cached on the segments and that
@@ -405,10 +451,16 @@ class _Model:
             hit = self.pcache[key] = cc_single(r, tendon, tensions)
         return hit
 
+    @staticmethod
+    def _mechanics(r: Robot) -> tuple:
+        """The parameters the poses depend on; the segments' first."""
+        segs, tds = r.segments, r.tendons
+        return (tuple(s.length for s in segs), tuple(s.youngs_modulus for s in segs),
+                tuple(t.routing_radius for t in tds), tuple(t.stiffness_ea for t in tds),
+                tuple(t.friction_N for t in tds), tuple(t.routing_angle for t in tds))
+
     def poses(self, r: Robot):
-        key = (tuple(s.length for s in r.segments), tuple(s.youngs_modulus for s in r.segments),
-               tuple(t.routing_radius for t in r.tendons), tuple(t.stiffness_ea for t in r.tendons),
-               tuple(t.friction_N for t in r.tendons), tuple(t.routing_angle for t in r.tendons))
+        key = self._mechanics(r)
         if key != self.key:
             pos, rot, take = [], [], []
             mech = key[:2]
@@ -423,12 +475,8 @@ class _Model:
             if self.survey.weights:
                 # the weights fix the stiffness, so they get the model the
                 # tables are generated with (Cosserat, gravity: an upright
-                # robot's own weight adds to its bending), and a weight hung
-                # from slack reaches the tendon's end through its friction as
-                # a calibration's pull does (Robot.tip_tension)
-                for tendon, force in [(None, 0.0)] + [
-                        (w.tendon, r.tip_tension(r.tendons[w.tendon], w.force))
-                        for w in self.survey.weights]:
+                # robot's own weight adds to its bending)
+                for tendon, force in self._weight_loads(r):
                     a, b = self._weight_pose(r, mech, tendon, force)
                     pos.append(a)
                     rot.append(b)
@@ -436,19 +484,43 @@ class _Model:
             self.key = key
         return self.cached
 
+    def _field(self, r: Robot, pos: np.ndarray, rot: np.ndarray) -> np.ndarray:
+        """field_at_sensors at the poses, reused while they (the same cached
+        arrays) and the magnet and sensors stay: a finite difference in an
+        engagement leaves the field as it was. (Only the whole call is
+        reused: magpylib's elliptic integrals iterate until every pose in
+        the call has converged, so a pose's field depends on the others.)"""
+        key = repr((r.magnet, r.sensors))  # repr: exact floats, -0.0 apart from 0.0
+        hit = self.fcache
+        if hit is None or hit[0] is not pos or hit[1] is not rot or hit[2] != key:
+            hit = self.fcache = (pos, rot, key, field_at_sensors(r, pos, rot))
+        return hit[3]
+
+    def _spline(self, n: int, take: np.ndarray, field: np.ndarray) -> CubicSpline:
+        """Pull n's field curve against its take-up, cached on their exact
+        values: a finite difference in an engagement, or in another
+        tendon, often leaves it as it was."""
+        key = (n, take.tobytes(), field.tobytes())
+        hit = self.scache.get(key)
+        if hit is None:
+            if len(self.scache) > 256:
+                self.scache.clear()
+            hit = self.scache[key] = CubicSpline(take, field, axis=0)
+        return hit
+
     def predict(self, r: Robot, engage: dict[int, float]):
         """Predicted field changes: a list per pull (n, n_s, 3) and an array
         of the weight records (n_w, n_s, 3), tesla; and the held pulls'
         (``_held()``)."""
         pos, rot, take = self.poses(r)
-        B = field_at_sensors(r, pos, rot)
+        B = self._field(r, pos, rot)
         ng = len(TENSION_GRID)
         npull = len(self.survey.pulls) * ng
         b0 = B[npull]
         out, curves = [], {}
         for n, p in enumerate(self.survey.pulls):
             tg = take[n * ng:(n + 1) * ng]
-            spline = CubicSpline(tg, B[n * ng:(n + 1) * ng] - b0[None], axis=0)
+            spline = self._spline(n, tg, B[n * ng:(n + 1) * ng] - b0[None])
             curves[p.tendon] = (tg, spline)
             x = p.take_up - engage[p.tendon]
             pred = np.zeros_like(p.delta)
@@ -540,10 +612,18 @@ def fit(robot: Robot, survey: Survey, *, sigma_uT: float = 1.0,
                                if p.prior is not None]))
         return np.concatenate(parts)
 
+    def columns(fun, zs):
+        """least_squares' map over the columns of a finite-difference
+        Jacobian: their Cosserat solves first, together (_Model.prepare),
+        then each column as ever."""
+        zs = list(zs)
+        model.prepare([unpack(z)[0] for z in zs])
+        return map(fun, zs)
+
     z0 = np.clip(np.zeros(len(params)), lo + 1e-9, hi - 1e-9)
     try:
         sol = least_squares(resid, z0, bounds=(lo, hi), x_scale=1.0, method="trf",
-                            max_nfev=max_nfev or 200 * len(params))
+                            max_nfev=max_nfev or 200 * len(params), workers=columns)
     except (ValueError, np.linalg.LinAlgError) as exc:
         raise IdentifyError(f"the fit failed: {exc}") from None
     v = values(sol.x)

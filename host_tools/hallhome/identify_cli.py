@@ -157,7 +157,7 @@ def fit_cmd(robot, survey, out, no_write, plot_dir, no_weights, no_friction, any
     say = (lambda m: click.echo(m, err=True)) if as_json else click.echo
     say(f"survey {survey}: {len(sv.pulls)} pulls, {len(sv.weights)} weight records"
         + (f", {len(sv.held)} held pulls" if sv.held else "")
-        + f" (source {sv.source}); fitting {n_par} parameters (5-60 s) ...")
+        + f" (source {sv.source}); fitting {n_par} parameters (2-20 s) ...")
     if not sv.weights:
         say("no weight records: the stiffness stays nominal, so the geometry is identified "
             "but not the tension a take-up means; hang one known weight per segment for "
