@@ -96,7 +96,7 @@ def test_closed_form_carries_gravity_as_the_cosserat_model_does():
         assert with_g < 2e-5 and without > 1.5e-4, (i, with_g, without)
 
 
-@pytest.mark.slow(26)
+@pytest.mark.slow(8)
 def test_fit_with_weights_recovers_the_robot_as_built(weighted_fit, true_robot, survey_dict):
     res = weighted_fit
     assert res.refused is None, res.refused
@@ -181,7 +181,7 @@ def test_helical_routing_is_not_fitted(nominal, survey_dict):
         fit(twisted, survey_from_dict(survey_dict, nominal))
 
 
-@pytest.mark.slow(22)
+@pytest.mark.slow(9)
 def test_scrambled_data_are_refused(nominal, survey_dict):
     d = copy.deepcopy(survey_dict)
     rng = np.random.default_rng(1)
@@ -235,7 +235,7 @@ def test_values_without_their_key_in_the_file_are_refused(tmp_path, nominal, wei
         render_identified(weighted_fit, crippled, "s.json")
 
 
-@pytest.mark.slow(14)
+@pytest.mark.slow(7)
 def test_command_fits_writes_and_plots(tmp_path, survey_dict):
     robot = tmp_path / "paper_2seg.toml"
     robot.write_text(PAPER.read_text())
@@ -325,7 +325,7 @@ def test_command_guides_the_next_step_and_warns_without_weights(tmp_path, survey
             f"ROBOT=paper_2seg_id ROBOTS_DIR={tmp_path} TABLES_DIR={tmp_path}") in res.output
 
 
-@pytest.mark.slow(14)
+@pytest.mark.slow(6)
 def test_command_refuses_another_robots_survey_unless_told(tmp_path, survey_dict):
     robot = tmp_path / "paper_2seg.toml"
     robot.write_text(PAPER.read_text())
@@ -340,7 +340,7 @@ def test_command_refuses_another_robots_survey_unless_told(tmp_path, survey_dict
     assert not (tmp_path / "paper_2seg_id.toml").exists()
 
 
-@pytest.mark.slow(15)
+@pytest.mark.slow(6)
 def test_a_weight_on_every_tendon_fits_each_tendons_radius_and_stretch(tmp_path, nominal):
     """Tendons 1 and 4 routed 3 % further out, tendon 2 2 % further in, tendon
     5's tendon 30 % stiffer (EA): with one weight per tendon the fit gives
@@ -401,7 +401,7 @@ def friction_case(tmp_path_factory, true_robot):
     return desc, true, survey_from_dict(d, desc)
 
 
-@pytest.mark.slow(23)
+@pytest.mark.slow(12)
 def test_two_masses_fit_the_friction_the_description_leaves_out(friction_case, tmp_path):
     desc, true, sv = friction_case
     res = fit(desc, sv)
@@ -421,7 +421,7 @@ def test_two_masses_fit_the_friction_the_description_leaves_out(friction_case, t
     assert out.read_text().count("friction_mN = ") == len(desc.tendons)
 
 
-@pytest.mark.slow(50)
+@pytest.mark.slow(10)
 def test_friction_below_zero_is_refused_with_the_way_out(friction_case):
     desc, true, sv = friction_case
     # the light mass reads as heavier than it is: the friction far below zero

@@ -137,7 +137,7 @@ def test_survey_needs_a_plant_and_a_writable_file(tmp_path):
     assert proc.returncode == 2
 
 
-@pytest.mark.slow(18)
+@pytest.mark.slow(7)
 def test_fit_of_a_bench_survey_beats_the_nominal_targets(tmp_path):
     """The plant is not the host's model (constant curvature with friction,
     a point dipole, backlash): the fit must still converge, stay near the
@@ -199,7 +199,7 @@ def test_survey_weight_on_every_tendon(tmp_path):
         assert max(math.dist(a, b) for a, b in zip(w["field_cuT"], w["baseline_cuT"])) > 5000
 
 
-@pytest.mark.slow(28)
+@pytest.mark.slow(7)
 def test_two_masses_per_segment_and_the_friction_they_give(tmp_path):
     """--survey-weight G,G2: each mass in turn on the same tendons, the first
     mass's records as with G alone; the fit finds the plant's friction from
@@ -231,7 +231,7 @@ def test_two_masses_per_segment_and_the_friction_they_give(tmp_path):
         assert proc.returncode == 2 and "--survey-weight takes" in proc.stderr, bad
 
 
-@pytest.mark.slow(75)
+@pytest.mark.slow(15)
 def test_held_pulls_give_each_tendons_radius(tmp_path):
     """--survey-held: every tendon pulled again from further back while the
     tendon of its segment 120 degrees off holds the bend of the top grid
