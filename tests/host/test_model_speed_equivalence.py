@@ -95,8 +95,10 @@ def test_fit_is_the_same_with_its_columns_batched(monkeypatch):
 
 
 # Tip positions (m), tip z axes and tendon path lengths (m) from the model as
-# it was before the batched integration (to rounding: another machine's BLAS
-# may round its small products otherwise).
+# it was before the batched integration, to 1e-9: another machine's BLAS may
+# round its small products otherwise, and the shooting stops at a residual of
+# 1e-10, so a last bit can take one Newton step more or less there; a change
+# of the model moves these by far more.
 RECORDED = [
     (PAPER, [0.8, 0, 0, 0, 0, 0],
      [0.0026196815921782682, 0.004537421617305691, 0.10584547462724815],
@@ -120,6 +122,6 @@ RECORDED = [
 @pytest.mark.parametrize("robot, tau, tip, axis, paths", RECORDED)
 def test_the_model_gives_what_it_gave(robot, tau, tip, axis, paths):
     sol = CosseratModel(robot, steps_per_segment=8).solve(tau)
-    assert sol.tip_position == pytest.approx(tip, rel=1e-12, abs=1e-15)
-    assert sol.tip_rotation[:, 2] == pytest.approx(axis, rel=1e-12, abs=1e-15)
-    assert sol.path_lengths == pytest.approx(paths, rel=1e-12)
+    assert sol.tip_position == pytest.approx(tip, rel=1e-9, abs=1e-12)
+    assert sol.tip_rotation[:, 2] == pytest.approx(axis, rel=1e-9, abs=1e-12)
+    assert sol.path_lengths == pytest.approx(paths, rel=1e-9)
