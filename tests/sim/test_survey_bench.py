@@ -158,11 +158,13 @@ def test_hallhome_identify_survey_end_to_end(tmp_path):
         summary = json.loads(r.stdout)
         assert [p["tendon"] for p in summary["pulls"]] == list(range(6))
         # a pull's steps scale with its travel: the segment-1 tendons travel
-        # half as far as the segment-2 ones (27-28 steps against 44-52 at
-        # the survey's tension)
+        # half as far as the segment-2 ones (22-28 steps against 44-50 at
+        # the survey's tension on an idle machine). The bench runs in real
+        # time here, so a loaded machine moves single pulls (30 and 37
+        # steps in one `make test`): the segments' means are compared.
         steps = [p["steps"] for p in summary["pulls"]]
         assert min(steps) >= 20, summary["pulls"]
-        assert min(steps[3:]) >= 1.3 * max(steps[:3]), summary["pulls"]
+        assert sum(steps[3:]) >= 1.4 * sum(steps[:3]), summary["pulls"]
         # every pull of the robot its table describes reaches the top target
         assert all(p["reached"] >= 0.97 for p in summary["pulls"]), summary["pulls"]
     finally:
