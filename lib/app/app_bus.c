@@ -456,7 +456,7 @@ APP_NOINLINE void app_bus_take(app_t *a, const hom_out_t *out)
     uint8_t i;
     for (i = 0; i < a->info.n_tendons; i++) {
         if (app_has(out->changed, i)) {
-            a->bus.acc = out->acc[i]; /* one profile acceleration for every move */
+            a->bus.acc = out->acc;
             a->bus.goal_due |= app_bit16(i);
             a->bus.goal_again |= app_bit16(i);
             if ((out->torque[i] != 0u) != (app_has(a->bus.torque_on, i) != 0u)) {

@@ -596,7 +596,7 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
              * the table's travel), and the second pull goes to the table's
              * own limit */
             h->retake = 2;
-            t->limit_ticks = table_limit(h);
+            t->limit_ticks = (int16_t)table_limit(h);
             hom_begin_tendon(h, cur);
         } else if (scanning(h)) {
             h->p_far = t->present; /* the scan's points go forward from here */

@@ -251,7 +251,8 @@ HOM_NOINLINE static int32_t table_remaining_q8(const hom_t *h, uint32_t b)
     if (travel_b < 0) {
         return 0;
     }
-    travel_t = hom_muldiv(t->travel_ticks * 256, (int32_t)t->nm_per_tick, 1000); /* um * 256 */
+    travel_t =
+        hom_muldiv((int32_t)t->travel_ticks * 256, (int32_t)t->nm_per_tick, 1000); /* um * 256 */
     if (travel_t <= travel_b) {
         return 0;
     }

@@ -14,7 +14,7 @@ HOM_NOINLINE static int32_t release_base(const hom_t *h, uint8_t i)
 {
     const hom_tendon_t *t = &h->tendon[i];
     if (h->mode == HOM_MODE_QUICK) {
-        return t->est_home - hom_pull(t, t->travel_ticks + t->margin_ticks);
+        return t->est_home - hom_pull(t, (int32_t)t->travel_ticks + t->margin_ticks);
     }
     return t->eng_lo - hom_pull(t, t->margin_ticks);
 }

@@ -288,6 +288,15 @@ HOM_NOINLINE int32_t hom_um_to_ticks(uint32_t um, uint32_t nm_per_tick)
     return hom_muldiv((int32_t)um, 1000, (int32_t)nm_per_tick) + 1;
 }
 
+/* hom_um_to_ticks() for the tendon state's 16-bit take-up figures: at most
+ * INT16_MAX, eight turns of an XL430, far beyond HOM_RELEASE_REACH_TICKS (a
+ * table's grid reaches it only with a spool of under 2 nm a tick). */
+HOM_NOINLINE static int16_t hom_ticks16(uint32_t um, uint32_t nm_per_tick)
+{
+    int32_t ticks = hom_um_to_ticks(um, nm_per_tick);
+    return ticks > INT16_MAX ? INT16_MAX : (int16_t)ticks;
+}
+
 int32_t hom_straight_q8(const hom_tendon_t *t, int16_t straight_um)
 {
     return -hom_pull(t, hom_muldiv(straight_um, 256000, (int32_t)t->nm_per_tick));
@@ -393,7 +402,7 @@ HOM_NOINLINE static void load_tendon(hom_t *h, uint8_t i)
     t->dir = r.row.pull_dir < 0 ? -1 : 1;
     t->nm_per_tick = r.row.nm_per_tick;
     t->sensor = r.row.sensor;
-    t->travel_ticks = hom_um_to_ticks(r.pt.travel_um, r.row.nm_per_tick);
+    t->travel_ticks = hom_ticks16(r.pt.travel_um, r.row.nm_per_tick);
     /* The slack kept beyond engagement must exceed the path lengthening the
      * other tendons' pulls cause on this one: slack_margin_um covers it at
      * 1 N on the reference robot and grows with the tension above that
@@ -403,10 +412,9 @@ HOM_NOINLINE static void load_tendon(hom_t *h, uint8_t i)
      * the geometric take-up of that tendon's own pull (same moment, same
      * segments): its travel at the tension, plus a quarter of the margin
      * for a late engagement. */
-    t->margin_ticks =
-        hom_um_to_ticks(margin_um(h->cfg.slack_margin_um, h->tension_mN, r.pt.travel_um) +
-                            (h->hold != 0u ? HOM_HELD_BACK_UM : 0u),
-                        r.row.nm_per_tick);
+    t->margin_ticks = hom_ticks16(margin_um(h->cfg.slack_margin_um, h->tension_mN, r.pt.travel_um) +
+                                      (h->hold != 0u ? HOM_HELD_BACK_UM : 0u),
+                                  r.row.nm_per_tick);
     q8 = hom_straight_q8(t, r.pt.straight_um);
     t->to_straight = (int16_t)hom_floor_div256(q8);
     t->straight_frac = (int8_t)(q8 - (int32_t)t->to_straight * 256);
@@ -429,7 +437,7 @@ HOM_NOINLINE static void load_tendon(hom_t *h, uint8_t i)
                     h->tension_mN + h->tension_mN / 4u + HOM_BOUND_MN -
                         hom_muldiv(h->tension_mN, (int32_t)h->engage_cuT, (int32_t)r.pt.target_cuT),
                     h->tension_mN);
-    t->limit_ticks = hom_limit_ticks(&r.row, q8);
+    t->limit_ticks = (int16_t)hom_limit_ticks(&r.row, q8);
     /* absolute mode: the engagement threshold stays the delta mode's; the
      * target becomes the distance of |B_magnet(p_T)| from |b_straight| */
     t->target_cuT = hom_work_target(h, t->sensor, r.pt.target_cuT, r.pt.abs_target_cuT);
@@ -646,7 +654,6 @@ HOM_NOINLINE void hom_set_goal(hom_t *h, uint8_t i, int32_t goal, uint16_t vel)
     hom_tendon_t *t = &h->tendon[i];
     t->goal = goal;
     t->vel = vel;
-    t->acc = h->cfg.acc;
     t->torque = 1;
     h->changed |= hom_bit(i);
     h->moved = 1;
@@ -784,9 +791,9 @@ HOM_NOINLINE static void put_out(const hom_t *h, hom_out_t *out)
         const hom_tendon_t *t = &h->tendon[i];
         out->goal[i] = t->goal;
         out->vel[i] = t->vel;
-        out->acc[i] = t->acc;
         out->torque[i] = t->torque;
     }
+    out->acc = h->cfg.acc;
     out->changed = h->changed;
 }
 

@@ -232,12 +232,14 @@ typedef struct {
 } hom_in_t;
 
 /* Outputs: the commanded state of every tendon's servo. The application
- * writes goal, profile velocity/acceleration and torque of tendon i when bit i
- * of `changed` is set (it may write all of them every step). */
+ * writes goal, profile velocity, the profile acceleration and torque of
+ * tendon i when bit i of `changed` is set (it may write all of them every
+ * step). */
 typedef struct {
-    int32_t goal[HOM_MAX_TENDONS];   /* Goal Position, ticks */
-    uint16_t vel[HOM_MAX_TENDONS];   /* Profile Velocity, 0.229 rpm units */
-    uint16_t acc[HOM_MAX_TENDONS];   /* Profile Acceleration, 214.577 rev/min^2 units */
+    int32_t goal[HOM_MAX_TENDONS]; /* Goal Position, ticks */
+    uint16_t vel[HOM_MAX_TENDONS]; /* Profile Velocity, 0.229 rpm units */
+    uint16_t acc; /* Profile Acceleration of every move of the run (hom_config_t.acc),
+                     214.577 rev/min^2 units */
     uint8_t torque[HOM_MAX_TENDONS]; /* Torque Enable */
     uint16_t changed;                /* bit i: tendon i changed in this step */
 } hom_out_t;
@@ -332,17 +334,19 @@ typedef struct {
 } hom_config_t;
 
 typedef struct {
-    int8_t dir;           /* table pull_dir */
-    uint8_t sensor;       /* selected sensor */
-    uint8_t engaged;      /* engage is valid */
-    uint8_t have_home;    /* home is valid (this run or stored, for the final move) */
-    uint8_t retries;      /* re-approaches after overshooting the target */
-    int8_t abs_sign;      /* absolute mode: +1 when |B| rises towards the target, -1 falls */
-    uint32_t target_cuT;  /* |B - B0| target at the requested tension; absolute mode:
-                             ||B_magnet(p_T)| - |b_straight|| (see hom_cmd_t) */
-    int32_t travel_ticks; /* expected take-up from engagement */
-    int32_t limit_ticks;  /* travel limit from engagement */
-    int32_t margin_ticks; /* slack margin */
+    int8_t dir;          /* table pull_dir */
+    uint8_t sensor;      /* selected sensor */
+    uint8_t engaged;     /* engage is valid */
+    uint8_t have_home;   /* home is valid (this run or stored, for the final move) */
+    uint8_t retries;     /* re-approaches after overshooting the target */
+    int8_t abs_sign;     /* absolute mode: +1 when |B| rises towards the target, -1 falls */
+    uint32_t target_cuT; /* |B - B0| target at the requested tension; absolute mode:
+                            ||B_magnet(p_T)| - |b_straight|| (see hom_cmd_t) */
+    /* the take-up figures in ticks, at most INT16_MAX (load_tendon()); each
+     * is widened to 32 bits before arithmetic that could leave 16 */
+    int16_t travel_ticks; /* expected take-up from engagement */
+    int16_t limit_ticks;  /* travel limit from engagement (at most HOM_RELEASE_REACH_TICKS) */
+    int16_t margin_ticks; /* slack margin */
     uint16_t nm_per_tick; /* table spool factor (the table's own width) */
     int32_t engage;       /* engagement position, ticks */
     int32_t home;         /* home, ticks */
@@ -359,7 +363,6 @@ typedef struct {
     uint16_t vel;         /* its Profile Velocity, 0.229 rpm units */
     uint32_t servo_ok_ms; /* its last answer (preflight: 0xFFFFFFFF none yet, 0xFFFFFFFE faulty) */
     uint32_t moved_ms;    /* last goal written or change of the present position */
-    uint16_t acc;         /* Profile Acceleration of the goal */
     uint8_t torque;       /* Torque Enable */
     uint16_t release_ticks; /* the release that frees this tendon of unknown state */
     int16_t to_straight;    /* the table's straight-pose shift at the run's tension as a

@@ -230,6 +230,42 @@ static void test_straight_home_rounds_once(void **state)
     assert_int_equal(hom_to_straight(&g_h, 200), 0); /* out of range */
 }
 
+/* The tendon state keeps its take-up figures in 16 bits: a spool of a few
+ * nm a tick (a table with a tiny nm_per_tick) saturates them at INT16_MAX
+ * and the travel limit at HOM_RELEASE_REACH_TICKS; a spool the robots have
+ * keeps them exact. */
+static void test_take_up_figures_saturate_in_16_bits(void **state)
+{
+    tbl_wide_t keep = g_tab;
+    static const uint32_t nm[4] = {1u, 2u, 40u, 6136u};
+    uint8_t k;
+    (void)state;
+    for (k = 0; k < 4u; k++) {
+        const hom_tendon_t *t;
+        tbl_src_t src;
+        tbl_point_t pt;
+        int32_t want;
+        g_tab.tendons[0].nm_per_tick = nm[k];
+        start_full(1000);
+        t = hom_tendon(&g_h, 0);
+        src.table = hom_fix_pack(&g_tab);
+        src.copy = tbl_copy_ram;
+        assert_int_equal(tbl_target(&src, 0, g_h.tension_mN, &pt), 0);
+        want = hom_um_to_ticks(pt.travel_um, nm[k]);
+        assert_int_equal(t->travel_ticks, want > INT16_MAX ? INT16_MAX : want);
+        assert_true(t->margin_ticks >= t->travel_ticks && t->margin_ticks > 0);
+        assert_true(t->limit_ticks > 0 && t->limit_ticks <= HOM_RELEASE_REACH_TICKS);
+        if (nm[k] <= 2u) {
+            assert_true(want > INT16_MAX); /* the case saturates */
+            assert_int_equal(t->margin_ticks, INT16_MAX);
+            assert_int_equal(t->limit_ticks, HOM_RELEASE_REACH_TICKS);
+        } else {
+            assert_true(t->margin_ticks < INT16_MAX);
+        }
+    }
+    g_tab = keep;
+}
+
 /* A fine point near the target whose measured slope is nearly flat (a
  * secant across the spool's backlash: 3 cuT per tick) puts the target 18
  * ticks on; the floor slope (half the table's) puts it within half a
@@ -377,6 +413,7 @@ int main(void)
         cmocka_unit_test(test_window_changes_taken_once),
         cmocka_unit_test(test_even_first_step_runs_preflight),
         cmocka_unit_test(test_straight_home_rounds_once),
+        cmocka_unit_test(test_take_up_figures_saturate_in_16_bits),
     };
     return cmocka_run_group_tests(tests, group_setup, NULL);
 }
