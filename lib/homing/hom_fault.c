@@ -108,7 +108,7 @@ int hom_check_sensors(hom_t *h, const hom_in_t *in)
             }
             memcpy(st->last, s->b_cuT, sizeof st->last);
             st->have_last = 1;
-            st->last_ms = h->now_ms;
+            st->last_ms = (uint16_t)h->now_ms;
             if (st->n_acc < HOM_MAX_AVG) {
                 for (a = 0; a < 3; a++) {
                     st->acc[a] += s->b_cuT[a];
@@ -116,8 +116,10 @@ int hom_check_sensors(hom_t *h, const hom_in_t *in)
                 st->n_acc++;
             }
         }
-        detail = (int32_t)hom_since(h, st->last_ms);
-        if ((uint32_t)detail > h->cfg.sensor_timeout_ms) {
+        /* every step: the gap passes sensor_timeout_ms (16 bits) before
+         * its 16-bit difference could wrap */
+        detail = (uint16_t)((uint16_t)h->now_ms - st->last_ms);
+        if ((uint16_t)detail > h->cfg.sensor_timeout_ms) {
             f = HOM_F_SENSOR_TIMEOUT;
             goto fault;
         }

@@ -67,7 +67,7 @@ void hom_do_preflight(hom_t *h, const hom_in_t *in)
     }
     if (all) {
         for (i = 0; i < h->n_sensors; i++) {
-            h->sensor[i].last_ms = h->now_ms;
+            h->sensor[i].last_ms = (uint16_t)h->now_ms;
         }
         hom_phase_event(h, HOM_PH_RELEASE, 0);
         for (i = 0; i < h->n_tendons; i++) {

@@ -375,7 +375,8 @@ typedef struct {
     int32_t b0[3];    /* straight-pose baseline, cuT (the slack check: its previous average) */
     int32_t last[3];  /* newest sample */
     int32_t acc[3];   /* running sum for averages */
-    uint32_t last_ms; /* time of the newest sample */
+    uint16_t last_ms; /* time of the newest sample, ms (low 16 bits: hom_check_sensors()
+                         compares it every step, a 16-bit difference) */
     uint8_t n_acc;    /* samples in acc */
     uint8_t have_last;
     uint8_t err_run; /* consecutive read errors */
