@@ -1,14 +1,19 @@
 /*
  * hom_priv: what the files of the homing module share and nobody else may
  * use (the public API is homing.h). The state machine is split by phase,
- * one room per concern:
- *   homing.c: the public API (start, step, events, results) and the helpers every phase uses:
- * goals, arrival, averages, norms, 32-bit muldiv hom_fault.c: faults: ending a run with every
- * tendon released, the health checks of sensors and servos each step, fault names hom_slack.c:
- * preflight, the release of every tendon, the slack check and baseline, and the release check after
- * each home hom_approach.c: one tendon's take-up to engagement and the moderate approach, the
- * travel limit, the per-step dispatch of a tendon hom_fine.c: the fine approach to the target
- * (table curve, measured slope, averaged points), the least-squares home and the final move
+ * one room per concern.
+ *
+ * - homing.c: the public API (start, step, events, results) and the
+ *   helpers every phase uses: goals, arrival, averages, norms, 32-bit muldiv.
+ * - hom_fault.c: faults: ending a run with every tendon released, the
+ *   health checks of sensors and servos each step, fault names.
+ * - hom_slack.c: preflight, the release of every tendon, the slack check
+ *   and baseline, and the release check after each home.
+ * - hom_approach.c: one tendon's take-up to engagement and the moderate
+ *   approach, the travel limit, the per-step dispatch of a tendon.
+ * - hom_fine.c: the fine approach to the target (table curve, measured
+ *   slope, averaged points), the least-squares home and the final move.
+ *
  * Everything declared here is internal: names carry the hom_ prefix only to
  * keep the firmware's global namespace clean.
  */
