@@ -78,13 +78,15 @@ HOM_NOINLINE void hom_begin_final(hom_t *h)
 
 /* Samples to average at a point near the target: enough that the noise of
  * the average (table noise per axis / sqrt n) is at most a seventh of the
- * field change of one tick; at least 4 and twice avg_samples, at most
- * HOM_MAX_AVG.
+ * field change of one tick (a fifth in quick mode: about half the samples,
+ * docs/homing.md "Calibration time"); at least 4 and twice avg_samples, at
+ * most HOM_MAX_AVG.
  * A weak field (sensors far from the magnet, a high tension where |dB|
  * flattens) needs many; a strong one needs the minimum. */
 static uint8_t near_samples(const hom_t *h, int32_t s_q8)
 {
-    int32_t q = ((int32_t)h->noise_cuT * 7 * 256 + s_q8 - 1) / s_q8; /* ceil(7 noise / slope) */
+    int32_t div = h->mode == HOM_MODE_QUICK ? HOM_NEAR_DIV_QUICK : HOM_NEAR_DIV;
+    int32_t q = ((int32_t)h->noise_cuT * div * 256 + s_q8 - 1) / s_q8; /* ceil(div noise / slope) */
     int32_t n = q > 6 ? (int32_t)HOM_MAX_AVG : q * q;
     int32_t lo = 2 * (int32_t)h->cfg.avg_samples;
     if (lo < 4) {

@@ -52,7 +52,14 @@ enum {
 #define HOM_NOINLINE
 #endif
 
-#define HOM_MAX_AVG             32u
+#define HOM_MAX_AVG 32u
+/* a near point averages until its noise is at most 1/HOM_NEAR_DIV of one
+ * tick's field change (hom_fine.c, near_samples()); a quick re-home trades
+ * some of that for time, 1/HOM_NEAR_DIV_QUICK: about half the samples, its
+ * homes as close to the target tension on the bench (docs/homing.md,
+ * "Calibration time") */
+#define HOM_NEAR_DIV            7
+#define HOM_NEAR_DIV_QUICK      5
 #define HOM_QUICK_STOP_PERMILLE 975u /* quick leg: stop when the field is this close */
 #define HOM_MAX_RETRIES                                                                            \
     3u                        /* back-offs of one tendon before HOM_F_NO_PROGRESS:                 \
