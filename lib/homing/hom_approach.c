@@ -163,7 +163,7 @@ HOM_NOINLINE int hom_pull_to(hom_t *h, int32_t g, uint16_t v)
 HOM_NOINLINE static int16_t run_on(const hom_t *h)
 {
     const hom_tendon_t *t = hom_cur(h);
-    uint16_t since = (uint16_t)((uint16_t)h->now_ms - (uint16_t)t->servo_ok_ms);
+    uint16_t since = hom_since16(h, t->servo_ok_ms);
     since += h->read_gap_ms;
     if (since > 60u) {
         since = 60u;
@@ -327,8 +327,7 @@ HOM_NOINLINE static void stop_short(hom_t *h, int32_t p)
 HOM_NOINLINE static int32_t pos_measured(const hom_t *h, uint8_t age_q)
 {
     const hom_tendon_t *t = hom_cur(h);
-    int32_t q =
-        (int32_t)age_q - 4 * (int32_t)(uint16_t)((uint16_t)h->now_ms - (uint16_t)t->servo_ok_ms);
+    int32_t q = (int32_t)age_q - 4 * (int32_t)hom_since16(h, t->servo_ok_ms);
     int32_t p = t->present;
     if (q > 0) {
         p -= hom_pull(t, (int32_t)(((uint32_t)q * t->vel) >> 8));

@@ -141,17 +141,23 @@ int hom_check_servos(hom_t *h, const hom_in_t *in)
                 return 1;
             }
             if (s->pos != h->tendon[i].present) {
-                h->tendon[i].moved_ms = h->now_ms;
+                h->tendon[i].moved_ms = (uint16_t)h->now_ms;
+            } else if (hom_since16(h, h->tendon[i].moved_ms) > HOM_STILL_CAP_MS) {
+                /* standing long: the stamp ages no further, so that its
+                 * 16-bit difference never wraps */
+                h->tendon[i].moved_ms = (uint16_t)(h->now_ms - HOM_STILL_CAP_MS);
             }
             h->tendon[i].present = s->pos;
             if (i == h->cur) {
-                uint32_t gap = hom_since(h, h->tendon[i].servo_ok_ms);
+                uint16_t gap = hom_since16(h, h->tendon[i].servo_ok_ms);
                 h->read_gap_ms = (uint8_t)(gap > 40u ? 40u : gap);
             }
-            h->tendon[i].servo_ok_ms = h->now_ms;
-        } else if (hom_since(h, h->tendon[i].servo_ok_ms) > h->cfg.servo_timeout_ms) {
+            h->tendon[i].servo_ok_ms = (uint16_t)h->now_ms;
+        } else if (hom_since16(h, h->tendon[i].servo_ok_ms) > h->cfg.servo_timeout_ms) {
+            /* checked every step: the gap passes the 16-bit timeout before
+             * its 16-bit difference could wrap */
             hom_fail(h, HOM_F_SERVO_TIMEOUT, HOM_DEV_SERVO, i,
-                     (int32_t)hom_since(h, h->tendon[i].servo_ok_ms));
+                     hom_since16(h, h->tendon[i].servo_ok_ms));
             return 1;
         }
     }

@@ -67,6 +67,10 @@ enum {
 #define HOM_RUN_ON_TICKS 1    /* a servo standing further past its goal ran on */
 #define HOM_DROOP_TICKS  8    /* a servo stopped this close counts as arrived ... */
 #define HOM_STILL_MS     100u /* ... after this long without motion */
+/* a servo's moved_ms is kept at most this old (hom_check_servos()): every
+ * use compares hom_still_ms() with far less, and its 16-bit difference
+ * never wraps */
+#define HOM_STILL_CAP_MS 30000u
 #define HOM_SAMPLE_AGE_MS                                                                          \
     20u /* a sample reaches the homing up to 16 ms after it was measured (docs/homing.md,          \
            "Engagement"): a servo standing this long stood when every later one was taken */
@@ -98,6 +102,8 @@ void hom_window_around(int8_t dir, int32_t ahead, int32_t behind, int32_t p, int
                        int32_t *hi);
 int32_t hom_slack_goal(const hom_tendon_t *t, uint8_t shift);
 uint32_t hom_since(const hom_t *h, uint32_t t);
+/* ms since a 16-bit stamp (the low 16 bits of now_ms when it was taken) */
+uint16_t hom_since16(const hom_t *h, uint16_t t);
 void hom_set_goal(hom_t *h, uint8_t i, int32_t goal, uint16_t vel);
 int hom_reached(const hom_t *h, uint8_t i);
 void hom_start_avg(hom_t *h);

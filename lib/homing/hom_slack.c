@@ -33,9 +33,7 @@ void hom_do_preflight(hom_t *h, const hom_in_t *in)
         hom_push_event(h, HOM_EV_START, h->mode, 0, h->tension_mN, 0);
         hom_phase_event(h, HOM_PH_PREFLIGHT, 0);
         memset(h->seen, 0, sizeof h->seen);
-        for (i = 0; i < h->n_tendons; i++) {
-            h->tendon[i].servo_ok_ms = 0xFFFFFFFFu; /* not yet answered */
-        }
+        h->pf_missing = 0xFFFFu; /* none has answered yet */
     }
     if (!hom_load_step(h)) {
         all = 0; /* the table's part of the set-up first */
@@ -56,12 +54,13 @@ void hom_do_preflight(hom_t *h, const hom_in_t *in)
     for (i = 0; i < h->n_tendons; i++) {
         const hom_servo_in_t *s = &in->servo[i];
         if (s->status == HOM_SERVO_OK && s->hw_error == 0u) {
-            h->tendon[i].servo_ok_ms = h->now_ms;
+            h->tendon[i].servo_ok_ms = (uint16_t)h->now_ms;
             h->tendon[i].present = s->pos;
+            h->pf_missing &= (uint16_t)~hom_bit(i);
         } else if (s->status == HOM_SERVO_OK || s->status == HOM_SERVO_ABSENT) {
-            h->tendon[i].servo_ok_ms = 0xFFFFFFFEu; /* faulty: hardware error or absent */
+            h->pf_missing |= hom_bit(i); /* faulty: hardware error or absent */
         }
-        if (h->tendon[i].servo_ok_ms >= 0xFFFFFFFEu) {
+        if (hom_has(h->pf_missing, i)) {
             all = 0;
         }
     }
@@ -124,7 +123,7 @@ void hom_do_preflight(hom_t *h, const hom_in_t *in)
         }
     }
     for (i = 0; i < h->n_tendons; i++) {
-        if (h->tendon[i].servo_ok_ms >= 0xFFFFFFFEu) {
+        if (hom_has(h->pf_missing, i)) {
             const hom_servo_in_t *s = &in->servo[i];
             int32_t why = s->status == HOM_SERVO_ABSENT ? 1 : (s->hw_error != 0u ? 4 : 2);
             hom_push_event(h, HOM_EV_MISSING, HOM_DEV_SERVO, i, why, s->hw_error);

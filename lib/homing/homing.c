@@ -632,9 +632,14 @@ HOM_NOINLINE hom_tendon_t *hom_cur(const hom_t *h)
     return (hom_tendon_t *)&h->tendon[h->cur];
 }
 
+HOM_NOINLINE uint16_t hom_since16(const hom_t *h, uint16_t t)
+{
+    return (uint16_t)((uint16_t)h->now_ms - t);
+}
+
 HOM_NOINLINE uint32_t hom_still_ms(const hom_t *h, uint8_t i)
 {
-    return hom_since(h, h->tendon[i].moved_ms);
+    return hom_since16(h, h->tendon[i].moved_ms);
 }
 
 HOM_NOINLINE uint32_t hom_phase_ms(const hom_t *h)
@@ -650,7 +655,7 @@ HOM_NOINLINE void hom_enter(hom_t *h, uint8_t state)
 
 HOM_NOINLINE void hom_set_goal(hom_t *h, uint8_t i, int32_t goal, uint16_t vel)
 {
-    h->tendon[i].moved_ms = h->now_ms;
+    h->tendon[i].moved_ms = (uint16_t)h->now_ms;
     hom_tendon_t *t = &h->tendon[i];
     t->goal = goal;
     t->vel = vel;

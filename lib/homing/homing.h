@@ -358,12 +358,14 @@ typedef struct {
      * the tendon's pointer, each field takes one instruction a byte on the
      * AVR (the first 64 bytes of a struct; the fields after moved_ms are
      * seldom used) */
-    int32_t present;      /* Present Position, ticks */
-    int32_t goal;         /* Goal Position last commanded, ticks */
-    uint16_t vel;         /* its Profile Velocity, 0.229 rpm units */
-    uint32_t servo_ok_ms; /* its last answer (preflight: 0xFFFFFFFF none yet, 0xFFFFFFFE faulty) */
-    uint32_t moved_ms;    /* last goal written or change of the present position */
-    uint8_t torque;       /* Torque Enable */
+    int32_t present; /* Present Position, ticks */
+    int32_t goal;    /* Goal Position last commanded, ticks */
+    uint16_t vel;    /* its Profile Velocity, 0.229 rpm units */
+    /* ms, low 16 bits, compared as 16-bit differences (hom_since16()) */
+    uint16_t servo_ok_ms;   /* its last answer (checked every step against servo_timeout_ms) */
+    uint16_t moved_ms;      /* last goal written or change of the present position (kept at
+                               most HOM_STILL_CAP_MS old) */
+    uint8_t torque;         /* Torque Enable */
     uint16_t release_ticks; /* the release that frees this tendon of unknown state */
     int16_t to_straight;    /* the table's straight-pose shift at the run's tension as a
                                position change, ticks rounded to nearest ... */
@@ -469,6 +471,8 @@ typedef struct {
         uint8_t n;                 /* samples averaged */
     } pts[4];                      /* fine: near points for the final fit */
     uint8_t seen[HOM_MAX_SENSORS]; /* preflight: sample received */
+    uint16_t pf_missing;           /* preflight: bit i, tendon i's servo has not answered yet,
+                                      answered with a hardware error, or is absent */
     hom_tendon_t tendon[HOM_MAX_TENDONS];
     hom_sensor_t sensor[HOM_MAX_SENSORS];
     uint16_t changed; /* hom_out_t.changed of this step */

@@ -253,7 +253,7 @@ int plant_run(const plant_run_cfg_t *rc, plant_run_result_t *res)
         if (moved) {
             (void)plant_solve(&plant);
         }
-        in.now_ms = t;
+        in.now_ms = rc->clock0_ms + t;
         for (k = 0; k < HOM_MAX_SENSORS; k++) {
             hom_sensor_in_t *s = &in.sensor[k];
             s->status = HOM_SENS_NONE;

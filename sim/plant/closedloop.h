@@ -59,6 +59,8 @@ typedef struct {
     uint8_t fault_index;
     uint32_t fault_ms;
     uint32_t max_ms;       /* give up after this simulated time (0 = 60 s) */
+    uint32_t clock0_ms;    /* the homing's clock at the start: now_ms = clock0_ms + the
+                              simulated time (a clock that wraps during the run) */
     double fall_at_uT;     /* PLANT_FI_FIELD_FALL, _STUCK: the change that sets it off */
     double jump_uT[3];     /* PLANT_FI_FIELD_JUMP: the step (world frame); 0: 3 mT x */
     uint8_t pos_period_ms; /* positions read every this many ms (0, 1: every step; a

@@ -550,7 +550,8 @@ static void test_pulled_servo_read_alone(void **state)
         assert_int_equal(hom_pulling(&g_b.app.u.hom, &k), 1);
         assert_int_equal(k, 0);
         for (i = 0; i < g_b.cfg.n_tendons; i++) {
-            uint32_t age = g_b.app.u.hom.now_ms - g_b.app.u.hom.tendon[i].servo_ok_ms;
+            uint32_t age =
+                (uint16_t)((uint16_t)g_b.app.u.hom.now_ms - g_b.app.u.hom.tendon[i].servo_ok_ms);
             oldest = age > oldest ? age : oldest;
         }
         assert_true((uint16_t)(g_b.app.u.hom.now_ms - g_b.app.bus.t_all_ok) < 10u);

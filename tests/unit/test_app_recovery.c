@@ -243,7 +243,8 @@ static void test_silent_servo_is_the_one_named(void **state)
         /* the others are still read: every position stays fresh but its own */
         app_bench_run_ms(&g_b, 60);
         for (uint8_t i = 0; i < g_b.cfg.n_tendons; i++) {
-            uint32_t age = g_b.app.u.hom.now_ms - g_b.app.u.hom.tendon[i].servo_ok_ms;
+            uint32_t age =
+                (uint16_t)((uint16_t)g_b.app.u.hom.now_ms - g_b.app.u.hom.tendon[i].servo_ok_ms);
             assert_true(i == k ? age >= 50u : age < 20u);
         }
         assert_true(app_bench_wait_line(&g_b, "<fault ", g_line, sizeof g_line, 1000));
@@ -277,7 +278,8 @@ static void test_silent_servo_ahead_of_a_missed_one(void **state)
         g_b.app.bus.missed |= (uint16_t)(1u << which[w][1]);
         app_bench_run_ms(&g_b, 60);
         for (uint8_t i = 0; i < g_b.cfg.n_tendons; i++) {
-            uint32_t age = g_b.app.u.hom.now_ms - g_b.app.u.hom.tendon[i].servo_ok_ms;
+            uint32_t age =
+                (uint16_t)((uint16_t)g_b.app.u.hom.now_ms - g_b.app.u.hom.tendon[i].servo_ok_ms);
             assert_true(i == k ? age >= 50u : age < 20u);
         }
         assert_true(app_bench_wait_line(&g_b, "<fault ", g_line, sizeof g_line, 1000));

@@ -230,6 +230,39 @@ static void test_quick_rehome_same_homes(void **state)
     }
 }
 
+/* The homing keeps some times in 16 bits (a servo's last answer and last
+ * motion, a sensor's last sample): a run whose clock passes 2^16 and 2^32 ms
+ * finds the same homes as one that starts at 0, and a servo that falls
+ * silent across the wrap still times out. */
+static void test_clock_wrap_same_homes(void **state)
+{
+    static const uint32_t clock0[3] = {0xFFFFu - 1500u, 0xFFFFFFFFu - 2500u, 0x7FFFu};
+    plant_run_cfg_t rc;
+    uint8_t i, k;
+    (void)state;
+    plant_run_defaults(&rc, &g_cfg, hom_fix_pack(&g_tab));
+    rc.seed = 41;
+    assert_int_equal(plant_run(&rc, &g_res), 0);
+    assert_int_equal(g_res.rc, 0);
+    for (k = 0; k < 3u; k++) {
+        rc.clock0_ms = clock0[k];
+        assert_int_equal(plant_run(&rc, &g_res2), 0);
+        assert_int_equal(g_res2.rc, 0);
+        assert_int_equal(g_res2.end_ms, g_res.end_ms);
+        for (i = 0; i < g_res.n_tendons; i++) {
+            assert_int_equal(g_res2.home[i], g_res.home[i]);
+        }
+    }
+    /* a servo silent from 1.5 s on, with the clock's low 16 bits wrapping then */
+    rc.clock0_ms = 0xFFFFu - 1600u;
+    rc.fault = PLANT_FI_SERVO_SILENT;
+    rc.fault_index = 2;
+    rc.fault_ms = 1500;
+    assert_int_equal(plant_run(&rc, &g_res2), 0);
+    assert_int_equal(g_res2.fault, HOM_F_SERVO_TIMEOUT);
+    assert_int_equal(g_res2.fault_index, 2);
+}
+
 static void test_overshoot_recovers(void **state)
 {
     /* at the servo's top speed the take-up crosses a low target within one
@@ -883,6 +916,7 @@ int main(void)
         cmocka_unit_test(test_other_tensions),
         cmocka_unit_test(test_repeatable_from_random_slack),
         cmocka_unit_test(test_quick_rehome_same_homes),
+        cmocka_unit_test(test_clock_wrap_same_homes),
         cmocka_unit_test(test_overshoot_recovers),
         cmocka_unit_test(test_quick_needs_homes),
         cmocka_unit_test(test_single_tendon),

@@ -266,6 +266,28 @@ static void test_take_up_figures_saturate_in_16_bits(void **state)
     g_tab = keep;
 }
 
+/* A servo standing still keeps counting as still, however long: its 16-bit
+ * motion stamp ages no further than HOM_STILL_CAP_MS (a plain 16-bit
+ * difference would read 50 ms after 65.586 s standing). */
+static void test_a_servo_standing_a_minute_is_still(void **state)
+{
+    uint32_t t;
+    (void)state;
+    start_full(1000);
+    for (t = 0; t < 65586u; t += 10u) {
+        g_h.now_ms += 10u;
+        assert_int_equal(hom_check_servos(&g_h, &g_in), 0);
+        assert_true(hom_still_ms(&g_h, 3) <= HOM_STILL_CAP_MS + 10u);
+    }
+    assert_true(hom_still_ms(&g_h, 3) >= HOM_STILL_CAP_MS);
+    assert_true(hom_still_ms(&g_h, 3) >= HOM_STILL_MS);
+    /* it moves: still from then on */
+    g_in.servo[3].pos += 5;
+    g_h.now_ms += 10u;
+    assert_int_equal(hom_check_servos(&g_h, &g_in), 0);
+    assert_int_equal(hom_still_ms(&g_h, 3), 0);
+}
+
 /* A fine point near the target whose measured slope is nearly flat (a
  * secant across the spool's backlash: 3 cuT per tick) puts the target 18
  * ticks on; the floor slope (half the table's) puts it within half a
@@ -414,6 +436,7 @@ int main(void)
         cmocka_unit_test(test_even_first_step_runs_preflight),
         cmocka_unit_test(test_straight_home_rounds_once),
         cmocka_unit_test(test_take_up_figures_saturate_in_16_bits),
+        cmocka_unit_test(test_a_servo_standing_a_minute_is_still),
     };
     return cmocka_run_group_tests(tests, group_setup, NULL);
 }
