@@ -35,11 +35,13 @@
 #ifndef DXL_TX_CAP
 #define DXL_TX_CAP 96u
 #endif
-/* Reply body buffer: a fast sync read of 4 bytes takes 8 per servo (96 for
- * 12 servos), a single status its data and two bytes; 112 for 12 servos,
- * less in a firmware whose DXL_MAX_IDS is its robot's servos. */
+/* Reply body buffer (INST and the parameters the parser keeps): a fast
+ * sync read of 4 bytes from N servos keeps 8 N - 1 (each servo's ERR, ID,
+ * data and CRC, less the last CRC, which is the packet's), a single status
+ * its data and two bytes. A longer packet (none answers the master's
+ * requests) is refused as DXL_E_OVERFLOW. */
 #ifndef DXL_RX_CAP
-#define DXL_RX_CAP (DXL_MAX_IDS * 8u + 16u)
+#define DXL_RX_CAP (DXL_MAX_IDS * 8u > DXL_REPLY_DATA + 2u ? DXL_MAX_IDS * 8u : DXL_REPLY_DATA + 2u)
 #endif
 
 #define DXL_DIR_RX 0u
