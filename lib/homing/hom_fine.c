@@ -197,8 +197,7 @@ HOM_NOINLINE void hom_finish_tendon(hom_t *h, int32_t p, int32_t fallback)
     }
     home_q8 = fit_or(h, p, fallback);
     t->home = hom_floor_div256(home_q8);
-    h->home_res = home_q8 - t->home * 256;
-    t->home_frac = (int8_t)h->home_res;
+    t->home_frac = (int8_t)(home_q8 - t->home * 256);
     h->retake = 0; /* the next tendon's take-up at its own speed */
     h->home_dB = hom_delta_of(h, t->sensor, h->sensor[t->sensor].last);
     hom_set_goal(h, h->cur, hom_slack_goal(t, 0), h->cfg.v_release);

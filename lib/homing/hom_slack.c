@@ -206,8 +206,10 @@ void hom_release_check(hom_t *h)
      * left every later search short of the true engagement (chaos seed
      * 10103: no_engagement in every calibration after it) */
     h->win_changed |= hom_bit(h->cur);
-    h->tendon_ms = hom_since(h, h->t_tendon);
-    hom_push_event(h, HOM_EV_HOME, 0, h->cur, t->home, h->home_res);
+    d = hom_since(h, h->t_tendon); /* the tendon's time, saturated at 16 bits */
+    h->tendon_ms = (uint16_t)(d > 0xFFFFu ? 0xFFFFu : d);
+    /* the home's sub-tick residue, 0..255 (1/256 tick) */
+    hom_push_event(h, HOM_EV_HOME, 0, h->cur, t->home, (uint8_t)t->home_frac);
     h->settled = 3;
 }
 

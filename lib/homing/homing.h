@@ -435,11 +435,10 @@ typedef struct {
                               engagement threshold was measured */
     int32_t takeup_from;   /* active tendon's position when its take-up began */
     int32_t takeup_at;     /* ... and when this take-up began (a search again's own) */
-    int32_t home_res;      /* active tendon: sub-tick residue of its home (1/256 tick), reported
-                              once the release check passed */
     uint32_t home_dB;      /* active tendon: |B - B0| of its selected sensor (cuT) when its home
                               was found (for the HOM_EV_HOME report) */
-    uint32_t tendon_ms;    /* the last tendon's time from its start to its recorded home */
+    uint16_t tendon_ms;    /* the last tendon's time from its start to its recorded home
+                              (at most 65535) */
     int32_t p_prev;        /* fine: previous point (position, |dB|) */
     uint32_t b_prev;
     int16_t way_q[HOM_WAY_PTS];  /* pull: the way out, furthest last: ticks past the engagement
@@ -666,7 +665,7 @@ static inline uint32_t hom_home_dB(const hom_t *h)
     return h->home_dB;
 }
 
-static inline uint32_t hom_tendon_ms(const hom_t *h)
+static inline uint16_t hom_tendon_ms(const hom_t *h)
 {
     return h->tendon_ms;
 }
