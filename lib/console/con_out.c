@@ -92,24 +92,15 @@ void con_out_ch(con_t *c, char ch)
     con_out(c, &ch, 1);
 }
 
-void con_out_ram(con_t *c, const char *s)
-{
-    size_t n = strlen(s);
-    while (n > 0u) {
-        uint8_t k = (n > 255u) ? 255u : (uint8_t)n;
-        con_out(c, s, k);
-        s += k;
-        n -= k;
-    }
-}
-
-/* Writes a flash string in small chunks (no read past its NUL). */
-void con_out_flash(con_t *c, const char *p)
+/* Writes a RAM (flash 0) or flash (flash 1) string in small chunks (no read
+ * past its NUL): one routine for both. */
+static void out_str(con_t *c, const char *p, uint8_t flash)
 {
     char buf[16];
     uint8_t n = 0;
     char ch;
-    while ((ch = con_fl_char(c, p++)) != '\0') {
+    while ((ch = flash ? con_fl_char(c, p) : *p) != '\0') {
+        p++;
         buf[n++] = ch;
         if (n == sizeof(buf)) {
             con_out(c, buf, n);
@@ -117,6 +108,16 @@ void con_out_flash(con_t *c, const char *p)
         }
     }
     con_out(c, buf, n);
+}
+
+void con_out_ram(con_t *c, const char *s)
+{
+    out_str(c, s, 0);
+}
+
+void con_out_flash(con_t *c, const char *p)
+{
+    out_str(c, p, 1);
 }
 
 static uint8_t needs_quotes(const con_t *c, const char *s, uint8_t flash)
@@ -273,11 +274,7 @@ void con_report_begin(con_t *con, const char *kind)
 
 void con_report_int(con_t *con, const char *key, int32_t v)
 {
-    if (con->mute) {
-        return;
-    }
-    out_key(con, key);
-    out_fixed(con, v, 0);
+    con_report_fixed(con, key, v, 0);
 }
 
 void con_report_fixed(con_t *con, const char *key, int32_t v, uint8_t decimals)
@@ -289,38 +286,32 @@ void con_report_fixed(con_t *con, const char *key, int32_t v, uint8_t decimals)
     out_fixed(con, v, decimals);
 }
 
-void con_report_str(con_t *con, const char *key, const char *s)
+/* con_report_str() (flash 0) and con_report_flash() (flash 1) */
+CON_NOINLINE static void report_text(con_t *con, const char *key, const char *s, uint8_t flash)
 {
     uint8_t q;
     if (con->mute) {
         return;
     }
-    q = needs_quotes(con, s, 0);
+    q = needs_quotes(con, s, flash);
     out_key(con, key);
     if (q) {
         con_out_ch(con, '"');
     }
-    con_out_ram(con, s);
+    out_str(con, s, flash);
     if (q) {
         con_out_ch(con, '"');
     }
 }
 
+void con_report_str(con_t *con, const char *key, const char *s)
+{
+    report_text(con, key, s, 0);
+}
+
 void con_report_flash(con_t *con, const char *key, const char *s)
 {
-    uint8_t q;
-    if (con->mute) {
-        return;
-    }
-    q = needs_quotes(con, s, 1);
-    out_key(con, key);
-    if (q) {
-        con_out_ch(con, '"');
-    }
-    con_out_flash(con, s);
-    if (q) {
-        con_out_ch(con, '"');
-    }
+    report_text(con, key, s, 1);
 }
 
 void con_report_word(con_t *con, const char *key, const char *words, uint8_t i)
