@@ -561,7 +561,7 @@ static void list_poll(app_t *a)
      CMD_BIT(HISTORY) | CMD_BIT(GET) | CMD_BIT(SAVE) | CMD_BIT(REBOOT) | CMD_BIT(FORGET))
 #define CMD_TABLE (CMD_BIT(SENSORS) | CMD_BIT(TABLE))
 
-static uint8_t cmd_needs(uint32_t mask, uint8_t cmd)
+APP_NOINLINE static uint8_t cmd_needs(uint32_t mask, uint8_t cmd)
 {
     return (uint8_t)((mask >> cmd) & 1u);
 }

@@ -65,7 +65,7 @@ APP_NOINLINE uint8_t app_rec_saving(const app_t *a, uint8_t what)
     return (uint8_t)((a->rec.save_due & what) != 0u || a->rec.save_now == what);
 }
 
-void app_rec_queue(app_t *a, uint8_t what)
+APP_NOINLINE void app_rec_queue(app_t *a, uint8_t what)
 {
     a->rec.save_due |= what;
 }

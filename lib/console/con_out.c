@@ -239,12 +239,12 @@ void con_reply(con_t *c, int8_t rc)
 
 /* 1 when the output ring has room for n bytes (always, without a room
  * function: writes then never wait). */
-static uint8_t has_room(const con_t *con, uint16_t n)
+CON_NOINLINE static uint8_t has_room(const con_t *con, uint16_t n)
 {
     return (uint8_t)(!CON_HAS_ROOM(con) || CON_IO_ROOM(con) >= n);
 }
 
-uint8_t con_report_fits(const con_t *con)
+CON_NOINLINE uint8_t con_report_fits(const con_t *con)
 {
     return (uint8_t)(!con->realtime || has_room(con, CON_OUT_MAX + CON_RESERVE));
 }
@@ -254,7 +254,7 @@ uint8_t con_out_drained(const con_t *con)
     return has_room(con, CON_OUT_MAX + CON_RESERVE);
 }
 
-uint8_t con_line_fits(const con_t *con)
+CON_NOINLINE uint8_t con_line_fits(const con_t *con)
 {
     return has_room(con, CON_OUT_MAX + (con->realtime ? CON_RESERVE : 0u));
 }
@@ -272,7 +272,7 @@ void con_report_begin(con_t *con, const char *kind)
     con_out_flash(con, kind);
 }
 
-void con_report_int(con_t *con, const char *key, int32_t v)
+CON_NOINLINE void con_report_int(con_t *con, const char *key, int32_t v)
 {
     con_report_fixed(con, key, v, 0);
 }
