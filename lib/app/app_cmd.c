@@ -489,7 +489,7 @@ static uint8_t list_len(const app_t *a)
 
 /* The next line of the listing under way: 1 when one was written (or an
  * item skipped), 0 at its end. */
-APP_NOINLINE static uint8_t list_line(app_t *a)
+static uint8_t list_line(app_t *a)
 {
     uint8_t i = a->cmd.list_i++;
     if (i >= list_len(a)) {

@@ -46,7 +46,7 @@ void app_rep_end(app_t *a)
 }
 
 /* Hex words (table_id) without a printf. */
-APP_NOINLINE void app_rep_hex(app_t *a, const char *key, uint32_t v)
+void app_rep_hex(app_t *a, const char *key, uint32_t v)
 {
     char buf[11];
     uint8_t i;

@@ -68,7 +68,7 @@ void app_win_set(app_t *a, uint8_t i, int32_t lo, int32_t hi, uint8_t keep)
 /* Notes in the kept copy whether anything moves: a watchdog or reset-pin
  * reset in the middle of a run leaves tendons taut, and the next boot
  * releases them. */
-APP_NOINLINE void app_win_moving(app_t *a, uint8_t on)
+void app_win_moving(app_t *a, uint8_t on)
 {
     app_win_t *w = APP_WIN(a);
     if (w != NULL) {
