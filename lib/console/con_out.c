@@ -49,8 +49,15 @@ const char *con_fl_skip(const con_t *c, const char *p, uint16_t n)
 
 /* ---- output ------------------------------------------------------ */
 
-/* In realtime mode output is assembled a line at a time in obuf (see
- * con_set_realtime()); otherwise it is written at once. */
+/* A line that found no room in the output ring while it was assembled
+ * (con_t.olen); CON_OUT_MAX + 1: one too long. */
+#define OUT_NO_ROOM (CON_OUT_MAX + 2u)
+
+/* In realtime mode output is assembled a line at a time (see
+ * con_set_realtime()), in obuf or, with CON_IO_FIXED, in the output ring
+ * behind the bytes queued (con_io_stage()); otherwise it is written at once.
+ * In the ring, a part that does not fit the room there now drops the line,
+ * which in obuf would be dropped at its end unless the room grew meanwhile. */
 void con_out(con_t *c, const char *s, uint8_t n)
 {
     if (!c->realtime) {
@@ -59,30 +66,46 @@ void con_out(con_t *c, const char *s, uint8_t n)
         }
         return;
     }
-    if (c->olen > CON_OUT_MAX || (uint16_t)c->olen + n > CON_OUT_MAX) {
-        c->olen = CON_OUT_MAX + 1u; /* too long: never written in part */
+    if (c->olen > CON_OUT_MAX) {
+        return; /* too long or no room: never written in part */
+    }
+    if ((uint16_t)c->olen + n > CON_OUT_MAX) {
+        c->olen = CON_OUT_MAX + 1u;
         return;
     }
+#if CON_IO_FIXED
+    if (con_io_room() < (uint16_t)c->olen + n) {
+        c->olen = OUT_NO_ROOM;
+        return;
+    }
+    con_io_stage(c->olen, s, n);
+#else
     memcpy(&c->obuf[c->olen], s, n);
+#endif
     c->olen = (uint8_t)(c->olen + n);
 }
 
 /* Writes the assembled line when it may be written now, keeping `reserve`
  * bytes of room free in realtime mode. Returns 1 when written (or dropped for
- * length), 0 when it must wait; the buffer is empty afterwards either way. */
+ * length), 0 when it must wait; the line is gone afterwards either way. */
 uint8_t con_flush(con_t *c, uint16_t reserve)
 {
     uint8_t n = c->olen;
     c->olen = 0;
-    if (n > CON_OUT_MAX) {
+    if (n == CON_OUT_MAX + 1u) {
         c->dropped++;
         return 1;
     }
-    if (c->realtime && CON_HAS_ROOM(c) && CON_IO_ROOM(c) < (uint16_t)(n + reserve)) {
+    if (n == OUT_NO_ROOM ||
+        (c->realtime && CON_HAS_ROOM(c) && CON_IO_ROOM(c) < (uint16_t)(n + reserve))) {
         return 0;
     }
     if (n > 0u) {
+#if CON_IO_FIXED
+        con_io_commit(n);
+#else
         CON_IO_WRITE(c, c->obuf, n);
+#endif
     }
     return 1;
 }
