@@ -7,11 +7,18 @@
 
 #include "console/con_priv.h"
 
-static const uint8_t con_err_codes[] CON_FLASH = {
-#define CON_ERR(code, id, text) (code),
+/* The codes of con_errors.def run 1, 2, 3, ... in its order, so a code's
+ * text is the code's place there: checked here at compile time. */
+enum {
+#define CON_ERR(code, id, text) CON_ERR_AT_##id,
 #include "console/con_errors.def"
 #undef CON_ERR
+    CON_ERR_COUNT
 };
+#define CON_ERR(code, id, text)                                                                    \
+    typedef char con_err_in_order_##id[(code) == CON_ERR_AT_##id + 1 ? 1 : -1];
+#include "console/con_errors.def"
+#undef CON_ERR
 
 /* console.h */
 const char con_err_text[] CON_FLASH =
@@ -224,8 +231,6 @@ static void out_fixed(con_t *c, int32_t v, uint8_t decimals)
  * is held (CON_ST_HELD) and written by a later con_poll(). */
 void con_reply(con_t *c, int8_t rc)
 {
-    const char *text = con_err_text;
-    uint8_t i, code;
     c->olen = 0;
     if (rc >= 0) {
         con_out_flash(c, s_ok);
@@ -235,22 +240,13 @@ void con_reply(con_t *c, int8_t rc)
         }
         return;
     }
-    for (i = 0;; i++) {
-        if (i == sizeof(con_err_codes)) {
-            rc = CON_E_INTERNAL; /* not a declared code: say so, once */
-            i = 0;
-            text = con_err_text;
-        }
-        code = (uint8_t)CON_FLASH_BYTE(&con_err_codes[i]);
-        if (code == (uint8_t)-rc) {
-            break;
-        }
-        text = con_fl_skip(c, text, 1);
+    if (rc < -CON_ERR_COUNT) {
+        rc = CON_E_INTERNAL; /* not a declared code: say so, once */
     }
     con_out_flash(c, s_error);
     out_fixed(c, -(int32_t)rc, 0);
     con_out_ch(c, ' ');
-    con_out_flash(c, text);
+    con_out_flash(c, con_fl_skip(c, con_err_text, (uint16_t)(-rc - 1)));
     con_out_flash(c, s_crlf);
     if (!con_flush(c, 0)) {
         c->held_rc = rc;
