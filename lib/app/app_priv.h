@@ -260,9 +260,6 @@ static inline void app_rep_word(app_t *a, const char *key, const char *words_f, 
 {
     con_report_word(&a->cmd.con, key, words_f, i);
 }
-/* Appends the decimal v (and mark unless '\0') to the comma list in buf at
- * *pos (capacity cap); a value that does not fit is left out. */
-void app_list_add(char *buf, uint8_t cap, uint8_t *pos, int32_t v, char mark);
 /* A report field read from a struct: its key (a flash word), where it lies
  * and how it prints. Reports that print struct members list them in flash
  * (APP_FIELD) and print them with one app_rep_fields() call instead of one

@@ -333,6 +333,32 @@ void con_report_flash(con_t *con, const char *key, const char *s)
     report_text(con, key, s, 1);
 }
 
+void con_report_list(con_t *con, const char *key, uint8_t n)
+{
+    if (con->mute) {
+        return;
+    }
+    out_key(con, key);
+    if (n == 0u) {
+        con_out_ch(con, '"'); /* "", as con_report_str() writes an empty text */
+        con_out_ch(con, '"');
+    }
+}
+
+void con_report_item(con_t *con, int32_t v, char mark, uint8_t first)
+{
+    if (con->mute) {
+        return;
+    }
+    if (!first) {
+        con_out_ch(con, ',');
+    }
+    out_fixed(con, v, 0);
+    if (mark != '\0') {
+        con_out_ch(con, mark);
+    }
+}
+
 void con_report_word(con_t *con, const char *key, const char *words, uint8_t i)
 {
     /* read here a byte at a time with LPM: through the copy function (a call

@@ -328,6 +328,11 @@ void con_report_int(con_t *con, const char *key, int32_t v);
 void con_report_fixed(con_t *con, const char *key, int32_t v, uint8_t decimals);
 void con_report_str(con_t *con, const char *key, const char *s);
 void con_report_flash(con_t *con, const char *key, const char *s);
+/* key=v1,v2,... written as it goes: con_report_list() writes the key (and
+ * "" when n, the count of items that follow, is 0), con_report_item() each
+ * value, with a ',' before it unless first, and mark after it unless '\0'. */
+void con_report_list(con_t *con, const char *key, uint8_t n);
+void con_report_item(con_t *con, int32_t v, char mark, uint8_t first);
 /* key=<word i of the space-separated flash list words> ("?" past its end). */
 void con_report_word(con_t *con, const char *key, const char *words, uint8_t i);
 void con_report_end(con_t *con);
