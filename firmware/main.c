@@ -71,6 +71,16 @@ uint16_t con_io_room(void)
 {
     return uart0_tx_room();
 }
+
+void con_io_stage(uint8_t off, const char *buf, uint8_t n)
+{
+    uart0_tx_stage(off, (const uint8_t *)buf, n);
+}
+
+void con_io_commit(uint8_t n)
+{
+    uart0_tx_commit(n);
+}
 #else
 static int16_t c_read(void *ctx)
 {

@@ -112,6 +112,22 @@ void uart0_write(uint8_t byte)
     UCSR0B |= _BV(UDRIE0);
 }
 
+void uart0_tx_stage(uint8_t off, const uint8_t *buf, uint8_t n)
+{
+    uint8_t i = (uint8_t)(tx_head + off);
+    while (n-- > 0u) {
+        tx_buf[i & (UART0_TX_SIZE - 1u)] = *buf++;
+        i++;
+    }
+}
+
+void uart0_tx_commit(uint8_t n)
+{
+    tx_head = (uint8_t)((tx_head + n) & (UART0_TX_SIZE - 1u));
+    UCSR0A = _BV(U2X0) | _BV(TXC0); /* as uart0_write() */
+    UCSR0B |= _BV(UDRIE0);
+}
+
 void uart0_puts(const char *s)
 {
     while (*s != '\0') {

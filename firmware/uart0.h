@@ -43,6 +43,13 @@ uint16_t uart0_tx_room(void);
 /* Queues one byte for transmission. */
 void uart0_write(uint8_t byte);
 
+/* Puts n bytes at offset off behind the bytes queued, where they are not
+ * sent until committed; off + n must stay within uart0_tx_room(). */
+void uart0_tx_stage(uint8_t off, const uint8_t *buf, uint8_t n);
+
+/* Queues the first n bytes staged (uart0_tx_stage()) for transmission. */
+void uart0_tx_commit(uint8_t n);
+
 /* Queues a NUL-terminated string. */
 void uart0_puts(const char *s);
 

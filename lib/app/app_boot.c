@@ -179,7 +179,7 @@ void app_boot_homes_new(app_t *a)
     a->boot.offer_quick = 0;
 }
 
-void app_boot_offer(app_t *a)
+APP_NOINLINE void app_boot_offer(app_t *a)
 {
     a->boot.offer_quick = (uint8_t)(a->boot.recovered &&
                                     a->rec.homes.tension_mN == a->rec.set.v[STORE_SET_CAL_TENSION]);

@@ -324,7 +324,7 @@ uint8_t app_bus_goals_now(app_t *a, uint8_t what)
                                               4u, ids, data, n) > 0);
 }
 
-void app_bus_reboot(app_t *a, uint8_t id)
+APP_NOINLINE void app_bus_reboot(app_t *a, uint8_t id)
 {
     a->bus.reboot_id = id;
     a->bus.reboot_req = APP_REBOOT_WAIT;
@@ -371,7 +371,7 @@ void app_bus_stop(app_t *a)
     a->bus.torque_on = 0; /* goals of the old frames must never be sent again */
 }
 
-uint8_t app_bus_found(app_t *a)
+APP_NOINLINE uint8_t app_bus_found(app_t *a)
 {
     uint8_t i, n = 0;
     a->bus.seen = 0;

@@ -297,22 +297,15 @@ static const app_field_t tendon_fields[] CON_FLASH = {
 
 static int8_t h_table(app_t *a, const con_args_t *args)
 {
-    /* one local, the position first (tendon_line() says why) */
-    struct {
-        uint8_t pos;
-        char buf[TBL_MAX_GRID * 12u + 1u];
-    } l;
     uint8_t g;
     (void)args;
     app_rep_begin(a, app_w_table);
     con_report_str(&a->cmd.con, app_w_name, a->info.name);
     APP_REP_FIELDS(a, &a->info, app_info_fields);
-    l.pos = 0;
-    l.buf[0] = '\0';
+    con_report_list(&a->cmd.con, app_w_grid_mN, a->info.n_grid);
     for (g = 0; g < a->info.n_grid; g++) {
-        app_list_add(l.buf, sizeof l.buf, &l.pos, a->info.grid_mN[g], '\0');
+        con_report_item(&a->cmd.con, a->info.grid_mN[g], '\0', g == 0u);
     }
-    con_report_str(&a->cmd.con, app_w_grid_mN, l.buf);
     APP_REP_FIELDS(a, &a->info, table_fields);
     app_rep_end(a);
     return app_cmd_list(a, APP_LIST_TENDONS, 0);
@@ -323,27 +316,23 @@ static void tendon_line(app_t *a, uint8_t i)
     /* one local, the small fields first: the AVR reaches the first 64
      * bytes of a frame with one instruction a byte */
     struct {
-        uint8_t pos;
         uint32_t v;
         tbl_tendon_head_t row;
         uint32_t eff[TBL_MAX_GRID];
-        char buf[TBL_MAX_GRID * 12u + 1u];
     } l;
     uint8_t g;
-    l.pos = 0;
     (void)tbl_tendon_head(&a->tab, i, &l.row);
     /* its learned targets (one look at the record) */
     (void)tbl_row(app_has(a->learn.mask, i) ? &a->htab : &a->tab, i, TBL_ROW_TARGET, l.eff);
     app_rep_begin(a, app_w_tendon);
     app_rep_u8(a, app_w_tendon, i);
     APP_REP_FIELDS(a, &l.row, tendon_fields);
-    l.buf[0] = '\0';
+    con_report_list(&a->cmd.con, app_w_target_cuT, a->info.n_grid);
     for (g = 0; g < a->info.n_grid; g++) {
         l.v = 0;
         (void)tbl_entry(&a->tab, i, TBL_ROW_TARGET, g, &l.v);
-        app_list_add(l.buf, sizeof l.buf, &l.pos, (int32_t)l.eff[g], l.eff[g] != l.v ? '*' : '\0');
+        con_report_item(&a->cmd.con, (int32_t)l.eff[g], l.eff[g] != l.v ? '*' : '\0', g == 0u);
     }
-    con_report_str(&a->cmd.con, app_w_target_cuT, l.buf);
     app_rep_end(a);
 }
 
@@ -362,26 +351,18 @@ static int8_t h_history(app_t *a, const con_args_t *args)
 /* The history entry `age` calibrations back: 0 when written, else it is lost. */
 static int8_t hist_line(app_t *a, uint8_t age)
 {
-    /* one local, the small fields first (tendon_line() says why) */
-    struct {
-        uint8_t pos;
-        store_hist_t e;
-        char buf[TBL_MAX_TENDONS * 12u + 1u];
-    } l;
+    store_hist_t e;
     uint8_t i;
-    l.pos = 0;
-    if (store_hist_get(&a->rec.store, age, &l.e) != 0) {
+    if (store_hist_get(&a->rec.store, age, &e) != 0) {
         return -1;
     }
     app_rep_begin(a, app_w_hist);
     app_rep_u8(a, app_w_age, age);
-    APP_REP_FIELDS(a, &l.e, hist_fields);
-    l.buf[0] = '\0';
-    for (i = 0; i < l.e.n_tendons && i < TBL_MAX_TENDONS; i++) {
-        app_list_add(l.buf, sizeof l.buf, &l.pos, l.e.home_ticks[i],
-                     app_has(l.e.valid_mask, i) ? 0 : '?');
+    APP_REP_FIELDS(a, &e, hist_fields);
+    con_report_list(&a->cmd.con, app_w_homes, e.n_tendons);
+    for (i = 0; i < e.n_tendons && i < TBL_MAX_TENDONS; i++) {
+        con_report_item(&a->cmd.con, e.home_ticks[i], app_has(e.valid_mask, i) ? 0 : '?', i == 0u);
     }
-    con_report_str(&a->cmd.con, app_w_homes, l.buf);
     app_rep_end(a);
     return 0;
 }
@@ -489,7 +470,7 @@ static uint8_t list_len(const app_t *a)
 
 /* The next line of the listing under way: 1 when one was written (or an
  * item skipped), 0 at its end. */
-APP_NOINLINE static uint8_t list_line(app_t *a)
+static uint8_t list_line(app_t *a)
 {
     uint8_t i = a->cmd.list_i++;
     if (i >= list_len(a)) {
@@ -561,7 +542,7 @@ static void list_poll(app_t *a)
      CMD_BIT(HISTORY) | CMD_BIT(GET) | CMD_BIT(SAVE) | CMD_BIT(REBOOT) | CMD_BIT(FORGET))
 #define CMD_TABLE (CMD_BIT(SENSORS) | CMD_BIT(TABLE))
 
-static uint8_t cmd_needs(uint32_t mask, uint8_t cmd)
+APP_NOINLINE static uint8_t cmd_needs(uint32_t mask, uint8_t cmd)
 {
     return (uint8_t)((mask >> cmd) & 1u);
 }

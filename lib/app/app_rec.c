@@ -65,7 +65,7 @@ APP_NOINLINE uint8_t app_rec_saving(const app_t *a, uint8_t what)
     return (uint8_t)((a->rec.save_due & what) != 0u || a->rec.save_now == what);
 }
 
-void app_rec_queue(app_t *a, uint8_t what)
+APP_NOINLINE void app_rec_queue(app_t *a, uint8_t what)
 {
     a->rec.save_due |= what;
 }
@@ -82,7 +82,7 @@ APP_NOINLINE int8_t app_rec_usable(const app_t *a)
 
 /* Records the rest positions once the servos have stopped after a release or
  * a fault, so a power cycle can find the multi-turn position again. */
-APP_NOINLINE void app_rec_rest_poll(app_t *a)
+void app_rec_rest_poll(app_t *a)
 {
     uint8_t i, changed = 0;
     if (!a->rec.rest_due || !app_idle_state(a) ||

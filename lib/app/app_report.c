@@ -46,7 +46,7 @@ void app_rep_end(app_t *a)
 }
 
 /* Hex words (table_id) without a printf. */
-APP_NOINLINE void app_rep_hex(app_t *a, const char *key, uint32_t v)
+void app_rep_hex(app_t *a, const char *key, uint32_t v)
 {
     char buf[11];
     uint8_t i;
@@ -83,25 +83,6 @@ void app_rep_fields(app_t *a, const void *base, const app_field_t *f, uint8_t n)
             con_report_fixed(&a->cmd.con, e.key, v, (uint8_t)((e.fmt >> 4) & 3u));
         }
     }
-}
-
-/* Appends the decimal v and a separator to buf at *pos (capacity cap). */
-void app_list_add(char *buf, uint8_t cap, uint8_t *pos, int32_t v, char mark)
-{
-    char tmp[13];
-    int8_t n = con_format_fixed(tmp, sizeof tmp, v, 0);
-    if (n < 0 || (uint16_t)*pos + (uint16_t)n + 3u > cap) {
-        return;
-    }
-    if (*pos > 0u) {
-        buf[(*pos)++] = ',';
-    }
-    memcpy(&buf[*pos], tmp, (size_t)n);
-    *pos = (uint8_t)(*pos + (uint8_t)n);
-    if (mark != '\0') {
-        buf[(*pos)++] = mark;
-    }
-    buf[*pos] = '\0';
 }
 
 /* name=hallhome version=... board=... (those the board names) */

@@ -68,7 +68,7 @@ void app_win_set(app_t *a, uint8_t i, int32_t lo, int32_t hi, uint8_t keep)
 /* Notes in the kept copy whether anything moves: a watchdog or reset-pin
  * reset in the middle of a run leaves tendons taut, and the next boot
  * releases them. */
-APP_NOINLINE void app_win_moving(app_t *a, uint8_t on)
+void app_win_moving(app_t *a, uint8_t on)
 {
     app_win_t *w = APP_WIN(a);
     if (w != NULL) {
@@ -155,7 +155,7 @@ void app_win_persist(app_t *a)
 
 /* The record of the kept windows, relative to where each servo stands now
  * (built when its save starts: app_rec_poll()). */
-APP_NOINLINE void app_win_record(app_t *a, store_win_t *r)
+void app_win_record(app_t *a, store_win_t *r)
 {
     uint8_t i;
     const app_win_t *w = APP_WIN(a);
@@ -175,7 +175,7 @@ APP_NOINLINE void app_win_record(app_t *a, store_win_t *r)
     }
 }
 
-APP_NOINLINE void app_win_recover(app_t *a)
+void app_win_recover(app_t *a)
 {
     store_win_t r;
     uint8_t i;

@@ -7,11 +7,18 @@
 
 #include "console/con_priv.h"
 
-static const uint8_t con_err_codes[] CON_FLASH = {
-#define CON_ERR(code, id, text) (code),
+/* The codes of con_errors.def run 1, 2, 3, ... in its order, so a code's
+ * text is the code's place there: checked here at compile time. */
+enum {
+#define CON_ERR(code, id, text) CON_ERR_AT_##id,
 #include "console/con_errors.def"
 #undef CON_ERR
+    CON_ERR_COUNT
 };
+#define CON_ERR(code, id, text)                                                                    \
+    typedef char con_err_in_order_##id[(code) == CON_ERR_AT_##id + 1 ? 1 : -1];
+#include "console/con_errors.def"
+#undef CON_ERR
 
 /* console.h */
 const char con_err_text[] CON_FLASH =
@@ -49,8 +56,15 @@ const char *con_fl_skip(const con_t *c, const char *p, uint16_t n)
 
 /* ---- output ------------------------------------------------------ */
 
-/* In realtime mode output is assembled a line at a time in obuf (see
- * con_set_realtime()); otherwise it is written at once. */
+/* A line that found no room in the output ring while it was assembled
+ * (con_t.olen); CON_OUT_MAX + 1: one too long. */
+#define OUT_NO_ROOM (CON_OUT_MAX + 2u)
+
+/* In realtime mode output is assembled a line at a time (see
+ * con_set_realtime()), in obuf or, with CON_IO_FIXED, in the output ring
+ * behind the bytes queued (con_io_stage()); otherwise it is written at once.
+ * In the ring, a part that does not fit the room there now drops the line,
+ * which in obuf would be dropped at its end unless the room grew meanwhile. */
 void con_out(con_t *c, const char *s, uint8_t n)
 {
     if (!c->realtime) {
@@ -59,30 +73,46 @@ void con_out(con_t *c, const char *s, uint8_t n)
         }
         return;
     }
-    if (c->olen > CON_OUT_MAX || (uint16_t)c->olen + n > CON_OUT_MAX) {
-        c->olen = CON_OUT_MAX + 1u; /* too long: never written in part */
+    if (c->olen > CON_OUT_MAX) {
+        return; /* too long or no room: never written in part */
+    }
+    if ((uint16_t)c->olen + n > CON_OUT_MAX) {
+        c->olen = CON_OUT_MAX + 1u;
         return;
     }
+#if CON_IO_FIXED
+    if (con_io_room() < (uint16_t)c->olen + n) {
+        c->olen = OUT_NO_ROOM;
+        return;
+    }
+    con_io_stage(c->olen, s, n);
+#else
     memcpy(&c->obuf[c->olen], s, n);
+#endif
     c->olen = (uint8_t)(c->olen + n);
 }
 
 /* Writes the assembled line when it may be written now, keeping `reserve`
  * bytes of room free in realtime mode. Returns 1 when written (or dropped for
- * length), 0 when it must wait; the buffer is empty afterwards either way. */
+ * length), 0 when it must wait; the line is gone afterwards either way. */
 uint8_t con_flush(con_t *c, uint16_t reserve)
 {
     uint8_t n = c->olen;
     c->olen = 0;
-    if (n > CON_OUT_MAX) {
+    if (n == CON_OUT_MAX + 1u) {
         c->dropped++;
         return 1;
     }
-    if (c->realtime && CON_HAS_ROOM(c) && CON_IO_ROOM(c) < (uint16_t)(n + reserve)) {
+    if (n == OUT_NO_ROOM ||
+        (c->realtime && CON_HAS_ROOM(c) && CON_IO_ROOM(c) < (uint16_t)(n + reserve))) {
         return 0;
     }
     if (n > 0u) {
+#if CON_IO_FIXED
+        con_io_commit(n);
+#else
         CON_IO_WRITE(c, c->obuf, n);
+#endif
     }
     return 1;
 }
@@ -92,24 +122,15 @@ void con_out_ch(con_t *c, char ch)
     con_out(c, &ch, 1);
 }
 
-void con_out_ram(con_t *c, const char *s)
-{
-    size_t n = strlen(s);
-    while (n > 0u) {
-        uint8_t k = (n > 255u) ? 255u : (uint8_t)n;
-        con_out(c, s, k);
-        s += k;
-        n -= k;
-    }
-}
-
-/* Writes a flash string in small chunks (no read past its NUL). */
-void con_out_flash(con_t *c, const char *p)
+/* Writes a RAM (flash 0) or flash (flash 1) string in small chunks (no read
+ * past its NUL): one routine for both. */
+static void out_str(con_t *c, const char *p, uint8_t flash)
 {
     char buf[16];
     uint8_t n = 0;
     char ch;
-    while ((ch = con_fl_char(c, p++)) != '\0') {
+    while ((ch = flash ? con_fl_char(c, p) : *p) != '\0') {
+        p++;
         buf[n++] = ch;
         if (n == sizeof(buf)) {
             con_out(c, buf, n);
@@ -117,6 +138,16 @@ void con_out_flash(con_t *c, const char *p)
         }
     }
     con_out(c, buf, n);
+}
+
+void con_out_ram(con_t *c, const char *s)
+{
+    out_str(c, s, 0);
+}
+
+void con_out_flash(con_t *c, const char *p)
+{
+    out_str(c, p, 1);
 }
 
 static uint8_t needs_quotes(const con_t *c, const char *s, uint8_t flash)
@@ -200,8 +231,6 @@ static void out_fixed(con_t *c, int32_t v, uint8_t decimals)
  * is held (CON_ST_HELD) and written by a later con_poll(). */
 void con_reply(con_t *c, int8_t rc)
 {
-    const char *text = con_err_text;
-    uint8_t i, code;
     c->olen = 0;
     if (rc >= 0) {
         con_out_flash(c, s_ok);
@@ -211,22 +240,13 @@ void con_reply(con_t *c, int8_t rc)
         }
         return;
     }
-    for (i = 0;; i++) {
-        if (i == sizeof(con_err_codes)) {
-            rc = CON_E_INTERNAL; /* not a declared code: say so, once */
-            i = 0;
-            text = con_err_text;
-        }
-        code = (uint8_t)CON_FLASH_BYTE(&con_err_codes[i]);
-        if (code == (uint8_t)-rc) {
-            break;
-        }
-        text = con_fl_skip(c, text, 1);
+    if (rc < -CON_ERR_COUNT) {
+        rc = CON_E_INTERNAL; /* not a declared code: say so, once */
     }
     con_out_flash(c, s_error);
     out_fixed(c, -(int32_t)rc, 0);
     con_out_ch(c, ' ');
-    con_out_flash(c, text);
+    con_out_flash(c, con_fl_skip(c, con_err_text, (uint16_t)(-rc - 1)));
     con_out_flash(c, s_crlf);
     if (!con_flush(c, 0)) {
         c->held_rc = rc;
@@ -238,12 +258,12 @@ void con_reply(con_t *c, int8_t rc)
 
 /* 1 when the output ring has room for n bytes (always, without a room
  * function: writes then never wait). */
-static uint8_t has_room(const con_t *con, uint16_t n)
+CON_NOINLINE static uint8_t has_room(const con_t *con, uint16_t n)
 {
     return (uint8_t)(!CON_HAS_ROOM(con) || CON_IO_ROOM(con) >= n);
 }
 
-uint8_t con_report_fits(const con_t *con)
+CON_NOINLINE uint8_t con_report_fits(const con_t *con)
 {
     return (uint8_t)(!con->realtime || has_room(con, CON_OUT_MAX + CON_RESERVE));
 }
@@ -253,7 +273,7 @@ uint8_t con_out_drained(const con_t *con)
     return has_room(con, CON_OUT_MAX + CON_RESERVE);
 }
 
-uint8_t con_line_fits(const con_t *con)
+CON_NOINLINE uint8_t con_line_fits(const con_t *con)
 {
     return has_room(con, CON_OUT_MAX + (con->realtime ? CON_RESERVE : 0u));
 }
@@ -271,13 +291,9 @@ void con_report_begin(con_t *con, const char *kind)
     con_out_flash(con, kind);
 }
 
-void con_report_int(con_t *con, const char *key, int32_t v)
+CON_NOINLINE void con_report_int(con_t *con, const char *key, int32_t v)
 {
-    if (con->mute) {
-        return;
-    }
-    out_key(con, key);
-    out_fixed(con, v, 0);
+    con_report_fixed(con, key, v, 0);
 }
 
 void con_report_fixed(con_t *con, const char *key, int32_t v, uint8_t decimals)
@@ -289,37 +305,57 @@ void con_report_fixed(con_t *con, const char *key, int32_t v, uint8_t decimals)
     out_fixed(con, v, decimals);
 }
 
-void con_report_str(con_t *con, const char *key, const char *s)
+/* con_report_str() (flash 0) and con_report_flash() (flash 1) */
+CON_NOINLINE static void report_text(con_t *con, const char *key, const char *s, uint8_t flash)
 {
     uint8_t q;
     if (con->mute) {
         return;
     }
-    q = needs_quotes(con, s, 0);
+    q = needs_quotes(con, s, flash);
     out_key(con, key);
     if (q) {
         con_out_ch(con, '"');
     }
-    con_out_ram(con, s);
+    out_str(con, s, flash);
     if (q) {
         con_out_ch(con, '"');
     }
 }
 
+void con_report_str(con_t *con, const char *key, const char *s)
+{
+    report_text(con, key, s, 0);
+}
+
 void con_report_flash(con_t *con, const char *key, const char *s)
 {
-    uint8_t q;
+    report_text(con, key, s, 1);
+}
+
+void con_report_list(con_t *con, const char *key, uint8_t n)
+{
     if (con->mute) {
         return;
     }
-    q = needs_quotes(con, s, 1);
     out_key(con, key);
-    if (q) {
+    if (n == 0u) {
+        con_out_ch(con, '"'); /* "", as con_report_str() writes an empty text */
         con_out_ch(con, '"');
     }
-    con_out_flash(con, s);
-    if (q) {
-        con_out_ch(con, '"');
+}
+
+void con_report_item(con_t *con, int32_t v, char mark, uint8_t first)
+{
+    if (con->mute) {
+        return;
+    }
+    if (!first) {
+        con_out_ch(con, ',');
+    }
+    out_fixed(con, v, 0);
+    if (mark != '\0') {
+        con_out_ch(con, mark);
     }
 }
 

@@ -258,7 +258,7 @@ CON_NOINLINE static int8_t check_args(con_t *c, char *syn, char **tok, uint8_t n
 
 /* Checks every argument against the synopsis and fills c->args; the first
  * failure decides the error. */
-CON_NOINLINE int8_t con_check_args(con_t *c, uint8_t cmd, char **tok, uint8_t ntok)
+int8_t con_check_args(con_t *c, uint8_t cmd, char **tok, uint8_t ntok)
 {
     char syn[CON_SYN_MAX];
     get_synopsis(c, cmd, syn);

@@ -82,7 +82,7 @@ void con_out_flash(con_t *c, const char *p);
 
 /* Writes the assembled line when it may be written now, keeping `reserve`
  * bytes of room free in realtime mode. Returns 1 when written (or dropped for
- * length), 0 when it must wait; the buffer is empty afterwards either way. */
+ * length), 0 when it must wait; the line is gone afterwards either way. */
 uint8_t con_flush(con_t *c, uint16_t reserve);
 
 /* The one place a final reply (`ok` for rc >= 0, else `error:...`) is

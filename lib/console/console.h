@@ -162,6 +162,12 @@ typedef struct {
 int16_t con_io_read(void);
 void con_io_write(const char *buf, uint8_t n);
 uint16_t con_io_room(void);
+/* Realtime mode assembles a line in the output ring itself, behind the bytes
+ * queued: con_io_stage() puts n bytes at offset off there (the console keeps
+ * off + n within con_io_room()), con_io_commit() queues the first n of them.
+ * Staged bytes that are not committed are overwritten by the next line. */
+void con_io_stage(uint8_t off, const char *buf, uint8_t n);
+void con_io_commit(uint8_t n);
 #endif
 
 /* Realtime stop state, shared by the RX interrupt and the main loop. The
@@ -197,7 +203,7 @@ struct con_s;
 /* Command handler: see the file comment for the result contract. */
 typedef int8_t (*con_handler_fn)(struct con_s *con, const con_args_t *args, void *app);
 
-/* Caller-owned console state (285 bytes on the AVR with CON_IO_FIXED). Treat as opaque. */
+/* Caller-owned console state (95 bytes on the AVR with CON_IO_FIXED). Treat as opaque. */
 typedef struct con_s {
 #if !CON_IO_FIXED
     const con_io_t *io;
@@ -222,10 +228,13 @@ typedef struct con_s {
     uint8_t call;     /* the command con_call() returns */
     uint8_t realtime; /* con_set_realtime() */
     int8_t held_rc;   /* final reply waiting for room */
-    uint8_t olen;     /* bytes in obuf; CON_OUT_MAX + 1 when the line overflowed */
+    uint8_t olen;     /* bytes of the line assembled; CON_OUT_MAX + 1 when it overflowed,
+                         CON_OUT_MAX + 2 when the output ring had no room for it */
     uint8_t mute;     /* the report being assembled is dropped already (no room) */
     uint16_t dropped; /* report lines dropped (con_dropped()) */
-    char obuf[CON_OUT_MAX];
+#if !CON_IO_FIXED
+    char obuf[CON_OUT_MAX]; /* the line assembled (CON_IO_FIXED: in the output ring) */
+#endif
 } con_t;
 
 /* Binds the console. handlers must hold CON_CMD_COUNT entries (the HELP
@@ -249,7 +258,9 @@ void con_set_timeout(con_t *con, uint16_t ms);
 
 /* Realtime mode (on while anything moves): output never waits. Every line
  * is assembled first and written whole only when io->room() has space for
- * it: a report line that does not fit is dropped and counted
+ * it (with CON_IO_FIXED it is assembled in the output ring, behind the bytes
+ * queued, and a part that finds no room there drops it): a report line that
+ * does not fit is dropped and counted
  * (con_dropped()); command output (a handler's reports, help lines) also
  * leaves CON_RESERVE bytes free for the run's own reports, help waits for
  * room line by line, and a final reply waits (no input is read meanwhile).
@@ -317,6 +328,11 @@ void con_report_int(con_t *con, const char *key, int32_t v);
 void con_report_fixed(con_t *con, const char *key, int32_t v, uint8_t decimals);
 void con_report_str(con_t *con, const char *key, const char *s);
 void con_report_flash(con_t *con, const char *key, const char *s);
+/* key=v1,v2,... written as it goes: con_report_list() writes the key (and
+ * "" when n, the count of items that follow, is 0), con_report_item() each
+ * value, with a ',' before it unless first, and mark after it unless '\0'. */
+void con_report_list(con_t *con, const char *key, uint8_t n);
+void con_report_item(con_t *con, int32_t v, char mark, uint8_t first);
 /* key=<word i of the space-separated flash list words> ("?" past its end). */
 void con_report_word(con_t *con, const char *key, const char *words, uint8_t i);
 void con_report_end(con_t *con);

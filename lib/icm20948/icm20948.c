@@ -27,7 +27,8 @@ enum { ICM_ST_IDLE, ICM_ST_INIT, ICM_ST_RUN, ICM_ST_FAIL };
 #define ICM_DEV_UNSET(dev) ((dev)->bus == NULL)
 #endif
 
-/* icm_wait() measured smaller on the AVR as a call than inlined at each wait. */
+/* Functions that measured smaller on the AVR as calls than inlined: icm_wait()
+ * at each wait, icm_read_failed(), icm_bus_error(). */
 #if defined(__GNUC__)
 #define ICM_NOINLINE __attribute__((noinline))
 #else
@@ -134,7 +135,7 @@ static const icm_init_write_t icm_init_writes[] ICM_FLASH = {
 
 /* Compares rather than a switch: GCC turns that switch into a lookup table,
  * which the AVR keeps in RAM. */
-int8_t icm_bus_error(int8_t bus_rc)
+ICM_NOINLINE int8_t icm_bus_error(int8_t bus_rc)
 {
     if (bus_rc == ICM_BUS_OK) {
         return 0;
@@ -515,7 +516,7 @@ int8_t icm_init_poll(icm_dev_t *dev, uint32_t now_us)
 
 /* Only a missing sensor ends the run: a NACK, timeout or bus error may be a
  * glitch, and the caller decides after how many to re-initialise. */
-static int8_t icm_read_failed(icm_dev_t *dev, int8_t rc)
+ICM_NOINLINE static int8_t icm_read_failed(icm_dev_t *dev, int8_t rc)
 {
     dev->err = rc;
     dev->error_count++;

@@ -13,7 +13,8 @@
 #define STORE_NO_HEAD 0xFFu
 
 /* Functions that measured smaller on the AVR as calls than inlined into their
- * callers (a record's write set-up, the history slots' checks). */
+ * callers (a record's write set-up, the history slots' checks, a home's
+ * entry, a position's recovery, a learned record's address). */
 #if defined(__GNUC__)
 #define STORE_NOINLINE __attribute__((noinline))
 #else
@@ -476,7 +477,7 @@ static uint16_t turn_of(int32_t ticks)
     return (uint16_t)((uint32_t)ticks & (uint32_t)(STORE_TICKS_PER_TURN - 1));
 }
 
-void store_home_set(store_home_t *e, int32_t home_ticks, int32_t rest_ticks)
+STORE_NOINLINE void store_home_set(store_home_t *e, int32_t home_ticks, int32_t rest_ticks)
 {
     e->home_ticks = home_ticks;
     e->rest_ticks = rest_ticks;
@@ -503,7 +504,8 @@ int8_t store_save_homes(store_t *st, const store_homes_t *h)
                      STORE_HOMES_VERSION, h, (uint16_t)sizeof(*h));
 }
 
-int8_t store_recover_position(const store_home_t *e, int32_t present, uint16_t tol, int32_t *pos)
+STORE_NOINLINE int8_t store_recover_position(const store_home_t *e, int32_t present, uint16_t tol,
+                                             int32_t *pos)
 {
     int16_t d;
     if (tol >= (uint16_t)(STORE_TICKS_PER_TURN / 2) || e->home_turn != turn_of(e->home_ticks) ||
@@ -565,7 +567,7 @@ int8_t store_win_recover(const store_win_tendon_t *e, int32_t present, uint16_t 
 
 /* ---- learned ----------------------------------------------------- */
 
-static uint16_t learned_base(uint8_t tendon)
+STORE_NOINLINE static uint16_t learned_base(uint8_t tendon)
 {
     return (uint16_t)(STORE_ADDR_LEARNED + 2u * tendon * STORE_LEARNED_STRIDE);
 }

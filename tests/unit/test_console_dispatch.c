@@ -63,6 +63,29 @@ static void test_handler_results(void **state)
     assert_string_equal(con_fix_run("table\n"), "error:10 not available in this firmware\r\n");
 }
 
+/* Every declared code replies with its own text (the reply finds the text
+ * by the code's place in con_errors.def); the codes beyond the last, and
+ * the most negative, reply as internal errors. */
+static void test_every_error_code_has_its_text(void **state)
+{
+    static const struct {
+        int8_t rc;
+        const char *reply;
+    } want[] = {
+#define CON_ERR(code, id, text) {CON_E_##id, "error:" #code " " text "\r\n"},
+#include "console/con_errors.def"
+#undef CON_ERR
+        {CON_E_BAD_HOLD - 1, "error:24 internal error\r\n"}, /* the last declared, minus 1 */
+        {-128, "error:24 internal error\r\n"},
+    };
+    size_t i;
+    (void)state;
+    for (i = 0; i < sizeof want / sizeof want[0]; i++) {
+        g_app.result = want[i].rc;
+        assert_string_equal(con_fix_run("home\n"), want[i].reply);
+    }
+}
+
 static void test_pending_defers_input(void **state)
 {
     (void)state;
@@ -267,6 +290,7 @@ int main(void)
         cmocka_unit_test_setup(test_every_command_dispatches, con_fix_setup),
         cmocka_unit_test_setup(test_application_runs_commands, con_fix_setup),
         cmocka_unit_test_setup(test_handler_results, con_fix_setup),
+        cmocka_unit_test_setup(test_every_error_code_has_its_text, con_fix_setup),
         cmocka_unit_test_setup(test_pending_defers_input, con_fix_setup),
         cmocka_unit_test_setup(test_pending_deadline, con_fix_setup),
         cmocka_unit_test_setup(test_complete_inside_handler_is_refused, con_fix_setup),

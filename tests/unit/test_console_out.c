@@ -99,6 +99,27 @@ static void test_reports(void **state)
     assert_int_equal(con_fake_line(&g_serial, line, sizeof(line)), 0);
 }
 
+/* Lists as the `table`, `history` and survey lines write them: the same
+ * bytes as a comma list built first and written with con_report_str(). */
+static void test_report_lists(void **state)
+{
+    static const int32_t v[3] = {300, -1048575, 0};
+    char line[128];
+    uint8_t i;
+    (void)state;
+    con_report_begin(&g_con, "hist");
+    con_report_list(&g_con, "homes", 3);
+    for (i = 0; i < 3u; i++) {
+        con_report_item(&g_con, v[i], i == 1u ? '?' : '\0', i == 0u);
+    }
+    con_report_list(&g_con, "none", 0);
+    con_report_list(&g_con, "one", 1);
+    con_report_item(&g_con, 7, '*', 1);
+    con_report_end(&g_con);
+    assert_int_equal(con_fake_line(&g_serial, line, sizeof(line)), 1);
+    assert_string_equal(line, "<hist homes=300,-1048575?,0 none=\"\" one=7*>");
+}
+
 static void test_format_fixed(void **state)
 {
     char b[13];
@@ -286,6 +307,7 @@ int main(void)
         cmocka_unit_test_setup(test_help_generated, con_fix_setup),
         cmocka_unit_test_setup(test_cmd_name, con_fix_setup),
         cmocka_unit_test_setup(test_reports, con_fix_setup),
+        cmocka_unit_test_setup(test_report_lists, con_fix_setup),
         cmocka_unit_test_setup(test_format_fixed, con_fix_setup),
         cmocka_unit_test_setup(test_realtime_drops_reports_without_room, con_fix_setup),
         cmocka_unit_test_setup(test_realtime_command_output_leaves_reserve, con_fix_setup),
