@@ -38,7 +38,10 @@ ISR(USART1_RX_vect)
             return; /* a broken frame; the parser's CRC would drop it anyway */
         }
     }
-    uint8_t next = (uint8_t)((rx_head + 1u) & (UART1_RX_SIZE - 1u));
+    uint8_t next = (uint8_t)(rx_head + 1u);
+    if (next == UART1_RX_SIZE) {
+        next = 0; /* not a power of two: sized to the robot's servos (uart1.h) */
+    }
     if (next == rx_tail) {
         rx_overruns++;
         return;
@@ -114,7 +117,7 @@ uint16_t uart1_read(uint8_t *out, uint16_t cap)
     uint16_t n = 0;
     while (n < cap && rx_tail != rx_head) {
         out[n++] = rx_buf[rx_tail];
-        rx_tail = (uint8_t)((rx_tail + 1u) & (UART1_RX_SIZE - 1u));
+        rx_tail = (uint8_t)(rx_tail + 1u == UART1_RX_SIZE ? 0u : rx_tail + 1u);
     }
     return n;
 }

@@ -19,15 +19,17 @@
 
 #include "dxl/dxl.h"
 
-/* Power of two, at most 256 (uint8_t indices): the longest reply burst must
- * fit while a main-loop pass runs. Every group read is a fast sync read (the
- * bring-up's too, dxl_bringup.c), one packet of 8 + 8 bytes a servo for
- * Present Position: 104 bytes for 12 servos. (Plain sync reads' replies, 15
- * bytes a servo back to back, needed 256 beyond 6 servos: 128 lost the
- * tenth.) */
-#define UART1_RX_SIZE 128u
-#if DXL_MAX_IDS > 15
-#error "a fast sync read of Present Position from more than 15 servos overflows UART1_RX_SIZE"
+/* The longest reply burst must fit while a main-loop pass runs. Every group
+ * read is a fast sync read (the bring-up's too, dxl_bringup.c), one packet
+ * of 8 + 8 bytes a servo for Present Position (104 bytes for 12 servos;
+ * every other reply is a single servo's, and the scan pings one at a time),
+ * and the ring holds one byte less than its size: 9 + 8 bytes a servo,
+ * rounded up to 8 (96 for 10 servos, 64 for 6). At most 256 (uint8_t
+ * indices). (Plain sync reads' replies, 15 bytes a servo back to back,
+ * needed 256 beyond 6 servos.) */
+#define UART1_RX_SIZE ((9u + 8u * DXL_MAX_IDS + 7u) / 8u * 8u)
+#if UART1_RX_SIZE > 256u
+#error "a fast sync read of Present Position from DXL_MAX_IDS servos overflows UART1_RX_SIZE"
 #endif
 #define UART1_TX_MAX 255u /* longest request uart1_write() sends (uint8_t count) */
 
