@@ -33,6 +33,17 @@ static void load_table(app_t *a)
     a->table_ok = 1;
 }
 
+uint16_t app_grid_mN(const app_t *a, uint8_t g)
+{
+    return tbl_grid_mN(&a->tab, g);
+}
+
+uint8_t app_in_grid(const app_t *a, uint16_t mN)
+{
+    return (uint8_t)(a->info.n_grid != 0u && mN >= app_grid_mN(a, 0) &&
+                     mN <= app_grid_mN(a, (uint8_t)(a->info.n_grid - 1u)));
+}
+
 int8_t app_init(app_t *app, const app_io_t *io)
 {
     dxl_config dc;

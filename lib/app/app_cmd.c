@@ -229,7 +229,7 @@ static int8_t learn_grid(app_t *a, const con_args_t *args)
     if ((uint8_t)args->v[0] >= a->info.n_tendons) {
         return CON_E_BAD_TENDON;
     }
-    for (g = 0; g < a->info.n_grid && a->info.grid_mN[g] != (uint16_t)args->v[1]; g++) {
+    for (g = 0; g < a->info.n_grid && app_grid_mN(a, g) != (uint16_t)args->v[1]; g++) {
     }
     if (g >= a->info.n_grid) {
         return CON_E_TENSION_RANGE; /* learned targets sit on the table's grid */
@@ -300,11 +300,11 @@ static int8_t h_table(app_t *a, const con_args_t *args)
     uint8_t g;
     (void)args;
     app_rep_begin(a, app_w_table);
-    con_report_str(&a->cmd.con, app_w_name, a->info.name);
+    app_rep_name(a, app_w_name);
     APP_REP_FIELDS(a, &a->info, app_info_fields);
     con_report_list(&a->cmd.con, app_w_grid_mN, a->info.n_grid);
     for (g = 0; g < a->info.n_grid; g++) {
-        con_report_item(&a->cmd.con, a->info.grid_mN[g], '\0', g == 0u);
+        con_report_item(&a->cmd.con, app_grid_mN(a, g), '\0', g == 0u);
     }
     APP_REP_FIELDS(a, &a->info, table_fields);
     app_rep_end(a);
@@ -418,7 +418,7 @@ static int8_t h_set(app_t *a, const con_args_t *args)
         return CON_E_BUSY; /* the record is being written */
     }
     if (f == STORE_SET_CAL_TENSION && a->table_ok &&
-        (args->v[1] < a->info.grid_mN[0] || args->v[1] > a->info.grid_mN[a->info.n_grid - 1u])) {
+        (args->v[1] < 0 || args->v[1] > 0xFFFF || !app_in_grid(a, (uint16_t)args->v[1]))) {
         return CON_E_TENSION_RANGE; /* every press would be refused */
     }
     rc = store_setting_set(&a->rec.store, &a->rec.set, (uint8_t)f, args->v[1]);

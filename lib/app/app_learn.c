@@ -98,7 +98,7 @@ static void learned_store(app_t *a, uint8_t t, uint32_t v)
     app_rec_queue(a, APP_SAVE_LEARNED);
     app_rep_begin(a, app_w_learned);
     app_rep_u8(a, app_w_tendon, t);
-    app_rep_u16(a, app_w_tension_mN, a->info.grid_mN[a->learn.grid]);
+    app_rep_u16(a, app_w_tension_mN, app_grid_mN(a, a->learn.grid));
     app_rep_u8(a, app_w_grid, a->learn.grid);
     app_rep_u8(a, app_w_sensor, a->learn.sensor);
     /* the stored value (whole LSB), the one `table` shows */

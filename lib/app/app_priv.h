@@ -240,6 +240,11 @@ uint8_t app_has(uint16_t m, uint8_t i);
 uint16_t app_all_mask(const app_t *a);
 /* nothing moves, nothing is captured (APP_ST_IDLE or APP_ST_FAULT) */
 uint8_t app_idle_state(const app_t *a);
+/* app_boot.c: entry g of the table's tension grid, mN (0 beyond it, or
+ * without a table), and 1 when mN lies within the grid; read from the
+ * table, which app_t does not copy (tbl_info_t) */
+uint16_t app_grid_mN(const app_t *a, uint8_t g);
+uint8_t app_in_grid(const app_t *a, uint16_t mN);
 
 /* ---- app_report.c: report lines -------------------------------------------- */
 
@@ -289,6 +294,8 @@ extern const app_field_t app_info_fields[3];
 void app_rep_ident(app_t *a);
 /* table=<name> and the first n of app_info_fields, or table=none without a table */
 void app_rep_table(app_t *a, uint8_t n);
+/* key=<the table's name>, read from the table (tbl_name()) */
+void app_rep_name(app_t *a, const char *key);
 /* A fault the app itself detects (moves, learn, EEPROM), in the same shape as
  * the homing's: reason word, console error code, device, index. */
 void app_rep_fault(app_t *a, const char *reason_f, int8_t err, uint8_t dev, uint8_t index);

@@ -97,11 +97,18 @@ void app_rep_ident(app_t *a)
     }
 }
 
+void app_rep_name(app_t *a, const char *key)
+{
+    char name[TBL_NAME_LEN];
+    (void)tbl_name(&a->tab, name);
+    con_report_str(&a->cmd.con, key, name);
+}
+
 /* table=<name> and the first n fields of app_info_fields, or table=none */
 void app_rep_table(app_t *a, uint8_t n)
 {
     if (a->table_ok) {
-        con_report_str(&a->cmd.con, app_w_table, a->info.name);
+        app_rep_name(a, app_w_table);
         app_rep_fields(a, &a->info, app_info_fields, n);
     } else {
         con_report_flash(&a->cmd.con, app_w_table, app_w_none);

@@ -131,18 +131,18 @@ static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon
         return CON_E_BAD_TENDON;
     }
     if (survey) {
-        tension = a->info.grid_mN[a->info.n_grid - 1u];
+        tension = app_grid_mN(a, (uint8_t)(a->info.n_grid - 1u));
         tension = (uint16_t)((uint16_t)(tension * (a->run.hold != 0u ? APP_HOLD_EIGHTHS
                                                                      : APP_SURVEY_EIGHTHS)) >>
                              3);
-        if (tension < a->info.grid_mN[0]) {
-            tension = a->info.grid_mN[0];
+        if (tension < app_grid_mN(a, 0)) {
+            tension = app_grid_mN(a, 0);
         }
     }
     if (tension == 0u) {
         tension = (uint16_t)a->rec.set.v[STORE_SET_CAL_TENSION];
     }
-    if (tension < a->info.grid_mN[0] || tension > a->info.grid_mN[a->info.n_grid - 1u]) {
+    if (!app_in_grid(a, tension)) {
         return CON_E_TENSION_RANGE;
     }
     if (mode == HOM_MODE_QUICK) {

@@ -22,10 +22,13 @@ HOM_NOINLINE int32_t hom_table_slope(const hom_t *h, uint8_t i)
     uint16_t t1;
     int32_t dticks;
     int32_t s;
+    uint16_t g0;
+    uint16_t g1;
     (void)tbl_info(table, &info);
-    t0 = (uint16_t)(t >= info.grid_mN[0] + 50u ? t - 50u : info.grid_mN[0]);
-    t1 = (uint16_t)(t + 50u <= info.grid_mN[info.n_grid - 1u] ? t + 50u
-                                                              : info.grid_mN[info.n_grid - 1u]);
+    g0 = tbl_grid_mN(table, 0);
+    g1 = tbl_grid_mN(table, (uint8_t)(info.n_grid - 1u));
+    t0 = (uint16_t)(t >= g0 + 50u ? t - 50u : g0);
+    t1 = (uint16_t)(t + 50u <= g1 ? t + 50u : g1);
     hom_work_point(h, i, t0, &lo);
     hom_work_point(h, i, t1, &hi);
     dticks = hom_muldiv((int32_t)hi.travel_um - (int32_t)lo.travel_um, 1000, (int32_t)nm_per_tick);

@@ -537,7 +537,8 @@ HOM_NOINLINE int hom_start(hom_t *h, const tbl_src_t *table, const hom_cmd_t *cm
         return HOM_E_HOMES;
     }
     tension = cmd->tension_mN != 0u ? cmd->tension_mN : info.default_mN;
-    if (tension < info.grid_mN[0] || tension > info.grid_mN[info.n_grid - 1u]) {
+    if (tension < tbl_grid_mN(table, 0) ||
+        tension > tbl_grid_mN(table, (uint8_t)(info.n_grid - 1u))) {
         return HOM_E_TENSION;
     }
     /* a fresh run: what hom_init() clears, except the config; the table's

@@ -70,11 +70,12 @@ int tbl_check(const tbl_src_t *src)
         return TBL_E_FORMAT;
     }
     for (i = 1; i < info.n_grid; i++) {
-        if (info.grid_mN[i] <= info.grid_mN[i - 1u]) {
+        if (tbl_grid_mN(src, i) <= tbl_grid_mN(src, (uint8_t)(i - 1u))) {
             return TBL_E_FORMAT;
         }
     }
-    if (info.default_mN < info.grid_mN[0] || info.default_mN > info.grid_mN[info.n_grid - 1u]) {
+    if (info.default_mN < tbl_grid_mN(src, 0) ||
+        info.default_mN > tbl_grid_mN(src, (uint8_t)(info.n_grid - 1u))) {
         return TBL_E_FORMAT;
     }
     for (i = 0; i < info.n_tendons; i++) {
@@ -92,21 +93,39 @@ int tbl_check(const tbl_src_t *src)
 
 int tbl_info(const tbl_src_t *src, tbl_info_t *info)
 {
-    uint8_t ng;
     if (!tbl_src_ok(src) || info == NULL) {
         return TBL_E_ARG;
     }
-    memset(info->grid_mN, 0, sizeof info->grid_mN);
     tbl_read(src, &info->table_id, TBL_HEAD_OFF(table_id), sizeof info->table_id);
-    tbl_read(src, info->name, TBL_HEAD_OFF(name), sizeof info->name);
-    info->name[TBL_NAME_LEN - 1u] = '\0';
     /* n_tendons, n_sensors, n_grid, mode: adjacent in both structs */
     tbl_read(src, &info->n_tendons, TBL_HEAD_OFF(n_tendons), 4);
     tbl_read(src, &info->default_mN, TBL_HEAD_OFF(default_mN), sizeof info->default_mN);
     tbl_read(src, &info->noise_cuT, TBL_HEAD_OFF(noise_cuT), sizeof info->noise_cuT);
-    ng = info->n_grid <= TBL_MAX_GRID ? info->n_grid : TBL_MAX_GRID;
-    tbl_read(src, info->grid_mN, TBL_OFF_GRID, 2u * ng);
     return 0;
+}
+
+int tbl_name(const tbl_src_t *src, char name[TBL_NAME_LEN])
+{
+    if (!tbl_src_ok(src) || name == NULL) {
+        return TBL_E_ARG;
+    }
+    tbl_read(src, name, TBL_HEAD_OFF(name), TBL_NAME_LEN);
+    name[TBL_NAME_LEN - 1u] = '\0';
+    return 0;
+}
+
+uint16_t tbl_grid_mN(const tbl_src_t *src, uint8_t g)
+{
+    uint8_t ng;
+    uint16_t mN = 0;
+    if (!tbl_src_ok(src)) {
+        return 0;
+    }
+    tbl_read(src, &ng, TBL_HEAD_OFF(n_grid), 1);
+    if (g < ng && g < TBL_MAX_GRID) {
+        tbl_read(src, &mN, (uint16_t)(TBL_OFF_GRID + 2u * g), sizeof mN);
+    }
+    return mN;
 }
 
 typedef char tbl_info_counts_adjacent_t

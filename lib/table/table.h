@@ -223,15 +223,15 @@ enum {
     TBL_E_RANGE = -5    /* tension outside [grid_mN[0], grid_mN[n_grid-1]] */
 };
 
-/* The table-wide facts the firmware needs, copied into RAM by tbl_info(). */
+/* The table-wide facts the firmware keeps, copied into RAM by tbl_info();
+ * the name and the tension grid are read where they are needed
+ * (tbl_name(), tbl_grid_mN()): 40 bytes of RAM less. */
 typedef struct {
     uint32_t table_id;
-    char name[TBL_NAME_LEN];
     uint8_t n_tendons;
     uint8_t n_sensors;
     uint8_t n_grid;
     uint8_t mode;
-    uint16_t grid_mN[TBL_MAX_GRID];
     uint16_t default_mN;
     uint16_t noise_cuT;
 } tbl_info_t;
@@ -259,6 +259,14 @@ int tbl_check(const tbl_src_t *src);
 /* Copies the table-wide facts into *info. Does not validate: call tbl_check()
  * first. Returns 0 or TBL_E_ARG (NULL argument). */
 int tbl_info(const tbl_src_t *src, tbl_info_t *info);
+
+/* Copies the robot's name (NUL-terminated, at most TBL_NAME_LEN - 1
+ * characters) into name. Does not validate. Returns 0 or TBL_E_ARG. */
+int tbl_name(const tbl_src_t *src, char name[TBL_NAME_LEN]);
+
+/* Entry g of the tension grid, mN: 0 beyond n_grid (or with a NULL
+ * argument). Does not validate. */
+uint16_t tbl_grid_mN(const tbl_src_t *src, uint8_t g);
 
 /* Copies tendon row i (0-based) into *out. Returns 0, TBL_E_ARG (NULL argument
  * or i >= n_tendons). */

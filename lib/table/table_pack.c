@@ -114,12 +114,14 @@ int tbl_unpack(const tbl_src_t *src, tbl_wide_t *w)
     w->magic = TBL_MAGIC;
     w->format_version = TBL_FORMAT_VERSION;
     w->table_id = info.table_id;
-    memcpy(w->name, info.name, TBL_NAME_LEN);
+    (void)tbl_name(src, w->name);
     w->n_tendons = info.n_tendons;
     w->n_sensors = info.n_sensors;
     w->n_grid = info.n_grid;
     w->mode = info.mode;
-    memcpy(w->grid_mN, info.grid_mN, sizeof w->grid_mN);
+    for (i = 0; i < TBL_MAX_GRID; i++) {
+        w->grid_mN[i] = tbl_grid_mN(src, i);
+    }
     w->default_mN = info.default_mN;
     w->noise_cuT = info.noise_cuT;
     for (i = 0; i < info.n_sensors; i++) {

@@ -201,14 +201,19 @@ static void test_info_and_rows(void **state)
     tbl_tendon_t t;
     tbl_sensor_t se;
     (void)state;
+    char name[TBL_NAME_LEN];
     assert_int_equal(tbl_info(&s, &info), 0);
-    assert_string_equal(info.name, "unit");
+    assert_int_equal(tbl_name(&s, name), 0);
+    assert_string_equal(name, "unit");
+    assert_int_equal(tbl_name(NULL, name), TBL_E_ARG);
     assert_int_equal(info.n_tendons, 2);
     assert_int_equal(info.n_sensors, 3);
     assert_int_equal(info.default_mN, 800);
     assert_int_equal(info.table_id, 0xA5A55A5Au);
-    assert_int_equal(info.grid_mN[2], 1000);
-    assert_int_equal(info.grid_mN[3], 0); /* beyond n_grid */
+    assert_int_equal(tbl_grid_mN(&s, 2), 1000);
+    assert_int_equal(tbl_grid_mN(&s, 3), 0); /* beyond n_grid */
+    assert_int_equal(tbl_grid_mN(&s, 255), 0);
+    assert_int_equal(tbl_grid_mN(NULL, 0), 0);
     assert_int_equal(tbl_tendon(&s, 1, &t), 0);
     assert_int_equal(t.servo_id, 2);
     assert_int_equal(t.nm_per_tick, 6136);
@@ -424,8 +429,10 @@ static void test_generated_table(void **state)
     s.table = &tbl_table_paper_2seg;
     s.copy = tbl_copy_ram;
     assert_int_equal(tbl_check(&s), 0);
+    char name[TBL_NAME_LEN];
     assert_int_equal(tbl_info(&s, &info), 0);
-    assert_string_equal(info.name, "paper_2seg");
+    assert_int_equal(tbl_name(&s, name), 0);
+    assert_string_equal(name, "paper_2seg");
     /* sized to the robot: 6 tendons, 3 sensors, 12 grid points */
     assert_int_equal(((const tbl_head_t *)(const void *)&tbl_table_paper_2seg)->size,
                      TBL_SIZE(6u, 3u, 12u));
@@ -433,7 +440,7 @@ static void test_generated_table(void **state)
         tbl_point_t p;
         assert_int_equal(tbl_target(&s, i, info.default_mN, &p), 0);
         assert_true(p.target_cuT > 0u && p.travel_um > 0u);
-        assert_int_equal(tbl_target(&s, i, (uint16_t)(info.grid_mN[0] - 1u), &p), TBL_E_RANGE);
+        assert_int_equal(tbl_target(&s, i, (uint16_t)(tbl_grid_mN(&s, 0) - 1u), &p), TBL_E_RANGE);
     }
 }
 
