@@ -208,8 +208,9 @@ void hom_release_check(hom_t *h)
     h->win_changed |= hom_bit(h->cur);
     d = hom_since(h, h->t_tendon); /* the tendon's time, saturated at 16 bits */
     h->tendon_ms = (uint16_t)(d > 0xFFFFu ? 0xFFFFu : d);
-    /* the home's sub-tick residue, 0..255 (1/256 tick) */
-    hom_push_event(h, HOM_EV_HOME, 0, h->cur, t->home, (uint8_t)t->home_frac);
+    /* the home's sub-tick residue, -128..127 (1/256 tick; the home is
+     * rounded to the nearest tick) */
+    hom_push_event(h, HOM_EV_HOME, 0, h->cur, t->home, t->home_frac);
     h->settled = 3;
 }
 

@@ -87,6 +87,18 @@ static void test_nominal_lands_within_one_tick(void **state)
     assert_non_null(find_event(&g_res, HOM_EV_DONE));
     assert_int_equal(hom_fix_count_events(&g_res, HOM_EV_HOME), g_res.n_tendons);
     assert_true(g_res.end_ms <= 12000u);
+    {
+        /* each home's residue is signed, within half a tick; some below 0 */
+        uint16_t e;
+        int below = 0;
+        for (e = 0; e < g_res.n_events; e++) {
+            if (g_res.events[e].type == HOM_EV_HOME) {
+                assert_in_range(g_res.events[e].b + 128, 0, 255);
+                below += g_res.events[e].b < 0;
+            }
+        }
+        assert_true(below > 0);
+    }
     for (i = 0; i < g_res.n_tendons; i++) {
         assert_true(g_res.have_home[i]);
         assert_true(fabs(g_res.err_ticks[i]) <= 1.0);
