@@ -77,13 +77,15 @@ int main(void) {{
     static unsigned char copy[TBL_SIZE_MAX];
     tbl_src_t s = {{&tbl_table_{robot}, tbl_copy_ram}};
     tbl_info_t f;
+    char name[TBL_NAME_LEN];
     unsigned i, g;
     printf("%d\\n", tbl_check(&s));
     tbl_info(&s, &f);
-    printf("%lu %s %u %u %u %u %u %u\\n", (unsigned long)f.table_id, f.name,
+    tbl_name(&s, name);
+    printf("%lu %s %u %u %u %u %u %u\\n", (unsigned long)f.table_id, name,
            (unsigned)f.n_tendons, (unsigned)f.n_sensors, (unsigned)f.n_grid,
            (unsigned)f.mode, (unsigned)f.default_mN, (unsigned)f.noise_cuT);
-    for (g = 0; g < f.n_grid; g++) printf("%u ", (unsigned)f.grid_mN[g]);
+    for (g = 0; g < f.n_grid; g++) printf("%u ", (unsigned)tbl_grid_mN(&s, (uint8_t)g));
     printf("\\n");
     for (i = 0; i < f.n_sensors; i++) {{
         tbl_sensor_t e;
@@ -99,7 +101,7 @@ int main(void) {{
                (unsigned long)d.travel_limit_um);
         for (g = 0; g < f.n_grid; g++) {{
             tbl_point_t p;
-            tbl_target(&s, (uint8_t)i, f.grid_mN[g], &p);
+            tbl_target(&s, (uint8_t)i, tbl_grid_mN(&s, (uint8_t)g), &p);
             printf(" %lu %lu %lu %d %lu %lu %lu %d", (unsigned long)d.target_cuT[g],
                    (unsigned long)d.abs_target_cuT[g], (unsigned long)d.travel_um[g],
                    (int)d.straight_um[g], (unsigned long)p.target_cuT,

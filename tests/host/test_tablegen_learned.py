@@ -222,13 +222,14 @@ extern const tbl_table_t {symbol};
 int main(void) {{
     tbl_src_t src = {{&{symbol}, tbl_copy_ram}};
     tbl_info_t info;
+    char name[TBL_NAME_LEN];
     tbl_point_t p;
     unsigned k, g;
-    if (tbl_check(&src) != 0 || tbl_info(&src, &info) != 0) return 1;
-    printf("%s %lu\\n", info.name, (unsigned long)info.table_id);
+    if (tbl_check(&src) != 0 || tbl_info(&src, &info) != 0 || tbl_name(&src, name) != 0) return 1;
+    printf("%s %lu\\n", name, (unsigned long)info.table_id);
     for (k = 0; k < info.n_tendons; k++) {{
         for (g = 0; g < info.n_grid; g++) {{
-            if (tbl_target(&src, (uint8_t)k, info.grid_mN[g], &p) != 0) return 2;
+            if (tbl_target(&src, (uint8_t)k, tbl_grid_mN(&src, (uint8_t)g), &p) != 0) return 2;
             printf("%lu ", (unsigned long)p.target_cuT);
         }}
         if (tbl_target(&src, (uint8_t)k, 750u, &p) != 0) return 3;
