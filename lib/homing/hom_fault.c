@@ -118,7 +118,7 @@ int hom_check_sensors(hom_t *h, const hom_in_t *in)
         }
         /* every step: the gap passes sensor_timeout_ms (16 bits) before
          * its 16-bit difference could wrap */
-        detail = (uint16_t)((uint16_t)h->now_ms - st->last_ms);
+        detail = hom_since16(h, st->last_ms);
         if ((uint16_t)detail > h->cfg.sensor_timeout_ms) {
             f = HOM_F_SENSOR_TIMEOUT;
             goto fault;
