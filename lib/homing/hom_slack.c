@@ -294,14 +294,9 @@ HOM_NOINLINE void hom_do_slack_avg(hom_t *h)
     /* until the slack is confirmed, b0 holds the previous average; each
      * average is computed once (three 32-bit divisions per sensor) */
     for (k = 0; k < h->n_sensors; k++) {
-        int32_t d[3];
         uint32_t n;
-        int a;
         hom_avg_of(h, k, avg[k]);
-        for (a = 0; a < 3; a++) {
-            d[a] = avg[k][a] - h->sensor[k].b0[a];
-        }
-        n = hom_norm3(d);
+        n = hom_delta_of(h, k, avg[k]); /* |avg - b0|, b0 the previous average */
         if (n > worst) {
             worst = n;
         }
