@@ -12,9 +12,9 @@
 HOM_NOINLINE static int32_t search_goal(const hom_t *h, uint8_t i)
 {
     const hom_tendon_t *t = &h->tendon[i];
-    int32_t g = t->eng_hi + hom_pull(t, hom_um_ticks_cur(h, i, h->cfg.max_takeup_um));
-    return hom_further_back(t, g, t->present + hom_pull(t, 2)) == g ? t->present + hom_pull(t, 2)
-                                                                    : g;
+    int32_t g = hom_beyond(t, t->eng_hi, hom_um_ticks_cur(h, i, h->cfg.max_takeup_um));
+    return hom_further_back(t, g, hom_beyond(t, t->present, 2)) == g ? hom_beyond(t, t->present, 2)
+                                                                     : g;
 }
 
 /* The take-up's goal: at most a lease of 30 ms of motion at its speed
@@ -33,8 +33,8 @@ static int32_t lease_ticks(uint16_t v)
 HOM_NOINLINE static void lease(hom_t *h, uint16_t v)
 {
     const hom_tendon_t *t = hom_cur(h);
-    int32_t g = t->present + hom_pull(t, lease_ticks(v));
-    if (hom_pull(t, g - h->search_end) > 0) {
+    int32_t g = hom_beyond(t, t->present, lease_ticks(v));
+    if (hom_ahead(t, g, h->search_end) > 0) {
         g = h->search_end;
     }
     hom_set_goal(h, h->cur, g, v);
@@ -45,6 +45,7 @@ HOM_NOINLINE void hom_begin_tendon(hom_t *h, uint8_t i)
     hom_tendon_t *t;
     int32_t g;
     uint16_t v;
+    h->settled = 0; /* the waits of the slack check and release check are over */
     if (i >= h->n_tendons) {
         hom_begin_final(h);
         return;
@@ -91,8 +92,8 @@ HOM_NOINLINE void hom_begin_tendon(hom_t *h, uint8_t i)
         if (guard < 3) {
             guard = 3;
         }
-        g = t->est_home - hom_pull(t, guard);
-        if (hom_pull(t, g - t->present) > 0) {
+        g = hom_beyond(t, t->est_home, -guard);
+        if (hom_ahead(t, g, t->present) > 0) {
             h->quick_leg = 1;
             hom_set_goal(h, i, g, v);
             h->state = ST_TAKEUP;
@@ -135,7 +136,7 @@ HOM_NOINLINE static int beyond_limit(hom_t *h, int32_t x)
     if (!t->engaged || h->retake == 1u) {
         return 0; /* hom_over_limit() backs off from beyond it */
     }
-    d = hom_pull(t, x - t->engage);
+    d = hom_ahead(t, x, t->engage);
     if (d > t->limit_ticks) {
         hom_over_limit(h, d);
         return 1;
@@ -179,16 +180,16 @@ HOM_NOINLINE static void begin_moderate(hom_t *h)
     if (t->retries != 0u) {
         g = h->mod_goal;
     } else {
-        g = t->engage + hom_pull(t, hom_muldiv(t->travel_ticks, h->cfg.near_permille, 1000));
+        g = hom_beyond(t, t->engage, hom_per_mille(t->travel_ticks, h->cfg.near_permille));
     }
-    if (hom_pull(t, g - t->engage) > t->limit_ticks) {
-        g = t->engage + hom_pull(t, t->limit_ticks);
+    if (hom_ahead(t, g, t->engage) > t->limit_ticks) {
+        g = hom_beyond(t, t->engage, t->limit_ticks);
     }
     /* the servo ran on since its position was read (chaos seed 12141: a
      * take-up 5 ticks past the goal set here read short of it; the return
      * through the spool's backlash left the field flat, and the fine points
      * predicted the target beyond the travel limit) */
-    d = hom_pull(t, g - t->present);
+    d = hom_ahead(t, g, t->present);
     if (t->retries == 0u) {
         /* from the take-up, still running; a re-approach starts from slack,
          * where the servo stands (taken as run on at the back-off's speed
@@ -210,7 +211,7 @@ HOM_NOINLINE static void begin_moderate(hom_t *h)
         return;
     }
     if (d < 2) {
-        g = t->present + hom_pull(t, 2);
+        g = hom_beyond(t, t->present, 2);
     }
     if (hom_pull_to(h, g, h->cfg.v_moderate) == 0) {
         h->state = ST_MODERATE;
@@ -221,7 +222,7 @@ HOM_NOINLINE static void begin_moderate(hom_t *h)
 /* The field b has come within permille of the target. */
 static int near_target(const hom_tendon_t *t, uint32_t b, uint16_t permille)
 {
-    return (int32_t)b >= hom_muldiv((int32_t)t->target_cuT, permille, 1000);
+    return (int32_t)b >= hom_per_mille((int32_t)t->target_cuT, permille);
 }
 
 /* An engaged tendon is only pulled further (a back-off starts afresh), so
@@ -265,7 +266,7 @@ HOM_NOINLINE static int field_fell(hom_t *h, const hom_tendon_t *t, uint32_t b, 
     if (b == 0u) {
         return 0; /* no sample since the last read */
     }
-    q = (int16_t)hom_pull(t, p - t->engage);
+    q = (int16_t)hom_ahead(t, p, t->engage);
     for (i = 0; i < n; i++) {
         uint32_t f = (uint32_t)h->way_b[i] << HOM_WAY_SHIFT;
         if (h->way_q[i] <= q && f > floor_b) {
@@ -307,8 +308,8 @@ HOM_NOINLINE static void stop_short(hom_t *h, int32_t p)
 {
     const hom_tendon_t *t = hom_cur(h);
     uint8_t state = h->state;
-    int32_t g = p + hom_pull(t, 2 + run_on(h));
-    if (hom_pull(t, t->goal - g) > 0) {
+    int32_t g = hom_beyond(t, p, 2 + run_on(h));
+    if (hom_ahead(t, t->goal, g) > 0) {
         (void)hom_pull_to(h, g, h->cfg.v_moderate);
     }
     if (h->state == state) {
@@ -332,7 +333,7 @@ HOM_NOINLINE static int32_t pos_measured(const hom_t *h, uint8_t age_q)
     if (q > 0) {
         p -= hom_pull(t, (int32_t)(((uint32_t)q * t->vel) >> 8));
     }
-    return hom_pull(t, p - h->takeup_at) < 0 ? h->takeup_at : p;
+    return hom_ahead(t, p, h->takeup_at) < 0 ? h->takeup_at : p;
 }
 
 /* The engagement a take-up's first sample over the threshold (b, measured
@@ -346,9 +347,10 @@ HOM_NOINLINE static int32_t engagement_at(const hom_t *h, int32_t pm, uint32_t b
     int32_t d0 = hom_curve_um256(h, h->engage_cuT, 0u);
     int32_t e = h->pos_at_sample; /* past the table's grid */
     if (d >= 0 && d0 >= 0) {
-        e = pm - hom_pull(t, d > d0 ? hom_muldiv(d - d0, 1000, 256 * (int32_t)t->nm_per_tick) : 0);
+        e = hom_beyond(t, pm,
+                       d > d0 ? -hom_muldiv(d - d0, 1000, 256 * (int32_t)t->nm_per_tick) : 0);
     }
-    if (hom_pull(t, e - h->pos_at_sample) < 0) {
+    if (hom_ahead(t, e, h->pos_at_sample) < 0) {
         e = h->pos_at_sample;
     }
     return e;
@@ -413,12 +415,12 @@ HOM_NOINLINE static void scan_next(hom_t *h)
         h->near = 1; /* the engagement as this scan's points find it */
         t->engage = t->goal;
     }
-    if ((h->near && hom_pull(t, t->goal - t->engage) >= HOM_SCAN_AHEAD) ||
+    if ((h->near && hom_ahead(t, t->goal, t->engage) >= HOM_SCAN_AHEAD) ||
         d >= t->target_cuT / 2u || h->steps >= HOM_SCAN_POINTS) {
         hom_held_next(h);
         return;
     }
-    if (hom_pull_to(h, t->goal + hom_pull(t, step), h->cfg.v_moderate) == 0) {
+    if (hom_pull_to(h, hom_beyond(t, t->goal, step), h->cfg.v_moderate) == 0) {
         hom_enter(h, ST_FINE_MOVE);
     }
 }
@@ -434,7 +436,6 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
     /* delta mode: the approach quantity is |B - B0| itself, one norm */
     uint32_t m = fresh && h->amb != NULL ? hom_meas_of(h, sel, si->b_cuT) : b;
     int32_t p = t->present;
-    int32_t pm = p;
 
     /* a back-off to slack starts the approach again (at 1.5 N on the bench
      * robot's segment 2: 1.9 s, then 2.1 s more): twice the time for a
@@ -461,70 +462,66 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
         int32_t past = HOM_DROOP_TICKS;
         uint8_t back = 0;
         if (h->state != ST_BACKOFF) {
-            if (hom_pull(t, p - h->p_far) > 0) {
+            if (hom_ahead(t, p, h->p_far) > 0) {
                 h->p_far = p;
             }
-            back = hom_pull(t, h->p_far - p) > 0; /* already on its way back */
+            back = hom_ahead(t, h->p_far, p) > 0; /* already on its way back */
             p = h->p_far;
             past = HOM_RUN_ON_TICKS;
         }
-        if (hom_pull(t, p - g) > past && (back || hom_still_ms(h, cur) >= 10u)) {
+        if (hom_ahead(t, p, g) > past && (back || hom_still_ms(h, cur) >= 10u)) {
             hom_set_goal(h, cur, h->state != ST_BACKOFF ? p : g, t->vel);
             if (h->state == ST_FINE_AVG) {
                 hom_enter(h, ST_FINE_MOVE);
             }
         }
         p = t->present;
-    }
-    if (t->engaged && h->state != ST_BACKOFF &&
-        field_fell(h, t, b, p, (uint8_t)(in->servo[cur].status == HOM_SERVO_OK))) {
-        return;
+        if (h->state != ST_BACKOFF &&
+            field_fell(h, t, b, p, (uint8_t)(in->servo[cur].status == HOM_SERVO_OK))) {
+            return;
+        }
     }
     switch (h->state) {
     case ST_TAKEUP:
-        if (fresh && !t->engaged && b >= h->engage_cuT &&
-            hom_pull(t, p - h->takeup_at) < t->margin_ticks >> 1) {
-            /* the field changed before the tendon could have engaged: it
-             * was released a whole margin short of its engagement, and has
-             * taken up less than half of it. Something no tendon moves
-             * changed the field (a magnet, iron, a sensor knocked): taken
-             * for an engagement it would narrow the tendon's window to the
-             * wrong place and leave the next runs searching short of it */
-            hom_fail(h, HOM_F_FIELD_STEP, HOM_DEV_SENSOR, sel, (int32_t)b);
-            return;
-        }
         if (fresh && !t->engaged) {
-            pm = pos_measured(h, si->age_q);
-        }
-        if (fresh && !t->engaged && b >= h->engage_cuT) {
-            t->engaged = 1;
-            t->engage = engagement_at(h, pm, b);
-            /* the window narrows here for this run's releases; the app
-             * keeps it (win_changed) once the home is recorded */
-            t->eng_lo = t->engage;
-            t->eng_hi = t->engage;
-            hom_push_event(h, HOM_EV_ENGAGED, 0, cur, t->engage, (int32_t)b);
-            h->p_far = p;
-            if (scanning(h)) {
-                /* a held pull's scan, from behind the engagement: a held
-                 * take-up's field, weak at its sensor (the hold bends the
-                 * robot off that sensor's best direction), put it up to 30
-                 * ticks late, and a scan that starts past it reads the
-                 * field its spool's backlash and path friction hold */
-                scan_from(h, t->engage -
-                                 hom_pull(t, h->held != 0u ? HOM_SCAN_BACK_HELD : HOM_SCAN_BACK));
-                break;
+            if (b < h->engage_cuT) {
+                h->pos_at_sample = pos_measured(h, si->age_q); /* the last position seen slack */
+            } else if (hom_ahead(t, p, h->takeup_at) < t->margin_ticks >> 1) {
+                /* the field changed before the tendon could have engaged: it
+                 * was released a whole margin short of its engagement, and has
+                 * taken up less than half of it. Something no tendon moves
+                 * changed the field (a magnet, iron, a sensor knocked): taken
+                 * for an engagement it would narrow the tendon's window to the
+                 * wrong place and leave the next runs searching short of it */
+                hom_fail(h, HOM_F_FIELD_STEP, HOM_DEV_SENSOR, sel, (int32_t)b);
+                return;
+            } else {
+                t->engaged = 1;
+                t->engage = engagement_at(h, pos_measured(h, si->age_q), b);
+                /* the window narrows here for this run's releases; the app
+                 * keeps it (win_changed) once the home is recorded */
+                t->eng_lo = t->engage;
+                t->eng_hi = t->engage;
+                hom_push_event(h, HOM_EV_ENGAGED, 0, cur, t->engage, (int32_t)b);
+                h->p_far = p;
+                if (scanning(h)) {
+                    /* a held pull's scan, from behind the engagement: a held
+                     * take-up's field, weak at its sensor (the hold bends the
+                     * robot off that sensor's best direction), put it up to 30
+                     * ticks late, and a scan that starts past it reads the
+                     * field its spool's backlash and path friction hold */
+                    scan_from(h, hom_beyond(t, t->engage,
+                                            -(h->held != 0u ? HOM_SCAN_BACK_HELD : HOM_SCAN_BACK)));
+                    break;
+                }
+                if (!h->quick_leg) {
+                    begin_moderate(h);
+                    break;
+                }
             }
-            if (!h->quick_leg) {
-                begin_moderate(h);
-                break;
-            }
-        }
-        if (fresh && !t->engaged) {
-            h->pos_at_sample = pm; /* the last position seen slack */
         }
         if (!h->quick_leg && !t->engaged && t->goal != h->search_end &&
-            hom_pull(t, t->goal - p) <= lease_ticks(t->vel) >> 1) {
+            hom_ahead(t, t->goal, p) <= lease_ticks(t->vel) >> 1) {
             lease(h, t->vel); /* half of the lease left: renew it */
             break;
         }
@@ -539,7 +536,7 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
                 h->search_end = search_goal(h, cur);
                 lease(h, h->cfg.v_moderate);
             } else {
-                hom_fail_tendon(h, HOM_F_NO_ENGAGEMENT, hom_pull(t, p - h->pos_at_sample));
+                hom_fail_tendon(h, HOM_F_NO_ENGAGEMENT, hom_ahead(t, p, h->pos_at_sample));
             }
         }
         break;
@@ -554,11 +551,13 @@ HOM_NOINLINE void hom_do_tendon(hom_t *h, const hom_in_t *in)
         break;
     case ST_FINE_MOVE: {
         int32_t err = p - t->goal;
-        /* a scan's point averages samples measured there only: standing
-         * longer than a sample takes to reach the homing */
+        /* at the goal (hom_reached(): within a tick, or a droop of a few
+         * standing still) and settled; a scan's point averages samples
+         * measured there only: standing longer than a sample takes to reach
+         * the homing */
         if (hom_phase_ms(h) >= h->cfg.settle_ms &&
             hom_still_ms(h, cur) >= (scanning(h) ? HOM_SAMPLE_AGE_MS : h->cfg.settle_ms / 2u) &&
-            ((err >= -1 && err <= 1) || hom_reached(h, cur))) {
+            hom_reached(h, cur)) {
             hom_start_avg(h);
             h->state = ST_FINE_AVG;
         } else if (hom_phase_ms(h) > h->cfg.move_timeout_ms) {

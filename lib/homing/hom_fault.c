@@ -39,12 +39,12 @@ HOM_NOINLINE void hom_fail(hom_t *h, hom_fault_t f, uint8_t dev, uint8_t index, 
             /* the slack margin before the engagement window (this run's
              * engagement when it engaged: the window is narrowed to it), a
              * release already going further, and never a pull */
-            int32_t g = t->eng_lo - hom_pull(t, t->margin_ticks);
+            int32_t g = hom_beyond(t, t->eng_lo, -t->margin_ticks);
             g = hom_further_back(t, g, t->goal);
             if (i == h->cur && h->state >= ST_TAKEUP && h->state <= ST_BACKOFF) {
                 g = hom_further_back(t, g, h->takeup_from);
             }
-            hom_set_goal(h, i, hom_further_back(t, t->present, g), h->cfg.v_release);
+            hom_release_to(h, i, g);
         }
         hom_push_event(h, HOM_EV_RELEASED, 0, 0, (int32_t)f, 0);
     }
@@ -94,13 +94,12 @@ int hom_check_sensors(hom_t *h, const hom_in_t *in)
             for (a = 0; a < 3; a++) {
                 int32_t v = s->b_cuT[a];
                 detail = v;
-                if (v >= (int32_t)h->cfg.sat_cuT || v <= -(int32_t)h->cfg.sat_cuT) {
+                if (hom_abs32(v) >= h->cfg.sat_cuT) {
                     goto fault;
                 }
                 if (st->have_last) {
                     detail = v - st->last[a];
-                    if (detail > (int32_t)h->cfg.rate_limit_cuT ||
-                        detail < -(int32_t)h->cfg.rate_limit_cuT) {
+                    if (hom_abs32(detail) > h->cfg.rate_limit_cuT) {
                         f = HOM_F_FIELD_RATE;
                         goto fault;
                     }

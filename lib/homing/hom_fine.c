@@ -31,9 +31,9 @@ HOM_NOINLINE int32_t hom_table_slope(const hom_t *h, uint8_t i)
     t1 = (uint16_t)(t + 50u <= g1 ? t + 50u : g1);
     hom_work_point(h, i, t0, &lo);
     hom_work_point(h, i, t1, &hi);
-    dticks = hom_muldiv((int32_t)hi.travel_um - (int32_t)lo.travel_um, 1000, (int32_t)nm_per_tick);
+    dticks = hom_um_ticks((int32_t)hi.travel_um - (int32_t)lo.travel_um, nm_per_tick);
     if (dticks <= 0 || hi.target_cuT <= lo.target_cuT) {
-        dticks = hom_muldiv((int32_t)hi.travel_um, 1000, (int32_t)nm_per_tick);
+        dticks = hom_um_ticks((int32_t)hi.travel_um, nm_per_tick);
         s = dticks > 0 ? hom_muldiv((int32_t)hi.target_cuT, 256, dticks) : 256;
     } else {
         s = hom_muldiv((int32_t)(hi.target_cuT - lo.target_cuT), 256, dticks);
@@ -52,7 +52,7 @@ HOM_NOINLINE static int32_t final_dist(const hom_t *h, uint8_t i, int32_t *goal)
         *goal += hom_straight_ticks(t);
     }
     d = *goal - t->present;
-    return d < 0 ? -d : d;
+    return (int32_t)hom_abs32(d);
 }
 
 HOM_NOINLINE void hom_begin_final(hom_t *h)
@@ -147,11 +147,11 @@ static int32_t fit_or(const hom_t *h, int32_t p, int32_t fallback)
     int16_t hi = 0;
     uint8_t k;
     for (k = 0; k < h->n_pts; k++) {
-        int32_t x = hom_pull(t, h->pts[k].p - p); /* pull-direction ticks from p */
+        int32_t x = hom_ahead(t, h->pts[k].p, p); /* pull-direction ticks from p */
         int32_t y = (int32_t)h->pts[k].b - (int32_t)t->target_cuT;
         int16_t n = h->pts[k].n;
         int16_t nx;
-        if (x < -4 || x > 4 || y >= (1L << 20) || y <= -(1L << 20)) {
+        if (hom_abs32(x) > 4u || hom_abs32(y) >= (1uL << 20)) {
             continue;
         }
         nx = (int16_t)(n * x);
@@ -163,7 +163,7 @@ static int32_t fit_or(const hom_t *h, int32_t p, int32_t fallback)
         sy += n * y;
         sxy += nx * y;
     }
-    while (sy >= (1L << 21) || sy <= -(1L << 21) || sxy >= (1L << 23) || sxy <= -(1L << 23)) {
+    while (hom_abs32(sy) >= (1uL << 21) || hom_abs32(sxy) >= (1uL << 23)) {
         sy /= 2;
         sxy /= 2;
     }
@@ -176,14 +176,14 @@ static int32_t fit_or(const hom_t *h, int32_t p, int32_t fallback)
      * x = (sx - sy d / snum) / sn. A quotient beyond 2^20 puts the crossing
      * far outside the points (|sx * 256| <= 2^17, sn * 5 * 256 < 2^18). */
     x_q8 = hom_muldiv(sy, d * 256, snum);
-    if (x_q8 > (1L << 20) || x_q8 < -(1L << 20)) {
+    if (hom_abs32(x_q8) > (1uL << 20)) {
         return fallback;
     }
     x_q8 = ((int32_t)sx * 256 - x_q8) / sn;
     if (x_q8 < (lo - 1) * 256 || x_q8 > (hi + 1) * 256) {
         return fallback;
     }
-    return p * 256 + hom_pull(t, x_q8);
+    return hom_beyond(t, p * 256, x_q8);
 }
 
 /* The home is found: the fit through the near points of p, or `fallback`
@@ -203,9 +203,8 @@ HOM_NOINLINE void hom_finish_tendon(hom_t *h, int32_t p, int32_t fallback)
     t->home_frac = (int8_t)(home_q8 - t->home * 256);
     h->retake = 0; /* the next tendon's take-up at its own speed */
     h->home_dB = hom_delta_of(h, t->sensor, h->sensor[t->sensor].last);
-    hom_set_goal(h, h->cur, hom_slack_goal(t, 0), h->cfg.v_release);
+    hom_release_slack(h, h->cur, 0);
     hom_enter(h, ST_TENDON_RELEASE);
-    h->settled = 0;
 }
 
 /* The current tendon's travel past its engagement where the table's
@@ -256,11 +255,11 @@ HOM_NOINLINE static int32_t table_remaining_q8(const hom_t *h, uint32_t b)
         return 0;
     }
     travel_t =
-        hom_muldiv((int32_t)t->travel_ticks * 256, (int32_t)t->nm_per_tick, 1000); /* um * 256 */
+        hom_per_mille((int32_t)t->travel_ticks * 256, (int32_t)t->nm_per_tick); /* um * 256 */
     if (travel_t <= travel_b) {
         return 0;
     }
-    return hom_muldiv(travel_t - travel_b, 1000, (int32_t)t->nm_per_tick);
+    return hom_um_ticks(travel_t - travel_b, t->nm_per_tick);
 }
 
 /* A pull starts afresh: no fine points, no floors of the field on its way
@@ -288,7 +287,7 @@ HOM_NOINLINE void hom_pull_afresh(hom_t *h)
 void hom_back_off(hom_t *h)
 {
     hom_pull_afresh(h);
-    hom_set_goal(h, h->cur, hom_slack_goal(hom_cur(h), h->retake == 1u ? 0 : 2), h->cfg.v_release);
+    hom_release_slack(h, h->cur, h->retake == 1u ? 0 : 2);
     h->state = ST_BACKOFF;
 }
 
@@ -308,7 +307,7 @@ void hom_back_off(hom_t *h)
  * most HOM_FLAT_STEP). */
 HOM_NOINLINE static int not_following(hom_t *h, const hom_tendon_t *t, int32_t p, uint32_t b)
 {
-    int32_t d = hom_pull(t, p - h->ref_p);
+    int32_t d = hom_ahead(t, p, h->ref_p);
     int32_t rise = (int32_t)b + 4 * (int32_t)h->noise_cuT - (int32_t)h->ref_b;
     int32_t span = (int32_t)((uint32_t)t->travel_ticks / 6u); /* travel > 0 */
     if (span < HOM_FLAT_TICKS) {
@@ -365,7 +364,7 @@ void hom_fine_point(hom_t *h)
 
     hom_avg_of(h, t->sensor, avg);
     b = hom_meas_of(h, t->sensor, avg);
-    dp = h->have_prev ? hom_pull(t, p - h->p_prev) : 0;
+    dp = h->have_prev ? hom_ahead(t, p, h->p_prev) : 0; /* 0 without a previous point */
     if (h->near) {
         keep_point(h, p, b, h->sensor[t->sensor].n_acc);
     }
@@ -376,7 +375,7 @@ void hom_fine_point(hom_t *h)
             hom_finish_tendon(h, p, p * 256);
             return;
         }
-        if (h->have_prev && b > h->b_prev && dp >= 1 && dp <= 3) {
+        if (dp >= 1 && dp <= 3 && b > h->b_prev) {
             int32_t f = hom_muldiv((int32_t)(t->target_cuT - h->b_prev), (p - h->p_prev) * 256,
                                    (int32_t)(b - h->b_prev));
             hom_finish_tendon(h, p, h->p_prev * 256 + f);
@@ -404,9 +403,10 @@ void hom_fine_point(hom_t *h)
             } else {
                 /* scale the travel by how far the field overshot (the take-up can
                  * cross a low target within one sample), then keep a margin */
-                h->mod_goal = t->engage + hom_muldiv(hom_muldiv(p - t->engage,
-                                                                (int32_t)t->target_cuT, (int32_t)b),
-                                                     h->cfg.near_permille, 1000);
+                h->mod_goal =
+                    t->engage +
+                    hom_per_mille(hom_muldiv(p - t->engage, (int32_t)t->target_cuT, (int32_t)b),
+                                  h->cfg.near_permille);
             }
             hom_back_off(h);
             return;
@@ -418,7 +418,7 @@ void hom_fine_point(hom_t *h)
     }
     /* a slope measured over 3 ticks or more replaces the estimate; one over
      * fewer ticks is too noisy and the last good one is kept */
-    if (h->have_prev && dp >= 3 && b > h->b_prev) {
+    if (dp >= 3 && b > h->b_prev) {
         h->slope_q8 = hom_muldiv((int32_t)(b - h->b_prev), 256, dp);
     }
     s_q8 = h->slope_q8 | 1; /* | 1: never a zero divisor (1/256 cuT per tick) */
@@ -431,10 +431,10 @@ void hom_fine_point(hom_t *h)
         }
     }
     if (r_q8 < 128 && h->near) {
-        hom_finish_tendon(h, p, p * 256 + hom_pull(t, (int32_t)r_q8));
+        hom_finish_tendon(h, p, hom_beyond(t, p * 256, (int32_t)r_q8));
         return;
     }
-    room = (t->limit_ticks - hom_pull(t, p - t->engage)) * 256;
+    room = (t->limit_ticks - hom_ahead(t, p, t->engage)) * 256;
     if (r_q8 > room) {
         /* the target lies beyond the travel limit: unreachable, stop here,
          * once two points in a row say so. One point averaged from samples
@@ -445,7 +445,7 @@ void hom_fine_point(hom_t *h)
          * it cost this pass two table interpolations (1.2 ms of a 4.0 ms
          * pass on the bench). */
         if (h->far) {
-            hom_over_limit(h, hom_pull(t, p - t->engage) + r_q8 / 256);
+            hom_over_limit(h, hom_ahead(t, p, t->engage) + r_q8 / 256);
             return;
         }
         h->far = 1;
@@ -471,7 +471,7 @@ void hom_fine_point(hom_t *h)
                  * of 0 sent the servo where it stood, point after point,
                  * until the tendon's timeout (chaos seed 13376: a slope
                  * measured across the spool's backlash, 3 cuT per tick) */
-                hom_finish_tendon(h, p, p * 256 + hom_pull(t, (int32_t)r_q8));
+                hom_finish_tendon(h, p, hom_beyond(t, p * 256, (int32_t)r_q8));
                 return;
             }
         }
@@ -495,7 +495,7 @@ void hom_fine_point(hom_t *h)
     h->p_prev = p;
     h->b_prev = b;
     h->have_prev = 1;
-    if (hom_pull_to(h, p + hom_pull(t, (int32_t)step), h->cfg.v_fine) == 0) {
+    if (hom_pull_to(h, hom_beyond(t, p, (int32_t)step), h->cfg.v_fine) == 0) {
         hom_enter(h, ST_FINE_MOVE);
     }
 }

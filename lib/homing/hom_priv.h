@@ -88,6 +88,12 @@ void hom_push_event(hom_t *h, uint8_t type, uint8_t code, uint8_t index, int32_t
 void hom_phase_event(hom_t *h, uint8_t code, uint8_t index);
 void hom_done(hom_t *h);
 int32_t hom_muldiv(int32_t a, int32_t b, int32_t c);
+/* |v| as unsigned: INT32_MIN gives 2^31, no overflow */
+uint32_t hom_abs32(int32_t v);
+/* um on a spool of nm_per_tick as ticks, truncated towards zero */
+int32_t hom_um_ticks(int32_t um, uint32_t nm_per_tick);
+/* a * permille / 1000, truncated towards zero */
+int32_t hom_per_mille(int32_t a, int32_t permille);
 int32_t hom_um_to_ticks(uint32_t um, uint32_t nm_per_tick);
 void hom_over_limit(hom_t *h, int32_t d);
 int32_t hom_curve_um256(const hom_t *h, uint32_t b, uint8_t work);
@@ -96,15 +102,22 @@ int32_t hom_unwrap_home(int32_t stored, int32_t present);
 uint32_t hom_work_target(const hom_t *h, uint8_t k, uint32_t d, uint32_t abs_t);
 void hom_work_point(const hom_t *h, uint8_t i, uint16_t mN, tbl_point_t *pt);
 int32_t hom_pull(const hom_tendon_t *t, int32_t d);
+/* the position d ticks past p in t's pull direction: p + hom_pull(t, d) */
+int32_t hom_beyond(const hom_tendon_t *t, int32_t p, int32_t d);
+/* how far x lies past `from` in t's pull direction: hom_pull(t, x - from) */
+int32_t hom_ahead(const hom_tendon_t *t, int32_t x, int32_t from);
 /* The engagement window around p: ahead ticks ahead of it in the pull
  * direction dir, behind ticks behind it. */
 void hom_window_around(int8_t dir, int32_t ahead, int32_t behind, int32_t p, int32_t *lo,
                        int32_t *hi);
-int32_t hom_slack_goal(const hom_tendon_t *t, uint8_t shift);
 uint32_t hom_since(const hom_t *h, uint32_t t);
 /* ms since a 16-bit stamp (the low 16 bits of now_ms when it was taken) */
 uint16_t hom_since16(const hom_t *h, uint16_t t);
 void hom_set_goal(hom_t *h, uint8_t i, int32_t goal, uint16_t vel);
+/* tendon i's goal g at v_release, or where it stands if that is further back */
+void hom_release_to(hom_t *h, uint8_t i, int32_t g);
+/* tendon i's goal at v_release: the slack margin >> shift behind its engagement */
+void hom_release_slack(hom_t *h, uint8_t i, uint8_t shift);
 int hom_reached(const hom_t *h, uint8_t i);
 void hom_start_avg(hom_t *h);
 void hom_avg_of(const hom_t *h, uint8_t k, int32_t out[3]);
@@ -128,7 +141,8 @@ hom_tendon_t *hom_cur(const hom_t *h);
 uint32_t hom_still_ms(const hom_t *h, uint8_t i);
 /* ms since the current state was entered (hom_enter()) */
 uint32_t hom_phase_ms(const hom_t *h);
-/* Enters state (ST_*) now: the phase's waits and timeouts count from this step. */
+/* Enters state (ST_*) now: the phase's waits and timeouts count from this
+ * step, and its steps (hom_t.settled) start again. */
 void hom_enter(hom_t *h, uint8_t state);
 
 /* ---- hom_fault.c: faults and health checks ---- */

@@ -14,9 +14,15 @@ HOM_NOINLINE static int32_t release_base(const hom_t *h, uint8_t i)
 {
     const hom_tendon_t *t = &h->tendon[i];
     if (h->mode == HOM_MODE_QUICK) {
-        return t->est_home - hom_pull(t, (int32_t)t->travel_ticks + t->margin_ticks);
+        return hom_beyond(t, t->est_home, -((int32_t)t->travel_ticks + t->margin_ticks));
     }
-    return t->eng_lo - hom_pull(t, t->margin_ticks);
+    return hom_beyond(t, t->eng_lo, -t->margin_ticks);
+}
+
+/* Tendon i's engagement window changed: the app keeps it (hom_window()). */
+HOM_NOINLINE static void win_changed(hom_t *h, uint8_t i)
+{
+    h->win_changed |= hom_bit(i);
 }
 
 /* Preflight: every device must answer within preflight_ms; each one that does
@@ -32,7 +38,7 @@ void hom_do_preflight(hom_t *h, const hom_in_t *in)
         h->t_start = h->now_ms;
         hom_push_event(h, HOM_EV_START, h->mode, 0, h->tension_mN, 0);
         hom_phase_event(h, HOM_PH_PREFLIGHT, 0);
-        memset(h->seen, 0, sizeof h->seen);
+        /* h->seen: none yet, as hom_start() cleared it */
         h->pf_missing = 0xFFFFu; /* none has answered yet */
     }
     if (!hom_load_step(h)) {
@@ -88,8 +94,8 @@ void hom_do_preflight(hom_t *h, const hom_in_t *in)
                  * out a release more: chaos seed 1034). */
                 int32_t p = t->present;
                 int32_t r = t->release_ticks;
+                int32_t e = hom_beyond(t, t->est_home, -t->travel_ticks); /* with a stored home */
                 if (t->have_home) {
-                    int32_t e = t->est_home - hom_pull(t, t->travel_ticks);
                     if (hom_further_back(t, e, p) == p) {
                         p = e;
                     }
@@ -98,14 +104,14 @@ void hom_do_preflight(hom_t *h, const hom_in_t *in)
                 hom_window_around(t->dir, r, (int32_t)t->release_ticks - t->margin_ticks, p,
                                   &t->eng_lo, &t->eng_hi);
                 if (h->mode == HOM_MODE_QUICK) {
-                    t->eng_hi = t->est_home - hom_pull(t, t->travel_ticks);
-                    t->eng_lo = t->eng_hi;
+                    t->eng_hi = e;
+                    t->eng_lo = e;
                 }
                 h->win_known |= hom_bit(i);
-                h->win_changed |= hom_bit(i);
+                win_changed(h, i);
             }
             g = release_base(h, i);
-            hom_set_goal(h, i, hom_further_back(t, t->present, g), h->cfg.v_release);
+            hom_release_to(h, i, g);
         }
         /* a dry run moves nothing: straight to the baseline average */
         hom_enter(h, h->mode == HOM_MODE_DRY ? ST_SLACK_AVG : ST_RELEASE_ALL);
@@ -158,7 +164,6 @@ void hom_release_check(hom_t *h)
          * keeping of the window (a CRC, the home's step) nor with the
          * <result> report (the step after): together 4.1-4.6 ms */
         if (h->settled++ == 4u) {
-            h->settled = 0;
             hom_begin_tendon(h, hom_next_tendon(h, (uint8_t)(h->cur + 1u)));
         }
         return;
@@ -185,7 +190,6 @@ void hom_release_check(hom_t *h)
         hom_avg_of(h, k, h->sensor[k].b0);
         hom_push_event(h, HOM_EV_PHASE, HOM_PH_HOLD, h->cur, t->present, 0);
         h->held = 3;
-        h->settled = 0;
         hom_begin_tendon(h, h->single);
         return;
     }
@@ -195,7 +199,6 @@ void hom_release_check(hom_t *h)
         return;
     }
     if (h->held == 1u) {
-        h->settled = 0;
         hom_begin_tendon(h, (uint8_t)(h->hold - 1u));
         return;
     }
@@ -205,7 +208,7 @@ void hom_release_check(hom_t *h)
      * the margin was taken up) ends without a home, and kept, its window
      * left every later search short of the true engagement (chaos seed
      * 10103: no_engagement in every calibration after it) */
-    h->win_changed |= hom_bit(h->cur);
+    win_changed(h, h->cur);
     d = hom_since(h, h->t_tendon); /* the tendon's time, saturated at 16 bits */
     h->tendon_ms = (uint16_t)(d > 0xFFFFu ? 0xFFFFu : d);
     /* the home's sub-tick residue, -128..127 (1/256 tick; the home is
@@ -224,10 +227,10 @@ static void slack_done(hom_t *h)
          * slack (later releases go no further than here) */
         for (i = 0; i < h->n_tendons; i++) {
             hom_tendon_t *t = &h->tendon[i];
-            int32_t lo = t->present + hom_pull(t, t->margin_ticks);
+            int32_t lo = hom_beyond(t, t->present, t->margin_ticks);
             if (hom_further_back(t, lo, t->eng_lo) == lo) {
                 t->eng_lo = lo;
-                h->win_changed |= hom_bit(i);
+                win_changed(h, i);
             }
         }
     }
@@ -253,7 +256,7 @@ static void slack_done(hom_t *h)
         for (i = 0; i < h->n_tendons; i++) {
             hom_push_event(
                 h, HOM_EV_TARGET, 0, i, (int32_t)h->tendon[i].target_cuT,
-                hom_muldiv(h->tendon[i].travel_ticks, (int32_t)h->tendon[i].nm_per_tick, 1000));
+                hom_per_mille(h->tendon[i].travel_ticks, (int32_t)h->tendon[i].nm_per_tick));
         }
         hom_done(h);
         return;
@@ -273,7 +276,6 @@ HOM_NOINLINE void hom_do_slack_avg(hom_t *h)
     if (h->settled == 3u) {
         /* the baseline is taken (slack_done()): the first tendon begins in
          * a step of its own, its table work apart from the averages' */
-        h->settled = 0;
         hom_begin_tendon(h, hom_next_tendon(h, 0));
         return;
     }
@@ -324,7 +326,7 @@ HOM_NOINLINE void hom_do_slack_avg(hom_t *h)
         hom_tendon_t *t = &h->tendon[i];
         int32_t g = release_base(h, i) -
                     hom_pull(t, h->steps * hom_um_ticks_cur(h, i, h->cfg.slack_step_um));
-        hom_set_goal(h, i, hom_further_back(t, t->present, g), h->cfg.v_release);
+        hom_release_to(h, i, g);
     }
     hom_enter(h, ST_RELEASE_ALL);
 }
@@ -341,15 +343,13 @@ void hom_held_next(hom_t *h)
 {
     uint8_t held = ++h->held;
     h->retake = 0; /* the next take-up at its own speed, its limit checked */
-    h->settled = 0;
     if (held != 2u) {
-        hom_set_goal(h, h->cur, hom_slack_goal(hom_cur(h), 0), h->cfg.v_release);
+        hom_release_slack(h, h->cur, 0);
     }
     if (held <= 2u) {
         hom_enter(h, ST_TENDON_RELEASE);
         return;
     }
-    hom_set_goal(h, (uint8_t)(h->hold - 1u), hom_slack_goal(&h->tendon[h->hold - 1u], 0),
-                 h->cfg.v_release);
+    hom_release_slack(h, (uint8_t)(h->hold - 1u), 0);
     hom_begin_final(h);
 }

@@ -99,6 +99,14 @@ hom_config_t *hom_config_reset(hom_t *h)
     return &h->cfg;
 }
 
+/* |v| as an unsigned number, INT32_MIN's 2^31 included: one routine for
+ * every magnitude and two-sided bound of the module (a 32-bit negation and
+ * compare written out costs more than the call) */
+HOM_NOINLINE uint32_t hom_abs32(int32_t v)
+{
+    return v < 0 ? (uint32_t)0 - (uint32_t)v : (uint32_t)v;
+}
+
 /* 32-bit arithmetic only (64-bit code is large and slow on the AVR): each
  * axis is scaled down by the smallest power of two that keeps the sum of
  * three squares within 32 bits (|axis| <= 37837, exact below 378 uT per
@@ -115,7 +123,7 @@ uint32_t hom_norm3(const int32_t v[3])
     uint8_t sh = 0;
     uint8_t a;
     for (a = 0; a < 3u; a++) {
-        m[a] = v[a] < 0 ? (uint32_t)0 - (uint32_t)v[a] : (uint32_t)v[a];
+        m[a] = hom_abs32(v[a]);
         top |= m[a];
     }
     while ((top >> sh) > 37837u) {
@@ -224,9 +232,9 @@ int16_t hom_to_straight(const hom_t *h, uint8_t i)
  * gives. c must not be 0. */
 HOM_NOINLINE int32_t hom_muldiv(int32_t a, int32_t b, int32_t c)
 {
-    uint32_t ua = a < 0 ? (uint32_t)0 - (uint32_t)a : (uint32_t)a;
-    uint32_t ub = b < 0 ? (uint32_t)0 - (uint32_t)b : (uint32_t)b;
-    uint32_t uc = c < 0 ? (uint32_t)0 - (uint32_t)c : (uint32_t)c;
+    uint32_t ua = hom_abs32(a);
+    uint32_t ub = hom_abs32(b);
+    uint32_t uc = hom_abs32(c);
     uint32_t bq;
     uint32_t br;
     uint32_t q = 0;
@@ -282,10 +290,22 @@ sign:
     return q > (uint32_t)INT32_MAX ? INT32_MAX : (int32_t)q;
 }
 
+/* um on a spool of nm_per_tick as ticks, truncated towards zero */
+HOM_NOINLINE int32_t hom_um_ticks(int32_t um, uint32_t nm_per_tick)
+{
+    return hom_muldiv(um, 1000, (int32_t)nm_per_tick);
+}
+
+/* a * permille / 1000, truncated towards zero */
+HOM_NOINLINE int32_t hom_per_mille(int32_t a, int32_t permille)
+{
+    return hom_muldiv(a, permille, 1000);
+}
+
 /* um to ticks, rounded up so margins are never smaller than asked */
 HOM_NOINLINE int32_t hom_um_to_ticks(uint32_t um, uint32_t nm_per_tick)
 {
-    return hom_muldiv((int32_t)um, 1000, (int32_t)nm_per_tick) + 1;
+    return hom_um_ticks((int32_t)um, nm_per_tick) + 1;
 }
 
 /* hom_um_to_ticks() for the tendon state's 16-bit take-up figures: at most
@@ -334,7 +354,7 @@ HOM_NOINLINE uint32_t hom_work_target(const hom_t *h, uint8_t k, uint32_t d, uin
         return d;
     }
     r = (int32_t)abs_t - (int32_t)h->sensor[k].p0;
-    return (uint32_t)(r < 0 ? -r : r);
+    return hom_abs32(r);
 }
 
 /* Tendon i's table point at mN with target_cuT replaced by the approach
@@ -461,7 +481,7 @@ HOM_NOINLINE int32_t hom_limit_ticks(const tbl_tendon_head_t *row, int32_t um)
     if (um > (int32_t)row->travel_limit_um) {
         um = (int32_t)row->travel_limit_um;
     }
-    ticks = hom_muldiv(um, 1000, (int32_t)row->nm_per_tick);
+    ticks = hom_um_ticks(um, row->nm_per_tick);
     return ticks > HOM_RELEASE_REACH_TICKS ? HOM_RELEASE_REACH_TICKS : ticks;
 }
 
@@ -579,10 +599,7 @@ HOM_NOINLINE int hom_start(hom_t *h, const tbl_src_t *table, const hom_cmd_t *cm
     h->amb_capture = cmd->ambient_capture;
     h->survey = cmd->survey;
     h->hold = cmd->hold;
-    h->held = 0;
-    h->state = ST_PREFLIGHT;
-    h->t_phase = 0;
-    h->fault = HOM_F_NONE;
+    h->state = ST_PREFLIGHT; /* held, t_phase and fault (HOM_F_NONE) are 0 */
     return 0;
 }
 
@@ -601,11 +618,17 @@ HOM_NOINLINE int32_t hom_pull(const hom_tendon_t *t, int32_t d)
     return t->dir < 0 ? -d : d;
 }
 
-/* The slack margin shifted right by `shift` behind tendon t's engagement:
- * 0 the release after a home (slack), 2 a back-off (hom_back_off()). */
-HOM_NOINLINE int32_t hom_slack_goal(const hom_tendon_t *t, uint8_t shift)
+/* The position d ticks past p in tendon t's pull direction (d < 0: behind
+ * it). */
+HOM_NOINLINE int32_t hom_beyond(const hom_tendon_t *t, int32_t p, int32_t d)
 {
-    return t->engage - hom_pull(t, t->margin_ticks >> shift);
+    return p + hom_pull(t, d);
+}
+
+/* How far x lies past `from` in tendon t's pull direction, ticks. */
+HOM_NOINLINE int32_t hom_ahead(const hom_tendon_t *t, int32_t x, int32_t from)
+{
+    return hom_pull(t, x - from);
 }
 
 /* Milliseconds from t to the current step. */
@@ -652,6 +675,7 @@ HOM_NOINLINE void hom_enter(hom_t *h, uint8_t state)
 {
     h->state = state;
     h->t_phase = h->now_ms;
+    h->settled = 0;
 }
 
 HOM_NOINLINE void hom_set_goal(hom_t *h, uint8_t i, int32_t goal, uint16_t vel)
@@ -663,6 +687,23 @@ HOM_NOINLINE void hom_set_goal(hom_t *h, uint8_t i, int32_t goal, uint16_t vel)
     t->torque = 1;
     h->changed |= hom_bit(i);
     h->moved = 1;
+}
+
+/* Tendon i released at the release speed to the slack margin shifted right
+ * by `shift` behind its engagement: 0 the release after a home (slack), 2 a
+ * back-off (hom_back_off()). */
+HOM_NOINLINE void hom_release_slack(hom_t *h, uint8_t i, uint8_t shift)
+{
+    const hom_tendon_t *t = &h->tendon[i];
+    hom_set_goal(h, i, hom_beyond(t, t->engage, -(t->margin_ticks >> shift)), h->cfg.v_release);
+}
+
+/* Tendon i released to g at the release speed, or only to where it stands
+ * when that is further back already (a release never pulls). */
+HOM_NOINLINE void hom_release_to(hom_t *h, uint8_t i, int32_t g)
+{
+    const hom_tendon_t *t = &h->tendon[i];
+    hom_set_goal(h, i, hom_further_back(t, t->present, g), h->cfg.v_release);
 }
 
 /* At the goal: within a tick, or stopped short by a few ticks for
@@ -753,7 +794,7 @@ HOM_NOINLINE int32_t hom_floor_div256(int32_t q8)
 /* Of two goals, the one further in the release direction. */
 HOM_NOINLINE int32_t hom_further_back(const hom_tendon_t *t, int32_t g, int32_t x)
 {
-    return hom_pull(t, x - g) < 0 ? x : g;
+    return hom_ahead(t, x, g) < 0 ? x : g;
 }
 
 uint8_t hom_pulling(const hom_t *h, uint8_t *tendon)
@@ -829,9 +870,16 @@ HOM_NOINLINE int hom_step(hom_t *h, const hom_in_t *in, hom_out_t *out)
         if (hom_check_servos(h, in) == 0 && hom_check_sensors(h, in) == 0) {
             switch (h->state) {
             case ST_RELEASE_ALL:
-                if (hom_move_done(h, all_reached(h), HOM_DEV_NONE, 0)) {
+            case ST_FINAL:
+                /* every tendon's move: the release before the slack check,
+                 * or the final move before the run's end */
+                if (!hom_move_done(h, all_reached(h), HOM_DEV_NONE, 0)) {
+                    break;
+                }
+                if (h->state == ST_FINAL) {
+                    hom_done(h);
+                } else {
                     hom_enter(h, ST_SLACK_AVG);
-                    h->settled = 0;
                 }
                 break;
             case ST_SLACK_AVG:
@@ -839,11 +887,6 @@ HOM_NOINLINE int hom_step(hom_t *h, const hom_in_t *in, hom_out_t *out)
                 break;
             case ST_TENDON_RELEASE:
                 hom_release_check(h);
-                break;
-            case ST_FINAL:
-                if (hom_move_done(h, all_reached(h), HOM_DEV_NONE, 0)) {
-                    hom_done(h);
-                }
                 break;
             default:
                 hom_do_tendon(h, in);
