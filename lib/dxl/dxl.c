@@ -518,23 +518,49 @@ int8_t dxl_clear_multiturn(dxl_master *m, uint8_t id)
     return dxl_simple(m, id, 0, dxl_build_clear_multiturn(m->tx, DXL_TX_CAP, id, &m->tx_len));
 }
 
-int8_t dxl_group_read(dxl_master *m, uint8_t inst, uint16_t addr, uint16_t n, const uint8_t *ids,
-                      uint8_t count)
+/* Sync read, fast sync read and sync write: one broadcast request naming
+ * `addr`, `n` and every servo of ids[0..count), each ID followed by its `n`
+ * bytes of `data` in a write; a read expects one reply of `n` data bytes
+ * from each. One routine checks, builds and sets up the replies of the
+ * three (the codec's builders do the same for the tests and the servo
+ * model). */
+static int8_t dxl_group(dxl_master *m, uint8_t inst, uint16_t addr, uint16_t n, const uint8_t *ids,
+                        const uint8_t *data, uint8_t count)
 {
     int8_t rc = dxl_prepare(m, inst, addr, n);
     if (rc != 0) {
         return rc;
     }
-    if (ids == NULL || count == 0 || count > DXL_MAX_IDS || n == 0 || n > DXL_REPLY_DATA) {
+    uint8_t write = inst == DXL_INST_SYNC_WRITE;
+    if (ids == NULL || count == 0 || n == 0 ||
+        (write ? data == NULL : (count > DXL_MAX_IDS || n > DXL_REPLY_DATA))) {
         return -DXL_E_ARG;
     }
-    int8_t built = dxl_build_group_read(m->tx, DXL_TX_CAP, inst, addr, n, ids, count, &m->tx_len);
-    if (built == 0) {
-        for (uint8_t i = 0; i < count; i++) {
-            dxl_expect(m, ids[i], n);
+    dxl_writer w;
+    dxl_writer_begin(&w, m->tx, DXL_TX_CAP, DXL_BROADCAST_ID, inst);
+    dxl_writer_put_le(&w, addr, 2);
+    dxl_writer_put_le(&w, n, 2);
+    for (uint8_t i = 0; i < count; i++) {
+        uint8_t id = ids[i];
+        if (id > DXL_MAX_ID) {
+            return dxl_launch(m, -DXL_E_ARG); /* drops the replies expected so far */
+        }
+        dxl_writer_put(&w, id);
+        if (write) {
+            for (uint16_t k = 0; k < n; k++) {
+                dxl_writer_put(&w, *data++);
+            }
+        } else {
+            dxl_expect(m, id, n);
         }
     }
-    return dxl_launch(m, built);
+    return dxl_launch(m, dxl_writer_end(&w, &m->tx_len));
+}
+
+int8_t dxl_group_read(dxl_master *m, uint8_t inst, uint16_t addr, uint16_t n, const uint8_t *ids,
+                      uint8_t count)
+{
+    return dxl_group(m, inst, addr, n, ids, NULL, count);
 }
 
 int8_t dxl_sync_read(dxl_master *m, uint16_t addr, uint16_t n, const uint8_t *ids, uint8_t count)
@@ -545,12 +571,7 @@ int8_t dxl_sync_read(dxl_master *m, uint16_t addr, uint16_t n, const uint8_t *id
 int8_t dxl_sync_write(dxl_master *m, uint16_t addr, uint16_t n, const uint8_t *ids,
                       const uint8_t *data, uint8_t count)
 {
-    int8_t rc = dxl_prepare(m, DXL_INST_SYNC_WRITE, addr, n);
-    if (rc != 0) {
-        return rc;
-    }
-    return dxl_launch(
-        m, dxl_build_sync_write(m->tx, DXL_TX_CAP, addr, n, ids, data, count, &m->tx_len));
+    return dxl_group(m, DXL_INST_SYNC_WRITE, addr, n, ids, data, count);
 }
 
 int8_t dxl_bulk_read(dxl_master *m, const dxl_bulk_item *items, uint8_t count)
