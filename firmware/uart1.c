@@ -112,12 +112,16 @@ uint16_t uart1_write(const uint8_t *data, uint16_t n)
     return n;
 }
 
+/* Only this function moves rx_tail: it keeps a copy, stored at each byte
+ * taken (the receive interrupt sees the room as soon as it is made). */
 uint16_t uart1_read(uint8_t *out, uint16_t cap)
 {
     uint16_t n = 0;
-    while (n < cap && rx_tail != rx_head) {
-        out[n++] = rx_buf[rx_tail];
-        rx_tail = (uint8_t)(rx_tail + 1u == UART1_RX_SIZE ? 0u : rx_tail + 1u);
+    uint8_t tail = rx_tail;
+    while (n < cap && tail != rx_head) {
+        out[n++] = rx_buf[tail];
+        tail = (uint8_t)(tail + 1u == UART1_RX_SIZE ? 0u : tail + 1u);
+        rx_tail = tail;
     }
     return n;
 }
