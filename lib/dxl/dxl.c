@@ -418,11 +418,52 @@ static int8_t dxl_simple(dxl_master *m, uint8_t id, uint16_t n, int8_t built)
     return dxl_launch(m, built);
 }
 
+/* Builds and starts the request of dxl_single() or dxl_group(), which
+ * checked its arguments: instruction m->inst to `id`; then `addr`, except in
+ * a ping or reboot; then `n`, except in a write. Then its blocks: a single
+ * request has one, a group request one per servo of ids[0..count), which
+ * starts with the servo's ID. A write's block carries the next `n` bytes of
+ * data; each block but a sync write's and a broadcast's expects a reply of
+ * `want` data bytes. One writer sequence for every request the firmware
+ * sends. */
+static int8_t dxl_request(dxl_master *m, uint8_t id, uint16_t addr, uint16_t n, const uint8_t *data,
+                          const uint8_t *ids, uint8_t count, uint16_t want)
+{
+    uint8_t inst = m->inst;
+    uint8_t write = inst == DXL_INST_WRITE || inst == DXL_INST_SYNC_WRITE;
+    dxl_writer w;
+    dxl_writer_begin(&w, m->tx, DXL_TX_CAP, id, inst);
+    if (inst != DXL_INST_PING && inst != DXL_INST_REBOOT) {
+        dxl_writer_put_le(&w, addr, 2);
+        if (inst != DXL_INST_WRITE) {
+            dxl_writer_put_le(&w, n, 2);
+        }
+    }
+    uint8_t blocks = count != 0u ? count : 1u;
+    for (uint8_t i = 0; i < blocks; i++) {
+        if (count != 0u) {
+            id = ids[i];
+            if (id > DXL_MAX_ID) {
+                return dxl_launch(m, -DXL_E_ARG); /* drops the replies expected so far */
+            }
+            dxl_writer_put(&w, id);
+        }
+        if (write) {
+            for (uint16_t k = 0; k < n; k++) {
+                dxl_writer_put(&w, *data++);
+            }
+        }
+        if (inst != DXL_INST_SYNC_WRITE && id != DXL_BROADCAST_ID) {
+            dxl_expect(m, id, want);
+        }
+    }
+    return dxl_launch(m, dxl_writer_end(&w, &m->tx_len));
+}
+
 /* Ping, read, write and reboot of one servo (write and reboot also to the
- * broadcast ID), built here with the writer: one copy of the checks, the
- * request and the expected reply for the four transactions bring-up and the
- * app use, instead of one per instruction. A read sends `addr` and `n`, a
- * write `addr` and data[0..n); `want` is the reply's data length. */
+ * broadcast ID): one copy of the checks for the four transactions bring-up
+ * and the app use, instead of one per instruction. A read sends `addr` and
+ * `n`, a write `addr` and data[0..n); `want` is the reply's data length. */
 static int8_t dxl_single(dxl_master *m, uint8_t inst, uint8_t id, uint16_t addr,
                          const uint8_t *data, uint16_t n, uint16_t want)
 {
@@ -435,19 +476,7 @@ static int8_t dxl_single(dxl_master *m, uint8_t inst, uint8_t id, uint16_t addr,
         (inst == DXL_INST_READ && n == 0) || (inst == DXL_INST_WRITE && (n == 0 || data == NULL))) {
         return -DXL_E_ARG;
     }
-    dxl_writer w;
-    dxl_writer_begin(&w, m->tx, DXL_TX_CAP, id, inst);
-    if (inst == DXL_INST_READ || inst == DXL_INST_WRITE) {
-        dxl_writer_put_le(&w, addr, 2);
-        if (inst == DXL_INST_READ) {
-            dxl_writer_put_le(&w, n, 2);
-        } else {
-            for (uint16_t i = 0; i < n; i++) {
-                dxl_writer_put(&w, data[i]);
-            }
-        }
-    }
-    return dxl_simple(m, id, want, dxl_writer_end(&w, &m->tx_len));
+    return dxl_request(m, id, addr, n, data, NULL, 0, want);
 }
 
 int8_t dxl_ping(dxl_master *m, uint8_t id)
@@ -521,9 +550,8 @@ int8_t dxl_clear_multiturn(dxl_master *m, uint8_t id)
 /* Sync read, fast sync read and sync write: one broadcast request naming
  * `addr`, `n` and every servo of ids[0..count), each ID followed by its `n`
  * bytes of `data` in a write; a read expects one reply of `n` data bytes
- * from each. One routine checks, builds and sets up the replies of the
- * three (the codec's builders do the same for the tests and the servo
- * model). */
+ * from each. Checked here and built by dxl_request(), not by the codec's
+ * builders (which the tests and the servo model use). */
 static int8_t dxl_group(dxl_master *m, uint8_t inst, uint16_t addr, uint16_t n, const uint8_t *ids,
                         const uint8_t *data, uint8_t count)
 {
@@ -536,25 +564,7 @@ static int8_t dxl_group(dxl_master *m, uint8_t inst, uint16_t addr, uint16_t n, 
         (write ? data == NULL : (count > DXL_MAX_IDS || n > DXL_REPLY_DATA))) {
         return -DXL_E_ARG;
     }
-    dxl_writer w;
-    dxl_writer_begin(&w, m->tx, DXL_TX_CAP, DXL_BROADCAST_ID, inst);
-    dxl_writer_put_le(&w, addr, 2);
-    dxl_writer_put_le(&w, n, 2);
-    for (uint8_t i = 0; i < count; i++) {
-        uint8_t id = ids[i];
-        if (id > DXL_MAX_ID) {
-            return dxl_launch(m, -DXL_E_ARG); /* drops the replies expected so far */
-        }
-        dxl_writer_put(&w, id);
-        if (write) {
-            for (uint16_t k = 0; k < n; k++) {
-                dxl_writer_put(&w, *data++);
-            }
-        } else {
-            dxl_expect(m, id, n);
-        }
-    }
-    return dxl_launch(m, dxl_writer_end(&w, &m->tx_len));
+    return dxl_request(m, DXL_BROADCAST_ID, addr, n, data, ids, count, n);
 }
 
 int8_t dxl_group_read(dxl_master *m, uint8_t inst, uint16_t addr, uint16_t n, const uint8_t *ids,
