@@ -309,8 +309,9 @@ int8_t dxl_poll(dxl_master *m)
             }
             uint32_t allow = (uint32_t)m->expect * m->cfg.timeout_us +
                              (uint32_t)dxl_reply_bytes(m) * m->cfg.byte_us;
-            m->deadline = dxl_now(m) + allow;
-            m->heard_by = dxl_now(m) + m->cfg.timeout_us;
+            uint32_t now = dxl_now(m);
+            m->deadline = now + allow;
+            m->heard_by = now + m->cfg.timeout_us;
             m->phase = DXL_PH_RECV;
             dxl_recv(m);
         } else if (dxl_time_reached(dxl_now(m), m->deadline)) {
