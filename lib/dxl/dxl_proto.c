@@ -49,6 +49,10 @@ void dxl_put_le(uint8_t *p, uint32_t value, uint8_t size)
 
 /* --- writer ------------------------------------------------------------------ */
 
+/* The header every packet starts with, FF FF FD 00 (the writer puts it, the
+ * parser looks for it), then the writer's placeholders for ID and LEN. */
+static const uint8_t dxl_header[7] DXL_FLASH = {0xFF, 0xFF, 0xFD, 0x00, 0x00, 0x00, 0x00};
+
 static void dxl_writer_raw(dxl_writer *w, uint8_t byte)
 {
     if (w->pos < w->cap) {
@@ -64,13 +68,10 @@ void dxl_writer_begin(dxl_writer *w, uint8_t *buf, uint16_t cap, uint8_t id, uin
     w->cap = cap;
     w->pos = 0;
     w->overflow = 0;
-    dxl_writer_raw(w, 0xFF);
-    dxl_writer_raw(w, 0xFF);
-    dxl_writer_raw(w, 0xFD);
-    dxl_writer_raw(w, 0x00);
-    dxl_writer_raw(w, id);
-    dxl_writer_raw(w, 0x00); /* LEN, filled in by dxl_writer_end() */
-    dxl_writer_raw(w, 0x00);
+    /* header, ID and LEN (filled in by dxl_writer_end()) */
+    for (uint8_t i = 0; i < 7u; i++) {
+        dxl_writer_raw(w, i == 4u ? id : DXL_FLASH_BYTE(&dxl_header[i]));
+    }
     w->run = 0;
     dxl_writer_put(w, inst);
 }
@@ -478,9 +479,8 @@ DXL_NOINLINE static void dxl_parser_rescan(dxl_parser *p)
  * and every byte left behind counts as garbage. */
 static void dxl_parser_hunt(dxl_parser *p, uint8_t byte)
 {
-    static const uint8_t hdr[4] DXL_FLASH = {0xFF, 0xFF, 0xFD, 0x00};
     uint8_t k = p->state;
-    if (byte == DXL_FLASH_BYTE(&hdr[k])) {
+    if (byte == DXL_FLASH_BYTE(&dxl_header[k])) {
         if (k == DXL_PS_RSRV) {
             dxl_parser_header_seen(p);
         } else {
