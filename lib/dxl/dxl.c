@@ -86,8 +86,9 @@ static void dxl_begin_attempt(dxl_master *m)
 {
     dxl_drain(m);
     dxl_parser_reset(&m->parser);
-    dxl_parser_set_raw(&m->parser, m->inst == DXL_INST_FAST_SYNC_READ);
-    m->parser.block = m->inst == DXL_INST_FAST_SYNC_READ ? (uint16_t)(m->n + 4u) : 0u;
+    uint8_t fast = m->inst == DXL_INST_FAST_SYNC_READ;
+    dxl_parser_set_raw(&m->parser, fast);
+    m->parser.block = fast ? (uint16_t)(m->n + 4u) : 0u;
     m->attempt_err = 0;
     m->got = 0;
     for (uint8_t i = 0; i < m->n_reply; i++) {
@@ -146,9 +147,10 @@ void dxl_note(dxl_master *m, int8_t err)
 
 static dxl_reply *dxl_pending_for(dxl_master *m, uint8_t id)
 {
-    for (uint8_t i = 0; i < m->n_reply; i++) {
-        if (m->reply[i].id == id && m->reply[i].result == DXL_PENDING) {
-            return &m->reply[i];
+    dxl_reply *r = m->reply;
+    for (uint8_t i = 0; i < m->n_reply; i++, r++) {
+        if (r->id == id && r->result == DXL_PENDING) {
+            return r;
         }
     }
     return NULL;
@@ -343,9 +345,10 @@ void dxl_abort(dxl_master *m)
 
 const dxl_reply *dxl_reply_for(const dxl_master *m, uint8_t id)
 {
-    for (uint8_t i = 0; i < m->n_reply; i++) {
-        if (m->reply[i].id == id) {
-            return &m->reply[i];
+    const dxl_reply *r = m->reply;
+    for (uint8_t i = 0; i < m->n_reply; i++, r++) {
+        if (r->id == id) {
+            return r;
         }
     }
     return NULL;
