@@ -299,16 +299,17 @@ static void dxl_send(dxl_master *m)
 
 int8_t dxl_poll(dxl_master *m)
 {
-    switch (m->phase) {
-    case DXL_PH_SEND:
-        dxl_send(m);
-        return 1;
-    case DXL_PH_WAIT_TX:
-        if (DXL_PORT_TX_DONE(m)) {
-            if (m->expect == 0) {
-                dxl_finish(m, 0);
-                return m->result;
+    uint8_t phase = m->phase;
+    if (phase == DXL_PH_SEND) {
+        dxl_send(m); /* still sending after it: phase SEND or WAIT_TX */
+    } else if (phase == DXL_PH_WAIT_TX) {
+        if (!DXL_PORT_TX_DONE(m)) {
+            if (dxl_time_reached(dxl_now(m), m->deadline)) {
+                dxl_finish(m, -DXL_E_PORT);
             }
+        } else if (m->expect == 0) {
+            dxl_finish(m, 0);
+        } else {
             uint32_t allow = (uint32_t)m->expect * m->cfg.timeout_us +
                              (uint32_t)dxl_reply_bytes(m) * m->cfg.byte_us;
             uint32_t now = dxl_now(m);
@@ -316,16 +317,11 @@ int8_t dxl_poll(dxl_master *m)
             m->heard_by = now + m->cfg.timeout_us;
             m->phase = DXL_PH_RECV;
             dxl_recv(m);
-        } else if (dxl_time_reached(dxl_now(m), m->deadline)) {
-            dxl_finish(m, -DXL_E_PORT);
         }
-        return m->phase == DXL_PH_IDLE ? m->result : 1;
-    case DXL_PH_RECV:
+    } else if (phase == DXL_PH_RECV) {
         dxl_recv(m);
-        return m->phase == DXL_PH_IDLE ? m->result : 1;
-    default:
-        return m->result;
     }
+    return m->phase == DXL_PH_IDLE ? m->result : 1;
 }
 
 void dxl_abort(dxl_master *m)
