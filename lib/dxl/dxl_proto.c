@@ -495,27 +495,29 @@ static void dxl_parser_hunt(dxl_parser *p, uint8_t byte)
 
 int8_t dxl_parser_feed(dxl_parser *p, uint8_t byte)
 {
-    if (p->state < DXL_PS_ID) {
+    uint8_t state = p->state;
+    if (state < DXL_PS_ID) {
         dxl_parser_hunt(p, byte);
         return 1;
     }
-    switch (p->state) {
-    case DXL_PS_ID:
-        if (byte == 0xFF) {
+    if (state == DXL_PS_BODY) {
+        return dxl_parser_body(p, byte);
+    }
+    if (state == DXL_PS_ID || state == DXL_PS_LEN_L) {
+        if (state == DXL_PS_LEN_L) {
+            p->remaining = byte;
+        } else if (byte == 0xFF) {
             DXL_COUNT(p->stats.garbage = (uint16_t)(p->stats.garbage + 4u));
             p->state = DXL_PS_H2;
             return 1;
+        } else {
+            p->id = byte;
         }
-        p->id = byte;
         p->crc = dxl_crc16_byte(p->crc, byte);
-        p->state = DXL_PS_LEN_L;
+        p->state = (uint8_t)(state + 1u); /* on to LEN_L, LEN_H */
         return 1;
-    case DXL_PS_LEN_L:
-        p->remaining = byte;
-        p->crc = dxl_crc16_byte(p->crc, byte);
-        p->state = DXL_PS_LEN_H;
-        return 1;
-    case DXL_PS_LEN_H: {
+    }
+    if (state == DXL_PS_LEN_H) {
         uint16_t field = (uint16_t)(p->remaining | ((uint16_t)byte << 8));
         /* Stuffing adds at most one byte per three, so a raw body longer than
          * 4/3 of the buffer cannot fit once unstuffed. */
@@ -538,13 +540,12 @@ int8_t dxl_parser_feed(dxl_parser *p, uint8_t byte)
         p->state = DXL_PS_BODY;
         return 1;
     }
-    case DXL_PS_BODY:
-        return dxl_parser_body(p, byte);
-    case DXL_PS_CRC_L:
+    if (state == DXL_PS_CRC_L) {
         p->rx_crc = byte;
         p->state = DXL_PS_CRC_H;
         return 1;
-    case DXL_PS_CRC_H:
+    }
+    if (state == DXL_PS_CRC_H) {
         p->rx_crc = (uint16_t)(p->rx_crc | ((uint16_t)byte << 8));
         p->state = DXL_PS_H1;
         if (p->rx_crc != p->crc) {
@@ -554,10 +555,9 @@ int8_t dxl_parser_feed(dxl_parser *p, uint8_t byte)
         }
         DXL_COUNT(p->stats.packets++);
         return 0;
-    default:
-        dxl_parser_reset(p);
-        return 1;
     }
+    dxl_parser_reset(p);
+    return 1;
 }
 
 int8_t dxl_parser_status(const dxl_parser *p, dxl_status *st)
