@@ -42,8 +42,8 @@ uint32_t dxl_get_le(const uint8_t *p, uint8_t size)
 
 void dxl_put_le(uint8_t *p, uint32_t value, uint8_t size)
 {
-    for (uint8_t i = 0; i < size; i++) {
-        p[i] = (uint8_t)(value >> (8u * i));
+    for (uint8_t i = 0; i < size; i++, value >>= 8) {
+        p[i] = (uint8_t)value;
     }
 }
 
@@ -93,8 +93,8 @@ void dxl_writer_put(dxl_writer *w, uint8_t byte)
 
 void dxl_writer_put_le(dxl_writer *w, uint32_t value, uint8_t size)
 {
-    for (uint8_t i = 0; i < size; i++) {
-        dxl_writer_put(w, (uint8_t)(value >> (8u * i)));
+    for (uint8_t i = 0; i < size; i++, value >>= 8) {
+        dxl_writer_put(w, (uint8_t)value);
     }
 }
 
