@@ -100,17 +100,20 @@ void dxl_writer_put_le(dxl_writer *w, uint32_t value, uint8_t size)
 
 int8_t dxl_writer_end(dxl_writer *w, uint16_t *len)
 {
+    uint8_t *buf = w->buf;
+    uint16_t pos = w->pos;
     *len = 0;
-    if (w->overflow || w->pos + 2u > w->cap) {
+    if (w->overflow || pos + 2u > w->cap) {
         w->overflow = 1;
         return -DXL_E_NOSPACE;
     }
-    uint16_t field = (uint16_t)(w->pos - 7u + 2u);
-    w->buf[5] = (uint8_t)field;
-    w->buf[6] = (uint8_t)(field >> 8);
-    uint16_t crc = dxl_crc16(0, w->buf, w->pos);
-    w->buf[w->pos++] = (uint8_t)crc;
-    w->buf[w->pos++] = (uint8_t)(crc >> 8);
+    uint16_t field = (uint16_t)(pos - 7u + 2u);
+    buf[5] = (uint8_t)field;
+    buf[6] = (uint8_t)(field >> 8);
+    uint16_t crc = dxl_crc16(0, buf, pos);
+    buf[pos] = (uint8_t)crc;
+    buf[pos + 1u] = (uint8_t)(crc >> 8);
+    w->pos = (uint16_t)(pos + 2u);
     *len = w->pos;
     return 0;
 }
