@@ -289,10 +289,12 @@ static void dxl_recv(dxl_master *m)
  * port must finish sending it in time. */
 static void dxl_send(dxl_master *m)
 {
-    uint16_t n = DXL_PORT_WRITE(m, m->tx + m->tx_sent, (uint16_t)(m->tx_len - m->tx_sent));
-    m->tx_sent = (uint16_t)(m->tx_sent + n);
-    if (m->tx_sent >= m->tx_len) {
-        m->deadline = dxl_now(m) + (uint32_t)m->tx_len * m->cfg.byte_us + m->cfg.tx_slack_us;
+    uint16_t len = m->tx_len;
+    uint16_t sent = m->tx_sent;
+    sent = (uint16_t)(sent + DXL_PORT_WRITE(m, m->tx + sent, (uint16_t)(len - sent)));
+    m->tx_sent = sent;
+    if (sent >= len) {
+        m->deadline = dxl_now(m) + (uint32_t)len * m->cfg.byte_us + m->cfg.tx_slack_us;
         m->phase = DXL_PH_WAIT_TX;
     }
 }
