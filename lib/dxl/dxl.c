@@ -176,14 +176,14 @@ void dxl_malformed(dxl_master *m)
 /* The error number makes the data meaningless; the alert bit alone only says
  * that Hardware Error Status is nonzero, the data is still the servo's. */
 DXL_NOINLINE void dxl_settle(dxl_master *m, dxl_reply *r, uint8_t err, const uint8_t *data,
-                             uint16_t n)
+                             uint8_t n)
 {
     r->err = err;
-    r->len = (uint8_t)n;
-    for (uint16_t i = 0; i < n; i++) {
+    r->len = n;
+    for (uint8_t i = 0; i < n; i++) {
         r->data[i] = data[i];
     }
-    if ((err & DXL_ERR_NUMBER_MASK) != 0) {
+    if ((uint8_t)(err & DXL_ERR_NUMBER_MASK) != 0) {
         r->result = -DXL_E_SERVO;
     } else if ((err & DXL_ERR_ALERT) != 0) {
         r->result = -DXL_E_ALERT;
@@ -212,7 +212,7 @@ static void dxl_on_packet(dxl_master *m)
         dxl_malformed(m);
         return;
     }
-    dxl_settle(m, r, st.err, st.params, st.n);
+    dxl_settle(m, r, st.err, st.params, (uint8_t)st.n); /* r->len or 0 */
 }
 
 static uint16_t dxl_reply_bytes(const dxl_master *m)

@@ -46,7 +46,7 @@ static void dxl_fast_take(dxl_master *m, uint16_t mask, uint8_t blocks)
         }
         dxl_reply *r = dxl_claim(m, b[1]);
         if (r != NULL) {
-            dxl_settle(m, r, b[0], b + 2, m->n);
+            dxl_settle(m, r, b[0], b + 2, (uint8_t)m->n); /* m->n: at most DXL_REPLY_DATA */
         }
     }
 }
