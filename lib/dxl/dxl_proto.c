@@ -453,24 +453,21 @@ static int8_t dxl_parser_body(dxl_parser *p, uint8_t byte)
 
 /* A packet cut short near its end leaves the next header in the last body
  * bytes and the CRC field: look for it there. At most six bytes are fed
- * again and a packet is at least ten, so this never recurses further. The
- * bytes were already counted as part of the bad packet, not as garbage. */
+ * again and a packet is at least ten, so this never recurses further; nor
+ * do they get past its LEN, so the tail they are fed from stays as it is.
+ * The bytes were already counted as part of the bad packet, not as garbage. */
 DXL_NOINLINE static void dxl_parser_rescan(dxl_parser *p)
 {
-    uint8_t again[6];
-    uint8_t n = 0;
-    for (uint8_t i = (uint8_t)(4u - p->tail_n); i < 4u; i++) {
-        again[n++] = p->tail[i];
-    }
-    again[n++] = (uint8_t)p->rx_crc;
-    again[n++] = (uint8_t)(p->rx_crc >> 8);
+    uint16_t crc = p->rx_crc;
 #if DXL_STATS
     uint16_t garbage = p->stats.garbage;
 #endif
     p->state = DXL_PS_H1;
-    for (uint8_t i = 0; i < n; i++) {
-        (void)dxl_parser_feed(p, again[i]);
+    for (uint8_t i = (uint8_t)(4u - p->tail_n); i < 4u; i++) {
+        (void)dxl_parser_feed(p, p->tail[i]);
     }
+    (void)dxl_parser_feed(p, (uint8_t)crc);
+    (void)dxl_parser_feed(p, (uint8_t)(crc >> 8));
 #if DXL_STATS
     p->stats.garbage = garbage;
 #endif
