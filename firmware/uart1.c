@@ -38,7 +38,8 @@ ISR(USART1_RX_vect)
             return; /* a broken frame; the parser's CRC would drop it anyway */
         }
     }
-    uint8_t next = (uint8_t)(rx_head + 1u);
+    uint8_t head = rx_head; /* only this interrupt moves it */
+    uint8_t next = (uint8_t)(head + 1u);
     if (next == UART1_RX_SIZE) {
         next = 0; /* not a power of two: sized to the robot's servos (uart1.h) */
     }
@@ -46,7 +47,7 @@ ISR(USART1_RX_vect)
         rx_overruns++;
         return;
     }
-    rx_buf[rx_head] = byte;
+    rx_buf[head] = byte;
     rx_head = next;
 }
 
