@@ -561,9 +561,11 @@ static int8_t dxl_group(dxl_master *m, uint8_t inst, uint16_t addr, uint16_t n, 
     if (rc != 0) {
         return rc;
     }
-    uint8_t write = inst == DXL_INST_SYNC_WRITE;
-    if (ids == NULL || count == 0 || n == 0 ||
-        (write ? data == NULL : (count > DXL_MAX_IDS || n > DXL_REPLY_DATA))) {
+    if (ids == NULL || count == 0 || n == 0) {
+        return -DXL_E_ARG;
+    }
+    /* a write needs its data, a read room for its replies */
+    if (inst == DXL_INST_SYNC_WRITE ? data == NULL : (count > DXL_MAX_IDS || n > DXL_REPLY_DATA)) {
         return -DXL_E_ARG;
     }
     return dxl_request(m, DXL_BROADCAST_ID, addr, n, data, ids, count, n);
