@@ -90,12 +90,13 @@ static void dxl_begin_attempt(dxl_master *m)
     dxl_parser_set_raw(&m->parser, fast);
     m->parser.block = fast ? (uint16_t)(m->n + 4u) : 0u;
     m->attempt_err = 0;
-    m->got = 0;
+    uint8_t got = 0;
     for (uint8_t i = 0; i < m->n_reply; i++) {
         if (m->reply[i].result != DXL_PENDING) {
-            m->got++;
+            got++;
         }
     }
+    m->got = got;
     m->tx_sent = 0;
     DXL_COUNT(m->stats.requests++);
     DXL_PORT_SET_DIR(m, DXL_DIR_TX);
@@ -104,19 +105,17 @@ static void dxl_begin_attempt(dxl_master *m)
 
 static void dxl_finish(dxl_master *m, int8_t err)
 {
-    m->result = 0;
+    int8_t result = 0;
     for (uint8_t i = 0; i < m->n_reply; i++) {
         if (m->reply[i].result == DXL_PENDING) {
             m->reply[i].result = err;
             m->reply[i].len = 0;
         }
-        if (m->result == 0 && m->reply[i].result != 0) {
-            m->result = m->reply[i].result;
+        if (result == 0) {
+            result = m->reply[i].result;
         }
     }
-    if (m->n_reply == 0 && err != 0) {
-        m->result = err;
-    }
+    m->result = m->n_reply == 0 ? err : result;
     m->phase = DXL_PH_IDLE;
     DXL_PORT_SET_DIR(m, DXL_DIR_RX);
 }
