@@ -409,26 +409,31 @@ static int8_t dxl_parser_body(dxl_parser *p, uint8_t byte)
             return -DXL_E_TRUNCATED;
         }
     } else {
+        uint8_t run = p->run;
         if (byte == 0xFF) {
-            p->run = (uint8_t)(p->run < 2u ? p->run + 1u : 2u);
-        } else if (byte == 0xFD && p->run == 2u) {
-            p->run = 3;
+            run = (uint8_t)(run < 2u ? run + 1u : 2u);
+        } else if (byte == 0xFD && run == 2u) {
+            run = 3;
         } else {
-            p->run = 0;
+            run = 0;
         }
-        if (p->body_len >= p->cap) {
+        p->run = run;
+        uint16_t len = p->body_len;
+        if (len >= p->cap) {
             DXL_COUNT(p->stats.overflow++);
             p->state = DXL_PS_H1;
             return -DXL_E_OVERFLOW;
         }
-        p->buf[p->body_len++] = byte;
-        if (p->block != 0) {
+        p->buf[len] = byte;
+        p->body_len = (uint16_t)(len + 1u);
+        uint16_t block = p->block;
+        if (block != 0) {
             /* blk_pos starts at 0xFFFF for INST, then counts within a block */
             uint16_t k = p->blk_pos++;
-            if (k == (uint16_t)(p->block - 2u)) {
+            if (k == (uint16_t)(block - 2u)) {
                 p->blk_crc = p->crc; /* CRC up to the end of the block's data */
-            } else if (k == (uint16_t)(p->block - 1u)) {
-                if ((uint16_t)(p->buf[p->body_len - 2u] | (uint16_t)byte << 8) == p->blk_crc &&
+            } else if (k == (uint16_t)(block - 1u)) {
+                if ((uint16_t)(p->buf[len - 1u] | (uint16_t)byte << 8) == p->blk_crc &&
                     p->blk_n < 16u) {
                     p->blk_ok |= (uint16_t)(1u << p->blk_n);
                 }
