@@ -143,7 +143,10 @@ void uart1_set_dir(uint8_t dir)
 
 uint8_t uart1_tx_done(void)
 {
-    return (uint8_t)(!tx_active && tx_left == 0u);
+    if (tx_active || tx_left != 0u) {
+        return 0;
+    }
+    return 1;
 }
 
 uint16_t uart1_rx_overruns(void)
