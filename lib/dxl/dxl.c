@@ -86,15 +86,17 @@ static void dxl_begin_attempt(dxl_master *m)
 {
     dxl_drain(m);
     dxl_parser_reset(&m->parser);
-    dxl_parser_set_raw(&m->parser, m->inst == DXL_INST_FAST_SYNC_READ);
-    m->parser.block = m->inst == DXL_INST_FAST_SYNC_READ ? (uint16_t)(m->n + 4u) : 0u;
+    uint8_t fast = m->inst == DXL_INST_FAST_SYNC_READ;
+    dxl_parser_set_raw(&m->parser, fast);
+    m->parser.block = fast ? (uint16_t)(m->n + 4u) : 0u;
     m->attempt_err = 0;
-    m->got = 0;
+    uint8_t got = 0;
     for (uint8_t i = 0; i < m->n_reply; i++) {
         if (m->reply[i].result != DXL_PENDING) {
-            m->got++;
+            got++;
         }
     }
+    m->got = got;
     m->tx_sent = 0;
     DXL_COUNT(m->stats.requests++);
     DXL_PORT_SET_DIR(m, DXL_DIR_TX);
@@ -103,19 +105,17 @@ static void dxl_begin_attempt(dxl_master *m)
 
 static void dxl_finish(dxl_master *m, int8_t err)
 {
-    m->result = 0;
+    int8_t result = 0;
     for (uint8_t i = 0; i < m->n_reply; i++) {
         if (m->reply[i].result == DXL_PENDING) {
             m->reply[i].result = err;
             m->reply[i].len = 0;
         }
-        if (m->result == 0 && m->reply[i].result != 0) {
-            m->result = m->reply[i].result;
+        if (result == 0) {
+            result = m->reply[i].result;
         }
     }
-    if (m->n_reply == 0 && err != 0) {
-        m->result = err;
-    }
+    m->result = m->n_reply == 0 ? err : result;
     m->phase = DXL_PH_IDLE;
     DXL_PORT_SET_DIR(m, DXL_DIR_RX);
 }
@@ -146,9 +146,10 @@ void dxl_note(dxl_master *m, int8_t err)
 
 static dxl_reply *dxl_pending_for(dxl_master *m, uint8_t id)
 {
-    for (uint8_t i = 0; i < m->n_reply; i++) {
-        if (m->reply[i].id == id && m->reply[i].result == DXL_PENDING) {
-            return &m->reply[i];
+    dxl_reply *r = m->reply;
+    for (uint8_t i = 0; i < m->n_reply; i++, r++) {
+        if (r->id == id && r->result == DXL_PENDING) {
+            return r;
         }
     }
     return NULL;
@@ -174,14 +175,14 @@ void dxl_malformed(dxl_master *m)
 /* The error number makes the data meaningless; the alert bit alone only says
  * that Hardware Error Status is nonzero, the data is still the servo's. */
 DXL_NOINLINE void dxl_settle(dxl_master *m, dxl_reply *r, uint8_t err, const uint8_t *data,
-                             uint16_t n)
+                             uint8_t n)
 {
     r->err = err;
-    r->len = (uint8_t)n;
-    for (uint16_t i = 0; i < n; i++) {
+    r->len = n;
+    for (uint8_t i = 0; i < n; i++) {
         r->data[i] = data[i];
     }
-    if ((err & DXL_ERR_NUMBER_MASK) != 0) {
+    if ((uint8_t)(err & DXL_ERR_NUMBER_MASK) != 0) {
         r->result = -DXL_E_SERVO;
     } else if ((err & DXL_ERR_ALERT) != 0) {
         r->result = -DXL_E_ALERT;
@@ -210,7 +211,7 @@ static void dxl_on_packet(dxl_master *m)
         dxl_malformed(m);
         return;
     }
-    dxl_settle(m, r, st.err, st.params, st.n);
+    dxl_settle(m, r, st.err, st.params, (uint8_t)st.n); /* r->len or 0 */
 }
 
 static uint16_t dxl_reply_bytes(const dxl_master *m)
@@ -287,42 +288,41 @@ static void dxl_recv(dxl_master *m)
  * port must finish sending it in time. */
 static void dxl_send(dxl_master *m)
 {
-    uint16_t n = DXL_PORT_WRITE(m, m->tx + m->tx_sent, (uint16_t)(m->tx_len - m->tx_sent));
-    m->tx_sent = (uint16_t)(m->tx_sent + n);
-    if (m->tx_sent >= m->tx_len) {
-        m->deadline = dxl_now(m) + (uint32_t)m->tx_len * m->cfg.byte_us + m->cfg.tx_slack_us;
+    uint16_t len = m->tx_len;
+    uint16_t sent = m->tx_sent;
+    sent = (uint16_t)(sent + DXL_PORT_WRITE(m, m->tx + sent, (uint16_t)(len - sent)));
+    m->tx_sent = sent;
+    if (sent >= len) {
+        m->deadline = dxl_now(m) + (uint32_t)len * m->cfg.byte_us + m->cfg.tx_slack_us;
         m->phase = DXL_PH_WAIT_TX;
     }
 }
 
 int8_t dxl_poll(dxl_master *m)
 {
-    switch (m->phase) {
-    case DXL_PH_SEND:
-        dxl_send(m);
-        return 1;
-    case DXL_PH_WAIT_TX:
-        if (DXL_PORT_TX_DONE(m)) {
-            if (m->expect == 0) {
-                dxl_finish(m, 0);
-                return m->result;
+    uint8_t phase = m->phase;
+    if (phase == DXL_PH_SEND) {
+        dxl_send(m); /* still sending after it: phase SEND or WAIT_TX */
+    } else if (phase == DXL_PH_WAIT_TX) {
+        if (!DXL_PORT_TX_DONE(m)) {
+            if (dxl_time_reached(dxl_now(m), m->deadline)) {
+                dxl_finish(m, -DXL_E_PORT);
             }
+        } else if (m->expect == 0) {
+            dxl_finish(m, 0);
+        } else {
             uint32_t allow = (uint32_t)m->expect * m->cfg.timeout_us +
                              (uint32_t)dxl_reply_bytes(m) * m->cfg.byte_us;
-            m->deadline = dxl_now(m) + allow;
-            m->heard_by = dxl_now(m) + m->cfg.timeout_us;
+            uint32_t now = dxl_now(m);
+            m->deadline = now + allow;
+            m->heard_by = now + m->cfg.timeout_us;
             m->phase = DXL_PH_RECV;
             dxl_recv(m);
-        } else if (dxl_time_reached(dxl_now(m), m->deadline)) {
-            dxl_finish(m, -DXL_E_PORT);
         }
-        return m->phase == DXL_PH_IDLE ? m->result : 1;
-    case DXL_PH_RECV:
+    } else if (phase == DXL_PH_RECV) {
         dxl_recv(m);
-        return m->phase == DXL_PH_IDLE ? m->result : 1;
-    default:
-        return m->result;
     }
+    return m->phase == DXL_PH_IDLE ? m->result : 1;
 }
 
 void dxl_abort(dxl_master *m)
@@ -342,9 +342,10 @@ void dxl_abort(dxl_master *m)
 
 const dxl_reply *dxl_reply_for(const dxl_master *m, uint8_t id)
 {
-    for (uint8_t i = 0; i < m->n_reply; i++) {
-        if (m->reply[i].id == id) {
-            return &m->reply[i];
+    const dxl_reply *r = m->reply;
+    for (uint8_t i = 0; i < m->n_reply; i++, r++) {
+        if (r->id == id) {
+            return r;
         }
     }
     return NULL;
@@ -418,11 +419,52 @@ static int8_t dxl_simple(dxl_master *m, uint8_t id, uint16_t n, int8_t built)
     return dxl_launch(m, built);
 }
 
+/* Builds and starts the request of dxl_single() or dxl_group(), which
+ * checked its arguments: instruction m->inst to `id`; then `addr`, except in
+ * a ping or reboot; then `n`, except in a write. Then its blocks: a single
+ * request has one, a group request one per servo of ids[0..count), which
+ * starts with the servo's ID. A write's block carries the next `n` bytes of
+ * data; each block but a sync write's and a broadcast's expects a reply of
+ * `want` data bytes. One writer sequence for every request the firmware
+ * sends. */
+static int8_t dxl_request(dxl_master *m, uint8_t id, uint16_t addr, uint16_t n, const uint8_t *data,
+                          const uint8_t *ids, uint8_t count, uint16_t want)
+{
+    uint8_t inst = m->inst;
+    uint8_t write = inst == DXL_INST_WRITE || inst == DXL_INST_SYNC_WRITE;
+    dxl_writer w;
+    dxl_writer_begin(&w, m->tx, DXL_TX_CAP, id, inst);
+    if (inst != DXL_INST_PING && inst != DXL_INST_REBOOT) {
+        dxl_writer_put_le(&w, addr, 2);
+        if (inst != DXL_INST_WRITE) {
+            dxl_writer_put_le(&w, n, 2);
+        }
+    }
+    uint8_t blocks = count != 0u ? count : 1u;
+    for (uint8_t i = 0; i < blocks; i++) {
+        if (count != 0u) {
+            id = ids[i];
+            if (id > DXL_MAX_ID) {
+                return dxl_launch(m, -DXL_E_ARG); /* drops the replies expected so far */
+            }
+            dxl_writer_put(&w, id);
+        }
+        if (write) {
+            for (uint16_t k = 0; k < n; k++) {
+                dxl_writer_put(&w, *data++);
+            }
+        }
+        if (inst != DXL_INST_SYNC_WRITE && id != DXL_BROADCAST_ID) {
+            dxl_expect(m, id, want);
+        }
+    }
+    return dxl_launch(m, dxl_writer_end(&w, &m->tx_len));
+}
+
 /* Ping, read, write and reboot of one servo (write and reboot also to the
- * broadcast ID), built here with the writer: one copy of the checks, the
- * request and the expected reply for the four transactions bring-up and the
- * app use, instead of one per instruction. A read sends `addr` and `n`, a
- * write `addr` and data[0..n); `want` is the reply's data length. */
+ * broadcast ID): one copy of the checks for the four transactions bring-up
+ * and the app use, instead of one per instruction. A read sends `addr` and
+ * `n`, a write `addr` and data[0..n); `want` is the reply's data length. */
 static int8_t dxl_single(dxl_master *m, uint8_t inst, uint8_t id, uint16_t addr,
                          const uint8_t *data, uint16_t n, uint16_t want)
 {
@@ -435,19 +477,7 @@ static int8_t dxl_single(dxl_master *m, uint8_t inst, uint8_t id, uint16_t addr,
         (inst == DXL_INST_READ && n == 0) || (inst == DXL_INST_WRITE && (n == 0 || data == NULL))) {
         return -DXL_E_ARG;
     }
-    dxl_writer w;
-    dxl_writer_begin(&w, m->tx, DXL_TX_CAP, id, inst);
-    if (inst == DXL_INST_READ || inst == DXL_INST_WRITE) {
-        dxl_writer_put_le(&w, addr, 2);
-        if (inst == DXL_INST_READ) {
-            dxl_writer_put_le(&w, n, 2);
-        } else {
-            for (uint16_t i = 0; i < n; i++) {
-                dxl_writer_put(&w, data[i]);
-            }
-        }
-    }
-    return dxl_simple(m, id, want, dxl_writer_end(&w, &m->tx_len));
+    return dxl_request(m, id, addr, n, data, NULL, 0, want);
 }
 
 int8_t dxl_ping(dxl_master *m, uint8_t id)
@@ -518,23 +548,32 @@ int8_t dxl_clear_multiturn(dxl_master *m, uint8_t id)
     return dxl_simple(m, id, 0, dxl_build_clear_multiturn(m->tx, DXL_TX_CAP, id, &m->tx_len));
 }
 
-int8_t dxl_group_read(dxl_master *m, uint8_t inst, uint16_t addr, uint16_t n, const uint8_t *ids,
-                      uint8_t count)
+/* Sync read, fast sync read and sync write: one broadcast request naming
+ * `addr`, `n` and every servo of ids[0..count), each ID followed by its `n`
+ * bytes of `data` in a write; a read expects one reply of `n` data bytes
+ * from each. Checked here and built by dxl_request(), not by the codec's
+ * builders (which the tests and the servo model use). */
+static int8_t dxl_group(dxl_master *m, uint8_t inst, uint16_t addr, uint16_t n, const uint8_t *ids,
+                        const uint8_t *data, uint8_t count)
 {
     int8_t rc = dxl_prepare(m, inst, addr, n);
     if (rc != 0) {
         return rc;
     }
-    if (ids == NULL || count == 0 || count > DXL_MAX_IDS || n == 0 || n > DXL_REPLY_DATA) {
+    if (ids == NULL || count == 0 || n == 0) {
         return -DXL_E_ARG;
     }
-    int8_t built = dxl_build_group_read(m->tx, DXL_TX_CAP, inst, addr, n, ids, count, &m->tx_len);
-    if (built == 0) {
-        for (uint8_t i = 0; i < count; i++) {
-            dxl_expect(m, ids[i], n);
-        }
+    /* a write needs its data, a read room for its replies */
+    if (inst == DXL_INST_SYNC_WRITE ? data == NULL : (count > DXL_MAX_IDS || n > DXL_REPLY_DATA)) {
+        return -DXL_E_ARG;
     }
-    return dxl_launch(m, built);
+    return dxl_request(m, DXL_BROADCAST_ID, addr, n, data, ids, count, n);
+}
+
+int8_t dxl_group_read(dxl_master *m, uint8_t inst, uint16_t addr, uint16_t n, const uint8_t *ids,
+                      uint8_t count)
+{
+    return dxl_group(m, inst, addr, n, ids, NULL, count);
 }
 
 int8_t dxl_sync_read(dxl_master *m, uint16_t addr, uint16_t n, const uint8_t *ids, uint8_t count)
@@ -545,12 +584,7 @@ int8_t dxl_sync_read(dxl_master *m, uint16_t addr, uint16_t n, const uint8_t *id
 int8_t dxl_sync_write(dxl_master *m, uint16_t addr, uint16_t n, const uint8_t *ids,
                       const uint8_t *data, uint8_t count)
 {
-    int8_t rc = dxl_prepare(m, DXL_INST_SYNC_WRITE, addr, n);
-    if (rc != 0) {
-        return rc;
-    }
-    return dxl_launch(
-        m, dxl_build_sync_write(m->tx, DXL_TX_CAP, addr, n, ids, data, count, &m->tx_len));
+    return dxl_group(m, DXL_INST_SYNC_WRITE, addr, n, ids, data, count);
 }
 
 int8_t dxl_bulk_read(dxl_master *m, const dxl_bulk_item *items, uint8_t count)

@@ -93,7 +93,7 @@ static uint8_t dxl_bu_pinged(dxl_bringup *b, dxl_servo_info *s)
     }
     s->present = 1;
     s->alert = (uint8_t)((r->err & DXL_ERR_ALERT) != 0);
-    s->model = (uint16_t)dxl_get_le(r->data, 2);
+    s->model = (uint16_t)(r->data[0] | (uint16_t)r->data[1] << 8); /* little-endian */
     s->firmware = r->data[2];
     s->model_ok = (uint8_t)(s->model == DXL_XL430_MODEL_NUMBER);
     return 1;

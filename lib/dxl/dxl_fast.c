@@ -39,14 +39,14 @@ int8_t dxl_fast_block_at(const dxl_status *st, uint16_t n, uint8_t count, uint8_
 static void dxl_fast_take(dxl_master *m, uint16_t mask, uint8_t blocks)
 {
     const uint8_t *b = m->parser.buf + 1;
-    for (uint8_t i = 0; i < blocks; i++, b += m->n + 4u) {
-        if ((mask & (1u << i)) == 0) {
+    for (uint8_t i = 0; i < blocks; i++, b += m->n + 4u, mask >>= 1) {
+        if ((mask & 1u) == 0) { /* bit i of the caller's mask */
             dxl_note(m, -DXL_E_CRC);
             continue;
         }
         dxl_reply *r = dxl_claim(m, b[1]);
         if (r != NULL) {
-            dxl_settle(m, r, b[0], b + 2, m->n);
+            dxl_settle(m, r, b[0], b + 2, (uint8_t)m->n); /* m->n: at most DXL_REPLY_DATA */
         }
     }
 }
@@ -69,8 +69,9 @@ void dxl_fast_on_status(dxl_master *m, const dxl_status *st)
         blocks = p->blk_n < count ? p->blk_n : count;
     }
     if (st != NULL) {
-        dxl_fast_block b;
-        if (dxl_fast_block_at(st, m->n, count, 0, &b) != 0) {
+        /* dxl_fast_block_at()'s check of the whole reply, in 16 bits: m->n
+         * and count are within DXL_REPLY_DATA and DXL_MAX_IDS here */
+        if (st->id != DXL_BROADCAST_ID || st->n + 3u != (uint16_t)(count * (m->n + 4u))) {
             dxl_malformed(m);
             return;
         }

@@ -72,7 +72,7 @@ int8_t dxl_group_read(dxl_master *m, uint8_t inst, uint16_t addr, uint16_t n, co
 dxl_reply *dxl_claim(dxl_master *m, uint8_t id);
 
 /* Stores a servo's answer in `r` and sets its result from the error byte. */
-void dxl_settle(dxl_master *m, dxl_reply *r, uint8_t err, const uint8_t *data, uint16_t n);
+void dxl_settle(dxl_master *m, dxl_reply *r, uint8_t err, const uint8_t *data, uint8_t n);
 
 /* Notes the first transport error of the attempt (kept as its result). */
 void dxl_note(dxl_master *m, int8_t err);

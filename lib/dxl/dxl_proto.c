@@ -42,12 +42,16 @@ uint32_t dxl_get_le(const uint8_t *p, uint8_t size)
 
 void dxl_put_le(uint8_t *p, uint32_t value, uint8_t size)
 {
-    for (uint8_t i = 0; i < size; i++) {
-        p[i] = (uint8_t)(value >> (8u * i));
+    for (uint8_t i = 0; i < size; i++, value >>= 8) {
+        p[i] = (uint8_t)value;
     }
 }
 
 /* --- writer ------------------------------------------------------------------ */
+
+/* The header every packet starts with, FF FF FD 00 (the writer puts it, the
+ * parser looks for it), then the writer's placeholders for ID and LEN. */
+static const uint8_t dxl_header[7] DXL_FLASH = {0xFF, 0xFF, 0xFD, 0x00, 0x00, 0x00, 0x00};
 
 static void dxl_writer_raw(dxl_writer *w, uint8_t byte)
 {
@@ -64,13 +68,10 @@ void dxl_writer_begin(dxl_writer *w, uint8_t *buf, uint16_t cap, uint8_t id, uin
     w->cap = cap;
     w->pos = 0;
     w->overflow = 0;
-    dxl_writer_raw(w, 0xFF);
-    dxl_writer_raw(w, 0xFF);
-    dxl_writer_raw(w, 0xFD);
-    dxl_writer_raw(w, 0x00);
-    dxl_writer_raw(w, id);
-    dxl_writer_raw(w, 0x00); /* LEN, filled in by dxl_writer_end() */
-    dxl_writer_raw(w, 0x00);
+    /* header, ID and LEN (filled in by dxl_writer_end()) */
+    for (uint8_t i = 0; i < 7u; i++) {
+        dxl_writer_raw(w, i == 4u ? id : DXL_FLASH_BYTE(&dxl_header[i]));
+    }
     w->run = 0;
     dxl_writer_put(w, inst);
 }
@@ -92,24 +93,27 @@ void dxl_writer_put(dxl_writer *w, uint8_t byte)
 
 void dxl_writer_put_le(dxl_writer *w, uint32_t value, uint8_t size)
 {
-    for (uint8_t i = 0; i < size; i++) {
-        dxl_writer_put(w, (uint8_t)(value >> (8u * i)));
+    for (uint8_t i = 0; i < size; i++, value >>= 8) {
+        dxl_writer_put(w, (uint8_t)value);
     }
 }
 
 int8_t dxl_writer_end(dxl_writer *w, uint16_t *len)
 {
+    uint8_t *buf = w->buf;
+    uint16_t pos = w->pos;
     *len = 0;
-    if (w->overflow || w->pos + 2u > w->cap) {
+    if (w->overflow || pos + 2u > w->cap) {
         w->overflow = 1;
         return -DXL_E_NOSPACE;
     }
-    uint16_t field = (uint16_t)(w->pos - 7u + 2u);
-    w->buf[5] = (uint8_t)field;
-    w->buf[6] = (uint8_t)(field >> 8);
-    uint16_t crc = dxl_crc16(0, w->buf, w->pos);
-    w->buf[w->pos++] = (uint8_t)crc;
-    w->buf[w->pos++] = (uint8_t)(crc >> 8);
+    uint16_t field = (uint16_t)(pos - 7u + 2u);
+    buf[5] = (uint8_t)field;
+    buf[6] = (uint8_t)(field >> 8);
+    uint16_t crc = dxl_crc16(0, buf, pos);
+    buf[pos] = (uint8_t)crc;
+    buf[pos + 1u] = (uint8_t)(crc >> 8);
+    w->pos = (uint16_t)(pos + 2u);
     *len = w->pos;
     return 0;
 }
@@ -405,26 +409,31 @@ static int8_t dxl_parser_body(dxl_parser *p, uint8_t byte)
             return -DXL_E_TRUNCATED;
         }
     } else {
+        uint8_t run = p->run;
         if (byte == 0xFF) {
-            p->run = (uint8_t)(p->run < 2u ? p->run + 1u : 2u);
-        } else if (byte == 0xFD && p->run == 2u) {
-            p->run = 3;
+            run = (uint8_t)(run < 2u ? run + 1u : 2u);
+        } else if (byte == 0xFD && run == 2u) {
+            run = 3;
         } else {
-            p->run = 0;
+            run = 0;
         }
-        if (p->body_len >= p->cap) {
+        p->run = run;
+        uint16_t len = p->body_len;
+        if (len >= p->cap) {
             DXL_COUNT(p->stats.overflow++);
             p->state = DXL_PS_H1;
             return -DXL_E_OVERFLOW;
         }
-        p->buf[p->body_len++] = byte;
-        if (p->block != 0) {
+        p->buf[len] = byte;
+        p->body_len = (uint16_t)(len + 1u);
+        uint16_t block = p->block;
+        if (block != 0) {
             /* blk_pos starts at 0xFFFF for INST, then counts within a block */
             uint16_t k = p->blk_pos++;
-            if (k == (uint16_t)(p->block - 2u)) {
+            if (k == (uint16_t)(block - 2u)) {
                 p->blk_crc = p->crc; /* CRC up to the end of the block's data */
-            } else if (k == (uint16_t)(p->block - 1u)) {
-                if ((uint16_t)(p->buf[p->body_len - 2u] | (uint16_t)byte << 8) == p->blk_crc &&
+            } else if (k == (uint16_t)(block - 1u)) {
+                if ((uint16_t)(p->buf[len - 1u] | (uint16_t)byte << 8) == p->blk_crc &&
                     p->blk_n < 16u) {
                     p->blk_ok |= (uint16_t)(1u << p->blk_n);
                 }
@@ -449,24 +458,21 @@ static int8_t dxl_parser_body(dxl_parser *p, uint8_t byte)
 
 /* A packet cut short near its end leaves the next header in the last body
  * bytes and the CRC field: look for it there. At most six bytes are fed
- * again and a packet is at least ten, so this never recurses further. The
- * bytes were already counted as part of the bad packet, not as garbage. */
+ * again and a packet is at least ten, so this never recurses further; nor
+ * do they get past its LEN, so the tail they are fed from stays as it is.
+ * The bytes were already counted as part of the bad packet, not as garbage. */
 DXL_NOINLINE static void dxl_parser_rescan(dxl_parser *p)
 {
-    uint8_t again[6];
-    uint8_t n = 0;
-    for (uint8_t i = (uint8_t)(4u - p->tail_n); i < 4u; i++) {
-        again[n++] = p->tail[i];
-    }
-    again[n++] = (uint8_t)p->rx_crc;
-    again[n++] = (uint8_t)(p->rx_crc >> 8);
+    uint16_t crc = p->rx_crc;
 #if DXL_STATS
     uint16_t garbage = p->stats.garbage;
 #endif
     p->state = DXL_PS_H1;
-    for (uint8_t i = 0; i < n; i++) {
-        (void)dxl_parser_feed(p, again[i]);
+    for (uint8_t i = (uint8_t)(4u - p->tail_n); i < 4u; i++) {
+        (void)dxl_parser_feed(p, p->tail[i]);
     }
+    (void)dxl_parser_feed(p, (uint8_t)crc);
+    (void)dxl_parser_feed(p, (uint8_t)(crc >> 8));
 #if DXL_STATS
     p->stats.garbage = garbage;
 #endif
@@ -478,9 +484,8 @@ DXL_NOINLINE static void dxl_parser_rescan(dxl_parser *p)
  * and every byte left behind counts as garbage. */
 static void dxl_parser_hunt(dxl_parser *p, uint8_t byte)
 {
-    static const uint8_t hdr[4] DXL_FLASH = {0xFF, 0xFF, 0xFD, 0x00};
     uint8_t k = p->state;
-    if (byte == DXL_FLASH_BYTE(&hdr[k])) {
+    if (byte == DXL_FLASH_BYTE(&dxl_header[k])) {
         if (k == DXL_PS_RSRV) {
             dxl_parser_header_seen(p);
         } else {
@@ -495,27 +500,29 @@ static void dxl_parser_hunt(dxl_parser *p, uint8_t byte)
 
 int8_t dxl_parser_feed(dxl_parser *p, uint8_t byte)
 {
-    if (p->state < DXL_PS_ID) {
+    uint8_t state = p->state;
+    if (state < DXL_PS_ID) {
         dxl_parser_hunt(p, byte);
         return 1;
     }
-    switch (p->state) {
-    case DXL_PS_ID:
-        if (byte == 0xFF) {
+    if (state == DXL_PS_BODY) {
+        return dxl_parser_body(p, byte);
+    }
+    if (state == DXL_PS_ID || state == DXL_PS_LEN_L) {
+        if (state == DXL_PS_LEN_L) {
+            p->remaining = byte;
+        } else if (byte == 0xFF) {
             DXL_COUNT(p->stats.garbage = (uint16_t)(p->stats.garbage + 4u));
             p->state = DXL_PS_H2;
             return 1;
+        } else {
+            p->id = byte;
         }
-        p->id = byte;
         p->crc = dxl_crc16_byte(p->crc, byte);
-        p->state = DXL_PS_LEN_L;
+        p->state = (uint8_t)(state + 1u); /* on to LEN_L, LEN_H */
         return 1;
-    case DXL_PS_LEN_L:
-        p->remaining = byte;
-        p->crc = dxl_crc16_byte(p->crc, byte);
-        p->state = DXL_PS_LEN_H;
-        return 1;
-    case DXL_PS_LEN_H: {
+    }
+    if (state == DXL_PS_LEN_H) {
         uint16_t field = (uint16_t)(p->remaining | ((uint16_t)byte << 8));
         /* Stuffing adds at most one byte per three, so a raw body longer than
          * 4/3 of the buffer cannot fit once unstuffed. */
@@ -538,13 +545,12 @@ int8_t dxl_parser_feed(dxl_parser *p, uint8_t byte)
         p->state = DXL_PS_BODY;
         return 1;
     }
-    case DXL_PS_BODY:
-        return dxl_parser_body(p, byte);
-    case DXL_PS_CRC_L:
+    if (state == DXL_PS_CRC_L) {
         p->rx_crc = byte;
         p->state = DXL_PS_CRC_H;
         return 1;
-    case DXL_PS_CRC_H:
+    }
+    if (state == DXL_PS_CRC_H) {
         p->rx_crc = (uint16_t)(p->rx_crc | ((uint16_t)byte << 8));
         p->state = DXL_PS_H1;
         if (p->rx_crc != p->crc) {
@@ -554,10 +560,9 @@ int8_t dxl_parser_feed(dxl_parser *p, uint8_t byte)
         }
         DXL_COUNT(p->stats.packets++);
         return 0;
-    default:
-        dxl_parser_reset(p);
-        return 1;
     }
+    dxl_parser_reset(p);
+    return 1;
 }
 
 int8_t dxl_parser_status(const dxl_parser *p, dxl_status *st)

@@ -264,6 +264,55 @@ static void test_sync_read_write_and_motion(void **state)
     assert_int_equal(dxl_reply_for(&R.m, 4)->data[0], 30);
 }
 
+/* The master builds its group requests itself: byte for byte what the
+ * codec's builders make, with the same argument checks. */
+static void test_group_requests_match_the_codec(void **state)
+{
+    (void)state;
+    rig_init(&R, 3, 0);
+    const uint8_t ids[3] = {3, 1, 2};
+    const uint8_t data[12] = {0xFF, 0xFF, 0xFD, 0, 1, 2, 3, 4, 0xFF, 0xFF, 0xFD, 9};
+    uint8_t want[DXL_TX_CAP];
+    uint16_t want_len = 0;
+    assert_int_equal(dxl_build_sync_write(want, sizeof want, 116, 4, ids, data, 3, &want_len), 0);
+    assert_int_equal(dxl_sync_write(&R.m, 116, 4, ids, data, 3), 1);
+    assert_int_equal(R.m.tx_len, want_len);
+    assert_memory_equal(R.m.tx, want, want_len);
+    assert_int_equal(run(), 0);
+    assert_int_equal(dxl_build_sync_read(want, sizeof want, 132, 4, ids, 3, &want_len), 0);
+    assert_int_equal(dxl_sync_read(&R.m, 132, 4, ids, 3), 1);
+    assert_int_equal(R.m.tx_len, want_len);
+    assert_memory_equal(R.m.tx, want, want_len);
+    assert_int_equal(run(), 0);
+    assert_int_equal(dxl_build_fast_sync_read(want, sizeof want, 132, 4, ids, 3, &want_len), 0);
+    assert_int_equal(dxl_fast_sync_read(&R.m, 132, 4, ids, 3), 1);
+    assert_int_equal(R.m.tx_len, want_len);
+    assert_memory_equal(R.m.tx, want, want_len);
+    assert_int_equal(run(), 0);
+    assert_int_equal(R.m.n_reply, 3);
+
+    const uint8_t bad[3] = {1, 0xFD, 2};
+    assert_int_equal(dxl_sync_write(&R.m, 116, 4, bad, data, 3), -DXL_E_ARG);
+    assert_int_equal(dxl_sync_write(&R.m, 116, 4, ids, NULL, 3), -DXL_E_ARG);
+    assert_int_equal(dxl_sync_write(&R.m, 116, 0, ids, data, 3), -DXL_E_ARG);
+    assert_int_equal(dxl_sync_write(&R.m, 116, 4, NULL, data, 3), -DXL_E_ARG);
+    assert_int_equal(dxl_sync_write(&R.m, 116, 4, ids, data, 0), -DXL_E_ARG);
+    assert_int_equal(dxl_fast_sync_read(&R.m, 132, 4, bad, 3), -DXL_E_ARG);
+    assert_int_equal(R.m.n_reply, 0);
+    assert_int_equal(R.m.expect, 0);
+    assert_int_equal(dxl_busy(&R.m), 0);
+    assert_null(dxl_reply_for(&R.m, 1));
+    assert_int_equal(dxl_sync_read(&R.m, 132, DXL_REPLY_DATA + 1u, ids, 3), -DXL_E_ARG);
+    assert_int_equal(dxl_sync_read(&R.m, 132, 0, ids, 3), -DXL_E_ARG);
+    assert_int_equal(dxl_fast_sync_read(&R.m, 132, 4, ids, DXL_MAX_IDS + 1u), -DXL_E_ARG);
+    /* 12 servos' 8 bytes: 118 bytes, more than the request buffer */
+    static const uint8_t many[12] = {1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12};
+    static const uint8_t lots[12 * 8] = {0};
+    assert_int_equal(dxl_sync_write(&R.m, 116, 8, many, lots, 12), -DXL_E_NOSPACE);
+    assert_int_equal(dxl_busy(&R.m), 0);
+    assert_int_equal(R.m.n_reply, 0);
+}
+
 static void test_sync_read_missing_servo_silences_later_ones(void **state)
 {
     (void)state;
@@ -732,6 +781,7 @@ int main(void)
         cmocka_unit_test(test_wrong_id_reported),
         cmocka_unit_test(test_late_reply_not_taken_for_next),
         cmocka_unit_test(test_sync_read_write_and_motion),
+        cmocka_unit_test(test_group_requests_match_the_codec),
         cmocka_unit_test(test_sync_read_missing_servo_silences_later_ones),
         cmocka_unit_test(test_fast_sync_read),
         cmocka_unit_test(test_reg_write_action_and_clear),
