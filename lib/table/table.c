@@ -351,8 +351,9 @@ int tbl_target(const tbl_src_t *src, uint8_t tendon, uint16_t tension_mN, tbl_po
         uint32_t y0, y1;
         tbl_read(src, y, (uint16_t)(tbl_row_off(c, row, tendon, (uint8_t)k)), sizeof y);
         if (row == TBL_ROW_STRAIGHT) {
-            y0 = (uint32_t)((int32_t)(int16_t)y[0] + 32768);
-            y1 = (uint32_t)((int32_t)(int16_t)y[1] + 32768);
+            /* int16 + 32768: the sign bit flipped */
+            y0 = (uint16_t)(y[0] ^ 0x8000u);
+            y1 = (uint16_t)(y[1] ^ 0x8000u);
         } else if (row == TBL_ROW_TRAVEL) {
             y0 = y[0];
             y1 = y[1];
@@ -366,6 +367,6 @@ int tbl_target(const tbl_src_t *src, uint8_t tendon, uint16_t tension_mN, tbl_po
     out->target_cuT = v[TBL_ROW_TARGET];
     out->abs_target_cuT = v[TBL_ROW_ABS];
     out->travel_um = v[TBL_ROW_TRAVEL];
-    out->straight_um = (int16_t)((int32_t)v[TBL_ROW_STRAIGHT] - 32768);
+    out->straight_um = (int16_t)(uint16_t)(v[TBL_ROW_STRAIGHT] ^ 0x8000u);
     return 0;
 }
