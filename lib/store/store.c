@@ -41,6 +41,9 @@ STORE_ASSERT(order3,
              STORE_ADDR_LEARNED + 2u * STORE_MAX_TENDONS * STORE_LEARNED_STRIDE <= STORE_ADDR_HIST);
 STORE_ASSERT(order4, STORE_ADDR_END <= STORE_EEPROM_SIZE);
 STORE_ASSERT(hist_min, STORE_HIST_N >= 16u && STORE_HIST_N < STORE_NO_HEAD);
+STORE_ASSERT(table_id_first, offsetof(store_homes_t, table_id) == 0u &&
+                                 offsetof(store_win_t, table_id) == 0u &&
+                                 offsetof(store_learned_t, table_id) == 0u);
 STORE_ASSERT(tendon_mask, STORE_MAX_TENDONS <= 16u && TBL_MAX_GRID <= 16u);
 
 /* ---- settings declaration ---------------------------------------- */
@@ -209,6 +212,22 @@ static int8_t pair_load(store_t *st, uint16_t base, uint16_t stride, uint8_t kin
     }
     EE_READ_BLOCK(st, body, (uint16_t)(base + (which ? stride : 0u) + STORE_HDR_LEN), len);
     return 0;
+}
+
+/* pair_load() of a record whose body starts with the table_id it was made
+ * for: STORE_E_OTHER_TABLE (body filled) when that is not table_id. */
+static int8_t pair_load_table(store_t *st, uint16_t base, uint16_t stride, uint8_t kind,
+                              uint8_t ver, void *body, uint16_t len, uint32_t table_id)
+{
+    uint32_t id;
+    int8_t rc = pair_load(st, base, stride, kind, ver, body, len);
+    if (rc == 0) {
+        memcpy(&id, body, sizeof id);
+        if (id != table_id) {
+            rc = STORE_E_OTHER_TABLE;
+        }
+    }
+    return rc;
 }
 
 STORE_NOINLINE static int8_t save_begin(store_t *st, uint16_t addr, uint8_t kind, uint8_t ver,
@@ -487,12 +506,8 @@ STORE_NOINLINE void store_home_set(store_home_t *e, int32_t home_ticks, int32_t 
 
 int8_t store_homes_load(store_t *st, uint32_t table_id, store_homes_t *h)
 {
-    int8_t rc = pair_load(st, STORE_ADDR_HOMES, STORE_HOMES_STRIDE, STORE_KIND_HOMES,
-                          STORE_HOMES_VERSION, h, (uint16_t)sizeof(*h));
-    if (rc == 0 && h->table_id != table_id) {
-        rc = STORE_E_OTHER_TABLE;
-    }
-    return rc;
+    return pair_load_table(st, STORE_ADDR_HOMES, STORE_HOMES_STRIDE, STORE_KIND_HOMES,
+                           STORE_HOMES_VERSION, h, (uint16_t)sizeof(*h), table_id);
 }
 
 int8_t store_save_homes(store_t *st, const store_homes_t *h)
@@ -527,12 +542,8 @@ STORE_NOINLINE int8_t store_recover_position(const store_home_t *e, int32_t pres
 
 int8_t store_win_load(store_t *st, uint32_t table_id, store_win_t *w)
 {
-    int8_t rc = pair_load(st, STORE_ADDR_WIN, STORE_WIN_STRIDE, STORE_KIND_WIN, STORE_WIN_VERSION,
-                          w, (uint16_t)sizeof(*w));
-    if (rc == 0 && w->table_id != table_id) {
-        rc = STORE_E_OTHER_TABLE;
-    }
-    return rc;
+    return pair_load_table(st, STORE_ADDR_WIN, STORE_WIN_STRIDE, STORE_KIND_WIN, STORE_WIN_VERSION,
+                           w, (uint16_t)sizeof(*w), table_id);
 }
 
 int8_t store_save_win(store_t *st, const store_win_t *w)
@@ -579,16 +590,16 @@ int8_t store_learned_load(store_t *st, uint8_t tendon, uint32_t table_id, store_
     if (tendon >= STORE_MAX_TENDONS) {
         return STORE_E_ARG;
     }
-    rc = pair_load(st, learned_base(tendon), STORE_LEARNED_STRIDE, STORE_KIND_LEARNED,
-                   STORE_LEARNED_VERSION, &tmp, (uint16_t)sizeof(tmp));
-    if (rc < 0) {
+    rc = pair_load_table(st, learned_base(tendon), STORE_LEARNED_STRIDE, STORE_KIND_LEARNED,
+                         STORE_LEARNED_VERSION, &tmp, (uint16_t)sizeof(tmp), table_id);
+    if (rc == STORE_E_EMPTY) {
         return rc;
     }
     if (tmp.tendon != tendon || tmp.n_grid > TBL_MAX_GRID) {
         return STORE_E_EMPTY; /* valid CRC but not this tendon's record: never trust it */
     }
     *l = tmp;
-    return (tmp.table_id == table_id) ? 0 : STORE_E_OTHER_TABLE;
+    return rc; /* 0, or STORE_E_OTHER_TABLE */
 }
 
 int8_t store_save_learned(store_t *st, const store_learned_t *l)
@@ -637,22 +648,24 @@ STORE_NOINLINE uint8_t store_hist_count(store_t *st)
 int8_t store_save_hist(store_t *st, const store_hist_t *e)
 {
     uint8_t i;
+    uint16_t seq;
     if (st->state != ST_IDLE) {
         return STORE_E_BUSY;
     }
     if (e->n_tendons > STORE_MAX_TENDONS) {
         return STORE_E_ARG;
     }
-    if (st->hist_head == STORE_NO_HEAD) {
-        st->hist_slot = 0;
-        return save_begin(st, STORE_ADDR_HIST, STORE_KIND_HIST, STORE_HIST_VERSION, 1u, e,
-                          (uint16_t)sizeof(*e));
-    }
-    i = (uint8_t)(st->hist_head + 1u);
-    if (i >= STORE_HIST_N) {
-        i = 0;
+    /* the slot after the newest entry, or slot 0 of an empty ring */
+    i = 0;
+    seq = 1u;
+    if (st->hist_head != STORE_NO_HEAD) {
+        i = (uint8_t)(st->hist_head + 1u);
+        if (i >= STORE_HIST_N) {
+            i = 0;
+        }
+        seq = (uint16_t)(st->hist_seq + 1u);
     }
     st->hist_slot = i;
     return save_begin(st, (uint16_t)(STORE_ADDR_HIST + i * STORE_HIST_STRIDE), STORE_KIND_HIST,
-                      STORE_HIST_VERSION, (uint16_t)(st->hist_seq + 1u), e, (uint16_t)sizeof(*e));
+                      STORE_HIST_VERSION, seq, e, (uint16_t)sizeof(*e));
 }
