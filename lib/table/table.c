@@ -46,27 +46,28 @@ static void tbl_counts(const tbl_src_t *src, uint8_t c[3])
 
 int tbl_check(const tbl_src_t *src)
 {
-    uint32_t magic;
-    uint16_t version, size;
+    /* the header's first 8 bytes: every format starts with them */
+    struct {
+        uint32_t magic;
+        uint16_t version, size;
+    } h;
     tbl_info_t info;
     uint8_t i;
 
     if (!tbl_src_ok(src)) {
         return TBL_E_ARG;
     }
-    tbl_read(src, &magic, TBL_HEAD_OFF(magic), sizeof magic);
-    if (magic != TBL_MAGIC) {
+    tbl_read(src, &h, TBL_HEAD_OFF(magic), sizeof h);
+    if (h.magic != TBL_MAGIC) {
         return TBL_E_MAGIC;
     }
-    tbl_read(src, &version, TBL_HEAD_OFF(format_version), sizeof version);
-    if (version != TBL_FORMAT_VERSION) {
+    if (h.version != TBL_FORMAT_VERSION) {
         return TBL_E_VERSION;
     }
-    tbl_read(src, &size, TBL_HEAD_OFF(size), sizeof size);
     (void)tbl_info(src, &info);
     if (info.n_tendons == 0u || info.n_tendons > TBL_MAX_TENDONS || info.n_sensors == 0u ||
         info.n_sensors > TBL_MAX_SENSORS || info.n_grid < 2u || info.n_grid > TBL_MAX_GRID ||
-        size != TBL_SIZE(info.n_tendons, info.n_sensors, info.n_grid)) {
+        h.size != TBL_SIZE(info.n_tendons, info.n_sensors, info.n_grid)) {
         return TBL_E_FORMAT;
     }
     for (i = 1; i < info.n_grid; i++) {
@@ -97,10 +98,9 @@ int tbl_info(const tbl_src_t *src, tbl_info_t *info)
         return TBL_E_ARG;
     }
     tbl_read(src, &info->table_id, TBL_HEAD_OFF(table_id), sizeof info->table_id);
-    /* n_tendons, n_sensors, n_grid, mode: adjacent in both structs */
-    tbl_read(src, &info->n_tendons, TBL_HEAD_OFF(n_tendons), 4);
-    tbl_read(src, &info->default_mN, TBL_HEAD_OFF(default_mN), sizeof info->default_mN);
-    tbl_read(src, &info->noise_cuT, TBL_HEAD_OFF(noise_cuT), sizeof info->noise_cuT);
+    /* n_tendons, n_sensors, n_grid, mode, default_mN, noise_cuT: the same
+     * 8 bytes in both structs */
+    tbl_read(src, &info->n_tendons, TBL_HEAD_OFF(n_tendons), 8);
     return 0;
 }
 
@@ -131,7 +131,13 @@ uint16_t tbl_grid_mN(const tbl_src_t *src, uint8_t g)
 typedef char tbl_info_counts_adjacent_t
     [(offsetof(tbl_info_t, n_sensors) == offsetof(tbl_info_t, n_tendons) + 1u &&
       offsetof(tbl_info_t, mode) == offsetof(tbl_info_t, n_tendons) + 3u &&
-      offsetof(tbl_head_t, mode) == offsetof(tbl_head_t, n_tendons) + 3u)
+      offsetof(tbl_head_t, mode) == offsetof(tbl_head_t, n_tendons) + 3u &&
+      offsetof(tbl_info_t, default_mN) == offsetof(tbl_info_t, n_tendons) + 4u &&
+      offsetof(tbl_head_t, default_mN) == offsetof(tbl_head_t, n_tendons) + 4u &&
+      offsetof(tbl_info_t, noise_cuT) == offsetof(tbl_info_t, n_tendons) + 6u &&
+      offsetof(tbl_head_t, noise_cuT) == offsetof(tbl_head_t, n_tendons) + 6u &&
+      sizeof(tbl_info_t) == offsetof(tbl_info_t, n_tendons) + 8u &&
+      offsetof(tbl_head_t, format_version) == 4u && offsetof(tbl_head_t, size) == 6u)
          ? 1
          : -1];
 
