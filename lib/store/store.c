@@ -438,27 +438,19 @@ int8_t store_save_settings(store_t *st, const store_settings_t *s)
 
 int16_t store_setting_text(const store_t *st, uint8_t id, uint8_t which, char *buf, uint8_t cap)
 {
-    /* the texts are read from flash 16 bytes a call, from where the
-     * setting's own start: one call a byte took 3 ms to walk to the last
-     * setting's texts (`get` held a pass 4.6 ms), and walking there 16 bytes
-     * a call still 1.5 ms */
-    char chunk[16];
+    /* read from flash a byte a call from where the setting's own texts
+     * start (walking there from the first setting's took 3 ms for the last
+     * one, and `get` held a pass 4.6 ms) */
     uint16_t skip = which, i, n = 0;
-    uint8_t k = sizeof chunk;
     char c;
     if (id >= STORE_SETTING_COUNT || which >= STORE_TEXTS || cap == 0u) {
         return STORE_E_ARG;
     }
     st->copy(&i, &store_text_at[id], sizeof i);
-    for (;; i++, k++) {
-        if (k == sizeof chunk) {
-            uint16_t left = (uint16_t)(sizeof store_text - i);
-            st->copy(chunk, &store_text[i], left < sizeof chunk ? left : sizeof chunk);
-            k = 0;
-        }
-        c = chunk[k];
+    for (;; i++) {
+        st->copy(&c, &store_text[i], 1);
         if (skip > 0u) {
-            /* walk past 3 * id + which NUL-terminated strings */
+            /* walk past `which` NUL-terminated strings */
             skip = (uint16_t)(skip - (c == '\0'));
             continue;
         }
