@@ -40,7 +40,7 @@ STORE_ASSERT(order2, STORE_ADDR_HOMES + 2u * STORE_HOMES_STRIDE <= STORE_ADDR_LE
 STORE_ASSERT(order3,
              STORE_ADDR_LEARNED + 2u * STORE_MAX_TENDONS * STORE_LEARNED_STRIDE <= STORE_ADDR_HIST);
 STORE_ASSERT(order4, STORE_ADDR_END <= STORE_EEPROM_SIZE);
-STORE_ASSERT(hist_min, STORE_HIST_N >= 16u && STORE_HIST_N < STORE_NO_HEAD);
+STORE_ASSERT(hist_min, STORE_HIST_N >= 16u && STORE_HIST_N < STORE_NO_HEAD && STORE_HIST_N <= 127u);
 STORE_ASSERT(table_id_first, offsetof(store_homes_t, table_id) == 0u &&
                                  offsetof(store_win_t, table_id) == 0u &&
                                  offsetof(store_learned_t, table_id) == 0u);
@@ -183,23 +183,32 @@ static uint8_t seq_newer(uint16_t a, uint16_t b)
     return (int16_t)(uint16_t)(a - b) > 0;
 }
 
+/* Index of the newest valid slot of the n at base, base + stride, ... (the
+ * first of slots with the same sequence number), or -1 when none is valid;
+ * its sequence number goes to *seq, which is left alone when none is. */
+static int8_t slot_newest(const store_t *st, uint16_t base, uint16_t stride, uint8_t n,
+                          uint8_t kind, uint8_t ver, uint16_t len, uint16_t *seq)
+{
+    int8_t newest = -1;
+    uint8_t i;
+    uint16_t s;
+    for (i = 0; i < n; i++) {
+        if (slot_valid(st, (uint16_t)(base + i * stride), kind, ver, len, &s) &&
+            (newest < 0 || seq_newer(s, *seq))) {
+            newest = (int8_t)i;
+            *seq = s;
+        }
+    }
+    return newest;
+}
+
 /* Index (0 = A at base, 1 = B at base + stride) of the newest valid copy of a
- * two-slot record, or -1; its sequence number goes to *seq. */
+ * two-slot record (A when both have the same sequence number), or -1; its
+ * sequence number goes to *seq. */
 static int8_t pair_pick(const store_t *st, uint16_t base, uint16_t stride, uint8_t kind,
                         uint8_t ver, uint16_t len, uint16_t *seq)
 {
-    uint16_t sa = 0, sb = 0;
-    uint8_t va = slot_valid(st, base, kind, ver, len, &sa);
-    uint8_t vb = slot_valid(st, (uint16_t)(base + stride), kind, ver, len, &sb);
-    if (va && (!vb || !seq_newer(sb, sa))) {
-        *seq = sa;
-        return 0;
-    }
-    if (vb) {
-        *seq = sb;
-        return 1;
-    }
-    return -1;
+    return slot_newest(st, base, stride, 2u, kind, ver, len, seq);
 }
 
 static int8_t pair_load(store_t *st, uint16_t base, uint16_t stride, uint8_t kind, uint8_t ver,
@@ -283,16 +292,9 @@ STORE_NOINLINE static uint8_t hist_slot_valid(const store_t *st, uint8_t i, uint
 
 static void hist_scan(store_t *st)
 {
-    uint8_t i;
-    uint16_t seq;
-    st->hist_head = STORE_NO_HEAD;
-    for (i = 0; i < STORE_HIST_N; i++) {
-        if (hist_slot_valid(st, i, &seq) &&
-            (st->hist_head == STORE_NO_HEAD || seq_newer(seq, st->hist_seq))) {
-            st->hist_head = i;
-            st->hist_seq = seq;
-        }
-    }
+    int8_t head = slot_newest(st, STORE_ADDR_HIST, STORE_HIST_STRIDE, STORE_HIST_N, STORE_KIND_HIST,
+                              STORE_HIST_VERSION, (uint16_t)sizeof(store_hist_t), &st->hist_seq);
+    st->hist_head = head < 0 ? STORE_NO_HEAD : (uint8_t)head;
 }
 
 /* ---- public ------------------------------------------------------ */
@@ -441,17 +443,19 @@ int16_t store_setting_text(const store_t *st, uint8_t id, uint8_t which, char *b
     /* read from flash a byte a call from where the setting's own texts
      * start (walking there from the first setting's took 3 ms for the last
      * one, and `get` held a pass 4.6 ms) */
-    uint16_t skip = which, i, n = 0;
+    uint16_t at, n = 0;
+    uint8_t skip = which;
+    const char *p;
     char c;
     if (id >= STORE_SETTING_COUNT || which >= STORE_TEXTS || cap == 0u) {
         return STORE_E_ARG;
     }
-    st->copy(&i, &store_text_at[id], sizeof i);
-    for (;; i++) {
-        st->copy(&c, &store_text[i], 1);
+    st->copy(&at, &store_text_at[id], sizeof at);
+    for (p = &store_text[at];; p++) {
+        st->copy(&c, p, 1);
         if (skip > 0u) {
             /* walk past `which` NUL-terminated strings */
-            skip = (uint16_t)(skip - (c == '\0'));
+            skip = (uint8_t)(skip - (c == '\0'));
             continue;
         }
         if (c == '\0') {
