@@ -302,11 +302,15 @@ tbl_lerp(uint16_t x0, uint16_t x1, uint32_t y0, uint32_t y1, uint16_t x)
     uint32_t dx = (uint32_t)x1 - x0;
     uint32_t t = (uint32_t)x - x0;
     uint32_t a = y1 >= y0 ? y1 - y0 : y0 - y1;
+    uint32_t q = 0;
     /* a span below 2^16 (every row of the tables built so far) times t
      * fits 32 bits: one division, the same result (a = Q dx + R gives
      * Q t + (R t + dx/2) / dx either way), a third of the time */
-    uint32_t q =
-        a <= 0xFFFFu ? (a * t + dx / 2u) / dx : (a / dx) * t + ((a % dx) * t + dx / 2u) / dx;
+    if (a > 0xFFFFu) {
+        q = (a / dx) * t;
+        a %= dx;
+    }
+    q += (a * t + dx / 2u) / dx;
     return y1 >= y0 ? y0 + q : y0 - q;
 }
 
