@@ -271,6 +271,13 @@ uint16_t tbl_lsb_of_cuT(uint32_t cuT)
     return (uint16_t)((cuT + TBL_CUT_PER_LSB / 2u) / TBL_CUT_PER_LSB);
 }
 
+typedef char tbl_point_rows_adjacent_t
+    [(TBL_ROW_TARGET == 0u && TBL_ROW_ABS == 1u && TBL_ROW_TRAVEL == 2u &&
+      offsetof(tbl_point_t, abs_target_cuT) == offsetof(tbl_point_t, target_cuT) + 4u &&
+      offsetof(tbl_point_t, travel_um) == offsetof(tbl_point_t, target_cuT) + 8u)
+         ? 1
+         : -1];
+
 /* Locates x in the grid: returns the index k with grid[k] <= x <= grid[k+1],
  * or -1 outside. */
 static int tbl_bracket(const uint16_t *grid, uint8_t n, uint16_t x)
@@ -374,9 +381,8 @@ int tbl_target(const tbl_src_t *src, uint8_t tendon, uint16_t tension_mN, tbl_po
         v[row] = tbl_lerp(grid[k], grid[k + 1], y0, y1, tension_mN);
     }
     out->tension_mN = tension_mN;
-    out->target_cuT = v[TBL_ROW_TARGET];
-    out->abs_target_cuT = v[TBL_ROW_ABS];
-    out->travel_um = v[TBL_ROW_TRAVEL];
+    /* target_cuT, abs_target_cuT, travel_um: rows 0..2, adjacent */
+    memcpy(&out->target_cuT, v, 3u * sizeof v[0]);
     out->straight_um = (int16_t)(uint16_t)(v[TBL_ROW_STRAIGHT] ^ 0x8000u);
     return 0;
 }
