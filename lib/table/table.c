@@ -80,11 +80,8 @@ int tbl_check(const tbl_src_t *src)
         return TBL_E_FORMAT;
     }
     for (i = 0; i < info.n_tendons; i++) {
-        tbl_tendon_rec_t r;
-        tbl_read(
-            src, &r,
-            (uint16_t)(TBL_OFF_TENDONS(info.n_sensors, info.n_grid) + i * sizeof(tbl_tendon_rec_t)),
-            sizeof r);
+        tbl_tendon_head_t r;
+        (void)tbl_tendon_head(src, i, &r); /* the counts are checked: cannot fail */
         if (r.sensor >= info.n_sensors || r.nm_per_tick == 0u) {
             return TBL_E_FORMAT;
         }
