@@ -270,20 +270,6 @@ static int8_t pair_save(store_t *st, uint16_t base, uint16_t stride, uint8_t kin
                       (uint16_t)(seq + 1u), body, len);
 }
 
-/* Byte `pos` (1..total-1) of the slot being written; the CRC goes after the
- * body. Byte 0, the kind, is handled by store_poll(). */
-static uint8_t slot_byte(const store_t *st, uint16_t pos)
-{
-    if (pos < STORE_HDR_LEN) {
-        return st->hdr[pos];
-    }
-    pos = (uint16_t)(pos - STORE_HDR_LEN);
-    if (pos < st->len) {
-        return st->body[pos];
-    }
-    return (pos == st->len) ? (uint8_t)st->crc : (uint8_t)(st->crc >> 8);
-}
-
 STORE_NOINLINE static uint8_t hist_slot_valid(const store_t *st, uint8_t i, uint16_t *seq)
 {
     return slot_valid(st, (uint16_t)(STORE_ADDR_HIST + i * STORE_HIST_STRIDE), STORE_KIND_HIST,
@@ -344,11 +330,13 @@ int8_t store_poll(store_t *st, uint8_t may_write)
             } else if (st->pos == total) {
                 a = st->addr;
                 b = st->hdr[0];
+            } else if (st->pos < STORE_HDR_LEN + st->len) {
+                /* version, sequence and body, into the CRC */
+                b = st->pos < STORE_HDR_LEN ? st->hdr[st->pos] : st->body[st->pos - STORE_HDR_LEN];
+                st->crc = crc_byte(st->crc, b);
             } else {
-                b = slot_byte(st, st->pos);
-                if (st->pos < STORE_HDR_LEN + st->len) {
-                    st->crc = crc_byte(st->crc, b);
-                }
+                /* the CRC after the body, little-endian */
+                b = st->pos == STORE_HDR_LEN + st->len ? (uint8_t)st->crc : (uint8_t)(st->crc >> 8);
             }
             st->pos++;
             if (ee_byte(st, a) != b) {
