@@ -39,14 +39,17 @@ void twi_init(void)
  * third to every 22.5 us byte. */
 #define TWI_FAST_SPINS 32u
 
-static int8_t twi_wait_int(void)
+/* Waits (bounded) until the bits `mask` of the register at reg read `want`,
+ * testing them `polls` times between deadline checks: 0, or
+ * ICM_BUS_E_TIMEOUT. */
+static int8_t twi_wait(volatile uint8_t *reg, uint8_t mask, uint8_t want, uint8_t polls)
 {
     uint32_t t0 = tick_us();
     uint16_t spin = 0;
     for (;;) {
         uint8_t n;
-        for (n = 0; n < TWI_FAST_SPINS; n++) {
-            if (TWCR & _BV(TWINT)) {
+        for (n = 0; n < polls; n++) {
+            if ((*reg & mask) == want) {
                 return 0;
             }
         }
@@ -56,18 +59,16 @@ static int8_t twi_wait_int(void)
     }
 }
 
+static int8_t twi_wait_int(void)
+{
+    return twi_wait(&TWCR, _BV(TWINT), _BV(TWINT), TWI_FAST_SPINS);
+}
+
 /* Sends STOP and waits (bounded) for the hardware to put it on the wire. */
 static int8_t twi_stop(void)
 {
-    uint32_t t0 = tick_us();
-    uint16_t spin = 0;
     TWCR = _BV(TWINT) | _BV(TWEN) | _BV(TWSTO);
-    while (TWCR & _BV(TWSTO)) {
-        if ((uint32_t)(tick_us() - t0) > TWI_BYTE_DEADLINE_US || ++spin > TWI_SPIN_MAX) {
-            return ICM_BUS_E_TIMEOUT;
-        }
-    }
-    return 0;
+    return twi_wait(&TWCR, _BV(TWSTO), 0, 1);
 }
 
 /* Ends a failed transfer: a NACK leaves a healthy bus (STOP is enough); a
@@ -183,17 +184,10 @@ static void twi_line(uint8_t mask, uint8_t high)
     _delay_us(5);
 }
 
-/* Waits (bounded) for a slave to stop stretching SCL. */
+/* Waits (bounded) for a slave to stop stretching SCL: 1 done, 0 timed out. */
 static uint8_t twi_scl_high(void)
 {
-    uint32_t t0 = tick_us();
-    uint16_t spin = 0;
-    while (!(BOARD_TWI_PIN & TWI_SCL)) {
-        if ((uint32_t)(tick_us() - t0) > TWI_BYTE_DEADLINE_US || ++spin > TWI_SPIN_MAX) {
-            return 0;
-        }
-    }
-    return 1;
+    return twi_wait(&BOARD_TWI_PIN, TWI_SCL, TWI_SCL, 1) == 0;
 }
 
 /* NXP UM10204 section 3.1.16 "Bus clear": a slave stuck mid-byte holds SDA

@@ -40,7 +40,10 @@ STORE_ASSERT(order2, STORE_ADDR_HOMES + 2u * STORE_HOMES_STRIDE <= STORE_ADDR_LE
 STORE_ASSERT(order3,
              STORE_ADDR_LEARNED + 2u * STORE_MAX_TENDONS * STORE_LEARNED_STRIDE <= STORE_ADDR_HIST);
 STORE_ASSERT(order4, STORE_ADDR_END <= STORE_EEPROM_SIZE);
-STORE_ASSERT(hist_min, STORE_HIST_N >= 16u && STORE_HIST_N < STORE_NO_HEAD);
+STORE_ASSERT(hist_min, STORE_HIST_N >= 16u && STORE_HIST_N < STORE_NO_HEAD && STORE_HIST_N <= 127u);
+STORE_ASSERT(table_id_first, offsetof(store_homes_t, table_id) == 0u &&
+                                 offsetof(store_win_t, table_id) == 0u &&
+                                 offsetof(store_learned_t, table_id) == 0u);
 STORE_ASSERT(tendon_mask, STORE_MAX_TENDONS <= 16u && TBL_MAX_GRID <= 16u);
 
 /* ---- settings declaration ---------------------------------------- */
@@ -180,23 +183,32 @@ static uint8_t seq_newer(uint16_t a, uint16_t b)
     return (int16_t)(uint16_t)(a - b) > 0;
 }
 
+/* Index of the newest valid slot of the n at base, base + stride, ... (the
+ * first of slots with the same sequence number), or -1 when none is valid;
+ * its sequence number goes to *seq, which is left alone when none is. */
+static int8_t slot_newest(const store_t *st, uint16_t base, uint16_t stride, uint8_t n,
+                          uint8_t kind, uint8_t ver, uint16_t len, uint16_t *seq)
+{
+    int8_t newest = -1;
+    uint8_t i;
+    uint16_t s;
+    for (i = 0; i < n; i++) {
+        if (slot_valid(st, (uint16_t)(base + i * stride), kind, ver, len, &s) &&
+            (newest < 0 || seq_newer(s, *seq))) {
+            newest = (int8_t)i;
+            *seq = s;
+        }
+    }
+    return newest;
+}
+
 /* Index (0 = A at base, 1 = B at base + stride) of the newest valid copy of a
- * two-slot record, or -1; its sequence number goes to *seq. */
+ * two-slot record (A when both have the same sequence number), or -1; its
+ * sequence number goes to *seq. */
 static int8_t pair_pick(const store_t *st, uint16_t base, uint16_t stride, uint8_t kind,
                         uint8_t ver, uint16_t len, uint16_t *seq)
 {
-    uint16_t sa = 0, sb = 0;
-    uint8_t va = slot_valid(st, base, kind, ver, len, &sa);
-    uint8_t vb = slot_valid(st, (uint16_t)(base + stride), kind, ver, len, &sb);
-    if (va && (!vb || !seq_newer(sb, sa))) {
-        *seq = sa;
-        return 0;
-    }
-    if (vb) {
-        *seq = sb;
-        return 1;
-    }
-    return -1;
+    return slot_newest(st, base, stride, 2u, kind, ver, len, seq);
 }
 
 static int8_t pair_load(store_t *st, uint16_t base, uint16_t stride, uint8_t kind, uint8_t ver,
@@ -209,6 +221,22 @@ static int8_t pair_load(store_t *st, uint16_t base, uint16_t stride, uint8_t kin
     }
     EE_READ_BLOCK(st, body, (uint16_t)(base + (which ? stride : 0u) + STORE_HDR_LEN), len);
     return 0;
+}
+
+/* pair_load() of a record whose body starts with the table_id it was made
+ * for: STORE_E_OTHER_TABLE (body filled) when that is not table_id. */
+static int8_t pair_load_table(store_t *st, uint16_t base, uint16_t stride, uint8_t kind,
+                              uint8_t ver, void *body, uint16_t len, uint32_t table_id)
+{
+    uint32_t id;
+    int8_t rc = pair_load(st, base, stride, kind, ver, body, len);
+    if (rc == 0) {
+        memcpy(&id, body, sizeof id);
+        if (id != table_id) {
+            rc = STORE_E_OTHER_TABLE;
+        }
+    }
+    return rc;
 }
 
 STORE_NOINLINE static int8_t save_begin(store_t *st, uint16_t addr, uint8_t kind, uint8_t ver,
@@ -242,20 +270,6 @@ static int8_t pair_save(store_t *st, uint16_t base, uint16_t stride, uint8_t kin
                       (uint16_t)(seq + 1u), body, len);
 }
 
-/* Byte `pos` (1..total-1) of the slot being written; the CRC goes after the
- * body. Byte 0, the kind, is handled by store_poll(). */
-static uint8_t slot_byte(const store_t *st, uint16_t pos)
-{
-    if (pos < STORE_HDR_LEN) {
-        return st->hdr[pos];
-    }
-    pos = (uint16_t)(pos - STORE_HDR_LEN);
-    if (pos < st->len) {
-        return st->body[pos];
-    }
-    return (pos == st->len) ? (uint8_t)st->crc : (uint8_t)(st->crc >> 8);
-}
-
 STORE_NOINLINE static uint8_t hist_slot_valid(const store_t *st, uint8_t i, uint16_t *seq)
 {
     return slot_valid(st, (uint16_t)(STORE_ADDR_HIST + i * STORE_HIST_STRIDE), STORE_KIND_HIST,
@@ -264,16 +278,9 @@ STORE_NOINLINE static uint8_t hist_slot_valid(const store_t *st, uint8_t i, uint
 
 static void hist_scan(store_t *st)
 {
-    uint8_t i;
-    uint16_t seq;
-    st->hist_head = STORE_NO_HEAD;
-    for (i = 0; i < STORE_HIST_N; i++) {
-        if (hist_slot_valid(st, i, &seq) &&
-            (st->hist_head == STORE_NO_HEAD || seq_newer(seq, st->hist_seq))) {
-            st->hist_head = i;
-            st->hist_seq = seq;
-        }
-    }
+    int8_t head = slot_newest(st, STORE_ADDR_HIST, STORE_HIST_STRIDE, STORE_HIST_N, STORE_KIND_HIST,
+                              STORE_HIST_VERSION, (uint16_t)sizeof(store_hist_t), &st->hist_seq);
+    st->hist_head = head < 0 ? STORE_NO_HEAD : (uint8_t)head;
 }
 
 /* ---- public ------------------------------------------------------ */
@@ -323,11 +330,13 @@ int8_t store_poll(store_t *st, uint8_t may_write)
             } else if (st->pos == total) {
                 a = st->addr;
                 b = st->hdr[0];
+            } else if (st->pos < STORE_HDR_LEN + st->len) {
+                /* version, sequence and body, into the CRC */
+                b = st->pos < STORE_HDR_LEN ? st->hdr[st->pos] : st->body[st->pos - STORE_HDR_LEN];
+                st->crc = crc_byte(st->crc, b);
             } else {
-                b = slot_byte(st, st->pos);
-                if (st->pos < STORE_HDR_LEN + st->len) {
-                    st->crc = crc_byte(st->crc, b);
-                }
+                /* the CRC after the body, little-endian */
+                b = st->pos == STORE_HDR_LEN + st->len ? (uint8_t)st->crc : (uint8_t)(st->crc >> 8);
             }
             st->pos++;
             if (ee_byte(st, a) != b) {
@@ -419,28 +428,22 @@ int8_t store_save_settings(store_t *st, const store_settings_t *s)
 
 int16_t store_setting_text(const store_t *st, uint8_t id, uint8_t which, char *buf, uint8_t cap)
 {
-    /* the texts are read from flash 16 bytes a call, from where the
-     * setting's own start: one call a byte took 3 ms to walk to the last
-     * setting's texts (`get` held a pass 4.6 ms), and walking there 16 bytes
-     * a call still 1.5 ms */
-    char chunk[16];
-    uint16_t skip = which, i, n = 0;
-    uint8_t k = sizeof chunk;
+    /* read from flash a byte a call from where the setting's own texts
+     * start (walking there from the first setting's took 3 ms for the last
+     * one, and `get` held a pass 4.6 ms) */
+    uint16_t at, n = 0;
+    uint8_t skip = which;
+    const char *p;
     char c;
     if (id >= STORE_SETTING_COUNT || which >= STORE_TEXTS || cap == 0u) {
         return STORE_E_ARG;
     }
-    st->copy(&i, &store_text_at[id], sizeof i);
-    for (;; i++, k++) {
-        if (k == sizeof chunk) {
-            uint16_t left = (uint16_t)(sizeof store_text - i);
-            st->copy(chunk, &store_text[i], left < sizeof chunk ? left : sizeof chunk);
-            k = 0;
-        }
-        c = chunk[k];
+    st->copy(&at, &store_text_at[id], sizeof at);
+    for (p = &store_text[at];; p++) {
+        st->copy(&c, p, 1);
         if (skip > 0u) {
-            /* walk past 3 * id + which NUL-terminated strings */
-            skip = (uint16_t)(skip - (c == '\0'));
+            /* walk past `which` NUL-terminated strings */
+            skip = (uint8_t)(skip - (c == '\0'));
             continue;
         }
         if (c == '\0') {
@@ -487,12 +490,8 @@ STORE_NOINLINE void store_home_set(store_home_t *e, int32_t home_ticks, int32_t 
 
 int8_t store_homes_load(store_t *st, uint32_t table_id, store_homes_t *h)
 {
-    int8_t rc = pair_load(st, STORE_ADDR_HOMES, STORE_HOMES_STRIDE, STORE_KIND_HOMES,
-                          STORE_HOMES_VERSION, h, (uint16_t)sizeof(*h));
-    if (rc == 0 && h->table_id != table_id) {
-        rc = STORE_E_OTHER_TABLE;
-    }
-    return rc;
+    return pair_load_table(st, STORE_ADDR_HOMES, STORE_HOMES_STRIDE, STORE_KIND_HOMES,
+                           STORE_HOMES_VERSION, h, (uint16_t)sizeof(*h), table_id);
 }
 
 int8_t store_save_homes(store_t *st, const store_homes_t *h)
@@ -527,12 +526,8 @@ STORE_NOINLINE int8_t store_recover_position(const store_home_t *e, int32_t pres
 
 int8_t store_win_load(store_t *st, uint32_t table_id, store_win_t *w)
 {
-    int8_t rc = pair_load(st, STORE_ADDR_WIN, STORE_WIN_STRIDE, STORE_KIND_WIN, STORE_WIN_VERSION,
-                          w, (uint16_t)sizeof(*w));
-    if (rc == 0 && w->table_id != table_id) {
-        rc = STORE_E_OTHER_TABLE;
-    }
-    return rc;
+    return pair_load_table(st, STORE_ADDR_WIN, STORE_WIN_STRIDE, STORE_KIND_WIN, STORE_WIN_VERSION,
+                           w, (uint16_t)sizeof(*w), table_id);
 }
 
 int8_t store_save_win(store_t *st, const store_win_t *w)
@@ -579,16 +574,16 @@ int8_t store_learned_load(store_t *st, uint8_t tendon, uint32_t table_id, store_
     if (tendon >= STORE_MAX_TENDONS) {
         return STORE_E_ARG;
     }
-    rc = pair_load(st, learned_base(tendon), STORE_LEARNED_STRIDE, STORE_KIND_LEARNED,
-                   STORE_LEARNED_VERSION, &tmp, (uint16_t)sizeof(tmp));
-    if (rc < 0) {
+    rc = pair_load_table(st, learned_base(tendon), STORE_LEARNED_STRIDE, STORE_KIND_LEARNED,
+                         STORE_LEARNED_VERSION, &tmp, (uint16_t)sizeof(tmp), table_id);
+    if (rc == STORE_E_EMPTY) {
         return rc;
     }
     if (tmp.tendon != tendon || tmp.n_grid > TBL_MAX_GRID) {
         return STORE_E_EMPTY; /* valid CRC but not this tendon's record: never trust it */
     }
     *l = tmp;
-    return (tmp.table_id == table_id) ? 0 : STORE_E_OTHER_TABLE;
+    return rc; /* 0, or STORE_E_OTHER_TABLE */
 }
 
 int8_t store_save_learned(store_t *st, const store_learned_t *l)
@@ -637,22 +632,24 @@ STORE_NOINLINE uint8_t store_hist_count(store_t *st)
 int8_t store_save_hist(store_t *st, const store_hist_t *e)
 {
     uint8_t i;
+    uint16_t seq;
     if (st->state != ST_IDLE) {
         return STORE_E_BUSY;
     }
     if (e->n_tendons > STORE_MAX_TENDONS) {
         return STORE_E_ARG;
     }
-    if (st->hist_head == STORE_NO_HEAD) {
-        st->hist_slot = 0;
-        return save_begin(st, STORE_ADDR_HIST, STORE_KIND_HIST, STORE_HIST_VERSION, 1u, e,
-                          (uint16_t)sizeof(*e));
-    }
-    i = (uint8_t)(st->hist_head + 1u);
-    if (i >= STORE_HIST_N) {
-        i = 0;
+    /* the slot after the newest entry, or slot 0 of an empty ring */
+    i = 0;
+    seq = 1u;
+    if (st->hist_head != STORE_NO_HEAD) {
+        i = (uint8_t)(st->hist_head + 1u);
+        if (i >= STORE_HIST_N) {
+            i = 0;
+        }
+        seq = (uint16_t)(st->hist_seq + 1u);
     }
     st->hist_slot = i;
     return save_begin(st, (uint16_t)(STORE_ADDR_HIST + i * STORE_HIST_STRIDE), STORE_KIND_HIST,
-                      STORE_HIST_VERSION, (uint16_t)(st->hist_seq + 1u), e, (uint16_t)sizeof(*e));
+                      STORE_HIST_VERSION, seq, e, (uint16_t)sizeof(*e));
 }

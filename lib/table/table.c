@@ -46,27 +46,28 @@ static void tbl_counts(const tbl_src_t *src, uint8_t c[3])
 
 int tbl_check(const tbl_src_t *src)
 {
-    uint32_t magic;
-    uint16_t version, size;
+    /* the header's first 8 bytes: every format starts with them */
+    struct {
+        uint32_t magic;
+        uint16_t version, size;
+    } h;
     tbl_info_t info;
     uint8_t i;
 
     if (!tbl_src_ok(src)) {
         return TBL_E_ARG;
     }
-    tbl_read(src, &magic, TBL_HEAD_OFF(magic), sizeof magic);
-    if (magic != TBL_MAGIC) {
+    tbl_read(src, &h, TBL_HEAD_OFF(magic), sizeof h);
+    if (h.magic != TBL_MAGIC) {
         return TBL_E_MAGIC;
     }
-    tbl_read(src, &version, TBL_HEAD_OFF(format_version), sizeof version);
-    if (version != TBL_FORMAT_VERSION) {
+    if (h.version != TBL_FORMAT_VERSION) {
         return TBL_E_VERSION;
     }
-    tbl_read(src, &size, TBL_HEAD_OFF(size), sizeof size);
     (void)tbl_info(src, &info);
     if (info.n_tendons == 0u || info.n_tendons > TBL_MAX_TENDONS || info.n_sensors == 0u ||
         info.n_sensors > TBL_MAX_SENSORS || info.n_grid < 2u || info.n_grid > TBL_MAX_GRID ||
-        size != TBL_SIZE(info.n_tendons, info.n_sensors, info.n_grid)) {
+        h.size != TBL_SIZE(info.n_tendons, info.n_sensors, info.n_grid)) {
         return TBL_E_FORMAT;
     }
     for (i = 1; i < info.n_grid; i++) {
@@ -79,11 +80,8 @@ int tbl_check(const tbl_src_t *src)
         return TBL_E_FORMAT;
     }
     for (i = 0; i < info.n_tendons; i++) {
-        tbl_tendon_rec_t r;
-        tbl_read(
-            src, &r,
-            (uint16_t)(TBL_OFF_TENDONS(info.n_sensors, info.n_grid) + i * sizeof(tbl_tendon_rec_t)),
-            sizeof r);
+        tbl_tendon_head_t r;
+        (void)tbl_tendon_head(src, i, &r); /* the counts are checked: cannot fail */
         if (r.sensor >= info.n_sensors || r.nm_per_tick == 0u) {
             return TBL_E_FORMAT;
         }
@@ -97,10 +95,9 @@ int tbl_info(const tbl_src_t *src, tbl_info_t *info)
         return TBL_E_ARG;
     }
     tbl_read(src, &info->table_id, TBL_HEAD_OFF(table_id), sizeof info->table_id);
-    /* n_tendons, n_sensors, n_grid, mode: adjacent in both structs */
-    tbl_read(src, &info->n_tendons, TBL_HEAD_OFF(n_tendons), 4);
-    tbl_read(src, &info->default_mN, TBL_HEAD_OFF(default_mN), sizeof info->default_mN);
-    tbl_read(src, &info->noise_cuT, TBL_HEAD_OFF(noise_cuT), sizeof info->noise_cuT);
+    /* n_tendons, n_sensors, n_grid, mode, default_mN, noise_cuT: the same
+     * 8 bytes in both structs */
+    tbl_read(src, &info->n_tendons, TBL_HEAD_OFF(n_tendons), 8);
     return 0;
 }
 
@@ -131,7 +128,13 @@ uint16_t tbl_grid_mN(const tbl_src_t *src, uint8_t g)
 typedef char tbl_info_counts_adjacent_t
     [(offsetof(tbl_info_t, n_sensors) == offsetof(tbl_info_t, n_tendons) + 1u &&
       offsetof(tbl_info_t, mode) == offsetof(tbl_info_t, n_tendons) + 3u &&
-      offsetof(tbl_head_t, mode) == offsetof(tbl_head_t, n_tendons) + 3u)
+      offsetof(tbl_head_t, mode) == offsetof(tbl_head_t, n_tendons) + 3u &&
+      offsetof(tbl_info_t, default_mN) == offsetof(tbl_info_t, n_tendons) + 4u &&
+      offsetof(tbl_head_t, default_mN) == offsetof(tbl_head_t, n_tendons) + 4u &&
+      offsetof(tbl_info_t, noise_cuT) == offsetof(tbl_info_t, n_tendons) + 6u &&
+      offsetof(tbl_head_t, noise_cuT) == offsetof(tbl_head_t, n_tendons) + 6u &&
+      sizeof(tbl_info_t) == offsetof(tbl_info_t, n_tendons) + 8u &&
+      offsetof(tbl_head_t, format_version) == 4u && offsetof(tbl_head_t, size) == 6u)
          ? 1
          : -1];
 
@@ -265,6 +268,13 @@ uint16_t tbl_lsb_of_cuT(uint32_t cuT)
     return (uint16_t)((cuT + TBL_CUT_PER_LSB / 2u) / TBL_CUT_PER_LSB);
 }
 
+typedef char tbl_point_rows_adjacent_t
+    [(TBL_ROW_TARGET == 0u && TBL_ROW_ABS == 1u && TBL_ROW_TRAVEL == 2u &&
+      offsetof(tbl_point_t, abs_target_cuT) == offsetof(tbl_point_t, target_cuT) + 4u &&
+      offsetof(tbl_point_t, travel_um) == offsetof(tbl_point_t, target_cuT) + 8u)
+         ? 1
+         : -1];
+
 /* Locates x in the grid: returns the index k with grid[k] <= x <= grid[k+1],
  * or -1 outside. */
 static int tbl_bracket(const uint16_t *grid, uint8_t n, uint16_t x)
@@ -296,11 +306,15 @@ tbl_lerp(uint16_t x0, uint16_t x1, uint32_t y0, uint32_t y1, uint16_t x)
     uint32_t dx = (uint32_t)x1 - x0;
     uint32_t t = (uint32_t)x - x0;
     uint32_t a = y1 >= y0 ? y1 - y0 : y0 - y1;
+    uint32_t q = 0;
     /* a span below 2^16 (every row of the tables built so far) times t
      * fits 32 bits: one division, the same result (a = Q dx + R gives
      * Q t + (R t + dx/2) / dx either way), a third of the time */
-    uint32_t q =
-        a <= 0xFFFFu ? (a * t + dx / 2u) / dx : (a / dx) * t + ((a % dx) * t + dx / 2u) / dx;
+    if (a > 0xFFFFu) {
+        q = (a / dx) * t;
+        a %= dx;
+    }
+    q += (a * t + dx / 2u) / dx;
     return y1 >= y0 ? y0 + q : y0 - q;
 }
 
@@ -351,8 +365,9 @@ int tbl_target(const tbl_src_t *src, uint8_t tendon, uint16_t tension_mN, tbl_po
         uint32_t y0, y1;
         tbl_read(src, y, (uint16_t)(tbl_row_off(c, row, tendon, (uint8_t)k)), sizeof y);
         if (row == TBL_ROW_STRAIGHT) {
-            y0 = (uint32_t)((int32_t)(int16_t)y[0] + 32768);
-            y1 = (uint32_t)((int32_t)(int16_t)y[1] + 32768);
+            /* int16 + 32768: the sign bit flipped */
+            y0 = (uint16_t)(y[0] ^ 0x8000u);
+            y1 = (uint16_t)(y[1] ^ 0x8000u);
         } else if (row == TBL_ROW_TRAVEL) {
             y0 = y[0];
             y1 = y[1];
@@ -363,9 +378,8 @@ int tbl_target(const tbl_src_t *src, uint8_t tendon, uint16_t tension_mN, tbl_po
         v[row] = tbl_lerp(grid[k], grid[k + 1], y0, y1, tension_mN);
     }
     out->tension_mN = tension_mN;
-    out->target_cuT = v[TBL_ROW_TARGET];
-    out->abs_target_cuT = v[TBL_ROW_ABS];
-    out->travel_um = v[TBL_ROW_TRAVEL];
-    out->straight_um = (int16_t)((int32_t)v[TBL_ROW_STRAIGHT] - 32768);
+    /* target_cuT, abs_target_cuT, travel_um: rows 0..2, adjacent */
+    memcpy(&out->target_cuT, v, 3u * sizeof v[0]);
+    out->straight_um = (int16_t)(uint16_t)(v[TBL_ROW_STRAIGHT] ^ 0x8000u);
     return 0;
 }
