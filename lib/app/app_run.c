@@ -478,9 +478,9 @@ APP_NOINLINE static void keep_request(app_t *a, uint8_t mode, uint16_t tension, 
  * answering is looked for again), and the run starts after the new <ready>. Each servo in hardware
  * error costs one bring-up, so a request gets one more than there are such servos; a device still
  * missing after them refuses the run as before. Returns 1 when a bring-up
- * was started for the request (kept in req_*), 0 when none is left. */
-static uint8_t defer_for_devices(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon,
-                                 uint8_t from_con)
+ * was started for the request (which the caller keeps in req_*), 0 when none
+ * is left. */
+static uint8_t defer_for_devices(app_t *a)
 {
     uint8_t i;
     uint8_t id = 0;
@@ -496,7 +496,6 @@ static uint8_t defer_for_devices(app_t *a, uint8_t mode, uint16_t tension, uint8
         return 0;
     }
     a->run.recover_left--;
-    keep_request(a, mode, tension, tendon, from_con);
     for (i = 0; i < a->info.n_tendons && id == 0u; i++) {
         if (a->bus.hw_err[i] != 0u && !app_has(a->bus.absent, i)) {
             id = a->bus.ids[i];
@@ -529,27 +528,24 @@ static uint8_t settling(const app_t *a)
 static int8_t run_or_defer(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon,
                            uint8_t from_con)
 {
-    int8_t rc;
+    int8_t rc = CON_PENDING; /* the request is kept (req_*) and started later */
     if (settling(a) || (app_idle_state(a) && (store_busy(&a->rec.store) || app_rec_busy(a)))) {
-        keep_request(a, mode, tension, tendon, from_con);
-        return CON_PENDING;
-    }
-    if (a->run.bring_up && app_idle_state(a)) {
+        /* once that is over */
+    } else if (a->run.bring_up && app_idle_state(a)) {
         a->run.bring_up = 0;
-        keep_request(a, mode, tension, tendon, from_con);
-        app_boot_again(a);
-        return CON_PENDING;
+        app_boot_again(a); /* after the bring-up */
+    } else {
+        /* CON_PENDING: once the fresh windows are in the EEPROM */
+        rc = run_start(a, mode, tension, tendon);
+        if ((rc == CON_E_SENSOR_FAULT || rc == CON_E_SERVO_FAULT) && defer_for_devices(a)) {
+            rc = CON_PENDING; /* after the devices' bring-up */
+        }
     }
-    rc = run_start(a, mode, tension, tendon);
     if (rc == CON_PENDING) {
         keep_request(a, mode, tension, tendon, from_con);
-        return CON_PENDING; /* fresh windows go to the EEPROM first */
+    } else {
+        a->run.req_start = 0;
     }
-    if ((rc == CON_E_SENSOR_FAULT || rc == CON_E_SERVO_FAULT) &&
-        defer_for_devices(a, mode, tension, tendon, from_con)) {
-        return CON_PENDING;
-    }
-    a->run.req_start = 0;
     return rc;
 }
 
@@ -560,9 +556,7 @@ void app_run_press(app_t *a)
     if (settling(a)) {
         /* pressed before <ready> or during the release after a stop: the
          * run starts once that is done, quick or full as it then offers */
-        a->run.req_start = 1;
-        a->run.req_con = 0;
-        a->run.req_btn = 1;
+        keep_request(a, 0, 0, 0, 0);
         return;
     }
     if (!app_idle_state(a)) {
