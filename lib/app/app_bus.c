@@ -96,8 +96,6 @@ APP_NOINLINE static void servo_done(app_t *a)
             if (a->bus.txn == APP_TX_POS && r->len >= 4u) {
                 a->bus.present[i] = dxl_reply_value(r, 4);
                 got |= app_bit16(i);
-                a->bus.fresh |= app_bit16(i);
-                a->bus.seen |= app_bit16(i);
             } else if (a->bus.txn == APP_TX_HWERR && r->len >= 1u) {
                 a->bus.hw_err[i] = r->data[0];
                 got |= app_bit16(i);
@@ -117,6 +115,10 @@ APP_NOINLINE static void servo_done(app_t *a)
         first = (uint16_t)(lost & ~a->bus.missed);
         a->bus.missed =
             (uint16_t)((a->bus.missed & (lost | keep)) | (first & (uint16_t)(0u - first)));
+        if (a->bus.txn == APP_TX_POS) {
+            a->bus.fresh |= got;
+            a->bus.seen |= got;
+        }
         if (a->bus.txn == APP_TX_POS && a->bus.focus == 0u) {
             if (got == a->bus.txn_mask) {
                 uint16_t now = (uint16_t)app_now_ms(a);
