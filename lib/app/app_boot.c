@@ -10,6 +10,8 @@
 
 #include "app/app_priv.h"
 
+/* The table, once, into an app that app_init() has just cleared (table_ok 0,
+ * info all zero until the table passes its checks). */
 static void load_table(app_t *a)
 {
     uint8_t i;
@@ -18,8 +20,6 @@ static void load_table(app_t *a)
     a->htab.table = a->io->table;
     a->htab.copy =
         a->io->table_copy_learned != NULL ? a->io->table_copy_learned : a->io->table_copy;
-    a->table_ok = 0;
-    memset(&a->info, 0, sizeof a->info);
     if (a->io->table == NULL || tbl_check(&a->tab) != 0 || tbl_info(&a->tab, &a->info) != 0 ||
         a->info.n_sensors > APP_MAX_SENSORS || a->info.n_tendons > APP_MAX_TENDONS) {
         memset(&a->info, 0, sizeof a->info);
