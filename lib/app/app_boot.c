@@ -96,11 +96,11 @@ int8_t app_init(app_t *app, const app_io_t *io)
     return 0;
 }
 
+/* Step 0 of the bring-up (state APP_ST_BOOT) ends: the devices' bring-up
+ * starts (step 1). */
 static void boot_start(app_t *a)
 {
     dxl_bringup_config bc;
-    a->state = APP_ST_BOOT;
-    a->boot.step = 0;
     a->boot.t_start = app_now_ms(a);
     if (!a->table_ok) {
         return;
