@@ -44,6 +44,9 @@ uint8_t app_in_grid(const app_t *a, uint16_t mN)
                      mN <= app_grid_mN(a, (uint8_t)(a->info.n_grid - 1u)));
 }
 
+/* app_init() starts in the state and LED pattern of a cleared app_t. */
+typedef char app_boot_first_t[(APP_ST_BOOT == 0 && APP_LED_BOOT == 0) ? 1 : -1];
+
 int8_t app_init(app_t *app, const app_io_t *io)
 {
     dxl_config dc;
@@ -84,9 +87,8 @@ int8_t app_init(app_t *app, const app_io_t *io)
             }
         }
     }
-    app->state = APP_ST_BOOT;
+    /* state APP_ST_BOOT, LED APP_LED_BOOT: as memset() left them */
     app->boot.t_start = app_now_ms(app);
-    app_panel_set(app, APP_LED_BOOT);
     app_rep_begin(app, app_w_boot);
     app_rep_ident(app);
     if (io->reset_f != NULL) {
