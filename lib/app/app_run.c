@@ -112,6 +112,17 @@ static int run_hom_start(app_t *a, uint8_t mode, uint8_t survey, uint16_t tensio
     return hom_start(&a->u.hom, &a->htab, &cmd);
 }
 
+/* A run or an app move starts (state APP_ST_CAL or APP_ST_MOVE): the kept
+ * windows note it, the positions read before are no news. */
+APP_NOINLINE static void begin_moving(app_t *a, uint8_t state)
+{
+    app_win_moving(a, 1);
+    a->run.done_out = 0;
+    app_bus_positions_stale(a);
+    a->state = state;
+    app_panel_set(a, APP_LED_RUN);
+}
+
 /* Starts a homing run. Returns 0 or a CON_E_* code (nothing moves then), or
  * CON_PENDING when tendons got fresh windows that go to the EEPROM first. */
 static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon)
@@ -176,11 +187,7 @@ static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon
     a->run.tension = tension;
     a->run.mask = mode == HOM_MODE_SINGLE ? app_bit16(tendon) : app_all_mask(a);
     a->run.t_start = app_now_ms(a);
-    app_bus_positions_stale(a);
-    a->state = APP_ST_CAL;
-    app_win_moving(a, 1);
-    a->run.done_out = 0;
-    app_panel_set(a, APP_LED_RUN);
+    begin_moving(a, APP_ST_CAL);
     app_rec_rest_at(a, 0, 0);
     return 0;
 }
@@ -278,13 +285,9 @@ APP_NOINLINE void app_run_step(app_t *a, hom_in_t *in)
 
 void app_run_move(app_t *a, uint8_t kind)
 {
-    app_win_moving(a, 1);
-    a->run.done_out = 0;
     a->run.move_kind = kind;
     a->run.t_move = app_now_ms(a);
-    app_bus_positions_stale(a);
-    a->state = APP_ST_MOVE;
-    app_panel_set(a, APP_LED_RUN);
+    begin_moving(a, APP_ST_MOVE);
 }
 
 /* Release goals computed by the app when no run is active: the slack margin
