@@ -178,7 +178,7 @@ APP_NOINLINE static void servo_next(app_t *a)
 {
     uint8_t ids[APP_MAX_TENDONS];
     uint8_t data[GOALS_PER_TXN * 12u];
-    uint8_t i, n = 0, txn, v, pos_only;
+    uint8_t i, n = 0, txn, v, pos_only, wdog;
     uint16_t mask, addr;
     if (a->bus.reboot_req != 0u &&
         (a->bus.goal_due | a->bus.goal_again | a->bus.torque_due) == 0u &&
@@ -209,8 +209,9 @@ APP_NOINLINE static void servo_next(app_t *a)
         }
         return;
     }
-    if ((a->bus.wdog_step != 0u && !a->bus.wdog_gap) || a->bus.torque_due != 0u) {
-        if (a->bus.wdog_step != 0u && !a->bus.wdog_gap) {
+    wdog = (uint8_t)(a->bus.wdog_step != 0u && !a->bus.wdog_gap);
+    if (wdog || a->bus.torque_due != 0u) {
+        if (wdog) {
             /* two writes per servo, from the last: 0 clears an expired
              * watchdog (the servo refuses goals until then), then the
              * period arms it. A position read between two writes: 24
