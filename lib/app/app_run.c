@@ -16,19 +16,20 @@
 static void run_done(app_t *a)
 {
     uint32_t t = app_now_ms(a);
+    uint8_t cal = (uint8_t)(a->run.mode != APP_MODE_SURVEY);
     a->run.done_out = 1; /* the robot stands at its homes: noted once <done> is out */
     a->run.amb_ok |= hom_amb_captured(&a->u.hom); /* read before u.idle reuses the storage */
-    if (a->run.mode != APP_MODE_SURVEY) {
+    if (cal) {
         app_rec_take_homes(a, a->run.mask, a->run.tension);
     }
     /* The run's baseline is the learn baseline until the next release. From
      * here on the homing's storage is reused (u.idle overlaps its first
      * bytes only: the homes above were read first). A held pull's b0 is its
      * reference, taken with the robot bent: never kept. */
-    if (a->run.mode != APP_MODE_SURVEY || a->run.hold == 0u) {
+    if (cal || a->run.hold == 0u) {
         app_learn_keep_baseline(a);
     }
-    if (a->run.mode != APP_MODE_SURVEY) {
+    if (cal) {
         app_rec_save_run(a);
         app_boot_homes_new(a);
     }
