@@ -143,12 +143,13 @@ static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon
         return CON_E_BAD_TENDON;
     }
     if (survey) {
+        uint16_t least = app_grid_mN(a, 0);
         tension = app_grid_mN(a, (uint8_t)(a->info.n_grid - 1u));
         tension = (uint16_t)((uint16_t)(tension * (a->run.hold != 0u ? APP_HOLD_EIGHTHS
                                                                      : APP_SURVEY_EIGHTHS)) >>
                              3);
-        if (tension < app_grid_mN(a, 0)) {
-            tension = app_grid_mN(a, 0);
+        if (tension < least) {
+            tension = least;
         }
     }
     if (tension == 0u) {
