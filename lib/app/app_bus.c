@@ -193,8 +193,8 @@ APP_NOINLINE static void servo_next(app_t *a)
         a->bus.reboot_req = 0;
         if (dxl_reboot(&a->bus.dxl, a->bus.reboot_id) > 0) {
             a->bus.txn = APP_TX_REBOOT;
-        } else if (con_pending(&a->cmd.con)) {
-            (void)con_complete(&a->cmd.con, CON_E_INTERNAL);
+        } else {
+            (void)con_complete(&a->cmd.con, CON_E_INTERNAL); /* a `reboot` waiting, if any */
         }
         return;
     }

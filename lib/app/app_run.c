@@ -400,7 +400,8 @@ void app_abort(app_t *app)
         }
         return;
     }
-    if (app->run.req_start && app->run.req_con && con_pending(&app->cmd.con)) {
+    /* con_complete() answers a command only while one waits */
+    if (app->run.req_start && app->run.req_con) {
         (void)con_complete(&app->cmd.con, CON_E_ABORTED);
     }
     app->run.req_start = 0;
@@ -411,8 +412,7 @@ void app_abort(app_t *app)
         app->run.abort_owed = (uint8_t)!hom_abort(&app->u.hom);
         return;
     }
-    if (app->state == APP_ST_LEARN && app->learn.tendon != APP_LEARN_BASELINE &&
-        con_pending(&app->cmd.con)) {
+    if (app->state == APP_ST_LEARN && app->learn.tendon != APP_LEARN_BASELINE) {
         (void)con_complete(&app->cmd.con, CON_E_ABORTED);
     }
     if (!app->table_ok) {
