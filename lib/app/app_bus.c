@@ -457,15 +457,16 @@ void app_bus_inputs(app_t *a, hom_in_t *in)
 APP_NOINLINE void app_bus_take(app_t *a, const hom_out_t *out)
 {
     uint8_t i;
+    if (out->changed != 0u) { /* the homing's tendons: the table's */
+        a->bus.acc = out->acc;
+        a->bus.goal_due |= out->changed;
+        a->bus.goal_again |= out->changed;
+    }
     for (i = 0; i < a->info.n_tendons; i++) {
-        if (app_has(out->changed, i)) {
-            a->bus.acc = out->acc;
-            a->bus.goal_due |= app_bit16(i);
-            a->bus.goal_again |= app_bit16(i);
-            if ((out->torque[i] != 0u) != (app_has(a->bus.torque_on, i) != 0u)) {
-                a->bus.torque_on ^= app_bit16(i);
-                a->bus.torque_due |= app_bit16(i);
-            }
+        if (app_has(out->changed, i) &&
+            (out->torque[i] != 0u) != (app_has(a->bus.torque_on, i) != 0u)) {
+            a->bus.torque_on ^= app_bit16(i);
+            a->bus.torque_due |= app_bit16(i);
         }
     }
 }
