@@ -124,8 +124,9 @@ APP_NOINLINE static void begin_moving(app_t *a, uint8_t state)
     app_panel_set(a, APP_LED_RUN);
 }
 
-/* Starts a homing run. Returns 0 or a CON_E_* code (nothing moves then), or
- * CON_PENDING when tendons got fresh windows that go to the EEPROM first. */
+/* Starts a homing run (for run_or_defer()). Returns 0 or a CON_E_* code
+ * (nothing moves then), or CON_PENDING when tendons got fresh windows that
+ * go to the EEPROM first. */
 static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon)
 {
     int rc;
@@ -165,9 +166,8 @@ static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon
         }
         tension = a->rec.homes.tension_mN;
     }
-    if (store_busy(&a->rec.store) || app_rec_busy(a)) {
-        return CON_E_BUSY; /* finishes within a few hundred ms */
-    }
+    /* the EEPROM and the record storage are free: run_or_defer() waits for
+     * them (a few hundred ms) */
     if (mode != HOM_MODE_DRY && app_win_before_run(a, tension)) {
         return CON_PENDING; /* started once they are saved (run_or_defer()) */
     }
