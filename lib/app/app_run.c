@@ -529,7 +529,8 @@ static uint8_t settling(const app_t *a)
 
 /* Starts the run now, defers it (EEPROM write in flight, bring-up or a
  * release under way, devices to bring up again), or refuses it: 0,
- * CON_PENDING or a CON_E_*. */
+ * CON_PENDING or a CON_E_*. Sets req_start: 1 (the request kept) only with
+ * CON_PENDING. */
 static int8_t run_or_defer(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon,
                            uint8_t from_con)
 {
@@ -568,7 +569,6 @@ void app_run_press(app_t *a)
         return; /* a long press aborts */
     }
     app_panel_set(a, APP_LED_IDLE);
-    a->run.req_start = 0;
     rc = run_or_defer(a, a->boot.offer_quick ? HOM_MODE_QUICK : HOM_MODE_FULL, 0, 0, 0);
     if (rc != 0 && rc != CON_PENDING) {
         app_rep_fault(a, app_w_refused, rc, HOM_DEV_NONE, 0);
@@ -656,7 +656,6 @@ void app_run_poll(app_t *a)
 
 APP_NOINLINE int8_t app_run_request(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon)
 {
-    a->run.req_start = 0;
     a->run.recover_left = APP_RECOVER_NEW;
     return run_or_defer(a, mode, tension, tendon, 1);
 }
