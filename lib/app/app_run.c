@@ -464,11 +464,7 @@ APP_NOINLINE static void keep_request(app_t *a, uint8_t mode, uint16_t tension, 
                                       uint8_t from_con)
 {
     a->run.req_start = 1;
-    a->run.req_con = from_con;
-    /* a press asks for the run the board offers when it starts: a quick
-     * re-home kept while the devices came up again was refused (error 22)
-     * once that bring-up found the homes moved (chaos seed 7416) */
-    a->run.req_btn = (uint8_t)!from_con;
+    a->run.req_con = from_con; /* 0: a press, whose run is chosen when it starts */
     a->run.req_mode = mode;
     a->run.req_tension = tension;
     a->run.req_tendon = tendon;
@@ -635,14 +631,15 @@ void app_run_poll(app_t *a)
     if (a->run.req_start && a->state != APP_ST_BOOT && store_busy(&a->rec.store) == 0u &&
         !app_rec_busy(a) && a->bus.reboot_id == 0u && !a->bus.reboot_req) {
         int8_t rc;
-        if (a->run.req_btn) {
-            a->run.req_btn = 0;
-            a->run.req_mode = a->boot.offer_quick ? HOM_MODE_QUICK : HOM_MODE_FULL;
-            a->run.req_tension = 0;
-            a->run.req_tendon = 0;
+        if (a->run.req_con) {
+            rc = run_or_defer(a, a->run.req_mode, a->run.req_tension, a->run.req_tendon, 1);
+        } else {
+            /* a press asks for the run the board offers when it starts: a
+             * quick re-home kept while the devices came up again was
+             * refused (error 22) once that bring-up found the homes moved
+             * (chaos seed 7416) */
+            rc = run_or_defer(a, a->boot.offer_quick ? HOM_MODE_QUICK : HOM_MODE_FULL, 0, 0, 0);
         }
-        rc =
-            run_or_defer(a, a->run.req_mode, a->run.req_tension, a->run.req_tendon, a->run.req_con);
         if (rc == CON_PENDING) {
             return; /* the devices are brought up again first, or the release ends */
         }
