@@ -178,7 +178,7 @@ APP_NOINLINE static void servo_next(app_t *a)
 {
     uint8_t ids[APP_MAX_TENDONS];
     uint8_t data[GOALS_PER_TXN * 12u];
-    uint8_t i, n = 0, txn, v, pos_only, wdog;
+    uint8_t i, n = 0, txn, v, pos_only, wdog, id;
     uint16_t mask, addr;
     if (a->bus.reboot_req != 0u &&
         (a->bus.goal_due | a->bus.goal_again | a->bus.torque_due) == 0u &&
@@ -198,20 +198,19 @@ APP_NOINLINE static void servo_next(app_t *a)
         }
         return;
     }
-    if (a->bus.wdog_bcast != 0u) {
-        /* every watchdog cleared and armed at once, by two broadcast
-         * writes, before the writes one by one that confirm it: cleared
-         * one by one, twelve servos took 130 ms to take the release goals
-         * a 100 ms `status` burst at rest had let expire (chaos seed 3079) */
-        v = --a->bus.wdog_bcast != 0u ? 0u : APP_BUS_WATCHDOG;
-        if (dxl_write_value(&a->bus.dxl, DXL_BROADCAST_ID, DXL_XL430_BUS_WATCHDOG_ADDR, v, 1) > 0) {
-            a->bus.txn = APP_TX_WDOG;
-        }
-        return;
-    }
     wdog = (uint8_t)(a->bus.wdog_step != 0u && !a->bus.wdog_gap);
-    if (wdog || a->bus.torque_due != 0u) {
-        if (wdog) {
+    if (a->bus.wdog_bcast != 0u || wdog || a->bus.torque_due != 0u) {
+        txn = APP_TX_WDOG;
+        addr = DXL_XL430_BUS_WATCHDOG_ADDR;
+        if (a->bus.wdog_bcast != 0u) {
+            /* every watchdog cleared and armed at once, by two broadcast
+             * writes, before the writes one by one that confirm it: cleared
+             * one by one, twelve servos took 130 ms to take the release
+             * goals a 100 ms `status` burst at rest had let expire (chaos
+             * seed 3079) */
+            v = --a->bus.wdog_bcast != 0u ? 0u : APP_BUS_WATCHDOG;
+            id = DXL_BROADCAST_ID;
+        } else if (wdog) {
             /* two writes per servo, from the last: 0 clears an expired
              * watchdog (the servo refuses goals until then), then the
              * period arms it. A position read between two writes: 24
@@ -224,17 +223,17 @@ APP_NOINLINE static void servo_next(app_t *a)
                 return;
             }
             v = (v & 1u) ? APP_BUS_WATCHDOG : 0u;
-            addr = DXL_XL430_BUS_WATCHDOG_ADDR;
-            txn = APP_TX_WDOG;
+            id = a->bus.ids[i];
         } else {
             for (i = 0; app_has(a->bus.torque_due, i) == 0u; i++) {
             }
             a->bus.torque_due &= (uint16_t)~app_bit16(i);
             v = app_has(a->bus.torque_on, i);
+            id = a->bus.ids[i];
             addr = DXL_XL430_TORQUE_ENABLE_ADDR;
             txn = APP_TX_TORQUE;
         }
-        if (dxl_write_value(&a->bus.dxl, a->bus.ids[i], addr, v, 1) > 0) {
+        if (dxl_write_value(&a->bus.dxl, id, addr, v, 1) > 0) {
             a->bus.txn = txn;
         }
         return;
