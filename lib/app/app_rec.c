@@ -74,10 +74,11 @@ APP_NOINLINE void app_rec_queue(app_t *a, uint8_t what)
  * CON_E_NOT_HOMED or CON_E_MOVED (a spool turned while powered off). */
 APP_NOINLINE int8_t app_rec_usable(const app_t *a)
 {
-    if (a->rec.homes_rc != 0 || a->rec.homes.valid_mask != app_all_mask(a)) {
+    uint16_t all = app_all_mask(a);
+    if (a->rec.homes_rc != 0 || a->rec.homes.valid_mask != all) {
         return CON_E_NOT_HOMED;
     }
-    return a->rec.home_now != app_all_mask(a) ? CON_E_MOVED : 0;
+    return a->rec.home_now != all ? CON_E_MOVED : 0;
 }
 
 /* Records the rest positions once the servos have stopped after a release or
