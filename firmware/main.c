@@ -242,7 +242,9 @@ int main(void)
     if (reset_flags() & (RESET_POWER | RESET_BROWNOUT)) {
         memset(&app_board_win, 0, sizeof app_board_win);
     }
-    io.win = &app_board_win;
+#if !APP_BOARD_FIXED
+    io.win = &app_board_win; /* else the app uses app_board_win itself */
+#endif
     (void)app_init(&app, &io);
     uart1_init(app_bus_baud(&app));
     board_io_wdt_start();

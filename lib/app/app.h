@@ -281,8 +281,8 @@ typedef struct {
     uint8_t amb_ok;     /* amb[] holds this power cycle's ambient capture */
     uint8_t last_fault; /* hom_fault_t of the last run */
     uint8_t req_start;  /* a run requested while an EEPROM save finishes */
-    uint8_t req_con;    /* the request came from a pending `cal` / `rehome` */
-    uint8_t req_btn;    /* the request came from a press: its mode is the offer when it starts */
+    uint8_t req_con;    /* the request came from a pending `cal` / `rehome` (0: a press, whose
+                           mode is the offer when it starts) */
     uint8_t req_mode;
     uint8_t req_tendon;
     uint8_t auto_release;  /* ID of a servo in hardware error: reboot it, then release */

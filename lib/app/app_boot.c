@@ -10,6 +10,8 @@
 
 #include "app/app_priv.h"
 
+/* The table, once, into an app that app_init() has just cleared (table_ok 0,
+ * info all zero until the table passes its checks). */
 static void load_table(app_t *a)
 {
     uint8_t i;
@@ -18,8 +20,6 @@ static void load_table(app_t *a)
     a->htab.table = a->io->table;
     a->htab.copy =
         a->io->table_copy_learned != NULL ? a->io->table_copy_learned : a->io->table_copy;
-    a->table_ok = 0;
-    memset(&a->info, 0, sizeof a->info);
     if (a->io->table == NULL || tbl_check(&a->tab) != 0 || tbl_info(&a->tab, &a->info) != 0 ||
         a->info.n_sensors > APP_MAX_SENSORS || a->info.n_tendons > APP_MAX_TENDONS) {
         memset(&a->info, 0, sizeof a->info);
@@ -43,6 +43,9 @@ uint8_t app_in_grid(const app_t *a, uint16_t mN)
     return (uint8_t)(a->info.n_grid != 0u && mN >= app_grid_mN(a, 0) &&
                      mN <= app_grid_mN(a, (uint8_t)(a->info.n_grid - 1u)));
 }
+
+/* app_init() starts in the state and LED pattern of a cleared app_t. */
+typedef char app_boot_first_t[(APP_ST_BOOT == 0 && APP_LED_BOOT == 0) ? 1 : -1];
 
 int8_t app_init(app_t *app, const app_io_t *io)
 {
@@ -84,9 +87,8 @@ int8_t app_init(app_t *app, const app_io_t *io)
             }
         }
     }
-    app->state = APP_ST_BOOT;
+    /* state APP_ST_BOOT, LED APP_LED_BOOT: as memset() left them */
     app->boot.t_start = app_now_ms(app);
-    app_panel_set(app, APP_LED_BOOT);
     app_rep_begin(app, app_w_boot);
     app_rep_ident(app);
     if (io->reset_f != NULL) {
@@ -96,11 +98,11 @@ int8_t app_init(app_t *app, const app_io_t *io)
     return 0;
 }
 
+/* Step 0 of the bring-up (state APP_ST_BOOT) ends: the devices' bring-up
+ * starts (step 1). */
 static void boot_start(app_t *a)
 {
     dxl_bringup_config bc;
-    a->state = APP_ST_BOOT;
-    a->boot.step = 0;
     a->boot.t_start = app_now_ms(a);
     if (!a->table_ok) {
         return;

@@ -96,8 +96,6 @@ APP_NOINLINE static void servo_done(app_t *a)
             if (a->bus.txn == APP_TX_POS && r->len >= 4u) {
                 a->bus.present[i] = dxl_reply_value(r, 4);
                 got |= app_bit16(i);
-                a->bus.fresh |= app_bit16(i);
-                a->bus.seen |= app_bit16(i);
             } else if (a->bus.txn == APP_TX_HWERR && r->len >= 1u) {
                 a->bus.hw_err[i] = r->data[0];
                 got |= app_bit16(i);
@@ -117,6 +115,10 @@ APP_NOINLINE static void servo_done(app_t *a)
         first = (uint16_t)(lost & ~a->bus.missed);
         a->bus.missed =
             (uint16_t)((a->bus.missed & (lost | keep)) | (first & (uint16_t)(0u - first)));
+        if (a->bus.txn == APP_TX_POS) {
+            a->bus.fresh |= got;
+            a->bus.seen |= got;
+        }
         if (a->bus.txn == APP_TX_POS && a->bus.focus == 0u) {
             if (got == a->bus.txn_mask) {
                 uint16_t now = (uint16_t)app_now_ms(a);
@@ -176,7 +178,7 @@ APP_NOINLINE static void servo_next(app_t *a)
 {
     uint8_t ids[APP_MAX_TENDONS];
     uint8_t data[GOALS_PER_TXN * 12u];
-    uint8_t i, n = 0, txn, v, pos_only;
+    uint8_t i, n = 0, txn, v, pos_only, wdog, id;
     uint16_t mask, addr;
     if (a->bus.reboot_req != 0u &&
         (a->bus.goal_due | a->bus.goal_again | a->bus.torque_due) == 0u &&
@@ -191,24 +193,24 @@ APP_NOINLINE static void servo_next(app_t *a)
         a->bus.reboot_req = 0;
         if (dxl_reboot(&a->bus.dxl, a->bus.reboot_id) > 0) {
             a->bus.txn = APP_TX_REBOOT;
-        } else if (con_pending(&a->cmd.con)) {
-            (void)con_complete(&a->cmd.con, CON_E_INTERNAL);
+        } else {
+            (void)con_complete(&a->cmd.con, CON_E_INTERNAL); /* a `reboot` waiting, if any */
         }
         return;
     }
-    if (a->bus.wdog_bcast != 0u) {
-        /* every watchdog cleared and armed at once, by two broadcast
-         * writes, before the writes one by one that confirm it: cleared
-         * one by one, twelve servos took 130 ms to take the release goals
-         * a 100 ms `status` burst at rest had let expire (chaos seed 3079) */
-        v = --a->bus.wdog_bcast != 0u ? 0u : APP_BUS_WATCHDOG;
-        if (dxl_write_value(&a->bus.dxl, DXL_BROADCAST_ID, DXL_XL430_BUS_WATCHDOG_ADDR, v, 1) > 0) {
-            a->bus.txn = APP_TX_WDOG;
-        }
-        return;
-    }
-    if ((a->bus.wdog_step != 0u && !a->bus.wdog_gap) || a->bus.torque_due != 0u) {
-        if (a->bus.wdog_step != 0u && !a->bus.wdog_gap) {
+    wdog = (uint8_t)(a->bus.wdog_step != 0u && !a->bus.wdog_gap);
+    if (a->bus.wdog_bcast != 0u || wdog || a->bus.torque_due != 0u) {
+        txn = APP_TX_WDOG;
+        addr = DXL_XL430_BUS_WATCHDOG_ADDR;
+        if (a->bus.wdog_bcast != 0u) {
+            /* every watchdog cleared and armed at once, by two broadcast
+             * writes, before the writes one by one that confirm it: cleared
+             * one by one, twelve servos took 130 ms to take the release
+             * goals a 100 ms `status` burst at rest had let expire (chaos
+             * seed 3079) */
+            v = --a->bus.wdog_bcast != 0u ? 0u : APP_BUS_WATCHDOG;
+            id = DXL_BROADCAST_ID;
+        } else if (wdog) {
             /* two writes per servo, from the last: 0 clears an expired
              * watchdog (the servo refuses goals until then), then the
              * period arms it. A position read between two writes: 24
@@ -221,17 +223,17 @@ APP_NOINLINE static void servo_next(app_t *a)
                 return;
             }
             v = (v & 1u) ? APP_BUS_WATCHDOG : 0u;
-            addr = DXL_XL430_BUS_WATCHDOG_ADDR;
-            txn = APP_TX_WDOG;
+            id = a->bus.ids[i];
         } else {
             for (i = 0; app_has(a->bus.torque_due, i) == 0u; i++) {
             }
             a->bus.torque_due &= (uint16_t)~app_bit16(i);
             v = app_has(a->bus.torque_on, i);
+            id = a->bus.ids[i];
             addr = DXL_XL430_TORQUE_ENABLE_ADDR;
             txn = APP_TX_TORQUE;
         }
-        if (dxl_write_value(&a->bus.dxl, a->bus.ids[i], addr, v, 1) > 0) {
+        if (dxl_write_value(&a->bus.dxl, id, addr, v, 1) > 0) {
             a->bus.txn = txn;
         }
         return;
@@ -454,15 +456,16 @@ void app_bus_inputs(app_t *a, hom_in_t *in)
 APP_NOINLINE void app_bus_take(app_t *a, const hom_out_t *out)
 {
     uint8_t i;
+    if (out->changed != 0u) { /* the homing's tendons: the table's */
+        a->bus.acc = out->acc;
+        a->bus.goal_due |= out->changed;
+        a->bus.goal_again |= out->changed;
+    }
     for (i = 0; i < a->info.n_tendons; i++) {
-        if (app_has(out->changed, i)) {
-            a->bus.acc = out->acc;
-            a->bus.goal_due |= app_bit16(i);
-            a->bus.goal_again |= app_bit16(i);
-            if ((out->torque[i] != 0u) != (app_has(a->bus.torque_on, i) != 0u)) {
-                a->bus.torque_on ^= app_bit16(i);
-                a->bus.torque_due |= app_bit16(i);
-            }
+        if (app_has(out->changed, i) &&
+            (out->torque[i] != 0u) != (app_has(a->bus.torque_on, i) != 0u)) {
+            a->bus.torque_on ^= app_bit16(i);
+            a->bus.torque_due |= app_bit16(i);
         }
     }
 }

@@ -185,7 +185,7 @@ APP_NOINLINE void app_learn_step(app_t *a, const hom_in_t *in)
     uint32_t v = 0;
     uint32_t el = app_now_ms(a) - a->learn.t_start;
     int8_t rc = 0;
-    if (a->learn.tendon == APP_LEARN_BASELINE) {
+    if (tdn == APP_LEARN_BASELINE) {
         first = 0;
         last = a->info.n_sensors;
         if (el < SETTLE_MS) {
@@ -228,7 +228,7 @@ APP_NOINLINE void app_learn_step(app_t *a, const hom_in_t *in)
             sum[k] /= (int32_t)APP_LEARN_SAMPLES; /* sums become averages */
         }
     }
-    if (a->learn.tendon == APP_LEARN_BASELINE) {
+    if (tdn == APP_LEARN_BASELINE) {
         if (rc == 0) {
             memcpy(a->u.idle.b0, a->u.idle.acc, sizeof a->u.idle.b0);
             a->learn.have_b0 = 1;
@@ -253,9 +253,7 @@ APP_NOINLINE void app_learn_step(app_t *a, const hom_in_t *in)
     if (rc == 0) {
         learned_store(a, tdn, v);
     }
-    if (con_pending(&a->cmd.con)) {
-        (void)con_complete(&a->cmd.con, rc);
-    }
+    (void)con_complete(&a->cmd.con, rc); /* nothing when no `learn` waits */
     a->state = APP_ST_IDLE;
 }
 

@@ -55,14 +55,14 @@ int8_t app_rec_recover(app_t *a)
  * starts, so one only queued takes no room). */
 uint8_t app_rec_busy(const app_t *a)
 {
-    return (uint8_t)((a->rec.save_due & (APP_SAVE_HIST | APP_SAVE_LEARNED)) != 0u ||
-                     a->rec.save_now == APP_SAVE_HIST || a->rec.save_now == APP_SAVE_LEARNED ||
-                     a->rec.save_now == APP_SAVE_WIN);
+    /* save_now: one APP_SAVE_* bit, or 0 */
+    return (uint8_t)(((a->rec.save_due & (APP_SAVE_HIST | APP_SAVE_LEARNED)) |
+                      (a->rec.save_now & (APP_SAVE_HIST | APP_SAVE_LEARNED | APP_SAVE_WIN))) != 0u);
 }
 
 APP_NOINLINE uint8_t app_rec_saving(const app_t *a, uint8_t what)
 {
-    return (uint8_t)((a->rec.save_due & what) != 0u || a->rec.save_now == what);
+    return (uint8_t)(((a->rec.save_due | a->rec.save_now) & what) != 0u); /* one bit each */
 }
 
 APP_NOINLINE void app_rec_queue(app_t *a, uint8_t what)
@@ -74,10 +74,11 @@ APP_NOINLINE void app_rec_queue(app_t *a, uint8_t what)
  * CON_E_NOT_HOMED or CON_E_MOVED (a spool turned while powered off). */
 APP_NOINLINE int8_t app_rec_usable(const app_t *a)
 {
-    if (a->rec.homes_rc != 0 || a->rec.homes.valid_mask != app_all_mask(a)) {
+    uint16_t all = app_all_mask(a);
+    if (a->rec.homes_rc != 0 || a->rec.homes.valid_mask != all) {
         return CON_E_NOT_HOMED;
     }
-    return a->rec.home_now != app_all_mask(a) ? CON_E_MOVED : 0;
+    return a->rec.home_now != all ? CON_E_MOVED : 0;
 }
 
 /* Records the rest positions once the servos have stopped after a release or

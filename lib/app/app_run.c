@@ -16,19 +16,20 @@
 static void run_done(app_t *a)
 {
     uint32_t t = app_now_ms(a);
+    uint8_t cal = (uint8_t)(a->run.mode != APP_MODE_SURVEY);
     a->run.done_out = 1; /* the robot stands at its homes: noted once <done> is out */
     a->run.amb_ok |= hom_amb_captured(&a->u.hom); /* read before u.idle reuses the storage */
-    if (a->run.mode != APP_MODE_SURVEY) {
+    if (cal) {
         app_rec_take_homes(a, a->run.mask, a->run.tension);
     }
     /* The run's baseline is the learn baseline until the next release. From
      * here on the homing's storage is reused (u.idle overlaps its first
      * bytes only: the homes above were read first). A held pull's b0 is its
      * reference, taken with the robot bent: never kept. */
-    if (a->run.mode != APP_MODE_SURVEY || a->run.hold == 0u) {
+    if (cal || a->run.hold == 0u) {
         app_learn_keep_baseline(a);
     }
-    if (a->run.mode != APP_MODE_SURVEY) {
+    if (cal) {
         app_rec_save_run(a);
         app_boot_homes_new(a);
     }
@@ -112,8 +113,20 @@ static int run_hom_start(app_t *a, uint8_t mode, uint8_t survey, uint16_t tensio
     return hom_start(&a->u.hom, &a->htab, &cmd);
 }
 
-/* Starts a homing run. Returns 0 or a CON_E_* code (nothing moves then), or
- * CON_PENDING when tendons got fresh windows that go to the EEPROM first. */
+/* A run or an app move starts (state APP_ST_CAL or APP_ST_MOVE): the kept
+ * windows note it, the positions read before are no news. */
+APP_NOINLINE static void begin_moving(app_t *a, uint8_t state)
+{
+    app_win_moving(a, 1);
+    a->run.done_out = 0;
+    app_bus_positions_stale(a);
+    a->state = state;
+    app_panel_set(a, APP_LED_RUN);
+}
+
+/* Starts a homing run (for run_or_defer()). Returns 0 or a CON_E_* code
+ * (nothing moves then), or CON_PENDING when tendons got fresh windows that
+ * go to the EEPROM first. */
 static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon)
 {
     int rc;
@@ -131,12 +144,13 @@ static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon
         return CON_E_BAD_TENDON;
     }
     if (survey) {
+        uint16_t least = app_grid_mN(a, 0);
         tension = app_grid_mN(a, (uint8_t)(a->info.n_grid - 1u));
         tension = (uint16_t)((uint16_t)(tension * (a->run.hold != 0u ? APP_HOLD_EIGHTHS
                                                                      : APP_SURVEY_EIGHTHS)) >>
                              3);
-        if (tension < app_grid_mN(a, 0)) {
-            tension = app_grid_mN(a, 0);
+        if (tension < least) {
+            tension = least;
         }
     }
     if (tension == 0u) {
@@ -152,9 +166,8 @@ static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon
         }
         tension = a->rec.homes.tension_mN;
     }
-    if (store_busy(&a->rec.store) || app_rec_busy(a)) {
-        return CON_E_BUSY; /* finishes within a few hundred ms */
-    }
+    /* the EEPROM and the record storage are free: run_or_defer() waits for
+     * them (a few hundred ms) */
     if (mode != HOM_MODE_DRY && app_win_before_run(a, tension)) {
         return CON_PENDING; /* started once they are saved (run_or_defer()) */
     }
@@ -176,11 +189,7 @@ static int8_t run_start(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon
     a->run.tension = tension;
     a->run.mask = mode == HOM_MODE_SINGLE ? app_bit16(tendon) : app_all_mask(a);
     a->run.t_start = app_now_ms(a);
-    app_bus_positions_stale(a);
-    a->state = APP_ST_CAL;
-    app_win_moving(a, 1);
-    a->run.done_out = 0;
-    app_panel_set(a, APP_LED_RUN);
+    begin_moving(a, APP_ST_CAL);
     app_rec_rest_at(a, 0, 0);
     return 0;
 }
@@ -278,13 +287,9 @@ APP_NOINLINE void app_run_step(app_t *a, hom_in_t *in)
 
 void app_run_move(app_t *a, uint8_t kind)
 {
-    app_win_moving(a, 1);
-    a->run.done_out = 0;
     a->run.move_kind = kind;
     a->run.t_move = app_now_ms(a);
-    app_bus_positions_stale(a);
-    a->state = APP_ST_MOVE;
-    app_panel_set(a, APP_LED_RUN);
+    begin_moving(a, APP_ST_MOVE);
 }
 
 /* Release goals computed by the app when no run is active: the slack margin
@@ -395,7 +400,8 @@ void app_abort(app_t *app)
         }
         return;
     }
-    if (app->run.req_start && app->run.req_con && con_pending(&app->cmd.con)) {
+    /* con_complete() answers a command only while one waits */
+    if (app->run.req_start && app->run.req_con) {
         (void)con_complete(&app->cmd.con, CON_E_ABORTED);
     }
     app->run.req_start = 0;
@@ -406,8 +412,7 @@ void app_abort(app_t *app)
         app->run.abort_owed = (uint8_t)!hom_abort(&app->u.hom);
         return;
     }
-    if (app->state == APP_ST_LEARN && app->learn.tendon != APP_LEARN_BASELINE &&
-        con_pending(&app->cmd.con)) {
+    if (app->state == APP_ST_LEARN && app->learn.tendon != APP_LEARN_BASELINE) {
         (void)con_complete(&app->cmd.con, CON_E_ABORTED);
     }
     if (!app->table_ok) {
@@ -459,11 +464,7 @@ APP_NOINLINE static void keep_request(app_t *a, uint8_t mode, uint16_t tension, 
                                       uint8_t from_con)
 {
     a->run.req_start = 1;
-    a->run.req_con = from_con;
-    /* a press asks for the run the board offers when it starts: a quick
-     * re-home kept while the devices came up again was refused (error 22)
-     * once that bring-up found the homes moved (chaos seed 7416) */
-    a->run.req_btn = (uint8_t)!from_con;
+    a->run.req_con = from_con; /* 0: a press, whose run is chosen when it starts */
     a->run.req_mode = mode;
     a->run.req_tension = tension;
     a->run.req_tendon = tendon;
@@ -478,9 +479,9 @@ APP_NOINLINE static void keep_request(app_t *a, uint8_t mode, uint16_t tension, 
  * answering is looked for again), and the run starts after the new <ready>. Each servo in hardware
  * error costs one bring-up, so a request gets one more than there are such servos; a device still
  * missing after them refuses the run as before. Returns 1 when a bring-up
- * was started for the request (kept in req_*), 0 when none is left. */
-static uint8_t defer_for_devices(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon,
-                                 uint8_t from_con)
+ * was started for the request (which the caller keeps in req_*), 0 when none
+ * is left. */
+static uint8_t defer_for_devices(app_t *a)
 {
     uint8_t i;
     uint8_t id = 0;
@@ -496,7 +497,6 @@ static uint8_t defer_for_devices(app_t *a, uint8_t mode, uint16_t tension, uint8
         return 0;
     }
     a->run.recover_left--;
-    keep_request(a, mode, tension, tendon, from_con);
     for (i = 0; i < a->info.n_tendons && id == 0u; i++) {
         if (a->bus.hw_err[i] != 0u && !app_has(a->bus.absent, i)) {
             id = a->bus.ids[i];
@@ -525,31 +525,29 @@ static uint8_t settling(const app_t *a)
 
 /* Starts the run now, defers it (EEPROM write in flight, bring-up or a
  * release under way, devices to bring up again), or refuses it: 0,
- * CON_PENDING or a CON_E_*. */
+ * CON_PENDING or a CON_E_*. Sets req_start: 1 (the request kept) only with
+ * CON_PENDING. */
 static int8_t run_or_defer(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon,
                            uint8_t from_con)
 {
-    int8_t rc;
+    int8_t rc = CON_PENDING; /* the request is kept (req_*) and started later */
     if (settling(a) || (app_idle_state(a) && (store_busy(&a->rec.store) || app_rec_busy(a)))) {
-        keep_request(a, mode, tension, tendon, from_con);
-        return CON_PENDING;
-    }
-    if (a->run.bring_up && app_idle_state(a)) {
+        /* once that is over */
+    } else if (a->run.bring_up && app_idle_state(a)) {
         a->run.bring_up = 0;
-        keep_request(a, mode, tension, tendon, from_con);
-        app_boot_again(a);
-        return CON_PENDING;
+        app_boot_again(a); /* after the bring-up */
+    } else {
+        /* CON_PENDING: once the fresh windows are in the EEPROM */
+        rc = run_start(a, mode, tension, tendon);
+        if ((rc == CON_E_SENSOR_FAULT || rc == CON_E_SERVO_FAULT) && defer_for_devices(a)) {
+            rc = CON_PENDING; /* after the devices' bring-up */
+        }
     }
-    rc = run_start(a, mode, tension, tendon);
     if (rc == CON_PENDING) {
         keep_request(a, mode, tension, tendon, from_con);
-        return CON_PENDING; /* fresh windows go to the EEPROM first */
+    } else {
+        a->run.req_start = 0;
     }
-    if ((rc == CON_E_SENSOR_FAULT || rc == CON_E_SERVO_FAULT) &&
-        defer_for_devices(a, mode, tension, tendon, from_con)) {
-        return CON_PENDING;
-    }
-    a->run.req_start = 0;
     return rc;
 }
 
@@ -560,16 +558,13 @@ void app_run_press(app_t *a)
     if (settling(a)) {
         /* pressed before <ready> or during the release after a stop: the
          * run starts once that is done, quick or full as it then offers */
-        a->run.req_start = 1;
-        a->run.req_con = 0;
-        a->run.req_btn = 1;
+        keep_request(a, 0, 0, 0, 0);
         return;
     }
     if (!app_idle_state(a)) {
         return; /* a long press aborts */
     }
     app_panel_set(a, APP_LED_IDLE);
-    a->run.req_start = 0;
     rc = run_or_defer(a, a->boot.offer_quick ? HOM_MODE_QUICK : HOM_MODE_FULL, 0, 0, 0);
     if (rc != 0 && rc != CON_PENDING) {
         app_rep_fault(a, app_w_refused, rc, HOM_DEV_NONE, 0);
@@ -636,14 +631,15 @@ void app_run_poll(app_t *a)
     if (a->run.req_start && a->state != APP_ST_BOOT && store_busy(&a->rec.store) == 0u &&
         !app_rec_busy(a) && a->bus.reboot_id == 0u && !a->bus.reboot_req) {
         int8_t rc;
-        if (a->run.req_btn) {
-            a->run.req_btn = 0;
-            a->run.req_mode = a->boot.offer_quick ? HOM_MODE_QUICK : HOM_MODE_FULL;
-            a->run.req_tension = 0;
-            a->run.req_tendon = 0;
+        if (a->run.req_con) {
+            rc = run_or_defer(a, a->run.req_mode, a->run.req_tension, a->run.req_tendon, 1);
+        } else {
+            /* a press asks for the run the board offers when it starts: a
+             * quick re-home kept while the devices came up again was
+             * refused (error 22) once that bring-up found the homes moved
+             * (chaos seed 7416) */
+            rc = run_or_defer(a, a->boot.offer_quick ? HOM_MODE_QUICK : HOM_MODE_FULL, 0, 0, 0);
         }
-        rc =
-            run_or_defer(a, a->run.req_mode, a->run.req_tension, a->run.req_tendon, a->run.req_con);
         if (rc == CON_PENDING) {
             return; /* the devices are brought up again first, or the release ends */
         }
@@ -657,7 +653,6 @@ void app_run_poll(app_t *a)
 
 APP_NOINLINE int8_t app_run_request(app_t *a, uint8_t mode, uint16_t tension, uint8_t tendon)
 {
-    a->run.req_start = 0;
     a->run.recover_left = APP_RECOVER_NEW;
     return run_or_defer(a, mode, tension, tendon, 1);
 }
