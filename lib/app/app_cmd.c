@@ -142,7 +142,7 @@ static int8_t h_sensors(app_t *a, const con_args_t *args)
 
 static int8_t h_servos(app_t *a, const con_args_t *args)
 {
-    if ((args->given & 1u) && args->v[0] != 0) {
+    if (args->v[0] != 0) {                          /* not given: 0, scan */
         return app_cmd_list(a, APP_LIST_SERVOS, 0); /* pos, err: the live cycle keeps both fresh */
     }
     if (app_rec_busy(a)) {
@@ -154,14 +154,15 @@ static int8_t h_servos(app_t *a, const con_args_t *args)
 
 static int8_t h_cal(app_t *a, const con_args_t *args)
 {
-    uint16_t tension = (args->given & 1u) ? (uint16_t)args->v[0] : 0u;
+    uint8_t mode = HOM_MODE_FULL;
     if (args->given & 2u) {
         if (a->table_ok && args->v[1] >= a->info.n_tendons) {
             return CON_E_BAD_TENDON;
         }
-        return app_run_request(a, HOM_MODE_SINGLE, tension, (uint8_t)args->v[1]);
+        mode = HOM_MODE_SINGLE;
     }
-    return app_run_request(a, HOM_MODE_FULL, tension, 0);
+    /* an argument not given is 0 (con_args_t): no tension, tendon 0 */
+    return app_run_request(a, mode, (uint16_t)args->v[0], (uint8_t)args->v[1]);
 }
 
 /* A tendon the table lacks is refused when the run starts (run_start), and
