@@ -160,12 +160,13 @@ int8_t app_rep_missing(app_t *a)
         }
     }
     for (i = 0; i < a->info.n_tendons; i++) {
-        if (app_has(a->bus.absent, i) || a->bus.hw_err[i] != 0u) {
+        uint8_t hw = a->bus.hw_err[i];
+        if (app_has(a->bus.absent, i) || hw != 0u) {
             app_rep_begin(a, app_w_missing);
             con_report_flash(&a->cmd.con, app_w_dev, app_w_servo);
             app_rep_u8(a, app_w_index, i);
             app_rep_u8(a, app_w_id, a->bus.ids[i]);
-            app_rep_u8(a, app_w_hw_error, a->bus.hw_err[i]);
+            app_rep_u8(a, app_w_hw_error, hw);
             app_rep_end(a);
             if (rc == 0) {
                 rc = CON_E_SERVO_FAULT;
@@ -177,6 +178,7 @@ int8_t app_rep_missing(app_t *a)
 
 void app_rep_servo(app_t *a, uint8_t i, uint8_t with_model)
 {
+    int32_t pos;
     app_rep_begin(a, app_w_servo);
     app_rep_tendon(a, i);
     app_rep_u8(a, app_w_found, (uint8_t)(app_has(a->bus.absent, i) == 0u));
@@ -187,8 +189,9 @@ void app_rep_servo(app_t *a, uint8_t i, uint8_t with_model)
             app_rep_u8(a, app_w_fw, s->firmware);
         }
     }
-    app_rep_int(a, app_w_pos, a->bus.present[i]);
-    app_rep_int(a, app_w_cal_pos, a->bus.present[i] + a->rec.offset[i]);
+    pos = a->bus.present[i];
+    app_rep_int(a, app_w_pos, pos);
+    app_rep_int(a, app_w_cal_pos, pos + a->rec.offset[i]);
     app_rep_u8(a, app_w_hw_error, a->bus.hw_err[i]);
     app_rep_end(a);
 }
