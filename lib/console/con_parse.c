@@ -207,7 +207,7 @@ static int8_t check_number(const char *tok, const con_spec_t *sp, int32_t *v)
 static int8_t check_word(const char *tok, const char *choices, int32_t *v)
 {
     size_t n = strlen(tok);
-    int32_t idx = 0;
+    uint8_t idx = 0; /* a synopsis lists a few choices */
     const char *p = choices;
     for (;;) {
         const char *end = strchr(p, '|');
