@@ -24,19 +24,21 @@ APP_NOINLINE void app_cmd_poll(app_t *a)
     uint8_t moving = (uint8_t)(a->state == APP_ST_CAL || a->state == APP_ST_MOVE ||
                                (a->bus.goal_due | a->bus.torque_due) != 0u);
     uint16_t n = APP_HAS_RX_LOST(a) ? APP_RX_LOST(a) : 0u;
+    uint16_t lost = a->cmd.rx_lost, dropped;
     int8_t cmd;
     con_set_realtime(&a->cmd.con, moving);
-    if (n != a->cmd.rx_lost) {
+    if (n != lost) {
         app_rep_begin(a, app_w_overrun);
-        app_rep_u16(a, app_w_bytes, (uint16_t)(n - a->cmd.rx_lost));
+        app_rep_u16(a, app_w_bytes, (uint16_t)(n - lost));
         app_rep_u16(a, app_w_total, n);
         app_rep_end(a);
         a->cmd.rx_lost = n;
     }
-    if (!moving && con_dropped(&a->cmd.con) != a->cmd.dropped) {
-        a->cmd.dropped = con_dropped(&a->cmd.con);
+    dropped = con_dropped(&a->cmd.con);
+    if (!moving && dropped != a->cmd.dropped) {
+        a->cmd.dropped = dropped;
         app_rep_begin(a, app_w_dropped);
-        app_rep_u16(a, app_w_reports, a->cmd.dropped);
+        app_rep_u16(a, app_w_reports, dropped);
         app_rep_end(a);
     }
     list_poll(a);
@@ -94,13 +96,15 @@ static int8_t h_status(app_t *a, const con_args_t *args)
 
 static void home_line(app_t *a, uint8_t i)
 {
+    int32_t home = a->rec.homes.t[i].home_ticks;
+    uint8_t usable = app_has(a->rec.home_now, i);
     app_rep_begin(a, app_w_home);
     app_rep_u8(a, app_w_tendon, i);
-    app_rep_int(a, app_w_home, a->rec.homes.t[i].home_ticks);
-    app_rep_int(a, app_w_straight, a->rec.homes.t[i].home_ticks + a->rec.homes.to_straight[i]);
+    app_rep_int(a, app_w_home, home);
+    app_rep_int(a, app_w_straight, home + a->rec.homes.to_straight[i]);
     app_rep_int(a, app_w_rest, a->rec.homes.t[i].rest_ticks);
-    app_rep_u8(a, app_w_usable, app_has(a->rec.home_now, i));
-    if (app_has(a->rec.home_now, i)) {
+    app_rep_u8(a, app_w_usable, usable);
+    if (usable) {
         app_rep_int(a, app_w_now, app_rec_home(a, i));
     }
     app_rep_end(a);
@@ -142,7 +146,8 @@ static int8_t h_sensors(app_t *a, const con_args_t *args)
 
 static int8_t h_servos(app_t *a, const con_args_t *args)
 {
-    if ((args->given & 1u) && args->v[0] != 0) {
+    /* scan|pos|err: word 0-2, 0 (scan) when not given */
+    if ((uint8_t)args->v[0] != 0u) {
         return app_cmd_list(a, APP_LIST_SERVOS, 0); /* pos, err: the live cycle keeps both fresh */
     }
     if (app_rec_busy(a)) {
@@ -154,14 +159,15 @@ static int8_t h_servos(app_t *a, const con_args_t *args)
 
 static int8_t h_cal(app_t *a, const con_args_t *args)
 {
-    uint16_t tension = (args->given & 1u) ? (uint16_t)args->v[0] : 0u;
+    uint8_t mode = HOM_MODE_FULL, t = (uint8_t)args->v[1]; /* 0-11 (synopsis) */
     if (args->given & 2u) {
-        if (a->table_ok && args->v[1] >= a->info.n_tendons) {
+        if (a->table_ok && t >= a->info.n_tendons) {
             return CON_E_BAD_TENDON;
         }
-        return app_run_request(a, HOM_MODE_SINGLE, tension, (uint8_t)args->v[1]);
+        mode = HOM_MODE_SINGLE;
     }
-    return app_run_request(a, HOM_MODE_FULL, tension, 0);
+    /* an argument not given is 0 (con_args_t): no tension, tendon 0 */
+    return app_run_request(a, mode, (uint16_t)args->v[0], t);
 }
 
 /* A tendon the table lacks is refused when the run starts (run_start), and
@@ -243,17 +249,18 @@ static int8_t learn_grid(app_t *a, const con_args_t *args)
  * answered once written. */
 static int8_t h_learn(app_t *a, const con_args_t *args)
 {
+    uint8_t t = (uint8_t)args->v[0];
     int8_t g = learn_grid(a, args);
     if (g < 0) {
         return g;
     }
     if (args->given & 4u) {
-        return app_learn_install(a, (uint8_t)args->v[0], (uint8_t)g, (uint32_t)args->v[2] / 10u);
+        return app_learn_install(a, t, (uint8_t)g, (uint32_t)args->v[2] / 10u);
     }
     if (!a->learn.have_b0) {
         return CON_E_NOT_HOMED; /* no straight-pose baseline yet: `release` first */
     }
-    return app_learn_start(a, (uint8_t)args->v[0], (uint8_t)g);
+    return app_learn_start(a, t, (uint8_t)g);
 }
 
 /* `forget T|all`: the learned targets of tendon T, or of every tendon, are
@@ -297,13 +304,13 @@ static const app_field_t tendon_fields[] CON_FLASH = {
 
 static int8_t h_table(app_t *a, const con_args_t *args)
 {
-    uint8_t g;
+    uint8_t g, n = a->info.n_grid;
     (void)args;
     app_rep_begin(a, app_w_table);
     app_rep_name(a, app_w_name);
     APP_REP_FIELDS(a, &a->info, app_info_fields);
-    con_report_list(&a->cmd.con, app_w_grid_mN, a->info.n_grid);
-    for (g = 0; g < a->info.n_grid; g++) {
+    con_report_list(&a->cmd.con, app_w_grid_mN, n);
+    for (g = 0; g < n; g++) {
         con_report_item(&a->cmd.con, app_grid_mN(a, g), '\0', g == 0u);
     }
     APP_REP_FIELDS(a, &a->info, table_fields);
@@ -320,15 +327,15 @@ static void tendon_line(app_t *a, uint8_t i)
         tbl_tendon_head_t row;
         uint32_t eff[TBL_MAX_GRID];
     } l;
-    uint8_t g;
+    uint8_t g, n = a->info.n_grid;
     (void)tbl_tendon_head(&a->tab, i, &l.row);
     /* its learned targets (one look at the record) */
     (void)tbl_row(app_has(a->learn.mask, i) ? &a->htab : &a->tab, i, TBL_ROW_TARGET, l.eff);
     app_rep_begin(a, app_w_tendon);
     app_rep_u8(a, app_w_tendon, i);
     APP_REP_FIELDS(a, &l.row, tendon_fields);
-    con_report_list(&a->cmd.con, app_w_target_cuT, a->info.n_grid);
-    for (g = 0; g < a->info.n_grid; g++) {
+    con_report_list(&a->cmd.con, app_w_target_cuT, n);
+    for (g = 0; g < n; g++) {
         l.v = 0;
         (void)tbl_entry(&a->tab, i, TBL_ROW_TARGET, g, &l.v);
         con_report_item(&a->cmd.con, (int32_t)l.eff[g], l.eff[g] != l.v ? '*' : '\0', g == 0u);
@@ -409,6 +416,7 @@ static int8_t h_get(app_t *a, const con_args_t *args)
 
 static int8_t h_set(app_t *a, const con_args_t *args)
 {
+    int32_t v = args->v[1];
     int8_t f, rc;
     f = find_setting(a, args);
     if (f < 0) {
@@ -418,10 +426,10 @@ static int8_t h_set(app_t *a, const con_args_t *args)
         return CON_E_BUSY; /* the record is being written */
     }
     if (f == STORE_SET_CAL_TENSION && a->table_ok &&
-        (args->v[1] < 0 || args->v[1] > 0xFFFF || !app_in_grid(a, (uint16_t)args->v[1]))) {
+        (v < 0 || v > 0xFFFF || !app_in_grid(a, (uint16_t)v))) {
         return CON_E_TENSION_RANGE; /* every press would be refused */
     }
-    rc = store_setting_set(&a->rec.store, &a->rec.set, (uint8_t)f, args->v[1]);
+    rc = store_setting_set(&a->rec.store, &a->rec.set, (uint8_t)f, v);
     if (rc != 0) {
         return CON_E_SETTING_RANGE;
     }

@@ -66,11 +66,13 @@ void app_rep_fields(app_t *a, const void *base, const app_field_t *f, uint8_t n)
         app_field_t e;
         const uint8_t *p;
         int32_t v;
+        uint8_t size;
         APP_CON_COPY(a, &e, f, sizeof e);
         p = (const uint8_t *)base + e.off;
-        if ((e.fmt & 7u) == 1u) {
+        size = (uint8_t)(e.fmt & 7u);
+        if (size == 1u) {
             v = (e.fmt & APP_F_S) ? (int32_t)(int8_t)*p : (int32_t)*p;
-        } else if ((e.fmt & 7u) == 2u) {
+        } else if (size == 2u) {
             uint16_t u;
             memcpy(&u, p, sizeof u);
             v = (e.fmt & APP_F_S) ? (int32_t)(int16_t)u : (int32_t)u;
@@ -160,12 +162,13 @@ int8_t app_rep_missing(app_t *a)
         }
     }
     for (i = 0; i < a->info.n_tendons; i++) {
-        if (app_has(a->bus.absent, i) || a->bus.hw_err[i] != 0u) {
+        uint8_t hw = a->bus.hw_err[i];
+        if (app_has(a->bus.absent, i) || hw != 0u) {
             app_rep_begin(a, app_w_missing);
             con_report_flash(&a->cmd.con, app_w_dev, app_w_servo);
             app_rep_u8(a, app_w_index, i);
             app_rep_u8(a, app_w_id, a->bus.ids[i]);
-            app_rep_u8(a, app_w_hw_error, a->bus.hw_err[i]);
+            app_rep_u8(a, app_w_hw_error, hw);
             app_rep_end(a);
             if (rc == 0) {
                 rc = CON_E_SERVO_FAULT;
@@ -177,6 +180,7 @@ int8_t app_rep_missing(app_t *a)
 
 void app_rep_servo(app_t *a, uint8_t i, uint8_t with_model)
 {
+    int32_t pos;
     app_rep_begin(a, app_w_servo);
     app_rep_tendon(a, i);
     app_rep_u8(a, app_w_found, (uint8_t)(app_has(a->bus.absent, i) == 0u));
@@ -187,8 +191,9 @@ void app_rep_servo(app_t *a, uint8_t i, uint8_t with_model)
             app_rep_u8(a, app_w_fw, s->firmware);
         }
     }
-    app_rep_int(a, app_w_pos, a->bus.present[i]);
-    app_rep_int(a, app_w_cal_pos, a->bus.present[i] + a->rec.offset[i]);
+    pos = a->bus.present[i];
+    app_rep_int(a, app_w_pos, pos);
+    app_rep_int(a, app_w_cal_pos, pos + a->rec.offset[i]);
     app_rep_u8(a, app_w_hw_error, a->bus.hw_err[i]);
     app_rep_end(a);
 }
@@ -203,6 +208,7 @@ APP_NOINLINE static int32_t ticks_um(uint32_t npt, int32_t ticks)
 void app_rep_event(app_t *a, const hom_event_t *ev)
 {
     uint8_t i = ev->index;
+    uint8_t a8 = (uint8_t)ev->a; /* a of a fault (HOM_DEV_*) or a release (the fault): 8 bits */
     switch (ev->type) {
     case HOM_EV_START:
         app_rep_begin(a, app_w_progress);
@@ -263,9 +269,9 @@ void app_rep_event(app_t *a, const hom_event_t *ev)
         app_rep_begin(a, app_w_fault);
         app_rep_word(a, app_w_reason, app_w_fault_words, ev->code);
         app_rep_u8(a, app_w_code, ev->code);
-        app_rep_word(a, app_w_dev, app_w_dev_words, (uint8_t)ev->a);
+        app_rep_word(a, app_w_dev, app_w_dev_words, a8);
         app_rep_u8(a, app_w_index, i);
-        if ((ev->a == HOM_DEV_SERVO || ev->a == HOM_DEV_TENDON) && i < APP_MAX_TENDONS) {
+        if ((a8 == HOM_DEV_SERVO || a8 == HOM_DEV_TENDON) && i < APP_MAX_TENDONS) {
             app_rep_u8(a, app_w_id, a->bus.ids[i]);
         }
         app_rep_int(a, app_w_detail, ev->b);
@@ -273,9 +279,9 @@ void app_rep_event(app_t *a, const hom_event_t *ev)
         break;
     case HOM_EV_RELEASED:
         app_rep_begin(a, app_w_released);
-        app_rep_word(a, app_w_reason, app_w_fault_words, (uint8_t)ev->a);
+        app_rep_word(a, app_w_reason, app_w_fault_words, a8);
         i = 0; /* the silent servo, if any */
-        if ((ev->a == HOM_F_SERVO_TIMEOUT || ev->a == HOM_F_SERVO_ERROR) &&
+        if ((a8 == HOM_F_SERVO_TIMEOUT || a8 == HOM_F_SERVO_ERROR) &&
             hom_fault_index(&a->u.hom) < a->info.n_tendons) {
             /* a servo that does not answer, or has its torque off, cannot
              * take the release: named (a hardware error is rebooted next) */

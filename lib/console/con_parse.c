@@ -54,36 +54,39 @@ int8_t con_parse_fixed(const char *text, uint8_t len, uint8_t decimals, int32_t 
 {
     uint32_t m = 0;
     uint8_t i = 0, neg = 0, ndig = 0, nfrac = 0, point = 0;
+    char ch;
     if (len > 0u && (text[0] == '-' || text[0] == '+')) {
         neg = (text[0] == '-');
         i = 1;
     }
-    for (; i < len; i++) {
-        char ch = text[i];
-        if (ch == '.' && !point) {
-            point = 1;
-            continue;
-        }
-        if (ch < '0' || ch > '9') {
+    /* the digits of text, then '0's for the fractional digits it left out:
+     * one path appends every digit and checks it against 2147483647 */
+    for (;;) {
+        if (i < len) {
+            ch = text[i++];
+            if (ch == '.' && !point) {
+                point = 1;
+                continue;
+            }
+            if (ch < '0' || ch > '9') {
+                return CON_E_BAD_NUMBER;
+            }
+            if (point && ++nfrac > decimals) {
+                return CON_E_BAD_NUMBER; /* more precision than the unit holds */
+            }
+            ndig++;
+        } else if (ndig == 0u) {
             return CON_E_BAD_NUMBER;
-        }
-        if (point && ++nfrac > decimals) {
-            return CON_E_BAD_NUMBER; /* more precision than the unit holds */
+        } else if (nfrac < decimals) {
+            ch = '0';
+            nfrac++;
+        } else {
+            break;
         }
         if (m > CON_MAG_MAX / 10u || (m == CON_MAG_MAX / 10u && ch > '7')) {
             return CON_E_BAD_NUMBER; /* above 2147483647 */
         }
         m = m * 10u + (uint32_t)(ch - '0');
-        ndig++;
-    }
-    if (ndig == 0u) {
-        return CON_E_BAD_NUMBER;
-    }
-    for (; nfrac < decimals; nfrac++) {
-        if (m > CON_MAG_MAX / 10u) {
-            return CON_E_BAD_NUMBER;
-        }
-        m *= 10u;
     }
     *v = neg ? -(int32_t)m : (int32_t)m;
     return 0;
@@ -204,7 +207,7 @@ static int8_t check_number(const char *tok, const con_spec_t *sp, int32_t *v)
 static int8_t check_word(const char *tok, const char *choices, int32_t *v)
 {
     size_t n = strlen(tok);
-    int32_t idx = 0;
+    uint8_t idx = 0; /* a synopsis lists a few choices */
     const char *p = choices;
     for (;;) {
         const char *end = strchr(p, '|');
