@@ -3,8 +3,10 @@
  * use (the public API is homing.h). The state machine is split by phase,
  * one room per concern.
  *
- * - homing.c: the public API (start, step, events, results) and the
- *   helpers every phase uses: goals, arrival, averages, norms, 32-bit muldiv.
+ * - homing.c: the public API (step, events, results) and the helpers
+ *   every phase uses: goals, arrival, averages, norms, 32-bit muldiv.
+ * - hom_setup.c: a run's set-up: hom_start(), each sensor's and tendon's
+ *   part of the table loaded in the preflight, fresh engagement windows.
  * - hom_fault.c: faults: ending a run with every tendon released, the
  *   health checks of sensors and servos each step, fault names.
  * - hom_slack.c: preflight, the release of every tendon, the slack check
@@ -97,7 +99,6 @@ int32_t hom_per_mille(int32_t a, int32_t permille);
 int32_t hom_um_to_ticks(uint32_t um, uint32_t nm_per_tick);
 void hom_over_limit(hom_t *h, int32_t d);
 int32_t hom_curve_um256(const hom_t *h, uint32_t b, uint8_t work);
-int32_t hom_limit_ticks(const tbl_tendon_head_t *row, int32_t um);
 int32_t hom_unwrap_home(int32_t stored, int32_t present);
 uint32_t hom_work_target(const hom_t *h, uint8_t k, uint32_t d, uint32_t abs_t);
 void hom_work_point(const hom_t *h, uint8_t i, uint16_t mN, tbl_point_t *pt);
@@ -124,9 +125,6 @@ void hom_avg_of(const hom_t *h, uint8_t k, int32_t out[3]);
 uint32_t hom_delta_of(const hom_t *h, uint8_t k, const int32_t b[3]);
 uint32_t hom_meas_of(const hom_t *h, uint8_t k, const int32_t b[3]);
 int32_t hom_floor_div256(int32_t q8);
-/* The table's straight-pose shift (um of take-up paid out) as a position
- * change of tendon t, 1/256 tick in the tick frame. */
-int32_t hom_straight_q8(const hom_tendon_t *t, int16_t straight_um);
 /* Straight-pose home minus home of tendon t, ticks (hom_to_straight()). */
 int16_t hom_straight_ticks(const hom_tendon_t *t);
 int32_t hom_further_back(const hom_tendon_t *t, int32_t g, int32_t x);
@@ -145,6 +143,16 @@ uint32_t hom_phase_ms(const hom_t *h);
  * step, and its steps (hom_t.settled) start again. */
 void hom_enter(hom_t *h, uint8_t state);
 
+/* ---- hom_setup.c: a run's set-up from the table ---- */
+/* One piece of the run's table set-up (preflight); 1 once all is loaded. */
+int hom_load_step(hom_t *h);
+/* A travel limit past the engagement for a pull of at most um (hom_setup.c
+ * says which bounds apply). */
+int32_t hom_limit_ticks(const tbl_tendon_head_t *row, int32_t um);
+/* The table's straight-pose shift (um of take-up paid out) as a position
+ * change of tendon t, 1/256 tick in the tick frame. */
+int32_t hom_straight_q8(const hom_tendon_t *t, int16_t straight_um);
+
 /* ---- hom_fault.c: faults and health checks ---- */
 void hom_fail(hom_t *h, hom_fault_t f, uint8_t dev, uint8_t index, int32_t detail);
 void hom_fail_tendon(hom_t *h, hom_fault_t f, int32_t detail);
@@ -154,8 +162,6 @@ int hom_check_servos(hom_t *h, const hom_in_t *in);
 
 /* ---- hom_slack.c: preflight, release, slack check, baseline ---- */
 void hom_do_preflight(hom_t *h, const hom_in_t *in);
-/* One piece of the run's table set-up (preflight); 1 once all is loaded. */
-int hom_load_step(hom_t *h);
 void hom_release_check(hom_t *h);
 void hom_do_slack_avg(hom_t *h);
 /* Held pull (hom_cmd_t.hold): a scan or the held tendon's pull has ended;

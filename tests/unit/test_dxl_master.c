@@ -1,6 +1,7 @@
 /*
- * dxl master and bring-up against XL430 models on a simulated bus:
- * timeouts, retries, error bytes, missing IDs, late replies.
+ * dxl master against XL430 models on a simulated bus: timeouts, retries,
+ * error bytes, missing IDs, late replies, group requests (the bring-up and
+ * the model on its own: test_dxl_bringup.c).
  */
 #include <setjmp.h>
 #include <stdarg.h>
@@ -12,48 +13,22 @@
 
 #include "dxl/dxl.h"
 #include "dxl/dxl_xl430_reg.h"
-#include "dxl_fakebus.h"
+#include "dxl_rig.h"
 
-#define N_SERVOS 6u
-#define RUN_US   200000u
+#define N_SERVOS DXL_RIG_SERVOS
+#define RUN_US   DXL_RIG_RUN_US
 
-typedef struct {
-    dxl_fakebus bus;
-    xl430 servo[N_SERVOS];
-    dxl_master m;
-    dxl_port port;
-} rig;
-
-/* Servos 1..count at 1 Mbps, factory return delay unless `delay` given. */
-static void rig_init(rig *r, uint8_t count, uint8_t delay)
-{
-    dxl_fakebus_init(&r->bus, 1000000, 10);
-    for (uint8_t i = 0; i < count; i++) {
-        xl430_config c;
-        xl430_config_default(&c, (uint8_t)(i + 1u));
-        c.return_delay = delay;
-        c.boot_us = 20000;
-        c.shaft_ticks = 4096.0 * (i + 2) + 100.0 * (i + 1); /* several turns in */
-        xl430_init(&r->servo[i], &c, 0);
-        dxl_fakebus_add(&r->bus, &r->servo[i]);
-    }
-    dxl_fakebus_port(&r->bus, &r->port);
-    dxl_config cfg;
-    dxl_config_default(&cfg, 1000000, 10);
-    dxl_master_init(&r->m, &r->port, &cfg);
-}
-
-static rig R;
+static dxl_rig R;
 
 static int8_t run(void)
 {
-    return dxl_fakebus_run(&R.bus, &R.m, RUN_US);
+    return dxl_rig_run(&R);
 }
 
 static void test_ping_reports_model_and_firmware(void **state)
 {
     (void)state;
-    rig_init(&R, 2, 250);
+    dxl_rig_init(&R, 2, 250);
     assert_int_equal(dxl_ping(&R.m, 2), 1);
     assert_int_equal(dxl_busy(&R.m), 1);
     assert_int_equal(run(), 0);
@@ -73,7 +48,7 @@ static void test_ping_reports_model_and_firmware(void **state)
 static void test_busy_refuses_second_transaction(void **state)
 {
     (void)state;
-    rig_init(&R, 1, 0);
+    dxl_rig_init(&R, 1, 0);
     assert_int_equal(dxl_ping(&R.m, 1), 1);
     assert_int_equal(dxl_read(&R.m, 1, 132, 4), -DXL_E_BUSY);
     assert_int_equal(run(), 0);
@@ -88,7 +63,7 @@ static void test_busy_refuses_second_transaction(void **state)
 static void test_timeout_retries_then_fails(void **state)
 {
     (void)state;
-    rig_init(&R, 2, 0);
+    dxl_rig_init(&R, 2, 0);
     assert_int_equal(dxl_ping(&R.m, 7), 1);
     uint32_t t0 = R.bus.now;
     assert_int_equal(run(), -DXL_E_TIMEOUT);
@@ -107,7 +82,7 @@ static void test_timeout_retries_then_fails(void **state)
 static void test_crc_error_retried(void **state)
 {
     (void)state;
-    rig_init(&R, 1, 0);
+    dxl_rig_init(&R, 1, 0);
     R.bus.corrupt_at = 9; /* a data byte of the first reply */
     assert_int_equal(dxl_read(&R.m, 1, 132, 4), 1);
     assert_int_equal(run(), 0);
@@ -131,7 +106,7 @@ static void test_crc_error_retried(void **state)
 static void test_request_queued_by_the_call_that_starts_it(void **state)
 {
     (void)state;
-    rig_init(&R, 1, 0);
+    dxl_rig_init(&R, 1, 0);
     R.bus.corrupt_at = 9; /* a data byte of the first reply */
     assert_int_equal(dxl_read(&R.m, 1, 132, 4), 1);
     assert_int_equal(R.m.tx_sent, R.m.tx_len);
@@ -157,7 +132,7 @@ static void test_request_queued_by_the_call_that_starts_it(void **state)
 static void test_error_byte_and_alert(void **state)
 {
     (void)state;
-    rig_init(&R, 2, 0);
+    dxl_rig_init(&R, 2, 0);
     /* EEPROM write with torque on: Access Error */
     assert_int_equal(dxl_write_value(&R.m, 1, DXL_XL430_TORQUE_ENABLE_ADDR, 1, 1), 1);
     assert_int_equal(run(), 0);
@@ -193,7 +168,7 @@ static void test_error_byte_and_alert(void **state)
 static void test_wrong_id_reported(void **state)
 {
     (void)state;
-    rig_init(&R, 1, 0);
+    dxl_rig_init(&R, 1, 0);
     R.m.cfg.retries = 0;
     assert_int_equal(dxl_read(&R.m, 3, 132, 4), 1);
     dxl_fakebus_run(&R.bus, &R.m, 300); /* request on the wire, waiting */
@@ -210,7 +185,7 @@ static void test_wrong_id_reported(void **state)
 static void test_late_reply_not_taken_for_next(void **state)
 {
     (void)state;
-    rig_init(&R, 1, 254); /* 508 us return delay */
+    dxl_rig_init(&R, 1, 254); /* 508 us return delay */
     R.m.cfg.retries = 0;
     R.m.cfg.timeout_us = 300; /* too short for this servo */
     assert_int_equal(dxl_read(&R.m, 1, DXL_XL430_PRESENT_POSITION_ADDR, 4), 1);
@@ -227,7 +202,7 @@ static void test_late_reply_not_taken_for_next(void **state)
 static void test_sync_read_write_and_motion(void **state)
 {
     (void)state;
-    rig_init(&R, N_SERVOS, 0);
+    dxl_rig_init(&R, N_SERVOS, 0);
     uint8_t ids[N_SERVOS];
     uint8_t data[N_SERVOS * 4u];
     for (uint8_t i = 0; i < N_SERVOS; i++) {
@@ -269,7 +244,7 @@ static void test_sync_read_write_and_motion(void **state)
 static void test_group_requests_match_the_codec(void **state)
 {
     (void)state;
-    rig_init(&R, 3, 0);
+    dxl_rig_init(&R, 3, 0);
     const uint8_t ids[3] = {3, 1, 2};
     const uint8_t data[12] = {0xFF, 0xFF, 0xFD, 0, 1, 2, 3, 4, 0xFF, 0xFF, 0xFD, 9};
     uint8_t want[DXL_TX_CAP];
@@ -316,7 +291,7 @@ static void test_group_requests_match_the_codec(void **state)
 static void test_sync_read_missing_servo_silences_later_ones(void **state)
 {
     (void)state;
-    rig_init(&R, 4, 0);
+    dxl_rig_init(&R, 4, 0);
     R.m.cfg.retries = 1;
     const uint8_t ids[4] = {1, 2, 9, 3};
     assert_int_equal(dxl_sync_read(&R.m, DXL_XL430_PRESENT_POSITION_ADDR, 4, ids, 4), 1);
@@ -332,7 +307,7 @@ static void test_sync_read_missing_servo_silences_later_ones(void **state)
 static void test_fast_sync_read(void **state)
 {
     (void)state;
-    rig_init(&R, N_SERVOS, 0);
+    dxl_rig_init(&R, N_SERVOS, 0);
     const uint8_t ids[N_SERVOS] = {6, 2, 3, 1, 5, 4};
     assert_int_equal(dxl_fast_sync_read(&R.m, DXL_XL430_PRESENT_POSITION_ADDR, 4, ids, N_SERVOS),
                      1);
@@ -353,7 +328,7 @@ static void test_fast_sync_read(void **state)
 static void test_reg_write_action_and_clear(void **state)
 {
     (void)state;
-    rig_init(&R, 2, 0);
+    dxl_rig_init(&R, 2, 0);
     assert_int_equal(dxl_write_value(&R.m, 2, DXL_XL430_OPERATING_MODE_ADDR, 4, 1), 1);
     assert_int_equal(run(), 0);
     assert_int_equal(dxl_write_value(&R.m, 2, DXL_XL430_TORQUE_ENABLE_ADDR, 1, 1), 1);
@@ -389,7 +364,7 @@ static void test_reg_write_action_and_clear(void **state)
 static void test_port_that_takes_few_bytes_per_write(void **state)
 {
     (void)state;
-    rig_init(&R, N_SERVOS, 0);
+    dxl_rig_init(&R, N_SERVOS, 0);
     R.bus.write_limit = 3;
     uint8_t ids[N_SERVOS] = {1, 2, 3, 4, 5, 6};
     assert_int_equal(dxl_sync_read(&R.m, DXL_XL430_PRESENT_POSITION_ADDR, 4, ids, N_SERVOS), 1);
@@ -400,7 +375,7 @@ static void test_port_that_takes_few_bytes_per_write(void **state)
 static void test_port_never_finishing_is_an_error(void **state)
 {
     (void)state;
-    rig_init(&R, 1, 0);
+    dxl_rig_init(&R, 1, 0);
     assert_int_equal(dxl_ping(&R.m, 1), 1);
     dxl_poll(&R.m); /* all bytes handed over */
     R.bus.dir = DXL_DIR_TX;
@@ -419,7 +394,7 @@ static void test_port_never_finishing_is_an_error(void **state)
 static void test_abort(void **state)
 {
     (void)state;
-    rig_init(&R, 1, 250);
+    dxl_rig_init(&R, 1, 250);
     assert_int_equal(dxl_read(&R.m, 1, 132, 4), 1);
     dxl_fakebus_run(&R.bus, &R.m, 200);
     dxl_abort(&R.m);
@@ -431,7 +406,7 @@ static void test_abort(void **state)
 static void test_bulk_write_and_signed_values(void **state)
 {
     (void)state;
-    rig_init(&R, 2, 0);
+    dxl_rig_init(&R, 2, 0);
     const uint8_t led[1] = {1};
     const uint8_t vel[4] = {0xC8, 0x00, 0x00, 0x00}; /* 200, within Velocity Limit 265 */
     const dxl_bulk_item items[2] = {{1, DXL_XL430_LED_ADDR, 1, led},
@@ -457,7 +432,7 @@ static void test_bulk_write_and_signed_values(void **state)
 static void test_fast_sync_read_with_silent_servo_times_out(void **state)
 {
     (void)state;
-    rig_init(&R, 2, 0);
+    dxl_rig_init(&R, 2, 0);
     const uint8_t ids[3] = {1, 9, 2};
     assert_int_equal(dxl_fast_sync_read(&R.m, DXL_XL430_PRESENT_POSITION_ADDR, 4, ids, 3), 1);
     assert_int_equal(run(), -DXL_E_TIMEOUT);
@@ -477,7 +452,7 @@ static void test_fast_sync_read_with_silent_servo_times_out(void **state)
 static void test_fast_sync_read_nobody_heard_ends_early(void **state)
 {
     (void)state;
-    rig_init(&R, 2, 0);
+    dxl_rig_init(&R, 2, 0);
     const uint8_t ids[N_SERVOS] = {11, 12, 13, 14, 15, 16};
     uint32_t t0 = R.bus.now;
     assert_int_equal(dxl_fast_sync_read(&R.m, DXL_XL430_PRESENT_POSITION_ADDR, 4, ids, N_SERVOS),
@@ -496,7 +471,7 @@ static void test_fast_sync_read_nobody_heard_ends_early(void **state)
 static void test_fast_sync_read_quiet_line_ends_the_attempt(void **state)
 {
     (void)state;
-    rig_init(&R, N_SERVOS, 0);
+    dxl_rig_init(&R, N_SERVOS, 0);
     const uint8_t ids[N_SERVOS] = {1, 2, 3, 4, 5, 16};
     R.m.cfg.retries = 0;
     uint32_t t0 = R.bus.now;
@@ -535,240 +510,6 @@ static void test_57600_baud(void **state)
     assert_int_equal(R.m.stats.retries, 0);
 }
 
-/* --- bring-up -------------------------------------------------------------------- */
-
-static dxl_bringup B;
-
-static dxl_bringup_config bu_config(void)
-{
-    dxl_bringup_config c = {20, 100, 0, 30000};
-    return c;
-}
-
-static void test_bringup_configures_every_servo(void **state)
-{
-    (void)state;
-    rig_init(&R, N_SERVOS, 250);
-    const uint8_t ids[N_SERVOS] = {1, 2, 3, 4, 5, 6};
-    dxl_bringup_config c = bu_config();
-    assert_int_equal(dxl_bringup_start(&B, &R.m, ids, N_SERVOS, &c), 1);
-    assert_int_equal(dxl_fakebus_run_bringup(&R.bus, &B, 2000000), 0);
-    assert_int_equal(B.n_missing, 0);
-    assert_int_equal(B.n_wrong_model, 0);
-    for (uint8_t i = 0; i < N_SERVOS; i++) {
-        const xl430 *s = &R.servo[i];
-        assert_int_equal(B.servo[i].present, 1);
-        assert_int_equal(B.servo[i].model, 1060);
-        assert_int_equal(B.servo[i].model_ok, 1);
-        assert_int_equal(B.servo[i].position, 100 * (i + 1));
-        assert_int_equal(xl430_get(s, DXL_XL430_RETURN_DELAY_ADDR, 1), 0);
-        assert_int_equal(xl430_get(s, DXL_XL430_OPERATING_MODE_ADDR, 1), 4);
-        assert_int_equal(xl430_get(s, DXL_XL430_TORQUE_ENABLE_ADDR, 1), 1);
-        assert_int_equal(xl430_get(s, DXL_XL430_PROFILE_ACCELERATION_ADDR, 4), 20);
-        assert_int_equal(xl430_get(s, DXL_XL430_PROFILE_VELOCITY_ADDR, 4), 100);
-        /* factory return delay 250 and position mode: both rewritten once */
-        assert_int_equal(B.servo[i].return_delay, 250);
-        assert_int_equal(B.servo[i].mode, DXL_XL430_MODE_POSITION);
-        assert_int_equal(B.servo[i].eeprom_writes, 2);
-        assert_int_equal(s->eeprom_writes, 2);
-    }
-    assert_int_equal(R.bus.collisions, 0);
-    assert_int_equal(dxl_bringup_poll(&B), 0);
-}
-
-/* The next boot finds the EEPROM fields set and writes none of them; a servo
- * with only one field off gets only that one. */
-static void test_bringup_skips_eeprom_writes_already_done(void **state)
-{
-    (void)state;
-    rig_init(&R, 3, 250);
-    const uint8_t ids[3] = {1, 2, 3};
-    dxl_bringup_config c = bu_config();
-    assert_int_equal(dxl_bringup_start(&B, &R.m, ids, 3, &c), 1);
-    assert_int_equal(dxl_fakebus_run_bringup(&R.bus, &B, 2000000), 0);
-    for (uint8_t i = 0; i < 3; i++) {
-        assert_int_equal(R.servo[i].eeprom_writes, 2);
-        xl430_power_cycle(&R.servo[i], R.bus.now);
-    }
-    /* servo 3 was switched back to position mode by someone else */
-    R.servo[2].ct[DXL_XL430_OPERATING_MODE_ADDR] = DXL_XL430_MODE_POSITION;
-    assert_int_equal(dxl_bringup_start(&B, &R.m, ids, 3, &c), 1);
-    assert_int_equal(dxl_fakebus_run_bringup(&R.bus, &B, 2000000), 0);
-    for (uint8_t i = 0; i < 3; i++) {
-        const xl430 *s = &R.servo[i];
-        assert_int_equal(B.servo[i].return_delay, 0);
-        assert_int_equal(xl430_get(s, DXL_XL430_OPERATING_MODE_ADDR, 1), DXL_XL430_MODE_EXTENDED);
-        assert_int_equal(xl430_get(s, DXL_XL430_TORQUE_ENABLE_ADDR, 1), 1);
-        assert_int_equal(xl430_get(s, DXL_XL430_PROFILE_VELOCITY_ADDR, 4), 100);
-    }
-    assert_int_equal(B.servo[0].eeprom_writes, 0);
-    assert_int_equal(B.servo[1].eeprom_writes, 0);
-    assert_int_equal(B.servo[2].eeprom_writes, 1);
-    assert_int_equal(R.servo[0].eeprom_writes, 2);
-    assert_int_equal(R.servo[1].eeprom_writes, 2);
-    assert_int_equal(R.servo[2].eeprom_writes, 3);
-}
-
-/* A servo that answers the configuration read with too few bytes stops the
- * bring-up instead of being configured from garbage. */
-static void test_bringup_read_error_stops(void **state)
-{
-    (void)state;
-    rig_init(&R, 1, 0);
-    const uint8_t ids[1] = {1};
-    dxl_bringup_config c = bu_config();
-    R.servo[0].ct[DXL_XL430_STATUS_RETURN_LEVEL_ADDR] = 0; /* answers ping only */
-    assert_int_equal(dxl_bringup_start(&B, &R.m, ids, 1, &c), 1);
-    assert_int_equal(dxl_fakebus_run_bringup(&R.bus, &B, 2000000), -DXL_E_TIMEOUT);
-    assert_int_equal(R.servo[0].eeprom_writes, 0);
-}
-
-static void test_bringup_reports_missing_ids_by_number(void **state)
-{
-    (void)state;
-    rig_init(&R, 4, 0);
-    const uint8_t ids[6] = {1, 7, 2, 3, 4, 12};
-    dxl_bringup_config c = bu_config();
-    assert_int_equal(dxl_bringup_start(&B, &R.m, ids, 6, &c), 1);
-    assert_int_equal(dxl_fakebus_run_bringup(&R.bus, &B, 2000000), -DXL_E_MISSING);
-    assert_int_equal(B.n_missing, 2);
-    assert_int_equal(B.missing[0], 7);
-    assert_int_equal(B.missing[1], 12);
-    /* nothing was configured before every servo was found */
-    assert_int_equal(xl430_get(&R.servo[0], DXL_XL430_TORQUE_ENABLE_ADDR, 1), 0);
-    assert_int_equal(xl430_get(&R.servo[0], DXL_XL430_RETURN_DELAY_ADDR, 1), 0);
-    assert_int_equal(xl430_get(&R.servo[0], DXL_XL430_OPERATING_MODE_ADDR, 1), 3);
-}
-
-static void test_bringup_warns_on_other_model(void **state)
-{
-    (void)state;
-    rig_init(&R, 2, 0);
-    R.servo[1].ct[0] = 0x2E; /* 1070: XL430-W250 is 1060 */
-    R.servo[1].ct[1] = 0x04;
-    const uint8_t ids[2] = {1, 2};
-    dxl_bringup_config c = bu_config();
-    assert_int_equal(dxl_bringup_start(&B, &R.m, ids, 2, &c), 1);
-    assert_int_equal(dxl_fakebus_run_bringup(&R.bus, &B, 2000000), 0);
-    assert_int_equal(B.servo[1].model, 1070);
-    assert_int_equal(B.servo[1].model_ok, 0);
-    assert_int_equal(B.n_wrong_model, 1);
-}
-
-static void test_bringup_hw_error_without_and_with_reboot(void **state)
-{
-    (void)state;
-    rig_init(&R, 3, 0);
-    xl430_inject_hw_error(&R.servo[1], DXL_XL430_HW_ERR_OVERHEATING);
-    const uint8_t ids[3] = {1, 2, 3};
-    dxl_bringup_config c = bu_config();
-    assert_int_equal(dxl_bringup_start(&B, &R.m, ids, 3, &c), 1);
-    assert_int_equal(dxl_fakebus_run_bringup(&R.bus, &B, 2000000), -DXL_E_HW_ERROR);
-    assert_int_equal(B.servo[1].alert, 1);
-    assert_int_equal(B.servo[1].hw_error, DXL_XL430_HW_ERR_OVERHEATING);
-    assert_int_equal(B.servo[1].rebooted, 0);
-    assert_int_equal(xl430_get(&R.servo[1], DXL_XL430_HW_ERROR_ADDR, 1),
-                     DXL_XL430_HW_ERR_OVERHEATING);
-
-    c.reboot_on_hw_error = 1;
-    assert_int_equal(dxl_bringup_start(&B, &R.m, ids, 3, &c), 1);
-    assert_int_equal(dxl_fakebus_run_bringup(&R.bus, &B, 2000000), 0);
-    assert_int_equal(B.servo[1].rebooted, 1);
-    assert_int_equal(B.servo[1].hw_error, 0);
-    assert_int_equal(B.servo[0].rebooted, 0);
-    assert_int_equal(xl430_get(&R.servo[1], DXL_XL430_TORQUE_ENABLE_ADDR, 1), 1);
-    assert_int_equal(B.servo[1].position, 200);
-}
-
-static void test_bringup_arguments(void **state)
-{
-    (void)state;
-    rig_init(&R, 1, 0);
-    dxl_bringup_config c = bu_config();
-    const uint8_t bad[2] = {1, 0xFE};
-    assert_int_equal(dxl_bringup_start(&B, &R.m, bad, 2, &c), -DXL_E_ARG);
-    assert_int_equal(dxl_bringup_start(&B, &R.m, bad, 0, &c), -DXL_E_ARG);
-    assert_int_equal(dxl_ping(&R.m, 1), 1);
-    assert_int_equal(dxl_bringup_start(&B, &R.m, bad, 1, &c), -DXL_E_BUSY);
-}
-
-/* --- the model on its own ------------------------------------------------------------ */
-
-static void test_model_multiturn_lost_at_power_cycle(void **state)
-{
-    (void)state;
-    rig_init(&R, 1, 0);
-    xl430 *s = &R.servo[0];
-    assert_int_equal(xl430_present_position(s), 100);
-    s->ct[DXL_XL430_OPERATING_MODE_ADDR] = DXL_XL430_MODE_EXTENDED;
-    assert_int_equal(dxl_write_value(&R.m, 1, DXL_XL430_TORQUE_ENABLE_ADDR, 1, 1), 1);
-    assert_int_equal(run(), 0);
-    assert_int_equal(dxl_write_value(&R.m, 1, DXL_XL430_GOAL_POSITION_ADDR, 100 + 3 * 4096, 4), 1);
-    assert_int_equal(run(), 0);
-    dxl_fakebus_advance(&R.bus, 3000000);
-    assert_int_equal(xl430_present_position(s), 100 + 3 * 4096);
-    xl430_power_cycle(s, R.bus.now);
-    assert_int_equal(xl430_present_position(s), 100);
-    assert_true(xl430_shaft_ticks(s) == 4096.0 * 5 + 100.0);
-    assert_int_equal(xl430_get(s, DXL_XL430_TORQUE_ENABLE_ADDR, 1), 0);
-}
-
-static void test_model_bus_watchdog(void **state)
-{
-    (void)state;
-    rig_init(&R, 1, 0);
-    assert_int_equal(dxl_write_value(&R.m, 1, DXL_XL430_TORQUE_ENABLE_ADDR, 1, 1), 1);
-    assert_int_equal(run(), 0);
-    assert_int_equal(dxl_write_value(&R.m, 1, DXL_XL430_BUS_WATCHDOG_ADDR, 5, 1), 1); /* 100 ms */
-    assert_int_equal(run(), 0);
-    dxl_fakebus_advance(&R.bus, 90000);
-    assert_int_equal(xl430_get(&R.servo[0], DXL_XL430_BUS_WATCHDOG_ADDR, 1), 5);
-    dxl_fakebus_advance(&R.bus, 20000);
-    assert_int_equal(xl430_get(&R.servo[0], DXL_XL430_BUS_WATCHDOG_ADDR, 1), 0xFF);
-    assert_int_equal(dxl_write_value(&R.m, 1, DXL_XL430_GOAL_POSITION_ADDR, 300, 4), 1);
-    assert_int_equal(run(), -DXL_E_SERVO);
-    assert_int_equal(dxl_reply_for(&R.m, 1)->err, DXL_ERR_DATA_RANGE);
-    assert_int_equal(dxl_write_value(&R.m, 1, DXL_XL430_BUS_WATCHDOG_ADDR, 0, 1), 1);
-    assert_int_equal(run(), 0);
-    assert_int_equal(dxl_write_value(&R.m, 1, DXL_XL430_GOAL_POSITION_ADDR, 300, 4), 1);
-    assert_int_equal(run(), 0);
-}
-
-static void test_model_status_return_level(void **state)
-{
-    (void)state;
-    rig_init(&R, 1, 0);
-    R.m.cfg.retries = 0;
-    assert_int_equal(dxl_write_value(&R.m, 1, DXL_XL430_STATUS_RETURN_LEVEL_ADDR, 1, 1), 1);
-    assert_int_equal(run(), 0); /* the reply to this write still follows level 2 */
-    assert_int_equal(dxl_write_value(&R.m, 1, DXL_XL430_LED_ADDR, 1, 1), 1);
-    assert_int_equal(run(), -DXL_E_TIMEOUT);
-    assert_int_equal(xl430_get(&R.servo[0], DXL_XL430_LED_ADDR, 1), 1);
-    assert_int_equal(dxl_read(&R.m, 1, DXL_XL430_LED_ADDR, 1), 1);
-    assert_int_equal(run(), 0);
-    assert_int_equal(dxl_write_value(&R.m, 1, DXL_XL430_STATUS_RETURN_LEVEL_ADDR, 0, 1), 1);
-    assert_int_equal(run(), -DXL_E_TIMEOUT);
-    assert_int_equal(dxl_read(&R.m, 1, DXL_XL430_LED_ADDR, 1), 1);
-    assert_int_equal(run(), -DXL_E_TIMEOUT);
-    assert_int_equal(dxl_ping(&R.m, 1), 1);
-    assert_int_equal(run(), 0);
-}
-
-static void test_model_reports_collisions_of_duplicate_ids(void **state)
-{
-    (void)state;
-    rig_init(&R, 2, 0);
-    R.servo[1].ct[DXL_XL430_ID_ADDR] = 1; /* two servos answer to ID 1 */
-    assert_int_equal(xl430_transmitting(&R.servo[0], R.bus.now), 0);
-    R.m.cfg.retries = 0;
-    assert_int_equal(dxl_ping(&R.m, 1), 1);
-    dxl_fakebus_run(&R.bus, &R.m, 160); /* request sent, replies starting */
-    assert_int_equal(xl430_transmitting(&R.servo[0], R.bus.now + 20u), 1);
-    assert_int_equal(xl430_transmitting(&R.servo[1], R.bus.now + 20u), 1);
-    run();
-    assert_true(R.bus.collisions > 0);
-}
-
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -793,17 +534,6 @@ int main(void)
         cmocka_unit_test(test_fast_sync_read_nobody_heard_ends_early),
         cmocka_unit_test(test_fast_sync_read_quiet_line_ends_the_attempt),
         cmocka_unit_test(test_57600_baud),
-        cmocka_unit_test(test_bringup_configures_every_servo),
-        cmocka_unit_test(test_bringup_skips_eeprom_writes_already_done),
-        cmocka_unit_test(test_bringup_read_error_stops),
-        cmocka_unit_test(test_bringup_reports_missing_ids_by_number),
-        cmocka_unit_test(test_bringup_warns_on_other_model),
-        cmocka_unit_test(test_bringup_hw_error_without_and_with_reboot),
-        cmocka_unit_test(test_bringup_arguments),
-        cmocka_unit_test(test_model_multiturn_lost_at_power_cycle),
-        cmocka_unit_test(test_model_bus_watchdog),
-        cmocka_unit_test(test_model_status_return_level),
-        cmocka_unit_test(test_model_reports_collisions_of_duplicate_ids),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -61,6 +61,32 @@ int hom_fix_count_events(const plant_run_result_t *r, uint8_t type)
     return n;
 }
 
+plant_cfg_t hom_fix_cfg;
+tbl_wide_t hom_fix_tab;
+
+int hom_fix_setup_paper(void **state)
+{
+    (void)state;
+    return hom_fix_paper(&hom_fix_cfg, &hom_fix_tab);
+}
+
+int hom_fix_setup_paper_desc(void **state)
+{
+    (void)state;
+    return hom_fix_paper_desc(&hom_fix_cfg, &hom_fix_tab);
+}
+
+const hom_event_t *hom_fix_find_event(const plant_run_result_t *r, uint8_t type)
+{
+    uint16_t i;
+    for (i = 0; i < r->n_events; i++) {
+        if (r->events[i].type == type) {
+            return &r->events[i];
+        }
+    }
+    return NULL;
+}
+
 const tbl_table_t *hom_fix_pack(const tbl_wide_t *w)
 {
     static const tbl_wide_t *owner[8];
